@@ -1,0 +1,592 @@
+//! All of a scene's geometry behind one intersection interface: analytic
+//! shapes, world-space triangle meshes and instances of shared meshes, under
+//! a two-level BVH.
+//!
+//! Meshes placed once are stored in world space and their triangles enter
+//! the top-level BVH one by one. Meshes placed several times are stored
+//! once, in object space, with a BVH of their own; each placement is one
+//! top-level primitive holding a transform (instancing). Infinite planes
+//! have no bounds and are tested outside the tree.
+
+use super::bvh::Bvh;
+use crate::geometry::mesh::TriangleMesh;
+use crate::geometry::shape::{LocalSurface, Shape};
+use crate::geometry::{Aabb, Ray, SurfaceHit, Transform};
+use crate::sampling::Distribution1D;
+use glam::{Vec2, Vec3};
+use std::time::Instant;
+
+/// An analytic shape placed in the scene.
+#[derive(Clone, Debug)]
+pub struct ShapeInstance {
+    /// The shape in its object space.
+    pub shape: Shape,
+    /// Object-to-world transform; `None` for the identity.
+    pub transform: Option<Transform>,
+    /// Material index.
+    pub material: u32,
+    /// Area light index, if the shape emits.
+    pub light: Option<u32>,
+}
+
+/// A mesh stored in world space, placed once.
+#[derive(Clone, Debug)]
+pub struct MeshObject {
+    /// Index into the meshes.
+    pub mesh: u32,
+    /// Material index.
+    pub material: u32,
+    /// Area light index, if the mesh emits.
+    pub light: Option<u32>,
+}
+
+/// One placement of a shared object-space mesh.
+#[derive(Clone, Debug)]
+pub struct MeshInstance {
+    /// Index into the meshes.
+    pub mesh: u32,
+    /// Object-to-world transform.
+    pub transform: Transform,
+    /// Material index.
+    pub material: u32,
+    /// Area light index, if the instance emits.
+    pub light: Option<u32>,
+}
+
+/// What the top-level BVH holds.
+#[derive(Clone, Copy, Debug)]
+enum PrimRef {
+    Triangle { object: u32, tri: u32 },
+    Shape(u32),
+    Instance(u32),
+}
+
+/// Which primitive a ray hit, and where on it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum HitPrim {
+    /// Triangle `tri` of world-space mesh object `object`.
+    Triangle {
+        /// Mesh object.
+        object: u32,
+        /// Triangle within its mesh.
+        tri: u32,
+        /// Barycentrics.
+        b: [f32; 3],
+    },
+    /// Analytic shape instance.
+    Shape(u32),
+    /// Triangle `tri` of instance `instance`'s mesh.
+    Instance {
+        /// Instance.
+        instance: u32,
+        /// Triangle within the instanced mesh.
+        tri: u32,
+        /// Barycentrics.
+        b: [f32; 3],
+    },
+}
+
+/// The nearest (or some) intersection found by traversal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Ray parameter.
+    pub t: f32,
+    /// What was hit.
+    pub prim: HitPrim,
+}
+
+/// Figures from the build, for `--verbose`.
+#[derive(Clone, Debug, Default)]
+pub struct BuildStats {
+    /// Wall time of all BVH builds, in seconds.
+    pub seconds: f64,
+    /// Top-level primitives.
+    pub primitives: usize,
+    /// Triangles stored (instanced meshes once).
+    pub triangles: usize,
+    /// Nodes in all BVHs.
+    pub nodes: usize,
+    /// Bytes held by BVH nodes and primitive references.
+    pub bvh_bytes: usize,
+    /// Bytes held by mesh data.
+    pub mesh_bytes: usize,
+}
+
+/// A point sampled uniformly in the object space of an emitter, mapped to
+/// world space, with its density per unit world area.
+#[derive(Clone, Copy, Debug)]
+pub struct EmitterSample {
+    /// World-space point.
+    pub p: Vec3,
+    /// Unit normal (front side).
+    pub n: Vec3,
+    /// Density with respect to world-space area.
+    pub pdf_area: f32,
+}
+
+/// Which geometry an area light is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EmitterRef {
+    /// An analytic shape instance.
+    Shape(u32),
+    /// A world-space mesh object.
+    MeshObject(u32),
+    /// A mesh instance.
+    Instance(u32),
+}
+
+/// The scene's geometry with its acceleration structures.
+#[derive(Clone, Debug, Default)]
+pub struct Aggregate {
+    /// Meshes: world-space ones and shared object-space ones.
+    pub meshes: Vec<TriangleMesh>,
+    /// Analytic shapes.
+    pub shapes: Vec<ShapeInstance>,
+    /// World-space mesh placements.
+    pub mesh_objects: Vec<MeshObject>,
+    /// Instanced mesh placements.
+    pub instances: Vec<MeshInstance>,
+    blas: Vec<Option<Bvh>>,
+    prims: Vec<PrimRef>,
+    unbounded: Vec<u32>,
+    bvh: Bvh,
+    bounds: Aabb,
+    stats: BuildStats,
+}
+
+impl Aggregate {
+    /// Builds the acceleration structures. Meshes used by instances get
+    /// their own BVH, and their triangles are reordered to match it.
+    pub fn build(
+        mut meshes: Vec<TriangleMesh>,
+        shapes: Vec<ShapeInstance>,
+        mesh_objects: Vec<MeshObject>,
+        instances: Vec<MeshInstance>,
+    ) -> Aggregate {
+        let start = Instant::now();
+        // Bottom level: one BVH per instanced mesh.
+        let mut blas: Vec<Option<Bvh>> = vec![None; meshes.len()];
+        let mut instanced = vec![false; meshes.len()];
+        for inst in &instances {
+            instanced[inst.mesh as usize] = true;
+        }
+        let built: Vec<(usize, Bvh, Vec<u32>)> = {
+            use rayon::prelude::*;
+            meshes
+                .par_iter()
+                .enumerate()
+                .filter(|(i, _)| instanced[*i])
+                .map(|(i, m)| {
+                    let bounds: Vec<Aabb> = (0..m.len()).map(|t| m.triangle_bounds(t)).collect();
+                    let (bvh, order) = Bvh::build(&bounds);
+                    (i, bvh, order)
+                })
+                .collect()
+        };
+        for (i, bvh, order) in built {
+            let m = &mut meshes[i];
+            m.indices = order.iter().map(|&k| m.indices[k as usize]).collect();
+            blas[i] = Some(bvh);
+        }
+
+        // Top level.
+        let mut refs = Vec::new();
+        let mut bounds = Vec::new();
+        let mut unbounded = Vec::new();
+        for (i, s) in shapes.iter().enumerate() {
+            match s.shape.bounds() {
+                Some(b) => {
+                    refs.push(PrimRef::Shape(i as u32));
+                    bounds.push(match &s.transform {
+                        Some(t) => t.aabb(&b),
+                        None => b,
+                    });
+                }
+                None => unbounded.push(i as u32),
+            }
+        }
+        for (o, obj) in mesh_objects.iter().enumerate() {
+            let m = &meshes[obj.mesh as usize];
+            for t in 0..m.len() {
+                refs.push(PrimRef::Triangle {
+                    object: o as u32,
+                    tri: t as u32,
+                });
+                bounds.push(m.triangle_bounds(t));
+            }
+        }
+        for (i, inst) in instances.iter().enumerate() {
+            let b = blas[inst.mesh as usize].as_ref().map_or(Aabb::EMPTY, |b| b.bounds());
+            refs.push(PrimRef::Instance(i as u32));
+            bounds.push(inst.transform.aabb(&b));
+        }
+        let scene_bounds = bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
+        let (bvh, order) = Bvh::build(&bounds);
+        let prims: Vec<PrimRef> = order.iter().map(|&k| refs[k as usize]).collect();
+
+        let mut stats = BuildStats {
+            seconds: start.elapsed().as_secs_f64(),
+            primitives: prims.len(),
+            triangles: meshes.iter().map(|m| m.len()).sum(),
+            nodes: bvh.node_count(),
+            bvh_bytes: bvh.memory_bytes() + prims.len() * std::mem::size_of::<PrimRef>(),
+            mesh_bytes: 0,
+        };
+        for b in blas.iter().flatten() {
+            stats.nodes += b.node_count();
+            stats.bvh_bytes += b.memory_bytes();
+        }
+        stats.mesh_bytes = meshes
+            .iter()
+            .map(|m| m.positions.len() * 12 + m.normals.len() * 12 + m.uvs.len() * 8 + m.indices.len() * 12)
+            .sum();
+        Aggregate {
+            meshes,
+            shapes,
+            mesh_objects,
+            instances,
+            blas,
+            prims,
+            unbounded,
+            bvh,
+            bounds: scene_bounds,
+            stats,
+        }
+    }
+
+    /// Figures from the build.
+    pub fn stats(&self) -> &BuildStats {
+        &self.stats
+    }
+
+    /// Bounds of all bounded geometry.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// Calls `on_hit(hit, ray)` for intersections within the ray's interval
+    /// as traversal finds them. `on_hit` returns `true` to accept the hit
+    /// (it may then shrink `ray.t_max`). With `any_hit`, the first accepted
+    /// hit ends the search.
+    fn traverse<F: FnMut(Hit, &mut Ray) -> bool>(&self, ray: &mut Ray, any_hit: bool, mut on_hit: F) -> bool {
+        let mut found = false;
+        for &i in &self.unbounded {
+            if let Some(t) = self.shape_intersect(i, ray) {
+                if on_hit(
+                    Hit {
+                        t,
+                        prim: HitPrim::Shape(i),
+                    },
+                    ray,
+                ) {
+                    found = true;
+                    if any_hit {
+                        return true;
+                    }
+                }
+            }
+        }
+        found |= self.bvh.traverse(ray, any_hit, |k, ray| match self.prims[k as usize] {
+            PrimRef::Triangle { object, tri } => {
+                let mesh = &self.meshes[self.mesh_objects[object as usize].mesh as usize];
+                match mesh.intersect(tri as usize, ray) {
+                    Some(h) => on_hit(
+                        Hit {
+                            t: h.t,
+                            prim: HitPrim::Triangle { object, tri, b: h.b },
+                        },
+                        ray,
+                    ),
+                    None => false,
+                }
+            }
+            PrimRef::Shape(i) => match self.shape_intersect(i, ray) {
+                Some(t) => on_hit(
+                    Hit {
+                        t,
+                        prim: HitPrim::Shape(i),
+                    },
+                    ray,
+                ),
+                None => false,
+            },
+            PrimRef::Instance(i) => {
+                let inst = &self.instances[i as usize];
+                let mesh = &self.meshes[inst.mesh as usize];
+                let Some(blas) = &self.blas[inst.mesh as usize] else {
+                    return false;
+                };
+                // The object-space ray keeps the world ray's parameter.
+                let mut obj_ray = inst.transform.inv_ray(ray);
+                let hit = blas.traverse(&mut obj_ray, any_hit, |tri, r| match mesh.intersect(tri as usize, r) {
+                    Some(h) => on_hit(
+                        Hit {
+                            t: h.t,
+                            prim: HitPrim::Instance {
+                                instance: i,
+                                tri,
+                                b: h.b,
+                            },
+                        },
+                        r,
+                    ),
+                    None => false,
+                });
+                ray.t_max = obj_ray.t_max;
+                hit
+            }
+        });
+        found
+    }
+
+    #[inline]
+    fn shape_intersect(&self, i: u32, ray: &Ray) -> Option<f32> {
+        let s = &self.shapes[i as usize];
+        match &s.transform {
+            None => s.shape.intersect(ray),
+            Some(t) => s.shape.intersect(&t.inv_ray(ray)),
+        }
+    }
+
+    /// The nearest intersection within the ray's interval.
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut r = *ray;
+        let mut best = None;
+        self.traverse(&mut r, false, |hit, r| {
+            r.t_max = hit.t;
+            best = Some(hit);
+            true
+        });
+        best
+    }
+
+    /// Whether anything lies on the ray within its interval.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        let mut r = *ray;
+        self.traverse(&mut r, true, |_, _| true)
+    }
+
+    /// Visits every intersection within the ray's interval, in no
+    /// particular order, until `blocks(hit)` returns `true`; returns whether
+    /// one did. Used for shadow rays that pass through transparent surfaces.
+    pub fn occluded_by(&self, ray: &Ray, mut blocks: impl FnMut(&Hit) -> bool) -> bool {
+        let mut r = *ray;
+        self.traverse(&mut r, true, |hit, _| blocks(&hit))
+    }
+
+    /// Material and light of the primitive that was hit.
+    #[inline]
+    pub fn material_and_light(&self, prim: &HitPrim) -> (u32, Option<u32>) {
+        match *prim {
+            HitPrim::Triangle { object, .. } => {
+                let o = &self.mesh_objects[object as usize];
+                (o.material, o.light)
+            }
+            HitPrim::Shape(i) => {
+                let s = &self.shapes[i as usize];
+                (s.material, s.light)
+            }
+            HitPrim::Instance { instance, .. } => {
+                let o = &self.instances[instance as usize];
+                (o.material, o.light)
+            }
+        }
+    }
+
+    /// The full surface record of a hit found on `ray`.
+    pub fn surface(&self, ray: &Ray, hit: &Hit) -> SurfaceHit {
+        let (material, light) = self.material_and_light(&hit.prim);
+        let (ls, ns) = match hit.prim {
+            HitPrim::Triangle { object, tri, b } => {
+                let mesh = &self.meshes[self.mesh_objects[object as usize].mesh as usize];
+                (mesh.surface(tri as usize, b), mesh.shading_normal(tri as usize, b))
+            }
+            HitPrim::Shape(i) => {
+                let s = &self.shapes[i as usize];
+                match &s.transform {
+                    None => (s.shape.surface(ray.at(hit.t)), None),
+                    Some(t) => {
+                        let obj_ray = t.inv_ray(ray);
+                        (transform_surface(t, s.shape.surface(obj_ray.at(hit.t))), None)
+                    }
+                }
+            }
+            HitPrim::Instance { instance, tri, b } => {
+                let inst = &self.instances[instance as usize];
+                let mesh = &self.meshes[inst.mesh as usize];
+                let t = &inst.transform;
+                let ls = transform_surface(t, mesh.surface(tri as usize, b));
+                let ns = mesh
+                    .shading_normal(tri as usize, b)
+                    .and_then(|n| t.normal(n).try_normalize());
+                (ls, ns)
+            }
+        };
+        finish_surface(hit.t, ls, ns, material, light)
+    }
+
+    /// The density, per unit world area, with which [`Aggregate::sample_emitter`]
+    /// picks a point of the emitter whose world normal there is `n`.
+    pub fn emitter_pdf_area(&self, emitter: EmitterRef, area: &EmitterArea, n: Vec3) -> f32 {
+        let total = area.total.max(f32::MIN_POSITIVE);
+        match emitter {
+            EmitterRef::Shape(i) => match &self.shapes[i as usize].transform {
+                None => 1.0 / total,
+                Some(t) => {
+                    // Area scale |det M|·|M⁻ᵀ n_obj| = |det M| / |Mᵀ n_world|.
+                    let mt_n = t.m.transpose().transform_vector3(n).length();
+                    let det = glam::Mat3::from_mat4(t.m).determinant().abs();
+                    mt_n / (det * total)
+                }
+            },
+            EmitterRef::MeshObject(_) | EmitterRef::Instance(_) => 1.0 / total,
+        }
+    }
+
+    /// Precomputes what sampling a point on an emitter needs.
+    pub fn emitter_area(&self, emitter: EmitterRef) -> EmitterArea {
+        match emitter {
+            EmitterRef::Shape(i) => {
+                let s = &self.shapes[i as usize];
+                EmitterArea {
+                    total: s.shape.area(),
+                    triangles: None,
+                }
+            }
+            EmitterRef::MeshObject(o) => {
+                let m = &self.meshes[self.mesh_objects[o as usize].mesh as usize];
+                let areas: Vec<f32> = (0..m.len()).map(|t| m.triangle_area(t)).collect();
+                EmitterArea {
+                    total: areas.iter().map(|&a| a as f64).sum::<f64>() as f32,
+                    triangles: Some(Distribution1D::new(&areas)),
+                }
+            }
+            EmitterRef::Instance(i) => {
+                let inst = &self.instances[i as usize];
+                let m = &self.meshes[inst.mesh as usize];
+                let t = &inst.transform;
+                let areas: Vec<f32> = (0..m.len())
+                    .map(|k| {
+                        let [a, b, c] = m.vertices(k).map(|p| t.point(p));
+                        0.5 * (b - a).cross(c - a).length()
+                    })
+                    .collect();
+                EmitterArea {
+                    total: areas.iter().map(|&a| a as f64).sum::<f64>() as f32,
+                    triangles: Some(Distribution1D::new(&areas)),
+                }
+            }
+        }
+    }
+
+    /// A point on an emitter: uniform by area for meshes and untransformed
+    /// shapes; for a transformed shape, uniform in object space with the
+    /// density corrected by the transform's local area scaling.
+    pub fn sample_emitter(
+        &self,
+        emitter: EmitterRef,
+        area: &EmitterArea,
+        u_pick: f32,
+        u: Vec2,
+    ) -> Option<EmitterSample> {
+        match emitter {
+            EmitterRef::Shape(i) => {
+                let s = &self.shapes[i as usize];
+                let a = s.shape.sample_area(u)?;
+                let pdf_obj = 1.0 / area.total;
+                match &s.transform {
+                    None => Some(EmitterSample {
+                        p: a.p,
+                        n: a.n,
+                        pdf_area: pdf_obj,
+                    }),
+                    Some(t) => {
+                        let (n, jac) = normal_and_area_scale(t, a.n);
+                        Some(EmitterSample {
+                            p: t.point(a.p),
+                            n,
+                            pdf_area: pdf_obj / jac,
+                        })
+                    }
+                }
+            }
+            EmitterRef::MeshObject(o) => {
+                let m = &self.meshes[self.mesh_objects[o as usize].mesh as usize];
+                let (tri, _, _) = area.triangles.as_ref()?.sample(u_pick);
+                let a = m.sample_triangle(tri, u);
+                Some(EmitterSample {
+                    p: a.p,
+                    n: a.n,
+                    pdf_area: 1.0 / area.total,
+                })
+            }
+            EmitterRef::Instance(i) => {
+                let inst = &self.instances[i as usize];
+                let m = &self.meshes[inst.mesh as usize];
+                let (tri, _, _) = area.triangles.as_ref()?.sample(u_pick);
+                let a = m.sample_triangle(tri, u);
+                let (n, _) = normal_and_area_scale(&inst.transform, a.n);
+                Some(EmitterSample {
+                    p: inst.transform.point(a.p),
+                    n,
+                    pdf_area: 1.0 / area.total,
+                })
+            }
+        }
+    }
+}
+
+/// Area data of one emitter.
+#[derive(Clone, Debug, Default)]
+pub struct EmitterArea {
+    /// Total area: world-space for meshes, object-space for shapes.
+    pub total: f32,
+    /// Triangle areas, for meshes.
+    pub triangles: Option<Distribution1D>,
+}
+
+/// The world normal for an object-space unit normal and the factor by
+/// which the transform scales areas there: |det M| · |M⁻ᵀ n|.
+#[inline]
+pub fn normal_and_area_scale(t: &Transform, n_obj: Vec3) -> (Vec3, f32) {
+    let nt = t.normal(n_obj);
+    let det = glam::Mat3::from_mat4(t.m).determinant().abs();
+    let len = nt.length();
+    (nt / len, det * len)
+}
+
+fn transform_surface(t: &Transform, ls: LocalSurface) -> LocalSurface {
+    let (p, p_error) = t.point_with_error(ls.p, ls.p_error);
+    LocalSurface {
+        p,
+        p_error,
+        n: t.normal(ls.n).normalize_or_zero(),
+        uv: ls.uv,
+        dpdu: t.vector(ls.dpdu),
+    }
+}
+
+/// Completes a surface record: orients the shading normal into the
+/// geometric normal's hemisphere and builds a tangent perpendicular to it.
+fn finish_surface(t: f32, ls: LocalSurface, ns: Option<Vec3>, material: u32, light: Option<u32>) -> SurfaceHit {
+    let ng = ls.n;
+    let ns = match ns {
+        Some(n) if n.dot(ng) < 0.0 => -n,
+        Some(n) => n,
+        None => ng,
+    };
+    let tangent = (ls.dpdu - ns * ns.dot(ls.dpdu))
+        .try_normalize()
+        .unwrap_or_else(|| crate::sampling::warp::orthonormal_basis(ns).0);
+    SurfaceHit {
+        t,
+        p: ls.p,
+        p_error: ls.p_error,
+        ng,
+        ns,
+        uv: ls.uv,
+        tangent,
+        material,
+        light,
+    }
+}

@@ -1,0 +1,441 @@
+//! Bounding volume hierarchy: binned surface-area-heuristic build and
+//! stack-based, front-to-back traversal.
+//!
+//! The build follows Wald 2007 ("On fast Construction of SAH-based Bounding
+//! Volume Hierarchies"): primitives are binned by centroid along each axis
+//! and the split minimising the SAH cost
+//! `C_trav + (A_L·N_L + A_R·N_R) / A` is taken; large subtrees are built in
+//! parallel. Nodes are 32 bytes and laid out depth first, so the first
+//! child of an interior node is the next node.
+
+use crate::geometry::{Aabb, Ray};
+use glam::Vec3;
+
+/// One node: its box, and either two children or a run of primitives.
+#[derive(Clone, Copy, Debug)]
+#[repr(C)]
+pub struct BvhNode {
+    /// Box minimum.
+    pub min: Vec3,
+    /// Leaf: index of the first primitive. Interior: index of the second child.
+    pub offset: u32,
+    /// Box maximum.
+    pub max: Vec3,
+    /// Number of primitives (0 for an interior node).
+    pub count: u16,
+    /// Split axis of an interior node (0, 1, 2).
+    pub axis: u16,
+}
+
+const _: () = assert!(std::mem::size_of::<BvhNode>() == 32);
+
+/// A BVH over primitives numbered `0..n` in the order that
+/// [`Bvh::build`] returns.
+#[derive(Clone, Debug, Default)]
+pub struct Bvh {
+    nodes: Vec<BvhNode>,
+}
+
+/// Bins per axis in the SAH sweep.
+const BINS: usize = 16;
+/// Cost of visiting a node relative to intersecting one primitive.
+const TRAVERSAL_COST: f32 = 0.125;
+/// Leaves never hold more primitives than this (unless they are identical).
+const MAX_LEAF: usize = 8;
+/// Subtrees with more primitives than this are built on another thread.
+const PARALLEL_THRESHOLD: usize = 16 * 1024;
+/// Depth of the traversal stack; a binned build over f32 boxes cannot go
+/// deeper than this in practice, and the build enforces it.
+const MAX_DEPTH: usize = 64;
+
+/// Build input for one primitive.
+#[derive(Clone, Copy)]
+struct PrimInfo {
+    bounds: Aabb,
+    centroid: Vec3,
+    index: u32,
+}
+
+impl Bvh {
+    /// Builds a BVH over boxes. Returns the tree and the order in which the
+    /// caller must store its primitives: leaf ranges index into that order
+    /// (`order[k]` is the input index of the primitive at position `k`).
+    pub fn build(bounds: &[Aabb]) -> (Bvh, Vec<u32>) {
+        if bounds.is_empty() {
+            return (Bvh::default(), Vec::new());
+        }
+        let mut prims: Vec<PrimInfo> = bounds
+            .iter()
+            .enumerate()
+            .map(|(i, b)| PrimInfo {
+                bounds: *b,
+                centroid: b.centroid(),
+                index: i as u32,
+            })
+            .collect();
+        let nodes = build_recursive(&mut prims, 0, 0);
+        let order = prims.iter().map(|p| p.index).collect();
+        (Bvh { nodes }, order)
+    }
+
+    /// The nodes, root first.
+    pub fn nodes(&self) -> &[BvhNode] {
+        &self.nodes
+    }
+
+    /// Number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Bytes used by the nodes.
+    pub fn memory_bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<BvhNode>()
+    }
+
+    /// Bounds of everything in the tree.
+    pub fn bounds(&self) -> Aabb {
+        self.nodes
+            .first()
+            .map_or(Aabb::EMPTY, |n| Aabb { min: n.min, max: n.max })
+    }
+
+    /// Visits, front to back, every leaf whose box the ray enters within
+    /// `[t_min, t_max]`, calling `test(k, ray)` for each primitive position
+    /// `k` there. `test` intersects primitive `k`, shrinks `ray.t_max` on a
+    /// hit and returns whether it hit. With `any_hit`, traversal stops at
+    /// the first hit. Returns whether anything was hit.
+    #[inline]
+    pub fn traverse<F: FnMut(u32, &mut Ray) -> bool>(&self, ray: &mut Ray, any_hit: bool, mut test: F) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let inv_dir = ray.dir.recip();
+        let dir_neg = [inv_dir.x < 0.0, inv_dir.y < 0.0, inv_dir.z < 0.0];
+        let mut stack = [0u32; MAX_DEPTH];
+        let mut sp = 0usize;
+        let mut current = 0u32;
+        let mut hit = false;
+        loop {
+            let node = &self.nodes[current as usize];
+            let b = Aabb {
+                min: node.min,
+                max: node.max,
+            };
+            if b.intersect(ray, inv_dir).is_some() {
+                if node.count > 0 {
+                    let start = node.offset;
+                    for k in start..start + node.count as u32 {
+                        if test(k, ray) {
+                            hit = true;
+                            if any_hit {
+                                return true;
+                            }
+                        }
+                    }
+                } else {
+                    // Visit the near child first.
+                    let (first, second) = if dir_neg[node.axis as usize] {
+                        (node.offset, current + 1)
+                    } else {
+                        (current + 1, node.offset)
+                    };
+                    stack[sp] = second;
+                    sp += 1;
+                    current = first;
+                    continue;
+                }
+            }
+            if sp == 0 {
+                break;
+            }
+            sp -= 1;
+            current = stack[sp];
+        }
+        hit
+    }
+}
+
+/// Builds the subtree over `prims` (whose first element is at global
+/// position `base`) and returns its nodes with indices relative to the
+/// subtree's root at index 0.
+fn build_recursive(prims: &mut [PrimInfo], base: usize, depth: usize) -> Vec<BvhNode> {
+    let mut nodes = Vec::with_capacity(2 * prims.len());
+    build_into(&mut nodes, prims, base, depth);
+    nodes
+}
+
+fn make_leaf(nodes: &mut Vec<BvhNode>, bounds: Aabb, base: usize, count: usize) {
+    nodes.push(BvhNode {
+        min: bounds.min,
+        offset: base as u32,
+        max: bounds.max,
+        count: count as u16,
+        axis: 0,
+    });
+}
+
+fn build_into(nodes: &mut Vec<BvhNode>, prims: &mut [PrimInfo], base: usize, depth: usize) {
+    let n = prims.len();
+    let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(&p.bounds));
+    if n == 1 {
+        make_leaf(nodes, bounds, base, n);
+        return;
+    }
+    let centroid_bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union_point(p.centroid));
+
+    let split = find_split(prims, &bounds, &centroid_bounds);
+    // Past this depth only median splits are taken, which bound the rest
+    // of the tree's depth by log2(n) and so protect the traversal stack.
+    let deep = depth + (usize::BITS - n.leading_zeros()) as usize + 2 >= MAX_DEPTH;
+    let (axis, mid) = match split {
+        Some((axis, bin, cost)) if !deep => {
+            if n <= MAX_LEAF && (n as f32) <= cost {
+                make_leaf(nodes, bounds, base, n);
+                return;
+            }
+            let (lo, scale) = bin_mapping(&centroid_bounds, axis);
+            let m = partition(prims, |p| bin_of(p.centroid[axis], lo, scale) <= bin);
+            if m == 0 || m == n {
+                (axis, median_split(prims, axis))
+            } else {
+                (axis, m)
+            }
+        }
+        _ => {
+            // All centroids coincide (no split separates them), or the tree
+            // is too deep: split at the median of the longest axis.
+            if n <= MAX_LEAF {
+                make_leaf(nodes, bounds, base, n);
+                return;
+            }
+            let axis = centroid_bounds.longest_axis();
+            (axis, median_split(prims, axis))
+        }
+    };
+
+    let me = nodes.len();
+    nodes.push(BvhNode {
+        min: bounds.min,
+        offset: 0,
+        max: bounds.max,
+        count: 0,
+        axis: axis as u16,
+    });
+    let (left, right) = prims.split_at_mut(mid);
+    if n > PARALLEL_THRESHOLD {
+        let (ln, rn) = rayon::join(
+            || build_recursive(left, base, depth + 1),
+            || build_recursive(right, base + mid, depth + 1),
+        );
+        append_subtree(nodes, ln);
+        nodes[me].offset = nodes.len() as u32;
+        append_subtree(nodes, rn);
+    } else {
+        build_into(nodes, left, base, depth + 1);
+        nodes[me].offset = nodes.len() as u32;
+        build_into(nodes, right, base + mid, depth + 1);
+    }
+}
+
+/// Orders `prims` around the median centroid on `axis`; returns n/2.
+fn median_split(prims: &mut [PrimInfo], axis: usize) -> usize {
+    let mid = prims.len() / 2;
+    prims.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+    mid
+}
+
+/// Appends a subtree built with local indices, relocating its child links.
+fn append_subtree(nodes: &mut Vec<BvhNode>, sub: Vec<BvhNode>) {
+    let shift = nodes.len() as u32;
+    nodes.extend(sub.into_iter().map(|mut node| {
+        if node.count == 0 {
+            node.offset += shift;
+        }
+        node
+    }));
+}
+
+#[inline]
+fn bin_mapping(cb: &Aabb, axis: usize) -> (f32, f32) {
+    let extent = cb.max[axis] - cb.min[axis];
+    (cb.min[axis], BINS as f32 * (1.0 - 1e-6) / extent)
+}
+
+#[inline]
+fn bin_of(c: f32, lo: f32, scale: f32) -> usize {
+    (((c - lo) * scale) as usize).min(BINS - 1)
+}
+
+/// The best (axis, last bin of the left side, SAH cost relative to one
+/// primitive intersection) over all three axes, or `None` if all centroids
+/// coincide.
+fn find_split(prims: &[PrimInfo], bounds: &Aabb, cb: &Aabb) -> Option<(usize, usize, f32)> {
+    let area = bounds.surface_area().max(f32::MIN_POSITIVE);
+    let mut best: Option<(usize, usize, f32)> = None;
+    for axis in 0..3 {
+        let extent = cb.max[axis] - cb.min[axis];
+        if extent <= 0.0 || !extent.is_finite() {
+            continue;
+        }
+        let (lo, scale) = bin_mapping(cb, axis);
+        let mut bin_bounds = [Aabb::EMPTY; BINS];
+        let mut bin_count = [0u32; BINS];
+        for p in prims {
+            let b = bin_of(p.centroid[axis], lo, scale);
+            bin_bounds[b] = bin_bounds[b].union(&p.bounds);
+            bin_count[b] += 1;
+        }
+        // Sweep from the right to get the cost of every right side.
+        let mut right_area = [0f32; BINS];
+        let mut right_count = [0u32; BINS];
+        let mut acc = Aabb::EMPTY;
+        let mut cnt = 0;
+        for i in (1..BINS).rev() {
+            acc = acc.union(&bin_bounds[i]);
+            cnt += bin_count[i];
+            right_area[i] = acc.surface_area();
+            right_count[i] = cnt;
+        }
+        let mut acc = Aabb::EMPTY;
+        let mut cnt = 0;
+        for i in 0..BINS - 1 {
+            acc = acc.union(&bin_bounds[i]);
+            cnt += bin_count[i];
+            let (nl, nr) = (cnt, right_count[i + 1]);
+            if nl == 0 || nr == 0 {
+                continue;
+            }
+            let cost = TRAVERSAL_COST + (acc.surface_area() * nl as f32 + right_area[i + 1] * nr as f32) / area;
+            if best.is_none_or(|(_, _, c)| cost < c) {
+                best = Some((axis, i, cost));
+            }
+        }
+    }
+    best
+}
+
+/// Moves the elements satisfying `pred` to the front; returns their count.
+fn partition<T, F: Fn(&T) -> bool>(v: &mut [T], pred: F) -> usize {
+    let mut first = 0;
+    for i in 0..v.len() {
+        if pred(&v[i]) {
+            v.swap(first, i);
+            first += 1;
+        }
+    }
+    first
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::shape::{Shape, Sphere};
+    use crate::sampling::rng::Pcg32;
+
+    fn random_spheres(n: usize, seed: u64) -> Vec<Shape> {
+        let mut r = Pcg32::new(seed, 0);
+        (0..n)
+            .map(|_| {
+                Shape::Sphere(Sphere {
+                    center: Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 20.0 - 10.0,
+                    radius: 0.05 + r.next_f32() * 0.6,
+                })
+            })
+            .collect()
+    }
+
+    fn closest_brute(shapes: &[Shape], ray: &Ray) -> Option<(usize, f32)> {
+        let mut best: Option<(usize, f32)> = None;
+        let mut r = *ray;
+        for (i, s) in shapes.iter().enumerate() {
+            if let Some(t) = s.intersect(&r) {
+                r.t_max = t;
+                best = Some((i, t));
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn bvh_matches_brute_force_on_random_scenes() {
+        for (seed, n) in [(1u64, 1usize), (2, 7), (3, 300), (4, 5000)] {
+            let shapes = random_spheres(n, seed);
+            let bounds: Vec<Aabb> = shapes.iter().map(|s| s.bounds().unwrap()).collect();
+            let (bvh, order) = Bvh::build(&bounds);
+            let ordered: Vec<Shape> = order.iter().map(|&i| shapes[i as usize]).collect();
+            let mut rng = Pcg32::new(seed + 100, 0);
+            for _ in 0..2000 {
+                let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 30.0 - 15.0;
+                let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+                let ray = Ray::new(o, d);
+                let expect = closest_brute(&shapes, &ray);
+                let mut r = ray;
+                let mut got: Option<usize> = None;
+                bvh.traverse(&mut r, false, |k, r| match ordered[k as usize].intersect(r) {
+                    Some(t) => {
+                        r.t_max = t;
+                        got = Some(order[k as usize] as usize);
+                        true
+                    }
+                    None => false,
+                });
+                match expect {
+                    None => assert!(got.is_none()),
+                    Some((i, t)) => {
+                        assert_eq!(r.t_max, t);
+                        // Ties between touching spheres may pick either.
+                        let gi = got.unwrap();
+                        assert!(gi == i || shapes[gi].intersect(&ray) == Some(t));
+                    }
+                }
+                let mut r2 = ray;
+                let any = bvh.traverse(&mut r2, true, |k, r| ordered[k as usize].intersect(r).is_some());
+                assert_eq!(any, expect.is_some());
+            }
+        }
+    }
+
+    #[test]
+    fn structure_is_consistent() {
+        let shapes = random_spheres(20_000, 9);
+        let bounds: Vec<Aabb> = shapes.iter().map(|s| s.bounds().unwrap()).collect();
+        let (bvh, order) = Bvh::build(&bounds);
+        // Every primitive is in exactly one leaf, inside its node's box.
+        let mut seen = vec![false; shapes.len()];
+        for node in bvh.nodes() {
+            if node.count > 0 {
+                for k in node.offset..node.offset + node.count as u32 {
+                    let i = order[k as usize] as usize;
+                    assert!(!seen[i]);
+                    seen[i] = true;
+                    let b = bounds[i];
+                    assert!(b.min.cmpge(node.min).all() && b.max.cmple(node.max).all());
+                }
+            } else {
+                assert!(node.offset as usize > 0 && (node.offset as usize) < bvh.node_count());
+            }
+        }
+        assert!(seen.iter().all(|&s| s));
+        assert!(bvh.node_count() < 2 * shapes.len());
+        assert_eq!(bvh.memory_bytes(), bvh.node_count() * 32);
+    }
+
+    #[test]
+    fn identical_primitives_and_empty_input() {
+        let bounds = vec![Aabb::new(Vec3::ZERO, Vec3::ONE); 100];
+        let (bvh, order) = Bvh::build(&bounds);
+        assert_eq!(order.len(), 100);
+        let mut r = Ray::new(Vec3::splat(0.5) - Vec3::Z * 3.0, Vec3::Z);
+        let mut visited = 0;
+        bvh.traverse(&mut r, false, |_, _| {
+            visited += 1;
+            false
+        });
+        assert_eq!(visited, 100);
+        let (empty, order) = Bvh::build(&[]);
+        assert!(order.is_empty());
+        let mut r = Ray::new(Vec3::ZERO, Vec3::Z);
+        assert!(!empty.traverse(&mut r, false, |_, _| true));
+    }
+}

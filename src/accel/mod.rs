@@ -1,0 +1,8 @@
+//! Acceleration structures: the bounding volume hierarchy and the scene
+//! aggregate that puts all geometry under it.
+
+pub mod aggregate;
+pub mod bvh;
+
+pub use aggregate::Aggregate;
+pub use bvh::{Bvh, BvhNode};

@@ -1,0 +1,363 @@
+//! Reading and writing images: PNG (8-bit sRGB), OpenEXR, Radiance HDR and
+//! PFM (linear float).
+//!
+//! Every write is atomic: the data goes to a temporary file in the target's
+//! folder, which is flushed to disk and then renamed over the target. A
+//! render killed at any moment leaves either the old file or the new one.
+
+use super::{Image, Tonemap};
+use crate::color::{Rgb, linear_to_srgb};
+use crate::error::{Error, Result};
+use std::fs::{self, File};
+use std::io::{BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+/// Image file formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// 8-bit sRGB PNG.
+    Png,
+    /// OpenEXR, 32-bit float RGB.
+    Exr,
+    /// Radiance RGBE.
+    Hdr,
+    /// Portable float map.
+    Pfm,
+}
+
+impl ImageFormat {
+    /// The format named by a path's extension.
+    pub fn from_path(path: &Path) -> Result<ImageFormat> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase())
+            .unwrap_or_default();
+        match ext.as_str() {
+            "png" => Ok(ImageFormat::Png),
+            "exr" => Ok(ImageFormat::Exr),
+            "hdr" => Ok(ImageFormat::Hdr),
+            "pfm" => Ok(ImageFormat::Pfm),
+            "" => Err(Error::file(path, "no file extension: use .png, .exr, .hdr or .pfm")),
+            other => Err(Error::file(
+                path,
+                format!("unsupported image format \".{other}\": use .png, .exr, .hdr or .pfm"),
+            )),
+        }
+    }
+
+    /// Whether the format stores linear floating-point values.
+    pub fn is_hdr(&self) -> bool {
+        !matches!(self, ImageFormat::Png)
+    }
+}
+
+/// Writes `image` in the format its extension names. 8-bit formats get
+/// `exposure` (stops) and `tonemap` applied, then the sRGB curve; float
+/// formats get the exposure only.
+pub fn write_image(path: &Path, image: &Image, tonemap: Tonemap, exposure: f32) -> Result<()> {
+    let format = ImageFormat::from_path(path)?;
+    let scale = 2f32.powf(exposure);
+    match format {
+        ImageFormat::Png => {
+            let bytes = encode_png(image, tonemap, scale)?;
+            write_atomic(path, |f| f.write_all(&bytes).map_err(|e| e.to_string()))
+        }
+        ImageFormat::Pfm => write_atomic(path, |f| {
+            let mut w = BufWriter::new(f);
+            write_pfm(&mut w, image, scale).map_err(|e| e.to_string())?;
+            w.flush().map_err(|e| e.to_string())
+        }),
+        ImageFormat::Hdr => {
+            let pixels: Vec<::image::Rgb<f32>> = image
+                .pixels
+                .iter()
+                .map(|p| {
+                    let c = (*p * scale).max(Rgb::ZERO);
+                    ::image::Rgb([c.x, c.y, c.z])
+                })
+                .collect();
+            write_atomic(path, |f| {
+                let mut w = BufWriter::new(f);
+                ::image::codecs::hdr::HdrEncoder::new(&mut w)
+                    .encode(&pixels, image.width as usize, image.height as usize)
+                    .map_err(|e| e.to_string())?;
+                w.flush().map_err(|e| e.to_string())
+            })
+        }
+        ImageFormat::Exr => write_atomic_path(path, |tmp| {
+            let w = image.width as usize;
+            exr::prelude::write_rgb_file(tmp, w, image.height as usize, |x, y| {
+                let c = image.pixels[y * w + x] * scale;
+                (c.x, c.y, c.z)
+            })
+            .map_err(|e| e.to_string())
+        }),
+    }
+}
+
+/// PNG bytes of the tone-mapped image.
+pub fn encode_png(image: &Image, tonemap: Tonemap, scale: f32) -> Result<Vec<u8>> {
+    let mut rgb8 = Vec::with_capacity(image.pixels.len() * 3);
+    for p in &image.pixels {
+        let c = tonemap.apply(*p * scale);
+        for v in [c.x, c.y, c.z] {
+            rgb8.push((linear_to_srgb(v) * 255.0 + 0.5) as u8);
+        }
+    }
+    let mut out = Vec::new();
+    let encoder = ::image::codecs::png::PngEncoder::new(&mut out);
+    use ::image::ImageEncoder;
+    encoder
+        .write_image(&rgb8, image.width, image.height, ::image::ExtendedColorType::Rgb8)
+        .map_err(|e| Error::Invalid(format!("PNG encoding failed: {e}")))?;
+    Ok(out)
+}
+
+fn write_pfm(w: &mut impl Write, image: &Image, scale: f32) -> std::io::Result<()> {
+    // Negative scale: little-endian. Rows go bottom to top.
+    write!(w, "PF\n{} {}\n-1.0\n", image.width, image.height)?;
+    for y in (0..image.height).rev() {
+        for x in 0..image.width {
+            let c = image.get(x, y) * scale;
+            for v in [c.x, c.y, c.z] {
+                w.write_all(&v.to_le_bytes())?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A temporary path next to `path`, unique to this process.
+fn temp_path_for(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    // Keep the extension: some encoders pick the format from it.
+    path.with_file_name(format!(".{name}.{}.tmp.{ext}", std::process::id()))
+}
+
+/// Writes a file atomically through `write`, which gets the open
+/// temporary file.
+pub fn write_atomic(path: &Path, write: impl FnOnce(&mut File) -> Result<(), String>) -> Result<()> {
+    write_atomic_path(path, |tmp| {
+        let mut f = File::create(tmp).map_err(|e| e.to_string())?;
+        write(&mut f)
+    })
+}
+
+/// Writes a file atomically through `write`, which gets the temporary
+/// file's path and must create it.
+pub fn write_atomic_path(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> Result<()> {
+    if path.is_dir() {
+        return Err(Error::file(path, "cannot write the image: this is a folder"));
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        return Err(Error::file(
+            path,
+            format!("cannot write: the folder {} does not exist", dir.display()),
+        ));
+    }
+    let tmp = temp_path_for(path);
+    let result = write(&tmp)
+        .and_then(|_| {
+            // Flush the data to disk before the rename makes it visible.
+            File::open(&tmp).and_then(|f| f.sync_all()).map_err(|e| e.to_string())
+        })
+        .and_then(|_| fs::rename(&tmp, path).map_err(|e| e.to_string()));
+    if let Err(e) = result {
+        let _ = fs::remove_file(&tmp);
+        return Err(Error::file(path, format!("cannot write: {e}")));
+    }
+    // Make the rename itself durable.
+    if let Ok(d) = File::open(&dir) {
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
+/// Reads an image of any supported format as linear RGB (8-bit images are
+/// decoded from sRGB).
+pub fn read_image(path: &Path) -> Result<Image> {
+    match ImageFormat::from_path(path)? {
+        ImageFormat::Exr => read_exr(path),
+        ImageFormat::Pfm => read_pfm(path),
+        ImageFormat::Png | ImageFormat::Hdr => {
+            let t = crate::texture::ImageTexture::load(path, None)?;
+            Ok(Image {
+                width: t.width,
+                height: t.height,
+                pixels: t.pixels,
+            })
+        }
+    }
+}
+
+/// Reads the first RGB(A) layer of an OpenEXR file.
+pub fn read_exr(path: &Path) -> Result<Image> {
+    let img = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |res, _| Image::new(res.width() as u32, res.height() as u32),
+        |img: &mut Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            let w = img.width as usize;
+            img.pixels[pos.y() * w + pos.x()] = Rgb::new(r, g, b);
+        },
+    )
+    .map_err(|e| Error::file(path, format!("cannot read OpenEXR image: {e}")))?;
+    Ok(img.layer_data.channel_data.pixels)
+}
+
+/// Reads a PFM file (colour "PF" or greyscale "Pf", either byte order).
+pub fn read_pfm(path: &Path) -> Result<Image> {
+    let mut bytes = Vec::new();
+    File::open(path)
+        .and_then(|mut f| f.read_to_end(&mut bytes))
+        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    parse_pfm(&bytes).map_err(|m| Error::file(path, format!("not a valid PFM file: {m}")))
+}
+
+fn parse_pfm(bytes: &[u8]) -> Result<Image, String> {
+    // Header: three whitespace-separated tokens after the magic, then one
+    // whitespace byte before the data.
+    let mut pos = 0;
+    let mut token = || -> Result<String, String> {
+        while pos < bytes.len() && bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        let start = pos;
+        while pos < bytes.len() && !bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        if start == pos {
+            return Err("truncated header".into());
+        }
+        Ok(String::from_utf8_lossy(&bytes[start..pos]).into_owned())
+    };
+    let magic = token()?;
+    let channels = match magic.as_str() {
+        "PF" => 3,
+        "Pf" => 1,
+        _ => return Err(format!("bad magic {magic:?}")),
+    };
+    let w: u32 = token()?.parse().map_err(|_| "bad width".to_string())?;
+    let h: u32 = token()?.parse().map_err(|_| "bad height".to_string())?;
+    let scale: f32 = token()?.parse().map_err(|_| "bad scale".to_string())?;
+    let data = &bytes[(pos + 1).min(bytes.len())..];
+    let need = w as u64 * h as u64 * channels as u64 * 4;
+    if (data.len() as u64) < need {
+        return Err(format!(
+            "{w}×{h} pixels need {need} bytes of data, the file has {}",
+            data.len()
+        ));
+    }
+    let little = scale < 0.0;
+    let read = |i: usize| -> f32 {
+        let b = [data[4 * i], data[4 * i + 1], data[4 * i + 2], data[4 * i + 3]];
+        if little {
+            f32::from_le_bytes(b)
+        } else {
+            f32::from_be_bytes(b)
+        }
+    };
+    let mut img = Image::new(w, h);
+    for row in 0..h as usize {
+        let y = h as usize - 1 - row;
+        for x in 0..w as usize {
+            let i = (row * w as usize + x) * channels;
+            img.pixels[y * w as usize + x] = if channels == 3 {
+                Rgb::new(read(i), read(i + 1), read(i + 2))
+            } else {
+                Rgb::splat(read(i))
+            };
+        }
+    }
+    Ok(img)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gradient() -> Image {
+        let mut img = Image::new(4, 3);
+        for (i, p) in img.pixels.iter_mut().enumerate() {
+            *p = Rgb::new(i as f32 * 0.1, 2.5, 1e-3 * i as f32);
+        }
+        img
+    }
+
+    #[test]
+    fn float_formats_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = gradient();
+        for ext in ["exr", "pfm"] {
+            let p = dir.path().join(format!("x.{ext}"));
+            write_image(&p, &img, Tonemap::Clamp, 0.0).unwrap();
+            let back = read_image(&p).unwrap();
+            assert_eq!(back, img, "{ext}");
+        }
+        // RGBE keeps about 8 bits of mantissa per pixel.
+        let p = dir.path().join("x.hdr");
+        write_image(&p, &img, Tonemap::Clamp, 0.0).unwrap();
+        let back = read_image(&p).unwrap();
+        for (a, b) in back.pixels.iter().zip(&img.pixels) {
+            assert!(
+                (*a - *b).abs().max_element() <= 0.01 * b.max_element() + 1e-6,
+                "{a} vs {b}"
+            );
+        }
+    }
+
+    #[test]
+    fn png_is_tonemapped_srgb() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut img = Image::new(2, 1);
+        img.pixels = vec![Rgb::splat(0.5), Rgb::splat(4.0)];
+        let p = dir.path().join("x.png");
+        write_image(&p, &img, Tonemap::Clamp, 0.0).unwrap();
+        let png = ::image::open(&p).unwrap().to_rgb8();
+        assert_eq!(png.get_pixel(0, 0)[0], (linear_to_srgb(0.5) * 255.0 + 0.5) as u8);
+        assert_eq!(png.get_pixel(1, 0)[0], 255);
+        // One stop down halves the linear value.
+        write_image(&p, &img, Tonemap::Clamp, -1.0).unwrap();
+        let png = ::image::open(&p).unwrap().to_rgb8();
+        assert_eq!(png.get_pixel(0, 0)[0], (linear_to_srgb(0.25) * 255.0 + 0.5) as u8);
+    }
+
+    #[test]
+    fn bad_targets_are_errors_and_leave_no_temp_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = gradient();
+        assert!(write_image(&dir.path().join("x.bmp"), &img, Tonemap::Clamp, 0.0).is_err());
+        assert!(write_image(&dir.path().join("x"), &img, Tonemap::Clamp, 0.0).is_err());
+        assert!(write_image(&dir.path().join("missing/x.png"), &img, Tonemap::Clamp, 0.0).is_err());
+        assert!(write_image(dir.path(), &img, Tonemap::Clamp, 0.0).is_err());
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
+    #[test]
+    fn overwrite_replaces_whole_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.pfm");
+        fs::write(&p, b"old").unwrap();
+        write_image(&p, &gradient(), Tonemap::Clamp, 0.0).unwrap();
+        assert_eq!(read_image(&p).unwrap(), gradient());
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn truncated_pfm_is_rejected() {
+        assert!(parse_pfm(b"PF\n4 4\n-1.0\n\0\0\0\0").is_err());
+        assert!(parse_pfm(b"P6\n1 1\n255\n").is_err());
+        assert!(parse_pfm(b"PF\n").is_err());
+    }
+}

@@ -1,0 +1,148 @@
+//! The film: where samples accumulate into pixels, and how pixels become
+//! image files.
+//!
+//! Pixels hold sums of weighted linear radiance in double precision, added
+//! in sample order, so that the image does not depend on how the work was
+//! split between threads or passes. Tone mapping happens only when an
+//! 8-bit image is written.
+
+pub mod io;
+pub mod tonemap;
+
+pub use tonemap::Tonemap;
+
+use crate::color::{Rgb, luminance};
+use glam::DVec3;
+
+/// A linear RGB image in memory.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Pixels row by row, top row first.
+    pub pixels: Vec<Rgb>,
+}
+
+impl Image {
+    /// A black image.
+    pub fn new(width: u32, height: u32) -> Image {
+        Image {
+            width,
+            height,
+            pixels: vec![Rgb::ZERO; width as usize * height as usize],
+        }
+    }
+
+    /// The pixel at column `x`, row `y` (from the top).
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> Rgb {
+        self.pixels[y as usize * self.width as usize + x as usize]
+    }
+
+    /// Mean of each channel.
+    pub fn mean(&self) -> Rgb {
+        let s = self.pixels.iter().fold(DVec3::ZERO, |a, p| a + p.as_dvec3());
+        (s / self.pixels.len().max(1) as f64).as_vec3()
+    }
+}
+
+/// Accumulated samples of one pixel.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PixelSum {
+    /// Σ wᵢ·Lᵢ.
+    pub rgb: DVec3,
+    /// Σ wᵢ.
+    pub weight: f64,
+    /// Σ wᵢ·Yᵢ² (luminance squared), for the variance estimate.
+    pub lum_sq: f64,
+}
+
+impl PixelSum {
+    /// Adds one sample.
+    #[inline]
+    pub fn add(&mut self, l: Rgb, w: f32) {
+        let w = w as f64;
+        self.rgb += l.as_dvec3() * w;
+        self.weight += w;
+        let y = luminance(l) as f64;
+        self.lum_sq += w * y * y;
+    }
+
+    /// The pixel's estimate (black without samples).
+    #[inline]
+    pub fn value(&self) -> Rgb {
+        if self.weight > 0.0 {
+            (self.rgb / self.weight).as_vec3()
+        } else {
+            Rgb::ZERO
+        }
+    }
+
+    /// Estimated variance of the pixel's mean luminance (sample variance
+    /// over the number of samples), for error reports.
+    pub fn variance_of_mean(&self) -> f64 {
+        if self.weight <= 1.0 {
+            return 0.0;
+        }
+        let n = self.weight;
+        let mean = luminance(self.value()) as f64;
+        let var = (self.lum_sq / n - mean * mean).max(0.0) * n / (n - 1.0);
+        var / n
+    }
+}
+
+/// The accumulation buffer of a render.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Film {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Pixel sums, row by row from the top.
+    pub pixels: Vec<PixelSum>,
+}
+
+impl Film {
+    /// An empty film.
+    pub fn new(width: u32, height: u32) -> Film {
+        Film {
+            width,
+            height,
+            pixels: vec![PixelSum::default(); width as usize * height as usize],
+        }
+    }
+
+    /// The current estimate of every pixel.
+    pub fn to_image(&self) -> Image {
+        Image {
+            width: self.width,
+            height: self.height,
+            pixels: self.pixels.iter().map(PixelSum::value).collect(),
+        }
+    }
+
+    /// Mean over pixels of the standard error of each pixel's luminance.
+    pub fn mean_standard_error(&self) -> f64 {
+        let s: f64 = self.pixels.iter().map(|p| p.variance_of_mean().sqrt()).sum();
+        s / self.pixels.len().max(1) as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pixel_mean_and_variance() {
+        let mut p = PixelSum::default();
+        for v in [1.0f32, 3.0] {
+            p.add(Rgb::splat(v), 1.0);
+        }
+        assert_eq!(p.value(), Rgb::splat(2.0));
+        // Sample variance of {1, 3} is 2; of the mean, 1.
+        assert!((p.variance_of_mean() - 1.0).abs() < 1e-9);
+        assert_eq!(PixelSum::default().value(), Rgb::ZERO);
+    }
+}

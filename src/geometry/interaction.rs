@@ -1,0 +1,128 @@
+//! The record of a ray–surface intersection and robust spawning of new rays
+//! from it.
+
+use super::ray::Ray;
+use glam::{Vec2, Vec3};
+
+/// Everything shading needs to know about the point a ray hit.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceHit {
+    /// Ray parameter of the hit.
+    pub t: f32,
+    /// World-space hit point.
+    pub p: Vec3,
+    /// Conservative per-axis bound on the rounding error in `p`.
+    pub p_error: Vec3,
+    /// Geometric normal (unit length), on the shape's outside (front) side.
+    pub ng: Vec3,
+    /// Shading normal (unit length): interpolated for meshes with vertex
+    /// normals, otherwise equal to `ng`; always in `ng`'s hemisphere.
+    pub ns: Vec3,
+    /// Surface parameterisation, used by textures.
+    pub uv: Vec2,
+    /// A unit tangent along increasing `u`, perpendicular to `ns`.
+    pub tangent: Vec3,
+    /// Index of the surface's material in the scene.
+    pub material: u32,
+    /// Index of the area light this surface is, if it emits.
+    pub light: Option<u32>,
+}
+
+impl SurfaceHit {
+    /// Whether `w` (pointing away from the surface) is on the front side.
+    #[inline]
+    pub fn is_front(&self, w: Vec3) -> bool {
+        self.ng.dot(w) > 0.0
+    }
+
+    /// A ray leaving the surface in direction `dir`, its origin pushed past
+    /// the rounding error of `p` so that it cannot re-hit this surface.
+    #[inline]
+    pub fn spawn_ray(&self, dir: Vec3) -> Ray {
+        Ray::new(offset_ray_origin(self.p, self.p_error, self.ng, dir), dir)
+    }
+
+    /// A shadow ray from this surface toward `target`, ending just short of it.
+    /// The direction is `target − origin`, so t ∈ (0, 1) spans the segment.
+    #[inline]
+    pub fn spawn_ray_to(&self, target: Vec3) -> Ray {
+        let o = offset_ray_origin(self.p, self.p_error, self.ng, target - self.p);
+        let d = target - o;
+        Ray::with_interval(o, d, 0.0, SHADOW_EPSILON)
+    }
+}
+
+/// Shadow rays toward a point end at `1 − SHADOW_EPSILON` of the way
+/// (pbrt-v4 uses the same constant) so they do not hit the light itself.
+pub const SHADOW_EPSILON: f32 = 1.0 - 1e-4;
+
+/// Offsets `p` along the normal by the projection of its error box onto the
+/// normal, to the side that `w` points to, then rounds away from `p`
+/// (pbrt-v4, section 6.8.6). Rays spawned there cannot hit the surface they
+/// left because of rounding.
+#[inline]
+pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
+    let d = n.abs().dot(p_error);
+    let mut offset = n * d;
+    if w.dot(n) < 0.0 {
+        offset = -offset;
+    }
+    let mut po = p + offset;
+    for i in 0..3 {
+        if offset[i] > 0.0 {
+            po[i] = next_float_up(po[i]);
+        } else if offset[i] < 0.0 {
+            po[i] = next_float_down(po[i]);
+        }
+    }
+    po
+}
+
+/// The smallest float greater than `v`.
+#[inline]
+pub fn next_float_up(v: f32) -> f32 {
+    if v.is_infinite() && v > 0.0 {
+        return v;
+    }
+    let v = if v == -0.0 { 0.0 } else { v };
+    let bits = v.to_bits();
+    let bits = if v >= 0.0 { bits + 1 } else { bits - 1 };
+    f32::from_bits(bits)
+}
+
+/// The largest float less than `v`.
+#[inline]
+pub fn next_float_down(v: f32) -> f32 {
+    if v.is_infinite() && v < 0.0 {
+        return v;
+    }
+    let v = if v == 0.0 { -0.0 } else { v };
+    let bits = v.to_bits();
+    let bits = if v > 0.0 { bits - 1 } else { bits + 1 };
+    f32::from_bits(bits)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn float_stepping() {
+        assert!(next_float_up(1.0) > 1.0);
+        assert!(next_float_down(1.0) < 1.0);
+        assert!(next_float_up(0.0) > 0.0);
+        assert!(next_float_down(0.0) < 0.0);
+        assert!(next_float_up(-1.0) > -1.0);
+        assert_eq!(next_float_up(next_float_down(3.5)), 3.5);
+    }
+
+    #[test]
+    fn offset_moves_to_the_side_of_w() {
+        let p = Vec3::new(1.0, 2.0, 3.0);
+        let err = Vec3::splat(1e-6);
+        let up = offset_ray_origin(p, err, Vec3::Z, Vec3::Z);
+        let down = offset_ray_origin(p, err, Vec3::Z, -Vec3::Z);
+        assert!(up.z > p.z && down.z < p.z);
+        assert_eq!(up.x, p.x);
+    }
+}

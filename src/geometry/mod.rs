@@ -1,0 +1,17 @@
+//! Rays, bounding boxes, affine transforms, shapes and the intersection
+//! record.
+
+pub mod bounds;
+pub mod interaction;
+pub mod mesh;
+pub mod ray;
+pub mod shape;
+pub mod transform;
+pub mod triangle;
+
+pub use bounds::Aabb;
+pub use interaction::SurfaceHit;
+pub use mesh::TriangleMesh;
+pub use ray::Ray;
+pub use shape::{Cuboid, Disk, Plane, Rectangle, Shape, Sphere};
+pub use transform::Transform;

@@ -1,0 +1,60 @@
+//! Integrators: the algorithms that estimate the radiance arriving along a
+//! camera ray. This is the only place that knows the algorithm; scheduling,
+//! films and files are elsewhere.
+
+pub mod whitted;
+
+pub use whitted::Whitted;
+
+use crate::color::Rgb;
+use crate::geometry::Ray;
+use crate::sampling::Sampler;
+use crate::scene::Scene;
+
+/// The rendering algorithms.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum IntegratorKind {
+    /// Whitted's recursive ray tracer.
+    #[default]
+    Whitted,
+}
+
+impl IntegratorKind {
+    /// The names accepted on the command line and in scene files.
+    pub const NAMES: [&'static str; 1] = ["whitted"];
+
+    /// Parses one of [`IntegratorKind::NAMES`].
+    pub fn from_name(s: &str) -> Option<IntegratorKind> {
+        match s {
+            "whitted" => Some(IntegratorKind::Whitted),
+            _ => None,
+        }
+    }
+
+    /// This integrator's name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            IntegratorKind::Whitted => "whitted",
+        }
+    }
+}
+
+/// Counters that an integrator updates while it works; each thread owns
+/// one, and they are summed at the end.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayStats {
+    /// Rays traced (camera, shadow and secondary).
+    pub rays: u64,
+}
+
+impl std::ops::AddAssign for RayStats {
+    fn add_assign(&mut self, o: RayStats) {
+        self.rays += o.rays;
+    }
+}
+
+/// A per-sample radiance estimator.
+pub trait Integrator: Sync {
+    /// An estimate of the radiance arriving at the camera along `ray`.
+    fn radiance(&self, scene: &Scene, ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb;
+}

@@ -1,0 +1,132 @@
+//! Whitted's recursive ray tracer (Whitted 1980, "An Improved Illumination
+//! Model for Shaded Display").
+//!
+//! At each hit: emission (front side only), an optional ambient term
+//! `ambient·kd`, direct light from every light through a shadow ray and the
+//! Phong model ([`crate::material::phong`]), then recursion along the
+//! mirror direction weighted by the reflectivity kr and, for transmissive
+//! materials, along the reflected and refracted directions weighted by
+//! `kt·F` and `kt·(1 − F)` (F: the exact dielectric Fresnel reflectance;
+//! total internal reflection sends everything to the reflected ray).
+//! Recursion stops after `max_depth` bounces; rays that leave the scene
+//! return the background.
+//!
+//! Area lights (emissive shapes) are sampled at one random point per light
+//! per pixel sample, so supersampling gives them soft shadows.
+//!
+//! **Shadow rays and transparent occluders.** A shadow ray is not bent by
+//! refraction. It passes through transmissive surfaces, attenuated at each
+//! crossing by `kt·(1 − F)`, and is blocked by any opaque surface. A glass
+//! sphere therefore casts a light, tinted shadow instead of a black one,
+//! but no caustic: focused light needs the path tracer or photon mapping.
+
+use super::{Integrator, RayStats};
+use crate::color::Rgb;
+use crate::geometry::Ray;
+use crate::geometry::interaction::SurfaceHit;
+use crate::light::{LightSample, ShadowTarget};
+use crate::material::optics::{fresnel_dielectric, reflect, refract};
+use crate::material::phong::phong_brdf;
+use crate::sampling::Sampler;
+use crate::scene::Scene;
+use crate::texture::TexCoord;
+
+/// The Whitted integrator.
+#[derive(Clone, Copy, Debug)]
+pub struct Whitted {
+    /// Maximum number of reflection/refraction bounces after the camera ray.
+    pub max_depth: u32,
+}
+
+impl Integrator for Whitted {
+    fn radiance(&self, scene: &Scene, ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb {
+        self.trace(scene, ray, 0, sampler, stats)
+    }
+}
+
+impl Whitted {
+    fn trace(&self, scene: &Scene, ray: &Ray, depth: u32, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb {
+        stats.rays += 1;
+        let Some(hit) = scene.intersect(ray) else {
+            return scene.background.eval(ray.dir);
+        };
+        let m = &scene.materials[hit.material as usize];
+        let wo = -ray.dir.normalize();
+        let front = hit.is_front(wo);
+        let mut l = if front { m.emission } else { Rgb::ZERO };
+
+        // Surfaces shade on both sides: the shading normal faces the viewer.
+        let n = if hit.ns.dot(wo) < 0.0 { -hit.ns } else { hit.ns };
+        let tc = TexCoord { uv: hit.uv, p: hit.p };
+        let kd = m.kd(&scene.images, &tc);
+        let ks = m.ks(&scene.images, &tc);
+
+        l += scene.ambient * kd;
+        if kd != Rgb::ZERO || ks != Rgb::ZERO {
+            for light in &scene.lights {
+                let (u_pick, u) = (sampler.next_1d(), sampler.next_2d());
+                let Some(ls) = light.sample_li(&scene.geometry, hit.p, u_pick, u) else {
+                    continue;
+                };
+                let cos = n.dot(ls.wi);
+                // The light must be on the viewer's side of the surface
+                // itself, not only of the (interpolated) shading normal.
+                if cos <= 0.0 || hit.ng.dot(ls.wi) * hit.ng.dot(wo) <= 0.0 {
+                    continue;
+                }
+                let f = phong_brdf(kd, ks, m.shininess, n, ls.wi, wo);
+                if f == Rgb::ZERO || ls.li == Rgb::ZERO {
+                    continue;
+                }
+                let vis = shadow_transmittance(scene, &hit, &ls, stats);
+                l += f * ls.li * vis * (cos / ls.pdf);
+            }
+        }
+
+        if depth >= self.max_depth {
+            return l;
+        }
+        if m.reflectivity != Rgb::ZERO {
+            let r = hit.spawn_ray(reflect(wo, n));
+            l += m.reflectivity * self.trace(scene, &r, depth + 1, sampler, stats);
+        }
+        if m.is_transmissive() {
+            // Fresnel with the outward normal: cosθ < 0 means leaving the inside.
+            let cos_i = hit.ns.dot(wo);
+            let fresnel = fresnel_dielectric(cos_i, m.ior);
+            let reflected = hit.spawn_ray(reflect(wo, n));
+            let mut through = Rgb::ZERO;
+            if let Some((wt, _)) = refract(wo, hit.ns, m.ior) {
+                if fresnel < 1.0 {
+                    through = (1.0 - fresnel) * self.trace(scene, &hit.spawn_ray(wt), depth + 1, sampler, stats);
+                }
+            }
+            let back = fresnel * self.trace(scene, &reflected, depth + 1, sampler, stats);
+            l += m.transmission * (back + through);
+        }
+        l
+    }
+}
+
+/// Fraction of a light sample's light that reaches `hit`: 0 behind an
+/// opaque surface, `Π kt·(1 − F)` through transmissive ones.
+fn shadow_transmittance(scene: &Scene, hit: &SurfaceHit, ls: &LightSample, stats: &mut RayStats) -> Rgb {
+    stats.rays += 1;
+    let ray = match ls.target {
+        ShadowTarget::Point(p) => hit.spawn_ray_to(p),
+        ShadowTarget::Infinity => hit.spawn_ray(ls.wi),
+    };
+    let mut transmittance = Rgb::ONE;
+    let blocked = scene.geometry.occluded_by(&ray, |h| {
+        let (material, _) = scene.geometry.material_and_light(&h.prim);
+        let m = &scene.materials[material as usize];
+        if !m.is_transmissive() {
+            return true;
+        }
+        let s = scene.geometry.surface(&ray, h);
+        let cos = s.ns.dot(-ray.dir.normalize());
+        transmittance *= m.transmission * (1.0 - fresnel_dielectric(cos, m.ior));
+        transmittance == Rgb::ZERO
+    });
+    if blocked { Rgb::ZERO } else { transmittance }
+}

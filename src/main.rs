@@ -1,0 +1,5 @@
+//! The `trazo` command.
+
+fn main() -> std::process::ExitCode {
+    trazo::cli::main()
+}

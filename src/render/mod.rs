@@ -1,0 +1,257 @@
+//! Scheduling: splits the image into tiles, renders them on all cores in
+//! progressive passes, shows progress and gathers statistics. It knows
+//! nothing about the algorithm, which it reaches through
+//! [`crate::integrator::Integrator`].
+//!
+//! A pass adds a few samples to every pixel; passes grow (1, 1, 2, 4, …
+//! samples) so that the first image is quick. Each sample's random
+//! numbers depend only on its pixel, its index and the seed, and each
+//! pixel's samples are added in index order, so the result is bit-identical
+//! whatever the number of threads or the tile order.
+
+use crate::error::{Error, Result};
+use crate::film::{Film, Image, PixelSum};
+use crate::integrator::{Integrator, IntegratorKind, RayStats, Whitted};
+use crate::sampling::Sampler;
+use crate::scene::Scene;
+use glam::Vec2;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayon::prelude::*;
+use std::io::IsTerminal;
+use std::time::{Duration, Instant};
+
+/// How to render (as opposed to what: that is the scene's settings).
+#[derive(Clone, Debug)]
+pub struct RenderOptions {
+    /// Worker threads; `None` uses every core.
+    pub threads: Option<usize>,
+    /// Show a progress bar on stderr (only if stderr is a terminal).
+    pub progress: bool,
+    /// Side of the square tiles in pixels.
+    pub tile_size: u32,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            threads: None,
+            progress: false,
+            tile_size: 16,
+        }
+    }
+}
+
+/// Figures about a finished render.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RenderStats {
+    /// Wall time of the rendering itself, in seconds.
+    pub seconds: f64,
+    /// Samples computed (pixels × samples per pixel).
+    pub samples: u64,
+    /// Rays traced.
+    pub rays: u64,
+    /// Samples dropped because they were NaN or infinite.
+    pub invalid_samples: u64,
+    /// Threads used.
+    pub threads: usize,
+}
+
+impl RenderStats {
+    /// Samples per second.
+    pub fn samples_per_second(&self) -> f64 {
+        self.samples as f64 / self.seconds.max(1e-9)
+    }
+
+    /// Rays per second.
+    pub fn rays_per_second(&self) -> f64 {
+        self.rays as f64 / self.seconds.max(1e-9)
+    }
+}
+
+/// A finished render: the accumulated film and its statistics.
+#[derive(Clone, Debug)]
+pub struct RenderOutput {
+    /// Accumulated samples.
+    pub film: Film,
+    /// Figures.
+    pub stats: RenderStats,
+}
+
+/// Renders `scene` with its own settings into an in-memory image, using
+/// every core and no progress output. The simplest entry point for
+/// library users.
+pub fn render_image(scene: &Scene) -> Result<Image> {
+    Ok(render(scene, &RenderOptions::default())?.film.to_image())
+}
+
+/// Renders `scene` with its settings.
+pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
+    let s = &scene.settings;
+    match s.integrator {
+        IntegratorKind::Whitted => render_with(scene, &Whitted { max_depth: s.max_depth }, options),
+    }
+}
+
+/// Renders `scene` with a given integrator.
+pub fn render_with<I: Integrator>(scene: &Scene, integrator: &I, options: &RenderOptions) -> Result<RenderOutput> {
+    let pool = match options.threads {
+        Some(0) => return Err(Error::Invalid("--threads must be at least 1".into())),
+        Some(n) => Some(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| Error::Invalid(format!("cannot start {n} threads: {e}")))?,
+        ),
+        None => None,
+    };
+    let run = || render_passes(scene, integrator, options);
+    Ok(match pool {
+        Some(p) => p.install(run),
+        None => run(),
+    })
+}
+
+/// A rectangle of pixels.
+#[derive(Clone, Copy, Debug)]
+struct Tile {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+}
+
+fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
+    let size = size.max(1);
+    let mut v = Vec::new();
+    for y0 in (0..height).step_by(size as usize) {
+        for x0 in (0..width).step_by(size as usize) {
+            v.push(Tile {
+                x0,
+                y0,
+                x1: (x0 + size).min(width),
+                y1: (y0 + size).min(height),
+            });
+        }
+    }
+    v
+}
+
+/// Sample counts of successive passes: 1, 1, 2, 4, … up to 16 per pass.
+pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
+    let mut passes = Vec::new();
+    let mut start = 0;
+    let mut len = 1;
+    while start < spp {
+        let n = len.min(spp - start);
+        passes.push((start, start + n));
+        start += n;
+        if passes.len() > 1 {
+            len = (len * 2).min(16);
+        }
+    }
+    passes
+}
+
+fn render_passes<I: Integrator>(scene: &Scene, integrator: &I, options: &RenderOptions) -> RenderOutput {
+    let s = &scene.settings;
+    let (w, h) = (s.width, s.height);
+    let mut film = Film::new(w, h);
+    let tiles = tiles(w, h, options.tile_size);
+    let total = w as u64 * h as u64 * s.spp as u64;
+    let bar = progress_bar(options.progress, total);
+    let start = Instant::now();
+    let mut stats = RenderStats {
+        threads: rayon::current_num_threads(),
+        ..RenderStats::default()
+    };
+
+    for (first, end) in pass_schedule(s.spp) {
+        let results: Vec<(Tile, Vec<PixelSum>, RayStats, u64)> = tiles
+            .par_iter()
+            .map(|&tile| {
+                let mut sampler = Sampler::new(s.sampler, s.spp, s.seed);
+                let mut ray_stats = RayStats::default();
+                let mut invalid = 0u64;
+                let mut sums = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
+                for y in tile.y0..tile.y1 {
+                    for x in tile.x0..tile.x1 {
+                        let mut sum = film.pixels[(y * w + x) as usize];
+                        for index in first..end {
+                            sampler.start_pixel_sample(x, y, index);
+                            let offset = sampler.pixel_2d();
+                            let lens = sampler.next_2d();
+                            let ray = scene.camera.generate_ray(Vec2::new(x as f32, y as f32) + offset, lens);
+                            let l = integrator.radiance(scene, &ray, &mut sampler, &mut ray_stats);
+                            if l.is_finite() {
+                                sum.add(l, 1.0);
+                            } else {
+                                invalid += 1;
+                            }
+                        }
+                        sums.push(sum);
+                    }
+                }
+                if let Some(b) = &bar {
+                    b.inc(sums.len() as u64 * (end - first) as u64);
+                }
+                (tile, sums, ray_stats, invalid)
+            })
+            .collect();
+        for (tile, sums, ray_stats, invalid) in results {
+            let mut k = 0;
+            for y in tile.y0..tile.y1 {
+                for x in tile.x0..tile.x1 {
+                    film.pixels[(y * w + x) as usize] = sums[k];
+                    k += 1;
+                }
+            }
+            stats.rays += ray_stats.rays;
+            stats.invalid_samples += invalid;
+        }
+        stats.samples += w as u64 * h as u64 * (end - first) as u64;
+    }
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    stats.seconds = start.elapsed().as_secs_f64();
+    RenderOutput { film, stats }
+}
+
+fn progress_bar(enabled: bool, total: u64) -> Option<ProgressBar> {
+    if !enabled || !std::io::stderr().is_terminal() {
+        return None;
+    }
+    let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr_with_hz(4));
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{wide_bar}] {percent:>3}%  ETA {eta}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    bar.enable_steady_tick(Duration::from_millis(250));
+    Some(bar)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn passes_cover_every_sample_once() {
+        for spp in [1u32, 2, 3, 16, 17, 100, 1000] {
+            let p = pass_schedule(spp);
+            assert_eq!(p[0], (0, 1));
+            assert_eq!(p.last().unwrap().1, spp);
+            for w in p.windows(2) {
+                assert_eq!(w[0].1, w[1].0);
+                assert!(w[1].1 - w[1].0 <= 16);
+            }
+        }
+    }
+
+    #[test]
+    fn tiles_cover_the_image() {
+        let t = tiles(37, 20, 16);
+        let covered: u32 = t.iter().map(|t| (t.x1 - t.x0) * (t.y1 - t.y0)).sum();
+        assert_eq!(covered, 37 * 20);
+    }
+}

@@ -1,0 +1,11 @@
+//! Random numbers, per-pixel samplers and warps from the unit square to
+//! geometric domains.
+
+pub mod distribution;
+pub mod rng;
+pub mod sampler;
+pub mod warp;
+
+pub use distribution::Distribution1D;
+pub use rng::Pcg32;
+pub use sampler::{Sampler, SamplerKind};

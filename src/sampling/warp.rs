@@ -1,0 +1,181 @@
+//! Warps: maps from uniform samples in [0,1)ⁿ to distributions over
+//! geometric domains, each with its probability density.
+//!
+//! Conventions: hemispheres are around +z (the local shading frame's
+//! normal); solid-angle densities are per steradian, area densities per unit
+//! area. Derivations follow pbrt-v4, chapter A.5.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
+
+/// 1/(2π).
+pub const INV_2PI: f32 = 0.5 * FRAC_1_PI;
+/// 1/(4π).
+pub const INV_4PI: f32 = 0.25 * FRAC_1_PI;
+
+/// Uniform point on the unit disk by Shirley and Chiu's concentric map,
+/// which keeps strata compact (pdf 1/π).
+#[inline]
+pub fn sample_disk_concentric(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o.x == 0.0 && o.y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, FRAC_PI_4 * (o.y / o.x))
+    } else {
+        (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y))
+    };
+    r * Vec2::new(theta.cos(), theta.sin())
+}
+
+/// Uniform direction on the hemisphere z ≥ 0 (pdf 1/(2π)).
+#[inline]
+pub fn sample_hemisphere_uniform(u: Vec2) -> Vec3 {
+    let z = u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Density of [`sample_hemisphere_uniform`].
+#[inline]
+pub fn pdf_hemisphere_uniform() -> f32 {
+    INV_2PI
+}
+
+/// Cosine-weighted direction on the hemisphere z ≥ 0 by Malley's method
+/// (pdf cosθ/π).
+#[inline]
+pub fn sample_hemisphere_cosine(u: Vec2) -> Vec3 {
+    let d = sample_disk_concentric(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    Vec3::new(d.x, d.y, z)
+}
+
+/// Density of [`sample_hemisphere_cosine`] for a direction with cosθ = `cos_theta`.
+#[inline]
+pub fn pdf_hemisphere_cosine(cos_theta: f32) -> f32 {
+    cos_theta.max(0.0) * FRAC_1_PI
+}
+
+/// Uniform direction on the unit sphere (pdf 1/(4π)).
+#[inline]
+pub fn sample_sphere_uniform(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Density of [`sample_sphere_uniform`].
+#[inline]
+pub fn pdf_sphere_uniform() -> f32 {
+    INV_4PI
+}
+
+/// Uniform direction in the cone around +z with cos θ ≥ `cos_max`
+/// (pdf 1/(2π(1 − cos_max))).
+#[inline]
+pub fn sample_cone_uniform(u: Vec2, cos_max: f32) -> Vec3 {
+    let z = 1.0 - u.x * (1.0 - cos_max);
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Density of [`sample_cone_uniform`].
+#[inline]
+pub fn pdf_cone_uniform(cos_max: f32) -> f32 {
+    1.0 / (2.0 * PI * (1.0 - cos_max))
+}
+
+/// Uniform barycentric coordinates (b0, b1, b2) on a triangle
+/// (Heitz 2019, "A Low-Distortion Map Between Triangle and Square").
+#[inline]
+pub fn sample_triangle_uniform(u: Vec2) -> [f32; 3] {
+    let (b0, b1) = if u.x < u.y {
+        let b0 = u.x / 2.0;
+        (b0, u.y - b0)
+    } else {
+        let b1 = u.y / 2.0;
+        (u.x - b1, b1)
+    };
+    [b0, b1, 1.0 - b0 - b1]
+}
+
+/// An orthonormal basis around a unit vector (Duff et al. 2017, "Building an
+/// Orthonormal Basis, Revisited"): returns (s, t) with s × t = n.
+#[inline]
+pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::rng::Pcg32;
+
+    fn uniform_2d(r: &mut Pcg32) -> Vec2 {
+        Vec2::new(r.next_f32(), r.next_f32())
+    }
+
+    #[test]
+    fn warps_land_in_their_domains() {
+        let mut r = Pcg32::new(3, 0);
+        for _ in 0..10_000 {
+            let u = uniform_2d(&mut r);
+            assert!(sample_disk_concentric(u).length() <= 1.0 + 1e-6);
+            let h = sample_hemisphere_uniform(u);
+            assert!(h.z >= 0.0 && (h.length() - 1.0).abs() < 1e-5);
+            let c = sample_hemisphere_cosine(u);
+            assert!(c.z >= 0.0 && (c.length() - 1.0).abs() < 1e-5);
+            let s = sample_sphere_uniform(u);
+            assert!((s.length() - 1.0).abs() < 1e-5);
+            let k = sample_cone_uniform(u, 0.8);
+            assert!(k.z >= 0.8 - 1e-6);
+            let b = sample_triangle_uniform(u);
+            assert!(b.iter().all(|&x| x >= -1e-6) && (b.iter().sum::<f32>() - 1.0).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn basis_is_orthonormal() {
+        let mut r = Pcg32::new(5, 0);
+        for _ in 0..1000 {
+            let n = sample_sphere_uniform(uniform_2d(&mut r));
+            let (s, t) = orthonormal_basis(n);
+            assert!((s.length() - 1.0).abs() < 1e-5 && (t.length() - 1.0).abs() < 1e-5);
+            assert!(s.dot(t).abs() < 1e-5 && s.dot(n).abs() < 1e-5 && t.dot(n).abs() < 1e-5);
+            assert!((s.cross(t) - n).length() < 1e-4);
+        }
+    }
+
+    /// Chi-square test of a 2-D warp onto the disk against its uniform density,
+    /// over a polar grid of equal-area cells.
+    #[test]
+    fn concentric_disk_is_uniform() {
+        let (nr, nphi) = (8usize, 16usize);
+        let mut counts = vec![0u32; nr * nphi];
+        let mut r = Pcg32::new(11, 0);
+        let n = 200_000;
+        for _ in 0..n {
+            let p = sample_disk_concentric(uniform_2d(&mut r));
+            // Equal-area rings: r² is uniform.
+            let ir = ((p.length_squared() * nr as f32) as usize).min(nr - 1);
+            let phi = p.y.atan2(p.x).rem_euclid(2.0 * PI);
+            let ip = ((phi / (2.0 * PI) * nphi as f32) as usize).min(nphi - 1);
+            counts[ir * nphi + ip] += 1;
+        }
+        let e = n as f64 / (nr * nphi) as f64;
+        let chi2: f64 = counts.iter().map(|&c| (c as f64 - e).powi(2) / e).sum();
+        // 127 degrees of freedom: the 0.999 quantile is about 181.
+        assert!(chi2 < 181.0, "chi2 = {chi2}");
+    }
+}

@@ -1,0 +1,368 @@
+//! From [`SceneDesc`] to the render-time [`Scene`]: resolves names to
+//! indices, loads images and meshes, composes transforms, turns emissive
+//! shapes into area lights and builds the BVH.
+
+use super::Scene;
+use super::desc::*;
+use super::native::io_reason;
+use crate::accel::aggregate::{Aggregate, EmitterRef, MeshInstance, MeshObject, ShapeInstance};
+use crate::camera::{Camera, Projection};
+use crate::color::Rgb;
+use crate::error::{Error, Result};
+use crate::geometry::shape::{Cuboid, Disk, Plane, Rectangle, Shape, Sphere};
+use crate::geometry::{Transform, TriangleMesh};
+use crate::light::{Background, Light};
+use crate::material::Material;
+use crate::texture::{ImageTexture, Texture};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// Builds a renderable scene. Validates the description first, so that
+/// scenes made in code get the same checks as scenes read from files.
+pub fn build(desc: &SceneDesc) -> Result<Scene> {
+    desc.validate()?;
+    let base_dir: PathBuf = desc
+        .source
+        .as_ref()
+        .and_then(|p| p.parent())
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    let mut warnings = Vec::new();
+
+    // Textures.
+    let mut images = Vec::new();
+    let mut textures: HashMap<&str, Texture> = HashMap::new();
+    for (i, t) in desc.textures.iter().enumerate() {
+        let tex = match &t.kind {
+            TextureKind::Constant(c) => Texture::Constant(*c),
+            TextureKind::Checkerboard { even, odd, scale } => Texture::Checkerboard {
+                even: *even,
+                odd: *odd,
+                scale: *scale,
+            },
+            TextureKind::Checkerboard3d { even, odd, scale } => Texture::Checkerboard3d {
+                even: *even,
+                odd: *odd,
+                scale: *scale,
+            },
+            TextureKind::Image {
+                path,
+                scale,
+                offset,
+                srgb,
+                tint,
+            } => {
+                let full = base_dir.join(path);
+                let img = ImageTexture::load(&full, *srgb)
+                    .map_err(|e| Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e)))?;
+                images.push(img);
+                Texture::Image {
+                    image: images.len() as u32 - 1,
+                    scale: *scale,
+                    offset: *offset,
+                    tint: *tint,
+                }
+            }
+        };
+        textures.insert(t.name.as_str(), tex);
+    }
+    let color = |c: &ColorSource| -> Texture {
+        match c {
+            ColorSource::Rgb(rgb) => Texture::Constant(*rgb),
+            ColorSource::Texture(name) => textures[name.as_str()],
+        }
+    };
+
+    // Materials; the default one goes last, used by shapes without one.
+    let mut materials: Vec<Material> = desc
+        .materials
+        .iter()
+        .map(|m| Material {
+            diffuse: color(&m.diffuse),
+            specular: color(&m.specular),
+            shininess: m.shininess,
+            reflectivity: m.reflectivity,
+            transmission: m.transmission,
+            ior: m.ior,
+            emission: m.emission,
+        })
+        .collect();
+    let material_index: HashMap<&str, u32> = desc
+        .materials
+        .iter()
+        .enumerate()
+        .map(|(i, m)| (m.name.as_str(), i as u32))
+        .collect();
+    let default_material = materials.len() as u32;
+    materials.push(Material::default());
+
+    // Named meshes, loaded once; placed once → baked into world space,
+    // placed more often → instanced.
+    let mut uses: HashMap<&str, usize> = HashMap::new();
+    for s in &desc.shapes {
+        if let ShapeKind::Mesh(name) = &s.kind {
+            *uses.entry(name.as_str()).or_default() += 1;
+        }
+    }
+    let mut named_meshes: HashMap<&str, TriangleMesh> = HashMap::new();
+    for (i, m) in desc.meshes.iter().enumerate() {
+        if uses.get(m.name.as_str()).copied().unwrap_or(0) == 0 {
+            warnings.push(format!(
+                "{}mesh \"{}\" is never placed by a shape",
+                m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default(),
+                m.name
+            ));
+            continue;
+        }
+        let mesh = load_mesh_source(&m.source, &base_dir, &m.locs, &format!("mesh[{i}]"))?;
+        named_meshes.insert(m.name.as_str(), mesh);
+    }
+
+    let mut meshes: Vec<TriangleMesh> = Vec::new();
+    let mut shapes = Vec::new();
+    let mut mesh_objects = Vec::new();
+    let mut instances = Vec::new();
+    let mut instanced_mesh_index: HashMap<&str, u32> = HashMap::new();
+    for (i, s) in desc.shapes.iter().enumerate() {
+        let material = s
+            .material
+            .as_ref()
+            .map_or(default_material, |n| material_index[n.as_str()]);
+        let transform = compose(&s.transform)
+            .map_err(|e| Error::scene(s.locs.key("transform"), format!("shape[{i}].transform"), e))?;
+        let analytic = match &s.kind {
+            ShapeKind::Sphere { center, radius } => Some(Shape::Sphere(Sphere {
+                center: *center,
+                radius: *radius,
+            })),
+            ShapeKind::Plane { point, normal } => Some(Shape::Plane(Plane::new(*point, *normal))),
+            ShapeKind::Rectangle { corner, edge_u, edge_v } => Some(Shape::Rectangle(Rectangle {
+                corner: *corner,
+                edge_u: *edge_u,
+                edge_v: *edge_v,
+            })),
+            ShapeKind::Disk { center, normal, radius } => Some(Shape::Disk(Disk {
+                center: *center,
+                normal: normal.normalize(),
+                radius: *radius,
+            })),
+            ShapeKind::Cuboid { min, max } => Some(Shape::Cuboid(Cuboid { min: *min, max: *max })),
+            ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_) => None,
+        };
+        if let Some(shape) = analytic {
+            shapes.push(ShapeInstance {
+                shape,
+                transform: (!transform.is_identity()).then_some(transform),
+                material,
+                light: None,
+            });
+            continue;
+        }
+        let placed_once = match &s.kind {
+            ShapeKind::Mesh(name) => uses[name.as_str()] == 1,
+            _ => true,
+        };
+        if placed_once {
+            let mesh = match &s.kind {
+                ShapeKind::Mesh(name) => named_meshes.remove(name.as_str()).expect("loaded"),
+                ShapeKind::InlineMesh(src) => load_mesh_source(src, &base_dir, &s.locs, &format!("shape[{i}]"))?,
+                _ => unreachable!(),
+            };
+            let mesh = if transform.is_identity() {
+                mesh
+            } else {
+                mesh.transformed(&transform)
+            };
+            meshes.push(mesh);
+            mesh_objects.push(MeshObject {
+                mesh: meshes.len() as u32 - 1,
+                material,
+                light: None,
+            });
+        } else {
+            let ShapeKind::Mesh(name) = &s.kind else { unreachable!() };
+            let mesh = *instanced_mesh_index.entry(name.as_str()).or_insert_with(|| {
+                meshes.push(named_meshes[name.as_str()].clone());
+                meshes.len() as u32 - 1
+            });
+            instances.push(MeshInstance {
+                mesh,
+                transform,
+                material,
+                light: None,
+            });
+        }
+    }
+
+    let mut geometry = Aggregate::build(meshes, shapes, mesh_objects, instances);
+
+    // Lights: the explicit ones, then one per emissive surface.
+    let mut lights: Vec<Light> = desc.lights.iter().map(|l| to_light(&l.kind)).collect();
+    let emissive = |m: u32| materials[m as usize].is_emissive();
+    let mut emitters: Vec<(EmitterRef, u32)> = Vec::new();
+    for (i, s) in geometry.shapes.iter().enumerate() {
+        if emissive(s.material) {
+            if s.shape.bounds().is_none() {
+                warnings.push(format!(
+                    "shape[{}]: an emissive infinite plane is visible but lights nothing directly (it has no finite area to sample)",
+                    desc_index_of_shape(desc, i)
+                ));
+                continue;
+            }
+            emitters.push((EmitterRef::Shape(i as u32), s.material));
+        }
+    }
+    for (i, o) in geometry.mesh_objects.iter().enumerate() {
+        if emissive(o.material) {
+            emitters.push((EmitterRef::MeshObject(i as u32), o.material));
+        }
+    }
+    for (i, o) in geometry.instances.iter().enumerate() {
+        if emissive(o.material) {
+            emitters.push((EmitterRef::Instance(i as u32), o.material));
+        }
+    }
+    for (emitter, material) in emitters {
+        let area = geometry.emitter_area(emitter);
+        if area.total.is_nan() || area.total <= 0.0 {
+            continue;
+        }
+        let index = lights.len() as u32;
+        lights.push(Light::Area {
+            emitter,
+            radiance: materials[material as usize].emission,
+            area,
+        });
+        match emitter {
+            EmitterRef::Shape(i) => geometry.shapes[i as usize].light = Some(index),
+            EmitterRef::MeshObject(i) => geometry.mesh_objects[i as usize].light = Some(index),
+            EmitterRef::Instance(i) => geometry.instances[i as usize].light = Some(index),
+        }
+    }
+
+    let s = &desc.settings;
+    let cam = &desc.camera;
+    let projection = match cam.projection {
+        ProjectionDesc::Perspective { fov } => Projection::Perspective { fov_y: fov },
+        ProjectionDesc::Orthographic { size } => Projection::Orthographic { height: size },
+    };
+    let camera = Camera::look_at(projection, cam.from, cam.to, cam.up, s.width, s.height)
+        .map_err(|m| Error::scene(cam.locs.item.clone(), "camera", m))?
+        .with_thin_lens(
+            cam.aperture_radius,
+            cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
+        );
+    let background = match desc.background {
+        BackgroundDesc::Constant(c) => Background::Constant(c),
+        BackgroundDesc::Gradient { top, bottom } => Background::Gradient { top, bottom },
+    };
+    if lights.is_empty() && desc.ambient == Rgb::ZERO && matches!(background, Background::Constant(c) if c == Rgb::ZERO)
+    {
+        warnings.push("the scene has no lights, no emissive surfaces, no ambient light and a black background: the image will be black".into());
+    }
+    Ok(Scene {
+        camera,
+        geometry,
+        materials,
+        images,
+        lights,
+        background,
+        ambient: desc.ambient,
+        settings: desc.settings.clone(),
+        warnings,
+    })
+}
+
+/// Analytic shapes keep their order in the description, so shape index
+/// `i` among analytic shapes maps back to the i-th analytic shape there.
+fn desc_index_of_shape(desc: &SceneDesc, analytic_index: usize) -> usize {
+    desc.shapes
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| !matches!(s.kind, ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_)))
+        .nth(analytic_index)
+        .map_or(analytic_index, |(i, _)| i)
+}
+
+/// The message of an error without the file name it already carries.
+fn reason_of(e: Error) -> String {
+    match e {
+        Error::File { path, message } => format!("{}: {message}", path.display()),
+        other => other.to_string(),
+    }
+}
+
+/// Composes transform steps: the first listed is applied first.
+pub fn compose(ops: &[TransformOp]) -> Result<Transform, String> {
+    let mut t = Transform::IDENTITY;
+    for op in ops {
+        let step = op.to_transform().map_err(|e| format!("{}: {e}", op.name()))?;
+        t = t.then(&step);
+    }
+    Ok(t)
+}
+
+fn load_mesh_source(src: &MeshSource, base_dir: &Path, locs: &Locs, what: &str) -> Result<TriangleMesh> {
+    match src {
+        MeshSource::Inline(m) => Ok(m.clone()),
+        MeshSource::UvSphere { segments, rings } => {
+            Ok(TriangleMesh::uv_sphere(glam::Vec3::ZERO, 1.0, *segments, *rings))
+        }
+        MeshSource::File(path) => {
+            let full = base_dir.join(path);
+            let ext = full.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+            if ext.as_deref() != Some("obj") {
+                return Err(Error::scene(
+                    locs.key("file"),
+                    format!("{what}.file"),
+                    format!(
+                        "{}: unsupported mesh format (the native format reads .obj files)",
+                        full.display()
+                    ),
+                ));
+            }
+            if let Err(e) = std::fs::metadata(&full) {
+                return Err(Error::scene(
+                    locs.key("file"),
+                    format!("{what}.file"),
+                    format!("cannot read mesh {}: {}", full.display(), io_reason(&e)),
+                ));
+            }
+            super::obj::load_obj_mesh(&full)
+                .map_err(|e| Error::scene(locs.key("file"), format!("{what}.file"), reason_of(e)))
+        }
+    }
+}
+
+fn to_light(kind: &LightKind) -> Light {
+    match *kind {
+        LightKind::Point {
+            position,
+            intensity,
+            falloff,
+        } => Light::Point {
+            position,
+            intensity,
+            falloff,
+        },
+        LightKind::Spot {
+            position,
+            to,
+            intensity,
+            inner_angle,
+            outer_angle,
+            falloff,
+        } => Light::Spot {
+            position,
+            direction: (to - position).normalize(),
+            intensity,
+            cos_inner: inner_angle.to_radians().cos(),
+            cos_outer: outer_angle.to_radians().cos(),
+            falloff,
+        },
+        LightKind::Directional { direction, irradiance } => Light::Directional {
+            direction: direction.normalize(),
+            irradiance,
+        },
+    }
+}

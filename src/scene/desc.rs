@@ -1,0 +1,969 @@
+//! `SceneDesc`: the plain-data description of a scene that every format
+//! reader produces and that [`crate::scene::build`] turns into a renderable
+//! [`crate::scene::Scene`].
+//!
+//! Every element carries where it came from ([`Locs`]), so that validation,
+//! which happens once here for all formats, can point at the offending
+//! line, column and key.
+
+use crate::color::Rgb;
+use crate::error::{Error, Result, SourceLoc};
+use crate::film::Tonemap;
+use crate::geometry::{Transform, TriangleMesh};
+use crate::integrator::IntegratorKind;
+use crate::sampling::SamplerKind;
+use glam::{Mat4, Vec2, Vec3};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Where an element and each of its keys were written.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Locs {
+    /// The element itself (e.g. the `[[shape]]` header).
+    pub item: Option<SourceLoc>,
+    /// Individual keys, as the reader saw them.
+    pub keys: Vec<(String, SourceLoc)>,
+}
+
+impl Locs {
+    /// Locations of an element with no per-key information.
+    pub fn at(item: Option<SourceLoc>) -> Locs {
+        Locs { item, keys: Vec::new() }
+    }
+
+    /// The location of `key`, or of the element if the key was not seen.
+    pub fn key(&self, key: &str) -> Option<SourceLoc> {
+        self.keys
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, l)| l.clone())
+            .or_else(|| self.item.clone())
+    }
+}
+
+/// Render settings that a scene file may give and the command line may
+/// override.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Maximum recursion depth (Whitted) or path length.
+    pub max_depth: u32,
+    /// The rendering algorithm.
+    pub integrator: IntegratorKind,
+    /// Seed of all random numbers.
+    pub seed: u64,
+    /// Placement of samples within pixels.
+    pub sampler: SamplerKind,
+    /// Tone mapping for 8-bit output.
+    pub tonemap: Tonemap,
+    /// Exposure compensation in stops, applied before tone mapping.
+    pub exposure: f32,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            width: 512,
+            height: 512,
+            spp: 16,
+            max_depth: 8,
+            integrator: IntegratorKind::default(),
+            seed: 0,
+            sampler: SamplerKind::default(),
+            tonemap: Tonemap::default(),
+            exposure: 0.0,
+        }
+    }
+}
+
+/// Largest accepted image side, in pixels.
+pub const MAX_IMAGE_SIDE: u32 = 65_536;
+/// Largest accepted image, in pixels (about 268 megapixels).
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 28;
+/// Largest accepted samples per pixel.
+pub const MAX_SPP: u32 = 1 << 24;
+/// Largest accepted recursion depth.
+pub const MAX_DEPTH: u32 = 1024;
+
+/// Camera projection as described.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ProjectionDesc {
+    /// Perspective with vertical field of view in degrees.
+    Perspective {
+        /// Vertical field of view, degrees.
+        fov: f32,
+    },
+    /// Orthographic with the height of the view plane.
+    Orthographic {
+        /// Height of the view plane in world units.
+        size: f32,
+    },
+}
+
+/// The camera.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraDesc {
+    /// Projection.
+    pub projection: ProjectionDesc,
+    /// Eye position.
+    pub from: Vec3,
+    /// Point looked at.
+    pub to: Vec3,
+    /// Up direction.
+    pub up: Vec3,
+    /// Lens radius (0: pinhole).
+    pub aperture_radius: f32,
+    /// Distance to the plane in focus; `None`: the distance from `from` to `to`.
+    pub focus_distance: Option<f32>,
+    /// Source locations.
+    pub locs: Locs,
+}
+
+impl Default for CameraDesc {
+    fn default() -> Self {
+        CameraDesc {
+            projection: ProjectionDesc::Perspective { fov: 40.0 },
+            from: Vec3::new(0.0, 0.0, 5.0),
+            to: Vec3::ZERO,
+            up: Vec3::Y,
+            aperture_radius: 0.0,
+            focus_distance: None,
+            locs: Locs::default(),
+        }
+    }
+}
+
+/// A colour parameter: a constant, or a reference to a named texture.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ColorSource {
+    /// A constant linear RGB colour.
+    Rgb(Rgb),
+    /// The texture with this name.
+    Texture(String),
+}
+
+impl From<Rgb> for ColorSource {
+    fn from(c: Rgb) -> Self {
+        ColorSource::Rgb(c)
+    }
+}
+
+/// A texture definition.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TextureKind {
+    /// A constant colour.
+    Constant(Rgb),
+    /// 2-D checks over (u, v).
+    Checkerboard {
+        /// First colour.
+        even: Rgb,
+        /// Second colour.
+        odd: Rgb,
+        /// Checks per unit of u and v.
+        scale: Vec2,
+    },
+    /// 3-D (solid) checks in world space.
+    Checkerboard3d {
+        /// First colour.
+        even: Rgb,
+        /// Second colour.
+        odd: Rgb,
+        /// Cubes per unit length.
+        scale: f32,
+    },
+    /// An image file.
+    Image {
+        /// Path, relative to the scene file.
+        path: PathBuf,
+        /// Repetitions per unit of u and v.
+        scale: Vec2,
+        /// Offset in (u, v).
+        offset: Vec2,
+        /// Decode from sRGB (`None`: by the file's type).
+        srgb: Option<bool>,
+        /// Colour multiplier.
+        tint: Rgb,
+    },
+}
+
+/// A named texture.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TextureDesc {
+    /// Name that materials refer to.
+    pub name: String,
+    /// Definition.
+    pub kind: TextureKind,
+    /// Source locations.
+    pub locs: Locs,
+}
+
+/// A named material (see [`crate::material::Material`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialDesc {
+    /// Name that shapes refer to.
+    pub name: String,
+    /// Diffuse colour.
+    pub diffuse: ColorSource,
+    /// Specular colour.
+    pub specular: ColorSource,
+    /// Phong exponent.
+    pub shininess: f32,
+    /// Mirror reflectivity.
+    pub reflectivity: Rgb,
+    /// Transmission.
+    pub transmission: Rgb,
+    /// Index of refraction.
+    pub ior: f32,
+    /// Emitted radiance.
+    pub emission: Rgb,
+    /// Source locations.
+    pub locs: Locs,
+}
+
+impl MaterialDesc {
+    /// A material with the defaults of [`crate::material::Material`].
+    pub fn new(name: impl Into<String>) -> MaterialDesc {
+        MaterialDesc {
+            name: name.into(),
+            diffuse: ColorSource::Rgb(Rgb::splat(0.5)),
+            specular: ColorSource::Rgb(Rgb::ZERO),
+            shininess: 0.0,
+            reflectivity: Rgb::ZERO,
+            transmission: Rgb::ZERO,
+            ior: 1.0,
+            emission: Rgb::ZERO,
+            locs: Locs::default(),
+        }
+    }
+}
+
+/// Where a mesh's triangles come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MeshSource {
+    /// Given in the scene.
+    Inline(TriangleMesh),
+    /// A Wavefront OBJ file, relative to the scene file.
+    File(PathBuf),
+    /// A latitude–longitude unit sphere with this many segments and rings.
+    UvSphere {
+        /// Divisions around the axis.
+        segments: u32,
+        /// Divisions from pole to pole.
+        rings: u32,
+    },
+}
+
+/// A named mesh that shapes can place, once or many times.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshDesc {
+    /// Name that shapes refer to.
+    pub name: String,
+    /// Triangles.
+    pub source: MeshSource,
+    /// Source locations.
+    pub locs: Locs,
+}
+
+/// A light.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LightKind {
+    /// Point light.
+    Point {
+        /// Position.
+        position: Vec3,
+        /// Intensity, W/sr.
+        intensity: Rgb,
+        /// Inverse-square falloff.
+        falloff: bool,
+    },
+    /// Spot light.
+    Spot {
+        /// Position.
+        position: Vec3,
+        /// Point the cone is aimed at.
+        to: Vec3,
+        /// Intensity on the axis, W/sr.
+        intensity: Rgb,
+        /// Half-angle of full intensity, degrees.
+        inner_angle: f32,
+        /// Half-angle beyond which there is no light, degrees.
+        outer_angle: f32,
+        /// Inverse-square falloff.
+        falloff: bool,
+    },
+    /// Directional light.
+    Directional {
+        /// Direction the light travels in.
+        direction: Vec3,
+        /// Irradiance, W/m².
+        irradiance: Rgb,
+    },
+}
+
+/// A light with its location.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightDesc {
+    /// Definition.
+    pub kind: LightKind,
+    /// Source locations.
+    pub locs: Locs,
+}
+
+/// One step of a shape's transform.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TransformOp {
+    /// Translation.
+    Translate(Vec3),
+    /// Rotation about an axis by degrees (right-hand rule).
+    Rotate {
+        /// Axis.
+        axis: Vec3,
+        /// Angle in degrees.
+        degrees: f32,
+    },
+    /// Scale per axis.
+    Scale(Vec3),
+    /// Shear factors (see [`Transform::shear`]).
+    Shear {
+        /// x += xy·y
+        xy: f32,
+        /// x += xz·z
+        xz: f32,
+        /// y += yx·x
+        yx: f32,
+        /// y += yz·z
+        yz: f32,
+        /// z += zx·x
+        zx: f32,
+        /// z += zy·y
+        zy: f32,
+    },
+    /// A full 4×4 affine matrix.
+    Matrix(Mat4),
+}
+
+impl TransformOp {
+    /// The transform of this step.
+    pub fn to_transform(&self) -> Result<Transform, crate::geometry::transform::TransformError> {
+        match *self {
+            TransformOp::Translate(t) => {
+                if t.is_finite() {
+                    Ok(Transform::translate(t))
+                } else {
+                    Err(crate::geometry::transform::TransformError::NotFinite)
+                }
+            }
+            TransformOp::Rotate { axis, degrees } => Transform::rotate(axis, degrees),
+            TransformOp::Scale(s) => Transform::scale(s),
+            TransformOp::Shear { xy, xz, yx, yz, zx, zy } => Transform::shear(xy, xz, yx, yz, zx, zy),
+            TransformOp::Matrix(m) => Transform::from_matrix(m),
+        }
+    }
+
+    /// The name of this step in scene files.
+    pub fn name(&self) -> &'static str {
+        match self {
+            TransformOp::Translate(_) => "translate",
+            TransformOp::Rotate { .. } => "rotate",
+            TransformOp::Scale(_) => "scale",
+            TransformOp::Shear { .. } => "shear",
+            TransformOp::Matrix(_) => "matrix",
+        }
+    }
+}
+
+/// The geometry of a shape.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ShapeKind {
+    /// Sphere.
+    Sphere {
+        /// Centre.
+        center: Vec3,
+        /// Radius.
+        radius: f32,
+    },
+    /// Infinite plane.
+    Plane {
+        /// A point on it.
+        point: Vec3,
+        /// Normal (front side).
+        normal: Vec3,
+    },
+    /// Parallelogram.
+    Rectangle {
+        /// Corner.
+        corner: Vec3,
+        /// First edge.
+        edge_u: Vec3,
+        /// Second edge.
+        edge_v: Vec3,
+    },
+    /// Disk.
+    Disk {
+        /// Centre.
+        center: Vec3,
+        /// Normal (front side).
+        normal: Vec3,
+        /// Radius.
+        radius: f32,
+    },
+    /// Axis-aligned box (before its transform).
+    Cuboid {
+        /// Lower corner.
+        min: Vec3,
+        /// Upper corner.
+        max: Vec3,
+    },
+    /// A named mesh from the scene's meshes.
+    Mesh(String),
+    /// A mesh given with the shape itself.
+    InlineMesh(MeshSource),
+}
+
+/// A shape placed in the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShapeDesc {
+    /// Geometry.
+    pub kind: ShapeKind,
+    /// Transform steps, applied in order (the first to the object first).
+    pub transform: Vec<TransformOp>,
+    /// Material name; `None`: the default grey diffuse material.
+    pub material: Option<String>,
+    /// Source locations.
+    pub locs: Locs,
+}
+
+impl ShapeDesc {
+    /// A shape with no transform.
+    pub fn new(kind: ShapeKind, material: Option<&str>) -> ShapeDesc {
+        ShapeDesc {
+            kind,
+            transform: Vec::new(),
+            material: material.map(str::to_string),
+            locs: Locs::default(),
+        }
+    }
+
+    /// The same shape with one more transform step.
+    pub fn with(mut self, op: TransformOp) -> ShapeDesc {
+        self.transform.push(op);
+        self
+    }
+}
+
+/// What rays leaving the scene see.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BackgroundDesc {
+    /// One colour.
+    Constant(Rgb),
+    /// Vertical gradient.
+    Gradient {
+        /// Looking up.
+        top: Rgb,
+        /// Looking down.
+        bottom: Rgb,
+    },
+}
+
+/// A complete scene description.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneDesc {
+    /// The file it was read from, which relative paths are resolved
+    /// against; `None` for scenes built in code.
+    pub source: Option<Arc<Path>>,
+    /// Render settings.
+    pub settings: RenderSettings,
+    /// Where the settings were written.
+    pub settings_locs: Locs,
+    /// Camera.
+    pub camera: CameraDesc,
+    /// Background.
+    pub background: BackgroundDesc,
+    /// Ambient light for the Whitted integrator's ambient term.
+    pub ambient: Rgb,
+    /// Where the world settings were written.
+    pub world_locs: Locs,
+    /// Named textures.
+    pub textures: Vec<TextureDesc>,
+    /// Named materials.
+    pub materials: Vec<MaterialDesc>,
+    /// Named meshes.
+    pub meshes: Vec<MeshDesc>,
+    /// Lights.
+    pub lights: Vec<LightDesc>,
+    /// Shapes.
+    pub shapes: Vec<ShapeDesc>,
+}
+
+impl Default for SceneDesc {
+    fn default() -> Self {
+        SceneDesc {
+            source: None,
+            settings: RenderSettings::default(),
+            settings_locs: Locs::default(),
+            camera: CameraDesc::default(),
+            background: BackgroundDesc::Constant(Rgb::ZERO),
+            ambient: Rgb::ZERO,
+            world_locs: Locs::default(),
+            textures: Vec::new(),
+            materials: Vec::new(),
+            meshes: Vec::new(),
+            lights: Vec::new(),
+            shapes: Vec::new(),
+        }
+    }
+}
+
+/// Checks that builds one error message at a time.
+struct Check<'a> {
+    locs: &'a Locs,
+    prefix: String,
+}
+
+impl Check<'_> {
+    fn err(&self, key: &str, msg: impl Into<String>) -> Error {
+        Error::scene(self.locs.key(key), format!("{}{}", self.prefix, key), msg)
+    }
+    fn finite(&self, key: &str, v: f32) -> Result<()> {
+        if v.is_finite() {
+            Ok(())
+        } else {
+            Err(self.err(key, format!("must be a finite number, got {v}")))
+        }
+    }
+    fn positive(&self, key: &str, v: f32) -> Result<()> {
+        self.finite(key, v)?;
+        if v > 0.0 {
+            Ok(())
+        } else {
+            Err(self.err(key, format!("must be positive, got {v}")))
+        }
+    }
+    fn non_negative(&self, key: &str, v: f32) -> Result<()> {
+        self.finite(key, v)?;
+        if v >= 0.0 {
+            Ok(())
+        } else {
+            Err(self.err(key, format!("must not be negative, got {v}")))
+        }
+    }
+    fn vec3(&self, key: &str, v: Vec3) -> Result<()> {
+        if v.is_finite() {
+            Ok(())
+        } else {
+            Err(self.err(key, format!("must be finite, got [{}, {}, {}]", v.x, v.y, v.z)))
+        }
+    }
+    fn nonzero_vec3(&self, key: &str, v: Vec3) -> Result<()> {
+        self.vec3(key, v)?;
+        if v.length_squared() > 0.0 {
+            Ok(())
+        } else {
+            Err(self.err(key, "must not be the zero vector"))
+        }
+    }
+    fn color(&self, key: &str, c: Rgb) -> Result<()> {
+        if !c.is_finite() {
+            return Err(self.err(key, format!("must be finite, got [{}, {}, {}]", c.x, c.y, c.z)));
+        }
+        if c.min_element() < 0.0 {
+            return Err(self.err(key, format!("must not be negative, got [{}, {}, {}]", c.x, c.y, c.z)));
+        }
+        Ok(())
+    }
+}
+
+impl SceneDesc {
+    /// Checks every value and reference; the first problem found is
+    /// returned with its location.
+    pub fn validate(&self) -> Result<()> {
+        self.validate_settings()?;
+        self.validate_camera()?;
+        let w = Check {
+            locs: &self.world_locs,
+            prefix: "world.".into(),
+        };
+        match &self.background {
+            BackgroundDesc::Constant(c) => w.color("background", *c)?,
+            BackgroundDesc::Gradient { top, bottom } => {
+                w.color("background", *top)?;
+                w.color("background", *bottom)?;
+            }
+        }
+        w.color("ambient", self.ambient)?;
+
+        let mut names = std::collections::HashSet::new();
+        for (i, t) in self.textures.iter().enumerate() {
+            let c = Check {
+                locs: &t.locs,
+                prefix: format!("texture[{i}]."),
+            };
+            if !names.insert(t.name.as_str()) {
+                return Err(c.err("name", format!("a texture named \"{}\" is already defined", t.name)));
+            }
+            match &t.kind {
+                TextureKind::Constant(col) => c.color("color", *col)?,
+                TextureKind::Checkerboard { even, odd, scale } => {
+                    c.color("even", *even)?;
+                    c.color("odd", *odd)?;
+                    c.positive("scale", scale.x)?;
+                    c.positive("scale", scale.y)?;
+                }
+                TextureKind::Checkerboard3d { even, odd, scale } => {
+                    c.color("even", *even)?;
+                    c.color("odd", *odd)?;
+                    c.positive("scale", *scale)?;
+                }
+                TextureKind::Image {
+                    scale, offset, tint, ..
+                } => {
+                    c.finite("scale", scale.x)?;
+                    c.finite("scale", scale.y)?;
+                    c.finite("offset", offset.x)?;
+                    c.finite("offset", offset.y)?;
+                    c.color("tint", *tint)?;
+                }
+            }
+        }
+
+        let mut names = std::collections::HashSet::new();
+        for (i, m) in self.materials.iter().enumerate() {
+            let c = Check {
+                locs: &m.locs,
+                prefix: format!("material[{i}]."),
+            };
+            if !names.insert(m.name.as_str()) {
+                return Err(c.err("name", format!("a material named \"{}\" is already defined", m.name)));
+            }
+            for (key, src) in [("diffuse", &m.diffuse), ("specular", &m.specular)] {
+                match src {
+                    ColorSource::Rgb(col) => c.color(key, *col)?,
+                    ColorSource::Texture(name) => {
+                        if !self.textures.iter().any(|t| &t.name == name) {
+                            return Err(c.err(
+                                key,
+                                format!(
+                                    "no texture named \"{name}\"{}",
+                                    suggest(name, self.textures.iter().map(|t| t.name.as_str()))
+                                ),
+                            ));
+                        }
+                    }
+                }
+            }
+            c.non_negative("shininess", m.shininess)?;
+            c.color("reflectivity", m.reflectivity)?;
+            c.color("transmission", m.transmission)?;
+            c.color("emission", m.emission)?;
+            c.finite("ior", m.ior)?;
+            if m.ior <= 0.0 {
+                return Err(c.err("ior", format!("index of refraction must be positive, got {}", m.ior)));
+            }
+        }
+
+        let mut names = std::collections::HashSet::new();
+        for (i, m) in self.meshes.iter().enumerate() {
+            let c = Check {
+                locs: &m.locs,
+                prefix: format!("mesh[{i}]."),
+            };
+            if !names.insert(m.name.as_str()) {
+                return Err(c.err("name", format!("a mesh named \"{}\" is already defined", m.name)));
+            }
+            validate_mesh_source(&c, &m.source)?;
+        }
+
+        for (i, l) in self.lights.iter().enumerate() {
+            let c = Check {
+                locs: &l.locs,
+                prefix: format!("light[{i}]."),
+            };
+            match &l.kind {
+                LightKind::Point {
+                    position, intensity, ..
+                } => {
+                    c.vec3("position", *position)?;
+                    c.color("intensity", *intensity)?;
+                }
+                LightKind::Spot {
+                    position,
+                    to,
+                    intensity,
+                    inner_angle,
+                    outer_angle,
+                    ..
+                } => {
+                    c.vec3("position", *position)?;
+                    c.vec3("to", *to)?;
+                    if (*to - *position).length_squared() == 0.0 {
+                        return Err(c.err("to", "must differ from `position`"));
+                    }
+                    c.color("intensity", *intensity)?;
+                    c.non_negative("inner_angle", *inner_angle)?;
+                    c.positive("outer_angle", *outer_angle)?;
+                    if *outer_angle > 180.0 {
+                        return Err(c.err("outer_angle", format!("must be at most 180 degrees, got {outer_angle}")));
+                    }
+                    if inner_angle > outer_angle {
+                        return Err(c.err(
+                            "inner_angle",
+                            format!("must not exceed outer_angle ({outer_angle}), got {inner_angle}"),
+                        ));
+                    }
+                }
+                LightKind::Directional { direction, irradiance } => {
+                    c.nonzero_vec3("direction", *direction)?;
+                    c.color("irradiance", *irradiance)?;
+                }
+            }
+        }
+
+        for (i, s) in self.shapes.iter().enumerate() {
+            let c = Check {
+                locs: &s.locs,
+                prefix: format!("shape[{i}]."),
+            };
+            match &s.kind {
+                ShapeKind::Sphere { center, radius } => {
+                    c.vec3("center", *center)?;
+                    c.positive("radius", *radius)?;
+                }
+                ShapeKind::Plane { point, normal } => {
+                    c.vec3("point", *point)?;
+                    c.nonzero_vec3("normal", *normal)?;
+                }
+                ShapeKind::Rectangle { corner, edge_u, edge_v } => {
+                    c.vec3("corner", *corner)?;
+                    c.nonzero_vec3("edge_u", *edge_u)?;
+                    c.nonzero_vec3("edge_v", *edge_v)?;
+                    if edge_u.cross(*edge_v).length_squared() == 0.0 {
+                        return Err(c.err("edge_v", "is parallel to edge_u: the rectangle has zero area"));
+                    }
+                }
+                ShapeKind::Disk { center, normal, radius } => {
+                    c.vec3("center", *center)?;
+                    c.nonzero_vec3("normal", *normal)?;
+                    c.positive("radius", *radius)?;
+                }
+                ShapeKind::Cuboid { min, max } => {
+                    c.vec3("min", *min)?;
+                    c.vec3("max", *max)?;
+                    if !min.cmplt(*max).all() {
+                        return Err(c.err("max", "must be greater than `min` on every axis"));
+                    }
+                }
+                ShapeKind::Mesh(name) => {
+                    if !self.meshes.iter().any(|m| &m.name == name) {
+                        return Err(c.err(
+                            "mesh",
+                            format!(
+                                "no mesh named \"{name}\"{}",
+                                suggest(name, self.meshes.iter().map(|m| m.name.as_str()))
+                            ),
+                        ));
+                    }
+                }
+                ShapeKind::InlineMesh(src) => validate_mesh_source(&c, src)?,
+            }
+            for op in &s.transform {
+                op.to_transform()
+                    .map_err(|e| c.err("transform", format!("{}: {e}", op.name())))?;
+            }
+            if let Some(name) = &s.material {
+                if !self.materials.iter().any(|m| &m.name == name) {
+                    return Err(c.err(
+                        "material",
+                        format!(
+                            "no material named \"{name}\"{}",
+                            suggest(name, self.materials.iter().map(|m| m.name.as_str()))
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_settings(&self) -> Result<()> {
+        let s = &self.settings;
+        let c = Check {
+            locs: &self.settings_locs,
+            prefix: "render.".into(),
+        };
+        for (key, v) in [("width", s.width), ("height", s.height)] {
+            if v == 0 || v > MAX_IMAGE_SIDE {
+                return Err(c.err(key, format!("must be between 1 and {MAX_IMAGE_SIDE} pixels, got {v}")));
+            }
+        }
+        if s.width as u64 * s.height as u64 > MAX_IMAGE_PIXELS {
+            return Err(c.err(
+                "width",
+                format!(
+                    "an image of {}×{} pixels is larger than the limit of {MAX_IMAGE_PIXELS} pixels",
+                    s.width, s.height
+                ),
+            ));
+        }
+        if s.spp == 0 || s.spp > MAX_SPP {
+            return Err(c.err("spp", format!("must be between 1 and {MAX_SPP}, got {}", s.spp)));
+        }
+        if s.max_depth > MAX_DEPTH {
+            return Err(c.err("max_depth", format!("must be at most {MAX_DEPTH}, got {}", s.max_depth)));
+        }
+        c.finite("exposure", s.exposure)?;
+        Ok(())
+    }
+
+    fn validate_camera(&self) -> Result<()> {
+        let cam = &self.camera;
+        let c = Check {
+            locs: &cam.locs,
+            prefix: "camera.".into(),
+        };
+        c.vec3("from", cam.from)?;
+        c.vec3("to", cam.to)?;
+        c.nonzero_vec3("up", cam.up)?;
+        match cam.projection {
+            ProjectionDesc::Perspective { fov } => {
+                c.finite("fov", fov)?;
+                if !(fov > 0.0 && fov < 180.0) {
+                    return Err(c.err(
+                        "fov",
+                        format!("must be between 0 and 180 degrees (exclusive), got {fov}"),
+                    ));
+                }
+            }
+            ProjectionDesc::Orthographic { size } => c.positive("size", size)?,
+        }
+        c.non_negative("aperture_radius", cam.aperture_radius)?;
+        if let Some(f) = cam.focus_distance {
+            c.positive("focus_distance", f)?;
+        }
+        let view = cam.to - cam.from;
+        if view.length_squared() == 0.0 {
+            return Err(c.err("to", "must differ from `from`"));
+        }
+        if view.normalize().cross(cam.up.normalize()).length_squared() < 1e-12 {
+            return Err(c.err("up", "is parallel to the viewing direction"));
+        }
+        Ok(())
+    }
+}
+
+fn validate_mesh_source(c: &Check, src: &MeshSource) -> Result<()> {
+    match src {
+        MeshSource::Inline(m) => {
+            if m.indices.is_empty() {
+                return Err(c.err("indices", "the mesh has no triangles"));
+            }
+            m.validate().map_err(|e| c.err("indices", e.to_string()))
+        }
+        MeshSource::File(_) => Ok(()),
+        MeshSource::UvSphere { segments, rings } => {
+            if *segments < 3 || *rings < 2 {
+                return Err(c.err("segments", "a uv_sphere needs at least 3 segments and 2 rings"));
+            }
+            if *segments as u64 * *rings as u64 > 50_000_000 {
+                return Err(c.err("segments", "segments × rings must be at most 50 million"));
+            }
+            Ok(())
+        }
+    }
+}
+
+/// ", did you mean \"x\"?" for the closest of `candidates` to `name`, if
+/// one is close.
+pub fn suggest<'a>(name: &str, candidates: impl Iterator<Item = &'a str>) -> String {
+    let best = candidates.map(|c| (edit_distance(name, c), c)).min_by_key(|(d, _)| *d);
+    match best {
+        Some((d, c)) if d <= 2.max(name.len() / 3) => format!(" (did you mean \"{c}\"?)"),
+        _ => String::new(),
+    }
+}
+
+/// Levenshtein distance.
+pub fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut cur = vec![i + 1; b.len() + 1];
+        for (j, &cb) in b.iter().enumerate() {
+            cur[j + 1] = (prev[j] + usize::from(ca != cb)).min(prev[j + 1] + 1).min(cur[j] + 1);
+        }
+        prev = cur;
+    }
+    prev[b.len()]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sphere(radius: f32) -> SceneDesc {
+        let mut d = SceneDesc::default();
+        d.shapes.push(ShapeDesc::new(
+            ShapeKind::Sphere {
+                center: Vec3::ZERO,
+                radius,
+            },
+            None,
+        ));
+        d
+    }
+
+    #[test]
+    fn good_scene_validates() {
+        assert!(sphere(1.0).validate().is_ok());
+    }
+
+    #[test]
+    fn bad_values_are_named() {
+        for r in [-1.0, 0.0, f32::NAN, f32::INFINITY] {
+            let e = sphere(r).validate().unwrap_err().to_string();
+            assert!(e.contains("shape[0].radius"), "{e}");
+        }
+        let mut d = sphere(1.0);
+        d.settings.width = 0;
+        assert!(d.validate().unwrap_err().to_string().contains("render.width"));
+        let mut d = sphere(1.0);
+        d.camera.to = d.camera.from;
+        assert!(d.validate().unwrap_err().to_string().contains("camera.to"));
+        let mut d = sphere(1.0);
+        let mut m = MaterialDesc::new("glass");
+        m.ior = -1.5;
+        d.materials.push(m);
+        assert!(d.validate().unwrap_err().to_string().contains("material[0].ior"));
+    }
+
+    #[test]
+    fn missing_references_suggest_names() {
+        let mut d = sphere(1.0);
+        d.materials.push(MaterialDesc::new("mirror"));
+        d.shapes[0].material = Some("miror".into());
+        let e = d.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("no material named \"miror\"") && e.contains("did you mean \"mirror\""),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn singular_transforms_are_rejected() {
+        let mut d = sphere(1.0);
+        d.shapes[0].transform.push(TransformOp::Scale(Vec3::new(1.0, 0.0, 1.0)));
+        let e = d.validate().unwrap_err().to_string();
+        assert!(e.contains("shape[0].transform") && e.contains("singular"), "{e}");
+    }
+
+    #[test]
+    fn edit_distances() {
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        assert_eq!(edit_distance("", "abc"), 3);
+        assert_eq!(edit_distance("same", "same"), 0);
+    }
+}

@@ -1,0 +1,87 @@
+//! Scenes: the format-independent description ([`SceneDesc`]), the readers
+//! that produce it, and the immutable render-time [`Scene`] built from it.
+//!
+//! ```text
+//! scene file ──► native::load ──► SceneDesc ──► build ──► Scene
+//! ```
+
+pub mod build;
+pub mod builtin;
+pub mod desc;
+pub mod native;
+pub mod obj;
+
+pub use build::build;
+pub use desc::{RenderSettings, SceneDesc};
+
+use crate::accel::Aggregate;
+use crate::camera::Camera;
+use crate::color::Rgb;
+use crate::error::{Error, Result};
+use crate::geometry::{Ray, SurfaceHit};
+use crate::light::{Background, Light};
+use crate::material::Material;
+use crate::texture::ImageTexture;
+use std::path::Path;
+
+/// Everything needed to render, ready for many threads to read at once.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The camera.
+    pub camera: Camera,
+    /// Geometry and its acceleration structure.
+    pub geometry: Aggregate,
+    /// Materials, indexed by the surfaces.
+    pub materials: Vec<Material>,
+    /// Texture images, indexed by the textures.
+    pub images: Vec<ImageTexture>,
+    /// Lights, including one per emissive shape.
+    pub lights: Vec<Light>,
+    /// What escaping rays see.
+    pub background: Background,
+    /// Ambient light (Whitted's ambient term).
+    pub ambient: Rgb,
+    /// Render settings.
+    pub settings: RenderSettings,
+    /// Problems found while building that did not stop it.
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// The nearest surface along `ray`.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
+        let hit = self.geometry.intersect(ray)?;
+        Some(self.geometry.surface(ray, &hit))
+    }
+
+    /// Whether anything blocks `ray` within its interval.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.geometry.occluded(ray)
+    }
+}
+
+/// Reads a scene file, choosing the reader by its extension.
+pub fn load(path: &Path) -> Result<SceneDesc> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "toml" => native::load(path),
+        "obj" => builtin::framed_model(path),
+        _ => Err(Error::file(
+            path,
+            format!(
+                "unknown scene format{}: trazo reads .toml scenes and .obj models",
+                if ext.is_empty() {
+                    String::new()
+                } else {
+                    format!(" \".{ext}\"")
+                }
+            ),
+        )),
+    }
+}

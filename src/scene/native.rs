@@ -1,0 +1,923 @@
+//! trazo's native scene format: TOML, documented key by key in
+//! docs/scene-format.md.
+//!
+//! The reader walks the TOML document with its source spans, so that every
+//! error — a syntax error, an unknown key, a wrong type, a value that fails
+//! validation — names the file, line, column and key.
+
+use super::desc::*;
+use crate::color::Rgb;
+use crate::error::{Error, Result, SourceLoc};
+use crate::film::Tonemap;
+use crate::geometry::TriangleMesh;
+use crate::integrator::IntegratorKind;
+use crate::sampling::SamplerKind;
+use glam::{Mat4, Vec2, Vec3, Vec4};
+use serde_spanned::Spanned;
+use std::cell::RefCell;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use toml::de::{DeTable, DeValue};
+
+/// Largest scene file read, in bytes.
+pub const MAX_SCENE_BYTES: u64 = 1 << 30;
+
+/// Reads a scene file.
+pub fn load(path: &Path) -> Result<SceneDesc> {
+    let meta =
+        std::fs::metadata(path).map_err(|e| Error::file(path, format!("cannot read scene: {}", io_reason(&e))))?;
+    if meta.is_dir() {
+        return Err(Error::file(path, "cannot read scene: this is a folder"));
+    }
+    if meta.len() > MAX_SCENE_BYTES {
+        return Err(Error::file(path, "scene file is larger than 1 GiB"));
+    }
+    let bytes = std::fs::read(path).map_err(|e| Error::file(path, format!("cannot read scene: {}", io_reason(&e))))?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let loc = SourceLoc::from_offset(
+            &Arc::from(path),
+            &String::from_utf8_lossy(e.as_bytes()),
+            e.utf8_error().valid_up_to(),
+        );
+        Error::Scene {
+            loc: Some(loc),
+            key: None,
+            message: "the file is not valid UTF-8 text".into(),
+        }
+    })?;
+    parse(&text, path)
+}
+
+/// A short reason for an I/O error ("file not found", …).
+pub fn io_reason(e: &std::io::Error) -> String {
+    match e.kind() {
+        std::io::ErrorKind::NotFound => "file not found".into(),
+        std::io::ErrorKind::PermissionDenied => "permission denied".into(),
+        _ => e.to_string(),
+    }
+}
+
+/// Parses scene text that was read from `path` (used for messages and to
+/// resolve relative file names).
+pub fn parse(text: &str, path: &Path) -> Result<SceneDesc> {
+    let file: Arc<Path> = Arc::from(path);
+    let root = DeTable::parse(text).map_err(|e| {
+        let loc = e.span().map(|s| SourceLoc::from_offset(&file, text, s.start));
+        Error::Scene {
+            loc,
+            key: None,
+            message: format!("TOML syntax error: {}", e.message().trim()),
+        }
+    })?;
+    let ctx = Ctx { file, text };
+    let top = Table::new(&ctx, String::new(), root.get_ref(), root.span());
+    let mut desc = SceneDesc {
+        source: Some(ctx.file.clone()),
+        ..SceneDesc::default()
+    };
+    if let Some(t) = top.table("render")? {
+        read_render(&t, &mut desc.settings)?;
+        desc.settings_locs = t.finish()?;
+    }
+    if let Some(t) = top.table("camera")? {
+        desc.camera = read_camera(&t)?;
+    }
+    if let Some(t) = top.table("world")? {
+        if let Some(v) = t.value("background") {
+            desc.background = match v.get_ref() {
+                DeValue::Table(_) => {
+                    let g = t.table("background")?.expect("checked above");
+                    let top_c = g.color("top")?.unwrap_or(Rgb::ONE);
+                    let bottom = g.color("bottom")?.unwrap_or(Rgb::ZERO);
+                    g.finish()?;
+                    BackgroundDesc::Gradient { top: top_c, bottom }
+                }
+                _ => BackgroundDesc::Constant(t.color("background")?.unwrap_or(Rgb::ZERO)),
+            };
+        }
+        desc.ambient = t.color("ambient")?.unwrap_or(Rgb::ZERO);
+        desc.world_locs = t.finish()?;
+    }
+    for t in top.tables("texture")? {
+        desc.textures.push(read_texture(&t)?);
+    }
+    for t in top.tables("material")? {
+        desc.materials.push(read_material(&t)?);
+    }
+    for t in top.tables("mesh")? {
+        let name = t.required_string("name")?;
+        let source = read_mesh_source(&t, true)?.expect("required");
+        desc.meshes.push(MeshDesc {
+            name,
+            source,
+            locs: t.finish()?,
+        });
+    }
+    for t in top.tables("light")? {
+        desc.lights.push(read_light(&t)?);
+    }
+    for t in top.tables("shape")? {
+        desc.shapes.push(read_shape(&t)?);
+    }
+    top.finish()?;
+    desc.validate()?;
+    Ok(desc)
+}
+
+struct Ctx<'a> {
+    file: Arc<Path>,
+    text: &'a str,
+}
+
+impl Ctx<'_> {
+    fn loc(&self, span: &Range<usize>) -> SourceLoc {
+        SourceLoc::from_offset(&self.file, self.text, span.start)
+    }
+}
+
+type Value<'a> = Spanned<DeValue<'a>>;
+
+/// A TOML table being read: remembers which keys were used (the others are
+/// errors) and where each was written.
+struct Table<'a> {
+    ctx: &'a Ctx<'a>,
+    path: String,
+    table: &'a DeTable<'a>,
+    span: Range<usize>,
+    used: RefCell<Vec<String>>,
+    locs: RefCell<Locs>,
+}
+
+fn type_name(v: &DeValue) -> &'static str {
+    match v {
+        DeValue::String(_) => "a string",
+        DeValue::Integer(_) => "an integer",
+        DeValue::Float(_) => "a number",
+        DeValue::Boolean(_) => "a boolean",
+        DeValue::Datetime(_) => "a date",
+        DeValue::Array(_) => "an array",
+        DeValue::Table(_) => "a table",
+    }
+}
+
+impl<'a> Table<'a> {
+    fn new(ctx: &'a Ctx<'a>, path: String, table: &'a DeTable<'a>, span: Range<usize>) -> Table<'a> {
+        let item = Some(ctx.loc(&span));
+        Table {
+            ctx,
+            path,
+            table,
+            span,
+            used: RefCell::new(Vec::new()),
+            locs: RefCell::new(Locs::at(item)),
+        }
+    }
+
+    fn key_path(&self, key: &str) -> String {
+        if self.path.is_empty() {
+            key.to_string()
+        } else {
+            format!("{}.{key}", self.path)
+        }
+    }
+
+    fn err_at(&self, key: &str, span: &Range<usize>, msg: impl Into<String>) -> Error {
+        Error::scene(Some(self.ctx.loc(span)), self.key_path(key), msg)
+    }
+
+    /// The raw value of `key`, marking it used.
+    fn value(&self, key: &str) -> Option<&'a Value<'a>> {
+        self.used.borrow_mut().push(key.to_string());
+        let (_, v) = self.table.iter().find(|(k, _)| k.get_ref().as_ref() == key)?;
+        self.locs
+            .borrow_mut()
+            .keys
+            .push((key.to_string(), self.ctx.loc(&v.span())));
+        Some(v)
+    }
+
+    fn expected(&self, key: &str, v: &Value, what: &str) -> Error {
+        self.err_at(
+            key,
+            &v.span(),
+            format!("expected {what}, found {}", type_name(v.get_ref())),
+        )
+    }
+
+    fn number_of(&self, key: &str, v: &Value) -> Result<f32> {
+        match v.get_ref() {
+            DeValue::Integer(i) => i128::from_str_radix(i.as_str(), i.radix())
+                .map(|x| x as f32)
+                .map_err(|_| self.err_at(key, &v.span(), "integer out of range")),
+            DeValue::Float(f) => f
+                .as_str()
+                .parse::<f64>()
+                .map(|x| x as f32)
+                .map_err(|_| self.err_at(key, &v.span(), format!("cannot read number {}", f.as_str()))),
+            _ => Err(self.expected(key, v, "a number")),
+        }
+    }
+
+    fn number(&self, key: &str) -> Result<Option<f32>> {
+        self.value(key).map(|v| self.number_of(key, v)).transpose()
+    }
+
+    fn number_or(&self, key: &str, default: f32) -> Result<f32> {
+        Ok(self.number(key)?.unwrap_or(default))
+    }
+
+    fn required<T>(&self, key: &str, v: Option<T>) -> Result<T> {
+        v.ok_or_else(|| {
+            Error::scene(
+                Some(self.ctx.loc(&self.span)),
+                self.key_path(key),
+                format!("missing required key `{key}`"),
+            )
+        })
+    }
+
+    fn unsigned(&self, key: &str, max: u64) -> Result<Option<u64>> {
+        let Some(v) = self.value(key) else {
+            return Ok(None);
+        };
+        match v.get_ref() {
+            DeValue::Integer(i) => {
+                let x = i128::from_str_radix(i.as_str(), i.radix())
+                    .map_err(|_| self.err_at(key, &v.span(), "integer out of range"))?;
+                if x < 0 || x > max as i128 {
+                    return Err(self.err_at(key, &v.span(), format!("must be between 0 and {max}, got {x}")));
+                }
+                Ok(Some(x as u64))
+            }
+            _ => Err(self.expected(key, v, "a whole number")),
+        }
+    }
+
+    fn numbers_of(&self, key: &str, v: &Value, n: usize) -> Result<Vec<f32>> {
+        match v.get_ref() {
+            DeValue::Array(a) if a.len() == n => a.iter().map(|x| self.number_of(key, x)).collect(),
+            DeValue::Array(a) => Err(self.err_at(key, &v.span(), format!("expected {n} numbers, found {}", a.len()))),
+            _ => Err(self.expected(key, v, &format!("an array of {n} numbers"))),
+        }
+    }
+
+    fn vec3_of(&self, key: &str, v: &Value) -> Result<Vec3> {
+        let x = self.numbers_of(key, v, 3)?;
+        Ok(Vec3::new(x[0], x[1], x[2]))
+    }
+
+    fn vec3(&self, key: &str) -> Result<Option<Vec3>> {
+        self.value(key).map(|v| self.vec3_of(key, v)).transpose()
+    }
+
+    /// A 3-vector, or one number for all three components.
+    fn vec3_or_scalar(&self, key: &str) -> Result<Option<Vec3>> {
+        let Some(v) = self.value(key) else {
+            return Ok(None);
+        };
+        match v.get_ref() {
+            DeValue::Integer(_) | DeValue::Float(_) => Ok(Some(Vec3::splat(self.number_of(key, v)?))),
+            _ => self.vec3_of(key, v).map(Some),
+        }
+    }
+
+    /// Two numbers, or one for both.
+    fn vec2(&self, key: &str) -> Result<Option<Vec2>> {
+        let Some(v) = self.value(key) else {
+            return Ok(None);
+        };
+        match v.get_ref() {
+            DeValue::Integer(_) | DeValue::Float(_) => Ok(Some(Vec2::splat(self.number_of(key, v)?))),
+            _ => {
+                let x = self.numbers_of(key, v, 2)?;
+                Ok(Some(Vec2::new(x[0], x[1])))
+            }
+        }
+    }
+
+    /// A colour: [r, g, b] or one number for grey.
+    fn color(&self, key: &str) -> Result<Option<Rgb>> {
+        self.vec3_or_scalar(key)
+    }
+
+    /// A colour or the name of a texture.
+    fn color_source(&self, key: &str) -> Result<Option<ColorSource>> {
+        let Some(v) = self.value(key) else {
+            return Ok(None);
+        };
+        match v.get_ref() {
+            DeValue::String(s) => Ok(Some(ColorSource::Texture(s.to_string()))),
+            DeValue::Integer(_) | DeValue::Float(_) => Ok(Some(ColorSource::Rgb(Rgb::splat(self.number_of(key, v)?)))),
+            DeValue::Array(_) => Ok(Some(ColorSource::Rgb(self.vec3_of(key, v)?))),
+            _ => Err(self.expected(key, v, "a colour [r, g, b], a number or a texture name")),
+        }
+    }
+
+    fn string(&self, key: &str) -> Result<Option<String>> {
+        let Some(v) = self.value(key) else {
+            return Ok(None);
+        };
+        match v.get_ref() {
+            DeValue::String(s) => Ok(Some(s.to_string())),
+            _ => Err(self.expected(key, v, "a string")),
+        }
+    }
+
+    fn required_string(&self, key: &str) -> Result<String> {
+        let s = self.string(key)?;
+        self.required(key, s)
+    }
+
+    /// A string that must be one of `names`.
+    fn choice(&self, key: &str, names: &[&str]) -> Result<Option<String>> {
+        let Some(s) = self.string(key)? else {
+            return Ok(None);
+        };
+        if names.contains(&s.as_str()) {
+            Ok(Some(s))
+        } else {
+            let span = self.value(key).map(|v| v.span()).unwrap_or(self.span.clone());
+            Err(self.err_at(
+                key,
+                &span,
+                format!(
+                    "unknown value \"{s}\": expected one of {}{}",
+                    quote_list(names),
+                    suggest(&s, names.iter().copied())
+                ),
+            ))
+        }
+    }
+
+    fn boolean(&self, key: &str) -> Result<Option<bool>> {
+        let Some(v) = self.value(key) else {
+            return Ok(None);
+        };
+        match v.get_ref() {
+            DeValue::Boolean(b) => Ok(Some(*b)),
+            _ => Err(self.expected(key, v, "true or false")),
+        }
+    }
+
+    fn path(&self, key: &str) -> Result<Option<PathBuf>> {
+        Ok(self.string(key)?.map(PathBuf::from))
+    }
+
+    fn table(&self, key: &str) -> Result<Option<Table<'a>>> {
+        let Some(v) = self.value(key) else {
+            return Ok(None);
+        };
+        match v.get_ref() {
+            DeValue::Table(t) => Ok(Some(Table::new(self.ctx, self.key_path(key), t, v.span()))),
+            _ => Err(self.expected(key, v, "a table")),
+        }
+    }
+
+    /// An array of tables (`[[key]]`), each named `key[i]` in messages.
+    fn tables(&self, key: &str) -> Result<Vec<Table<'a>>> {
+        let Some(v) = self.value(key) else {
+            return Ok(Vec::new());
+        };
+        match v.get_ref() {
+            DeValue::Array(a) => a
+                .iter()
+                .enumerate()
+                .map(|(i, item)| match item.get_ref() {
+                    DeValue::Table(t) => Ok(Table::new(
+                        self.ctx,
+                        format!("{}[{i}]", self.key_path(key)),
+                        t,
+                        item.span(),
+                    )),
+                    _ => Err(self.expected(&format!("{key}[{i}]"), item, "a table")),
+                })
+                .collect(),
+            _ => Err(self.expected(key, v, &format!("an array of tables ([[{key}]])"))),
+        }
+    }
+
+    /// Fails on any key that was never asked for; returns the locations.
+    fn finish(&self) -> Result<Locs> {
+        let used = self.used.borrow();
+        for (k, _) in self.table.iter() {
+            let name = k.get_ref().as_ref();
+            if !used.iter().any(|u| u == name) {
+                let hint = suggest(name, used.iter().map(String::as_str));
+                return Err(Error::scene(
+                    Some(self.ctx.loc(&k.span())),
+                    self.key_path(name),
+                    format!("unknown key{hint}"),
+                ));
+            }
+        }
+        Ok(self.locs.borrow().clone())
+    }
+}
+
+fn quote_list(names: &[&str]) -> String {
+    names.iter().map(|n| format!("\"{n}\"")).collect::<Vec<_>>().join(", ")
+}
+
+fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
+    if let Some(w) = t.unsigned("width", u32::MAX as u64)? {
+        s.width = w as u32;
+    }
+    if let Some(h) = t.unsigned("height", u32::MAX as u64)? {
+        s.height = h as u32;
+    }
+    if let Some(n) = t.unsigned("spp", u32::MAX as u64)? {
+        s.spp = n as u32;
+    }
+    if let Some(d) = t.unsigned("max_depth", u32::MAX as u64)? {
+        s.max_depth = d as u32;
+    }
+    if let Some(seed) = t.unsigned("seed", u64::MAX)? {
+        s.seed = seed;
+    }
+    if let Some(i) = t.choice("integrator", &IntegratorKind::NAMES)? {
+        s.integrator = IntegratorKind::from_name(&i).expect("checked");
+    }
+    if let Some(k) = t.choice("sampler", &SamplerKind::NAMES)? {
+        s.sampler = SamplerKind::from_name(&k).expect("checked");
+    }
+    if let Some(k) = t.choice("tonemap", &Tonemap::NAMES)? {
+        s.tonemap = Tonemap::from_name(&k).expect("checked");
+    }
+    if let Some(e) = t.number("exposure")? {
+        s.exposure = e;
+    }
+    Ok(())
+}
+
+fn read_camera(t: &Table) -> Result<CameraDesc> {
+    let kind = t
+        .choice("type", &["perspective", "orthographic"])?
+        .unwrap_or_else(|| "perspective".into());
+    let projection = if kind == "perspective" {
+        ProjectionDesc::Perspective {
+            fov: t.number_or("fov", 40.0)?,
+        }
+    } else {
+        ProjectionDesc::Orthographic {
+            size: t.number_or("size", 2.0)?,
+        }
+    };
+    let d = CameraDesc::default();
+    let cam = CameraDesc {
+        projection,
+        from: t.vec3("from")?.unwrap_or(d.from),
+        to: t.vec3("to")?.unwrap_or(d.to),
+        up: t.vec3("up")?.unwrap_or(d.up),
+        aperture_radius: t.number_or("aperture_radius", 0.0)?,
+        focus_distance: t.number("focus_distance")?,
+        locs: Locs::default(),
+    };
+    Ok(CameraDesc {
+        locs: t.finish()?,
+        ..cam
+    })
+}
+
+fn read_texture(t: &Table) -> Result<TextureDesc> {
+    let name = t.required_string("name")?;
+    let kind = t.choice("type", &["constant", "checkerboard", "checkerboard3d", "image"])?;
+    let kind = t.required("type", kind)?;
+    let kind = match kind.as_str() {
+        "constant" => TextureKind::Constant(t.color("color")?.unwrap_or(Rgb::splat(0.5))),
+        "checkerboard" => TextureKind::Checkerboard {
+            even: t.color("even")?.unwrap_or(Rgb::ONE),
+            odd: t.color("odd")?.unwrap_or(Rgb::ZERO),
+            scale: t.vec2("scale")?.unwrap_or(Vec2::splat(8.0)),
+        },
+        "checkerboard3d" => TextureKind::Checkerboard3d {
+            even: t.color("even")?.unwrap_or(Rgb::ONE),
+            odd: t.color("odd")?.unwrap_or(Rgb::ZERO),
+            scale: t.number_or("scale", 1.0)?,
+        },
+        _ => {
+            let path = t.path("file")?;
+            TextureKind::Image {
+                path: t.required("file", path)?,
+                scale: t.vec2("scale")?.unwrap_or(Vec2::ONE),
+                offset: t.vec2("offset")?.unwrap_or(Vec2::ZERO),
+                srgb: t.boolean("srgb")?,
+                tint: t.color("tint")?.unwrap_or(Rgb::ONE),
+            }
+        }
+    };
+    Ok(TextureDesc {
+        name,
+        kind,
+        locs: t.finish()?,
+    })
+}
+
+fn read_material(t: &Table) -> Result<MaterialDesc> {
+    let mut m = MaterialDesc::new(t.required_string("name")?);
+    if let Some(c) = t.color_source("diffuse")? {
+        m.diffuse = c;
+    }
+    if let Some(c) = t.color_source("specular")? {
+        m.specular = c;
+    }
+    m.shininess = t.number_or("shininess", m.shininess)?;
+    m.reflectivity = t.color("reflectivity")?.unwrap_or(m.reflectivity);
+    m.transmission = t.color("transmission")?.unwrap_or(m.transmission);
+    m.ior = t.number_or("ior", m.ior)?;
+    m.emission = t.color("emission")?.unwrap_or(m.emission);
+    m.locs = t.finish()?;
+    Ok(m)
+}
+
+fn read_light(t: &Table) -> Result<LightDesc> {
+    let kind = t.choice("type", &["point", "spot", "directional"])?;
+    let kind = match t.required("type", kind)?.as_str() {
+        "point" => LightKind::Point {
+            position: t.required("position", t.vec3("position")?)?,
+            intensity: t.color("intensity")?.unwrap_or(Rgb::ONE),
+            falloff: t.boolean("falloff")?.unwrap_or(true),
+        },
+        "spot" => LightKind::Spot {
+            position: t.required("position", t.vec3("position")?)?,
+            to: t.required("to", t.vec3("to")?)?,
+            intensity: t.color("intensity")?.unwrap_or(Rgb::ONE),
+            inner_angle: t.number_or("inner_angle", 20.0)?,
+            outer_angle: t.number_or("outer_angle", 30.0)?,
+            falloff: t.boolean("falloff")?.unwrap_or(true),
+        },
+        _ => LightKind::Directional {
+            direction: t.required("direction", t.vec3("direction")?)?,
+            irradiance: t.color("irradiance")?.unwrap_or(Rgb::ONE),
+        },
+    };
+    Ok(LightDesc {
+        kind,
+        locs: t.finish()?,
+    })
+}
+
+/// Reads a mesh given by `file`, inline arrays or `generate`. With
+/// `required`, one of them must be present.
+fn read_mesh_source(t: &Table, required: bool) -> Result<Option<MeshSource>> {
+    let file = t.path("file")?;
+    let generate = t.choice("generate", &["uv_sphere"])?;
+    let positions = t.value("positions");
+    let given = [file.is_some(), generate.is_some(), positions.is_some()]
+        .iter()
+        .filter(|&&b| b)
+        .count();
+    if given > 1 {
+        return Err(Error::scene(
+            Some(t.ctx.loc(&t.span)),
+            t.key_path("file"),
+            "give only one of `file`, `generate` and `positions`",
+        ));
+    }
+    if let Some(f) = file {
+        return Ok(Some(MeshSource::File(f)));
+    }
+    if generate.is_some() {
+        let segments = t.unsigned("segments", u32::MAX as u64)?.unwrap_or(64) as u32;
+        let rings = t.unsigned("rings", u32::MAX as u64)?.unwrap_or(32) as u32;
+        return Ok(Some(MeshSource::UvSphere { segments, rings }));
+    }
+    let Some(pv) = positions else {
+        if required {
+            return Err(Error::scene(
+                Some(t.ctx.loc(&t.span)),
+                t.key_path("file"),
+                "a mesh needs `file`, `generate` or `positions` (with `indices`)",
+            ));
+        }
+        return Ok(None);
+    };
+    let mut mesh = TriangleMesh {
+        positions: vec3_list(t, "positions", pv)?,
+        ..TriangleMesh::default()
+    };
+    if let Some(v) = t.value("normals") {
+        mesh.normals = vec3_list(t, "normals", v)?;
+    }
+    if let Some(v) = t.value("uvs") {
+        let flat = flat_numbers(t, "uvs", v, 2)?;
+        mesh.uvs = flat.chunks_exact(2).map(|c| Vec2::new(c[0], c[1])).collect();
+    }
+    let iv = t.value("indices").ok_or_else(|| {
+        Error::scene(
+            Some(t.ctx.loc(&pv.span())),
+            t.key_path("indices"),
+            "inline meshes need `indices`",
+        )
+    })?;
+    let flat = flat_numbers(t, "indices", iv, 3)?;
+    for &x in &flat {
+        if x < 0.0 || x.fract() != 0.0 || x > u32::MAX as f32 {
+            return Err(t.err_at(
+                "indices",
+                &iv.span(),
+                format!("indices must be non-negative whole numbers, got {x}"),
+            ));
+        }
+    }
+    mesh.indices = flat
+        .chunks_exact(3)
+        .map(|c| [c[0] as u32, c[1] as u32, c[2] as u32])
+        .collect();
+    Ok(Some(MeshSource::Inline(mesh)))
+}
+
+/// Numbers from `[[a, b, c], …]` or a flat `[a, b, c, …]`, in groups of `n`.
+fn flat_numbers(t: &Table, key: &str, v: &Value, n: usize) -> Result<Vec<f32>> {
+    let DeValue::Array(items) = v.get_ref() else {
+        return Err(t.expected(key, v, "an array"));
+    };
+    let mut out = Vec::with_capacity(items.len() * n);
+    for item in items.iter() {
+        match item.get_ref() {
+            DeValue::Array(_) => out.extend(t.numbers_of(key, item, n)?),
+            _ => out.push(t.number_of(key, item)?),
+        }
+    }
+    if out.len() % n != 0 {
+        return Err(t.err_at(
+            key,
+            &v.span(),
+            format!("needs a multiple of {n} numbers, found {}", out.len()),
+        ));
+    }
+    Ok(out)
+}
+
+fn vec3_list(t: &Table, key: &str, v: &Value) -> Result<Vec<Vec3>> {
+    let flat = flat_numbers(t, key, v, 3)?;
+    Ok(flat.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect())
+}
+
+fn read_shape(t: &Table) -> Result<ShapeDesc> {
+    let types = ["sphere", "plane", "rectangle", "disk", "box", "mesh"];
+    let kind = t.choice("type", &types)?;
+    let kind = match t.required("type", kind)?.as_str() {
+        "sphere" => ShapeKind::Sphere {
+            center: t.vec3("center")?.unwrap_or(Vec3::ZERO),
+            radius: t.number_or("radius", 1.0)?,
+        },
+        "plane" => ShapeKind::Plane {
+            point: t.vec3("point")?.unwrap_or(Vec3::ZERO),
+            normal: t.vec3("normal")?.unwrap_or(Vec3::Y),
+        },
+        "rectangle" => ShapeKind::Rectangle {
+            corner: t.vec3("corner")?.unwrap_or(Vec3::new(-1.0, 0.0, 1.0)),
+            edge_u: t.vec3("edge_u")?.unwrap_or(Vec3::new(2.0, 0.0, 0.0)),
+            edge_v: t.vec3("edge_v")?.unwrap_or(Vec3::new(0.0, 0.0, -2.0)),
+        },
+        "disk" => ShapeKind::Disk {
+            center: t.vec3("center")?.unwrap_or(Vec3::ZERO),
+            normal: t.vec3("normal")?.unwrap_or(Vec3::Y),
+            radius: t.number_or("radius", 1.0)?,
+        },
+        "box" => ShapeKind::Cuboid {
+            min: t.vec3("min")?.unwrap_or(Vec3::splat(-1.0)),
+            max: t.vec3("max")?.unwrap_or(Vec3::ONE),
+        },
+        _ => match t.string("mesh")? {
+            Some(name) => {
+                if read_mesh_source(t, false)?.is_some() {
+                    return Err(Error::scene(
+                        Some(t.ctx.loc(&t.span)),
+                        t.key_path("mesh"),
+                        "give either `mesh` (a named mesh) or the mesh data, not both",
+                    ));
+                }
+                ShapeKind::Mesh(name)
+            }
+            None => ShapeKind::InlineMesh(read_mesh_source(t, true)?.expect("required")),
+        },
+    };
+    let transform = match t.value("transform") {
+        Some(v) => read_transform(t, v)?,
+        None => Vec::new(),
+    };
+    let material = t.string("material")?;
+    Ok(ShapeDesc {
+        kind,
+        transform,
+        material,
+        locs: t.finish()?,
+    })
+}
+
+/// `transform = [{ translate = [..] }, { rotate = { axis = [..], angle = .. } }, ...]`
+fn read_transform(t: &Table, v: &Value) -> Result<Vec<TransformOp>> {
+    let DeValue::Array(steps) = v.get_ref() else {
+        return Err(t.expected("transform", v, "an array of steps like { translate = [x, y, z] }"));
+    };
+    let mut ops = Vec::new();
+    for (i, step) in steps.iter().enumerate() {
+        let DeValue::Table(st) = step.get_ref() else {
+            return Err(t.expected(&format!("transform[{i}]"), step, "a table like { scale = 2 }"));
+        };
+        let s = Table::new(t.ctx, t.key_path(&format!("transform[{i}]")), st, step.span());
+        if st.len() != 1 {
+            return Err(s.err_at(
+                "",
+                &step.span(),
+                "each step must have exactly one of translate, rotate, scale, shear, matrix",
+            ));
+        }
+        let op = if let Some(x) = s.vec3("translate").transpose() {
+            TransformOp::Translate(x?)
+        } else if let Some(x) = s.vec3_or_scalar("scale").transpose() {
+            TransformOp::Scale(x?)
+        } else if let Some(r) = s.table("rotate")? {
+            let axis = r.required("axis", r.vec3("axis")?)?;
+            let degrees = r.required("angle", r.number("angle")?)?;
+            r.finish()?;
+            TransformOp::Rotate { axis, degrees }
+        } else if let Some(sh) = s.table("shear")? {
+            let op = TransformOp::Shear {
+                xy: sh.number_or("xy", 0.0)?,
+                xz: sh.number_or("xz", 0.0)?,
+                yx: sh.number_or("yx", 0.0)?,
+                yz: sh.number_or("yz", 0.0)?,
+                zx: sh.number_or("zx", 0.0)?,
+                zy: sh.number_or("zy", 0.0)?,
+            };
+            sh.finish()?;
+            op
+        } else if let Some(mv) = s.value("matrix") {
+            let m = s.numbers_of("matrix", mv, 16)?;
+            // Written row by row, as on paper.
+            TransformOp::Matrix(Mat4::from_cols(
+                Vec4::new(m[0], m[4], m[8], m[12]),
+                Vec4::new(m[1], m[5], m[9], m[13]),
+                Vec4::new(m[2], m[6], m[10], m[14]),
+                Vec4::new(m[3], m[7], m[11], m[15]),
+            ))
+        } else {
+            return Err(s
+                .finish()
+                .err()
+                .unwrap_or_else(|| s.err_at("", &step.span(), "empty transform step")));
+        };
+        ops.push(op);
+    }
+    Ok(ops)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse_str(s: &str) -> Result<SceneDesc> {
+        parse(s, Path::new("test.toml"))
+    }
+
+    const MINIMAL: &str = r#"
+[render]
+width = 64
+height = 48
+spp = 4
+
+[camera]
+from = [0, 1, 5]
+to = [0, 1, 0]
+
+[[material]]
+name = "red"
+diffuse = [0.8, 0.1, 0.1]
+
+[[shape]]
+type = "sphere"
+center = [0, 1, 0]
+radius = 1
+material = "red"
+"#;
+
+    #[test]
+    fn reads_a_minimal_scene() {
+        let d = parse_str(MINIMAL).unwrap();
+        assert_eq!((d.settings.width, d.settings.height, d.settings.spp), (64, 48, 4));
+        assert_eq!(d.materials[0].diffuse, ColorSource::Rgb(Rgb::new(0.8, 0.1, 0.1)));
+        assert_eq!(
+            d.shapes[0].kind,
+            ShapeKind::Sphere {
+                center: Vec3::Y,
+                radius: 1.0
+            }
+        );
+        assert_eq!(d.shapes[0].locs.item.as_ref().unwrap().line, 15);
+    }
+
+    fn error_of(s: &str) -> String {
+        parse_str(s).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn syntax_errors_have_positions() {
+        let e = error_of("[render]\nwidth = = 3\n");
+        assert!(e.starts_with("test.toml:2:"), "{e}");
+        assert!(e.contains("TOML syntax error"), "{e}");
+    }
+
+    #[test]
+    fn unknown_keys_are_named_with_suggestions() {
+        let e = error_of(&MINIMAL.replace("radius = 1", "radus = 1"));
+        assert!(
+            e.starts_with("test.toml:18:1: `shape[0].radus`: unknown key (did you mean \"radius\"?)"),
+            "{e}"
+        );
+        let e = error_of("[rendr]\nwidth = 3\n");
+        assert!(e.contains("`rendr`: unknown key") && e.contains("render"), "{e}");
+    }
+
+    #[test]
+    fn wrong_types_name_the_key_and_place() {
+        let e = error_of(&MINIMAL.replace("radius = 1", "radius = \"big\""));
+        assert!(
+            e.starts_with("test.toml:18:10: `shape[0].radius`: expected a number, found a string"),
+            "{e}"
+        );
+        let e = error_of(&MINIMAL.replace("center = [0, 1, 0]", "center = [0, 1]"));
+        assert!(e.contains("`shape[0].center`: expected 3 numbers, found 2"), "{e}");
+        let e = error_of(&MINIMAL.replace("width = 64", "width = -5"));
+        assert!(e.contains("`render.width`: must be between 0 and"), "{e}");
+    }
+
+    #[test]
+    fn invalid_values_point_at_the_value() {
+        for bad in ["-1", "0", "nan", "inf"] {
+            let e = error_of(&MINIMAL.replace("radius = 1", &format!("radius = {bad}")));
+            assert!(
+                e.starts_with("test.toml:18:10: `shape[0].radius`: must be"),
+                "{bad}: {e}"
+            );
+        }
+        let e = error_of(&MINIMAL.replace("width = 64", "width = 0"));
+        assert!(e.starts_with("test.toml:3:9: `render.width`"), "{e}");
+    }
+
+    #[test]
+    fn bad_choices_list_the_options() {
+        let e = error_of(&MINIMAL.replace("type = \"sphere\"", "type = \"sphear\""));
+        assert!(
+            e.contains("unknown value \"sphear\"") && e.contains("did you mean \"sphere\""),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn missing_required_keys() {
+        let e = error_of("[[material]]\ndiffuse = 0.5\n");
+        assert!(e.contains("`material[0].name`: missing required key `name`"), "{e}");
+    }
+
+    #[test]
+    fn transforms_meshes_lights_and_textures() {
+        let s = r#"
+[[texture]]
+name = "checks"
+type = "checkerboard"
+even = 1
+odd = [0, 0, 0]
+scale = 4
+
+[[material]]
+name = "m"
+diffuse = "checks"
+
+[[mesh]]
+name = "tri"
+positions = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+indices = [0, 1, 2]
+
+[[light]]
+type = "spot"
+position = [0, 5, 0]
+to = [0, 0, 0]
+
+[[shape]]
+type = "mesh"
+mesh = "tri"
+material = "m"
+transform = [
+  { scale = 2 },
+  { rotate = { axis = [0, 1, 0], angle = 90 } },
+  { shear = { xy = 0.5 } },
+  { translate = [1, 2, 3] },
+  { matrix = [1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0, 0, 0, 1] },
+]
+"#;
+        let d = parse_str(s).unwrap();
+        assert_eq!(d.shapes[0].transform.len(), 5);
+        assert_eq!(d.shapes[0].transform[0], TransformOp::Scale(Vec3::splat(2.0)));
+        assert!(matches!(d.meshes[0].source, MeshSource::Inline(ref m) if m.indices == vec![[0, 1, 2]]));
+        assert_eq!(d.materials[0].diffuse, ColorSource::Texture("checks".into()));
+        let e = error_of(&s.replace("{ scale = 2 }", "{ scale = 0 }"));
+        assert!(e.contains("`shape[0].transform`") && e.contains("singular"), "{e}");
+        let e = error_of(&s.replace("{ scale = 2 }", "{ scale = 2, translate = [1, 1, 1] }"));
+        assert!(e.contains("exactly one"), "{e}");
+        let e = error_of(&s.replace("indices = [0, 1, 2]", "indices = [0, 1, 7]"));
+        assert!(e.contains("`mesh[0].indices`") && e.contains("vertex 7"), "{e}");
+    }
+}

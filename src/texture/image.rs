@@ -1,0 +1,155 @@
+//! Image textures: decoding (8- and 16-bit images from sRGB, float images
+//! as linear) and filtered lookup.
+
+use crate::color::{Rgb, srgb_to_linear};
+use crate::error::{Error, Result};
+use glam::Vec2;
+use std::path::Path;
+
+/// A linear RGB image used as a texture.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageTexture {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Pixels, row by row from the top.
+    pub pixels: Vec<Rgb>,
+}
+
+/// Largest texture accepted, in pixels (a 16k × 16k image).
+pub const MAX_TEXTURE_PIXELS: u64 = 16384 * 16384;
+
+impl ImageTexture {
+    /// Reads a PNG, JPEG, Radiance HDR or OpenEXR file. Integer images are
+    /// decoded from sRGB unless `srgb` is `Some(false)`; float images are
+    /// taken as linear unless `srgb` is `Some(true)`.
+    pub fn load(path: &Path, srgb: Option<bool>) -> Result<ImageTexture> {
+        let reader = ::image::ImageReader::open(path)
+            .map_err(|e| Error::file(path, format!("cannot open image: {e}")))?
+            .with_guessed_format()
+            .map_err(|e| Error::file(path, format!("cannot read image: {e}")))?;
+        let (w, h) = reader
+            .into_dimensions()
+            .map_err(|e| Error::file(path, format!("not a readable image: {e}")))?;
+        if w as u64 * h as u64 > MAX_TEXTURE_PIXELS {
+            return Err(Error::file(
+                path,
+                format!("image of {w}×{h} pixels is larger than the limit of 16384×16384"),
+            ));
+        }
+        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+            return Self::load_exr(path);
+        }
+        let img = ::image::ImageReader::open(path)
+            .and_then(|r| r.with_guessed_format())
+            .map_err(|e| Error::file(path, format!("cannot read image: {e}")))?
+            .decode()
+            .map_err(|e| Error::file(path, format!("cannot decode image: {e}")))?;
+        let is_float = matches!(img.color(), ::image::ColorType::Rgb32F | ::image::ColorType::Rgba32F);
+        let decode_srgb = srgb.unwrap_or(!is_float);
+        let rgb = img.to_rgb32f();
+        let pixels = rgb
+            .pixels()
+            .map(|p| {
+                let c = Rgb::new(p[0], p[1], p[2]);
+                if decode_srgb {
+                    Rgb::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z))
+                } else {
+                    c
+                }
+            })
+            .collect();
+        Ok(ImageTexture {
+            width: rgb.width(),
+            height: rgb.height(),
+            pixels,
+        })
+    }
+
+    fn load_exr(path: &Path) -> Result<ImageTexture> {
+        let image = crate::film::io::read_exr(path)?;
+        Ok(ImageTexture {
+            width: image.width,
+            height: image.height,
+            pixels: image.pixels,
+        })
+    }
+
+    /// The texel at integer coordinates, wrapping around the edges.
+    #[inline]
+    fn texel(&self, x: i64, y: i64) -> Rgb {
+        let x = x.rem_euclid(self.width as i64) as usize;
+        let y = y.rem_euclid(self.height as i64) as usize;
+        self.pixels[y * self.width as usize + x]
+    }
+
+    /// Bilinearly filtered colour at `uv`, repeating outside [0, 1]²;
+    /// v = 0 is the bottom row of the image.
+    #[inline]
+    pub fn lookup_bilinear(&self, uv: Vec2) -> Rgb {
+        let x = uv.x * self.width as f32 - 0.5;
+        let y = (1.0 - uv.y) * self.height as f32 - 0.5;
+        if !x.is_finite() || !y.is_finite() {
+            return self.pixels[0];
+        }
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (xi, yi) = (x0 as i64, y0 as i64);
+        let top = self.texel(xi, yi) * (1.0 - fx) + self.texel(xi + 1, yi) * fx;
+        let bottom = self.texel(xi, yi + 1) * (1.0 - fx) + self.texel(xi + 1, yi + 1) * fx;
+        top * (1.0 - fy) + bottom * fy
+    }
+
+    /// Mean colour.
+    pub fn average(&self) -> Rgb {
+        let sum = self.pixels.iter().fold(glam::DVec3::ZERO, |a, p| a + p.as_dvec3());
+        (sum / self.pixels.len().max(1) as f64).as_vec3()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bilinear_interpolates_and_wraps() {
+        let t = ImageTexture {
+            width: 2,
+            height: 1,
+            pixels: vec![Rgb::ZERO, Rgb::ONE],
+        };
+        // Texel centres.
+        assert_eq!(t.lookup_bilinear(Vec2::new(0.25, 0.5)), Rgb::ZERO);
+        assert_eq!(t.lookup_bilinear(Vec2::new(0.75, 0.5)), Rgb::ONE);
+        // Halfway between them.
+        assert!((t.lookup_bilinear(Vec2::new(0.5, 0.5)) - Rgb::splat(0.5)).length() < 1e-6);
+        // Wrapping: u = 0 lies halfway between the last and first texel.
+        assert!((t.lookup_bilinear(Vec2::new(0.0, 0.5)) - Rgb::splat(0.5)).length() < 1e-6);
+        assert_eq!(t.lookup_bilinear(Vec2::new(1.25, 0.5)), Rgb::ZERO);
+    }
+
+    #[test]
+    fn png_is_decoded_from_srgb() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.png");
+        let img = ::image::RgbImage::from_pixel(2, 2, ::image::Rgb([128, 255, 0]));
+        img.save(&path).unwrap();
+        let t = ImageTexture::load(&path, None).unwrap();
+        assert_eq!((t.width, t.height), (2, 2));
+        assert!((t.pixels[0].x - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
+        assert_eq!(t.pixels[0].y, 1.0);
+        let lin = ImageTexture::load(&path, Some(false)).unwrap();
+        assert!((lin.pixels[0].x - 128.0 / 255.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn missing_and_garbage_files_are_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = ImageTexture::load(&dir.path().join("nope.png"), None).unwrap_err();
+        assert!(e.to_string().contains("nope.png"));
+        let bad = dir.path().join("bad.png");
+        std::fs::write(&bad, b"not a png at all").unwrap();
+        assert!(ImageTexture::load(&bad, None).is_err());
+    }
+}

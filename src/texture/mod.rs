@@ -1,0 +1,145 @@
+//! Textures: colours that vary over a surface.
+//!
+//! ```toml
+//! [[texture]]
+//! name = "floor"
+//! type = "checkerboard"   # or "checkerboard3d", "image", "constant"
+//! even = [0.9, 0.9, 0.9]
+//! odd = [0.1, 0.1, 0.1]
+//! scale = [8, 8]          # checks per unit of u and v
+//! ```
+
+pub mod image;
+
+pub use self::image::ImageTexture;
+
+use crate::color::Rgb;
+use glam::{Vec2, Vec3};
+
+/// Where a texture is looked up.
+#[derive(Clone, Copy, Debug)]
+pub struct TexCoord {
+    /// Surface coordinates.
+    pub uv: Vec2,
+    /// World-space position (for solid textures).
+    pub p: Vec3,
+}
+
+/// A colour texture. Image data lives in the scene's image list and is
+/// referenced by index, so textures stay small and `Copy`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Texture {
+    /// The same colour everywhere.
+    Constant(Rgb),
+    /// Checks in (u, v): `scale` checks per unit of u and of v.
+    Checkerboard {
+        /// Colour of the checks where ⌊u·su⌋ + ⌊v·sv⌋ is even.
+        even: Rgb,
+        /// Colour of the other checks.
+        odd: Rgb,
+        /// Checks per unit of u and v.
+        scale: Vec2,
+    },
+    /// Solid checks: cubes of side 1/`scale` in world space.
+    Checkerboard3d {
+        /// Colour where ⌊x·s⌋ + ⌊y·s⌋ + ⌊z·s⌋ is even.
+        even: Rgb,
+        /// The other colour.
+        odd: Rgb,
+        /// Cubes per unit length.
+        scale: f32,
+    },
+    /// An image mapped by (u, v), repeating, bilinearly filtered.
+    Image {
+        /// Index into the scene's images.
+        image: u32,
+        /// Repetitions per unit of u and v.
+        scale: Vec2,
+        /// Offset added to (u, v) after scaling.
+        offset: Vec2,
+        /// Colour multiplier.
+        tint: Rgb,
+    },
+}
+
+impl Texture {
+    /// The colour at `tc`.
+    #[inline]
+    pub fn eval(&self, images: &[ImageTexture], tc: &TexCoord) -> Rgb {
+        match *self {
+            Texture::Constant(c) => c,
+            Texture::Checkerboard { even, odd, scale } => {
+                let q = (tc.uv * scale).floor();
+                if (q.x as i64 + q.y as i64).rem_euclid(2) == 0 {
+                    even
+                } else {
+                    odd
+                }
+            }
+            Texture::Checkerboard3d { even, odd, scale } => {
+                let q = (tc.p * scale).floor();
+                if (q.x as i64 + q.y as i64 + q.z as i64).rem_euclid(2) == 0 {
+                    even
+                } else {
+                    odd
+                }
+            }
+            Texture::Image {
+                image,
+                scale,
+                offset,
+                tint,
+            } => images[image as usize].lookup_bilinear(tc.uv * scale + offset) * tint,
+        }
+    }
+
+    /// The texture's average colour: its value for constants, the mean of
+    /// the checks or of the image otherwise.
+    pub fn average(&self, images: &[ImageTexture]) -> Rgb {
+        match *self {
+            Texture::Constant(c) => c,
+            Texture::Checkerboard { even, odd, .. } | Texture::Checkerboard3d { even, odd, .. } => 0.5 * (even + odd),
+            Texture::Image { image, tint, .. } => images[image as usize].average() * tint,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(u: f32, v: f32) -> TexCoord {
+        TexCoord {
+            uv: Vec2::new(u, v),
+            p: Vec3::ZERO,
+        }
+    }
+
+    #[test]
+    fn checkerboard_alternates() {
+        let t = Texture::Checkerboard {
+            even: Rgb::ONE,
+            odd: Rgb::ZERO,
+            scale: Vec2::splat(2.0),
+        };
+        assert_eq!(t.eval(&[], &at(0.1, 0.1)), Rgb::ONE);
+        assert_eq!(t.eval(&[], &at(0.6, 0.1)), Rgb::ZERO);
+        assert_eq!(t.eval(&[], &at(0.6, 0.6)), Rgb::ONE);
+        // Negative coordinates continue the pattern.
+        assert_eq!(t.eval(&[], &at(-0.1, 0.1)), Rgb::ZERO);
+    }
+
+    #[test]
+    fn solid_checkerboard_alternates_in_3d() {
+        let t = Texture::Checkerboard3d {
+            even: Rgb::ONE,
+            odd: Rgb::ZERO,
+            scale: 1.0,
+        };
+        let tc = |p: Vec3| TexCoord { uv: Vec2::ZERO, p };
+        assert_eq!(t.eval(&[], &tc(Vec3::splat(0.5))), Rgb::ONE);
+        assert_eq!(t.eval(&[], &tc(Vec3::new(1.5, 0.5, 0.5))), Rgb::ZERO);
+        assert_eq!(t.eval(&[], &tc(Vec3::new(1.5, 1.5, 0.5))), Rgb::ONE);
+        assert_eq!(t.eval(&[], &tc(Vec3::new(0.5, 0.5, -0.5))), Rgb::ZERO);
+    }
+}
