@@ -366,14 +366,6 @@ impl Aggregate {
         self.traverse(&mut r, true, |_, _| true)
     }
 
-    /// Visits every intersection within the ray's interval, in no
-    /// particular order, until `blocks(hit)` returns `true`; returns whether
-    /// one did. Used for shadow rays that pass through transparent surfaces.
-    pub fn occluded_by(&self, ray: &Ray, mut blocks: impl FnMut(&Hit) -> bool) -> bool {
-        let mut r = *ray;
-        self.traverse(&mut r, true, |hit, _| blocks(&hit))
-    }
-
     /// Material and light of the primitive that was hit.
     #[inline]
     pub fn material_and_light(&self, prim: &HitPrim) -> (u32, Option<u32>) {

@@ -296,11 +296,14 @@ impl Sphere {
             let (x, y) = (c / q, q / a);
             (x.min(y), x.max(y))
         };
+        // Hits must lie strictly after t_min: a ray that starts exactly on
+        // the surface (its origin offset by a zero error bound) must not
+        // find its own starting point.
         let (tmin, tmax) = (ray.t_min as f64, ray.t_max as f64);
-        if t0 > tmax || t1 < tmin {
+        if t0 > tmax || t1 <= tmin {
             return None;
         }
-        let t = if t0 >= tmin {
+        let t = if t0 > tmin {
             t0
         } else if t1 <= tmax {
             t1
@@ -378,9 +381,9 @@ impl Cuboid {
         if near > far {
             return None;
         }
-        if near >= ray.t_min && near <= ray.t_max {
+        if near > ray.t_min && near <= ray.t_max {
             Some(near)
-        } else if far >= ray.t_min && far <= ray.t_max {
+        } else if far > ray.t_min && far <= ray.t_max {
             Some(far) // the origin is inside the box
         } else {
             None
@@ -423,7 +426,7 @@ impl Cuboid {
 }
 
 /// Distance along `ray` to the plane through `p0` with normal `n` (any
-/// length), if it lies in the ray's interval.
+/// length), if it lies in the ray's interval (strictly after `t_min`).
 #[inline]
 fn intersect_plane(ray: &Ray, p0: Vec3, n: Vec3) -> Option<f32> {
     let denom = n.dot(ray.dir);
@@ -431,7 +434,7 @@ fn intersect_plane(ray: &Ray, p0: Vec3, n: Vec3) -> Option<f32> {
         return None; // parallel
     }
     let t = n.dot(p0 - ray.origin) / denom;
-    if t >= ray.t_min && t <= ray.t_max && t.is_finite() {
+    if t > ray.t_min && t <= ray.t_max && t.is_finite() {
         Some(t)
     } else {
         None

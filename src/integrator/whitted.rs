@@ -108,25 +108,41 @@ impl Whitted {
     }
 }
 
+/// Most transmissive surfaces a shadow ray passes through before it
+/// counts as blocked.
+const MAX_SHADOW_CROSSINGS: u32 = 64;
+
 /// Fraction of a light sample's light that reaches `hit`: 0 behind an
-/// opaque surface, `Π kt·(1 − F)` through transmissive ones.
+/// opaque surface, `Π kt·(1 − F)` over the transmissive ones crossed.
 fn shadow_transmittance(scene: &Scene, hit: &SurfaceHit, ls: &LightSample, stats: &mut RayStats) -> Rgb {
     stats.rays += 1;
-    let ray = match ls.target {
+    let mut ray = match ls.target {
         ShadowTarget::Point(p) => hit.spawn_ray_to(p),
         ShadowTarget::Infinity => hit.spawn_ray(ls.wi),
     };
+    if !scene.has_transmissive_materials() {
+        return if scene.occluded(&ray) { Rgb::ZERO } else { Rgb::ONE };
+    }
+    // Walk from surface to surface: each query starts strictly after the
+    // last hit, so both faces of a glass object are crossed.
     let mut transmittance = Rgb::ONE;
-    let blocked = scene.geometry.occluded_by(&ray, |h| {
+    for _ in 0..MAX_SHADOW_CROSSINGS {
+        let Some(h) = scene.geometry.intersect(&ray) else {
+            return transmittance;
+        };
         let (material, _) = scene.geometry.material_and_light(&h.prim);
         let m = &scene.materials[material as usize];
         if !m.is_transmissive() {
-            return true;
+            return Rgb::ZERO;
         }
-        let s = scene.geometry.surface(&ray, h);
+        let s = scene.geometry.surface(&ray, &h);
         let cos = s.ns.dot(-ray.dir.normalize());
         transmittance *= m.transmission * (1.0 - fresnel_dielectric(cos, m.ior));
-        transmittance == Rgb::ZERO
-    });
-    if blocked { Rgb::ZERO } else { transmittance }
+        if transmittance == Rgb::ZERO {
+            return Rgb::ZERO;
+        }
+        ray.t_min = h.t;
+        stats.rays += 1;
+    }
+    Rgb::ZERO
 }

@@ -260,7 +260,9 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
     {
         warnings.push("the scene has no lights, no emissive surfaces, no ambient light and a black background: the image will be black".into());
     }
+    let any_transmissive = materials.iter().any(Material::is_transmissive);
     Ok(Scene {
+        any_transmissive,
         camera,
         geometry,
         materials,

@@ -45,6 +45,8 @@ pub struct Scene {
     pub settings: RenderSettings,
     /// Problems found while building that did not stop it.
     pub warnings: Vec<String>,
+    /// Whether any material is transmissive (cached for shadow rays).
+    pub any_transmissive: bool,
 }
 
 impl Scene {
@@ -53,6 +55,13 @@ impl Scene {
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
         let hit = self.geometry.intersect(ray)?;
         Some(self.geometry.surface(ray, &hit))
+    }
+
+    /// Whether any material lets light through (shadow rays then have to
+    /// look past the first surface they meet).
+    #[inline]
+    pub fn has_transmissive_materials(&self) -> bool {
+        self.any_transmissive
     }
 
     /// Whether anything blocks `ray` within its interval.
