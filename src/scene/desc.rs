@@ -314,6 +314,16 @@ pub struct LightDesc {
     pub locs: Locs,
 }
 
+impl LightDesc {
+    /// A light with no source location (for scenes built in code).
+    pub fn new(kind: LightKind) -> LightDesc {
+        LightDesc {
+            kind,
+            locs: Locs::default(),
+        }
+    }
+}
+
 /// One step of a shape's transform.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum TransformOp {

@@ -1,0 +1,368 @@
+//! The command line as a user meets it: the README's commands, every flag,
+//! every kind of bad input (exit status 2 with a one-line message naming
+//! the file, place and key), and the files it writes.
+
+use assert_cmd::Command;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+fn trazo() -> Command {
+    Command::cargo_bin("trazo").unwrap()
+}
+
+fn repo(p: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
+}
+
+/// Runs trazo expecting failure with status 2 and one line on stderr;
+/// returns that line.
+fn fails(args: &[&str]) -> String {
+    let out = trazo().args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "args {args:?}, stderr: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "one line expected, got: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    lines[0].to_string()
+}
+
+fn write_scene(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    fs::write(&p, text).unwrap();
+    p
+}
+
+const SPHERE: &str = r#"[render]
+width = 16
+height = 12
+spp = 1
+
+[[light]]
+type = "point"
+position = [0, 3, 3]
+intensity = 10
+
+[[shape]]
+type = "sphere"
+center = [0, 0, 0]
+radius = 1
+"#;
+
+#[test]
+fn help_explains_every_flag() {
+    let out = trazo().arg("--help").output().unwrap();
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stdout).contains("render"));
+    let out = trazo().args(["render", "--help"]).output().unwrap();
+    assert!(out.status.success());
+    let help = String::from_utf8_lossy(&out.stdout);
+    for flag in [
+        "--output",
+        "--spp",
+        "--integrator",
+        "--width",
+        "--height",
+        "--max-depth",
+        "--seed",
+        "--threads",
+        "--quiet",
+        "--verbose",
+        "--tonemap",
+        "--sampler",
+        "--exposure",
+    ] {
+        assert!(help.contains(flag), "render --help lacks {flag}");
+    }
+}
+
+#[test]
+fn renders_the_default_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cornell.png");
+    let o = trazo()
+        .args(["render", "--width", "32", "--height", "32", "--spp", "2", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary = String::from_utf8_lossy(&o.stderr);
+    assert!(summary.contains("samples/s") && summary.contains("32×32"), "{summary}");
+    let img = image::open(&out).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (32, 32));
+    // The red left wall and the green right wall are where they belong.
+    let left = img.get_pixel(3, 16);
+    let right = img.get_pixel(28, 16);
+    assert!(left[0] > left[1] && right[1] > right[0], "{left:?} {right:?}");
+}
+
+#[test]
+fn default_output_name_follows_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "ball.toml", SPHERE);
+    let o = trazo()
+        .current_dir(dir.path())
+        .args(["render", "-q"])
+        .arg(&scene)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.stderr.is_empty(), "--quiet prints nothing");
+    assert!(dir.path().join("ball.png").is_file());
+}
+
+#[test]
+fn every_example_scene_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut count = 0;
+    for entry in fs::read_dir(repo("scenes")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let out = dir
+            .path()
+            .join(format!("{}.png", path.file_stem().unwrap().to_string_lossy()));
+        let o = trazo()
+            .args(["render", "-q", "--width", "24", "--height", "16", "--spp", "1", "-o"])
+            .arg(&out)
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{}: {}",
+            path.display(),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(out.is_file());
+        count += 1;
+    }
+    assert!(count >= 6, "found {count} scenes");
+}
+
+#[test]
+fn float_formats_and_verbose_statistics() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "s.toml", SPHERE);
+    for ext in ["exr", "hdr", "pfm"] {
+        let out = dir.path().join(format!("x.{ext}"));
+        let o = trazo()
+            .args(["render", "-v", "-o"])
+            .arg(&out)
+            .arg(&scene)
+            .output()
+            .unwrap();
+        assert!(o.status.success());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains("bvh:") && err.contains("nodes") && err.contains("built in"),
+            "{err}"
+        );
+        let img = trazo::film::io::read_image(&out).unwrap();
+        assert_eq!((img.width, img.height), (16, 12));
+    }
+}
+
+#[test]
+fn threads_do_not_change_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.pfm");
+    let b = dir.path().join("b.pfm");
+    for (out, threads) in [(&a, "1"), (&b, "2")] {
+        let o = trazo()
+            .args([
+                "render",
+                "-q",
+                "--width",
+                "24",
+                "--height",
+                "24",
+                "--spp",
+                "3",
+                "--seed",
+                "7",
+                "--threads",
+                threads,
+                "-o",
+            ])
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(o.status.success());
+    }
+    assert_eq!(fs::read(&a).unwrap(), fs::read(&b).unwrap());
+}
+
+#[test]
+fn flags_override_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "s.toml", SPHERE);
+    let out = dir.path().join("x.png");
+    let o = trazo()
+        .args([
+            "render",
+            "-q",
+            "--width",
+            "20",
+            "--height",
+            "10",
+            "--spp",
+            "2",
+            "--max-depth",
+            "1",
+            "--seed",
+            "3",
+            "--integrator",
+            "whitted",
+            "--sampler",
+            "independent",
+            "--tonemap",
+            "aces",
+            "--exposure",
+            "-1",
+            "-o",
+        ])
+        .arg(&out)
+        .arg(&scene)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(image::open(&out).unwrap().to_rgb8().dimensions(), (20, 10));
+}
+
+#[test]
+fn renders_a_lone_obj_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("knot.png");
+    let o = trazo()
+        .args(["render", "-q", "--width", "24", "--height", "24", "--spp", "1", "-o"])
+        .arg(&out)
+        .arg(repo("scenes/models/torus-knot.obj"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The model is framed: the centre pixel shows it, not the background.
+    let img = image::open(&out).unwrap().to_rgb8();
+    assert_ne!(img.get_pixel(12, 12), img.get_pixel(0, 0));
+}
+
+#[test]
+fn missing_and_unreadable_scenes() {
+    let e = fails(&["render", "no/such/scene.toml"]);
+    assert!(e.contains("no/such/scene.toml") && e.contains("not found"), "{e}");
+    let dir = tempfile::tempdir().unwrap();
+    let e = fails(&["render", dir.path().to_str().unwrap()]);
+    assert!(e.contains("unknown scene format") || e.contains("folder"), "{e}");
+    let bad = write_scene(dir.path(), "s.xyz", "");
+    let e = fails(&["render", bad.to_str().unwrap()]);
+    assert!(e.contains("unknown scene format"), "{e}");
+    let binary = dir.path().join("bin.toml");
+    fs::write(&binary, [0xffu8, 0xfe, 0x00, 0x41]).unwrap();
+    let e = fails(&["render", binary.to_str().unwrap()]);
+    assert!(e.contains("UTF-8"), "{e}");
+}
+
+fn scene_error(text: &str) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), "bad.toml", text);
+    let out = dir.path().join("x.png");
+    let e = fails(&["render", "-o", out.to_str().unwrap(), scene.to_str().unwrap()]);
+    assert!(!out.exists(), "no image is written for a bad scene");
+    assert!(e.contains("bad.toml:"), "the message names the file: {e}");
+    e
+}
+
+#[test]
+fn bad_scenes_name_file_line_column_and_key() {
+    let e = scene_error(&SPHERE.replace("radius = 1", "radius = -1"));
+    assert!(
+        e.contains("bad.toml:14:10") && e.contains("`shape[0].radius`") && e.contains("positive"),
+        "{e}"
+    );
+    let e = scene_error(&SPHERE.replace("radius = 1", "radius = nan"));
+    assert!(e.contains("`shape[0].radius`") && e.contains("finite"), "{e}");
+    let e = scene_error(&SPHERE.replace("radius = 1", "radius = [1]"));
+    assert!(
+        e.contains("`shape[0].radius`") && e.contains("expected a number"),
+        "{e}"
+    );
+    let e = scene_error(&SPHERE.replace("radius = 1", "radios = 1"));
+    assert!(
+        e.contains("bad.toml:14:1") && e.contains("unknown key") && e.contains("radius"),
+        "{e}"
+    );
+    let e = scene_error(&SPHERE.replace("width = 16", "width = 0"));
+    assert!(e.contains("bad.toml:2:9") && e.contains("`render.width`"), "{e}");
+    let e = scene_error(&SPHERE.replace("spp = 1", "spp = 99999999999"));
+    assert!(e.contains("`render.spp`"), "{e}");
+    let e = scene_error(&format!("{SPHERE}material = \"missing\"\n"));
+    assert!(e.contains("no material named \"missing\""), "{e}");
+    let e = scene_error("[render\nwidth = 3\n");
+    assert!(e.contains("bad.toml:1:") && e.contains("syntax"), "{e}");
+    let e = scene_error(&format!(
+        "{SPHERE}\n[[shape]]\ntype = \"mesh\"\nfile = \"nowhere/model.obj\"\n"
+    ));
+    assert!(e.contains("nowhere/model.obj") && e.contains("not found"), "{e}");
+    let e = scene_error(&format!(
+        "{SPHERE}\n[[texture]]\nname = \"t\"\ntype = \"image\"\nfile = \"missing.png\"\n"
+    ));
+    assert!(e.contains("missing.png"), "{e}");
+    let e = scene_error(&format!("{SPHERE}\n[[material]]\nname = \"g\"\nior = 0\n"));
+    assert!(e.contains("`material[0].ior`"), "{e}");
+}
+
+#[test]
+fn bad_flags_exit_with_status_2() {
+    let out = trazo().args(["render", "--width", "0"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let out = trazo().args(["render", "--spp", "lots"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let out = trazo().args(["render", "--integrator", "magic"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("whitted"));
+    let out = trazo().args(["frobnicate"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let e = fails(&[
+        "render",
+        "--threads",
+        "0",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "-o",
+        "/tmp/trazo-threads0.png",
+    ]);
+    assert!(e.contains("threads"), "{e}");
+}
+
+#[test]
+fn unwritable_outputs_fail_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    let e = fails(&["render", "-o", dir.path().join("no/such/dir/x.png").to_str().unwrap()]);
+    assert!(e.contains("does not exist"), "{e}");
+    let e = fails(&["render", "-o", dir.path().join("x.bmp").to_str().unwrap()]);
+    assert!(e.contains("unsupported image format"), "{e}");
+    let e = fails(&["render", "-o", dir.path().to_str().unwrap()]);
+    assert!(e.contains("folder") || e.contains("extension"), "{e}");
+    assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 0, "nothing is left behind");
+}
+
+#[test]
+fn an_existing_output_is_replaced_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.png");
+    fs::write(&out, b"an old file").unwrap();
+    let o = trazo()
+        .args(["render", "-q", "--width", "8", "--height", "8", "--spp", "1", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    assert_eq!(image::open(&out).unwrap().to_rgb8().dimensions(), (8, 8));
+    assert_eq!(
+        fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "no temporary file is left"
+    );
+}
