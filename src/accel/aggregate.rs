@@ -582,3 +582,147 @@ fn finish_surface(t: f32, ls: LocalSurface, ns: Option<Vec3>, material: u32, lig
         light,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::shape::{Cuboid, Sphere};
+
+    fn one_shape(shape: Shape, transform: Transform) -> Aggregate {
+        Aggregate::build(
+            vec![],
+            vec![ShapeInstance {
+                shape,
+                transform: Some(transform),
+                material: 0,
+                light: None,
+            }],
+            vec![],
+            vec![],
+        )
+    }
+
+    fn hit(g: &Aggregate, o: Vec3, d: Vec3) -> Option<SurfaceHit> {
+        let r = Ray::new(o, d);
+        g.intersect(&r).map(|h| g.surface(&r, &h))
+    }
+
+    fn close(a: Vec3, b: Vec3) -> bool {
+        (a - b).length() < 1e-5
+    }
+
+    /// A unit sphere scaled by (2, 1, 1) is the ellipsoid x²/4 + y² + z² = 1,
+    /// whose normal at p is along (x/4, y, z).
+    #[test]
+    fn scaled_sphere_is_an_exact_ellipsoid() {
+        let g = one_shape(
+            Shape::Sphere(Sphere {
+                center: Vec3::ZERO,
+                radius: 1.0,
+            }),
+            Transform::scale(Vec3::new(2.0, 1.0, 1.0)).unwrap(),
+        );
+        let h = hit(&g, Vec3::new(-5.0, 0.0, 0.0), Vec3::X).unwrap();
+        assert!((h.t - 3.0).abs() < 1e-5 && close(h.ng, -Vec3::X));
+        // Ray along y at x = 1: hits where y = sqrt(1 − 1/4).
+        let h = hit(&g, Vec3::new(1.0, -5.0, 0.0), Vec3::Y).unwrap();
+        let y = -(0.75f32).sqrt();
+        assert!(close(h.p, Vec3::new(1.0, y, 0.0)), "{}", h.p);
+        assert!(close(h.ng, Vec3::new(0.25, y, 0.0).normalize()), "{}", h.ng);
+        // Unnormalised directions keep t in world units of the direction.
+        let h = hit(&g, Vec3::new(-5.0, 0.0, 0.0), Vec3::X * 2.0).unwrap();
+        assert!((h.t - 1.5).abs() < 1e-5);
+    }
+
+    /// A box sheared by x += y has slanted sides with normal (1, −1, 0)/√2
+    /// and a top face that keeps normal +y but moves right.
+    #[test]
+    fn sheared_box_faces_and_normals() {
+        let g = one_shape(
+            Shape::Cuboid(Cuboid {
+                min: Vec3::splat(-1.0),
+                max: Vec3::ONE,
+            }),
+            Transform::shear(1.0, 0.0, 0.0, 0.0, 0.0, 0.0).unwrap(),
+        );
+        let h = hit(&g, Vec3::new(1.5, 5.0, 0.0), -Vec3::Y).unwrap();
+        assert!((h.t - 4.0).abs() < 1e-5 && close(h.ng, Vec3::Y));
+        // Beyond the top face's shifted extent [0, 2] there is only the slanted side.
+        assert!(hit(&g, Vec3::new(-0.5, 5.0, 0.5), -Vec3::Y).is_some_and(|h| h.p.y < 1.0 - 1e-3));
+        let h = hit(&g, Vec3::new(5.0, 0.5, 0.0), -Vec3::X).unwrap();
+        assert!(close(h.p, Vec3::new(1.5, 0.5, 0.0)), "{}", h.p);
+        assert!(close(h.ng, Vec3::new(1.0, -1.0, 0.0).normalize()), "{}", h.ng);
+    }
+
+    /// A box rotated 45° about y: a ray along −z meets its edge at distance √2.
+    #[test]
+    fn rotated_box() {
+        let g = one_shape(
+            Shape::Cuboid(Cuboid {
+                min: Vec3::splat(-1.0),
+                max: Vec3::ONE,
+            }),
+            Transform::rotate(Vec3::Y, 45.0).unwrap(),
+        );
+        let h = hit(&g, Vec3::new(0.0, 0.0, 5.0), -Vec3::Z).unwrap();
+        assert!((h.t - (5.0 - 2f32.sqrt())).abs() < 1e-5, "{}", h.t);
+        let h = hit(&g, Vec3::new(0.5, 0.0, 5.0), -Vec3::Z).unwrap();
+        assert!(close(h.ng, Vec3::new(1.0, 0.0, 1.0).normalize()), "{}", h.ng);
+    }
+
+    /// A mirroring transform keeps outward normals outward.
+    #[test]
+    fn mirrored_sphere_normals_point_out() {
+        let g = one_shape(
+            Shape::Sphere(Sphere {
+                center: Vec3::new(1.0, 0.0, 0.0),
+                radius: 1.0,
+            }),
+            Transform::scale(Vec3::new(-1.0, 1.0, 1.0)).unwrap(),
+        );
+        let h = hit(&g, Vec3::new(-5.0, 0.0, 0.0), Vec3::X).unwrap();
+        assert!((h.t - 3.0).abs() < 1e-5 && close(h.ng, -Vec3::X), "{} {}", h.t, h.ng);
+    }
+
+    /// Sampled points on a transformed emitter lie on it, and the density
+    /// that sampling reports matches `emitter_pdf_area` there; over the
+    /// surface the density integrates to 1 (Monte Carlo over the samples:
+    /// E[1/pdf] = area).
+    #[test]
+    fn emitter_sampling_density_is_consistent() {
+        let t = Transform::scale(Vec3::new(2.0, 0.5, 1.0))
+            .unwrap()
+            .then(&Transform::rotate(Vec3::new(1.0, 2.0, 0.5), 30.0).unwrap());
+        let g = one_shape(
+            Shape::Cuboid(Cuboid {
+                min: Vec3::ZERO,
+                max: Vec3::ONE,
+            }),
+            t,
+        );
+        let e = EmitterRef::Shape(0);
+        let area = g.emitter_area(e);
+        let mut r = crate::sampling::Pcg32::new(3, 0);
+        let n = 20_000;
+        let mut inv_pdf_sum = 0.0f64;
+        for _ in 0..n {
+            let s = g
+                .sample_emitter(e, &area, r.next_f32(), Vec2::new(r.next_f32(), r.next_f32()))
+                .unwrap();
+            let back = g.emitter_pdf_area(e, &area, s.n);
+            assert!(
+                (back - s.pdf_area).abs() < 1e-4 * s.pdf_area,
+                "{back} vs {}",
+                s.pdf_area
+            );
+            inv_pdf_sum += 1.0 / s.pdf_area as f64;
+        }
+        // World area of the transformed unit cube: faces scaled by the transform.
+        let world_area: f64 = [Vec3::X, Vec3::Y, Vec3::Z]
+            .iter()
+            .map(|&n| 2.0 * normal_and_area_scale(&t, n).1 as f64)
+            .sum();
+        let est = inv_pdf_sum / n as f64;
+        assert!((est - world_area).abs() < 0.01 * world_area, "{est} vs {world_area}");
+    }
+}
