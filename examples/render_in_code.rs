@@ -21,14 +21,24 @@ fn main() -> Result<(), trazo::Error> {
         bottom: Rgb::splat(0.2),
     };
 
-    let mut red = MaterialDesc::new("red");
-    red.diffuse = ColorSource::Rgb(Rgb::new(0.8, 0.15, 0.1));
-    red.specular = ColorSource::Rgb(Rgb::splat(0.3));
-    red.shininess = 60.0;
-    let mut mirror = MaterialDesc::new("mirror");
-    mirror.diffuse = ColorSource::Rgb(Rgb::ZERO);
-    mirror.reflectivity = Rgb::splat(0.9);
-    desc.materials.extend([red, mirror, MaterialDesc::new("floor")]);
+    let red = MaterialDesc::classic(
+        "red",
+        ClassicDesc {
+            diffuse: ColorSource::Rgb(Rgb::new(0.8, 0.15, 0.1)),
+            specular: ColorSource::Rgb(Rgb::splat(0.3)),
+            shininess: 60.0,
+            ..ClassicDesc::default()
+        },
+    );
+    let gold = MaterialDesc::with_kind(
+        "gold",
+        MaterialKindDesc::Conductor {
+            fresnel: ConductorDesc::Reflectance(Rgb::new(1.0, 0.78, 0.34)),
+            tint: Rgb::ONE,
+            roughness: (0.0, 0.0),
+        },
+    );
+    desc.materials.extend([red, gold, MaterialDesc::new("floor")]);
 
     desc.lights.push(LightDesc::new(LightKind::Point {
         position: Vec3::new(-3.0, 5.0, 4.0),
@@ -49,7 +59,7 @@ fn main() -> Result<(), trazo::Error> {
                 min: Vec3::splat(-0.5),
                 max: Vec3::splat(0.5),
             },
-            Some("mirror"),
+            Some("gold"),
         )
         .with(TransformOp::Rotate {
             axis: Vec3::Y,

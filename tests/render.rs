@@ -4,6 +4,7 @@
 use trazo::accel::aggregate::{Aggregate, MeshInstance, MeshObject, ShapeInstance};
 use trazo::geometry::shape::{Cuboid, Disk, Rectangle, Shape, Sphere};
 use trazo::geometry::{Ray, Transform, TriangleMesh};
+use trazo::integrator::IntegratorKind;
 use trazo::material::optics::{fresnel_dielectric, refract};
 use trazo::render::{RenderOptions, render};
 use trazo::sampling::{Pcg32, SamplerKind};
@@ -48,14 +49,19 @@ fn phong_shading_matches_the_formula_at_known_pixels() {
     d.settings.height = 65;
     d.settings.spp = 1;
     d.settings.sampler = SamplerKind::Center;
+    d.settings.integrator = IntegratorKind::Whitted;
     d.camera.from = Vec3::new(0.0, 0.0, 5.0);
     d.camera.projection = ProjectionDesc::Perspective { fov: 30.0 };
     d.ambient = ambient;
-    let mut m = MaterialDesc::new("phong");
-    m.diffuse = ColorSource::Rgb(kd);
-    m.specular = ColorSource::Rgb(Rgb::splat(ks));
-    m.shininess = s;
-    d.materials.push(m);
+    d.materials.push(MaterialDesc::classic(
+        "phong",
+        ClassicDesc {
+            diffuse: ColorSource::Rgb(kd),
+            specular: ColorSource::Rgb(Rgb::splat(ks)),
+            shininess: s,
+            ..ClassicDesc::default()
+        },
+    ));
     d.lights.push(point_light(light_pos, intensity));
     d.shapes.push(ShapeDesc::new(
         ShapeKind::Sphere {
@@ -102,6 +108,7 @@ fn lit_floor_scene(blocker: Option<MaterialDesc>) -> SceneDesc {
     d.settings.height = 9;
     d.settings.spp = 1;
     d.settings.sampler = SamplerKind::Center;
+    d.settings.integrator = IntegratorKind::Whitted;
     d.camera = CameraDesc {
         projection: ProjectionDesc::Orthographic { size: 0.5 },
         from: Vec3::new(0.0, 5.0, 0.0),
@@ -152,10 +159,15 @@ fn shadow_rays_through_opaque_and_transparent_occluders() {
     // Diffuse 0.5, E = 16/4² → L = 0.5/π.
     assert!((lit.x - 0.5 / std::f32::consts::PI).abs() < 1e-5, "{lit}");
     assert_eq!(centre(&lit_floor_scene(Some(MaterialDesc::new("wall")))), Rgb::ZERO);
-    let mut glass = MaterialDesc::new("glass");
-    glass.diffuse = ColorSource::Rgb(Rgb::ZERO);
-    glass.transmission = Rgb::new(1.0, 0.5, 0.25);
-    glass.ior = 1.5;
+    let glass = MaterialDesc::classic(
+        "glass",
+        ClassicDesc {
+            diffuse: ColorSource::Rgb(Rgb::ZERO),
+            transmission: Rgb::new(1.0, 0.5, 0.25),
+            ior: 1.5,
+            ..ClassicDesc::default()
+        },
+    );
     let through = centre(&lit_floor_scene(Some(glass)));
     let f = fresnel_dielectric(1.0, 1.5);
     let expect = lit * Rgb::new(1.0, 0.25, 0.0625) * (1.0 - f) * (1.0 - f);
@@ -277,12 +289,17 @@ fn glass_sphere_in_a_uniform_background_disappears() {
     d.settings.height = 16;
     d.settings.spp = 1;
     d.settings.max_depth = 24;
+    d.settings.integrator = IntegratorKind::Whitted;
     d.background = BackgroundDesc::Constant(Rgb::splat(0.7));
-    let mut glass = MaterialDesc::new("glass");
-    glass.diffuse = ColorSource::Rgb(Rgb::ZERO);
-    glass.transmission = Rgb::ONE;
-    glass.ior = 1.5;
-    d.materials.push(glass);
+    d.materials.push(MaterialDesc::classic(
+        "glass",
+        ClassicDesc {
+            diffuse: ColorSource::Rgb(Rgb::ZERO),
+            transmission: Rgb::ONE,
+            ior: 1.5,
+            ..ClassicDesc::default()
+        },
+    ));
     d.shapes.push(ShapeDesc::new(
         ShapeKind::Sphere {
             center: Vec3::ZERO,

@@ -55,6 +55,12 @@ struct RenderArgs {
     #[arg(long, value_name = "NAME", value_parser = IntegratorKind::NAMES)]
     integrator: Option<String>,
 
+    /// The path tracer's estimator: uniform or cosine hemisphere sampling,
+    /// BSDF importance sampling, or next-event estimation with multiple
+    /// importance sampling (mis).
+    #[arg(long, value_name = "NAME", value_parser = crate::integrator::PathSampling::NAMES)]
+    sampling: Option<String>,
+
     /// Image width in pixels (overrides the scene).
     #[arg(long, value_name = "W", value_parser = clap::value_parser!(u32).range(1..=(crate::scene::desc::MAX_IMAGE_SIDE as i64)))]
     width: Option<u32>,
@@ -63,7 +69,8 @@ struct RenderArgs {
     #[arg(long, value_name = "H", value_parser = clap::value_parser!(u32).range(1..=(crate::scene::desc::MAX_IMAGE_SIDE as i64)))]
     height: Option<u32>,
 
-    /// Maximum number of reflection/refraction bounces (overrides the scene).
+    /// Longest light path in segments from the camera: 1 shows emitters,
+    /// 2 adds direct light, each more one more bounce (overrides the scene).
     #[arg(long, value_name = "D", value_parser = clap::value_parser!(u32).range(0..=(crate::scene::desc::MAX_DEPTH as i64)))]
     max_depth: Option<u32>,
 
@@ -141,6 +148,9 @@ fn apply_overrides(desc: &mut SceneDesc, a: &RenderArgs) {
     }
     if let Some(v) = &a.integrator {
         s.integrator = IntegratorKind::from_name(v).expect("clap checked the value");
+    }
+    if let Some(v) = &a.sampling {
+        s.sampling = crate::integrator::PathSampling::from_name(v).expect("clap checked the value");
     }
     if let Some(v) = &a.sampler {
         s.sampler = SamplerKind::from_name(v).expect("clap checked the value");

@@ -2,8 +2,10 @@
 //! camera ray. This is the only place that knows the algorithm; scheduling,
 //! films and files are elsewhere.
 
+pub mod path;
 pub mod whitted;
 
+pub use path::{PathSampling, PathTracer};
 pub use whitted::Whitted;
 
 use crate::color::Rgb;
@@ -15,18 +17,21 @@ use crate::scene::Scene;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum IntegratorKind {
     /// Whitted's recursive ray tracer.
-    #[default]
     Whitted,
+    /// Kajiya's path tracer.
+    #[default]
+    Path,
 }
 
 impl IntegratorKind {
     /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 1] = ["whitted"];
+    pub const NAMES: [&'static str; 2] = ["whitted", "path"];
 
     /// Parses one of [`IntegratorKind::NAMES`].
     pub fn from_name(s: &str) -> Option<IntegratorKind> {
         match s {
             "whitted" => Some(IntegratorKind::Whitted),
+            "path" => Some(IntegratorKind::Path),
             _ => None,
         }
     }
@@ -35,6 +40,7 @@ impl IntegratorKind {
     pub fn name(&self) -> &'static str {
         match self {
             IntegratorKind::Whitted => "whitted",
+            IntegratorKind::Path => "path",
         }
     }
 }

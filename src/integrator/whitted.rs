@@ -8,8 +8,15 @@
 //! materials, along the reflected and refracted directions weighted by
 //! `kt·F` and `kt·(1 − F)` (F: the exact dielectric Fresnel reflectance;
 //! total internal reflection sends everything to the reflected ray).
-//! Recursion stops after `max_depth` bounces; rays that leave the scene
-//! return the background.
+//! Rays that leave the scene return the background.
+//!
+//! `max_depth` counts the segments of a light path from the camera, as in
+//! the path tracer (and Mitsuba): 1 shows only what emits, 2 adds direct
+//! light (and the ambient term), each further unit allows one more level
+//! of reflection or refraction.
+//!
+//! Physically based materials are rendered through their classical
+//! equivalents ([`crate::material::Material::classic`]).
 //!
 //! Area lights (emissive shapes) are sampled at one random point per light
 //! per pixel sample, so supersampling gives them soft shadows.
@@ -24,7 +31,7 @@ use super::{Integrator, RayStats};
 use crate::color::Rgb;
 use crate::geometry::Ray;
 use crate::geometry::interaction::SurfaceHit;
-use crate::light::{LightSample, ShadowTarget};
+use crate::light::{Light, LightSample, ShadowTarget};
 use crate::material::optics::{fresnel_dielectric, reflect, refract};
 use crate::material::phong::phong_brdf;
 use crate::sampling::Sampler;
@@ -34,17 +41,21 @@ use crate::texture::TexCoord;
 /// The Whitted integrator.
 #[derive(Clone, Copy, Debug)]
 pub struct Whitted {
-    /// Maximum number of reflection/refraction bounces after the camera ray.
+    /// Longest light path, in segments from the camera.
     pub max_depth: u32,
 }
 
 impl Integrator for Whitted {
     fn radiance(&self, scene: &Scene, ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb {
-        self.trace(scene, ray, 0, sampler, stats)
+        if self.max_depth == 0 {
+            return Rgb::ZERO;
+        }
+        self.trace(scene, ray, 1, sampler, stats)
     }
 }
 
 impl Whitted {
+    /// Radiance along `ray`, the `depth`-th segment of its path.
     fn trace(&self, scene: &Scene, ray: &Ray, depth: u32, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb {
         stats.rays += 1;
         let Some(hit) = scene.intersect(ray) else {
@@ -54,18 +65,25 @@ impl Whitted {
         let wo = -ray.dir.normalize();
         let front = hit.is_front(wo);
         let mut l = if front { m.emission } else { Rgb::ZERO };
+        if depth >= self.max_depth {
+            return l;
+        }
 
         // Surfaces shade on both sides: the shading normal faces the viewer.
         let n = if hit.ns.dot(wo) < 0.0 { -hit.ns } else { hit.ns };
         let tc = TexCoord { uv: hit.uv, p: hit.p };
-        let kd = m.kd(&scene.images, &tc);
-        let ks = m.ks(&scene.images, &tc);
+        let c = m.classic(&scene.images, &tc);
+        let (kd, ks) = (c.kd, c.ks);
 
         l += scene.ambient * kd;
         if kd != Rgb::ZERO || ks != Rgb::ZERO {
             for light in &scene.lights {
+                // Whitted's background is seen, not a light.
+                if matches!(light, Light::Environment) {
+                    continue;
+                }
                 let (u_pick, u) = (sampler.next_1d(), sampler.next_2d());
-                let Some(ls) = light.sample_li(&scene.geometry, hit.p, u_pick, u) else {
+                let Some(ls) = light.sample_li(scene, hit.p, u_pick, u) else {
                     continue;
                 };
                 let cos = n.dot(ls.wi);
@@ -74,7 +92,7 @@ impl Whitted {
                 if cos <= 0.0 || hit.ng.dot(ls.wi) * hit.ng.dot(wo) <= 0.0 {
                     continue;
                 }
-                let f = phong_brdf(kd, ks, m.shininess, n, ls.wi, wo);
+                let f = phong_brdf(kd, ks, c.shininess, n, ls.wi, wo);
                 if f == Rgb::ZERO || ls.li == Rgb::ZERO {
                     continue;
                 }
@@ -83,26 +101,23 @@ impl Whitted {
             }
         }
 
-        if depth >= self.max_depth {
-            return l;
-        }
-        if m.reflectivity != Rgb::ZERO {
+        if c.kr != Rgb::ZERO {
             let r = hit.spawn_ray(reflect(wo, n));
-            l += m.reflectivity * self.trace(scene, &r, depth + 1, sampler, stats);
+            l += c.kr * self.trace(scene, &r, depth + 1, sampler, stats);
         }
-        if m.is_transmissive() {
+        if c.kt != Rgb::ZERO {
             // Fresnel with the outward normal: cosθ < 0 means leaving the inside.
             let cos_i = hit.ns.dot(wo);
-            let fresnel = fresnel_dielectric(cos_i, m.ior);
+            let fresnel = fresnel_dielectric(cos_i, c.ior);
             let reflected = hit.spawn_ray(reflect(wo, n));
             let mut through = Rgb::ZERO;
-            if let Some((wt, _)) = refract(wo, hit.ns, m.ior) {
+            if let Some((wt, _)) = refract(wo, hit.ns, c.ior) {
                 if fresnel < 1.0 {
                     through = (1.0 - fresnel) * self.trace(scene, &hit.spawn_ray(wt), depth + 1, sampler, stats);
                 }
             }
             let back = fresnel * self.trace(scene, &reflected, depth + 1, sampler, stats);
-            l += m.transmission * (back + through);
+            l += c.kt * (back + through);
         }
         l
     }
@@ -136,8 +151,9 @@ fn shadow_transmittance(scene: &Scene, hit: &SurfaceHit, ls: &LightSample, stats
             return Rgb::ZERO;
         }
         let s = scene.geometry.surface(&ray, &h);
+        let c = m.classic(&scene.images, &TexCoord { uv: s.uv, p: s.p });
         let cos = s.ns.dot(-ray.dir.normalize());
-        transmittance *= m.transmission * (1.0 - fresnel_dielectric(cos, m.ior));
+        transmittance *= c.kt * (1.0 - fresnel_dielectric(cos, c.ior));
         if transmittance == Rgb::ZERO {
             return Rgb::ZERO;
         }

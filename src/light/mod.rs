@@ -1,5 +1,6 @@
-//! Light sources: point, spot, directional, and area lights (emissive
-//! shapes), plus the background seen by rays that escape the scene.
+//! Light sources: point, spot, directional, area lights (emissive shapes)
+//! and the environment (the background, seen as light from infinitely far
+//! away).
 //!
 //! ```toml
 //! [[light]]
@@ -9,13 +10,24 @@
 //! falloff = true            # inverse-square law (false: classic constant light)
 //! ```
 //!
-//! Every light answers one question for a shading point: which direction
-//! to look in for light, how much arrives, and with what probability the
-//! direction was chosen ([`Light::sample_li`]).
+//! Every light answers, for a shading point: which direction to look in
+//! for light, how much arrives and with what density the direction was
+//! chosen ([`Light::sample_li`]); and, for multiple importance sampling,
+//! with what density it would have chosen a given direction
+//! ([`Light::pdf_li`]).
 
-use crate::accel::aggregate::{Aggregate, EmitterArea, EmitterRef};
-use crate::color::Rgb;
+pub mod environment;
+
+pub use environment::{Background, EnvironmentMap};
+
+use crate::accel::aggregate::{EmitterArea, EmitterRef};
+use crate::color::{Rgb, luminance};
+use crate::geometry::SurfaceHit;
+use crate::geometry::shape::Shape;
+use crate::material::Frame;
+use crate::scene::Scene;
 use glam::{Vec2, Vec3};
+use std::f32::consts::PI;
 
 /// A light source.
 #[derive(Clone, Debug)]
@@ -61,7 +73,12 @@ pub enum Light {
         radiance: Rgb,
         /// Area data for sampling.
         area: EmitterArea,
+        /// Centre and radius when the emitter is a sphere, which is then
+        /// sampled by the cone it subtends rather than by area.
+        sphere: Option<(Vec3, f32)>,
     },
+    /// The background (see [`Background`]), as light from every direction.
+    Environment,
 }
 
 /// Where a shadow ray must go to test a light sample's visibility.
@@ -99,12 +116,58 @@ fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
     t * t * (3.0 - 2.0 * t)
 }
 
+/// Samples the cone of directions that a sphere subtends from `p`
+/// (pbrt-v4 §6.2.4, with its small-angle care). Returns the point on the
+/// sphere, its normal and the density per steradian; `None` if `p` is inside.
+fn sample_sphere_cone(center: Vec3, radius: f32, p: Vec3, u: Vec2) -> Option<(Vec3, Vec3, f32)> {
+    let to_center = center - p;
+    let dc2 = to_center.length_squared();
+    if dc2 <= radius * radius {
+        return None;
+    }
+    let dc = dc2.sqrt();
+    let sin_max = radius / dc;
+    let sin2_max = sin_max * sin_max;
+    let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
+    let mut one_minus_cos_max = 1.0 - cos_max;
+    let mut cos_t = (cos_max - 1.0) * u.x + 1.0;
+    let mut sin2_t = 1.0 - cos_t * cos_t;
+    if sin2_max < 0.000_685_23 {
+        // Tiny cone: compute through sin² to keep precision.
+        sin2_t = sin2_max * u.x;
+        cos_t = (1.0 - sin2_t).sqrt();
+        one_minus_cos_max = sin2_max / 2.0;
+    }
+    // Angle α from the sphere's centre to the sampled point.
+    let cos_a = sin2_t / sin_max + cos_t * (1.0 - sin2_t / sin2_max).max(0.0).sqrt();
+    let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    let frame = Frame::from_normal(to_center / dc);
+    let n = frame.to_world(-Vec3::new(sin_a * phi.cos(), sin_a * phi.sin(), cos_a));
+    Some((center + radius * n, n, 1.0 / (2.0 * PI * one_minus_cos_max)))
+}
+
+/// Density per steradian of [`sample_sphere_cone`] (0 if `p` is inside).
+fn sphere_cone_pdf(center: Vec3, radius: f32, p: Vec3) -> f32 {
+    let dc2 = (center - p).length_squared();
+    if dc2 <= radius * radius {
+        return 0.0;
+    }
+    let sin2_max = radius * radius / dc2;
+    let one_minus_cos_max = if sin2_max < 0.000_685_23 {
+        sin2_max / 2.0
+    } else {
+        1.0 - (1.0 - sin2_max).max(0.0).sqrt()
+    };
+    1.0 / (2.0 * PI * one_minus_cos_max)
+}
+
 impl Light {
     /// Samples light arriving at point `p`; `u_pick` and `u` are uniform
     /// numbers (the first picks a triangle of a mesh emitter). Returns
     /// `None` when no light can arrive (behind a spot, on the back of an
     /// emitter, or at the emitter itself).
-    pub fn sample_li(&self, geometry: &Aggregate, p: Vec3, u_pick: f32, u: Vec2) -> Option<LightSample> {
+    pub fn sample_li(&self, scene: &Scene, p: Vec3, u_pick: f32, u: Vec2) -> Option<LightSample> {
         match self {
             Light::Point {
                 position,
@@ -139,8 +202,7 @@ impl Light {
                     return None;
                 }
                 let wi = d / dist2.sqrt();
-                let cos = direction.dot(-wi);
-                let cone = smoothstep(*cos_outer, *cos_inner, cos);
+                let cone = smoothstep(*cos_outer, *cos_inner, direction.dot(-wi));
                 if cone <= 0.0 {
                     return None;
                 }
@@ -164,22 +226,35 @@ impl Light {
                 emitter,
                 radiance,
                 area,
+                sphere,
             } => {
-                let s = geometry.sample_emitter(*emitter, area, u_pick, u)?;
-                let d = s.p - p;
+                let (lp, ln, pdf) = match sphere.and_then(|(c, r)| sample_sphere_cone(c, r, p, u)) {
+                    Some((lp, ln, pdf)) => (lp, ln, Some(pdf)),
+                    None => {
+                        let s = scene.geometry.sample_emitter(*emitter, area, u_pick, u)?;
+                        if s.pdf_area.is_nan() || s.pdf_area <= 0.0 {
+                            return None;
+                        }
+                        (s.p, s.n, None)
+                    }
+                };
+                let d = lp - p;
                 let dist2 = d.length_squared();
-                if dist2 == 0.0 || s.pdf_area.is_nan() || s.pdf_area <= 0.0 {
+                if dist2 == 0.0 {
                     return None;
                 }
                 let wi = d / dist2.sqrt();
                 // Emission leaves the front side only.
-                let cos_light = s.n.dot(-wi);
+                let cos_light = ln.dot(-wi);
                 if cos_light <= 0.0 {
                     return None;
                 }
-                // Area density to solid-angle density: p_ω = p_A · d² / cosθ_l.
-                let pdf = s.pdf_area * dist2 / cos_light;
-                if !pdf.is_finite() {
+                // Area density to solid-angle density: p_ω = p_A · d² / cos θ_l.
+                let pdf = match pdf {
+                    Some(pdf) => pdf,
+                    None => scene.geometry.emitter_pdf_area(*emitter, area, ln) * dist2 / cos_light,
+                };
+                if !pdf.is_finite() || pdf <= 0.0 {
                     return None;
                 }
                 Some(LightSample {
@@ -187,120 +262,151 @@ impl Light {
                     li: *radiance,
                     pdf,
                     is_delta: false,
-                    target: ShadowTarget::Point(s.p),
+                    target: ShadowTarget::Point(lp),
+                })
+            }
+            Light::Environment => {
+                let (wi, pdf) = scene.background.sample(u)?;
+                if pdf <= 0.0 {
+                    return None;
+                }
+                Some(LightSample {
+                    wi,
+                    li: scene.background.eval(wi),
+                    pdf,
+                    is_delta: false,
+                    target: ShadowTarget::Infinity,
                 })
             }
         }
     }
 
+    /// The density per steradian with which [`Light::sample_li`] at `p`
+    /// would pick the direction toward `hit`, a point on this (area) light.
+    pub fn pdf_li(&self, scene: &Scene, p: Vec3, hit: &SurfaceHit) -> f32 {
+        match self {
+            Light::Area {
+                emitter, area, sphere, ..
+            } => {
+                if let Some((c, r)) = sphere {
+                    let pdf = sphere_cone_pdf(*c, *r, p);
+                    if pdf > 0.0 {
+                        return pdf;
+                    }
+                }
+                let d = hit.p - p;
+                let cos_light = hit.ng.dot(-d.normalize_or_zero());
+                if cos_light <= 0.0 {
+                    return 0.0;
+                }
+                scene.geometry.emitter_pdf_area(*emitter, area, hit.ng) * d.length_squared() / cos_light
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// The density per steradian with which the environment light samples
+    /// direction `dir`.
+    pub fn pdf_environment(&self, scene: &Scene, dir: Vec3) -> f32 {
+        match self {
+            Light::Environment => scene.background.pdf(dir),
+            _ => 0.0,
+        }
+    }
+
     /// Whether the light is a delta distribution.
     pub fn is_delta(&self) -> bool {
-        !matches!(self, Light::Area { .. })
+        matches!(
+            self,
+            Light::Point { .. } | Light::Spot { .. } | Light::Directional { .. }
+        )
     }
-}
 
-/// What rays that leave the scene see.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Background {
-    /// One colour in every direction.
-    Constant(Rgb),
-    /// A vertical blend from `bottom` (looking straight down) to `top`
-    /// (straight up).
-    Gradient {
-        /// Colour looking straight up.
-        top: Rgb,
-        /// Colour looking straight down.
-        bottom: Rgb,
-    },
-}
-
-impl Default for Background {
-    fn default() -> Self {
-        Background::Constant(Rgb::ZERO)
-    }
-}
-
-impl Background {
-    /// Radiance arriving from direction `dir` (need not be normalised).
-    #[inline]
-    pub fn eval(&self, dir: Vec3) -> Rgb {
-        match *self {
-            Background::Constant(c) => c,
-            Background::Gradient { top, bottom } => {
-                let y = dir.normalize_or_zero().y;
-                let t = 0.5 * (y + 1.0);
-                bottom * (1.0 - t) + top * t
+    /// Emitted power (luminance), for choosing lights in proportion to it;
+    /// `scene_radius` bounds the scene, for lights at infinity.
+    pub fn power(&self, scene: &Scene, scene_radius: f32) -> f32 {
+        let disk = PI * scene_radius * scene_radius;
+        match self {
+            Light::Point { intensity, .. } => 4.0 * PI * luminance(*intensity),
+            Light::Spot {
+                intensity,
+                cos_inner,
+                cos_outer,
+                ..
+            } => 2.0 * PI * luminance(*intensity) * (1.0 - 0.5 * (cos_inner + cos_outer)),
+            Light::Directional { irradiance, .. } => disk * luminance(*irradiance),
+            Light::Area {
+                emitter,
+                radiance,
+                area,
+                ..
+            } => {
+                // World-space area: exact for meshes, scaled by the
+                // transform's average area factor for shapes.
+                let world_area = match emitter {
+                    EmitterRef::Shape(i) => match &scene.geometry.shapes[*i as usize].transform {
+                        Some(t) => {
+                            let det = glam::Mat3::from_mat4(t.m).determinant().abs();
+                            area.total * det.powf(2.0 / 3.0)
+                        }
+                        None => area.total,
+                    },
+                    _ => area.total,
+                };
+                PI * world_area * luminance(*radiance)
             }
+            Light::Environment => disk * luminance(scene.background.average()) * 4.0,
         }
+    }
+}
+
+/// Whether a light's emitter is an untransformed sphere (or one whose
+/// transform keeps it a sphere), and if so its world centre and radius.
+pub fn emitter_sphere(scene_geometry: &crate::accel::Aggregate, emitter: EmitterRef) -> Option<(Vec3, f32)> {
+    let EmitterRef::Shape(i) = emitter else {
+        return None;
+    };
+    let s = &scene_geometry.shapes[i as usize];
+    match (s.shape, &s.transform) {
+        (Shape::Sphere(sp), None) => Some((sp.center, sp.radius)),
+        _ => None,
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sampling::rng::Pcg32;
 
     #[test]
-    fn point_light_inverse_square() {
-        let l = Light::Point {
-            position: Vec3::new(0.0, 2.0, 0.0),
-            intensity: Rgb::splat(8.0),
-            falloff: true,
-        };
-        let s = l.sample_li(&Aggregate::default(), Vec3::ZERO, 0.0, Vec2::ZERO).unwrap();
-        assert_eq!(s.wi, Vec3::Y);
-        assert!((s.li.x - 2.0).abs() < 1e-6);
-        assert!(s.is_delta && s.pdf == 1.0);
-        assert_eq!(s.target, ShadowTarget::Point(Vec3::new(0.0, 2.0, 0.0)));
-        let flat = Light::Point {
-            position: Vec3::new(0.0, 2.0, 0.0),
-            intensity: Rgb::splat(8.0),
-            falloff: false,
-        };
-        let s = flat
-            .sample_li(&Aggregate::default(), Vec3::ZERO, 0.0, Vec2::ZERO)
-            .unwrap();
-        assert_eq!(s.li.x, 8.0);
+    fn sphere_cone_samples_hit_the_sphere_with_the_right_density() {
+        let (c, r) = (Vec3::new(0.0, 3.0, 0.0), 0.5);
+        let p = Vec3::ZERO;
+        let mut rng = Pcg32::new(5, 0);
+        let mut inv_pdf = 0.0f64;
+        let n = 20_000;
+        for _ in 0..n {
+            let (lp, ln, pdf) = sample_sphere_cone(c, r, p, Vec2::new(rng.next_f32(), rng.next_f32())).unwrap();
+            assert!(((lp - c).length() - r).abs() < 1e-4);
+            assert!(ln.dot(p - lp) >= -1e-4, "the sampled point faces p");
+            assert!((pdf - sphere_cone_pdf(c, r, p)).abs() < 1e-3 * pdf);
+            inv_pdf += 1.0 / pdf as f64;
+        }
+        // E[1/pdf] = the cone's solid angle 2π(1 − cos θmax).
+        let cos_max = (1.0f64 - 0.25 / 9.0).sqrt();
+        let omega = 2.0 * std::f64::consts::PI * (1.0 - cos_max);
+        assert!((inv_pdf / n as f64 - omega).abs() < 1e-6 * omega.max(1.0) + 1e-9);
+        assert!(sample_sphere_cone(c, r, c, Vec2::ZERO).is_none());
+        // A far, tiny sphere takes the small-angle path.
+        let (_, _, pdf) = sample_sphere_cone(Vec3::new(0.0, 1e4, 0.0), 1.0, p, Vec2::new(0.3, 0.6)).unwrap();
+        assert!((pdf - sphere_cone_pdf(Vec3::new(0.0, 1e4, 0.0), 1.0, p)).abs() < 1e-3 * pdf);
     }
 
     #[test]
-    fn spot_light_cone() {
-        let l = Light::Spot {
-            position: Vec3::new(0.0, 1.0, 0.0),
-            direction: -Vec3::Y,
-            intensity: Rgb::ONE,
-            cos_inner: 20f32.to_radians().cos(),
-            cos_outer: 30f32.to_radians().cos(),
-            falloff: false,
-        };
-        let g = Aggregate::default();
-        let on_axis = l.sample_li(&g, Vec3::ZERO, 0.0, Vec2::ZERO).unwrap();
-        assert_eq!(on_axis.li, Rgb::ONE);
-        let at = |deg: f32| Vec3::new(deg.to_radians().tan(), 0.0, 0.0);
-        assert!(l.sample_li(&g, at(35.0), 0.0, Vec2::ZERO).is_none());
-        let mid = l.sample_li(&g, at(25.0), 0.0, Vec2::ZERO).unwrap();
-        assert!(mid.li.x > 0.0 && mid.li.x < 1.0);
-        assert!(l.sample_li(&g, Vec3::new(0.0, 2.0, 0.0), 0.0, Vec2::ZERO).is_none());
-    }
-
-    #[test]
-    fn directional_light() {
-        let l = Light::Directional {
-            direction: -Vec3::Y,
-            irradiance: Rgb::splat(3.0),
-        };
-        let s = l.sample_li(&Aggregate::default(), Vec3::ZERO, 0.0, Vec2::ZERO).unwrap();
-        assert_eq!(s.wi, Vec3::Y);
-        assert_eq!(s.target, ShadowTarget::Infinity);
-    }
-
-    #[test]
-    fn gradient_background() {
-        let b = Background::Gradient {
-            top: Rgb::ONE,
-            bottom: Rgb::ZERO,
-        };
-        assert_eq!(b.eval(Vec3::Y * 3.0), Rgb::ONE);
-        assert_eq!(b.eval(-Vec3::Y), Rgb::ZERO);
-        assert_eq!(b.eval(Vec3::X), Rgb::splat(0.5));
+    fn spot_cone_fades_between_the_angles() {
+        assert_eq!(smoothstep(0.5, 0.8, 0.4), 0.0);
+        assert_eq!(smoothstep(0.5, 0.8, 0.9), 1.0);
+        let mid = smoothstep(0.5, 0.8, 0.65);
+        assert!((mid - 0.5).abs() < 1e-6);
     }
 }

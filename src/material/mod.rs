@@ -1,88 +1,365 @@
 //! Materials: how surfaces reflect, transmit and emit light.
 //!
-//! The classical material record of the ray-tracing course: diffuse and
-//! specular colour, Phong exponent, mirror reflectivity, transmission with
-//! an index of refraction, and emission.
+//! A material is one of the classical ray-tracing course's material record
+//! ([`MaterialKind::Classic`]: diffuse and specular colour, Phong exponent,
+//! mirror reflectivity, transmission with an index of refraction) or a
+//! physically based model (diffuse, conductor, dielectric, plastic). Every
+//! material answers to both integrators: the Whitted ray tracer reads its
+//! classical parameters ([`Material::classic`]), the path tracer its BSDF
+//! ([`Material::bsdf`]).
 //!
 //! ```toml
 //! [[material]]
 //! name = "glass"
-//! diffuse = [0, 0, 0]
-//! specular = [0.2, 0.2, 0.2]
-//! shininess = 200
-//! transmission = [1, 1, 1]
+//! type = "dielectric"
 //! ior = 1.5
+//! roughness = 0.0
 //! ```
 
+pub mod bsdf;
+pub mod classic;
+pub mod conductor;
+pub mod dielectric;
+pub mod frame;
+pub mod lambert;
+pub mod microfacet;
 pub mod optics;
 pub mod phong;
+pub mod plastic;
+
+pub use bsdf::{Bsdf, BsdfSample, DirectionSampling, TransportMode};
+pub use frame::Frame;
 
 use crate::color::Rgb;
 use crate::texture::{ImageTexture, TexCoord, Texture};
+use classic::ClassicBsdf;
+use conductor::{ConductorBsdf, ConductorFresnel};
+use dielectric::DielectricBsdf;
+use lambert::LambertBsdf;
+use microfacet::Ggx;
+use plastic::{CoatTables, PlasticBsdf};
+
+/// The scattering model of a material.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MaterialKind {
+    /// The classical material record.
+    Classic {
+        /// Diffuse colour kd.
+        diffuse: Texture,
+        /// Phong specular colour ks.
+        specular: Texture,
+        /// Phong exponent s.
+        shininess: f32,
+        /// Mirror reflectivity kr.
+        reflectivity: Rgb,
+        /// Transmission kt.
+        transmission: Rgb,
+        /// Index of refraction of the inside.
+        ior: f32,
+    },
+    /// Lambertian reflection.
+    Diffuse {
+        /// Albedo.
+        reflectance: Texture,
+    },
+    /// A metal (or an ideal mirror), smooth or rough.
+    Conductor {
+        /// Reflectance model.
+        fresnel: ConductorFresnel,
+        /// Colour multiplier.
+        tint: Rgb,
+        /// GGX roughness along the tangent and the bitangent.
+        alpha: (f32, f32),
+    },
+    /// Glass, smooth or rough.
+    Dielectric {
+        /// Relative index of refraction, inside over outside.
+        eta: f32,
+        /// GGX roughness.
+        alpha: f32,
+        /// Reflection multiplier.
+        reflect_tint: Rgb,
+        /// Transmission multiplier.
+        transmit_tint: Rgb,
+    },
+    /// A diffuse base under a dielectric coat.
+    Plastic {
+        /// Base colour.
+        diffuse: Texture,
+        /// Relative index of refraction of the coat.
+        eta: f32,
+        /// GGX roughness of the coat.
+        alpha: f32,
+        /// Coat reflection multiplier.
+        specular_tint: Rgb,
+        /// Whether internal scattering saturates the colour.
+        nonlinear: bool,
+        /// Share of samples given to the coat.
+        specular_weight: f32,
+        /// Internal reflectance of the smooth coat.
+        smooth_internal_reflectance: f32,
+        /// Tables of the rough coat (`None` when smooth).
+        tables: Option<Box<CoatTables>>,
+    },
+}
 
 /// A surface material.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
-    /// Diffuse colour kd (albedo of the Lambertian part).
-    pub diffuse: Texture,
-    /// Specular colour ks of the Phong lobe.
-    pub specular: Texture,
-    /// Phong exponent s: larger is a tighter highlight.
-    pub shininess: f32,
-    /// Weight kr of the mirror-reflected ray.
-    pub reflectivity: Rgb,
-    /// Weight kt of light passing through (refracted, Fresnel-weighted).
-    pub transmission: Rgb,
-    /// Index of refraction of the material's inside (1 = no bending).
-    pub ior: f32,
+    /// How it scatters light.
+    pub kind: MaterialKind,
     /// Emitted radiance, from the front side.
     pub emission: Rgb,
+    /// Whether the back side scatters like the front (false: the back of
+    /// an opaque surface is black, as Mitsuba's one-sided BSDFs).
+    pub two_sided: bool,
+}
+
+/// The classical parameters that the Whitted integrator reads.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClassicParams {
+    /// Diffuse colour kd.
+    pub kd: Rgb,
+    /// Specular colour ks.
+    pub ks: Rgb,
+    /// Phong exponent.
+    pub shininess: f32,
+    /// Mirror reflectivity kr.
+    pub kr: Rgb,
+    /// Transmission kt.
+    pub kt: Rgb,
+    /// Index of refraction.
+    pub ior: f32,
 }
 
 impl Default for Material {
     fn default() -> Self {
-        Material {
-            diffuse: Texture::Constant(Rgb::splat(0.5)),
-            specular: Texture::Constant(Rgb::ZERO),
-            shininess: 0.0,
-            reflectivity: Rgb::ZERO,
-            transmission: Rgb::ZERO,
-            ior: 1.0,
-            emission: Rgb::ZERO,
-        }
+        Material::new_classic(
+            Texture::Constant(Rgb::splat(0.5)),
+            Texture::Constant(Rgb::ZERO),
+            0.0,
+            Rgb::ZERO,
+            Rgb::ZERO,
+            1.0,
+        )
     }
 }
 
+/// The Phong exponent whose lobe is about as wide as a GGX lobe of
+/// roughness α (Walter et al. 2007: s = 2/α² − 2).
+pub fn phong_exponent_for_alpha(alpha: f32) -> f32 {
+    (2.0 / (alpha * alpha).max(1e-6) - 2.0).clamp(1.0, 10_000.0)
+}
+
 impl Material {
-    /// A plain diffuse material.
-    pub fn diffuse(color: Rgb) -> Material {
+    /// A classical material.
+    pub fn new_classic(
+        diffuse: Texture,
+        specular: Texture,
+        shininess: f32,
+        reflectivity: Rgb,
+        transmission: Rgb,
+        ior: f32,
+    ) -> Material {
         Material {
-            diffuse: Texture::Constant(color),
-            ..Default::default()
+            kind: MaterialKind::Classic {
+                diffuse,
+                specular,
+                shininess,
+                reflectivity,
+                transmission,
+                ior,
+            },
+            emission: Rgb::ZERO,
+            two_sided: true,
         }
     }
 
-    /// Diffuse colour at a point.
-    #[inline]
-    pub fn kd(&self, images: &[ImageTexture], tc: &TexCoord) -> Rgb {
-        self.diffuse.eval(images, tc)
+    /// A plain diffuse (classical) material.
+    pub fn diffuse(color: Rgb) -> Material {
+        Material::new_classic(
+            Texture::Constant(color),
+            Texture::Constant(Rgb::ZERO),
+            0.0,
+            Rgb::ZERO,
+            Rgb::ZERO,
+            1.0,
+        )
     }
 
-    /// Specular colour at a point.
-    #[inline]
-    pub fn ks(&self, images: &[ImageTexture], tc: &TexCoord) -> Rgb {
-        self.specular.eval(images, tc)
+    /// A plastic material; precomputes the coat tables when rough.
+    pub fn plastic(
+        diffuse: Texture,
+        eta: f32,
+        alpha: f32,
+        specular_tint: Rgb,
+        nonlinear: bool,
+        images: &[ImageTexture],
+    ) -> Material {
+        let ggx = Ggx::isotropic(alpha);
+        let d_mean = {
+            let a = diffuse.average(images);
+            (a.x + a.y + a.z) / 3.0
+        };
+        let s_mean = (specular_tint.x + specular_tint.y + specular_tint.z) / 3.0;
+        let specular_weight = if d_mean + s_mean > 0.0 {
+            s_mean / (d_mean + s_mean)
+        } else {
+            0.5
+        };
+        Material {
+            kind: MaterialKind::Plastic {
+                diffuse,
+                eta,
+                alpha,
+                specular_tint,
+                nonlinear,
+                specular_weight,
+                smooth_internal_reflectance: plastic::smooth_internal_reflectance(eta),
+                tables: (!ggx.is_smooth()).then(|| Box::new(CoatTables::new(&ggx, eta))),
+            },
+            emission: Rgb::ZERO,
+            two_sided: true,
+        }
     }
 
     /// Whether light passes through the surface.
     #[inline]
     pub fn is_transmissive(&self) -> bool {
-        self.transmission != Rgb::ZERO
+        match &self.kind {
+            MaterialKind::Classic { transmission, .. } => *transmission != Rgb::ZERO,
+            MaterialKind::Dielectric { .. } => true,
+            _ => false,
+        }
     }
 
     /// Whether the surface emits.
     #[inline]
     pub fn is_emissive(&self) -> bool {
         self.emission != Rgb::ZERO
+    }
+
+    /// The classical parameters at a point: the record itself for classic
+    /// materials, the nearest classical equivalent for the others.
+    pub fn classic(&self, images: &[ImageTexture], tc: &TexCoord) -> ClassicParams {
+        let zero = ClassicParams {
+            kd: Rgb::ZERO,
+            ks: Rgb::ZERO,
+            shininess: 0.0,
+            kr: Rgb::ZERO,
+            kt: Rgb::ZERO,
+            ior: 1.0,
+        };
+        match &self.kind {
+            MaterialKind::Classic {
+                diffuse,
+                specular,
+                shininess,
+                reflectivity,
+                transmission,
+                ior,
+            } => ClassicParams {
+                kd: diffuse.eval(images, tc),
+                ks: specular.eval(images, tc),
+                shininess: *shininess,
+                kr: *reflectivity,
+                kt: *transmission,
+                ior: *ior,
+            },
+            MaterialKind::Diffuse { reflectance } => ClassicParams {
+                kd: reflectance.eval(images, tc),
+                ..zero
+            },
+            MaterialKind::Conductor { fresnel, tint, alpha } => {
+                let f0 = *tint * fresnel.eval(1.0);
+                let a = alpha.0.max(alpha.1);
+                if a < microfacet::SMOOTH_ALPHA {
+                    ClassicParams { kr: f0, ..zero }
+                } else {
+                    ClassicParams {
+                        ks: f0,
+                        shininess: phong_exponent_for_alpha(a),
+                        ..zero
+                    }
+                }
+            }
+            MaterialKind::Dielectric { eta, transmit_tint, .. } => ClassicParams {
+                kt: *transmit_tint,
+                ior: *eta,
+                ..zero
+            },
+            MaterialKind::Plastic {
+                diffuse,
+                eta,
+                alpha,
+                specular_tint,
+                ..
+            } => {
+                let f0 = optics::fresnel_dielectric(1.0, *eta);
+                let smooth = *alpha < microfacet::SMOOTH_ALPHA;
+                ClassicParams {
+                    kd: diffuse.eval(images, tc),
+                    ks: *specular_tint * f0,
+                    shininess: if smooth {
+                        1000.0
+                    } else {
+                        phong_exponent_for_alpha(*alpha)
+                    },
+                    kr: if smooth { *specular_tint * f0 } else { Rgb::ZERO },
+                    ..zero
+                }
+            }
+        }
+    }
+
+    /// The BSDF at a point.
+    pub fn bsdf<'a>(&'a self, images: &[ImageTexture], tc: &TexCoord) -> Bsdf<'a> {
+        match &self.kind {
+            MaterialKind::Classic { .. } => {
+                let c = self.classic(images, tc);
+                Bsdf::Classic(ClassicBsdf::new(c.kd, c.ks, c.shininess, c.kr, c.kt, c.ior))
+            }
+            MaterialKind::Diffuse { reflectance } => Bsdf::Lambert(LambertBsdf {
+                albedo: reflectance.eval(images, tc),
+            }),
+            MaterialKind::Conductor { fresnel, tint, alpha } => Bsdf::Conductor(ConductorBsdf {
+                fresnel: *fresnel,
+                tint: *tint,
+                ggx: Ggx {
+                    alpha_x: alpha.0,
+                    alpha_y: alpha.1,
+                },
+            }),
+            MaterialKind::Dielectric {
+                eta,
+                alpha,
+                reflect_tint,
+                transmit_tint,
+            } => Bsdf::Dielectric(DielectricBsdf {
+                eta: *eta,
+                ggx: Ggx::isotropic(*alpha),
+                reflect_tint: *reflect_tint,
+                transmit_tint: *transmit_tint,
+            }),
+            MaterialKind::Plastic {
+                diffuse,
+                eta,
+                alpha,
+                specular_tint,
+                nonlinear,
+                specular_weight,
+                smooth_internal_reflectance,
+                tables,
+            } => Bsdf::Plastic(PlasticBsdf {
+                diffuse: diffuse.eval(images, tc),
+                eta: *eta,
+                ggx: Ggx::isotropic(*alpha),
+                specular_tint: *specular_tint,
+                nonlinear: *nonlinear,
+                specular_weight: *specular_weight,
+                smooth_internal_reflectance: *smooth_internal_reflectance,
+                tables: tables.as_deref(),
+            }),
+        }
     }
 }

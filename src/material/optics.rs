@@ -58,6 +58,91 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
     0.5 * (r_parl * r_parl + r_perp * r_perp)
 }
 
+/// A complex number, for the Fresnel equations of conductors.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Complex {
+    re: f32,
+    im: f32,
+}
+
+impl Complex {
+    fn new(re: f32, im: f32) -> Self {
+        Complex { re, im }
+    }
+    fn add(self, o: Complex) -> Complex {
+        Complex::new(self.re + o.re, self.im + o.im)
+    }
+    fn sub(self, o: Complex) -> Complex {
+        Complex::new(self.re - o.re, self.im - o.im)
+    }
+    fn mul(self, o: Complex) -> Complex {
+        Complex::new(self.re * o.re - self.im * o.im, self.re * o.im + self.im * o.re)
+    }
+    fn div(self, o: Complex) -> Complex {
+        let d = o.re * o.re + o.im * o.im;
+        Complex::new(
+            (self.re * o.re + self.im * o.im) / d,
+            (self.im * o.re - self.re * o.im) / d,
+        )
+    }
+    fn norm(self) -> f32 {
+        self.re * self.re + self.im * self.im
+    }
+    /// Principal square root.
+    fn sqrt(self) -> Complex {
+        let n = self.norm().sqrt();
+        if n == 0.0 {
+            return Complex::new(0.0, 0.0);
+        }
+        let t1 = (0.5 * (n + self.re.abs())).sqrt();
+        let t2 = 0.5 * self.im / t1;
+        if self.re >= 0.0 {
+            Complex::new(t1, t2)
+        } else {
+            Complex::new(t2.abs(), t1.copysign(self.im))
+        }
+    }
+}
+
+/// Unpolarised Fresnel reflectance of a conductor with complex index of
+/// refraction η + i·k (relative to the outside) for light arriving with
+/// cosine `cos_i` ≥ 0 (pbrt-v4, section 9.4.2: the dielectric formula with
+/// complex arithmetic).
+#[inline]
+pub fn fresnel_conductor(cos_i: f32, eta: f32, k: f32) -> f32 {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let eta_c = Complex::new(eta, k);
+    let sin2_i = 1.0 - cos_i * cos_i;
+    let sin2_t = Complex::new(sin2_i, 0.0).div(eta_c.mul(eta_c));
+    let cos_t = Complex::new(1.0, 0.0).sub(sin2_t).sqrt();
+    let ci = Complex::new(cos_i, 0.0);
+    let r_parl = eta_c.mul(ci).sub(cos_t).div(eta_c.mul(ci).add(cos_t));
+    let r_perp = ci.sub(eta_c.mul(cos_t)).div(ci.add(eta_c.mul(cos_t)));
+    0.5 * (r_parl.norm() + r_perp.norm())
+}
+
+/// Schlick's approximation F₀ + (1 − F₀)(1 − cos θ)⁵, for conductors given
+/// by their colour at normal incidence.
+#[inline]
+pub fn fresnel_schlick(cos_i: f32, f0: f32) -> f32 {
+    let m = (1.0 - cos_i.clamp(0.0, 1.0)).max(0.0);
+    let m2 = m * m;
+    f0 + (1.0 - f0) * m2 * m2 * m
+}
+
+/// Hemispherical average of the dielectric Fresnel reflectance,
+/// 2∫₀¹ F(μ, η) μ dμ, by the midpoint rule on 1024 intervals: the fraction
+/// of diffuse light that an interface reflects back.
+pub fn fresnel_diffuse_reflectance(eta: f32) -> f32 {
+    let n = 1024;
+    let mut sum = 0.0f64;
+    for i in 0..n {
+        let mu = (i as f32 + 0.5) / n as f32;
+        sum += (fresnel_dielectric(mu, eta) * mu) as f64;
+    }
+    (2.0 * sum / n as f64) as f32
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -115,5 +200,36 @@ mod tests {
         assert!((fresnel_dielectric(ci, 1.5) - 0.5 * rp * rp).abs() < 1e-6);
         // Index matching: no reflection.
         assert!(fresnel_dielectric(0.3, 1.0).abs() < 1e-7);
+    }
+
+    #[test]
+    fn conductor_fresnel_reduces_to_known_cases() {
+        // k = 0: the dielectric formula.
+        for cos in [0.1f32, 0.5, 0.9, 1.0] {
+            assert!((fresnel_conductor(cos, 1.5, 0.0) - fresnel_dielectric(cos, 1.5)).abs() < 1e-5);
+        }
+        // Normal incidence: ((η−1)² + k²)/((η+1)² + k²).
+        let (eta, k) = (0.2f32, 3.9f32);
+        let expect = ((eta - 1.0).powi(2) + k * k) / ((eta + 1.0).powi(2) + k * k);
+        assert!((fresnel_conductor(1.0, eta, k) - expect).abs() < 1e-5);
+        // Grazing: everything reflects.
+        assert!(fresnel_conductor(0.0, eta, k) > 0.999);
+        assert!((fresnel_schlick(1.0, 0.3) - 0.3).abs() < 1e-7 && fresnel_schlick(0.0, 0.3) == 1.0);
+    }
+
+    #[test]
+    fn diffuse_fresnel_reflectance_known_value() {
+        // Egan and Hilgeman's fit for η = 1.5 gives about 0.092 from outside;
+        // from inside (η = 1/1.5) total internal reflection raises it to about 0.596.
+        assert!(
+            (fresnel_diffuse_reflectance(1.5) - 0.092).abs() < 0.003,
+            "{}",
+            fresnel_diffuse_reflectance(1.5)
+        );
+        assert!(
+            (fresnel_diffuse_reflectance(1.0 / 1.5) - 0.596).abs() < 0.005,
+            "{}",
+            fresnel_diffuse_reflectance(1.0 / 1.5)
+        );
     }
 }

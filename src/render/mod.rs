@@ -11,7 +11,7 @@
 
 use crate::error::{Error, Result};
 use crate::film::{Film, Image, PixelSum};
-use crate::integrator::{Integrator, IntegratorKind, RayStats, Whitted};
+use crate::integrator::{Integrator, IntegratorKind, PathTracer, RayStats, Whitted};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use glam::Vec2;
@@ -89,6 +89,15 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
     let s = &scene.settings;
     match s.integrator {
         IntegratorKind::Whitted => render_with(scene, &Whitted { max_depth: s.max_depth }, options),
+        IntegratorKind::Path => render_with(
+            scene,
+            &PathTracer {
+                max_depth: s.max_depth,
+                rr_depth: s.rr_depth,
+                sampling: s.sampling,
+            },
+            options,
+        ),
     }
 }
 

@@ -1,11 +1,12 @@
 //! Random numbers, per-pixel samplers and warps from the unit square to
 //! geometric domains.
 
+pub mod chi2;
 pub mod distribution;
 pub mod rng;
 pub mod sampler;
 pub mod warp;
 
-pub use distribution::Distribution1D;
+pub use distribution::{Distribution1D, Distribution2D};
 pub use rng::Pcg32;
 pub use sampler::{Sampler, SamplerKind};

@@ -11,8 +11,10 @@ use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::geometry::shape::{Cuboid, Disk, Plane, Rectangle, Shape, Sphere};
 use crate::geometry::{Transform, TriangleMesh};
-use crate::light::{Background, Light};
-use crate::material::Material;
+use crate::light::{Background, EnvironmentMap, Light};
+use crate::material::conductor::ConductorFresnel;
+use crate::material::{Material, MaterialKind};
+use crate::sampling::Distribution1D;
 use crate::texture::{ImageTexture, Texture};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -74,19 +76,7 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
     };
 
     // Materials; the default one goes last, used by shapes without one.
-    let mut materials: Vec<Material> = desc
-        .materials
-        .iter()
-        .map(|m| Material {
-            diffuse: color(&m.diffuse),
-            specular: color(&m.specular),
-            shininess: m.shininess,
-            reflectivity: m.reflectivity,
-            transmission: m.transmission,
-            ior: m.ior,
-            emission: m.emission,
-        })
-        .collect();
+    let mut materials: Vec<Material> = desc.materials.iter().map(|m| to_material(m, &color, &images)).collect();
     let material_index: HashMap<&str, u32> = desc
         .materials
         .iter()
@@ -150,6 +140,19 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
             ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_) => None,
         };
         if let Some(shape) = analytic {
+            // A sphere under a similarity (rotation, uniform scale,
+            // translation) is still a sphere: bake the transform in, so it
+            // intersects faster and can be sampled by solid angle.
+            let (shape, transform) = match (shape, similarity_scale(&transform)) {
+                (Shape::Sphere(sp), Some(scale)) if !transform.is_identity() => (
+                    Shape::Sphere(Sphere {
+                        center: transform.point(sp.center),
+                        radius: sp.radius * scale,
+                    }),
+                    Transform::IDENTITY,
+                ),
+                _ => (shape, transform),
+            };
             shapes.push(ShapeInstance {
                 shape,
                 transform: (!transform.is_identity()).then_some(transform),
@@ -232,6 +235,7 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
             emitter,
             radiance: materials[material as usize].emission,
             area,
+            sphere: crate::light::emitter_sphere(&geometry, emitter),
         });
         match emitter {
             EmitterRef::Shape(i) => geometry.shapes[i as usize].light = Some(index),
@@ -252,16 +256,33 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
             cam.aperture_radius,
             cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
         );
-    let background = match desc.background {
-        BackgroundDesc::Constant(c) => Background::Constant(c),
-        BackgroundDesc::Gradient { top, bottom } => Background::Gradient { top, bottom },
+    let background = match &desc.background {
+        BackgroundDesc::Constant(c) => Background::Constant(*c),
+        BackgroundDesc::Gradient { top, bottom } => Background::Gradient {
+            top: *top,
+            bottom: *bottom,
+        },
+        BackgroundDesc::Image { path, scale, transform } => {
+            let full = base_dir.join(path);
+            let image = ImageTexture::load(&full, None)
+                .map_err(|e| Error::scene(desc.world_locs.key("background"), "world.background", reason_of(e)))?;
+            let to_world = compose(transform)
+                .map_err(|e| Error::scene(desc.world_locs.key("background"), "world.background", e))?;
+            Background::Image(Box::new(EnvironmentMap::new(image, *scale, to_world)))
+        }
     };
-    if lights.is_empty() && desc.ambient == Rgb::ZERO && matches!(background, Background::Constant(c) if c == Rgb::ZERO)
-    {
+    // In the path tracer a background that is not black lights the scene.
+    let environment_light = if background.is_black() {
+        None
+    } else {
+        lights.push(Light::Environment);
+        Some(lights.len() as u32 - 1)
+    };
+    if lights.is_empty() && desc.ambient == Rgb::ZERO {
         warnings.push("the scene has no lights, no emissive surfaces, no ambient light and a black background: the image will be black".into());
     }
     let any_transmissive = materials.iter().any(Material::is_transmissive);
-    Ok(Scene {
+    let mut scene = Scene {
         any_transmissive,
         camera,
         geometry,
@@ -272,7 +293,108 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
         ambient: desc.ambient,
         settings: desc.settings.clone(),
         warnings,
-    })
+        light_distribution: Distribution1D::default(),
+        environment_light,
+    };
+    // Lights are chosen in proportion to their power.
+    let radius = {
+        let b = scene.geometry.bounds();
+        if b.is_empty() {
+            1.0
+        } else {
+            (b.extent().length() * 0.5).max(1e-3)
+        }
+    };
+    let powers: Vec<f32> = scene.lights.iter().map(|l| l.power(&scene, radius)).collect();
+    scene.light_distribution = Distribution1D::new(&powers);
+    Ok(scene)
+}
+
+/// The scale factor of a transform that is a similarity (rotation and
+/// uniform scale, plus translation), or `None`.
+fn similarity_scale(t: &Transform) -> Option<f32> {
+    let m = glam::Mat3::from_mat4(t.m);
+    let mtm = m.transpose() * m;
+    let s2 = mtm.x_axis.x;
+    let close = |a: f32, b: f32| (a - b).abs() <= 1e-5 * s2.abs().max(1e-30);
+    let ok = close(mtm.y_axis.y, s2)
+        && close(mtm.z_axis.z, s2)
+        && close(mtm.x_axis.y, 0.0)
+        && close(mtm.x_axis.z, 0.0)
+        && close(mtm.y_axis.z, 0.0);
+    ok.then(|| s2.sqrt())
+}
+
+/// The render-time material of a description.
+fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images: &[ImageTexture]) -> Material {
+    let mut mat = match &m.kind {
+        MaterialKindDesc::Classic(c) => Material::new_classic(
+            color(&c.diffuse),
+            color(&c.specular),
+            c.shininess,
+            c.reflectivity,
+            c.transmission,
+            c.ior,
+        ),
+        MaterialKindDesc::Diffuse { reflectance } => Material {
+            kind: MaterialKind::Diffuse {
+                reflectance: color(reflectance),
+            },
+            emission: Rgb::ZERO,
+            two_sided: true,
+        },
+        MaterialKindDesc::Conductor {
+            fresnel,
+            tint,
+            roughness,
+        } => Material {
+            kind: MaterialKind::Conductor {
+                fresnel: match fresnel {
+                    ConductorDesc::Complex { eta, k } => ConductorFresnel::Complex { eta: *eta, k: *k },
+                    ConductorDesc::Reflectance(r) => ConductorFresnel::Schlick(*r),
+                    ConductorDesc::Mirror(r) => ConductorFresnel::Constant(*r),
+                },
+                tint: *tint,
+                alpha: *roughness,
+            },
+            emission: Rgb::ZERO,
+            two_sided: true,
+        },
+        MaterialKindDesc::Dielectric {
+            ior,
+            ext_ior,
+            roughness,
+            reflect_tint,
+            transmit_tint,
+        } => Material {
+            kind: MaterialKind::Dielectric {
+                eta: ior / ext_ior,
+                alpha: *roughness,
+                reflect_tint: *reflect_tint,
+                transmit_tint: *transmit_tint,
+            },
+            emission: Rgb::ZERO,
+            two_sided: true,
+        },
+        MaterialKindDesc::Plastic {
+            diffuse,
+            ior,
+            ext_ior,
+            roughness,
+            specular_tint,
+            nonlinear,
+        } => Material::plastic(
+            color(diffuse),
+            ior / ext_ior,
+            *roughness,
+            *specular_tint,
+            *nonlinear,
+            images,
+        ),
+    };
+    mat.emission = m.emission;
+    mat.two_sided = m.two_sided;
+    mat
 }
 
 /// Analytic shapes keep their order in the description, so shape index

@@ -48,14 +48,22 @@ pub fn framed_model(path: &Path) -> Result<SceneDesc> {
         bottom: Rgb::splat(0.15),
     };
     d.ambient = Rgb::splat(0.08);
-    let mut model = MaterialDesc::new("model");
-    model.diffuse = ColorSource::Rgb(Rgb::splat(0.7));
-    model.specular = ColorSource::Rgb(Rgb::splat(0.15));
-    model.shininess = 40.0;
-    d.materials.push(model);
-    let mut ground = MaterialDesc::new("ground");
-    ground.diffuse = ColorSource::Rgb(Rgb::splat(0.5));
-    d.materials.push(ground);
+    d.materials.push(MaterialDesc::classic(
+        "model",
+        ClassicDesc {
+            diffuse: ColorSource::Rgb(Rgb::splat(0.7)),
+            specular: ColorSource::Rgb(Rgb::splat(0.15)),
+            shininess: 40.0,
+            ..ClassicDesc::default()
+        },
+    ));
+    d.materials.push(MaterialDesc::classic(
+        "ground",
+        ClassicDesc {
+            diffuse: ColorSource::Rgb(Rgb::splat(0.5)),
+            ..ClassicDesc::default()
+        },
+    ));
     d.lights.push(LightDesc {
         kind: LightKind::Directional {
             direction: Vec3::new(-0.5, -1.0, -0.6).normalize(),

@@ -10,7 +10,7 @@ use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::film::Tonemap;
 use crate::geometry::{Transform, TriangleMesh};
-use crate::integrator::IntegratorKind;
+use crate::integrator::{IntegratorKind, PathSampling};
 use crate::sampling::SamplerKind;
 use glam::{Mat4, Vec2, Vec3};
 use std::path::{Path, PathBuf};
@@ -51,10 +51,15 @@ pub struct RenderSettings {
     pub height: u32,
     /// Samples per pixel.
     pub spp: u32,
-    /// Maximum recursion depth (Whitted) or path length.
+    /// Longest light path, in segments from the camera (1: emitters seen
+    /// directly; 2: direct light; each more: one more bounce).
     pub max_depth: u32,
     /// The rendering algorithm.
     pub integrator: IntegratorKind,
+    /// The path tracer's estimator.
+    pub sampling: PathSampling,
+    /// Path segments after which Russian roulette starts.
+    pub rr_depth: u32,
     /// Seed of all random numbers.
     pub seed: u64,
     /// Placement of samples within pixels.
@@ -73,6 +78,8 @@ impl Default for RenderSettings {
             spp: 16,
             max_depth: 8,
             integrator: IntegratorKind::default(),
+            sampling: PathSampling::default(),
+            rr_depth: 5,
             seed: 0,
             sampler: SamplerKind::default(),
             tonemap: Tonemap::default(),
@@ -202,11 +209,9 @@ pub struct TextureDesc {
     pub locs: Locs,
 }
 
-/// A named material (see [`crate::material::Material`]).
+/// The classical material record (see [`crate::material::MaterialKind::Classic`]).
 #[derive(Clone, Debug, PartialEq)]
-pub struct MaterialDesc {
-    /// Name that shapes refer to.
-    pub name: String,
+pub struct ClassicDesc {
     /// Diffuse colour.
     pub diffuse: ColorSource,
     /// Specular colour.
@@ -219,24 +224,119 @@ pub struct MaterialDesc {
     pub transmission: Rgb,
     /// Index of refraction.
     pub ior: f32,
-    /// Emitted radiance.
-    pub emission: Rgb,
-    /// Source locations.
-    pub locs: Locs,
 }
 
-impl MaterialDesc {
-    /// A material with the defaults of [`crate::material::Material`].
-    pub fn new(name: impl Into<String>) -> MaterialDesc {
-        MaterialDesc {
-            name: name.into(),
+impl Default for ClassicDesc {
+    fn default() -> Self {
+        ClassicDesc {
             diffuse: ColorSource::Rgb(Rgb::splat(0.5)),
             specular: ColorSource::Rgb(Rgb::ZERO),
             shininess: 0.0,
             reflectivity: Rgb::ZERO,
             transmission: Rgb::ZERO,
             ior: 1.0,
+        }
+    }
+}
+
+/// How a conductor's reflectance is given.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ConductorDesc {
+    /// Complex index of refraction per channel.
+    Complex {
+        /// Real part.
+        eta: Rgb,
+        /// Imaginary part.
+        k: Rgb,
+    },
+    /// Colour at normal incidence (Schlick's approximation).
+    Reflectance(Rgb),
+    /// An ideal mirror of this reflectance at every angle.
+    Mirror(Rgb),
+}
+
+/// A material's scattering model as described.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MaterialKindDesc {
+    /// The classical record.
+    Classic(ClassicDesc),
+    /// Lambertian.
+    Diffuse {
+        /// Albedo.
+        reflectance: ColorSource,
+    },
+    /// Metal or mirror.
+    Conductor {
+        /// Reflectance.
+        fresnel: ConductorDesc,
+        /// Colour multiplier.
+        tint: Rgb,
+        /// GGX α along tangent and bitangent (0: smooth).
+        roughness: (f32, f32),
+    },
+    /// Glass.
+    Dielectric {
+        /// Index of refraction inside.
+        ior: f32,
+        /// Index of refraction outside.
+        ext_ior: f32,
+        /// GGX α (0: smooth).
+        roughness: f32,
+        /// Reflection multiplier.
+        reflect_tint: Rgb,
+        /// Transmission multiplier.
+        transmit_tint: Rgb,
+    },
+    /// Diffuse base under a dielectric coat.
+    Plastic {
+        /// Base colour.
+        diffuse: ColorSource,
+        /// Index of refraction of the coat.
+        ior: f32,
+        /// Index of refraction outside.
+        ext_ior: f32,
+        /// GGX α of the coat (0: smooth).
+        roughness: f32,
+        /// Coat reflection multiplier.
+        specular_tint: Rgb,
+        /// Colour saturation by internal scattering.
+        nonlinear: bool,
+    },
+}
+
+/// A named material (see [`crate::material::Material`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialDesc {
+    /// Name that shapes refer to.
+    pub name: String,
+    /// Scattering model.
+    pub kind: MaterialKindDesc,
+    /// Emitted radiance.
+    pub emission: Rgb,
+    /// Whether the back side scatters like the front.
+    pub two_sided: bool,
+    /// Source locations.
+    pub locs: Locs,
+}
+
+impl MaterialDesc {
+    /// A classical material with the record's defaults (grey diffuse).
+    pub fn new(name: impl Into<String>) -> MaterialDesc {
+        Self::with_kind(name, MaterialKindDesc::Classic(ClassicDesc::default()))
+    }
+
+    /// A classical material.
+    pub fn classic(name: impl Into<String>, c: ClassicDesc) -> MaterialDesc {
+        Self::with_kind(name, MaterialKindDesc::Classic(c))
+    }
+
+    /// A material of any kind.
+    pub fn with_kind(name: impl Into<String>, kind: MaterialKindDesc) -> MaterialDesc {
+        MaterialDesc {
+            name: name.into(),
+            kind,
             emission: Rgb::ZERO,
+            two_sided: true,
             locs: Locs::default(),
         }
     }
@@ -466,7 +566,8 @@ impl ShapeDesc {
     }
 }
 
-/// What rays leaving the scene see.
+/// What rays leaving the scene see (and, in the path tracer, the light
+/// that arrives from infinitely far away).
 #[derive(Clone, Debug, PartialEq)]
 pub enum BackgroundDesc {
     /// One colour.
@@ -477,6 +578,15 @@ pub enum BackgroundDesc {
         top: Rgb,
         /// Looking down.
         bottom: Rgb,
+    },
+    /// An equirectangular (latitude–longitude) image.
+    Image {
+        /// Path, relative to the scene file.
+        path: PathBuf,
+        /// Radiance multiplier.
+        scale: f32,
+        /// Rotation of the map (steps applied to directions).
+        transform: Vec<TransformOp>,
     },
 }
 
@@ -604,6 +714,13 @@ impl SceneDesc {
                 w.color("background", *top)?;
                 w.color("background", *bottom)?;
             }
+            BackgroundDesc::Image { scale, transform, .. } => {
+                w.non_negative("background", *scale)?;
+                for op in transform {
+                    op.to_transform()
+                        .map_err(|e| w.err("background", format!("transform {}: {e}", op.name())))?;
+                }
+            }
         }
         w.color("ambient", self.ambient)?;
 
@@ -650,30 +767,99 @@ impl SceneDesc {
             if !names.insert(m.name.as_str()) {
                 return Err(c.err("name", format!("a material named \"{}\" is already defined", m.name)));
             }
-            for (key, src) in [("diffuse", &m.diffuse), ("specular", &m.specular)] {
+            let texture = |key: &str, src: &ColorSource| -> Result<()> {
                 match src {
-                    ColorSource::Rgb(col) => c.color(key, *col)?,
+                    ColorSource::Rgb(col) => c.color(key, *col),
                     ColorSource::Texture(name) => {
-                        if !self.textures.iter().any(|t| &t.name == name) {
-                            return Err(c.err(
+                        if self.textures.iter().any(|t| &t.name == name) {
+                            Ok(())
+                        } else {
+                            Err(c.err(
                                 key,
                                 format!(
                                     "no texture named \"{name}\"{}",
                                     suggest(name, self.textures.iter().map(|t| t.name.as_str()))
                                 ),
-                            ));
+                            ))
                         }
                     }
                 }
+            };
+            let ior = |key: &str, v: f32| -> Result<()> {
+                c.finite(key, v)?;
+                if v <= 0.0 {
+                    return Err(c.err(key, format!("index of refraction must be positive, got {v}")));
+                }
+                Ok(())
+            };
+            let roughness = |key: &str, v: f32| -> Result<()> {
+                c.non_negative(key, v)?;
+                if v > 1.0 {
+                    return Err(c.err(key, format!("roughness (GGX α) must be between 0 and 1, got {v}")));
+                }
+                Ok(())
+            };
+            match &m.kind {
+                MaterialKindDesc::Classic(cl) => {
+                    texture("diffuse", &cl.diffuse)?;
+                    texture("specular", &cl.specular)?;
+                    c.non_negative("shininess", cl.shininess)?;
+                    c.color("reflectivity", cl.reflectivity)?;
+                    c.color("transmission", cl.transmission)?;
+                    ior("ior", cl.ior)?;
+                }
+                MaterialKindDesc::Diffuse { reflectance } => texture("reflectance", reflectance)?,
+                MaterialKindDesc::Conductor {
+                    fresnel,
+                    tint,
+                    roughness: (ax, ay),
+                } => {
+                    match fresnel {
+                        ConductorDesc::Complex { eta, k } => {
+                            c.color("eta", *eta)?;
+                            c.color("k", *k)?;
+                            if eta.min_element() <= 0.0 {
+                                return Err(c.err("eta", "must be positive"));
+                            }
+                        }
+                        ConductorDesc::Reflectance(r) | ConductorDesc::Mirror(r) => c.color("reflectance", *r)?,
+                    }
+                    c.color("tint", *tint)?;
+                    roughness("roughness", *ax)?;
+                    roughness("roughness", *ay)?;
+                }
+                MaterialKindDesc::Dielectric {
+                    ior: int,
+                    ext_ior,
+                    roughness: r,
+                    reflect_tint,
+                    transmit_tint,
+                } => {
+                    ior("ior", *int)?;
+                    ior("ext_ior", *ext_ior)?;
+                    roughness("roughness", *r)?;
+                    c.color("reflect_tint", *reflect_tint)?;
+                    c.color("transmit_tint", *transmit_tint)?;
+                }
+                MaterialKindDesc::Plastic {
+                    diffuse,
+                    ior: int,
+                    ext_ior,
+                    roughness: r,
+                    specular_tint,
+                    ..
+                } => {
+                    texture("diffuse", diffuse)?;
+                    ior("ior", *int)?;
+                    ior("ext_ior", *ext_ior)?;
+                    if int == ext_ior {
+                        return Err(c.err("ior", "a plastic coat needs `ior` different from `ext_ior`"));
+                    }
+                    roughness("roughness", *r)?;
+                    c.color("specular_tint", *specular_tint)?;
+                }
             }
-            c.non_negative("shininess", m.shininess)?;
-            c.color("reflectivity", m.reflectivity)?;
-            c.color("transmission", m.transmission)?;
             c.color("emission", m.emission)?;
-            c.finite("ior", m.ior)?;
-            if m.ior <= 0.0 {
-                return Err(c.err("ior", format!("index of refraction must be positive, got {}", m.ior)));
-            }
         }
 
         let mut names = std::collections::HashSet::new();
@@ -944,9 +1130,13 @@ mod tests {
         d.camera.to = d.camera.from;
         assert!(d.validate().unwrap_err().to_string().contains("camera.to"));
         let mut d = sphere(1.0);
-        let mut m = MaterialDesc::new("glass");
-        m.ior = -1.5;
-        d.materials.push(m);
+        d.materials.push(MaterialDesc::classic(
+            "glass",
+            ClassicDesc {
+                ior: -1.5,
+                ..ClassicDesc::default()
+            },
+        ));
         assert!(d.validate().unwrap_err().to_string().contains("material[0].ior"));
     }
 

@@ -21,6 +21,7 @@ use crate::error::{Error, Result};
 use crate::geometry::{Ray, SurfaceHit};
 use crate::light::{Background, Light};
 use crate::material::Material;
+use crate::sampling::Distribution1D;
 use crate::texture::ImageTexture;
 use std::path::Path;
 
@@ -47,6 +48,10 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// Whether any material is transmissive (cached for shadow rays).
     pub any_transmissive: bool,
+    /// Chooses lights in proportion to their power.
+    pub light_distribution: Distribution1D,
+    /// Index of the environment light (a background that is not black).
+    pub environment_light: Option<u32>,
 }
 
 impl Scene {

@@ -10,7 +10,7 @@ use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::film::Tonemap;
 use crate::geometry::TriangleMesh;
-use crate::integrator::IntegratorKind;
+use crate::integrator::{IntegratorKind, PathSampling};
 use crate::sampling::SamplerKind;
 use glam::{Mat4, Vec2, Vec3, Vec4};
 use serde_spanned::Spanned;
@@ -88,10 +88,25 @@ pub fn parse(text: &str, path: &Path) -> Result<SceneDesc> {
             desc.background = match v.get_ref() {
                 DeValue::Table(_) => {
                     let g = t.table("background")?.expect("checked above");
-                    let top_c = g.color("top")?.unwrap_or(Rgb::ONE);
-                    let bottom = g.color("bottom")?.unwrap_or(Rgb::ZERO);
+                    let bg = if g.value("file").is_some() {
+                        let path = g.path("file")?.expect("present");
+                        let transform = match g.value("transform") {
+                            Some(v) => read_transform(&g, v)?,
+                            None => Vec::new(),
+                        };
+                        BackgroundDesc::Image {
+                            path,
+                            scale: g.number_or("scale", 1.0)?,
+                            transform,
+                        }
+                    } else {
+                        BackgroundDesc::Gradient {
+                            top: g.color("top")?.unwrap_or(Rgb::ONE),
+                            bottom: g.color("bottom")?.unwrap_or(Rgb::ZERO),
+                        }
+                    };
                     g.finish()?;
-                    BackgroundDesc::Gradient { top: top_c, bottom }
+                    bg
                 }
                 _ => BackgroundDesc::Constant(t.color("background")?.unwrap_or(Rgb::ZERO)),
             };
@@ -438,6 +453,12 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     if let Some(i) = t.choice("integrator", &IntegratorKind::NAMES)? {
         s.integrator = IntegratorKind::from_name(&i).expect("checked");
     }
+    if let Some(k) = t.choice("sampling", &PathSampling::NAMES)? {
+        s.sampling = PathSampling::from_name(&k).expect("checked");
+    }
+    if let Some(d) = t.unsigned("rr_depth", u32::MAX as u64)? {
+        s.rr_depth = d as u32;
+    }
     if let Some(k) = t.choice("sampler", &SamplerKind::NAMES)? {
         s.sampler = SamplerKind::from_name(&k).expect("checked");
     }
@@ -513,19 +534,89 @@ fn read_texture(t: &Table) -> Result<TextureDesc> {
     })
 }
 
+/// The material types of the native format.
+pub const MATERIAL_TYPES: [&str; 6] = ["classic", "diffuse", "mirror", "conductor", "dielectric", "plastic"];
+
 fn read_material(t: &Table) -> Result<MaterialDesc> {
-    let mut m = MaterialDesc::new(t.required_string("name")?);
-    if let Some(c) = t.color_source("diffuse")? {
-        m.diffuse = c;
-    }
-    if let Some(c) = t.color_source("specular")? {
-        m.specular = c;
-    }
-    m.shininess = t.number_or("shininess", m.shininess)?;
-    m.reflectivity = t.color("reflectivity")?.unwrap_or(m.reflectivity);
-    m.transmission = t.color("transmission")?.unwrap_or(m.transmission);
-    m.ior = t.number_or("ior", m.ior)?;
-    m.emission = t.color("emission")?.unwrap_or(m.emission);
+    let name = t.required_string("name")?;
+    let kind = t.choice("type", &MATERIAL_TYPES)?.unwrap_or_else(|| "classic".into());
+    let kind = match kind.as_str() {
+        "classic" => {
+            let d = ClassicDesc::default();
+            MaterialKindDesc::Classic(ClassicDesc {
+                diffuse: t.color_source("diffuse")?.unwrap_or(d.diffuse),
+                specular: t.color_source("specular")?.unwrap_or(d.specular),
+                shininess: t.number_or("shininess", d.shininess)?,
+                reflectivity: t.color("reflectivity")?.unwrap_or(d.reflectivity),
+                transmission: t.color("transmission")?.unwrap_or(d.transmission),
+                ior: t.number_or("ior", d.ior)?,
+            })
+        }
+        "diffuse" => MaterialKindDesc::Diffuse {
+            reflectance: t
+                .color_source("reflectance")?
+                .unwrap_or(ColorSource::Rgb(Rgb::splat(0.5))),
+        },
+        "mirror" => MaterialKindDesc::Conductor {
+            fresnel: ConductorDesc::Mirror(t.color("reflectance")?.unwrap_or(Rgb::ONE)),
+            tint: Rgb::ONE,
+            roughness: (0.0, 0.0),
+        },
+        "conductor" => {
+            let metal = t.choice("metal", &crate::material::conductor::METAL_NAMES)?;
+            let eta = t.color("eta")?;
+            let k = t.color("k")?;
+            let reflectance = t.color("reflectance")?;
+            let given = [metal.is_some(), eta.is_some() || k.is_some(), reflectance.is_some()];
+            if given.iter().filter(|&&g| g).count() > 1 {
+                return Err(Error::scene(
+                    Some(t.ctx.loc(&t.span)),
+                    t.key_path("metal"),
+                    "give one of `metal`, `eta` with `k`, or `reflectance`",
+                ));
+            }
+            let fresnel = if let Some(m) = metal {
+                let (eta, k) = crate::material::conductor::metal_ior(&m).expect("checked name");
+                ConductorDesc::Complex { eta, k }
+            } else if eta.is_some() || k.is_some() {
+                ConductorDesc::Complex {
+                    eta: t.required("eta", eta)?,
+                    k: t.required("k", k)?,
+                }
+            } else if let Some(r) = reflectance {
+                ConductorDesc::Reflectance(r)
+            } else {
+                ConductorDesc::Mirror(Rgb::ONE)
+            };
+            let roughness = match t.vec2("roughness")? {
+                Some(v) => (v.x, v.y),
+                None => (0.0, 0.0),
+            };
+            MaterialKindDesc::Conductor {
+                fresnel,
+                tint: t.color("tint")?.unwrap_or(Rgb::ONE),
+                roughness,
+            }
+        }
+        "dielectric" => MaterialKindDesc::Dielectric {
+            ior: t.number_or("ior", 1.5)?,
+            ext_ior: t.number_or("ext_ior", 1.0)?,
+            roughness: t.number_or("roughness", 0.0)?,
+            reflect_tint: t.color("reflect_tint")?.unwrap_or(Rgb::ONE),
+            transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
+        },
+        _ => MaterialKindDesc::Plastic {
+            diffuse: t.color_source("diffuse")?.unwrap_or(ColorSource::Rgb(Rgb::splat(0.5))),
+            ior: t.number_or("ior", 1.49)?,
+            ext_ior: t.number_or("ext_ior", 1.0)?,
+            roughness: t.number_or("roughness", 0.0)?,
+            specular_tint: t.color("specular_tint")?.unwrap_or(Rgb::ONE),
+            nonlinear: t.boolean("nonlinear")?.unwrap_or(false),
+        },
+    };
+    let mut m = MaterialDesc::with_kind(name, kind);
+    m.emission = t.color("emission")?.unwrap_or(Rgb::ZERO);
+    m.two_sided = t.boolean("two_sided")?.unwrap_or(true);
     m.locs = t.finish()?;
     Ok(m)
 }
@@ -798,7 +889,10 @@ material = "red"
     fn reads_a_minimal_scene() {
         let d = parse_str(MINIMAL).unwrap();
         assert_eq!((d.settings.width, d.settings.height, d.settings.spp), (64, 48, 4));
-        assert_eq!(d.materials[0].diffuse, ColorSource::Rgb(Rgb::new(0.8, 0.1, 0.1)));
+        let MaterialKindDesc::Classic(c) = &d.materials[0].kind else {
+            panic!("classic by default")
+        };
+        assert_eq!(c.diffuse, ColorSource::Rgb(Rgb::new(0.8, 0.1, 0.1)));
         assert_eq!(
             d.shapes[0].kind,
             ShapeKind::Sphere {
@@ -912,7 +1006,9 @@ transform = [
         assert_eq!(d.shapes[0].transform.len(), 5);
         assert_eq!(d.shapes[0].transform[0], TransformOp::Scale(Vec3::splat(2.0)));
         assert!(matches!(d.meshes[0].source, MeshSource::Inline(ref m) if m.indices == vec![[0, 1, 2]]));
-        assert_eq!(d.materials[0].diffuse, ColorSource::Texture("checks".into()));
+        assert!(
+            matches!(&d.materials[0].kind, MaterialKindDesc::Classic(c) if c.diffuse == ColorSource::Texture("checks".into()))
+        );
         let e = error_of(&s.replace("{ scale = 2 }", "{ scale = 0 }"));
         assert!(e.contains("`shape[0].transform`") && e.contains("singular"), "{e}");
         let e = error_of(&s.replace("{ scale = 2 }", "{ scale = 2, translate = [1, 1, 1] }"));

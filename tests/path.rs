@@ -1,0 +1,397 @@
+//! The path tracer against answers known in advance: white furnaces,
+//! closed-form irradiance, agreement of its four estimators, determinism.
+//! Tolerances come from the per-pixel variance that each render measures,
+//! not from a lucky run.
+
+use trazo::Vec3;
+use trazo::color::{Rgb, luminance};
+use trazo::film::Film;
+use trazo::integrator::{IntegratorKind, PathSampling};
+use trazo::render::{RenderOptions, render};
+use trazo::scene::builtin::cornell_box;
+use trazo::scene::desc::*;
+
+fn render_film(d: &SceneDesc) -> Film {
+    let scene = trazo::scene::build(d).unwrap();
+    render(&scene, &RenderOptions::default()).unwrap().film
+}
+
+/// Mean luminance of the image and the standard error of that mean.
+fn mean_and_error(f: &Film) -> (f64, f64) {
+    let n = f.pixels.len() as f64;
+    let mean = f.pixels.iter().map(|p| luminance(p.value()) as f64).sum::<f64>() / n;
+    let var: f64 = f.pixels.iter().map(|p| p.variance_of_mean()).sum::<f64>() / (n * n);
+    (mean, var.sqrt())
+}
+
+fn furnace(material: MaterialDesc, sampling: PathSampling) -> SceneDesc {
+    let mut d = SceneDesc::default();
+    d.settings.width = 16;
+    d.settings.height = 16;
+    d.settings.spp = 64;
+    d.settings.max_depth = 64;
+    d.settings.integrator = IntegratorKind::Path;
+    d.settings.sampling = sampling;
+    d.camera.from = Vec3::new(0.0, 0.0, 4.0);
+    d.camera.projection = ProjectionDesc::Perspective { fov: 25.0 };
+    d.background = BackgroundDesc::Constant(Rgb::ONE);
+    let name = material.name.clone();
+    d.materials.push(material);
+    d.shapes.push(ShapeDesc::new(
+        ShapeKind::Sphere {
+            center: Vec3::ZERO,
+            radius: 1.0,
+        },
+        Some(&name),
+    ));
+    d
+}
+
+fn diffuse(albedo: f32) -> MaterialDesc {
+    MaterialDesc::with_kind(
+        "diffuse",
+        MaterialKindDesc::Diffuse {
+            reflectance: ColorSource::Rgb(Rgb::splat(albedo)),
+        },
+    )
+}
+
+/// Every pixel is `expect` within 5 of its own standard errors (plus a
+/// rounding allowance), and the image mean within 4 standard errors.
+fn assert_uniform(f: &Film, expect: f32, what: &str) {
+    for (i, p) in f.pixels.iter().enumerate() {
+        let v = p.value();
+        let sigma = p.variance_of_mean().sqrt() as f32;
+        for c in [v.x, v.y, v.z] {
+            assert!(
+                (c - expect).abs() <= 5.0 * sigma + 1e-4,
+                "{what}: pixel {i} = {v}, expected {expect} ± {sigma}"
+            );
+        }
+    }
+    let (mean, err) = mean_and_error(f);
+    assert!(
+        (mean - expect as f64).abs() <= 4.0 * err + 1e-5,
+        "{what}: mean {mean} ± {err}, expected {expect}"
+    );
+}
+
+#[test]
+fn white_furnace_lambertian_albedo_one_renders_one() {
+    for sampling in [
+        PathSampling::Mis,
+        PathSampling::Bsdf,
+        PathSampling::Cosine,
+        PathSampling::Uniform,
+    ] {
+        let f = render_film(&furnace(diffuse(1.0), sampling));
+        assert_uniform(&f, 1.0, &format!("albedo 1, {}", sampling.name()));
+    }
+}
+
+#[test]
+fn convex_lambertian_of_albedo_rho_renders_rho() {
+    let f = render_film(&furnace(diffuse(0.5), PathSampling::Mis));
+    // Pixels that miss the sphere see the background (1); the others ρ.
+    let scene = trazo::scene::build(&furnace(diffuse(0.5), PathSampling::Mis)).unwrap();
+    let mut on_sphere = 0;
+    for y in 0..16 {
+        for x in 0..16 {
+            let ray = scene
+                .camera
+                .generate_ray(trazo::Vec2::new(x as f32 + 0.5, y as f32 + 0.5), trazo::Vec2::ZERO);
+            let p = f.pixels[(y * 16 + x) as usize];
+            // Only pixels entirely on the sphere (all their samples hit it).
+            let corners_hit = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)].iter().all(|(dx, dy)| {
+                let r = scene
+                    .camera
+                    .generate_ray(trazo::Vec2::new(x as f32 + dx, y as f32 + dy), trazo::Vec2::ZERO);
+                scene.intersect(&r).is_some()
+            });
+            if scene.intersect(&ray).is_some() && corners_hit {
+                on_sphere += 1;
+                let sigma = p.variance_of_mean().sqrt() as f32;
+                let v = p.value();
+                assert!(
+                    (v.x - 0.5).abs() <= 5.0 * sigma + 1e-4,
+                    "pixel ({x},{y}) = {v} ± {sigma}"
+                );
+            }
+        }
+    }
+    assert!(on_sphere > 50, "{on_sphere}");
+}
+
+#[test]
+fn white_furnace_smooth_glass_renders_one() {
+    let glass = MaterialDesc::with_kind(
+        "glass",
+        MaterialKindDesc::Dielectric {
+            ior: 1.5,
+            ext_ior: 1.0,
+            roughness: 0.0,
+            reflect_tint: Rgb::ONE,
+            transmit_tint: Rgb::ONE,
+        },
+    );
+    let f = render_film(&furnace(glass, PathSampling::Mis));
+    assert_uniform(&f, 1.0, "smooth dielectric");
+}
+
+#[test]
+fn white_furnace_rough_glass_and_mirror_conserve_energy() {
+    // A perfect mirror reflects all light.
+    let mirror = MaterialDesc::with_kind(
+        "mirror",
+        MaterialKindDesc::Conductor {
+            fresnel: ConductorDesc::Mirror(Rgb::ONE),
+            tint: Rgb::ONE,
+            roughness: (0.0, 0.0),
+        },
+    );
+    assert_uniform(&render_film(&furnace(mirror, PathSampling::Mis)), 1.0, "mirror");
+    // Rough glass never creates energy, and loses only what single-
+    // scattering microfacet models lose (light that a microfacet sends
+    // back through the surface, most of all after total internal
+    // reflection inside): almost nothing when nearly smooth, more as the
+    // roughness grows.
+    let rough = |alpha: f32| {
+        let m = MaterialDesc::with_kind(
+            "rough",
+            MaterialKindDesc::Dielectric {
+                ior: 1.5,
+                ext_ior: 1.0,
+                roughness: alpha,
+                reflect_tint: Rgb::ONE,
+                transmit_tint: Rgb::ONE,
+            },
+        );
+        mean_and_error(&render_film(&furnace(m, PathSampling::Mis)))
+    };
+    let (nearly_smooth, e1) = rough(0.01);
+    let (medium, e2) = rough(0.1);
+    let (very, e3) = rough(0.4);
+    assert!(
+        nearly_smooth <= 1.0 + 4.0 * e1 && nearly_smooth > 0.99,
+        "α = 0.01: {nearly_smooth} ± {e1}"
+    );
+    assert!(
+        medium <= 1.0 + 4.0 * e2 && medium < nearly_smooth + 4.0 * e1,
+        "α = 0.1: {medium} ± {e2}"
+    );
+    assert!(
+        very < medium,
+        "α = 0.4: {very} ± {e3} should lose more than α = 0.1: {medium}"
+    );
+}
+
+/// A diffuse plane of albedo ρ under a sphere light of radiance Le and
+/// radius r at height h: straight below it the irradiance is
+/// E = π·Le·(r/h)², so the plane's radiance is ρ·Le·(r/h)².
+#[test]
+fn sphere_light_over_a_plane_matches_the_closed_form() {
+    let (rho, le, r, h) = (0.6f32, 5.0f32, 0.5f32, 2.0f32);
+    let expect = rho * le * (r / h) * (r / h);
+    for (sampling, spp) in [
+        (PathSampling::Mis, 64),
+        (PathSampling::Bsdf, 1024),
+        (PathSampling::Cosine, 1024),
+        (PathSampling::Uniform, 2048),
+    ] {
+        let mut d = SceneDesc::default();
+        d.settings.width = 4;
+        d.settings.height = 4;
+        d.settings.spp = spp;
+        d.settings.max_depth = 2;
+        d.settings.integrator = IntegratorKind::Path;
+        d.settings.sampling = sampling;
+        // Look at the point below the light from the side, through a tiny
+        // orthographic window, past the light.
+        d.camera = CameraDesc {
+            projection: ProjectionDesc::Orthographic { size: 1e-4 },
+            from: Vec3::new(3.0, 3.0, 0.0),
+            to: Vec3::ZERO,
+            up: Vec3::Y,
+            ..CameraDesc::default()
+        };
+        d.materials.push(diffuse(rho));
+        let mut lamp = diffuse(0.0);
+        lamp.name = "lamp".into();
+        lamp.emission = Rgb::splat(le);
+        d.materials.push(lamp);
+        d.shapes.push(ShapeDesc::new(
+            ShapeKind::Plane {
+                point: Vec3::ZERO,
+                normal: Vec3::Y,
+            },
+            Some("diffuse"),
+        ));
+        d.shapes.push(ShapeDesc::new(
+            ShapeKind::Sphere {
+                center: Vec3::new(0.0, h, 0.0),
+                radius: r,
+            },
+            Some("lamp"),
+        ));
+        let f = render_film(&d);
+        let (mean, err) = mean_and_error(&f);
+        assert!(
+            (mean - expect as f64).abs() <= 4.0 * err + 1e-5,
+            "{}: {mean} ± {err}, expected {expect}",
+            sampling.name()
+        );
+    }
+}
+
+/// A diffuse plane under a uniform sky of radiance L receives E = π·L and
+/// reflects ρ·L (the sky is sampled as an environment light).
+#[test]
+fn plane_under_a_uniform_sky() {
+    let mut d = SceneDesc::default();
+    d.settings.width = 4;
+    d.settings.height = 4;
+    d.settings.spp = 256;
+    d.settings.max_depth = 2;
+    d.settings.integrator = IntegratorKind::Path;
+    d.camera = CameraDesc {
+        projection: ProjectionDesc::Orthographic { size: 1.0 },
+        from: Vec3::new(0.0, 5.0, 0.0),
+        to: Vec3::ZERO,
+        up: Vec3::Z,
+        ..CameraDesc::default()
+    };
+    d.background = BackgroundDesc::Constant(Rgb::splat(2.0));
+    d.materials.push(diffuse(0.3));
+    d.shapes.push(ShapeDesc::new(
+        ShapeKind::Plane {
+            point: Vec3::ZERO,
+            normal: Vec3::Y,
+        },
+        Some("diffuse"),
+    ));
+    let f = render_film(&d);
+    let (mean, err) = mean_and_error(&f);
+    assert!((mean - 0.6).abs() <= 4.0 * err + 1e-5, "{mean} ± {err}");
+}
+
+fn small_cornell(sampling: PathSampling, spp: u32) -> Film {
+    let mut d = cornell_box();
+    d.settings.width = 20;
+    d.settings.height = 20;
+    d.settings.spp = spp;
+    d.settings.integrator = IntegratorKind::Path;
+    d.settings.sampling = sampling;
+    render_film(&d)
+}
+
+/// Mean per-pixel variance of a single sample's luminance.
+fn per_sample_variance(f: &Film) -> f64 {
+    f.pixels.iter().map(|p| p.variance_of_mean() * p.weight).sum::<f64>() / f.pixels.len() as f64
+}
+
+/// All four estimators converge to the same image; MIS has the lowest
+/// variance, the textbook uniform estimator the highest.
+#[test]
+fn estimators_agree_on_the_cornell_box_and_mis_is_best() {
+    let runs: Vec<(PathSampling, Film)> = [
+        (PathSampling::Mis, 64),
+        (PathSampling::Bsdf, 512),
+        (PathSampling::Cosine, 512),
+        (PathSampling::Uniform, 512),
+    ]
+    .into_iter()
+    .map(|(s, spp)| (s, small_cornell(s, spp)))
+    .collect();
+    let (m0, e0) = mean_and_error(&runs[0].1);
+    for (s, f) in &runs[1..] {
+        let (m, e) = mean_and_error(f);
+        let tol = 4.0 * (e0 * e0 + e * e).sqrt();
+        assert!((m - m0).abs() <= tol, "{} mean {m} ± {e} vs mis {m0} ± {e0}", s.name());
+    }
+    let v: Vec<f64> = runs.iter().map(|(_, f)| per_sample_variance(f)).collect();
+    assert!(
+        v[0] < v[1] && v[0] < v[2] && v[0] < v[3],
+        "variances mis/bsdf/cosine/uniform: {v:?}"
+    );
+    assert!(v[2] < v[3], "cosine beats uniform on diffuse walls: {v:?}");
+}
+
+#[test]
+fn path_tracing_is_deterministic_across_thread_counts() {
+    let mut d = cornell_box();
+    d.settings.width = 24;
+    d.settings.height = 24;
+    d.settings.spp = 4;
+    d.settings.integrator = IntegratorKind::Path;
+    let scene = trazo::scene::build(&d).unwrap();
+    let run = |threads| {
+        render(
+            &scene,
+            &RenderOptions {
+                threads: Some(threads),
+                ..RenderOptions::default()
+            },
+        )
+        .unwrap()
+        .film
+    };
+    assert_eq!(run(1), run(2));
+    assert_eq!(run(1), run(3));
+}
+
+/// Point, spot and directional lights light a diffuse plane as the
+/// formulas say: E = I cos θ / d² for a point light, E for a directional one.
+#[test]
+fn delta_lights_in_the_path_tracer() {
+    let plane = |light: LightKind| {
+        let mut d = SceneDesc::default();
+        d.settings.width = 2;
+        d.settings.height = 2;
+        d.settings.spp = 16;
+        d.settings.max_depth = 2;
+        d.settings.integrator = IntegratorKind::Path;
+        d.camera = CameraDesc {
+            projection: ProjectionDesc::Orthographic { size: 1e-4 },
+            from: Vec3::new(0.0, 5.0, 0.001),
+            to: Vec3::ZERO,
+            up: Vec3::Z,
+            ..CameraDesc::default()
+        };
+        d.materials.push(diffuse(0.5));
+        d.lights.push(LightDesc::new(light));
+        d.shapes.push(ShapeDesc::new(
+            ShapeKind::Plane {
+                point: Vec3::ZERO,
+                normal: Vec3::Y,
+            },
+            Some("diffuse"),
+        ));
+        let (mean, _) = mean_and_error(&render_film(&d));
+        mean as f32
+    };
+    let pi = std::f32::consts::PI;
+    let point = plane(LightKind::Point {
+        position: Vec3::new(1.0, 2.0, 0.0),
+        intensity: Rgb::splat(10.0),
+        falloff: true,
+    });
+    let cos = 2.0 / 5f32.sqrt();
+    assert!((point - 0.5 / pi * 10.0 * cos / 5.0).abs() < 1e-4, "{point}");
+    let sun = plane(LightKind::Directional {
+        direction: Vec3::new(0.0, -1.0, -1.0),
+        irradiance: Rgb::splat(3.0),
+    });
+    assert!(
+        (sun - 0.5 / pi * 3.0 * std::f32::consts::FRAC_1_SQRT_2).abs() < 1e-4,
+        "{sun}"
+    );
+    let spot = plane(LightKind::Spot {
+        position: Vec3::new(0.0, 2.0, 0.0),
+        to: Vec3::ZERO,
+        intensity: Rgb::splat(8.0),
+        inner_angle: 10.0,
+        outer_angle: 20.0,
+        falloff: true,
+    });
+    assert!((spot - 0.5 / pi * 8.0 / 4.0).abs() < 1e-4, "{spot}");
+}
