@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Times `trazo render` on the built-in default scene (Cornell box, 512×512,
-# 16 spp, Whitted) and prints the median wall time of N runs (default 5),
+# 64 spp, path tracer with MIS, max depth 8) and prints the median wall time of N runs (default 5),
 # with the renderer's own samples/s and rays/s from the median run.
 # Usage: bench/default-scene.sh [runs] [extra trazo flags...]
 set -euo pipefail

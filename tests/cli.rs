@@ -366,3 +366,116 @@ fn an_existing_output_is_replaced_whole() {
         "no temporary file is left"
     );
 }
+
+#[test]
+fn auxiliary_images_are_written_next_to_the_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("box.png");
+    let o = trazo()
+        .args([
+            "render",
+            "-q",
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--spp",
+            "2",
+            "--aov",
+            "albedo,normal,depth",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let albedo = trazo::film::io::read_image(&dir.path().join("box.albedo.exr")).unwrap();
+    let normal = trazo::film::io::read_image(&dir.path().join("box.normal.exr")).unwrap();
+    let depth = trazo::film::io::read_image(&dir.path().join("box.depth.exr")).unwrap();
+    // The back wall, straight ahead: white-ish albedo, normal +z, depth about 4.9.
+    let c = (8, 6);
+    let a = albedo.get(c.0, c.1);
+    assert!(a.x > 0.8 && a.y > 0.6, "{a}");
+    let n = normal.get(c.0, c.1);
+    assert!(n.z > 0.95, "{n}");
+    let d = depth.get(c.0, c.1).x;
+    assert!((d - 4.9).abs() < 0.1, "{d}");
+    // The red wall's albedo is red.
+    let red = albedo.get(0, 8);
+    assert!(red.x > 5.0 * red.y, "{red}");
+}
+
+#[test]
+fn compare_renders_side_by_side_with_a_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cmp.png");
+    let o = trazo()
+        .args([
+            "compare",
+            "-q",
+            "--width",
+            "24",
+            "--height",
+            "16",
+            "--spp",
+            "4",
+            "--integrators",
+            "whitted,path:uniform,path:mis",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let table = String::from_utf8_lossy(&o.stdout);
+    for name in ["whitted", "path:uniform", "path:mis", "mean std. error"] {
+        assert!(table.contains(name), "{table}");
+    }
+    let img = image::open(&out).unwrap().to_rgb8();
+    assert_eq!(img.width(), 3 * 24 + 2 * 4);
+
+    // Equal time, against a reference.
+    let reference = dir.path().join("ref.exr");
+    let o = trazo()
+        .args(["render", "-q", "--width", "24", "--height", "16", "--spp", "32", "-o"])
+        .arg(&reference)
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let o = trazo()
+        .args([
+            "compare",
+            "-q",
+            "--width",
+            "24",
+            "--height",
+            "16",
+            "--time",
+            "0.2",
+            "--integrators",
+            "path:bsdf,path:mis",
+            "-o",
+        ])
+        .arg(&out)
+        .arg("--reference")
+        .arg(&reference)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("rel. MSE"));
+
+    let e = fails(&["compare", "--integrators", "path:magic", "-o", out.to_str().unwrap()]);
+    assert!(e.contains("magic"), "{e}");
+    let e = fails(&[
+        "compare",
+        "--width",
+        "8",
+        "--reference",
+        reference.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(e.contains("reference"), "{e}");
+    let e = fails(&["compare", "--time", "0", "-o", out.to_str().unwrap()]);
+    assert!(e.contains("--time"), "{e}");
+}

@@ -3,15 +3,18 @@
 
 use crate::error::{Error, Result};
 use crate::film::Tonemap;
-use crate::film::io::{ImageFormat, write_image};
-use crate::integrator::IntegratorKind;
+use crate::film::io::{ImageFormat, read_image, write_image};
+use crate::integrator::aov::Aov;
+use crate::integrator::{IntegratorKind, PathSampling};
+use crate::render::compare::{Budget, Contestant, compare, side_by_side, table};
 use crate::render::{RenderOptions, render};
 use crate::sampling::SamplerKind;
+use crate::scene::desc::{MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP};
 use crate::scene::{self, SceneDesc, builtin};
 use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// Exit status for bad input: unreadable or invalid scenes, bad options,
 /// unwritable outputs.
@@ -21,7 +24,7 @@ pub const EXIT_USAGE: u8 = 2;
 #[command(
     name = "trazo",
     version,
-    about = "trazo: a physically based renderer (Whitted ray tracing; path tracing and photon mapping to come)",
+    about = "trazo: a physically based renderer (Whitted ray tracing and Monte Carlo path tracing)",
     long_about = None
 )]
 struct Cli {
@@ -33,45 +36,29 @@ struct Cli {
 enum Command {
     /// Render a scene to an image file.
     Render(RenderArgs),
+    /// Render one scene with several algorithms and show them side by side,
+    /// with a table of time and noise.
+    Compare(CompareArgs),
 }
 
+/// The scene and the settings that override what it says.
 #[derive(Args, Debug)]
-struct RenderArgs {
+struct SceneArgs {
     /// Scene file: a trazo .toml scene or a lone .obj model (framed with a
     /// default camera and lights). Without one, the built-in Cornell box.
     scene: Option<PathBuf>,
 
-    /// Output image; the format follows the extension: .png (8-bit sRGB,
-    /// tone-mapped), .exr, .hdr or .pfm (linear float). Default: the
-    /// scene's name with .png, in the current folder.
-    #[arg(short, long, value_name = "FILE")]
-    output: Option<PathBuf>,
-
-    /// Samples per pixel (overrides the scene).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=(crate::scene::desc::MAX_SPP as i64)))]
-    spp: Option<u32>,
-
-    /// Rendering algorithm (overrides the scene).
-    #[arg(long, value_name = "NAME", value_parser = IntegratorKind::NAMES)]
-    integrator: Option<String>,
-
-    /// The path tracer's estimator: uniform or cosine hemisphere sampling,
-    /// BSDF importance sampling, or next-event estimation with multiple
-    /// importance sampling (mis).
-    #[arg(long, value_name = "NAME", value_parser = crate::integrator::PathSampling::NAMES)]
-    sampling: Option<String>,
-
     /// Image width in pixels (overrides the scene).
-    #[arg(long, value_name = "W", value_parser = clap::value_parser!(u32).range(1..=(crate::scene::desc::MAX_IMAGE_SIDE as i64)))]
+    #[arg(long, value_name = "W", value_parser = clap::value_parser!(u32).range(1..=(MAX_IMAGE_SIDE as i64)))]
     width: Option<u32>,
 
     /// Image height in pixels (overrides the scene).
-    #[arg(long, value_name = "H", value_parser = clap::value_parser!(u32).range(1..=(crate::scene::desc::MAX_IMAGE_SIDE as i64)))]
+    #[arg(long, value_name = "H", value_parser = clap::value_parser!(u32).range(1..=(MAX_IMAGE_SIDE as i64)))]
     height: Option<u32>,
 
     /// Longest light path in segments from the camera: 1 shows emitters,
     /// 2 adds direct light, each more one more bounce (overrides the scene).
-    #[arg(long, value_name = "D", value_parser = clap::value_parser!(u32).range(0..=(crate::scene::desc::MAX_DEPTH as i64)))]
+    #[arg(long, value_name = "D", value_parser = clap::value_parser!(u32).range(0..=(MAX_DEPTH as i64)))]
     max_depth: Option<u32>,
 
     /// Seed of the random numbers; the same seed gives the same image.
@@ -105,6 +92,66 @@ struct RenderArgs {
     verbose: bool,
 }
 
+#[derive(Args, Debug)]
+struct RenderArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+
+    /// Output image; the format follows the extension: .png (8-bit sRGB,
+    /// tone-mapped), .exr, .hdr or .pfm (linear float). Default: the
+    /// scene's name with .png, in the current folder.
+    #[arg(short, long, value_name = "FILE")]
+    output: Option<PathBuf>,
+
+    /// Samples per pixel (overrides the scene).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=(MAX_SPP as i64)))]
+    spp: Option<u32>,
+
+    /// Rendering algorithm (overrides the scene).
+    #[arg(long, value_name = "NAME", value_parser = IntegratorKind::NAMES)]
+    integrator: Option<String>,
+
+    /// The path tracer's estimator: uniform or cosine hemisphere sampling,
+    /// BSDF importance sampling, or next-event estimation with multiple
+    /// importance sampling (mis).
+    #[arg(long, value_name = "NAME", value_parser = PathSampling::NAMES)]
+    sampling: Option<String>,
+
+    /// Also write auxiliary images (comma-separated: albedo, normal,
+    /// depth) as OUTPUT-NAME.<aov>.exr next to the output.
+    #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = Aov::NAMES)]
+    aov: Vec<String>,
+}
+
+#[derive(Args, Debug)]
+struct CompareArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+
+    /// The contestants, comma-separated: whitted, path, path:uniform,
+    /// path:cosine, path:bsdf, path:mis.
+    #[arg(long, value_name = "LIST", default_value = "whitted,path:uniform,path:mis")]
+    integrators: String,
+
+    /// Samples per pixel for every contestant (equal samples). With --time,
+    /// the most samples per pixel.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=(MAX_SPP as i64)))]
+    spp: Option<u32>,
+
+    /// Seconds of rendering for every contestant (equal time).
+    #[arg(long, value_name = "SECONDS")]
+    time: Option<f64>,
+
+    /// A converged image of the same scene: the table then reports each
+    /// contestant's relative MSE against it.
+    #[arg(long, value_name = "FILE")]
+    reference: Option<PathBuf>,
+
+    /// The side-by-side image.
+    #[arg(short, long, value_name = "FILE", default_value = "compare.png")]
+    output: PathBuf,
+}
+
 /// Runs the command line; the exit status is 0 on success and 2 on any
 /// error caused by the input.
 pub fn main() -> ExitCode {
@@ -118,6 +165,7 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Render(args) => run_render(args),
+        Command::Compare(args) => run_compare(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -128,38 +176,44 @@ pub fn main() -> ExitCode {
     }
 }
 
-/// Applies command-line overrides to a scene's settings.
-fn apply_overrides(desc: &mut SceneDesc, a: &RenderArgs) {
-    let s = &mut desc.settings;
-    if let Some(v) = a.spp {
-        s.spp = v;
+impl SceneArgs {
+    /// Loads the scene (or the built-in one) and applies the overrides.
+    fn load(&self) -> Result<SceneDesc> {
+        let mut desc = match &self.scene {
+            Some(path) => scene::load(path)?,
+            None => builtin::cornell_box(),
+        };
+        let s = &mut desc.settings;
+        if let Some(v) = self.width {
+            s.width = v;
+        }
+        if let Some(v) = self.height {
+            s.height = v;
+        }
+        if let Some(v) = self.max_depth {
+            s.max_depth = v;
+        }
+        if let Some(v) = self.seed {
+            s.seed = v;
+        }
+        if let Some(v) = &self.sampler {
+            s.sampler = SamplerKind::from_name(v).expect("clap checked the value");
+        }
+        if let Some(v) = &self.tonemap {
+            s.tonemap = Tonemap::from_name(v).expect("clap checked the value");
+        }
+        if let Some(v) = self.exposure {
+            s.exposure = v;
+        }
+        Ok(desc)
     }
-    if let Some(v) = a.width {
-        s.width = v;
-    }
-    if let Some(v) = a.height {
-        s.height = v;
-    }
-    if let Some(v) = a.max_depth {
-        s.max_depth = v;
-    }
-    if let Some(v) = a.seed {
-        s.seed = v;
-    }
-    if let Some(v) = &a.integrator {
-        s.integrator = IntegratorKind::from_name(v).expect("clap checked the value");
-    }
-    if let Some(v) = &a.sampling {
-        s.sampling = crate::integrator::PathSampling::from_name(v).expect("clap checked the value");
-    }
-    if let Some(v) = &a.sampler {
-        s.sampler = SamplerKind::from_name(v).expect("clap checked the value");
-    }
-    if let Some(v) = &a.tonemap {
-        s.tonemap = Tonemap::from_name(v).expect("clap checked the value");
-    }
-    if let Some(v) = a.exposure {
-        s.exposure = v;
+
+    fn options(&self) -> RenderOptions {
+        RenderOptions {
+            threads: self.threads,
+            progress: !self.quiet,
+            ..RenderOptions::default()
+        }
     }
 }
 
@@ -198,54 +252,80 @@ fn check_output(path: &Path) -> Result<()> {
     }
 }
 
+/// `out.png` → `out.albedo.exr`.
+fn aov_path(output: &Path, aov: Aov) -> PathBuf {
+    let stem = output
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    output.with_file_name(format!("{stem}.{}.exr", aov.name()))
+}
+
+fn print_scene_stats(scene: &scene::Scene, load_seconds: f64) {
+    let g = scene.geometry.stats();
+    eprintln!(
+        "scene: {} shapes, {} mesh objects, {} instances, {} triangles, {} lights, {} materials",
+        scene.geometry.shapes.len(),
+        scene.geometry.mesh_objects.len(),
+        scene.geometry.instances.len(),
+        g.triangles,
+        scene.lights.len(),
+        scene.materials.len() - 1,
+    );
+    eprintln!(
+        "bvh: {} primitives, {} nodes, {:.1} MiB (meshes {:.1} MiB), built in {:.3} s",
+        g.primitives,
+        g.nodes,
+        g.bvh_bytes as f64 / (1 << 20) as f64,
+        g.mesh_bytes as f64 / (1 << 20) as f64,
+        g.seconds
+    );
+    eprintln!("load and build: {load_seconds:.3} s");
+}
+
 fn run_render(args: RenderArgs) -> Result<()> {
     let output = args
         .output
         .clone()
-        .unwrap_or_else(|| default_output(args.scene.as_deref()));
+        .unwrap_or_else(|| default_output(args.scene.scene.as_deref()));
     check_output(&output)?;
+    let aovs: Vec<Aov> = args
+        .aov
+        .iter()
+        .map(|a| Aov::from_name(a).expect("clap checked the value"))
+        .collect();
 
     let load_start = Instant::now();
-    let mut desc = match &args.scene {
-        Some(path) => scene::load(path)?,
-        None => builtin::cornell_box(),
-    };
-    apply_overrides(&mut desc, &args);
+    let mut desc = args.scene.load()?;
+    if let Some(v) = args.spp {
+        desc.settings.spp = v;
+    }
+    if let Some(v) = &args.integrator {
+        desc.settings.integrator = IntegratorKind::from_name(v).expect("clap checked the value");
+    }
+    if let Some(v) = &args.sampling {
+        desc.settings.sampling = PathSampling::from_name(v).expect("clap checked the value");
+    }
     let scene = scene::build(&desc)?;
     let load_seconds = load_start.elapsed().as_secs_f64();
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
-    if args.verbose {
-        let g = scene.geometry.stats();
-        eprintln!(
-            "scene: {} shapes, {} mesh objects, {} instances, {} triangles, {} lights, {} materials",
-            scene.geometry.shapes.len(),
-            scene.geometry.mesh_objects.len(),
-            scene.geometry.instances.len(),
-            g.triangles,
-            scene.lights.len(),
-            scene.materials.len() - 1,
-        );
-        eprintln!(
-            "bvh: {} primitives, {} nodes, {:.1} MiB (meshes {:.1} MiB), built in {:.3} s",
-            g.primitives,
-            g.nodes,
-            g.bvh_bytes as f64 / (1 << 20) as f64,
-            g.mesh_bytes as f64 / (1 << 20) as f64,
-            g.seconds
-        );
-        eprintln!("load and build: {load_seconds:.3} s");
+    if args.scene.verbose {
+        print_scene_stats(&scene, load_seconds);
     }
 
     let s = scene.settings.clone();
     let options = RenderOptions {
-        threads: args.threads,
-        progress: !args.quiet,
-        ..RenderOptions::default()
+        aovs: !aovs.is_empty(),
+        ..args.scene.options()
     };
     let out = render(&scene, &options)?;
     write_image(&output, &out.film.to_image(), s.tonemap, s.exposure)?;
+    for aov in &aovs {
+        let img = out.film.aov_image(*aov).expect("AOVs were recorded");
+        write_image(&aov_path(&output, *aov), &img, s.tonemap, 0.0)?;
+    }
     let st = &out.stats;
     if st.invalid_samples > 0 {
         eprintln!(
@@ -253,19 +333,69 @@ fn run_render(args: RenderArgs) -> Result<()> {
             st.invalid_samples
         );
     }
-    if !args.quiet {
+    if !args.scene.quiet {
+        let integrator = match s.integrator {
+            IntegratorKind::Path => format!("path:{}", s.sampling.name()),
+            other => other.name().to_string(),
+        };
         eprintln!(
-            "rendered {}×{} at {} spp with {} in {:.2} s ({:.2} M samples/s, {:.2} M rays/s, {} threads) → {}",
+            "rendered {}×{} at {} spp with {integrator} in {:.2} s ({:.2} M samples/s, {:.2} M rays/s, {} threads) → {}",
             s.width,
             s.height,
             s.spp,
-            s.integrator.name(),
             st.seconds,
             st.samples_per_second() / 1e6,
             st.rays_per_second() / 1e6,
             st.threads,
             output.display()
         );
+    }
+    Ok(())
+}
+
+fn run_compare(args: CompareArgs) -> Result<()> {
+    check_output(&args.output)?;
+    let contestants = args
+        .integrators
+        .split(',')
+        .filter(|s| !s.trim().is_empty())
+        .map(Contestant::parse)
+        .collect::<Result<Vec<_>>>()?;
+    if contestants.is_empty() {
+        return Err(Error::Invalid("--integrators lists no integrator".into()));
+    }
+    let budget = match args.time {
+        Some(t) if !(t.is_finite() && t > 0.0) => {
+            return Err(Error::Invalid(format!(
+                "--time must be a positive number of seconds, got {t}"
+            )));
+        }
+        Some(t) => Budget::Time {
+            limit: Duration::from_secs_f64(t),
+            max_spp: args.spp.unwrap_or(MAX_SPP),
+        },
+        None => Budget::Spp(args.spp.unwrap_or(16)),
+    };
+    let desc = args.scene.load()?;
+    let reference = args.reference.as_deref().map(read_image).transpose()?;
+    if let Some(r) = &reference {
+        if (r.width, r.height) != (desc.settings.width, desc.settings.height) {
+            return Err(Error::Invalid(format!(
+                "the reference is {}×{} but the render is {}×{} (set --width and --height)",
+                r.width, r.height, desc.settings.width, desc.settings.height
+            )));
+        }
+    }
+    let rows = compare(&desc, &contestants, budget, reference.as_ref(), &args.scene.options())?;
+    write_image(
+        &args.output,
+        &side_by_side(&rows),
+        desc.settings.tonemap,
+        desc.settings.exposure,
+    )?;
+    print!("{}", table(&rows));
+    if !args.scene.quiet {
+        eprintln!("→ {}", args.output.display());
     }
     Ok(())
 }

@@ -7,6 +7,8 @@
 //! 8-bit image is written.
 
 pub mod io;
+pub mod metrics;
+pub mod text;
 pub mod tonemap;
 
 pub use tonemap::Tonemap;
@@ -93,6 +95,30 @@ impl PixelSum {
     }
 }
 
+/// Accumulated auxiliary values of one pixel (see [`crate::integrator::aov`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AovSum {
+    /// Σ albedo.
+    pub albedo: DVec3,
+    /// Σ normal.
+    pub normal: DVec3,
+    /// Σ depth.
+    pub depth: f64,
+    /// Number of samples.
+    pub count: f64,
+}
+
+impl AovSum {
+    /// Adds one sample.
+    #[inline]
+    pub fn add(&mut self, s: &crate::integrator::aov::AovSample) {
+        self.albedo += s.albedo.as_dvec3();
+        self.normal += s.normal.as_dvec3();
+        self.depth += s.depth as f64;
+        self.count += 1.0;
+    }
+}
+
 /// The accumulation buffer of a render.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Film {
@@ -102,6 +128,8 @@ pub struct Film {
     pub height: u32,
     /// Pixel sums, row by row from the top.
     pub pixels: Vec<PixelSum>,
+    /// Auxiliary sums, when requested.
+    pub aovs: Option<Vec<AovSum>>,
 }
 
 impl Film {
@@ -111,7 +139,31 @@ impl Film {
             width,
             height,
             pixels: vec![PixelSum::default(); width as usize * height as usize],
+            aovs: None,
         }
+    }
+
+    /// The image of one auxiliary channel, if they were recorded. Normals
+    /// are averaged (not renormalised), so edge pixels show the mix.
+    pub fn aov_image(&self, aov: crate::integrator::aov::Aov) -> Option<Image> {
+        use crate::integrator::aov::Aov;
+        let sums = self.aovs.as_ref()?;
+        let pixels = sums
+            .iter()
+            .map(|a| {
+                let n = a.count.max(1.0);
+                match aov {
+                    Aov::Albedo => (a.albedo / n).as_vec3(),
+                    Aov::Normal => (a.normal / n).as_vec3(),
+                    Aov::Depth => Rgb::splat((a.depth / n) as f32),
+                }
+            })
+            .collect();
+        Some(Image {
+            width: self.width,
+            height: self.height,
+            pixels,
+        })
     }
 
     /// The current estimate of every pixel.

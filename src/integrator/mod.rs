@@ -2,6 +2,7 @@
 //! camera ray. This is the only place that knows the algorithm; scheduling,
 //! films and files are elsewhere.
 
+pub mod aov;
 pub mod path;
 pub mod whitted;
 

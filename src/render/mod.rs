@@ -9,8 +9,11 @@
 //! pixel's samples are added in index order, so the result is bit-identical
 //! whatever the number of threads or the tile order.
 
+pub mod compare;
+
 use crate::error::{Error, Result};
-use crate::film::{Film, Image, PixelSum};
+use crate::film::{AovSum, Film, Image, PixelSum};
+use crate::integrator::aov::camera_aov;
 use crate::integrator::{Integrator, IntegratorKind, PathTracer, RayStats, Whitted};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
@@ -29,6 +32,12 @@ pub struct RenderOptions {
     pub progress: bool,
     /// Side of the square tiles in pixels.
     pub tile_size: u32,
+    /// Record the auxiliary images (albedo, normal, depth).
+    pub aovs: bool,
+    /// Stop after the pass during which this much time has passed; the
+    /// scene's `spp` is then the most samples per pixel. Passes are one
+    /// sample per pixel, so the overshoot is at most one pass.
+    pub time_limit: Option<Duration>,
 }
 
 impl Default for RenderOptions {
@@ -37,6 +46,8 @@ impl Default for RenderOptions {
             threads: None,
             progress: false,
             tile_size: 16,
+            aovs: false,
+            time_limit: None,
         }
     }
 }
@@ -54,6 +65,8 @@ pub struct RenderStats {
     pub invalid_samples: u64,
     /// Threads used.
     pub threads: usize,
+    /// Samples per pixel completed.
+    pub spp: u32,
 }
 
 impl RenderStats {
@@ -161,63 +174,108 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
     passes
 }
 
+/// What one tile of one pass produced.
+struct TileResult {
+    tile: Tile,
+    sums: Vec<PixelSum>,
+    aovs: Vec<AovSum>,
+    rays: RayStats,
+    invalid: u64,
+}
+
 fn render_passes<I: Integrator>(scene: &Scene, integrator: &I, options: &RenderOptions) -> RenderOutput {
     let s = &scene.settings;
     let (w, h) = (s.width, s.height);
     let mut film = Film::new(w, h);
+    if options.aovs {
+        film.aovs = Some(vec![AovSum::default(); (w * h) as usize]);
+    }
     let tiles = tiles(w, h, options.tile_size);
-    let total = w as u64 * h as u64 * s.spp as u64;
-    let bar = progress_bar(options.progress, total);
+    let bar = match options.time_limit {
+        Some(limit) => progress_bar(options.progress, limit.as_millis().max(1) as u64),
+        None => progress_bar(options.progress, w as u64 * h as u64 * s.spp as u64),
+    };
     let start = Instant::now();
     let mut stats = RenderStats {
         threads: rayon::current_num_threads(),
         ..RenderStats::default()
     };
+    let passes = match options.time_limit {
+        Some(_) => (0..s.spp).map(|i| (i, i + 1)).collect(),
+        None => pass_schedule(s.spp),
+    };
 
-    for (first, end) in pass_schedule(s.spp) {
-        let results: Vec<(Tile, Vec<PixelSum>, RayStats, u64)> = tiles
+    for (first, end) in passes {
+        let results: Vec<TileResult> = tiles
             .par_iter()
             .map(|&tile| {
                 let mut sampler = Sampler::new(s.sampler, s.spp, s.seed);
-                let mut ray_stats = RayStats::default();
+                let mut rays = RayStats::default();
                 let mut invalid = 0u64;
-                let mut sums = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
+                let n = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
+                let mut sums = Vec::with_capacity(n);
+                let mut aovs = Vec::with_capacity(if options.aovs { n } else { 0 });
                 for y in tile.y0..tile.y1 {
                     for x in tile.x0..tile.x1 {
-                        let mut sum = film.pixels[(y * w + x) as usize];
+                        let i = (y * w + x) as usize;
+                        let mut sum = film.pixels[i];
+                        let mut aov = film.aovs.as_ref().map(|a| a[i]).unwrap_or_default();
                         for index in first..end {
                             sampler.start_pixel_sample(x, y, index);
                             let offset = sampler.pixel_2d();
                             let lens = sampler.next_2d();
                             let ray = scene.camera.generate_ray(Vec2::new(x as f32, y as f32) + offset, lens);
-                            let l = integrator.radiance(scene, &ray, &mut sampler, &mut ray_stats);
+                            let l = integrator.radiance(scene, &ray, &mut sampler, &mut rays);
                             if l.is_finite() {
                                 sum.add(l, 1.0);
                             } else {
                                 invalid += 1;
                             }
+                            if options.aovs {
+                                aov.add(&camera_aov(scene, &ray));
+                            }
                         }
                         sums.push(sum);
+                        if options.aovs {
+                            aovs.push(aov);
+                        }
                     }
                 }
                 if let Some(b) = &bar {
-                    b.inc(sums.len() as u64 * (end - first) as u64);
+                    match options.time_limit {
+                        Some(_) => b.set_position(start.elapsed().as_millis() as u64),
+                        None => b.inc(n as u64 * (end - first) as u64),
+                    }
                 }
-                (tile, sums, ray_stats, invalid)
+                TileResult {
+                    tile,
+                    sums,
+                    aovs,
+                    rays,
+                    invalid,
+                }
             })
             .collect();
-        for (tile, sums, ray_stats, invalid) in results {
+        for r in results {
             let mut k = 0;
-            for y in tile.y0..tile.y1 {
-                for x in tile.x0..tile.x1 {
-                    film.pixels[(y * w + x) as usize] = sums[k];
+            for y in r.tile.y0..r.tile.y1 {
+                for x in r.tile.x0..r.tile.x1 {
+                    let i = (y * w + x) as usize;
+                    film.pixels[i] = r.sums[k];
+                    if let Some(a) = film.aovs.as_mut() {
+                        a[i] = r.aovs[k];
+                    }
                     k += 1;
                 }
             }
-            stats.rays += ray_stats.rays;
-            stats.invalid_samples += invalid;
+            stats.rays += r.rays.rays;
+            stats.invalid_samples += r.invalid;
         }
         stats.samples += w as u64 * h as u64 * (end - first) as u64;
+        stats.spp = end;
+        if options.time_limit.is_some_and(|limit| start.elapsed() >= limit) {
+            break;
+        }
     }
     if let Some(b) = bar {
         b.finish_and_clear();

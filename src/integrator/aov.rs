@@ -1,0 +1,100 @@
+//! Auxiliary images (AOVs): what the camera sees first, for denoisers and
+//! debugging. Computed from the camera ray alone, independent of the
+//! integrator, following perfectly specular bounces (mirrors, smooth
+//! glass) to the first surface with a non-specular lobe, as denoisers such
+//! as Intel Open Image Denoise expect.
+
+use crate::color::Rgb;
+use crate::geometry::Ray;
+use crate::material::{Frame, TransportMode};
+use crate::scene::Scene;
+use crate::texture::TexCoord;
+use glam::Vec3;
+
+/// The auxiliary channels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Aov {
+    /// Surface colour (reflectance) at the first non-specular hit.
+    Albedo,
+    /// World-space shading normal at the first non-specular hit, facing the
+    /// camera; components in [−1, 1].
+    Normal,
+    /// Distance along the camera ray to the first hit (0 where nothing is hit).
+    Depth,
+}
+
+impl Aov {
+    /// The names accepted on the command line.
+    pub const NAMES: [&'static str; 3] = ["albedo", "normal", "depth"];
+
+    /// Parses one of [`Aov::NAMES`].
+    pub fn from_name(s: &str) -> Option<Aov> {
+        match s {
+            "albedo" => Some(Aov::Albedo),
+            "normal" => Some(Aov::Normal),
+            "depth" => Some(Aov::Depth),
+            _ => None,
+        }
+    }
+
+    /// This channel's name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Aov::Albedo => "albedo",
+            Aov::Normal => "normal",
+            Aov::Depth => "depth",
+        }
+    }
+}
+
+/// The auxiliary values of one camera sample.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AovSample {
+    /// Albedo.
+    pub albedo: Rgb,
+    /// Normal.
+    pub normal: Vec3,
+    /// Depth.
+    pub depth: f32,
+}
+
+/// Most specular bounces followed before giving up.
+const MAX_SPECULAR_CHAIN: u32 = 8;
+
+/// The auxiliary values seen along a camera ray.
+pub fn camera_aov(scene: &Scene, camera_ray: &Ray) -> AovSample {
+    let mut ray = *camera_ray;
+    let mut out = AovSample::default();
+    let mut throughput = Rgb::ONE;
+    for bounce in 0..=MAX_SPECULAR_CHAIN {
+        let Some(hit) = scene.intersect(&ray) else {
+            // Seen through a specular chain, the background is the colour.
+            if bounce > 0 {
+                out.albedo = (throughput * scene.background.eval(ray.dir)).min(Rgb::ONE);
+            }
+            return out;
+        };
+        let wo_world = -ray.dir.normalize();
+        if bounce == 0 {
+            out.depth = hit.t * ray.dir.length();
+        }
+        let m = &scene.materials[hit.material as usize];
+        let bsdf = m.bsdf(&scene.images, &TexCoord { uv: hit.uv, p: hit.p });
+        let facing = if hit.ns.dot(wo_world) < 0.0 { -hit.ns } else { hit.ns };
+        if bsdf.has_smooth() || bounce == MAX_SPECULAR_CHAIN {
+            out.albedo = throughput * bsdf.albedo();
+            out.normal = facing;
+            return out;
+        }
+        // Follow the most likely specular lobe, deterministically.
+        let frame = Frame::new(hit.ns, hit.tangent);
+        let wo = frame.to_local(wo_world);
+        let Some(s) = bsdf.sample_delta(wo, 0.5, TransportMode::Radiance) else {
+            out.normal = facing;
+            return out;
+        };
+        throughput *= s.f * (s.wi.z.abs() / s.pdf.max(1e-6));
+        ray = hit.spawn_ray(frame.to_world(s.wi));
+    }
+    out
+}

@@ -1,0 +1,208 @@
+//! The course's comparison: one scene rendered by several algorithms at
+//! equal sample count or equal time, side by side, with a table of time
+//! and noise (or error against a reference image).
+
+use super::{RenderOptions, render};
+use crate::color::Rgb;
+use crate::error::{Error, Result};
+use crate::film::Image;
+use crate::film::metrics::relative_mse;
+use crate::film::text::{GLYPH_H, draw_text, text_width};
+use crate::integrator::{IntegratorKind, PathSampling};
+use crate::scene::SceneDesc;
+use std::time::Duration;
+
+/// One contestant: an integrator and, for the path tracer, its estimator.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Contestant {
+    /// As the user wrote it (`whitted`, `path:mis`, …).
+    pub label: String,
+    /// Algorithm.
+    pub integrator: IntegratorKind,
+    /// Estimator (path tracer only).
+    pub sampling: PathSampling,
+}
+
+impl Contestant {
+    /// Parses `whitted`, `path` or `path:uniform|cosine|bsdf|mis`.
+    pub fn parse(spec: &str) -> Result<Contestant> {
+        let spec = spec.trim();
+        let (name, variant) = match spec.split_once(':') {
+            Some((n, v)) => (n, Some(v)),
+            None => (spec, None),
+        };
+        let integrator = IntegratorKind::from_name(name).ok_or_else(|| {
+            Error::Invalid(format!(
+                "unknown integrator \"{name}\" in --integrators (expected one of {})",
+                IntegratorKind::NAMES.join(", ")
+            ))
+        })?;
+        let sampling = match (integrator, variant) {
+            (_, None) => PathSampling::default(),
+            (IntegratorKind::Path, Some(v)) => PathSampling::from_name(v).ok_or_else(|| {
+                Error::Invalid(format!(
+                    "unknown path sampling \"{v}\" in --integrators (expected one of {})",
+                    PathSampling::NAMES.join(", ")
+                ))
+            })?,
+            (_, Some(v)) => {
+                return Err(Error::Invalid(format!(
+                    "\"{name}\" takes no variant (got \"{name}:{v}\")"
+                )));
+            }
+        };
+        let label = match integrator {
+            IntegratorKind::Path => format!("path:{}", sampling.name()),
+            _ => name.to_string(),
+        };
+        Ok(Contestant {
+            label,
+            integrator,
+            sampling,
+        })
+    }
+}
+
+/// How much work each contestant gets.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    /// The same number of samples per pixel.
+    Spp(u32),
+    /// The same wall time (at most `max_spp` samples per pixel).
+    Time {
+        /// Time per contestant.
+        limit: Duration,
+        /// Upper bound on samples per pixel.
+        max_spp: u32,
+    },
+}
+
+/// The result for one contestant.
+#[derive(Clone, Debug)]
+pub struct ComparisonRow {
+    /// Which contestant.
+    pub label: String,
+    /// Samples per pixel rendered.
+    pub spp: u32,
+    /// Wall time in seconds.
+    pub seconds: f64,
+    /// Millions of samples per second.
+    pub msamples_per_second: f64,
+    /// Millions of rays per second.
+    pub mrays_per_second: f64,
+    /// Mean over pixels of the standard error of the pixel's luminance.
+    pub mean_standard_error: f64,
+    /// Relative MSE against the reference, when one is given.
+    pub rel_mse: Option<f64>,
+    /// The image.
+    pub image: Image,
+}
+
+/// Renders the scene once per contestant.
+pub fn compare(
+    desc: &SceneDesc,
+    contestants: &[Contestant],
+    budget: Budget,
+    reference: Option<&Image>,
+    options: &RenderOptions,
+) -> Result<Vec<ComparisonRow>> {
+    let mut rows = Vec::new();
+    for c in contestants {
+        let mut d = desc.clone();
+        d.settings.integrator = c.integrator;
+        d.settings.sampling = c.sampling;
+        let mut opts = options.clone();
+        match budget {
+            Budget::Spp(n) => d.settings.spp = n,
+            Budget::Time { limit, max_spp } => {
+                d.settings.spp = max_spp;
+                opts.time_limit = Some(limit);
+            }
+        }
+        let scene = crate::scene::build(&d)?;
+        let out = render(&scene, &opts)?;
+        let image = out.film.to_image();
+        let rel_mse = reference.map(|r| relative_mse(&image, r)).transpose()?;
+        rows.push(ComparisonRow {
+            label: c.label.clone(),
+            spp: out.stats.spp,
+            seconds: out.stats.seconds,
+            msamples_per_second: out.stats.samples_per_second() / 1e6,
+            mrays_per_second: out.stats.rays_per_second() / 1e6,
+            mean_standard_error: out.film.mean_standard_error(),
+            rel_mse,
+            image,
+        });
+    }
+    Ok(rows)
+}
+
+/// The comparison as a Markdown table.
+pub fn table(rows: &[ComparisonRow]) -> String {
+    let with_ref = rows.iter().any(|r| r.rel_mse.is_some());
+    let mut s = String::from("| integrator | spp | time (s) | M samples/s | M rays/s | mean std. error |");
+    s.push_str(if with_ref { " rel. MSE |\n" } else { "\n" });
+    s.push_str("|---|---|---|---|---|---|");
+    s.push_str(if with_ref { "---|\n" } else { "\n" });
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.5} |",
+            r.label, r.spp, r.seconds, r.msamples_per_second, r.mrays_per_second, r.mean_standard_error
+        ));
+        if let Some(e) = r.rel_mse {
+            s.push_str(&format!(" {e:.5} |"));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// Height of the label bar above each image.
+const BAR: u32 = 2 * GLYPH_H + 8;
+
+/// The images side by side, each under a bar with its label, sample count
+/// and time. Labels are drawn very bright so that any tone mapping shows
+/// them white.
+pub fn side_by_side(rows: &[ComparisonRow]) -> Image {
+    let (w, h) = rows.first().map_or((1, 1), |r| (r.image.width, r.image.height));
+    let gap = 4;
+    let total_w = rows.len() as u32 * w + gap * rows.len().saturating_sub(1) as u32;
+    let mut out = Image::new(total_w.max(1), h + BAR);
+    for (k, r) in rows.iter().enumerate() {
+        let x0 = k as u32 * (w + gap);
+        for y in 0..h {
+            for x in 0..w {
+                out.pixels[((y + BAR) * out.width + x0 + x) as usize] = r.image.get(x, y);
+            }
+        }
+        let mut label = format!("{} {}SPP {:.1}S", r.label, r.spp, r.seconds);
+        let mut scale = 2;
+        if text_width(&label, scale) + 8 > w {
+            scale = 1;
+        }
+        while text_width(&label, scale) + 8 > w && label.len() > 1 {
+            label.pop();
+        }
+        draw_text(&mut out, x0 + 4, 4, &label, scale, Rgb::splat(1000.0));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn contestant_specs() {
+        let c = Contestant::parse("path:uniform").unwrap();
+        assert_eq!(
+            (c.integrator, c.sampling),
+            (IntegratorKind::Path, PathSampling::Uniform)
+        );
+        assert_eq!(Contestant::parse("whitted").unwrap().label, "whitted");
+        assert_eq!(Contestant::parse("path").unwrap().label, "path:mis");
+        assert!(Contestant::parse("path:magic").is_err());
+        assert!(Contestant::parse("whitted:mis").is_err());
+        assert!(Contestant::parse("photon").is_err());
+    }
+}
