@@ -217,7 +217,7 @@ fn sphere_light_over_a_plane_matches_the_closed_form() {
         d.materials.push(diffuse(rho));
         let mut lamp = diffuse(0.0);
         lamp.name = "lamp".into();
-        lamp.emission = Rgb::splat(le);
+        lamp.emission = ColorSource::Rgb(Rgb::splat(le));
         d.materials.push(lamp);
         d.shapes.push(ShapeDesc::new(
             ShapeKind::Plane {

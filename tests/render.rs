@@ -190,6 +190,7 @@ fn refraction_through_a_slab_follows_snell() {
             transform: None,
             material: 0,
             light: None,
+            flip_normals: false,
         }],
         vec![],
         vec![],
@@ -354,6 +355,7 @@ fn random_aggregate(seed: u64) -> Aggregate {
             transform,
             material: 0,
             light: None,
+            flip_normals: false,
         });
     }
     let soup = |n: usize, v: &mut dyn FnMut() -> f32| {
@@ -377,6 +379,7 @@ fn random_aggregate(seed: u64) -> Aggregate {
                 .then(&Transform::translate(Vec3::new(v(), v(), v()) * 10.0 - 5.0)),
             material: 0,
             light: None,
+            flip_normals: false,
         })
         .collect();
     Aggregate::build(

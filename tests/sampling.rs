@@ -273,7 +273,7 @@ fn densities_integrate_to_the_share_of_returned_samples() {
 fn light_scene(shape: ShapeDesc) -> trazo::scene::Scene {
     let mut d = SceneDesc::default();
     let mut m = MaterialDesc::new("glow");
-    m.emission = Rgb::splat(2.0);
+    m.emission = ColorSource::Rgb(Rgb::splat(2.0));
     d.materials.push(m);
     let mut shape = shape;
     shape.material = Some("glow".into());

@@ -27,6 +27,8 @@ pub struct ShapeInstance {
     pub material: u32,
     /// Area light index, if the shape emits.
     pub light: Option<u32>,
+    /// Whether the front and back sides are swapped.
+    pub flip_normals: bool,
 }
 
 /// A mesh stored in world space, placed once.
@@ -51,6 +53,8 @@ pub struct MeshInstance {
     pub material: u32,
     /// Area light index, if the instance emits.
     pub light: Option<u32>,
+    /// Whether the front and back sides are swapped.
+    pub flip_normals: bool,
 }
 
 /// What the top-level BVH holds.
@@ -122,6 +126,8 @@ pub struct EmitterSample {
     pub n: Vec3,
     /// Density with respect to world-space area.
     pub pdf_area: f32,
+    /// Surface coordinates of the point.
+    pub uv: Vec2,
 }
 
 /// Which geometry an area light is.
@@ -388,7 +394,7 @@ impl Aggregate {
     /// The full surface record of a hit found on `ray`.
     pub fn surface(&self, ray: &Ray, hit: &Hit) -> SurfaceHit {
         let (material, light) = self.material_and_light(&hit.prim);
-        let (ls, ns) = match hit.prim {
+        let (mut ls, mut ns) = match hit.prim {
             HitPrim::Triangle { object, tri, b } => {
                 let mesh = &self.meshes[self.mesh_objects[object as usize].mesh as usize];
                 (mesh.surface(tri as usize, b), mesh.shading_normal(tri as usize, b))
@@ -414,6 +420,15 @@ impl Aggregate {
                 (ls, ns)
             }
         };
+        let flip = match hit.prim {
+            HitPrim::Shape(i) => self.shapes[i as usize].flip_normals,
+            HitPrim::Instance { instance, .. } => self.instances[instance as usize].flip_normals,
+            HitPrim::Triangle { .. } => false, // flipped when baked
+        };
+        if flip {
+            ls.n = -ls.n;
+            ns = ns.map(|n| -n);
+        }
         finish_surface(hit.t, ls, ns, material, light)
     }
 
@@ -484,13 +499,17 @@ impl Aggregate {
         match emitter {
             EmitterRef::Shape(i) => {
                 let s = &self.shapes[i as usize];
-                let a = s.shape.sample_area(u)?;
+                let mut a = s.shape.sample_area(u)?;
+                if s.flip_normals {
+                    a.n = -a.n;
+                }
                 let pdf_obj = 1.0 / area.total;
                 match &s.transform {
                     None => Some(EmitterSample {
                         p: a.p,
                         n: a.n,
                         pdf_area: pdf_obj,
+                        uv: a.uv,
                     }),
                     Some(t) => {
                         let (n, jac) = normal_and_area_scale(t, a.n);
@@ -498,6 +517,7 @@ impl Aggregate {
                             p: t.point(a.p),
                             n,
                             pdf_area: pdf_obj / jac,
+                            uv: a.uv,
                         })
                     }
                 }
@@ -510,6 +530,7 @@ impl Aggregate {
                     p: a.p,
                     n: a.n,
                     pdf_area: 1.0 / area.total,
+                    uv: a.uv,
                 })
             }
             EmitterRef::Instance(i) => {
@@ -517,11 +538,15 @@ impl Aggregate {
                 let m = &self.meshes[inst.mesh as usize];
                 let (tri, _, _) = area.triangles.as_ref()?.sample(u_pick);
                 let a = m.sample_triangle(tri, u);
-                let (n, _) = normal_and_area_scale(&inst.transform, a.n);
+                let (mut n, _) = normal_and_area_scale(&inst.transform, a.n);
+                if inst.flip_normals {
+                    n = -n;
+                }
                 Some(EmitterSample {
                     p: inst.transform.point(a.p),
                     n,
                     pdf_area: 1.0 / area.total,
+                    uv: a.uv,
                 })
             }
         }
@@ -596,6 +621,7 @@ mod tests {
                 transform: Some(transform),
                 material: 0,
                 light: None,
+                flip_normals: false,
             }],
             vec![],
             vec![],

@@ -90,6 +90,20 @@ struct SceneArgs {
     /// Print scene and acceleration-structure statistics.
     #[arg(short, long)]
     verbose: bool,
+
+    /// Set a scene parameter: a Mitsuba `$name` default (may be repeated).
+    #[arg(short = 'D', value_name = "NAME=VALUE", value_parser = parse_define)]
+    defines: Vec<(String, String)>,
+}
+
+fn parse_define(s: &str) -> std::result::Result<(String, String), String> {
+    let (name, value) = s
+        .split_once('=')
+        .ok_or_else(|| format!("expected NAME=VALUE, got \"{s}\""))?;
+    if name.is_empty() {
+        return Err(format!("empty parameter name in \"{s}\""));
+    }
+    Ok((name.to_string(), value.to_string()))
 }
 
 #[derive(Args, Debug)]
@@ -180,7 +194,7 @@ impl SceneArgs {
     /// Loads the scene (or the built-in one) and applies the overrides.
     fn load(&self) -> Result<SceneDesc> {
         let mut desc = match &self.scene {
-            Some(path) => scene::load(path)?,
+            Some(path) => scene::load(path, &self.defines)?,
             None => builtin::cornell_box(),
         };
         let s = &mut desc.settings;

@@ -6,11 +6,13 @@
 //! split between threads or passes. Tone mapping happens only when an
 //! 8-bit image is written.
 
+pub mod filter;
 pub mod io;
 pub mod metrics;
 pub mod text;
 pub mod tonemap;
 
+pub use filter::Filter;
 pub use tonemap::Tonemap;
 
 use crate::color::{Rgb, luminance};

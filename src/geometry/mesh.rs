@@ -204,9 +204,16 @@ impl TriangleMesh {
                 n = -n;
             }
         }
+        let uv = if self.uvs.is_empty() {
+            Vec2::new(b[1] + b[2], b[2])
+        } else {
+            let [ia, ib, ic] = self.indices[i].map(|x| x as usize);
+            b[0] * self.uvs[ia] + b[1] * self.uvs[ib] + b[2] * self.uvs[ic]
+        };
         AreaSample {
             p: b[0] * p0 + b[1] * p1 + b[2] * p2,
             n,
+            uv,
         }
     }
 
@@ -226,6 +233,18 @@ impl TriangleMesh {
                 self.indices.clone()
             },
         }
+    }
+
+    /// The mesh with its front and back swapped: winding reversed, vertex
+    /// normals negated.
+    pub fn flipped(mut self) -> TriangleMesh {
+        for t in &mut self.indices {
+            t.swap(1, 2);
+        }
+        for n in &mut self.normals {
+            *n = -*n;
+        }
+        self
     }
 
     /// A latitude–longitude sphere of `segments` × `rings` quads (two

@@ -13,5 +13,5 @@ pub use bounds::Aabb;
 pub use interaction::SurfaceHit;
 pub use mesh::TriangleMesh;
 pub use ray::Ray;
-pub use shape::{Cuboid, Disk, Plane, Rectangle, Shape, Sphere};
+pub use shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere};
 pub use transform::Transform;

@@ -65,6 +65,18 @@ pub struct Cuboid {
     pub max: Vec3,
 }
 
+/// An open tube (no end caps) of radius `radius` around the segment
+/// from `p0` to `p1`; its front side is the outside.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cylinder {
+    /// Centre of one end.
+    pub p0: Vec3,
+    /// Centre of the other end.
+    pub p1: Vec3,
+    /// Radius.
+    pub radius: f32,
+}
+
 /// An analytic shape in object space.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Shape {
@@ -78,6 +90,8 @@ pub enum Shape {
     Disk(Disk),
     /// An axis-aligned box.
     Cuboid(Cuboid),
+    /// An open cylinder.
+    Cylinder(Cylinder),
 }
 
 /// The surface of a shape at a point, in the shape's object space.
@@ -102,6 +116,8 @@ pub struct AreaSample {
     pub p: Vec3,
     /// Unit front normal there.
     pub n: Vec3,
+    /// Surface coordinates there (for textured emission).
+    pub uv: Vec2,
 }
 
 impl Plane {
@@ -135,6 +151,13 @@ impl Shape {
                 Some(Aabb::new(d.center - half, d.center + half))
             }
             Shape::Cuboid(c) => Some(Aabb::new(c.min, c.max)),
+            Shape::Cylinder(c) => {
+                // The two end circles bound the tube.
+                let a = (c.p1 - c.p0).normalize();
+                let e = (Vec3::ONE - a * a).max(Vec3::ZERO);
+                let half = Vec3::new(e.x.sqrt(), e.y.sqrt(), e.z.sqrt()) * c.radius;
+                Some(Aabb::new(c.p0 - half, c.p0 + half).union(&Aabb::new(c.p1 - half, c.p1 + half)))
+            }
         }
     }
 
@@ -147,6 +170,7 @@ impl Shape {
             Shape::Rectangle(r) => r.intersect(ray),
             Shape::Disk(d) => d.intersect(ray),
             Shape::Cuboid(c) => c.intersect(ray),
+            Shape::Cylinder(c) => c.intersect(ray),
         }
     }
 
@@ -193,6 +217,7 @@ impl Shape {
                 }
             }
             Shape::Cuboid(c) => c.surface(p),
+            Shape::Cylinder(c) => c.surface(p),
         }
     }
 
@@ -204,24 +229,33 @@ impl Shape {
             Shape::Rectangle(r) => r.edge_u.cross(r.edge_v).length(),
             Shape::Disk(d) => PI * d.radius * d.radius,
             Shape::Cuboid(c) => Aabb::new(c.min, c.max).surface_area(),
+            Shape::Cylinder(c) => 2.0 * PI * c.radius * (c.p1 - c.p0).length(),
         }
     }
 
     /// A point uniformly distributed over the surface by area (density
     /// 1/area); `None` for the plane, which has no finite area.
     pub fn sample_area(&self, u: Vec2) -> Option<AreaSample> {
+        let mut s = self.sample_area_point(u)?;
+        s.uv = self.surface(s.p).uv;
+        Some(s)
+    }
+
+    fn sample_area_point(&self, u: Vec2) -> Option<AreaSample> {
         match *self {
             Shape::Sphere(s) => {
                 let n = sample_sphere_uniform(u);
                 Some(AreaSample {
                     p: s.center + n * s.radius,
                     n,
+                    uv: Vec2::ZERO,
                 })
             }
             Shape::Plane(_) => None,
             Shape::Rectangle(r) => Some(AreaSample {
                 p: r.corner + u.x * r.edge_u + u.y * r.edge_v,
                 n: r.edge_u.cross(r.edge_v).normalize(),
+                uv: Vec2::ZERO,
             }),
             Shape::Disk(d) => {
                 let q = sample_disk_concentric(u) * d.radius;
@@ -229,6 +263,7 @@ impl Shape {
                 Some(AreaSample {
                     p: d.center + q.x * s + q.y * t,
                     n: d.normal,
+                    uv: Vec2::ZERO,
                 })
             }
             Shape::Cuboid(c) => {
@@ -260,7 +295,18 @@ impl Shape {
                 p[k] = c.min[k] + u.y * e[k];
                 let mut n = Vec3::ZERO;
                 n[axis] = if high { 1.0 } else { -1.0 };
-                Some(AreaSample { p, n })
+                Some(AreaSample { p, n, uv: Vec2::ZERO })
+            }
+            Shape::Cylinder(c) => {
+                let axis = c.p1 - c.p0;
+                let (s, t) = orthonormal_basis(axis.normalize());
+                let phi = 2.0 * PI * u.y;
+                let n = phi.cos() * s + phi.sin() * t;
+                Some(AreaSample {
+                    p: c.p0 + axis * u.x + n * c.radius,
+                    n,
+                    uv: Vec2::ZERO,
+                })
             }
         }
     }
@@ -421,6 +467,77 @@ impl Cuboid {
             n,
             uv: Vec2::new((q[j] - self.min[j]) / e[j], (q[k] - self.min[k]) / e[k]),
             dpdu,
+        }
+    }
+}
+
+impl Cylinder {
+    /// Ray–cylinder intersection in double precision: the quadratic of the
+    /// ray's distance from the axis, then the hit's height along the axis
+    /// must lie between the ends.
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<f32> {
+        let p0 = self.p0.as_dvec3();
+        let axis = self.p1.as_dvec3() - p0;
+        let h = axis.length();
+        if h == 0.0 {
+            return None;
+        }
+        let a = axis / h;
+        let o = ray.origin.as_dvec3() - p0;
+        let d = ray.dir.as_dvec3();
+        // Components perpendicular to the axis.
+        let dp = d - a * d.dot(a);
+        let op = o - a * o.dot(a);
+        let qa = dp.length_squared();
+        if qa == 0.0 {
+            return None; // parallel to the axis
+        }
+        let b_half = op.dot(dp);
+        let r = self.radius as f64;
+        let l = op - dp * (b_half / qa);
+        let disc = qa * (r * r - l.length_squared());
+        if disc < 0.0 {
+            return None;
+        }
+        let c = op.length_squared() - r * r;
+        let q = -b_half - disc.sqrt().copysign(b_half);
+        let (t0, t1) = if q == 0.0 {
+            (0.0, 0.0)
+        } else {
+            let (x, y) = (c / q, q / qa);
+            (x.min(y), x.max(y))
+        };
+        let (tmin, tmax) = (ray.t_min as f64, ray.t_max as f64);
+        for t in [t0, t1] {
+            if t > tmin && t <= tmax {
+                let z = (o + d * t).dot(a);
+                if (0.0..=h).contains(&z) {
+                    return Some(t as f32);
+                }
+            }
+        }
+        None
+    }
+
+    fn surface(&self, p: Vec3) -> LocalSurface {
+        let axis = self.p1 - self.p0;
+        let h = axis.length();
+        let a = axis / h;
+        let q = p - self.p0;
+        let z = q.dot(a);
+        let radial = q - a * z;
+        let n = radial.try_normalize().unwrap_or_else(|| orthonormal_basis(a).0);
+        // Reproject onto the tube, as for spheres.
+        let p = self.p0 + a * z + n * self.radius;
+        let (s, t) = orthonormal_basis(a);
+        let phi = n.dot(t).atan2(n.dot(s)).rem_euclid(2.0 * PI);
+        LocalSurface {
+            p,
+            p_error: gamma(6) * (p.abs() + self.p0.abs()),
+            n,
+            uv: Vec2::new(phi / (2.0 * PI), (z / h).clamp(0.0, 1.0)),
+            dpdu: a.cross(n) * (2.0 * PI * self.radius),
         }
     }
 }
@@ -621,6 +738,30 @@ mod tests {
     }
 
     #[test]
+    fn cylinder_hit_inside_and_ends() {
+        let c = Shape::Cylinder(Cylinder {
+            p0: Vec3::new(0.0, -1.0, 0.0),
+            p1: Vec3::new(0.0, 1.0, 0.0),
+            radius: 0.5,
+        });
+        let t = c.intersect(&Ray::new(Vec3::new(-5.0, 0.0, 0.0), Vec3::X)).unwrap();
+        assert!(near(t, 4.5, 1e-6));
+        assert!((c.surface(Vec3::new(-0.5, 0.0, 0.0)).n - -Vec3::X).length() < 1e-6);
+        // Open ends: a ray along the axis passes through.
+        assert!(c.intersect(&Ray::new(Vec3::new(0.0, -5.0, 0.0), Vec3::Y)).is_none());
+        // Beyond the ends: missed.
+        assert!(c.intersect(&Ray::new(Vec3::new(-5.0, 1.5, 0.0), Vec3::X)).is_none());
+        // From inside: the far wall, its outward normal facing away.
+        let t = c.intersect(&Ray::new(Vec3::ZERO, Vec3::Z)).unwrap();
+        assert!(near(t, 0.5, 1e-6));
+        // A slanted ray entering through the open end hits the inside wall.
+        let r = Ray::new(Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.5, -2.0, 0.0));
+        let t = c.intersect(&r).unwrap();
+        assert!(near(r.at(t).x, 0.5, 1e-5) && r.at(t).y < 1.0);
+        assert!(near(c.area(), 2.0 * PI * 0.5 * 2.0, 1e-6));
+    }
+
+    #[test]
     fn area_samples_lie_on_the_surface() {
         let shapes = [
             Shape::Sphere(Sphere {
@@ -640,6 +781,11 @@ mod tests {
             Shape::Cuboid(Cuboid {
                 min: Vec3::ZERO,
                 max: Vec3::new(1.0, 2.0, 3.0),
+            }),
+            Shape::Cylinder(Cylinder {
+                p0: Vec3::new(1.0, 0.0, 0.0),
+                p1: Vec3::new(1.0, 1.0, 2.0),
+                radius: 0.3,
             }),
         ];
         let mut rng = Pcg32::new(2, 0);

@@ -146,7 +146,7 @@ impl Integrator for PathTracer {
                     }
                     _ => 1.0,
                 };
-                l += beta * m.emission * w;
+                l += beta * m.emission_at(&scene.images, &TexCoord { uv: hit.uv, p: hit.p }) * w;
             }
             if depth == self.max_depth {
                 break;

@@ -64,14 +64,18 @@ impl Whitted {
         let m = &scene.materials[hit.material as usize];
         let wo = -ray.dir.normalize();
         let front = hit.is_front(wo);
-        let mut l = if front { m.emission } else { Rgb::ZERO };
+        let tc = TexCoord { uv: hit.uv, p: hit.p };
+        let mut l = if front {
+            m.emission_at(&scene.images, &tc)
+        } else {
+            Rgb::ZERO
+        };
         if depth >= self.max_depth {
             return l;
         }
 
         // Surfaces shade on both sides: the shading normal faces the viewer.
         let n = if hit.ns.dot(wo) < 0.0 { -hit.ns } else { hit.ns };
-        let tc = TexCoord { uv: hit.uv, p: hit.p };
         let c = m.classic(&scene.images, &tc);
         let (kd, ks) = (c.kd, c.ks);
 

@@ -26,6 +26,7 @@ use crate::geometry::SurfaceHit;
 use crate::geometry::shape::Shape;
 use crate::material::Frame;
 use crate::scene::Scene;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
@@ -70,7 +71,7 @@ pub enum Light {
         /// The emitting geometry.
         emitter: EmitterRef,
         /// Emitted radiance from the front side.
-        radiance: Rgb,
+        radiance: Texture,
         /// Area data for sampling.
         area: EmitterArea,
         /// Centre and radius when the emitter is a sphere, which is then
@@ -145,6 +146,13 @@ fn sample_sphere_cone(center: Vec3, radius: f32, p: Vec3, u: Vec2) -> Option<(Ve
     let frame = Frame::from_normal(to_center / dc);
     let n = frame.to_world(-Vec3::new(sin_a * phi.cos(), sin_a * phi.sin(), cos_a));
     Some((center + radius * n, n, 1.0 / (2.0 * PI * one_minus_cos_max)))
+}
+
+/// The (u, v) of a point on an untransformed sphere with outward normal
+/// `n` (the parameterisation of [`crate::geometry::Shape::surface`]).
+fn sphere_uv(n: Vec3) -> Vec2 {
+    let phi = n.z.atan2(n.x).rem_euclid(2.0 * PI);
+    Vec2::new(phi / (2.0 * PI), 0.5 + n.y.clamp(-1.0, 1.0).asin() / PI)
 }
 
 /// Density per steradian of [`sample_sphere_cone`] (0 if `p` is inside).
@@ -228,14 +236,20 @@ impl Light {
                 area,
                 sphere,
             } => {
-                let (lp, ln, pdf) = match sphere.and_then(|(c, r)| sample_sphere_cone(c, r, p, u)) {
-                    Some((lp, ln, pdf)) => (lp, ln, Some(pdf)),
+                let (lp, ln, uv, pdf) = match sphere.and_then(|(c, r)| sample_sphere_cone(c, r, p, u)) {
+                    Some((lp, ln, pdf)) => {
+                        let uv = match radiance {
+                            Texture::Constant(_) => Vec2::ZERO,
+                            _ => sphere_uv(ln),
+                        };
+                        (lp, ln, uv, Some(pdf))
+                    }
                     None => {
                         let s = scene.geometry.sample_emitter(*emitter, area, u_pick, u)?;
                         if s.pdf_area.is_nan() || s.pdf_area <= 0.0 {
                             return None;
                         }
-                        (s.p, s.n, None)
+                        (s.p, s.n, s.uv, None)
                     }
                 };
                 let d = lp - p;
@@ -259,7 +273,7 @@ impl Light {
                 }
                 Some(LightSample {
                     wi,
-                    li: *radiance,
+                    li: radiance.eval(&scene.images, &TexCoord { uv, p: lp }),
                     pdf,
                     is_delta: false,
                     target: ShadowTarget::Point(lp),
@@ -353,7 +367,7 @@ impl Light {
                     },
                     _ => area.total,
                 };
-                PI * world_area * luminance(*radiance)
+                PI * world_area * luminance(radiance.average(&scene.images))
             }
             Light::Environment => disk * luminance(scene.background.average()) * 4.0,
         }

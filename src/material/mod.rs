@@ -109,7 +109,7 @@ pub struct Material {
     /// How it scatters light.
     pub kind: MaterialKind,
     /// Emitted radiance, from the front side.
-    pub emission: Rgb,
+    pub emission: Texture,
     /// Whether the back side scatters like the front (false: the back of
     /// an opaque surface is black, as Mitsuba's one-sided BSDFs).
     pub two_sided: bool,
@@ -170,7 +170,7 @@ impl Material {
                 transmission,
                 ior,
             },
-            emission: Rgb::ZERO,
+            emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
         }
     }
@@ -218,7 +218,7 @@ impl Material {
                 smooth_internal_reflectance: plastic::smooth_internal_reflectance(eta),
                 tables: (!ggx.is_smooth()).then(|| Box::new(CoatTables::new(&ggx, eta))),
             },
-            emission: Rgb::ZERO,
+            emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
         }
     }
@@ -236,7 +236,13 @@ impl Material {
     /// Whether the surface emits.
     #[inline]
     pub fn is_emissive(&self) -> bool {
-        self.emission != Rgb::ZERO
+        self.emission != Texture::Constant(Rgb::ZERO)
+    }
+
+    /// Emitted radiance at a point (front side).
+    #[inline]
+    pub fn emission_at(&self, images: &[ImageTexture], tc: &TexCoord) -> Rgb {
+        self.emission.eval(images, tc)
     }
 
     /// The classical parameters at a point: the record itself for classic

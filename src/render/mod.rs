@@ -222,9 +222,11 @@ fn render_passes<I: Integrator>(scene: &Scene, integrator: &I, options: &RenderO
                         let mut aov = film.aovs.as_ref().map(|a| a[i]).unwrap_or_default();
                         for index in first..end {
                             sampler.start_pixel_sample(x, y, index);
-                            let offset = sampler.pixel_2d();
+                            let offset = s.filter.sample(sampler.pixel_2d());
                             let lens = sampler.next_2d();
-                            let ray = scene.camera.generate_ray(Vec2::new(x as f32, y as f32) + offset, lens);
+                            let ray = scene
+                                .camera
+                                .generate_ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset, lens);
                             let l = integrator.radiance(scene, &ray, &mut sampler, &mut rays);
                             if l.is_finite() {
                                 sum.add(l, 1.0);

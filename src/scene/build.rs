@@ -9,7 +9,7 @@ use crate::accel::aggregate::{Aggregate, EmitterRef, MeshInstance, MeshObject, S
 use crate::camera::{Camera, Projection};
 use crate::color::Rgb;
 use crate::error::{Error, Result};
-use crate::geometry::shape::{Cuboid, Disk, Plane, Rectangle, Shape, Sphere};
+use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere};
 use crate::geometry::{Transform, TriangleMesh};
 use crate::light::{Background, EnvironmentMap, Light};
 use crate::material::conductor::ConductorFresnel;
@@ -29,7 +29,7 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
         .and_then(|p| p.parent())
         .map(Path::to_path_buf)
         .unwrap_or_default();
-    let mut warnings = Vec::new();
+    let mut warnings = desc.warnings.clone();
 
     // Textures.
     let mut images = Vec::new();
@@ -48,15 +48,17 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
                 scale: *scale,
             },
             TextureKind::Image {
-                path,
+                source,
                 scale,
                 offset,
                 srgb,
                 tint,
             } => {
-                let full = base_dir.join(path);
-                let img = ImageTexture::load(&full, *srgb)
-                    .map_err(|e| Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e)))?;
+                let img = match source {
+                    ImageSource::File(path) => ImageTexture::load(&base_dir.join(path), *srgb)
+                        .map_err(|e| Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e)))?,
+                    ImageSource::Data(data) => (**data).clone(),
+                };
                 images.push(img);
                 Texture::Image {
                     image: images.len() as u32 - 1,
@@ -137,6 +139,11 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
                 radius: *radius,
             })),
             ShapeKind::Cuboid { min, max } => Some(Shape::Cuboid(Cuboid { min: *min, max: *max })),
+            ShapeKind::Cylinder { p0, p1, radius } => Some(Shape::Cylinder(Cylinder {
+                p0: *p0,
+                p1: *p1,
+                radius: *radius,
+            })),
             ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_) => None,
         };
         if let Some(shape) = analytic {
@@ -158,6 +165,7 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
                 transform: (!transform.is_identity()).then_some(transform),
                 material,
                 light: None,
+                flip_normals: s.flip_normals,
             });
             continue;
         }
@@ -176,6 +184,7 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
             } else {
                 mesh.transformed(&transform)
             };
+            let mesh = if s.flip_normals { mesh.flipped() } else { mesh };
             meshes.push(mesh);
             mesh_objects.push(MeshObject {
                 mesh: meshes.len() as u32 - 1,
@@ -193,6 +202,7 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
                 transform,
                 material,
                 light: None,
+                flip_normals: s.flip_normals,
             });
         }
     }
@@ -250,12 +260,19 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
         ProjectionDesc::Perspective { fov } => Projection::Perspective { fov_y: fov },
         ProjectionDesc::Orthographic { size } => Projection::Orthographic { height: size },
     };
-    let camera = Camera::look_at(projection, cam.from, cam.to, cam.up, s.width, s.height)
-        .map_err(|m| Error::scene(cam.locs.item.clone(), "camera", m))?
-        .with_thin_lens(
-            cam.aperture_radius,
-            cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
-        );
+    let camera = match cam.to_world {
+        Some(m) => {
+            let t = Transform::from_matrix(m)
+                .map_err(|e| Error::scene(cam.locs.key("to_world"), "camera.to_world", e.to_string()))?;
+            Camera::from_transform(projection, t, s.width, s.height)
+        }
+        None => Camera::look_at(projection, cam.from, cam.to, cam.up, s.width, s.height),
+    }
+    .map_err(|m| Error::scene(cam.locs.item.clone(), "camera", m))?
+    .with_thin_lens(
+        cam.aperture_radius,
+        cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
+    );
     let background = match &desc.background {
         BackgroundDesc::Constant(c) => Background::Constant(*c),
         BackgroundDesc::Gradient { top, bottom } => Background::Gradient {
@@ -340,7 +357,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             kind: MaterialKind::Diffuse {
                 reflectance: color(reflectance),
             },
-            emission: Rgb::ZERO,
+            emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
         },
         MaterialKindDesc::Conductor {
@@ -357,7 +374,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
                 tint: *tint,
                 alpha: *roughness,
             },
-            emission: Rgb::ZERO,
+            emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
         },
         MaterialKindDesc::Dielectric {
@@ -373,7 +390,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
                 reflect_tint: *reflect_tint,
                 transmit_tint: *transmit_tint,
             },
-            emission: Rgb::ZERO,
+            emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
         },
         MaterialKindDesc::Plastic {
@@ -392,7 +409,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             images,
         ),
     };
-    mat.emission = m.emission;
+    mat.emission = color(&m.emission);
     mat.two_sided = m.two_sided;
     mat
 }

@@ -8,7 +8,7 @@
 
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
-use crate::film::Tonemap;
+use crate::film::{Filter, Tonemap};
 use crate::geometry::{Transform, TriangleMesh};
 use crate::integrator::{IntegratorKind, PathSampling};
 use crate::sampling::SamplerKind;
@@ -64,6 +64,8 @@ pub struct RenderSettings {
     pub seed: u64,
     /// Placement of samples within pixels.
     pub sampler: SamplerKind,
+    /// Pixel reconstruction filter.
+    pub filter: Filter,
     /// Tone mapping for 8-bit output.
     pub tonemap: Tonemap,
     /// Exposure compensation in stops, applied before tone mapping.
@@ -82,6 +84,7 @@ impl Default for RenderSettings {
             rr_depth: 5,
             seed: 0,
             sampler: SamplerKind::default(),
+            filter: Filter::default(),
             tonemap: Tonemap::default(),
             exposure: 0.0,
         }
@@ -127,6 +130,10 @@ pub struct CameraDesc {
     pub aperture_radius: f32,
     /// Distance to the plane in focus; `None`: the distance from `from` to `to`.
     pub focus_distance: Option<f32>,
+    /// An explicit camera-to-world matrix (camera space: +x right in the
+    /// image, +y up, +z forward); when given, `from`, `to` and `up` are
+    /// ignored. Format readers use it for their cameras' transforms.
+    pub to_world: Option<Mat4>,
     /// Source locations.
     pub locs: Locs,
 }
@@ -140,6 +147,7 @@ impl Default for CameraDesc {
             up: Vec3::Y,
             aperture_radius: 0.0,
             focus_distance: None,
+            to_world: None,
             locs: Locs::default(),
         }
     }
@@ -183,10 +191,10 @@ pub enum TextureKind {
         /// Cubes per unit length.
         scale: f32,
     },
-    /// An image file.
+    /// An image.
     Image {
-        /// Path, relative to the scene file.
-        path: PathBuf,
+        /// Where the pixels come from.
+        source: ImageSource,
         /// Repetitions per unit of u and v.
         scale: Vec2,
         /// Offset in (u, v).
@@ -196,6 +204,15 @@ pub enum TextureKind {
         /// Colour multiplier.
         tint: Rgb,
     },
+}
+
+/// Where an image texture's pixels come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ImageSource {
+    /// A file, relative to the scene file.
+    File(PathBuf),
+    /// Pixels already decoded (images embedded in a glTF binary, say).
+    Data(Arc<crate::texture::ImageTexture>),
 }
 
 /// A named texture.
@@ -311,8 +328,8 @@ pub struct MaterialDesc {
     pub name: String,
     /// Scattering model.
     pub kind: MaterialKindDesc,
-    /// Emitted radiance.
-    pub emission: Rgb,
+    /// Emitted radiance (a colour or a texture).
+    pub emission: ColorSource,
     /// Whether the back side scatters like the front.
     pub two_sided: bool,
     /// Source locations.
@@ -335,7 +352,7 @@ impl MaterialDesc {
         MaterialDesc {
             name: name.into(),
             kind,
-            emission: Rgb::ZERO,
+            emission: ColorSource::Rgb(Rgb::ZERO),
             two_sided: true,
             locs: Locs::default(),
         }
@@ -529,6 +546,15 @@ pub enum ShapeKind {
         /// Upper corner.
         max: Vec3,
     },
+    /// Open cylinder (a tube without end caps).
+    Cylinder {
+        /// Centre of one end.
+        p0: Vec3,
+        /// Centre of the other end.
+        p1: Vec3,
+        /// Radius.
+        radius: f32,
+    },
     /// A named mesh from the scene's meshes.
     Mesh(String),
     /// A mesh given with the shape itself.
@@ -544,6 +570,9 @@ pub struct ShapeDesc {
     pub transform: Vec<TransformOp>,
     /// Material name; `None`: the default grey diffuse material.
     pub material: Option<String>,
+    /// Swap the front and back sides (Mitsuba's `flip_normals`, pbrt's
+    /// `ReverseOrientation`).
+    pub flip_normals: bool,
     /// Source locations.
     pub locs: Locs,
 }
@@ -555,6 +584,7 @@ impl ShapeDesc {
             kind,
             transform: Vec::new(),
             material: material.map(str::to_string),
+            flip_normals: false,
             locs: Locs::default(),
         }
     }
@@ -618,6 +648,9 @@ pub struct SceneDesc {
     pub lights: Vec<LightDesc>,
     /// Shapes.
     pub shapes: Vec<ShapeDesc>,
+    /// Problems the reader found that did not stop it (unsupported or
+    /// approximated elements), each naming its place in the file.
+    pub warnings: Vec<String>,
 }
 
 impl Default for SceneDesc {
@@ -635,6 +668,7 @@ impl Default for SceneDesc {
             meshes: Vec::new(),
             lights: Vec::new(),
             shapes: Vec::new(),
+            warnings: Vec::new(),
         }
     }
 }
@@ -859,7 +893,7 @@ impl SceneDesc {
                     c.color("specular_tint", *specular_tint)?;
                 }
             }
-            c.color("emission", m.emission)?;
+            texture("emission", &m.emission)?;
         }
 
         let mut names = std::collections::HashSet::new();
@@ -953,6 +987,14 @@ impl SceneDesc {
                         return Err(c.err("max", "must be greater than `min` on every axis"));
                     }
                 }
+                ShapeKind::Cylinder { p0, p1, radius } => {
+                    c.vec3("p0", *p0)?;
+                    c.vec3("p1", *p1)?;
+                    c.positive("radius", *radius)?;
+                    if (*p1 - *p0).length_squared() == 0.0 {
+                        return Err(c.err("p1", "must differ from `p0`"));
+                    }
+                }
                 ShapeKind::Mesh(name) => {
                     if !self.meshes.iter().any(|m| &m.name == name) {
                         return Err(c.err(
@@ -1012,6 +1054,21 @@ impl SceneDesc {
             return Err(c.err("max_depth", format!("must be at most {MAX_DEPTH}, got {}", s.max_depth)));
         }
         c.finite("exposure", s.exposure)?;
+        match s.filter {
+            Filter::Box { radius } | Filter::Tent { radius } => {
+                c.positive("filter_radius", radius)?;
+                if radius > 16.0 {
+                    return Err(c.err("filter_radius", format!("must be at most 16 pixels, got {radius}")));
+                }
+            }
+            Filter::Gaussian { stddev, radius } => {
+                c.positive("filter_stddev", stddev)?;
+                c.positive("filter_radius", radius)?;
+                if radius > 16.0 {
+                    return Err(c.err("filter_radius", format!("must be at most 16 pixels, got {radius}")));
+                }
+            }
+        }
         Ok(())
     }
 
@@ -1037,6 +1094,10 @@ impl SceneDesc {
             ProjectionDesc::Orthographic { size } => c.positive("size", size)?,
         }
         c.non_negative("aperture_radius", cam.aperture_radius)?;
+        if let Some(m) = cam.to_world {
+            crate::geometry::Transform::from_matrix(m).map_err(|e| c.err("to_world", format!("{e}")))?;
+            return Ok(());
+        }
         if let Some(f) = cam.focus_distance {
             c.positive("focus_distance", f)?;
         }

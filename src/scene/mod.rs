@@ -76,26 +76,37 @@ impl Scene {
     }
 }
 
-/// Reads a scene file, choosing the reader by its extension.
-pub fn load(path: &Path) -> Result<SceneDesc> {
+/// Reads a scene file, choosing the reader by its extension. `defines`
+/// are `name=value` pairs from the command line (`-D`): Mitsuba's `$name`
+/// parameters; formats without parameters warn that they are unused.
+pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(|e| e.to_ascii_lowercase())
         .unwrap_or_default();
-    match ext.as_str() {
-        "toml" => native::load(path),
-        "obj" => builtin::framed_model(path),
-        _ => Err(Error::file(
-            path,
-            format!(
-                "unknown scene format{}: trazo reads .toml scenes and .obj models",
-                if ext.is_empty() {
-                    String::new()
-                } else {
-                    format!(" \".{ext}\"")
-                }
-            ),
-        )),
+    let mut desc = match ext.as_str() {
+        "toml" => native::load(path)?,
+        "obj" => builtin::framed_model(path)?,
+        _ => {
+            return Err(Error::file(
+                path,
+                format!(
+                    "unknown scene format{}: trazo reads .toml scenes and .obj models",
+                    if ext.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" \".{ext}\"")
+                    }
+                ),
+            ));
+        }
+    };
+    for (name, _) in defines {
+        desc.warnings.push(format!(
+            "-D {name}: {} scenes have no parameters; the definition is not used",
+            ext
+        ));
     }
+    Ok(desc)
 }

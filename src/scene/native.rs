@@ -8,7 +8,7 @@
 use super::desc::*;
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
-use crate::film::Tonemap;
+use crate::film::{Filter, Tonemap};
 use crate::geometry::TriangleMesh;
 use crate::integrator::{IntegratorKind, PathSampling};
 use crate::sampling::SamplerKind;
@@ -468,6 +468,35 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     if let Some(e) = t.number("exposure")? {
         s.exposure = e;
     }
+    if let Some(f) = t.choice("filter", &Filter::NAMES)? {
+        s.filter = Filter::from_name(&f).expect("checked");
+    }
+    let radius = t.number("filter_radius")?;
+    let stddev = t.number("filter_stddev")?;
+    match &mut s.filter {
+        Filter::Box { radius: r } | Filter::Tent { radius: r } => {
+            if let Some(v) = radius {
+                *r = v;
+            }
+            if stddev.is_some() {
+                let span = t.value("filter_stddev").map(|v| v.span()).unwrap_or(t.span.clone());
+                return Err(t.err_at(
+                    "filter_stddev",
+                    &span,
+                    "only the gaussian filter has a standard deviation",
+                ));
+            }
+        }
+        Filter::Gaussian { stddev: sd, radius: r } => {
+            if let Some(v) = stddev {
+                *sd = v;
+                *r = 4.0 * v;
+            }
+            if let Some(v) = radius {
+                *r = v;
+            }
+        }
+    }
     Ok(())
 }
 
@@ -492,6 +521,7 @@ fn read_camera(t: &Table) -> Result<CameraDesc> {
         up: t.vec3("up")?.unwrap_or(d.up),
         aperture_radius: t.number_or("aperture_radius", 0.0)?,
         focus_distance: t.number("focus_distance")?,
+        to_world: None,
         locs: Locs::default(),
     };
     Ok(CameraDesc {
@@ -519,7 +549,7 @@ fn read_texture(t: &Table) -> Result<TextureDesc> {
         _ => {
             let path = t.path("file")?;
             TextureKind::Image {
-                path: t.required("file", path)?,
+                source: ImageSource::File(t.required("file", path)?),
                 scale: t.vec2("scale")?.unwrap_or(Vec2::ONE),
                 offset: t.vec2("offset")?.unwrap_or(Vec2::ZERO),
                 srgb: t.boolean("srgb")?,
@@ -615,7 +645,7 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
         },
     };
     let mut m = MaterialDesc::with_kind(name, kind);
-    m.emission = t.color("emission")?.unwrap_or(Rgb::ZERO);
+    m.emission = t.color_source("emission")?.unwrap_or(ColorSource::Rgb(Rgb::ZERO));
     m.two_sided = t.boolean("two_sided")?.unwrap_or(true);
     m.locs = t.finish()?;
     Ok(m)
@@ -746,7 +776,7 @@ fn vec3_list(t: &Table, key: &str, v: &Value) -> Result<Vec<Vec3>> {
 }
 
 fn read_shape(t: &Table) -> Result<ShapeDesc> {
-    let types = ["sphere", "plane", "rectangle", "disk", "box", "mesh"];
+    let types = ["sphere", "plane", "rectangle", "disk", "box", "cylinder", "mesh"];
     let kind = t.choice("type", &types)?;
     let kind = match t.required("type", kind)?.as_str() {
         "sphere" => ShapeKind::Sphere {
@@ -771,6 +801,11 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
             min: t.vec3("min")?.unwrap_or(Vec3::splat(-1.0)),
             max: t.vec3("max")?.unwrap_or(Vec3::ONE),
         },
+        "cylinder" => ShapeKind::Cylinder {
+            p0: t.vec3("p0")?.unwrap_or(Vec3::ZERO),
+            p1: t.vec3("p1")?.unwrap_or(Vec3::Y),
+            radius: t.number_or("radius", 1.0)?,
+        },
         _ => match t.string("mesh")? {
             Some(name) => {
                 if read_mesh_source(t, false)?.is_some() {
@@ -790,10 +825,12 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
         None => Vec::new(),
     };
     let material = t.string("material")?;
+    let flip_normals = t.boolean("flip_normals")?.unwrap_or(false);
     Ok(ShapeDesc {
         kind,
         transform,
         material,
+        flip_normals,
         locs: t.finish()?,
     })
 }
