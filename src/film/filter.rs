@@ -162,9 +162,12 @@ mod tests {
 
     /// Offsets stay within the radius, and their histogram follows the
     /// filter's shape (chi-square over 20 bins per axis).
+    /// A filter and its unnormalised profile.
+    type Profile = (Filter, fn(f32) -> f32);
+
     #[test]
     fn offsets_follow_the_filter() {
-        let shapes: [(Filter, fn(f32) -> f32); 3] = [
+        let shapes: [Profile; 3] = [
             (Filter::Box { radius: 0.5 }, |_| 1.0),
             (Filter::Tent { radius: 1.0 }, |x| 1.0 - x.abs()),
             (
