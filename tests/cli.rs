@@ -479,3 +479,63 @@ fn compare_renders_side_by_side_with_a_table() {
     let e = fails(&["compare", "--time", "0", "-o", out.to_str().unwrap()]);
     assert!(e.contains("--time"), "{e}");
 }
+
+#[test]
+fn diff_reports_errors_and_its_exit_status_says_whether_images_agree() {
+    let dir = tempfile::tempdir().unwrap();
+    let render = |name: &str, seed: &str, spp: &str| {
+        let p = dir.path().join(name);
+        let o = trazo()
+            .args([
+                "render", "-q", "--width", "16", "--height", "16", "--spp", spp, "--seed", seed, "-o",
+            ])
+            .arg(&p)
+            .output()
+            .unwrap();
+        assert!(o.status.success());
+        p
+    };
+    let a = render("a.exr", "1", "64");
+    let b = render("b.exr", "2", "64");
+    let o = trazo().args(["diff"]).arg(&a).arg(&a).output().unwrap();
+    assert!(o.status.success());
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("relative MSE: 0.000000") && text.contains("mean R G B"),
+        "{text}"
+    );
+    // Two seeds: a small relative MSE, within a loose bound, beyond a tight one.
+    let err_img = dir.path().join("err.png");
+    let o = trazo()
+        .args(["diff", "--max-relmse", "1"])
+        .arg(&a)
+        .arg(&b)
+        .arg("--error-image")
+        .arg(&err_img)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stdout));
+    assert_eq!(image::open(&err_img).unwrap().to_rgb8().dimensions(), (16, 16));
+    let o = trazo()
+        .args(["diff", "--max-relmse", "0.000001"])
+        .arg(&a)
+        .arg(&b)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "images that differ give status 1");
+    // Other formats, size mismatch, missing file.
+    let png = render("c.png", "1", "4");
+    let o = trazo().args(["diff"]).arg(&png).arg(&a).output().unwrap();
+    assert!(o.status.success());
+    let small = dir.path().join("small.pfm");
+    let o = trazo()
+        .args(["render", "-q", "--width", "8", "--height", "8", "--spp", "1", "-o"])
+        .arg(&small)
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let e = fails(&["diff", small.to_str().unwrap(), a.to_str().unwrap()]);
+    assert!(e.contains("differ in size"), "{e}");
+    let e = fails(&["diff", "nope.exr", a.to_str().unwrap()]);
+    assert!(e.contains("nope.exr"), "{e}");
+}

@@ -39,6 +39,27 @@ enum Command {
     /// Render one scene with several algorithms and show them side by side,
     /// with a table of time and noise.
     Compare(CompareArgs),
+    /// Compare two images (PNG, EXR, HDR, PFM): RMSE, relative MSE and the
+    /// mean of each channel; the exit status says whether they agree.
+    Diff(DiffArgs),
+}
+
+#[derive(Args, Debug)]
+struct DiffArgs {
+    /// The image to judge.
+    a: PathBuf,
+    /// The reference.
+    b: PathBuf,
+    /// Write a false-colour image of the per-pixel relative error (black:
+    /// none, yellow: at least --error-scale).
+    #[arg(long, value_name = "FILE")]
+    error_image: Option<PathBuf>,
+    /// Relative error shown as full yellow in the error image.
+    #[arg(long, value_name = "E", default_value_t = 0.2)]
+    error_scale: f64,
+    /// Exit with status 1 if the relative MSE exceeds this.
+    #[arg(long, value_name = "X")]
+    max_relmse: Option<f64>,
 }
 
 /// The scene and the settings that override what it says.
@@ -180,6 +201,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => run_render(args),
         Command::Compare(args) => run_compare(args),
+        Command::Diff(args) => return run_diff(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -365,6 +387,75 @@ fn run_render(args: RenderArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Exit status of `trazo diff` when the images differ by more than allowed.
+pub const EXIT_DIFFERENT: u8 = 1;
+
+fn run_diff(args: DiffArgs) -> ExitCode {
+    match diff(&args) {
+        Ok(true) => ExitCode::SUCCESS,
+        Ok(false) => ExitCode::from(EXIT_DIFFERENT),
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(EXIT_USAGE)
+        }
+    }
+}
+
+/// Prints the comparison; returns whether the images agree.
+fn diff(args: &DiffArgs) -> Result<bool> {
+    if let Some(x) = args.max_relmse {
+        if !(x.is_finite() && x >= 0.0) {
+            return Err(Error::Invalid(format!("--max-relmse must be a number ≥ 0, got {x}")));
+        }
+    }
+    if !(args.error_scale.is_finite() && args.error_scale > 0.0) {
+        return Err(Error::Invalid(format!(
+            "--error-scale must be positive, got {}",
+            args.error_scale
+        )));
+    }
+    if let Some(p) = &args.error_image {
+        check_output(p)?;
+    }
+    let a = read_image(&args.a)?;
+    let b = read_image(&args.b)?;
+    let rel = crate::film::metrics::relative_mse(&a, &b)
+        .map_err(|e| Error::Invalid(format!("{} and {}: {e}", args.a.display(), args.b.display())))?;
+    let rmse = crate::film::metrics::rmse(&a, &b)?;
+    let (ma, mb) = (a.mean(), b.mean());
+    println!(
+        "A: {} ({}×{}), mean R G B: {:.6} {:.6} {:.6}",
+        args.a.display(),
+        a.width,
+        a.height,
+        ma.x,
+        ma.y,
+        ma.z
+    );
+    println!(
+        "B: {} ({}×{}), mean R G B: {:.6} {:.6} {:.6}",
+        args.b.display(),
+        b.width,
+        b.height,
+        mb.x,
+        mb.y,
+        mb.z
+    );
+    println!("rmse: {rmse:.6}");
+    println!("relative MSE: {rel:.6}");
+    if let Some(p) = &args.error_image {
+        let img = crate::film::metrics::error_image(&a, &b, args.error_scale)?;
+        write_image(p, &img, Tonemap::Clamp, 0.0)?;
+    }
+    Ok(match args.max_relmse {
+        Some(x) if rel > x => {
+            println!("the images differ: relative MSE {rel:.6} > {x}");
+            false
+        }
+        _ => true,
+    })
 }
 
 fn run_compare(args: CompareArgs) -> Result<()> {

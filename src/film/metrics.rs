@@ -45,6 +45,51 @@ pub fn rmse(a: &Image, b: &Image) -> Result<f64> {
     Ok((sum / (3 * a.pixels.len().max(1)) as f64).sqrt())
 }
 
+/// A false-colour image of the per-pixel relative error of `a` against
+/// `b`: √(mean over channels of (a − b)²/(b² + ε)), mapped from black
+/// (no error) through purple and orange to yellow (≥ `full_scale`).
+pub fn error_image(a: &Image, b: &Image, full_scale: f64) -> Result<Image> {
+    check_sizes(a, b)?;
+    // An inferno-like ramp, given in sRGB and converted to linear so that
+    // the written PNG shows these colours.
+    let stops: [[f32; 3]; 5] = [
+        [0.0, 0.0, 0.02],
+        [0.34, 0.06, 0.43],
+        [0.73, 0.21, 0.33],
+        [0.98, 0.55, 0.04],
+        [0.99, 1.0, 0.64],
+    ];
+    let ramp = |t: f32| -> crate::color::Rgb {
+        let t = t.clamp(0.0, 1.0) * (stops.len() - 1) as f32;
+        let i = (t as usize).min(stops.len() - 2);
+        let f = t - i as f32;
+        let c: Vec<f32> = (0..3).map(|k| stops[i][k] * (1.0 - f) + stops[i + 1][k] * f).collect();
+        crate::color::Rgb::new(
+            crate::color::srgb_to_linear(c[0]),
+            crate::color::srgb_to_linear(c[1]),
+            crate::color::srgb_to_linear(c[2]),
+        )
+    };
+    let pixels = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(p, q)| {
+            let mut e = 0.0f64;
+            for c in 0..3 {
+                let (x, y) = (p[c] as f64, q[c] as f64);
+                e += (x - y) * (x - y) / (y * y + REL_MSE_EPSILON);
+            }
+            ramp(((e / 3.0).sqrt() / full_scale.max(1e-12)) as f32)
+        })
+        .collect();
+    Ok(Image {
+        width: a.width,
+        height: a.height,
+        pixels,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

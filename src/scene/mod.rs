@@ -8,6 +8,7 @@
 pub mod build;
 pub mod builtin;
 pub mod desc;
+pub mod mitsuba;
 pub mod native;
 pub mod obj;
 
@@ -86,13 +87,14 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
         .map(|e| e.to_ascii_lowercase())
         .unwrap_or_default();
     let mut desc = match ext.as_str() {
+        "xml" => return mitsuba::load(path, defines),
         "toml" => native::load(path)?,
         "obj" => builtin::framed_model(path)?,
         _ => {
             return Err(Error::file(
                 path,
                 format!(
-                    "unknown scene format{}: trazo reads .toml scenes and .obj models",
+                    "unknown scene format{}: trazo reads .toml (trazo), .xml (Mitsuba 3) and .obj models",
                     if ext.is_empty() {
                         String::new()
                     } else {

@@ -1,0 +1,1884 @@
+//! Mitsuba 3 scene files (XML), read into a [`SceneDesc`].
+//!
+//! Mitsuba's scene format (documented in its manual, "Scene format") is a
+//! tree of plugins — `<shape type="sphere">`, `<bsdf type="diffuse">`, … —
+//! whose parameters are typed children (`<float name="radius" value="2"/>`).
+//! `<default name="x" value="1"/>` and `-D x=2` on the command line give
+//! values to `$x` references in any attribute.
+//!
+//! Conventions carried over (so that both renderers produce the same
+//! image): Mitsuba's camera space has +x to the image's *left*, so its
+//! `to_world` is composed with a mirror of x; `fov` is measured along
+//! `fov_axis` (default `x`); bitmap textures have v = 0 at the top of the
+//! image; OBJ texture coordinates are flipped on load (`flip_tex_coords`,
+//! default true); BSDFs are one-sided unless wrapped in `twosided`; area
+//! emitters belong to the shape they are attached to. What trazo does not
+//! support is reported as a warning naming the element and its line, and
+//! documented in docs/formats.md.
+
+use super::desc::*;
+use super::native::io_reason;
+use crate::color::Rgb;
+use crate::error::{Error, Result, SourceLoc};
+use crate::film::Filter;
+use crate::integrator::{IntegratorKind, PathSampling};
+use crate::sampling::SamplerKind;
+use glam::{Mat4, Vec2, Vec3};
+use roxmltree::{Document, Node, ParsingOptions};
+use std::collections::{HashMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Largest XML file read, in bytes.
+const MAX_XML_BYTES: u64 = 256 << 20;
+/// Deepest chain of `<include>`s.
+const MAX_INCLUDE_DEPTH: usize = 32;
+
+/// Reads a Mitsuba 3 scene. `defines` set `$name` parameters and take
+/// precedence over the file's `<default>`s.
+pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
+    let mut loader = Loader::new(defines);
+    loader.load_file(path, None)?;
+    loader.finish()
+}
+
+/// Reads Mitsuba XML from a string (`path` names it in messages and
+/// resolves relative file names).
+pub fn parse(text: &str, path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
+    let mut loader = Loader::new(defines);
+    loader.include_stack.push(path.to_path_buf());
+    loader.process_text(text, path)?;
+    loader.finish()
+}
+
+/// Indices of refraction Mitsuba knows by name (its `ior.h` table).
+fn named_ior(name: &str) -> Option<f32> {
+    Some(match name.to_ascii_lowercase().as_str() {
+        "vacuum" => 1.0,
+        "helium" => 1.000036,
+        "hydrogen" => 1.000132,
+        "air" => 1.000277,
+        "carbon dioxide" => 1.00045,
+        "water" => 1.3330,
+        "acetone" => 1.36,
+        "ethanol" => 1.361,
+        "carbon tetrachloride" => 1.461,
+        "glycerol" => 1.4729,
+        "benzene" => 1.501,
+        "silicone oil" => 1.52045,
+        "bromine" => 1.661,
+        "water ice" => 1.31,
+        "fused quartz" => 1.458,
+        "pyrex" => 1.470,
+        "acrylic glass" => 1.49,
+        "polypropylene" => 1.49,
+        "bk7" => 1.5046,
+        "sodium chloride" => 1.544,
+        "amber" => 1.55,
+        "pet" => 1.5750,
+        "diamond" => 2.419,
+        _ => return None,
+    })
+}
+
+/// One XML file being read.
+struct FileCtx {
+    path: Arc<Path>,
+    text: String,
+    dir: PathBuf,
+}
+
+impl FileCtx {
+    fn loc(&self, offset: usize) -> SourceLoc {
+        SourceLoc::from_offset(&self.path, &self.text, offset)
+    }
+    fn loc_of(&self, node: Node) -> SourceLoc {
+        self.loc(node.range().start)
+    }
+}
+
+/// A BSDF registered under an `id`.
+#[derive(Clone)]
+struct BsdfDef {
+    kind: MaterialKindDesc,
+    two_sided: bool,
+    /// The desc material already made for it (without emission).
+    material: Option<String>,
+    loc: SourceLoc,
+}
+
+struct Loader {
+    desc: SceneDesc,
+    params: HashMap<String, String>,
+    from_cli: HashSet<String>,
+    used_cli: HashSet<String>,
+    include_stack: Vec<PathBuf>,
+    bsdfs: HashMap<String, BsdfDef>,
+    textures: HashMap<String, ColorSource>,
+    counter: usize,
+    default_material: Option<String>,
+    saw_sensor: bool,
+    saw_integrator: bool,
+}
+
+/// Parsed value of a colour-like property.
+enum ColorProp {
+    Constant(Rgb),
+    Texture(ColorSource),
+}
+
+impl Loader {
+    fn new(defines: &[(String, String)]) -> Loader {
+        let mut desc = SceneDesc::default();
+        // Mitsuba's defaults where they differ from trazo's.
+        desc.settings.width = 768;
+        desc.settings.height = 576;
+        desc.settings.spp = 4;
+        desc.settings.max_depth = MAX_DEPTH;
+        desc.settings.integrator = IntegratorKind::Path;
+        desc.settings.sampling = PathSampling::Mis;
+        desc.settings.sampler = SamplerKind::Independent;
+        desc.settings.filter = Filter::from_name("gaussian").expect("known filter");
+        Loader {
+            desc,
+            params: defines.iter().cloned().collect(),
+            from_cli: defines.iter().map(|(k, _)| k.clone()).collect(),
+            used_cli: HashSet::new(),
+            include_stack: Vec::new(),
+            bsdfs: HashMap::new(),
+            textures: HashMap::new(),
+            counter: 0,
+            default_material: None,
+            saw_sensor: false,
+            saw_integrator: false,
+        }
+    }
+
+    fn finish(mut self) -> Result<SceneDesc> {
+        for name in &self.from_cli {
+            if !self.used_cli.contains(name) {
+                self.desc.warnings.push(format!(
+                    "-D {name}: the scene has no parameter ${name}; the definition is not used"
+                ));
+            }
+        }
+        if !self.saw_sensor {
+            self.desc.warnings.push(
+                "the scene has no <sensor>: using Mitsuba's default (perspective, fov 39.6° along x, at the origin looking down +z)"
+                    .into(),
+            );
+            self.desc.camera.to_world = Some(Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0)));
+            self.desc.camera.projection = ProjectionDesc::Perspective {
+                fov: vertical_fov(39.597_755, "x", self.desc.settings.width, self.desc.settings.height),
+            };
+        }
+        if !self.saw_integrator {
+            self.desc
+                .warnings
+                .push("the scene has no <integrator>: using trazo's path tracer (Mitsuba's default)".into());
+        }
+        self.desc.validate()?;
+        Ok(self.desc)
+    }
+
+    fn fresh_name(&mut self, stem: &str) -> String {
+        self.counter += 1;
+        format!("{stem}-{}", self.counter)
+    }
+
+    fn warn(&mut self, f: &FileCtx, node: Node, msg: impl AsRef<str>) {
+        let what = describe(node);
+        self.desc
+            .warnings
+            .push(format!("{}: {what}: {}", f.loc_of(node), msg.as_ref()));
+    }
+
+    fn err(&self, f: &FileCtx, node: Node, msg: impl Into<String>) -> Error {
+        Error::Scene {
+            loc: Some(f.loc_of(node)),
+            key: None,
+            message: format!("{}: {}", describe(node), msg.into()),
+        }
+    }
+
+    fn load_file(&mut self, path: &Path, from: Option<(&FileCtx, Node)>) -> Result<()> {
+        let canonical = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
+        if self.include_stack.contains(&canonical) {
+            let (f, node) = from.expect("the first file cannot loop");
+            return Err(self.err(
+                f,
+                node,
+                format!("include loop: {} is already being read", path.display()),
+            ));
+        }
+        if self.include_stack.len() >= MAX_INCLUDE_DEPTH {
+            let (f, node) = from.expect("depth > 0 means an include");
+            return Err(self.err(f, node, "includes nested more than 32 deep"));
+        }
+        let meta = std::fs::metadata(path).map_err(|e| match from {
+            Some((f, node)) => self.err(f, node, format!("cannot read {}: {}", path.display(), io_reason(&e))),
+            None => Error::file(path, format!("cannot read scene: {}", io_reason(&e))),
+        })?;
+        if meta.is_dir() {
+            return Err(Error::file(path, "cannot read scene: this is a folder"));
+        }
+        if meta.len() > MAX_XML_BYTES {
+            return Err(Error::file(path, "scene file is larger than 256 MiB"));
+        }
+        let bytes = std::fs::read(path).map_err(|e| Error::file(path, format!("cannot read: {}", io_reason(&e))))?;
+        let text = String::from_utf8(bytes)
+            .map_err(|e| Error::file(path, format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to())))?;
+        self.include_stack.push(canonical);
+        self.process_text(&text, path)?;
+        self.include_stack.pop();
+        Ok(())
+    }
+
+    fn process_text(&mut self, text: &str, path: &Path) -> Result<()> {
+        let f = FileCtx {
+            path: Arc::from(path),
+            text: text.to_string(),
+            dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+        };
+        let options = ParsingOptions {
+            allow_dtd: false,
+            nodes_limit: 10_000_000,
+            ..ParsingOptions::default()
+        };
+        let doc = Document::parse_with_options(&f.text, options).map_err(|e| {
+            let pos = e.pos();
+            Error::Scene {
+                loc: Some(SourceLoc {
+                    file: f.path.clone(),
+                    line: pos.row,
+                    column: pos.col,
+                }),
+                key: None,
+                message: format!("XML syntax error: {e}"),
+            }
+        })?;
+        let root = doc.root_element();
+        if root.tag_name().name() != "scene" {
+            return Err(self.err(&f, root, "the root element must be <scene>"));
+        }
+        for child in root.children().filter(Node::is_element) {
+            self.scene_child(&f, child)?;
+        }
+        Ok(())
+    }
+
+    /// Substitutes `$name` parameters in an attribute's value.
+    fn attr(&mut self, f: &FileCtx, node: Node, name: &str) -> Result<Option<String>> {
+        let Some(raw) = node.attribute(name) else {
+            return Ok(None);
+        };
+        if !raw.contains('$') {
+            return Ok(Some(raw.to_string()));
+        }
+        let mut out = String::new();
+        let mut rest = raw;
+        while let Some(i) = rest.find('$') {
+            out.push_str(&rest[..i]);
+            let after = &rest[i + 1..];
+            let len = after
+                .char_indices()
+                .find(|(_, c)| !(c.is_ascii_alphanumeric() || *c == '_'))
+                .map_or(after.len(), |(k, _)| k);
+            let key = &after[..len];
+            if key.is_empty() {
+                out.push('$');
+                rest = after;
+                continue;
+            }
+            match self.params.get(key) {
+                Some(v) => {
+                    out.push_str(v);
+                    if self.from_cli.contains(key) {
+                        self.used_cli.insert(key.to_string());
+                    }
+                }
+                None => {
+                    return Err(self.err(
+                        f,
+                        node,
+                        format!("undefined parameter ${key} (give it a <default> or -D {key}=VALUE)"),
+                    ));
+                }
+            }
+            rest = &after[len..];
+        }
+        out.push_str(rest);
+        Ok(Some(out))
+    }
+
+    fn required_attr(&mut self, f: &FileCtx, node: Node, name: &str) -> Result<String> {
+        self.attr(f, node, name)?
+            .ok_or_else(|| self.err(f, node, format!("missing attribute `{name}`")))
+    }
+
+    fn scene_child(&mut self, f: &FileCtx, node: Node) -> Result<()> {
+        match node.tag_name().name() {
+            "default" => {
+                let name = self.required_attr(f, node, "name")?;
+                let value = self.required_attr(f, node, "value")?;
+                self.params.entry(name).or_insert(value);
+            }
+            "include" => {
+                let file = self.required_attr(f, node, "filename")?;
+                let path = f.dir.join(file);
+                self.load_file(&path, Some((f, node)))?;
+            }
+            "integrator" => self.integrator(f, node)?,
+            "sensor" => self.sensor(f, node)?,
+            "emitter" => self.emitter(f, node)?,
+            "bsdf" => {
+                let id = self.attr(f, node, "id")?;
+                let def = self.bsdf(f, node)?;
+                match id {
+                    Some(id) => {
+                        self.bsdfs.insert(id, def);
+                    }
+                    None => self.warn(f, node, "a top-level BSDF without an id is never used"),
+                }
+            }
+            "texture" => {
+                let id = self.attr(f, node, "id")?;
+                let tex = self.texture(f, node)?;
+                match id {
+                    Some(id) => {
+                        self.textures.insert(id, tex);
+                    }
+                    None => self.warn(f, node, "a top-level texture without an id is never used"),
+                }
+            }
+            "shape" => self.shape(f, node)?,
+            "medium" | "phase" | "volume" => self.warn(f, node, "participating media are unsupported; ignored"),
+            _ => self.warn(f, node, "unsupported element; ignored"),
+        }
+        Ok(())
+    }
+
+    // ---------------------------------------------------------------
+    // Properties
+
+    /// The property children of `node` (those with a `name`).
+    fn props<'a, 'i>(node: Node<'a, 'i>) -> Vec<Node<'a, 'i>> {
+        node.children()
+            .filter(|c| c.is_element() && c.has_attribute("name"))
+            .collect()
+    }
+
+    fn find<'a, 'i>(props: &[Node<'a, 'i>], name: &str, used: &mut Vec<String>) -> Option<Node<'a, 'i>> {
+        used.push(name.to_string());
+        props.iter().copied().find(|p| p.attribute("name") == Some(name))
+    }
+
+    /// Warns about every property that was not asked for.
+    fn unused(&mut self, f: &FileCtx, node: Node, props: &[Node], used: &[String]) {
+        for p in props {
+            let name = p.attribute("name").unwrap_or("");
+            if !used.iter().any(|u| u == name) {
+                let msg = format!("parameter \"{name}\" of {} is unsupported; ignored", describe(node));
+                self.desc.warnings.push(format!("{}: {msg}", f.loc_of(*p)));
+            }
+        }
+    }
+
+    fn numbers(&mut self, f: &FileCtx, node: Node, text: &str) -> Result<Vec<f32>> {
+        text.split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|s| !s.is_empty())
+            .map(|s| {
+                s.parse::<f32>()
+                    .map_err(|_| self.err(f, node, format!("\"{s}\" is not a number")))
+            })
+            .collect()
+    }
+
+    fn float(&mut self, f: &FileCtx, props: &[Node], name: &str, used: &mut Vec<String>) -> Result<Option<f32>> {
+        let Some(p) = Self::find(props, name, used) else {
+            return Ok(None);
+        };
+        match p.tag_name().name() {
+            "float" | "integer" => {
+                let v = self.required_attr(f, p, "value")?;
+                let n = self.numbers(f, p, &v)?;
+                if n.len() != 1 {
+                    return Err(self.err(f, p, "expected one number"));
+                }
+                Ok(Some(n[0]))
+            }
+            other => Err(self.err(f, p, format!("expected <float>, found <{other}>"))),
+        }
+    }
+
+    fn integer(&mut self, f: &FileCtx, props: &[Node], name: &str, used: &mut Vec<String>) -> Result<Option<i64>> {
+        let Some(p) = Self::find(props, name, used) else {
+            return Ok(None);
+        };
+        match p.tag_name().name() {
+            "integer" => {
+                let v = self.required_attr(f, p, "value")?;
+                v.trim()
+                    .parse::<i64>()
+                    .map(Some)
+                    .map_err(|_| self.err(f, p, format!("\"{v}\" is not an integer")))
+            }
+            other => Err(self.err(f, p, format!("expected <integer>, found <{other}>"))),
+        }
+    }
+
+    fn boolean(&mut self, f: &FileCtx, props: &[Node], name: &str, used: &mut Vec<String>) -> Result<Option<bool>> {
+        let Some(p) = Self::find(props, name, used) else {
+            return Ok(None);
+        };
+        if p.tag_name().name() != "boolean" {
+            return Err(self.err(f, p, format!("expected <boolean>, found <{}>", p.tag_name().name())));
+        }
+        match self.required_attr(f, p, "value")?.as_str() {
+            "true" => Ok(Some(true)),
+            "false" => Ok(Some(false)),
+            v => Err(self.err(f, p, format!("\"{v}\" is not true or false"))),
+        }
+    }
+
+    fn string(&mut self, f: &FileCtx, props: &[Node], name: &str, used: &mut Vec<String>) -> Result<Option<String>> {
+        let Some(p) = Self::find(props, name, used) else {
+            return Ok(None);
+        };
+        if p.tag_name().name() != "string" {
+            return Err(self.err(f, p, format!("expected <string>, found <{}>", p.tag_name().name())));
+        }
+        self.attr(f, p, "value")
+    }
+
+    /// `value="x, y, z"` or `x=".." y=".." z=".."` (missing ones: `default`).
+    fn triple(&mut self, f: &FileCtx, node: Node, default: f32) -> Result<Vec3> {
+        if let Some(v) = self.attr(f, node, "value")? {
+            let n = self.numbers(f, node, &v)?;
+            return match n.len() {
+                1 => Ok(Vec3::splat(n[0])),
+                3 => Ok(Vec3::new(n[0], n[1], n[2])),
+                k => Err(self.err(f, node, format!("expected 1 or 3 numbers, found {k}"))),
+            };
+        }
+        let mut out = Vec3::splat(default);
+        for (i, axis) in ["x", "y", "z"].iter().enumerate() {
+            if let Some(v) = self.attr(f, node, axis)? {
+                let n = self.numbers(f, node, &v)?;
+                if n.len() != 1 {
+                    return Err(self.err(f, node, format!("attribute `{axis}` must be one number")));
+                }
+                out[i] = n[0];
+            }
+        }
+        Ok(out)
+    }
+
+    fn point(&mut self, f: &FileCtx, props: &[Node], name: &str, used: &mut Vec<String>) -> Result<Option<Vec3>> {
+        let Some(p) = Self::find(props, name, used) else {
+            return Ok(None);
+        };
+        match p.tag_name().name() {
+            "point" | "vector" => Ok(Some(self.triple(f, p, 0.0)?)),
+            other => Err(self.err(f, p, format!("expected <point> or <vector>, found <{other}>"))),
+        }
+    }
+
+    /// An RGB colour from `<rgb>`, `<spectrum>` or `<float>`.
+    fn rgb_of(&mut self, f: &FileCtx, p: Node) -> Result<Rgb> {
+        match p.tag_name().name() {
+            "rgb" => {
+                let v = self.required_attr(f, p, "value")?;
+                let n = self.numbers(f, p, &v)?;
+                match n.len() {
+                    1 => Ok(Rgb::splat(n[0])),
+                    3 => Ok(Rgb::new(n[0], n[1], n[2])),
+                    k => Err(self.err(f, p, format!("expected 3 numbers, found {k}"))),
+                }
+            }
+            "float" => {
+                let v = self.required_attr(f, p, "value")?;
+                let n = self.numbers(f, p, &v)?;
+                if n.len() != 1 {
+                    return Err(self.err(f, p, "expected one number"));
+                }
+                Ok(Rgb::splat(n[0]))
+            }
+            "spectrum" => {
+                if self.attr(f, p, "filename")?.is_some() {
+                    self.warn(f, p, "spectra from files are unsupported; using 1");
+                    return Ok(Rgb::ONE);
+                }
+                let v = self.required_attr(f, p, "value")?;
+                if !v.contains(':') {
+                    let n = self.numbers(f, p, &v)?;
+                    if n.len() != 1 {
+                        return Err(self.err(f, p, "expected one number or wavelength:value pairs"));
+                    }
+                    return Ok(Rgb::splat(n[0]));
+                }
+                let mut pairs = Vec::new();
+                for item in v.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+                    let (w, x) = item
+                        .split_once(':')
+                        .ok_or_else(|| self.err(f, p, format!("\"{item}\" is not wavelength:value")))?;
+                    let w: f32 = w
+                        .trim()
+                        .parse()
+                        .map_err(|_| self.err(f, p, format!("bad wavelength \"{w}\"")))?;
+                    let x: f32 = x
+                        .trim()
+                        .parse()
+                        .map_err(|_| self.err(f, p, format!("bad value \"{x}\"")))?;
+                    pairs.push((w, x));
+                }
+                self.warn(
+                    f,
+                    p,
+                    "a sampled spectrum is approximated in RGB by its mean over 600–700 nm, 500–600 nm and 400–500 nm",
+                );
+                Ok(spectrum_to_rgb(&pairs))
+            }
+            other => Err(self.err(f, p, format!("expected a colour, found <{other}>"))),
+        }
+    }
+
+    /// A colour or a texture (nested or `<ref>`).
+    fn color(&mut self, f: &FileCtx, props: &[Node], name: &str, used: &mut Vec<String>) -> Result<Option<ColorProp>> {
+        let Some(p) = Self::find(props, name, used) else {
+            return Ok(None);
+        };
+        match p.tag_name().name() {
+            "texture" => Ok(Some(ColorProp::Texture(self.texture(f, p)?))),
+            "ref" => {
+                let id = self.required_attr(f, p, "id")?;
+                match self.textures.get(&id) {
+                    Some(t) => Ok(Some(ColorProp::Texture(t.clone()))),
+                    None => Err(self.err(f, p, format!("no texture with id \"{id}\""))),
+                }
+            }
+            _ => Ok(Some(ColorProp::Constant(self.rgb_of(f, p)?))),
+        }
+    }
+
+    fn color_source(
+        &mut self,
+        f: &FileCtx,
+        props: &[Node],
+        name: &str,
+        used: &mut Vec<String>,
+    ) -> Result<Option<ColorSource>> {
+        Ok(self.color(f, props, name, used)?.map(|c| match c {
+            ColorProp::Constant(c) => ColorSource::Rgb(c),
+            ColorProp::Texture(t) => t,
+        }))
+    }
+
+    /// A colour where trazo takes no texture: a texture is replaced by a
+    /// constant, with a warning.
+    fn constant_color(
+        &mut self,
+        f: &FileCtx,
+        node: Node,
+        props: &[Node],
+        name: &str,
+        used: &mut Vec<String>,
+    ) -> Result<Option<Rgb>> {
+        match self.color(f, props, name, used)? {
+            None => Ok(None),
+            Some(ColorProp::Constant(c)) => Ok(Some(c)),
+            Some(ColorProp::Texture(_)) => {
+                self.warn(
+                    f,
+                    node,
+                    format!("a texture for \"{name}\" is unsupported here; using 1"),
+                );
+                Ok(Some(Rgb::ONE))
+            }
+        }
+    }
+
+    /// A `<transform name=..>` as one matrix: later steps apply after
+    /// earlier ones.
+    fn transform(&mut self, f: &FileCtx, props: &[Node], name: &str, used: &mut Vec<String>) -> Result<Option<Mat4>> {
+        let Some(p) = Self::find(props, name, used) else {
+            return Ok(None);
+        };
+        if p.tag_name().name() != "transform" {
+            return Err(self.err(f, p, format!("expected <transform>, found <{}>", p.tag_name().name())));
+        }
+        let mut m = Mat4::IDENTITY;
+        for step in p.children().filter(Node::is_element) {
+            let s = match step.tag_name().name() {
+                "translate" => Mat4::from_translation(self.triple(f, step, 0.0)?),
+                "scale" => Mat4::from_scale(self.triple(f, step, 1.0)?),
+                "rotate" => {
+                    let axis = self.triple(f, step, 0.0)?;
+                    let angle = self.required_attr(f, step, "angle")?;
+                    let angle = self.numbers(f, step, &angle)?;
+                    if angle.len() != 1 {
+                        return Err(self.err(f, step, "`angle` must be one number"));
+                    }
+                    let axis = axis
+                        .try_normalize()
+                        .ok_or_else(|| self.err(f, step, "the rotation axis is zero"))?;
+                    Mat4::from_axis_angle(axis, angle[0].to_radians())
+                }
+                "matrix" => {
+                    let v = self.required_attr(f, step, "value")?;
+                    let n = self.numbers(f, step, &v)?;
+                    match n.len() {
+                        // Row by row.
+                        16 => Mat4::from_cols_array(&n.try_into().expect("16 numbers")).transpose(),
+                        9 => {
+                            Mat4::from_mat3(glam::Mat3::from_cols_array(&n.try_into().expect("9 numbers")).transpose())
+                        }
+                        k => return Err(self.err(f, step, format!("a matrix needs 16 (or 9) numbers, found {k}"))),
+                    }
+                }
+                "lookat" => {
+                    let origin = self.vec_attr(f, step, "origin")?;
+                    let target = self.vec_attr(f, step, "target")?;
+                    let up = match self.attr(f, step, "up")? {
+                        Some(_) => self.vec_attr(f, step, "up")?,
+                        None => Vec3::Y,
+                    };
+                    mitsuba_look_at(origin, target, up)
+                        .ok_or_else(|| self.err(f, step, "origin, target and up do not define a view"))?
+                }
+                other => return Err(self.err(f, step, format!("unknown transform step <{other}>"))),
+            };
+            m = s * m;
+        }
+        if !m.is_finite() {
+            return Err(self.err(f, p, "the transform has NaN or infinite entries"));
+        }
+        Ok(Some(m))
+    }
+
+    fn vec_attr(&mut self, f: &FileCtx, node: Node, name: &str) -> Result<Vec3> {
+        let v = self.required_attr(f, node, name)?;
+        let n = self.numbers(f, node, &v)?;
+        if n.len() != 3 {
+            return Err(self.err(f, node, format!("`{name}` needs 3 numbers")));
+        }
+        Ok(Vec3::new(n[0], n[1], n[2]))
+    }
+
+    fn child<'a, 'i>(node: Node<'a, 'i>, tag: &str) -> Option<Node<'a, 'i>> {
+        node.children().find(|c| c.is_element() && c.tag_name().name() == tag)
+    }
+
+    // ---------------------------------------------------------------
+    // Plugins
+
+    fn integrator(&mut self, f: &FileCtx, node: Node) -> Result<()> {
+        self.saw_integrator = true;
+        let ty = self.required_attr(f, node, "type")?;
+        let props = Self::props(node);
+        let mut used = Vec::new();
+        let s = &mut self.desc.settings;
+        s.integrator = IntegratorKind::Path;
+        s.sampling = PathSampling::Mis;
+        match ty.as_str() {
+            "path" | "direct" => {}
+            "volpath" | "volpathmis" => {
+                self.warn(f, node, "media are unsupported: rendered as \"path\"");
+            }
+            other => self.warn(
+                f,
+                node,
+                format!("integrator \"{other}\" is unsupported: rendered as \"path\""),
+            ),
+        }
+        let max_depth = self.integer(f, &props, "max_depth", &mut used)?;
+        let rr_depth = self.integer(f, &props, "rr_depth", &mut used)?;
+        let s = &mut self.desc.settings;
+        if ty == "direct" {
+            s.max_depth = 2;
+        } else if let Some(d) = max_depth {
+            s.max_depth = if d < 0 {
+                MAX_DEPTH
+            } else {
+                (d as u64).min(MAX_DEPTH as u64) as u32
+            };
+        }
+        if let Some(d) = rr_depth {
+            s.rr_depth = d.clamp(0, u32::MAX as i64) as u32;
+        }
+        if self.boolean(f, &props, "hide_emitters", &mut used)? == Some(true) {
+            self.warn(f, node, "hide_emitters is unsupported; emitters are visible");
+        }
+        // The direct integrator's sample counts only change its noise.
+        for ignored in ["emitter_samples", "bsdf_samples"] {
+            if self.integer(f, &props, ignored, &mut used)?.is_some() {
+                self.warn(
+                    f,
+                    node,
+                    format!("\"{ignored}\" is ignored (one light and one BSDF sample per bounce)"),
+                );
+            }
+        }
+        self.unused(f, node, &props, &used);
+        Ok(())
+    }
+
+    fn sensor(&mut self, f: &FileCtx, node: Node) -> Result<()> {
+        if self.saw_sensor {
+            self.warn(f, node, "only the first sensor is used");
+            return Ok(());
+        }
+        self.saw_sensor = true;
+        let ty = self.required_attr(f, node, "type")?;
+        // Film and sampler first: the field of view depends on the aspect.
+        if let Some(film) = Self::child(node, "film") {
+            self.film(f, film)?;
+        }
+        if let Some(sampler) = Self::child(node, "sampler") {
+            self.sampler(f, sampler)?;
+        }
+        for c in node.children().filter(Node::is_element) {
+            if !matches!(c.tag_name().name(), "film" | "sampler") && !c.has_attribute("name") {
+                self.warn(f, c, "unsupported inside a sensor; ignored");
+            }
+        }
+        let props = Self::props(node);
+        let mut used = Vec::new();
+        let (w, h) = (self.desc.settings.width, self.desc.settings.height);
+        let to_world = self
+            .transform(f, &props, "to_world", &mut used)?
+            .unwrap_or(Mat4::IDENTITY);
+        // Mitsuba's camera x points to the image's left; trazo's to its right.
+        let cam = &mut self.desc.camera;
+        cam.to_world = Some(to_world * Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0)));
+        cam.locs = Locs::at(Some(f.loc_of(node)));
+        match ty.as_str() {
+            "perspective" | "thinlens" => {
+                let fov_axis = self
+                    .string(f, &props, "fov_axis", &mut used)?
+                    .unwrap_or_else(|| "x".into());
+                if !["x", "y", "diagonal", "smaller", "larger"].contains(&fov_axis.as_str()) {
+                    return Err(self.err(f, node, format!("unknown fov_axis \"{fov_axis}\"")));
+                }
+                let fov = match self.float(f, &props, "fov", &mut used)? {
+                    Some(v) => v,
+                    None => {
+                        let focal = self
+                            .string(f, &props, "focal_length", &mut used)?
+                            .unwrap_or_else(|| "50mm".into());
+                        let mm: f32 = focal
+                            .trim_end_matches("mm")
+                            .trim()
+                            .parse()
+                            .map_err(|_| self.err(f, node, format!("bad focal_length \"{focal}\"")))?;
+                        // A 35 mm film's 36 mm width along x.
+                        (2.0 * (18.0 / mm).atan()).to_degrees()
+                    }
+                };
+                let fov_y = vertical_fov(fov, &fov_axis, w, h);
+                self.desc.camera.projection = ProjectionDesc::Perspective { fov: fov_y };
+                if ty == "thinlens" {
+                    let r = self.float(f, &props, "aperture_radius", &mut used)?.unwrap_or(0.0);
+                    let d = self.float(f, &props, "focus_distance", &mut used)?.unwrap_or(1.0);
+                    self.desc.camera.aperture_radius = r;
+                    self.desc.camera.focus_distance = Some(d);
+                } else {
+                    // A pinhole: Mitsuba's perspective camera ignores it too.
+                    let _ = self.float(f, &props, "focus_distance", &mut used)?;
+                }
+            }
+            "orthographic" => {
+                // Mitsuba's orthographic view spans [−1, 1] in x; y follows the aspect.
+                self.desc.camera.projection = ProjectionDesc::Orthographic {
+                    size: 2.0 * h as f32 / w as f32,
+                };
+            }
+            other => {
+                self.warn(
+                    f,
+                    node,
+                    format!("sensor \"{other}\" is unsupported: using a perspective camera"),
+                );
+            }
+        }
+        for clip in ["near_clip", "far_clip"] {
+            if self.float(f, &props, clip, &mut used)?.is_some() {
+                self.warn(f, node, format!("\"{clip}\" is ignored (trazo has no clipping planes)"));
+            }
+        }
+        for shutter in ["shutter_open", "shutter_close"] {
+            if self.float(f, &props, shutter, &mut used)?.is_some() {
+                self.warn(f, node, format!("\"{shutter}\" is unsupported (no motion blur)"));
+            }
+        }
+        self.unused(f, node, &props, &used);
+        Ok(())
+    }
+
+    fn film(&mut self, f: &FileCtx, node: Node) -> Result<()> {
+        let ty = self.required_attr(f, node, "type")?;
+        if ty != "hdrfilm" {
+            self.warn(f, node, format!("film \"{ty}\" is read as \"hdrfilm\""));
+        }
+        let props = Self::props(node);
+        let mut used = Vec::new();
+        let mut locs = Locs::at(Some(f.loc_of(node)));
+        for (key, dim) in [("width", 0usize), ("height", 1)] {
+            if let Some(v) = self.integer(f, &props, key, &mut used)? {
+                let p = props.iter().find(|p| p.attribute("name") == Some(key)).expect("found");
+                locs.keys.push((key.to_string(), f.loc_of(*p)));
+                let v = v.clamp(0, u32::MAX as i64) as u32;
+                if dim == 0 {
+                    self.desc.settings.width = v;
+                } else {
+                    self.desc.settings.height = v;
+                }
+            }
+        }
+        self.desc.settings_locs = locs;
+        for key in ["pixel_format", "component_format", "file_format"] {
+            let _ = self.string(f, &props, key, &mut used)?;
+        }
+        for key in ["crop_offset_x", "crop_offset_y", "crop_width", "crop_height"] {
+            if self.integer(f, &props, key, &mut used)?.is_some() {
+                self.warn(
+                    f,
+                    node,
+                    format!("\"{key}\" is unsupported; the whole image is rendered"),
+                );
+            }
+        }
+        if let Some(b) = self.boolean(f, &props, "sample_border", &mut used)? {
+            if b {
+                self.warn(f, node, "sample_border is unsupported");
+            }
+        }
+        if let Some(rf) = Self::child(node, "rfilter") {
+            let ty = self.required_attr(f, rf, "type")?;
+            let rprops = Self::props(rf);
+            let mut rused = Vec::new();
+            let filter = match ty.as_str() {
+                "box" => Filter::Box {
+                    radius: self.float(f, &rprops, "radius", &mut rused)?.unwrap_or(0.5),
+                },
+                "tent" => Filter::Tent {
+                    radius: self.float(f, &rprops, "radius", &mut rused)?.unwrap_or(1.0),
+                },
+                "gaussian" => {
+                    let sd = self.float(f, &rprops, "stddev", &mut rused)?.unwrap_or(0.5);
+                    Filter::Gaussian {
+                        stddev: sd,
+                        radius: 4.0 * sd,
+                    }
+                }
+                other => {
+                    self.warn(
+                        f,
+                        rf,
+                        format!("filter \"{other}\" is approximated by a Gaussian of σ = 0.5"),
+                    );
+                    Filter::from_name("gaussian").expect("known")
+                }
+            };
+            self.unused(f, rf, &rprops, &rused);
+            self.desc.settings.filter = filter;
+        }
+        self.unused(f, node, &props, &used);
+        Ok(())
+    }
+
+    fn sampler(&mut self, f: &FileCtx, node: Node) -> Result<()> {
+        let ty = self.required_attr(f, node, "type")?;
+        self.desc.settings.sampler = match ty.as_str() {
+            "independent" => SamplerKind::Independent,
+            "stratified" => SamplerKind::Stratified,
+            other => {
+                self.warn(
+                    f,
+                    node,
+                    format!("sampler \"{other}\" is approximated by stratified sampling"),
+                );
+                SamplerKind::Stratified
+            }
+        };
+        let props = Self::props(node);
+        let mut used = Vec::new();
+        if let Some(n) = self.integer(f, &props, "sample_count", &mut used)? {
+            let p = props
+                .iter()
+                .find(|p| p.attribute("name") == Some("sample_count"))
+                .expect("found");
+            self.desc.settings_locs.keys.push(("spp".into(), f.loc_of(*p)));
+            self.desc.settings.spp = n.clamp(0, u32::MAX as i64) as u32;
+        }
+        if let Some(seed) = self.integer(f, &props, "seed", &mut used)? {
+            self.desc.settings.seed = seed.max(0) as u64;
+        }
+        for ignored in ["jitter", "scramble_seed"] {
+            let _ = Self::find(&props, ignored, &mut used);
+        }
+        self.unused(f, node, &props, &used);
+        Ok(())
+    }
+
+    fn emitter(&mut self, f: &FileCtx, node: Node) -> Result<()> {
+        let ty = self.required_attr(f, node, "type")?;
+        let props = Self::props(node);
+        let mut used = Vec::new();
+        let to_world = self
+            .transform(f, &props, "to_world", &mut used)?
+            .unwrap_or(Mat4::IDENTITY);
+        let locs = Locs::at(Some(f.loc_of(node)));
+        match ty.as_str() {
+            "point" => {
+                let position = match self.point(f, &props, "position", &mut used)? {
+                    Some(p) => to_world.transform_point3(p),
+                    None => to_world.transform_point3(Vec3::ZERO),
+                };
+                let intensity = self
+                    .constant_color(f, node, &props, "intensity", &mut used)?
+                    .unwrap_or(Rgb::ONE);
+                self.desc.lights.push(LightDesc {
+                    kind: LightKind::Point {
+                        position,
+                        intensity,
+                        falloff: true,
+                    },
+                    locs,
+                });
+            }
+            "spot" => {
+                let position = to_world.transform_point3(Vec3::ZERO);
+                let dir = to_world.transform_vector3(Vec3::Z);
+                let intensity = self
+                    .constant_color(f, node, &props, "intensity", &mut used)?
+                    .unwrap_or(Rgb::ONE);
+                let cutoff = self.float(f, &props, "cutoff_angle", &mut used)?.unwrap_or(20.0);
+                let beam = self.float(f, &props, "beam_width", &mut used)?.unwrap_or(cutoff * 0.75);
+                if Self::find(&props, "texture", &mut used).is_some() {
+                    self.warn(f, node, "projected spot textures are unsupported");
+                }
+                self.warn(
+                    f,
+                    node,
+                    "the spot light's falloff between beam_width and cutoff_angle is approximated (smooth in cosine, not linear in angle)",
+                );
+                self.desc.lights.push(LightDesc {
+                    kind: LightKind::Spot {
+                        position,
+                        to: position + dir,
+                        intensity,
+                        inner_angle: beam.min(cutoff),
+                        outer_angle: cutoff,
+                        falloff: true,
+                    },
+                    locs,
+                });
+            }
+            "directional" => {
+                let direction = match self.point(f, &props, "direction", &mut used)? {
+                    Some(d) => d,
+                    None => to_world.transform_vector3(Vec3::Z),
+                };
+                let irradiance = self
+                    .constant_color(f, node, &props, "irradiance", &mut used)?
+                    .unwrap_or(Rgb::ONE);
+                self.desc.lights.push(LightDesc {
+                    kind: LightKind::Directional { direction, irradiance },
+                    locs,
+                });
+            }
+            "constant" => {
+                let radiance = self
+                    .constant_color(f, node, &props, "radiance", &mut used)?
+                    .unwrap_or(Rgb::ONE);
+                self.set_background(f, node, BackgroundDesc::Constant(radiance));
+            }
+            "envmap" => {
+                let file = self
+                    .string(f, &props, "filename", &mut used)?
+                    .ok_or_else(|| self.err(f, node, "an envmap needs a \"filename\""))?;
+                let scale = self.float(f, &props, "scale", &mut used)?.unwrap_or(1.0);
+                let path = f.dir.join(&file);
+                if !path.is_file() {
+                    return Err(self.err(f, node, format!("environment image not found: {}", path.display())));
+                }
+                let _ = self.string(f, &props, "filter_type", &mut used)?;
+                self.set_background(
+                    f,
+                    node,
+                    BackgroundDesc::Image {
+                        path,
+                        scale,
+                        transform: vec![TransformOp::Matrix(to_world)],
+                    },
+                );
+            }
+            "area" => self.warn(f, node, "an area emitter must be attached to a shape; ignored"),
+            other => self.warn(f, node, format!("emitter \"{other}\" is unsupported; ignored")),
+        }
+        self.unused(f, node, &props, &used);
+        Ok(())
+    }
+
+    fn set_background(&mut self, f: &FileCtx, node: Node, bg: BackgroundDesc) {
+        if !matches!(self.desc.background, BackgroundDesc::Constant(c) if c == Rgb::ZERO) {
+            self.warn(
+                f,
+                node,
+                "only one environment emitter is supported; this one replaces the earlier",
+            );
+        }
+        self.desc.background = bg;
+        self.desc.world_locs = Locs::at(Some(f.loc_of(node)));
+    }
+
+    /// Parses a `<texture>` into a desc texture, returning its reference.
+    fn texture(&mut self, f: &FileCtx, node: Node) -> Result<ColorSource> {
+        let ty = self.required_attr(f, node, "type")?;
+        let props = Self::props(node);
+        let mut used = Vec::new();
+        let to_uv = self.transform(f, &props, "to_uv", &mut used)?.unwrap_or(Mat4::IDENTITY);
+        // trazo's textures take a scale and an offset in (u, v).
+        let scale = Vec2::new(to_uv.x_axis.x, to_uv.y_axis.y);
+        let offset = Vec2::new(to_uv.w_axis.x, to_uv.w_axis.y);
+        if to_uv.x_axis.y != 0.0 || to_uv.y_axis.x != 0.0 {
+            self.warn(
+                f,
+                node,
+                "rotated or sheared to_uv transforms are unsupported; only scale and offset are used",
+            );
+        }
+        let kind = match ty.as_str() {
+            "bitmap" => {
+                let file = self
+                    .string(f, &props, "filename", &mut used)?
+                    .ok_or_else(|| self.err(f, node, "a bitmap needs a \"filename\""))?;
+                let path = f.dir.join(&file);
+                if !path.is_file() {
+                    return Err(self.err(f, node, format!("image not found: {}", path.display())));
+                }
+                let raw = self.boolean(f, &props, "raw", &mut used)?.unwrap_or(false);
+                if let Some(w) = self.string(f, &props, "wrap_mode", &mut used)? {
+                    if w != "repeat" {
+                        self.warn(f, node, format!("wrap_mode \"{w}\" is approximated by \"repeat\""));
+                    }
+                }
+                if let Some(filter) = self.string(f, &props, "filter_type", &mut used)? {
+                    if filter != "bilinear" {
+                        self.warn(
+                            f,
+                            node,
+                            format!("filter_type \"{filter}\" is approximated by bilinear filtering"),
+                        );
+                    }
+                }
+                // Mitsuba looks images up with v = 0 at the top row, trazo
+                // at the bottom: flip v after Mitsuba's to_uv.
+                TextureKind::Image {
+                    source: ImageSource::File(path),
+                    scale: Vec2::new(scale.x, -scale.y),
+                    offset: Vec2::new(offset.x, 1.0 - offset.y),
+                    srgb: if raw { Some(false) } else { None },
+                    tint: Rgb::ONE,
+                }
+            }
+            "checkerboard" => {
+                let c0 = self
+                    .constant_color(f, node, &props, "color0", &mut used)?
+                    .unwrap_or(Rgb::splat(0.4));
+                let c1 = self
+                    .constant_color(f, node, &props, "color1", &mut used)?
+                    .unwrap_or(Rgb::splat(0.2));
+                if offset != Vec2::ZERO {
+                    self.warn(f, node, "a checkerboard's to_uv offset is unsupported; ignored");
+                }
+                // Mitsuba's checks are half a unit of (u, v) wide.
+                TextureKind::Checkerboard {
+                    even: c0,
+                    odd: c1,
+                    scale: 2.0 * scale,
+                }
+            }
+            other => {
+                self.warn(f, node, format!("texture \"{other}\" is unsupported: using grey 0.5"));
+                TextureKind::Constant(Rgb::splat(0.5))
+            }
+        };
+        self.unused(f, node, &props, &used);
+        let name = self.fresh_name("mitsuba-texture");
+        self.desc.textures.push(TextureDesc {
+            name: name.clone(),
+            kind,
+            locs: Locs::at(Some(f.loc_of(node))),
+        });
+        Ok(ColorSource::Texture(name))
+    }
+
+    fn alpha(&mut self, f: &FileCtx, node: Node, props: &[Node], used: &mut Vec<String>) -> Result<(f32, f32)> {
+        if let Some(d) = self.string(f, props, "distribution", used)? {
+            if d == "beckmann" {
+                self.warn(
+                    f,
+                    node,
+                    "the Beckmann distribution is approximated by GGX with the same alpha",
+                );
+            } else if d != "ggx" {
+                return Err(self.err(f, node, format!("unknown distribution \"{d}\"")));
+            }
+        } else {
+            self.warn(
+                f,
+                node,
+                "Mitsuba's default microfacet distribution (Beckmann) is approximated by GGX with the same alpha",
+            );
+        }
+        let _ = self.boolean(f, props, "sample_visible", used)?;
+        let a = self.float(f, props, "alpha", used)?;
+        let au = self.float(f, props, "alpha_u", used)?;
+        let av = self.float(f, props, "alpha_v", used)?;
+        Ok(match (a, au, av) {
+            (_, Some(u), Some(v)) => (u, v),
+            (Some(a), _, _) => (a, a),
+            _ => (0.1, 0.1),
+        })
+    }
+
+    fn ior(
+        &mut self,
+        f: &FileCtx,
+        node: Node,
+        props: &[Node],
+        name: &str,
+        default: f32,
+        used: &mut Vec<String>,
+    ) -> Result<f32> {
+        let Some(p) = Self::find(props, name, used) else {
+            return Ok(default);
+        };
+        match p.tag_name().name() {
+            "float" => {
+                let v = self.required_attr(f, p, "value")?;
+                let n = self.numbers(f, p, &v)?;
+                n.first().copied().ok_or_else(|| self.err(f, p, "expected a number"))
+            }
+            "string" => {
+                let v = self.required_attr(f, p, "value")?;
+                named_ior(&v).ok_or_else(|| self.err(f, p, format!("unknown index of refraction \"{v}\"")))
+            }
+            other => Err(self.err(
+                f,
+                node,
+                format!("\"{name}\" must be a <float> or <string>, found <{other}>"),
+            )),
+        }
+    }
+
+    /// Parses a `<bsdf>` (or a `<ref>` to one).
+    fn bsdf(&mut self, f: &FileCtx, node: Node) -> Result<BsdfDef> {
+        if node.tag_name().name() == "ref" {
+            let id = self.required_attr(f, node, "id")?;
+            return self
+                .bsdfs
+                .get(&id)
+                .cloned()
+                .ok_or_else(|| self.err(f, node, format!("no BSDF with id \"{id}\"")));
+        }
+        let ty = self.required_attr(f, node, "type")?;
+        let props = Self::props(node);
+        let mut used = Vec::new();
+        let nested = || {
+            node.children()
+                .find(|c| c.is_element() && matches!(c.tag_name().name(), "bsdf" | "ref") && !c.has_attribute("name"))
+        };
+        let loc = f.loc_of(node);
+        let kind = match ty.as_str() {
+            "twosided" => {
+                let inner = nested().ok_or_else(|| self.err(f, node, "twosided needs a nested BSDF"))?;
+                let count = node
+                    .children()
+                    .filter(|c| c.is_element() && c.tag_name().name() == "bsdf")
+                    .count();
+                if count > 1 {
+                    self.warn(
+                        f,
+                        node,
+                        "a different BSDF for the back side is unsupported; the front one is used on both",
+                    );
+                }
+                let mut def = self.bsdf(f, inner)?;
+                def.two_sided = true;
+                def.material = None;
+                def.loc = loc;
+                return Ok(def);
+            }
+            "diffuse" => MaterialKindDesc::Diffuse {
+                reflectance: self
+                    .color_source(f, &props, "reflectance", &mut used)?
+                    .unwrap_or(ColorSource::Rgb(Rgb::splat(0.5))),
+            },
+            "conductor" | "roughconductor" => {
+                let roughness = if ty == "roughconductor" {
+                    self.alpha(f, node, &props, &mut used)?
+                } else {
+                    (0.0, 0.0)
+                };
+                let material = self.string(f, &props, "material", &mut used)?;
+                let eta = self.constant_color(f, node, &props, "eta", &mut used)?;
+                let k = self.constant_color(f, node, &props, "k", &mut used)?;
+                let tint = self
+                    .constant_color(f, node, &props, "specular_reflectance", &mut used)?
+                    .unwrap_or(Rgb::ONE);
+                let fresnel = match (eta, k, material.as_deref()) {
+                    (Some(eta), Some(k), _) => ConductorDesc::Complex { eta, k },
+                    (Some(_), None, _) | (None, Some(_), _) => {
+                        return Err(self.err(f, node, "give both \"eta\" and \"k\""));
+                    }
+                    (None, None, None) | (None, None, Some("none")) => ConductorDesc::Mirror(Rgb::ONE),
+                    (None, None, Some(m)) => {
+                        match crate::material::conductor::metal_ior(m) {
+                            Some((eta, k)) => {
+                                self.warn(
+                                f,
+                                node,
+                                format!("material \"{m}\": Mitsuba's spectral data are approximated by trazo's RGB table"),
+                            );
+                                ConductorDesc::Complex { eta, k }
+                            }
+                            None => {
+                                self.warn(
+                                    f,
+                                    node,
+                                    format!("material \"{m}\" is unknown to trazo: using a perfect mirror"),
+                                );
+                                ConductorDesc::Mirror(Rgb::ONE)
+                            }
+                        }
+                    }
+                };
+                MaterialKindDesc::Conductor {
+                    fresnel,
+                    tint,
+                    roughness,
+                }
+            }
+            "dielectric" | "roughdielectric" | "thindielectric" => {
+                if ty == "thindielectric" {
+                    self.warn(f, node, "thindielectric is approximated by a smooth dielectric");
+                }
+                let roughness = if ty == "roughdielectric" {
+                    let (a, b) = self.alpha(f, node, &props, &mut used)?;
+                    if a != b {
+                        self.warn(f, node, "anisotropic rough dielectrics are approximated as isotropic");
+                    }
+                    a
+                } else {
+                    0.0
+                };
+                let ior = self.ior(f, node, &props, "int_ior", 1.5046, &mut used)?;
+                let ext_ior = self.ior(f, node, &props, "ext_ior", 1.000277, &mut used)?;
+                let reflect_tint = self
+                    .constant_color(f, node, &props, "specular_reflectance", &mut used)?
+                    .unwrap_or(Rgb::ONE);
+                let transmit_tint = self
+                    .constant_color(f, node, &props, "specular_transmittance", &mut used)?
+                    .unwrap_or(Rgb::ONE);
+                MaterialKindDesc::Dielectric {
+                    ior,
+                    ext_ior,
+                    roughness,
+                    reflect_tint,
+                    transmit_tint,
+                }
+            }
+            "plastic" | "roughplastic" => {
+                let roughness = if ty == "roughplastic" {
+                    self.alpha(f, node, &props, &mut used)?.0
+                } else {
+                    0.0
+                };
+                MaterialKindDesc::Plastic {
+                    diffuse: self
+                        .color_source(f, &props, "diffuse_reflectance", &mut used)?
+                        .unwrap_or(ColorSource::Rgb(Rgb::splat(0.5))),
+                    ior: self.ior(f, node, &props, "int_ior", 1.49, &mut used)?,
+                    ext_ior: self.ior(f, node, &props, "ext_ior", 1.000277, &mut used)?,
+                    roughness,
+                    specular_tint: self
+                        .constant_color(f, node, &props, "specular_reflectance", &mut used)?
+                        .unwrap_or(Rgb::ONE),
+                    nonlinear: self.boolean(f, &props, "nonlinear", &mut used)?.unwrap_or(false),
+                }
+            }
+            "mask" | "bumpmap" | "normalmap" => {
+                self.warn(
+                    f,
+                    node,
+                    format!("\"{ty}\" is unsupported: its nested BSDF is used as it is"),
+                );
+                let inner = nested().ok_or_else(|| self.err(f, node, format!("{ty} needs a nested BSDF")))?;
+                for p in &props {
+                    used.push(p.attribute("name").unwrap_or("").to_string());
+                }
+                let def = self.bsdf(f, inner)?;
+                return Ok(BsdfDef { loc, ..def });
+            }
+            other => {
+                self.warn(
+                    f,
+                    node,
+                    format!("BSDF \"{other}\" is unsupported: using a grey diffuse one"),
+                );
+                for p in &props {
+                    used.push(p.attribute("name").unwrap_or("").to_string());
+                }
+                MaterialKindDesc::Diffuse {
+                    reflectance: ColorSource::Rgb(Rgb::splat(0.5)),
+                }
+            }
+        };
+        self.unused(f, node, &props, &used);
+        Ok(BsdfDef {
+            kind,
+            two_sided: false,
+            material: None,
+            loc,
+        })
+    }
+
+    /// The name of a desc material for a BSDF (made on first use) and an
+    /// optional emission.
+    fn material_for(
+        &mut self,
+        def: Option<(BsdfDef, Option<String>)>,
+        emission: Option<(ColorSource, SourceLoc)>,
+    ) -> String {
+        let (def, id) = match def {
+            Some(d) => d,
+            None => {
+                // Mitsuba's default: a one-sided diffuse BSDF of albedo 0.5.
+                (
+                    BsdfDef {
+                        kind: MaterialKindDesc::Diffuse {
+                            reflectance: ColorSource::Rgb(Rgb::splat(0.5)),
+                        },
+                        two_sided: false,
+                        material: None,
+                        loc: SourceLoc {
+                            file: Arc::from(Path::new("<mitsuba default>")),
+                            line: 0,
+                            column: 0,
+                        },
+                    },
+                    Some("\u{0}default".to_string()),
+                )
+            }
+        };
+        if emission.is_none() {
+            if let Some(id) = &id {
+                if id == "\u{0}default" {
+                    if let Some(m) = &self.default_material {
+                        return m.clone();
+                    }
+                } else if let Some(m) = self.bsdfs.get(id).and_then(|b| b.material.clone()) {
+                    return m;
+                }
+            }
+        }
+        let name = self.fresh_name(if emission.is_some() {
+            "mitsuba-emitter"
+        } else {
+            "mitsuba-bsdf"
+        });
+        let mut m = MaterialDesc::with_kind(name.clone(), def.kind.clone());
+        m.two_sided = def.two_sided;
+        m.locs = Locs::at(if def.loc.line > 0 { Some(def.loc.clone()) } else { None });
+        if let Some((e, loc)) = emission {
+            m.emission = e;
+            m.locs.keys.push(("emission".into(), loc));
+        }
+        self.desc.materials.push(m);
+        // Only a plain (non-emitting) material stands for its BSDF's id.
+        if let (Some(id), true) = (id, self.desc.materials.last().is_some_and(|m| !emitting(m))) {
+            if id == "\u{0}default" {
+                if self.default_material.is_none() {
+                    self.default_material = Some(name.clone());
+                }
+            } else if let Some(b) = self.bsdfs.get_mut(&id) {
+                if b.material.is_none() {
+                    b.material = Some(name.clone());
+                }
+            }
+        }
+        name
+    }
+
+    fn shape(&mut self, f: &FileCtx, node: Node) -> Result<()> {
+        let ty = self.required_attr(f, node, "type")?;
+        let props = Self::props(node);
+        let mut used = Vec::new();
+        let to_world = self.transform(f, &props, "to_world", &mut used)?;
+        let flip_normals = self.boolean(f, &props, "flip_normals", &mut used)?.unwrap_or(false);
+        let mut locs = Locs::at(Some(f.loc_of(node)));
+
+        let kind = match ty.as_str() {
+            "sphere" => {
+                if node.descendants().any(|d| d.tag_name().name() == "texture") {
+                    self.warn(f, node, "textures on spheres are approximated: trazo parameterises spheres around +y, Mitsuba around +z");
+                }
+                let center = self.point(f, &props, "center", &mut used)?.unwrap_or(Vec3::ZERO);
+                let radius = self.float(f, &props, "radius", &mut used)?.unwrap_or(1.0);
+                if let Some(p) = props.iter().find(|p| p.attribute("name") == Some("radius")) {
+                    locs.keys.push(("radius".into(), f.loc_of(*p)));
+                }
+                ShapeKind::Sphere { center, radius }
+            }
+            "rectangle" => ShapeKind::Rectangle {
+                corner: Vec3::new(-1.0, -1.0, 0.0),
+                edge_u: Vec3::new(2.0, 0.0, 0.0),
+                edge_v: Vec3::new(0.0, 2.0, 0.0),
+            },
+            "disk" => ShapeKind::Disk {
+                center: Vec3::ZERO,
+                normal: Vec3::Z,
+                radius: 1.0,
+            },
+            // Mitsuba's cube is a triangle mesh whose faces each map onto
+            // [0,1]² in (u, v); reproduce it so that textures line up.
+            "cube" => ShapeKind::InlineMesh(MeshSource::Inline(mitsuba_cube())),
+            "cylinder" => {
+                let p0 = self.point(f, &props, "p0", &mut used)?.unwrap_or(Vec3::ZERO);
+                let p1 = self.point(f, &props, "p1", &mut used)?.unwrap_or(Vec3::Z);
+                let radius = self.float(f, &props, "radius", &mut used)?.unwrap_or(1.0);
+                ShapeKind::Cylinder { p0, p1, radius }
+            }
+            "obj" | "ply" => {
+                let file = self
+                    .string(f, &props, "filename", &mut used)?
+                    .ok_or_else(|| self.err(f, node, "a mesh needs a \"filename\""))?;
+                let path = f.dir.join(&file);
+                if !path.is_file() {
+                    return Err(self.err(f, node, format!("mesh file not found: {}", path.display())));
+                }
+                let face_normals = self.boolean(f, &props, "face_normals", &mut used)?.unwrap_or(false);
+                let flip_tex = self
+                    .boolean(f, &props, "flip_tex_coords", &mut used)?
+                    .unwrap_or(ty == "obj");
+                if ty == "obj" {
+                    let mut mesh = super::obj::load_obj_mesh(&path).map_err(|e| self.err(f, node, e.to_string()))?;
+                    if face_normals {
+                        mesh.normals.clear();
+                    }
+                    if flip_tex {
+                        for uv in &mut mesh.uvs {
+                            uv.y = 1.0 - uv.y;
+                        }
+                    }
+                    ShapeKind::InlineMesh(MeshSource::Inline(mesh))
+                } else {
+                    if face_normals || flip_tex {
+                        self.warn(
+                            f,
+                            node,
+                            "face_normals and flip_tex_coords are unsupported for PLY files; ignored",
+                        );
+                    }
+                    ShapeKind::InlineMesh(MeshSource::File(path))
+                }
+            }
+            "instance" | "shapegroup" | "serialized" | "heightfield" | "bsplinecurve" | "linearcurve" | "sdfgrid" => {
+                self.warn(f, node, format!("shape \"{ty}\" is unsupported; ignored"));
+                return Ok(());
+            }
+            other => {
+                self.warn(f, node, format!("shape \"{other}\" is unsupported; ignored"));
+                return Ok(());
+            }
+        };
+
+        // The BSDF: nested, by reference, or Mitsuba's default.
+        let mut bsdf: Option<(BsdfDef, Option<String>)> = None;
+        let mut emission: Option<(ColorSource, SourceLoc)> = None;
+        for c in node.children().filter(Node::is_element) {
+            match c.tag_name().name() {
+                "bsdf" => {
+                    if bsdf.is_some() {
+                        self.warn(f, c, "a shape has one BSDF; this one is ignored");
+                        continue;
+                    }
+                    let def = self.bsdf(f, c)?;
+                    bsdf = Some((def, None));
+                }
+                "ref" if !c.has_attribute("name") || c.attribute("name") == Some("bsdf") => {
+                    let id = self.required_attr(f, c, "id")?;
+                    let def = self
+                        .bsdfs
+                        .get(&id)
+                        .cloned()
+                        .ok_or_else(|| self.err(f, c, format!("no BSDF with id \"{id}\"")))?;
+                    bsdf = Some((def, Some(id)));
+                }
+                "emitter" => {
+                    let ety = self.required_attr(f, c, "type")?;
+                    if ety != "area" {
+                        self.warn(
+                            f,
+                            c,
+                            format!("a shape can only carry an \"area\" emitter, not \"{ety}\"; ignored"),
+                        );
+                        continue;
+                    }
+                    let eprops = Self::props(c);
+                    let mut eused = Vec::new();
+                    let radiance = self
+                        .color_source(f, &eprops, "radiance", &mut eused)?
+                        .unwrap_or(ColorSource::Rgb(Rgb::ONE));
+                    self.unused(f, c, &eprops, &eused);
+                    emission = Some((radiance, f.loc_of(c)));
+                }
+                "transform" | "float" | "integer" | "boolean" | "string" | "point" | "vector" | "rgb" | "spectrum" => {}
+                "medium" | "ref" => self.warn(f, c, "media are unsupported; ignored"),
+                _ => self.warn(f, c, "unsupported inside a shape; ignored"),
+            }
+        }
+        let material = self.material_for(bsdf, emission);
+        self.unused(f, node, &props, &used);
+        let mut shape = ShapeDesc::new(kind, Some(&material));
+        shape.flip_normals = flip_normals;
+        if let Some(m) = to_world {
+            shape.transform.push(TransformOp::Matrix(m));
+            locs.keys.push(("transform".into(), f.loc_of(node)));
+        }
+        shape.locs = locs;
+        self.desc.shapes.push(shape);
+        Ok(())
+    }
+}
+
+/// The 24 vertices and 12 triangles of Mitsuba's `cube` shape ([−1, 1]³,
+/// counter-clockwise outside, each face's (u, v) spanning [0, 1]²).
+fn mitsuba_cube() -> crate::geometry::TriangleMesh {
+    // Per face: four corners, in the order whose (u, v) are
+    // (0,1), (1,1), (1,0), (0,0); triangles (0,1,2) and (3,0,2).
+    const FACES: [[[f32; 3]; 4]; 6] = [
+        [
+            [1.0, -1.0, -1.0],
+            [1.0, -1.0, 1.0],
+            [-1.0, -1.0, 1.0],
+            [-1.0, -1.0, -1.0],
+        ],
+        [[1.0, 1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, 1.0, 1.0], [1.0, 1.0, 1.0]],
+        [[1.0, -1.0, -1.0], [1.0, 1.0, -1.0], [1.0, 1.0, 1.0], [1.0, -1.0, 1.0]],
+        [[1.0, -1.0, 1.0], [1.0, 1.0, 1.0], [-1.0, 1.0, 1.0], [-1.0, -1.0, 1.0]],
+        [
+            [-1.0, -1.0, 1.0],
+            [-1.0, 1.0, 1.0],
+            [-1.0, 1.0, -1.0],
+            [-1.0, -1.0, -1.0],
+        ],
+        [
+            [1.0, 1.0, -1.0],
+            [1.0, -1.0, -1.0],
+            [-1.0, -1.0, -1.0],
+            [-1.0, 1.0, -1.0],
+        ],
+    ];
+    let corners_uv = [
+        Vec2::new(0.0, 1.0),
+        Vec2::new(1.0, 1.0),
+        Vec2::new(1.0, 0.0),
+        Vec2::new(0.0, 0.0),
+    ];
+    let mut m = crate::geometry::TriangleMesh::default();
+    for (f, face) in FACES.iter().enumerate() {
+        let base = 4 * f as u32;
+        for (corner, uv) in face.iter().zip(corners_uv) {
+            m.positions.push(Vec3::from_array(*corner));
+            m.uvs.push(uv);
+        }
+        m.indices.push([base, base + 1, base + 2]);
+        m.indices.push([base + 3, base, base + 2]);
+    }
+    m
+}
+
+fn emitting(m: &MaterialDesc) -> bool {
+    m.emission != ColorSource::Rgb(Rgb::ZERO)
+}
+
+/// "<shape type=\"sphere\">" and the like, for messages.
+fn describe(node: Node) -> String {
+    let tag = node.tag_name().name();
+    match (node.attribute("type"), node.attribute("name")) {
+        (Some(t), _) => format!("<{tag} type=\"{t}\">"),
+        (None, Some(n)) => format!("<{tag} name=\"{n}\">"),
+        _ => format!("<{tag}>"),
+    }
+}
+
+/// Mitsuba's look-at matrix: columns (left, up, forward, origin) with
+/// left = up × forward.
+pub fn mitsuba_look_at(origin: Vec3, target: Vec3, up: Vec3) -> Option<Mat4> {
+    let dir = (target - origin).try_normalize()?;
+    let left = up.normalize_or_zero().cross(dir).try_normalize()?;
+    let new_up = dir.cross(left);
+    Some(Mat4::from_cols(
+        left.extend(0.0),
+        new_up.extend(0.0),
+        dir.extend(0.0),
+        origin.extend(1.0),
+    ))
+}
+
+/// The vertical field of view of a camera whose `fov` is measured along
+/// `axis` ("x", "y", "diagonal", "smaller" or "larger"), for a `w`×`h` image.
+pub fn vertical_fov(fov: f32, axis: &str, w: u32, h: u32) -> f32 {
+    let (w, h) = (w.max(1) as f32, h.max(1) as f32);
+    let t = (fov.to_radians() / 2.0).tan();
+    let ty = match axis {
+        "y" => t,
+        "x" => t * h / w,
+        "diagonal" => t * h / (w * w + h * h).sqrt(),
+        "smaller" => {
+            if w < h {
+                t * h / w
+            } else {
+                t
+            }
+        }
+        _ => {
+            if w > h {
+                t * h / w
+            } else {
+                t
+            }
+        }
+    };
+    (2.0 * ty.atan()).to_degrees()
+}
+
+/// A sampled spectrum's mean value over three bands, as a crude RGB.
+fn spectrum_to_rgb(pairs: &[(f32, f32)]) -> Rgb {
+    let value_at = |lambda: f32| -> f32 {
+        let mut sorted = pairs.to_vec();
+        sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+        match sorted.iter().position(|p| p.0 >= lambda) {
+            None => sorted.last().map_or(0.0, |p| p.1),
+            Some(0) => sorted[0].1,
+            Some(i) => {
+                let (a, b) = (sorted[i - 1], sorted[i]);
+                let t = (lambda - a.0) / (b.0 - a.0).max(1e-6);
+                a.1 + t * (b.1 - a.1)
+            }
+        }
+    };
+    let band = |lo: f32, hi: f32| -> f32 {
+        (0..20)
+            .map(|i| value_at(lo + (hi - lo) * (i as f32 + 0.5) / 20.0))
+            .sum::<f32>()
+            / 20.0
+    };
+    Rgb::new(band(600.0, 700.0), band(500.0, 600.0), band(400.0, 500.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse_str(xml: &str) -> Result<SceneDesc> {
+        parse(xml, Path::new("test.xml"), &[])
+    }
+
+    const SPHERE: &str = r#"<scene version="3.0.0">
+    <default name="spp" value="8"/>
+    <integrator type="path"><integer name="max_depth" value="5"/></integrator>
+    <sensor type="perspective">
+        <float name="fov" value="45"/>
+        <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="64"/><integer name="height" value="32"/>
+            <rfilter type="box"/></film>
+    </sensor>
+    <bsdf type="diffuse" id="red"><rgb name="reflectance" value="0.8, 0.1, 0.1"/></bsdf>
+    <shape type="sphere">
+        <float name="radius" value="1"/>
+        <ref id="red"/>
+    </shape>
+    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+</scene>"#;
+
+    #[test]
+    fn reads_settings_camera_and_shapes() {
+        let d = parse_str(SPHERE).unwrap();
+        assert_eq!(
+            (
+                d.settings.width,
+                d.settings.height,
+                d.settings.spp,
+                d.settings.max_depth
+            ),
+            (64, 32, 8, 5)
+        );
+        assert_eq!(d.settings.filter, Filter::Box { radius: 0.5 });
+        // fov 45° along x on a 2:1 image.
+        let ProjectionDesc::Perspective { fov } = d.camera.projection else {
+            panic!()
+        };
+        let expect = (2.0 * ((22.5f32).to_radians().tan() * 0.5).atan()).to_degrees();
+        assert!((fov - expect).abs() < 1e-4);
+        // The camera sits at z = 5; its +x (after the mirror) points to world +x.
+        let m = d.camera.to_world.unwrap();
+        assert!((m.transform_point3(Vec3::ZERO) - Vec3::new(0.0, 0.0, 5.0)).length() < 1e-5);
+        assert!((m.transform_vector3(Vec3::X) - Vec3::X).length() < 1e-5);
+        assert!((m.transform_vector3(Vec3::Z) - -Vec3::Z).length() < 1e-5);
+        assert_eq!(d.shapes.len(), 1);
+        assert!(matches!(d.background, BackgroundDesc::Constant(c) if c == Rgb::ONE));
+        let m = &d.materials[0];
+        assert!(!m.two_sided, "Mitsuba BSDFs are one-sided");
+    }
+
+    #[test]
+    fn defines_override_defaults_and_unknown_parameters_fail() {
+        let d = parse(SPHERE, Path::new("t.xml"), &[("spp".into(), "32".into())]).unwrap();
+        assert_eq!(d.settings.spp, 32);
+        let e = parse_str(&SPHERE.replace("$spp", "$samples")).unwrap_err().to_string();
+        assert!(e.contains("undefined parameter $samples"), "{e}");
+        let d = parse(SPHERE, Path::new("t.xml"), &[("nothing".into(), "1".into())]).unwrap();
+        assert!(d.warnings.iter().any(|w| w.contains("-D nothing")));
+    }
+
+    #[test]
+    fn transforms_compose_in_order() {
+        let xml = r#"<scene version="3.0.0"><shape type="cube"><transform name="to_world">
+            <scale value="2"/><rotate y="1" angle="90"/><translate x="1"/>
+        </transform></shape></scene>"#;
+        let d = parse_str(xml).unwrap();
+        let TransformOp::Matrix(m) = d.shapes[0].transform[0] else {
+            panic!()
+        };
+        // (1,0,0) → scale (2,0,0) → rotate about y by 90° → (0,0,−2) → translate (1,0,−2).
+        assert!((m.transform_point3(Vec3::X) - Vec3::new(1.0, 0.0, -2.0)).length() < 1e-5);
+    }
+
+    #[test]
+    fn errors_name_place_and_element() {
+        let e = parse_str("<scene><shape type=\"sphere\"><float name=\"radius\" value=\"-1\"/></shape></scene>")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("test.xml:1:"), "{e}");
+        assert!(e.contains("radius") && e.contains("positive"), "{e}");
+        let e = parse_str("<scene><shape type=\"sphere\"><float name=\"radius\" value=\"big\"/></shape></scene>")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("\"big\" is not a number"), "{e}");
+        let e = parse_str("<scene><shape type=\"sphere\">").unwrap_err().to_string();
+        assert!(e.contains("XML syntax error"), "{e}");
+        let e = parse_str("<scene><shape type=\"sphere\"><ref id=\"nope\"/></shape></scene>")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no BSDF with id \"nope\""), "{e}");
+        let e = parse_str("<notscene/>").unwrap_err().to_string();
+        assert!(e.contains("<scene>"), "{e}");
+    }
+
+    #[test]
+    fn unsupported_things_warn_with_lines() {
+        let xml = "<scene>\n<medium type=\"homogeneous\"/>\n<shape type=\"sphere\"><float name=\"wobble\" value=\"1\"/></shape>\n</scene>";
+        let d = parse_str(xml).unwrap();
+        assert!(
+            d.warnings
+                .iter()
+                .any(|w| w.starts_with("test.xml:2:") && w.contains("media")),
+            "{:?}",
+            d.warnings
+        );
+        assert!(
+            d.warnings
+                .iter()
+                .any(|w| w.starts_with("test.xml:3:") && w.contains("wobble")),
+            "{:?}",
+            d.warnings
+        );
+    }
+
+    #[test]
+    fn materials_map_to_trazo_models() {
+        let xml = r#"<scene>
+          <bsdf type="twosided" id="a"><bsdf type="roughconductor">
+              <string name="distribution" value="ggx"/><float name="alpha" value="0.2"/>
+              <rgb name="eta" value="0.2, 0.9, 1.1"/><rgb name="k" value="3.9, 2.4, 2.1"/></bsdf></bsdf>
+          <bsdf type="dielectric" id="b"><string name="int_ior" value="water"/></bsdf>
+          <bsdf type="roughplastic" id="c"><string name="distribution" value="ggx"/>
+              <rgb name="diffuse_reflectance" value="0.1, 0.2, 0.3"/></bsdf>
+          <shape type="sphere"><ref id="a"/></shape>
+          <shape type="sphere"><ref id="b"/></shape>
+          <shape type="sphere"><ref id="c"/></shape>
+          <shape type="sphere"><ref id="c"/><emitter type="area"><rgb name="radiance" value="4"/></emitter></shape>
+        </scene>"#;
+        let d = parse_str(xml).unwrap();
+        let by = |i: usize| {
+            d.materials
+                .iter()
+                .find(|m| Some(&m.name) == d.shapes[i].material.as_ref())
+                .unwrap()
+        };
+        assert!(by(0).two_sided);
+        assert!(matches!(by(0).kind, MaterialKindDesc::Conductor { roughness: (a, _), .. } if a == 0.2));
+        assert!(matches!(by(1).kind, MaterialKindDesc::Dielectric { ior, .. } if (ior - 1.333).abs() < 1e-3));
+        assert!(
+            matches!(by(2).kind, MaterialKindDesc::Plastic { roughness, ior, .. } if roughness == 0.1 && ior == 1.49)
+        );
+        // The emitting shape gets its own material; the plain one is shared.
+        assert_ne!(d.shapes[2].material, d.shapes[3].material);
+        assert_eq!(by(3).emission, ColorSource::Rgb(Rgb::splat(4.0)));
+    }
+
+    #[test]
+    fn an_emitter_does_not_lend_its_emission_to_other_users_of_its_bsdf() {
+        let xml = r#"<scene>
+          <bsdf type="diffuse" id="white"/>
+          <shape type="sphere"><ref id="white"/><emitter type="area"><rgb name="radiance" value="9"/></emitter></shape>
+          <shape type="sphere"><ref id="white"/></shape>
+          <shape type="sphere"><ref id="white"/></shape>
+        </scene>"#;
+        let d = parse_str(xml).unwrap();
+        let m = |i: usize| {
+            d.materials
+                .iter()
+                .find(|m| Some(&m.name) == d.shapes[i].material.as_ref())
+                .unwrap()
+        };
+        assert_eq!(m(0).emission, ColorSource::Rgb(Rgb::splat(9.0)));
+        assert_eq!(m(1).emission, ColorSource::Rgb(Rgb::ZERO));
+        assert_eq!(
+            d.shapes[1].material, d.shapes[2].material,
+            "plain users share one material"
+        );
+    }
+
+    #[test]
+    fn mitsuba_cube_faces_point_outward() {
+        let m = mitsuba_cube();
+        assert!(m.validate().is_ok());
+        for i in 0..m.len() {
+            let s = m.surface(i, [1.0 / 3.0; 3]);
+            // Outward: the normal points away from the centre.
+            assert!(s.n.dot(s.p) > 0.9, "face {i}");
+        }
+    }
+
+    #[test]
+    fn fov_axes() {
+        assert!((vertical_fov(60.0, "y", 200, 100) - 60.0).abs() < 1e-4);
+        let x = vertical_fov(60.0, "x", 200, 100);
+        assert!(((x / 2.0).to_radians().tan() - (30f32).to_radians().tan() / 2.0).abs() < 1e-5);
+        assert_eq!(
+            vertical_fov(60.0, "smaller", 200, 100),
+            vertical_fov(60.0, "y", 200, 100)
+        );
+        assert_eq!(
+            vertical_fov(60.0, "larger", 200, 100),
+            vertical_fov(60.0, "x", 200, 100)
+        );
+    }
+}
