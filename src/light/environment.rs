@@ -3,7 +3,9 @@
 //!
 //! An environment image is equirectangular (latitude–longitude) with the
 //! convention of Mitsuba's `envmap`: a direction d (after the map's
-//! rotation) has u = atan2(d.x, −d.z)/2π and v = acos(d.y)/π, so the top
+//! rotation) has u = atan2(d.x, −d.z)/2π and v = acos(d.y)/π; columns are
+//! centred at u = (i + ½)/W and rows lie at v = j/(H − 1), the first row
+//! exactly at the zenith and the last at the nadir. So the top
 //! row of the image is straight up (+y), the left edge (u = 0) looks down
 //! −z, a quarter of the way across looks down +x and the centre column +z.
 //! It is evaluated with bilinear interpolation between pixel centres (as
@@ -37,26 +39,31 @@ impl EnvironmentMap {
     /// Prepares an image for lookup and importance sampling.
     pub fn new(image: ImageTexture, scale: f32, to_world: Transform) -> Self {
         let (w, h) = (image.width as usize, image.height as usize);
+        let mut map = EnvironmentMap {
+            average: Rgb::ZERO,
+            image,
+            scale,
+            to_world,
+            distribution: Distribution2D::default(),
+        };
+        // The sampling density is piecewise constant over a W×H grid of
+        // (u, v) cells, each weighted by the radiance at its centre × sin θ.
         let mut weights = Vec::with_capacity(w * h);
         let mut sum = glam::DVec3::ZERO;
         let mut solid_angle = 0.0f64;
         for y in 0..h {
-            let sin_theta = (PI * (y as f32 + 0.5) / h as f32).sin();
+            let v = (y as f32 + 0.5) / h as f32;
+            let sin_theta = (PI * v).sin();
             for x in 0..w {
-                let c = image.pixels[y * w + x];
+                let c = map.eval_uv(Vec2::new((x as f32 + 0.5) / w as f32, v));
                 weights.push(luminance(c).max(0.0) * sin_theta);
                 sum += c.as_dvec3() * sin_theta as f64;
                 solid_angle += sin_theta as f64;
             }
         }
-        let distribution = Distribution2D::new(&weights, w, h);
-        EnvironmentMap {
-            average: (sum / solid_angle.max(1e-12)).as_vec3() * scale,
-            image,
-            scale,
-            to_world,
-            distribution,
-        }
+        map.distribution = Distribution2D::new(&weights, w, h);
+        map.average = (sum / solid_angle.max(1e-12)).as_vec3();
+        map
     }
 
     fn uv_of(&self, dir_world: Vec3) -> Vec2 {
@@ -74,14 +81,17 @@ impl EnvironmentMap {
         (self.to_world.vector(d).normalize(), st)
     }
 
-    /// Radiance arriving from direction `dir`: bilinear between pixel
-    /// centres, wrapping around in longitude and clamped at the poles.
+    /// Radiance arriving from direction `dir`: bilinear between pixels,
+    /// wrapping around in longitude; rows run from pole to pole.
     #[inline]
     pub fn eval(&self, dir: Vec3) -> Rgb {
-        let uv = self.uv_of(dir);
+        self.eval_uv(self.uv_of(dir))
+    }
+
+    fn eval_uv(&self, uv: Vec2) -> Rgb {
         let (w, h) = (self.image.width as i64, self.image.height as i64);
         let x = uv.x * w as f32 - 0.5;
-        let y = (uv.y * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
+        let y = (uv.y * (h - 1).max(1) as f32).clamp(0.0, (h - 1) as f32);
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
         let px = |xi: i64, yi: i64| {

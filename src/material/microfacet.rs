@@ -1,5 +1,10 @@
 //! The GGX (Trowbridge–Reitz) microfacet distribution with Smith's
-//! height-correlated masking–shadowing and sampling of visible normals.
+//! separable masking–shadowing and sampling of visible normals.
+//!
+//! The separable form G = G1(wo)·G1(wi) is Walter et al.'s (2007) and
+//! Mitsuba's; trazo uses it so that its rough materials converge to
+//! Mitsuba's images. (The height-correlated form of Heitz 2014, used by
+//! pbrt-v4, is slightly brighter at grazing angles.)
 //!
 //! References: Walter et al. 2007, "Microfacet Models for Refraction
 //! through Rough Surfaces"; Heitz 2014, "Understanding the Masking-Shadowing
@@ -67,10 +72,10 @@ impl Ggx {
         1.0 / (1.0 + self.lambda(w))
     }
 
-    /// Height-correlated masking–shadowing G2(wo, wi) (Heitz 2014, eq. 99).
+    /// Separable masking–shadowing G(wo, wi) = G1(wo)·G1(wi).
     #[inline]
     pub fn g(&self, wo: Vec3, wi: Vec3) -> f32 {
-        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
+        self.g1(wo) * self.g1(wi)
     }
 
     /// Samples a microfacet normal (in the upper hemisphere) visible from

@@ -11,7 +11,9 @@
 //! R_int is the fraction of diffuse light the coat reflects back inside
 //! (the hemispherical average of the Fresnel reflectance seen from within);
 //! T(θ) is the fraction of light the rough coat lets through at incidence
-//! θ, tabulated once per material from the microfacet lobe's albedo.
+//! θ, tabulated once per material by integrating the coat's microfacet
+//! transmission lobe (as Mitsuba 3 does: light that the microfacets shadow
+//! on its way through is lost, so T < 1 − R).
 //! Two-sided.
 
 use super::bsdf::{BsdfSample, TransportMode, flip_z, reflect_local, same_hemisphere};
@@ -36,7 +38,7 @@ pub struct CoatTables {
 
 /// Directional albedo of a rough dielectric interface's reflection lobe,
 /// ∫ F·D·G/(4 cos θo) dωi, by quadrature over visible normals: with m drawn
-/// from D_wo, the integrand's weight is F(wo·m)·G2/G1.
+/// from D_wo, the integrand's weight is F(wo·m)·G/G1(wo) = F·G1(wi).
 pub fn rough_reflection_albedo(ggx: &Ggx, cos_o: f32, eta: f32) -> f32 {
     let cos_o = cos_o.clamp(1e-6, 1.0);
     let wo = Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
@@ -51,7 +53,32 @@ pub fn rough_reflection_albedo(ggx: &Ggx, cos_o: f32, eta: f32) -> f32 {
                 continue;
             }
             let weight = fresnel_dielectric(wo.dot(m), eta) * ggx.g(wo, wi) / ggx.g1(wo);
+            debug_assert!(weight.is_finite());
             sum += weight as f64;
+        }
+    }
+    (sum / (n * n) as f64) as f32
+}
+
+/// Directional albedo of a rough dielectric interface's transmission lobe,
+/// by quadrature over visible normals: with m drawn from D_wo, the weight of
+/// the refracted direction wt is (1 − F(wo·m))·G1(wt).
+pub fn rough_transmission_albedo(ggx: &Ggx, cos_o: f32, eta: f32) -> f32 {
+    let cos_o = cos_o.clamp(1e-6, 1.0);
+    let wo = Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
+    let n = 48;
+    let mut sum = 0.0f64;
+    for i in 0..n {
+        for j in 0..n {
+            let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+            let m = ggx.sample_visible_normal(wo, u);
+            let Some((wt, _)) = super::optics::refract(wo, m, eta) else {
+                continue; // total internal reflection
+            };
+            if wt.z >= 0.0 {
+                continue;
+            }
+            sum += ((1.0 - fresnel_dielectric(wo.dot(m), eta)) * ggx.g1(wt)) as f64;
         }
     }
     (sum / (n * n) as f64) as f32
@@ -65,7 +92,7 @@ impl CoatTables {
         let mut internal = 0.0f64;
         for (i, t) in external_transmittance.iter_mut().enumerate() {
             let mu = (i as f32 / (TABLE_SIZE - 1) as f32).max(1e-6);
-            *t = 1.0 - rough_reflection_albedo(ggx, mu, eta);
+            *t = rough_transmission_albedo(ggx, mu, eta);
             internal += (rough_reflection_albedo(ggx, mu, 1.0 / eta) * mu) as f64;
         }
         CoatTables {
