@@ -10,6 +10,7 @@ pub mod builtin;
 pub mod desc;
 pub mod native;
 pub mod obj;
+pub mod ply;
 
 pub use build::build;
 pub use desc::{RenderSettings, SceneDesc};
@@ -87,12 +88,12 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
         .unwrap_or_default();
     let mut desc = match ext.as_str() {
         "toml" => native::load(path)?,
-        "obj" => builtin::framed_model(path)?,
+        "obj" | "ply" => builtin::framed_model(path)?,
         _ => {
             return Err(Error::file(
                 path,
                 format!(
-                    "unknown scene format{}: trazo reads .toml scenes and .obj models",
+                    "unknown scene format{}: trazo reads .toml scenes and .obj and .ply models",
                     if ext.is_empty() {
                         String::new()
                     } else {
