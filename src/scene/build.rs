@@ -106,7 +106,7 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
             ));
             continue;
         }
-        let mesh = load_mesh_source(&m.source, &base_dir, &m.locs, &format!("mesh[{i}]"))?;
+        let mesh = load_mesh_source(&m.source, &base_dir, &m.locs, &format!("mesh[{i}]"), &mut warnings)?;
         named_meshes.insert(m.name.as_str(), mesh);
     }
 
@@ -176,7 +176,9 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
         if placed_once {
             let mesh = match &s.kind {
                 ShapeKind::Mesh(name) => named_meshes.remove(name.as_str()).expect("loaded"),
-                ShapeKind::InlineMesh(src) => load_mesh_source(src, &base_dir, &s.locs, &format!("shape[{i}]"))?,
+                ShapeKind::InlineMesh(src) => {
+                    load_mesh_source(src, &base_dir, &s.locs, &format!("shape[{i}]"), &mut warnings)?
+                }
                 _ => unreachable!(),
             };
             let mesh = if transform.is_identity() {
@@ -443,7 +445,14 @@ pub fn compose(ops: &[TransformOp]) -> Result<Transform, String> {
     Ok(t)
 }
 
-fn load_mesh_source(src: &MeshSource, base_dir: &Path, locs: &Locs, what: &str) -> Result<TriangleMesh> {
+/// Loads a mesh; a mesh file's warnings go to `warnings`.
+fn load_mesh_source(
+    src: &MeshSource,
+    base_dir: &Path,
+    locs: &Locs,
+    what: &str,
+    warnings: &mut Vec<String>,
+) -> Result<TriangleMesh> {
     match src {
         MeshSource::Inline(m) => Ok(m.clone()),
         MeshSource::UvSphere { segments, rings } => {
@@ -452,12 +461,12 @@ fn load_mesh_source(src: &MeshSource, base_dir: &Path, locs: &Locs, what: &str) 
         MeshSource::File(path) => {
             let full = base_dir.join(path);
             let ext = full.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-            if ext.as_deref() != Some("obj") {
+            if !matches!(ext.as_deref(), Some("obj" | "ply")) {
                 return Err(Error::scene(
                     locs.key("file"),
                     format!("{what}.file"),
                     format!(
-                        "{}: unsupported mesh format (the native format reads .obj files)",
+                        "{}: unsupported mesh format (the native format reads .obj and .ply files)",
                         full.display()
                     ),
                 ));
@@ -469,8 +478,14 @@ fn load_mesh_source(src: &MeshSource, base_dir: &Path, locs: &Locs, what: &str) 
                     format!("cannot read mesh {}: {}", full.display(), io_reason(&e)),
                 ));
             }
-            super::obj::load_obj_mesh(&full)
-                .map_err(|e| Error::scene(locs.key("file"), format!("{what}.file"), reason_of(e)))
+            let in_file = |e| Error::scene(locs.key("file"), format!("{what}.file"), reason_of(e));
+            if ext.as_deref() == Some("ply") {
+                let ply = super::ply::read_ply(&full).map_err(in_file)?;
+                warnings.extend(ply.warnings);
+                Ok(ply.mesh)
+            } else {
+                super::obj::load_obj_mesh(&full).map_err(in_file)
+            }
         }
     }
 }

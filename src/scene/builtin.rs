@@ -4,7 +4,8 @@
 use super::desc::*;
 use super::native;
 use crate::color::Rgb;
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::geometry::TriangleMesh;
 use glam::Vec3;
 use std::path::Path;
 
@@ -20,11 +21,27 @@ pub fn cornell_box() -> SceneDesc {
     d
 }
 
-/// A scene showing one model file: the model in a light grey material on
-/// a ground plane, lit by a key and a fill light, seen from the front and
-/// a little above so that its bounding sphere fills the view.
+/// Loads a model file by its extension (`.obj` or `.ply`), with the
+/// reader's warnings.
+fn load_model(path: &Path) -> Result<(TriangleMesh, Vec<String>)> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("obj") => Ok((super::obj::load_obj_mesh(path)?, Vec::new())),
+        // Through `read_ply` rather than `load_ply_mesh`, to keep its warnings.
+        Some("ply") => super::ply::read_ply(path).map(|p| (p.mesh, p.warnings)),
+        _ => Err(Error::file(
+            path,
+            "unknown model format: trazo reads .obj and .ply models",
+        )),
+    }
+}
+
+/// A scene showing one model file (`.obj` or `.ply`): the model in a light
+/// grey material on a ground plane, lit by a key and a fill light, seen
+/// from the front and a little above so that its bounding sphere fills the
+/// view.
 pub fn framed_model(path: &Path) -> Result<SceneDesc> {
-    let mesh = super::obj::load_obj_mesh(path)?;
+    let (mesh, warnings) = load_model(path)?;
     let bounds = mesh.bounds();
     let center = bounds.centroid();
     let radius = (bounds.extent().length() * 0.5).max(1e-6);
@@ -34,6 +51,7 @@ pub fn framed_model(path: &Path) -> Result<SceneDesc> {
 
     let mut d = SceneDesc {
         source: Some(std::sync::Arc::from(path)),
+        warnings,
         ..SceneDesc::default()
     };
     d.camera = CameraDesc {

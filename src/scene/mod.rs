@@ -11,6 +11,7 @@ pub mod desc;
 pub mod mitsuba;
 pub mod native;
 pub mod obj;
+pub mod ply;
 
 pub use build::build;
 pub use desc::{RenderSettings, SceneDesc};
@@ -89,12 +90,12 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
     let mut desc = match ext.as_str() {
         "xml" => return mitsuba::load(path, defines),
         "toml" => native::load(path)?,
-        "obj" => builtin::framed_model(path)?,
+        "obj" | "ply" => builtin::framed_model(path)?,
         _ => {
             return Err(Error::file(
                 path,
                 format!(
-                    "unknown scene format{}: trazo reads .toml (trazo), .xml (Mitsuba 3) and .obj models",
+                    "unknown scene format{}: trazo reads .toml (trazo) and .xml (Mitsuba 3) scenes, and .obj and .ply models",
                     if ext.is_empty() {
                         String::new()
                     } else {
