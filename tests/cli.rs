@@ -539,3 +539,30 @@ fn diff_reports_errors_and_its_exit_status_says_whether_images_agree() {
     let e = fails(&["diff", "nope.exr", a.to_str().unwrap()]);
     assert!(e.contains("nope.exr"), "{e}");
 }
+
+#[test]
+fn a_lone_obj_brings_its_mtl_materials() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("m.mtl"), "newmtl red\nKd 0.9 0.05 0.05\n").unwrap();
+    let obj = dir.path().join("m.obj");
+    // A box-ish quad facing +z, in front of the studio camera.
+    std::fs::write(
+        &obj,
+        "mtllib m.mtl\nv -1 0 0\nv 1 0 0\nv 1 2 0\nv -1 2 0\nusemtl red\nf 1 2 3 4\n",
+    )
+    .unwrap();
+    let out = dir.path().join("m.png");
+    let o = trazo()
+        .args(["render", "-q", "--width", "24", "--height", "24", "--spp", "4", "-o"])
+        .arg(&out)
+        .arg(&obj)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = image::open(&out).unwrap().to_rgb8();
+    let c = img.get_pixel(12, 12);
+    assert!(
+        c[0] > 3 * c[1].max(1) && c[0] > 3 * c[2].max(1),
+        "the MTL's red reaches the image: {c:?}"
+    );
+}

@@ -5,7 +5,7 @@ use super::desc::*;
 use super::native;
 use crate::color::Rgb;
 use crate::error::{Error, Result};
-use crate::geometry::TriangleMesh;
+use crate::geometry::{Aabb, TriangleMesh};
 use glam::Vec3;
 use std::path::Path;
 
@@ -21,14 +21,41 @@ pub fn cornell_box() -> SceneDesc {
     d
 }
 
-/// Loads a model file by its extension (`.obj` or `.ply`), with the
-/// reader's warnings.
-fn load_model(path: &Path) -> Result<(TriangleMesh, Vec<String>)> {
+/// A model file's meshes (each with the name of its material, if the file
+/// gave one), plus the materials, textures and warnings it brings.
+struct Model {
+    parts: Vec<(TriangleMesh, Option<String>)>,
+    materials: Vec<MaterialDesc>,
+    textures: Vec<TextureDesc>,
+    warnings: Vec<String>,
+}
+
+/// Loads a model file by its extension (`.obj` with its MTL materials, or
+/// `.ply`), with the reader's warnings.
+fn load_model(path: &Path) -> Result<Model> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("obj") => Ok((super::obj::load_obj_mesh(path)?, Vec::new())),
+        Some("obj") => {
+            let s = super::obj::load_obj_scene(path)?;
+            let names: Vec<String> = s.materials.iter().map(|m| m.name.clone()).collect();
+            Ok(Model {
+                parts: s
+                    .parts
+                    .into_iter()
+                    .map(|(m, i)| (m, i.map(|i| names[i].clone())))
+                    .collect(),
+                materials: s.materials,
+                textures: s.textures,
+                warnings: s.warnings,
+            })
+        }
         // Through `read_ply` rather than `load_ply_mesh`, to keep its warnings.
-        Some("ply") => super::ply::read_ply(path).map(|p| (p.mesh, p.warnings)),
+        Some("ply") => super::ply::read_ply(path).map(|p| Model {
+            parts: vec![(p.mesh, None)],
+            materials: Vec::new(),
+            textures: Vec::new(),
+            warnings: p.warnings,
+        }),
         _ => Err(Error::file(
             path,
             "unknown model format: trazo reads .obj and .ply models",
@@ -36,24 +63,15 @@ fn load_model(path: &Path) -> Result<(TriangleMesh, Vec<String>)> {
     }
 }
 
-/// A scene showing one model file (`.obj` or `.ply`): the model in a light
-/// grey material on a ground plane, lit by a key and a fill light, seen
-/// from the front and a little above so that its bounding sphere fills the
-/// view.
-pub fn framed_model(path: &Path) -> Result<SceneDesc> {
-    let (mesh, warnings) = load_model(path)?;
-    let bounds = mesh.bounds();
+/// Sets up a studio around geometry with bounds `bounds`: a camera in
+/// front and a little above whose view holds the bounding sphere, a key
+/// and a fill light, a sky gradient, and a ground plane under it all.
+pub fn studio(d: &mut SceneDesc, bounds: Aabb) {
     let center = bounds.centroid();
     let radius = (bounds.extent().length() * 0.5).max(1e-6);
     let fov = 40.0f32;
     let distance = radius / (fov.to_radians() * 0.5).sin() * 1.05;
     let view_dir = Vec3::new(0.35, 0.3, 1.0).normalize();
-
-    let mut d = SceneDesc {
-        source: Some(std::sync::Arc::from(path)),
-        warnings,
-        ..SceneDesc::default()
-    };
     d.camera = CameraDesc {
         projection: ProjectionDesc::Perspective { fov },
         from: center + view_dir * distance,
@@ -67,7 +85,44 @@ pub fn framed_model(path: &Path) -> Result<SceneDesc> {
     };
     d.ambient = Rgb::splat(0.08);
     d.materials.push(MaterialDesc::classic(
-        "model",
+        "studio-ground",
+        ClassicDesc {
+            diffuse: ColorSource::Rgb(Rgb::splat(0.5)),
+            ..ClassicDesc::default()
+        },
+    ));
+    d.lights.push(LightDesc::new(LightKind::Directional {
+        direction: Vec3::new(-0.5, -1.0, -0.6).normalize(),
+        irradiance: Rgb::splat(2.6),
+    }));
+    d.lights.push(LightDesc::new(LightKind::Directional {
+        direction: Vec3::new(0.8, -0.3, -0.5).normalize(),
+        irradiance: Rgb::new(0.6, 0.65, 0.8),
+    }));
+    d.shapes.push(ShapeDesc::new(
+        ShapeKind::Plane {
+            point: Vec3::new(0.0, bounds.min.y, 0.0),
+            normal: Vec3::Y,
+        },
+        Some("studio-ground"),
+    ));
+}
+
+/// A scene showing one model file (`.obj` with its MTL materials, or
+/// `.ply`): the model on a ground plane in a studio (see [`studio`]); parts
+/// without a material are light grey.
+pub fn framed_model(path: &Path) -> Result<SceneDesc> {
+    let model = load_model(path)?;
+    let bounds = model.parts.iter().fold(Aabb::EMPTY, |b, (m, _)| b.union(&m.bounds()));
+    let mut d = SceneDesc {
+        source: Some(std::sync::Arc::from(path)),
+        warnings: model.warnings,
+        textures: model.textures,
+        materials: model.materials,
+        ..SceneDesc::default()
+    };
+    d.materials.push(MaterialDesc::classic(
+        "studio-model",
         ClassicDesc {
             diffuse: ColorSource::Rgb(Rgb::splat(0.7)),
             specular: ColorSource::Rgb(Rgb::splat(0.15)),
@@ -75,38 +130,14 @@ pub fn framed_model(path: &Path) -> Result<SceneDesc> {
             ..ClassicDesc::default()
         },
     ));
-    d.materials.push(MaterialDesc::classic(
-        "ground",
-        ClassicDesc {
-            diffuse: ColorSource::Rgb(Rgb::splat(0.5)),
-            ..ClassicDesc::default()
-        },
-    ));
-    d.lights.push(LightDesc {
-        kind: LightKind::Directional {
-            direction: Vec3::new(-0.5, -1.0, -0.6).normalize(),
-            irradiance: Rgb::splat(2.6),
-        },
-        locs: Locs::default(),
-    });
-    d.lights.push(LightDesc {
-        kind: LightKind::Directional {
-            direction: Vec3::new(0.8, -0.3, -0.5).normalize(),
-            irradiance: Rgb::new(0.6, 0.65, 0.8),
-        },
-        locs: Locs::default(),
-    });
-    d.shapes.push(ShapeDesc::new(
-        ShapeKind::InlineMesh(MeshSource::Inline(mesh)),
-        Some("model"),
-    ));
-    d.shapes.push(ShapeDesc::new(
-        ShapeKind::Plane {
-            point: Vec3::new(0.0, bounds.min.y, 0.0),
-            normal: Vec3::Y,
-        },
-        Some("ground"),
-    ));
+    studio(&mut d, bounds);
+    for (mesh, material) in model.parts {
+        let material = material.unwrap_or_else(|| "studio-model".into());
+        d.shapes.push(ShapeDesc::new(
+            ShapeKind::InlineMesh(MeshSource::Inline(mesh)),
+            Some(&material),
+        ));
+    }
     d.validate()?;
     Ok(d)
 }
