@@ -2,7 +2,7 @@
 //! that produce it, and the immutable render-time [`Scene`] built from it.
 //!
 //! ```text
-//! scene file ──► native::load ──► SceneDesc ──► build ──► Scene
+//! scene file ──► native::load / pbrt::load ──► SceneDesc ──► build ──► Scene
 //! ```
 
 pub mod build;
@@ -10,6 +10,7 @@ pub mod builtin;
 pub mod desc;
 pub mod native;
 pub mod obj;
+pub mod pbrt;
 
 pub use build::build;
 pub use desc::{RenderSettings, SceneDesc};
@@ -88,11 +89,13 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
     let mut desc = match ext.as_str() {
         "toml" => native::load(path)?,
         "obj" => builtin::framed_model(path)?,
+        // pbrt::load warns about -D definitions itself.
+        "pbrt" => return pbrt::load(path, defines),
         _ => {
             return Err(Error::file(
                 path,
                 format!(
-                    "unknown scene format{}: trazo reads .toml scenes and .obj models",
+                    "unknown scene format{}: trazo reads .toml and .pbrt scenes and .obj models",
                     if ext.is_empty() {
                         String::new()
                     } else {
