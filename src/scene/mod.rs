@@ -2,7 +2,7 @@
 //! that produce it, and the immutable render-time [`Scene`] built from it.
 //!
 //! ```text
-//! scene file ──► native::load ──► SceneDesc ──► build ──► Scene
+//! scene file ──► native::load / pbrt::load ──► SceneDesc ──► build ──► Scene
 //! ```
 
 pub mod build;
@@ -11,6 +11,7 @@ pub mod desc;
 pub mod mitsuba;
 pub mod native;
 pub mod obj;
+pub mod pbrt;
 pub mod ply;
 
 pub use build::build;
@@ -91,11 +92,13 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
         "xml" => return mitsuba::load(path, defines),
         "toml" => native::load(path)?,
         "obj" | "ply" => builtin::framed_model(path)?,
+        // pbrt::load warns about -D definitions itself.
+        "pbrt" => return pbrt::load(path, defines),
         _ => {
             return Err(Error::file(
                 path,
                 format!(
-                    "unknown scene format{}: trazo reads .toml (trazo) and .xml (Mitsuba 3) scenes, and .obj and .ply models",
+                    "unknown scene format{}: trazo reads .toml (trazo), .xml (Mitsuba 3) and .pbrt (pbrt-v4) scenes, and .obj and .ply models",
                     if ext.is_empty() {
                         String::new()
                     } else {

@@ -1,0 +1,260 @@
+//! `LightSource` and `AreaLightSource` (pbrt-v4 lights.cpp, each light's
+//! `Create`). pbrt-v4 divides every emitted spectrum by its luminance
+//! (`SpectrumToPhotometric`), which leaves RGB colours as written (only the
+//! colour space's illuminant is divided out) and gives blackbody and
+//! sampled spectra luminance 1; `scale` multiplies, and `power` or
+//! `illuminance` set the scale where given.
+
+use super::materials::ColorUse;
+use super::params::ParamList;
+use super::{Emission, Parser};
+use crate::color::Rgb;
+use crate::error::{Error, Result, SourceLoc};
+use crate::scene::desc::*;
+use glam::{Mat4, Vec3, Vec4};
+use std::f32::consts::PI;
+use std::path::Path;
+
+impl Parser {
+    /// The spectrum parameter `name` of a light as RGB (white by default,
+    /// the colour space's illuminant), with where it was written.
+    fn emitted(&mut self, p: &ParamList, name: &str) -> Result<(Rgb, Option<SourceLoc>)> {
+        let Some((v, prm)) = p.spectrum(name)? else {
+            return Ok((Rgb::ONE, None));
+        };
+        let loc = prm.loc.clone();
+        let c = match self.color_value(v, prm, ColorUse::Illuminant)? {
+            Some(ColorSource::Rgb(c)) => c,
+            _ => Rgb::ONE,
+        };
+        Ok((c, Some(loc)))
+    }
+
+    /// `LightSource`.
+    pub(super) fn light_source(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc, dir_rel: &Path) -> Result<()> {
+        let ctm = self.gs.ctm;
+        let mut locs = Locs::at(Some(loc.clone()));
+        let what = format!("LightSource \"{kind}\"");
+        let light = match kind {
+            "point" | "goniometric" => {
+                let (i, iloc) = self.emitted(p, "I")?;
+                let mut scale = p.float("scale", 1.0)?;
+                if let Some((power, _)) = p.float_opt("power")? {
+                    if power > 0.0 {
+                        if kind == "point" {
+                            // Radiant intensity of a point light of this power.
+                            scale *= power / (4.0 * PI);
+                        } else {
+                            self.unsupported(loc, format!("\"power\" of {what}"), "the given I and scale are used");
+                        }
+                    }
+                }
+                if let Some(l) = iloc {
+                    locs.keys.push(("intensity".into(), l));
+                }
+                let from = p.point3("from", Vec3::ZERO)?;
+                add_key(&mut locs, "position", p.find("from"));
+                if kind == "goniometric" {
+                    Self::use_all(p);
+                    self.approximated(
+                        loc,
+                        &what,
+                        "rendered as a point light of intensity I × scale; the goniometric distribution is ignored",
+                    );
+                }
+                LightKind::Point {
+                    position: ctm.transform_point3(from),
+                    intensity: i * scale,
+                    falloff: true,
+                }
+            }
+            "spot" => {
+                let (i, iloc) = self.emitted(p, "I")?;
+                let mut scale = p.float("scale", 1.0)?;
+                let cone = p.float("coneangle", 30.0)?;
+                let delta = p.float("conedeltaangle", 5.0)?;
+                add_key(&mut locs, "outer_angle", p.find("coneangle"));
+                add_key(&mut locs, "inner_angle", p.find("conedeltaangle"));
+                if let Some((power, _)) = p.float_opt("power")? {
+                    if power > 0.0 {
+                        // pbrt-v4 SpotLight::Create: the power of the cone
+                        // with its smoothstep falloff.
+                        let cos_end = cone.to_radians().cos();
+                        let cos_start = (cone - delta).to_radians().cos();
+                        scale *= power / (2.0 * PI * ((1.0 - cos_start) + (cos_start - cos_end) / 2.0));
+                    }
+                }
+                if let Some(l) = iloc {
+                    locs.keys.push(("intensity".into(), l));
+                }
+                let from = p.point3("from", Vec3::ZERO)?;
+                let to = p.point3("to", Vec3::Z)?;
+                add_key(&mut locs, "position", p.find("from"));
+                add_key(&mut locs, "to", p.find("to"));
+                LightKind::Spot {
+                    position: ctm.transform_point3(from),
+                    to: ctm.transform_point3(to),
+                    intensity: i * scale,
+                    // cos(−x) = cos(x): a delta larger than the cone gives
+                    // pbrt a hard edge at |cone − delta|, capped by the cone.
+                    inner_angle: (cone - delta).abs().min(cone),
+                    outer_angle: cone,
+                    falloff: true,
+                }
+            }
+            "distant" => {
+                let (l, lloc) = self.emitted(p, "L")?;
+                let mut scale = p.float("scale", 1.0)?;
+                if let Some((e, _)) = p.float_opt("illuminance")? {
+                    if e > 0.0 {
+                        scale *= e;
+                    }
+                }
+                if let Some(l) = lloc {
+                    locs.keys.push(("irradiance".into(), l));
+                }
+                let from = p.point3("from", Vec3::ZERO)?;
+                let to = p.point3("to", Vec3::Z)?;
+                add_key(&mut locs, "direction", p.find("to").or(p.find("from")));
+                LightKind::Directional {
+                    // Light travels from `from` towards `to`.
+                    direction: ctm.transform_vector3(to - from),
+                    irradiance: l * scale,
+                }
+            }
+            "infinite" => return self.infinite_light(p, loc, dir_rel),
+            _ => {
+                Self::use_all(p);
+                self.unsupported(loc, &what, "the light is skipped");
+                return Ok(());
+            }
+        };
+        self.desc.lights.push(LightDesc { kind: light, locs });
+        Ok(())
+    }
+
+    /// `LightSource "infinite"`: a constant colour or an environment image.
+    fn infinite_light(&mut self, p: &ParamList, loc: &SourceLoc, dir_rel: &Path) -> Result<()> {
+        let file = p.string("filename")?;
+        if let (Some(_), Some(prm)) = (&file, p.find("L")) {
+            return Err(prm.err("give either \"L\" or \"filename\" to an infinite light, not both"));
+        }
+        let mut scale = p.float("scale", 1.0)?;
+        if let Some(prm) = p.find("portal") {
+            let l = prm.loc.clone();
+            self.unsupported(
+                &l,
+                "\"portal\" of an infinite light",
+                "portals only guide sampling; ignored",
+            );
+        }
+        let illuminance = p.float_opt("illuminance")?.map(|(e, _)| e).filter(|&e| e > 0.0);
+        let (background, at) = match file {
+            Some((name, prm)) => {
+                let at = prm.loc.clone();
+                if illuminance.is_some() {
+                    self.unsupported(
+                        loc,
+                        "\"illuminance\" of an image infinite light",
+                        "the image is scaled by \"scale\" only",
+                    );
+                }
+                self.approximated(
+                    &at,
+                    format!("environment map \"{name}\""),
+                    "pbrt-v4 stores it in an equal-area octahedral layout, but trazo reads it as a latitude–longitude image, oriented as pbrt-v3 read those (+z up in light space)",
+                );
+                // trazo's map directions (+y up, u = 0 looking down −z,
+                // u = ¼ down +x) → pbrt-v3's (+z up, φ from +x towards +y).
+                let axes = Mat4::from_cols(Vec4::Y, Vec4::Z, -Vec4::X, Vec4::W);
+                (
+                    BackgroundDesc::Image {
+                        path: self.resolve(dir_rel, &name),
+                        scale,
+                        transform: vec![TransformOp::Matrix(axes), TransformOp::Matrix(self.gs.ctm)],
+                    },
+                    at,
+                )
+            }
+            None => {
+                let (c, lloc) = self.emitted(p, "L")?;
+                if let Some(e) = illuminance {
+                    // Illuminance of uniform radiance on an upward-facing
+                    // patch is π·L.
+                    scale *= e / PI;
+                }
+                (BackgroundDesc::Constant(c * scale), lloc.unwrap_or_else(|| loc.clone()))
+            }
+        };
+        match (&self.desc.background, &background, &self.infinite_light) {
+            (_, _, None) => self.desc.background = background,
+            (BackgroundDesc::Constant(a), BackgroundDesc::Constant(b), Some(_)) => {
+                // Two uniform environments add up.
+                self.desc.background = BackgroundDesc::Constant(*a + *b);
+            }
+            (_, _, Some(first)) => {
+                let first = first.clone();
+                self.unsupported(
+                    loc,
+                    "a second infinite light",
+                    format!("trazo has one environment; the one at {first} is kept"),
+                );
+                return Ok(());
+            }
+        }
+        self.infinite_light = Some(loc.clone());
+        self.desc.world_locs.item = Some(loc.clone());
+        self.desc.world_locs.keys.push(("background".into(), at));
+        Ok(())
+    }
+
+    /// `AreaLightSource "diffuse"`: shapes that follow in the block emit.
+    pub(super) fn area_light_source(&mut self, p: &ParamList, loc: &SourceLoc) -> Result<()> {
+        let (l, _) = self.emitted(p, "L")?;
+        let scale = p.float("scale", 1.0)?;
+        if p.bool("twosided", false)? {
+            self.approximated(
+                loc,
+                "AreaLightSource with \"bool twosided\" true",
+                "trazo's area lights emit from the front side only",
+            );
+        }
+        if let Some(prm) = p.find("filename") {
+            let l = prm.loc.clone();
+            self.unsupported(
+                &l,
+                "image emission (\"filename\") of an area light",
+                "the constant L × scale is used",
+            );
+        }
+        if let Some((power, prm)) = p.float_opt("power")? {
+            if power > 0.0 {
+                let l = prm.loc.clone();
+                self.unsupported(&l, "\"power\" of an area light", "the given L and scale are used");
+            }
+        }
+        let radiance = l * scale;
+        if !radiance.is_finite() || radiance.min_element() < 0.0 {
+            return Err(Error::scene(
+                Some(loc.clone()),
+                "L",
+                format!(
+                    "the emitted radiance must not be negative, got [{} {} {}]",
+                    radiance.x, radiance.y, radiance.z
+                ),
+            ));
+        }
+        self.gs.area_light = Some(Emission {
+            radiance,
+            loc: loc.clone(),
+        });
+        Ok(())
+    }
+}
+
+/// Records where the value of `key` was written.
+fn add_key(locs: &mut Locs, key: &str, prm: Option<&super::params::Param>) {
+    if let Some(prm) = prm {
+        locs.keys.push((key.into(), prm.loc.clone()));
+    }
+}

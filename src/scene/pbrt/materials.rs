@@ -1,0 +1,827 @@
+//! `Material`, `MakeNamedMaterial` and `Texture` (pbrt-v4 materials.cpp
+//! and textures.cpp): each pbrt material becomes the nearest of trazo's
+//! models, each spectrum texture the nearest of trazo's textures.
+
+use super::params::{FloatValue, Param, ParamList, SpectrumValue};
+use super::spectrum::{blackbody_rgb, glass_ior, illuminant_rgb, metal_of, sampled_rgb};
+use super::{MatDef, MatKind, Parser};
+use crate::color::Rgb;
+use crate::error::{Error, Result, SourceLoc};
+use crate::material::conductor::metal_ior;
+use crate::scene::desc::*;
+use glam::{Mat3, Mat4, Vec2, Vec3};
+use std::path::Path;
+
+/// pbrt-v4's material types (`Material::Create`).
+pub(super) const MATERIAL_TYPES: &[&str] = &[
+    "",
+    "coatedconductor",
+    "coateddiffuse",
+    "conductor",
+    "dielectric",
+    "diffuse",
+    "diffusetransmission",
+    "hair",
+    "interface",
+    "measured",
+    "mix",
+    "none",
+    "subsurface",
+    "thindielectric",
+];
+
+/// pbrt-v4's texture classes (float and spectrum).
+pub(super) const TEXTURE_CLASSES: &[&str] = &[
+    "bilerp",
+    "checkerboard",
+    "constant",
+    "directionmix",
+    "dots",
+    "fbm",
+    "imagemap",
+    "marble",
+    "mix",
+    "ptex",
+    "scale",
+    "windy",
+    "wrinkled",
+];
+
+/// What a colour parameter means, which decides how spectra become RGB.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum ColorUse {
+    /// A reflectance: components at most 1 (pbrt-v4 `SpectrumType::Albedo`).
+    Albedo,
+    /// Any non-negative colour (texture values, scale factors).
+    Unbounded,
+    /// Emitted light, normalised as pbrt-v4 normalises emitters.
+    Illuminant,
+}
+
+impl Parser {
+    /// A colour parameter as a constant or a texture reference; `None` if
+    /// the value cannot be used (after a warning).
+    pub(super) fn color_value(&mut self, v: SpectrumValue, prm: &Param, use_: ColorUse) -> Result<Option<ColorSource>> {
+        let loc = prm.loc.clone();
+        let what = format!("\"{}\"", prm.written);
+        Ok(Some(ColorSource::Rgb(match v {
+            SpectrumValue::Rgb(c) => {
+                if use_ == ColorUse::Albedo && c.max_element() > 1.0 {
+                    return Err(prm.err(format!(
+                        "a reflectance must not exceed 1 in any component, got [{} {} {}]",
+                        c.x, c.y, c.z
+                    )));
+                }
+                c
+            }
+            SpectrumValue::Blackbody { kelvin, scale } => {
+                let c = blackbody_rgb(kelvin);
+                let how = if use_ == ColorUse::Illuminant {
+                    "converted to the linear sRGB colour of the blackbody at luminance 1 (Planck's law against a fit of the CIE 1931 observer)"
+                } else {
+                    "converted to the linear sRGB colour of the blackbody, brightest component 1"
+                };
+                self.approximated(&loc, format!("{what} {kelvin} K"), how);
+                if use_ == ColorUse::Illuminant {
+                    c * scale
+                } else {
+                    c / c.max_element()
+                }
+            }
+            SpectrumValue::Sampled(samples) => {
+                if use_ == ColorUse::Illuminant {
+                    self.approximated(
+                        &loc,
+                        format!("sampled spectrum {what}"),
+                        "converted to its linear sRGB colour at luminance 1 (pbrt-v4 normalises emitters so)",
+                    );
+                    sampled_rgb(&samples)
+                } else {
+                    let mean = samples.iter().map(|s| s.1).sum::<f32>() / samples.len() as f32;
+                    self.approximated(
+                        &loc,
+                        format!("sampled spectrum {what}"),
+                        format!("replaced by the grey of its mean value {mean}"),
+                    );
+                    let mean = mean.max(0.0);
+                    Rgb::splat(if use_ == ColorUse::Albedo { mean.min(1.0) } else { mean })
+                }
+            }
+            SpectrumValue::Named(name) => match (use_, illuminant_rgb(&name)) {
+                (ColorUse::Illuminant, Some((c, exact))) => {
+                    if !exact {
+                        self.approximated(
+                            &loc,
+                            format!("{what} \"{name}\""),
+                            format!("rendered as the colour [{} {} {}]", c.x, c.y, c.z),
+                        );
+                    }
+                    c
+                }
+                _ => {
+                    self.unsupported(
+                        &loc,
+                        format!("named spectrum \"{name}\" for {what}"),
+                        "the default value is used",
+                    );
+                    return Ok(None);
+                }
+            },
+            SpectrumValue::Texture(t) => {
+                if use_ == ColorUse::Illuminant {
+                    return Err(prm.err("an emitted spectrum cannot be a texture"));
+                }
+                return Ok(Some(ColorSource::Texture(t)));
+            }
+            SpectrumValue::Float(_) => {
+                return Err(prm.err(format!(
+                    "`{}` is a colour: give \"rgb\", \"spectrum\", \"blackbody\"{}",
+                    prm.name,
+                    if use_ == ColorUse::Illuminant {
+                        ""
+                    } else {
+                        " or \"texture\""
+                    }
+                )));
+            }
+        })))
+    }
+
+    /// A constant colour where trazo cannot use a texture: a texture stands
+    /// for its representative colour, with a warning.
+    fn constant_color(&mut self, src: ColorSource, prm: &Param) -> Result<Rgb> {
+        match src {
+            ColorSource::Rgb(c) => Ok(c),
+            ColorSource::Texture(t) => {
+                let Some(&c) = self.texture_colors.get(&t) else {
+                    return Err(prm.err(format!(
+                        "no texture named \"{t}\"{}",
+                        suggest(&t, self.texture_colors.keys().map(String::as_str))
+                    )));
+                };
+                let l = prm.loc.clone();
+                self.approximated(
+                    &l,
+                    format!("texture \"{t}\" for \"{}\"", prm.written),
+                    format!(
+                        "a constant is needed here; the texture's typical colour [{} {} {}] is used",
+                        c.x, c.y, c.z
+                    ),
+                );
+                Ok(c)
+            }
+        }
+    }
+
+    /// A reflectance parameter (colour or texture).
+    fn albedo(&mut self, p: &ParamList, name: &str, default: f32, key: &str, def: &mut MatDef) -> Result<ColorSource> {
+        let Some((v, prm)) = p.spectrum(name)? else {
+            return Ok(ColorSource::Rgb(Rgb::splat(default)));
+        };
+        def.locs.keys.push((key.into(), prm.loc.clone()));
+        let src = self.color_value(v, prm, ColorUse::Albedo)?;
+        if let Some(ColorSource::Texture(t)) = &src {
+            def.tex_refs.push((t.clone(), prm.loc.clone()));
+        }
+        Ok(src.unwrap_or(ColorSource::Rgb(Rgb::splat(default))))
+    }
+
+    /// A float parameter that pbrt allows to be a float texture, which
+    /// trazo does not have: a texture gives `default` with a warning.
+    fn float_param(&mut self, p: &ParamList, name: &str, default: f32) -> Result<Option<(f32, SourceLoc)>> {
+        match p.float_or_texture(name)? {
+            None => Ok(None),
+            Some((FloatValue::Num(v), prm)) => Ok(Some((v, prm.loc.clone()))),
+            Some((FloatValue::Texture(t), prm)) => {
+                let l = prm.loc.clone();
+                self.unsupported(
+                    &l,
+                    format!("float texture \"{t}\" for \"{}\"", prm.written),
+                    format!("float textures are not supported; {default} is used"),
+                );
+                Ok(Some((default, l)))
+            }
+        }
+    }
+
+    /// GGX α along u and v from `roughness`/`uroughness`/`vroughness`,
+    /// mapped by pbrt-v4's `TrowbridgeReitzDistribution::RoughnessToAlpha`
+    /// (α = √roughness) unless `remaproughness` is false.
+    fn roughness(&mut self, p: &ParamList, prefix: &str, def: &mut MatDef) -> Result<(f32, f32)> {
+        let both = self.float_param(p, &format!("{prefix}roughness"), 0.0)?;
+        let u = self
+            .float_param(p, &format!("{prefix}uroughness"), 0.0)?
+            .or(both.clone());
+        let v = self.float_param(p, &format!("{prefix}vroughness"), 0.0)?.or(both);
+        let remap = p.bool("remaproughness", true)?;
+        let mut alpha = [0.0f32; 2];
+        for (slot, r) in alpha.iter_mut().zip([u, v]) {
+            let Some((r, loc)) = r else { continue };
+            if r.is_nan() || r < 0.0 {
+                return Err(Error::scene(
+                    Some(loc),
+                    format!("{prefix}roughness"),
+                    format!("must not be negative, got {r}"),
+                ));
+            }
+            def.locs.keys.push(("roughness".into(), loc.clone()));
+            let a = if remap { r.sqrt() } else { r };
+            *slot = if a > 1.0 {
+                self.approximated(
+                    &loc,
+                    format!("roughness {r} (GGX α {a})"),
+                    "trazo's microfacet models take α up to 1; 1 is used",
+                );
+                1.0
+            } else {
+                a
+            };
+        }
+        Ok((alpha[0], alpha[1]))
+    }
+
+    /// One isotropic α; anisotropic roughness is averaged with a warning.
+    fn isotropic(&mut self, (au, av): (f32, f32), loc: &SourceLoc, what: &str) -> f32 {
+        if au != av {
+            self.approximated(
+                loc,
+                format!("anisotropic roughness of {what}"),
+                format!("the mean α {} is used", 0.5 * (au + av)),
+            );
+        }
+        0.5 * (au + av)
+    }
+
+    /// An index of refraction given as a float or a named or sampled
+    /// spectrum (dielectrics).
+    fn eta(&mut self, p: &ParamList, name: &str, default: f32, def: &mut MatDef) -> Result<f32> {
+        let Some((v, prm)) = p.spectrum(name)? else {
+            return Ok(default);
+        };
+        def.locs.keys.push(("ior".into(), prm.loc.clone()));
+        let loc = prm.loc.clone();
+        let what = format!("\"{}\"", prm.written);
+        let eta = match v {
+            SpectrumValue::Float(e) => e,
+            SpectrumValue::Named(n) => match glass_ior(&n) {
+                Some(e) => {
+                    self.approximated(
+                        &loc,
+                        format!("{what} \"{n}\""),
+                        format!("dispersion is ignored; the index {e} at 587.6 nm is used at every wavelength"),
+                    );
+                    e
+                }
+                None => {
+                    self.unsupported(
+                        &loc,
+                        format!("{what} \"{n}\""),
+                        format!("unknown spectrum; {default} is used"),
+                    );
+                    default
+                }
+            },
+            SpectrumValue::Sampled(s) => {
+                let mean = s.iter().map(|x| x.1).sum::<f32>() / s.len() as f32;
+                self.approximated(
+                    &loc,
+                    format!("sampled spectrum {what}"),
+                    format!("dispersion is ignored; the mean index {mean} is used"),
+                );
+                mean
+            }
+            SpectrumValue::Rgb(c) => {
+                let mean = (c.x + c.y + c.z) / 3.0;
+                self.approximated(&loc, format!("RGB {what}"), format!("the mean index {mean} is used"));
+                mean
+            }
+            SpectrumValue::Blackbody { .. } | SpectrumValue::Texture(_) => {
+                self.unsupported(
+                    &loc,
+                    what,
+                    format!("an index of refraction must be a number here; {default} is used"),
+                );
+                default
+            }
+        };
+        if !(eta > 0.0 && eta.is_finite()) {
+            return Err(prm.err(format!("an index of refraction must be positive, got {eta}")));
+        }
+        Ok(eta)
+    }
+
+    /// η or k of a conductor: RGB, a named metal spectrum such as
+    /// `"metal-Au-eta"`, or a sampled spectrum. pbrt-v4's default is copper.
+    fn metal_part(&mut self, v: Option<(SpectrumValue, &Param)>, is_eta: bool) -> Result<Rgb> {
+        let (cu_eta, cu_k) = metal_ior("Cu").expect("copper is tabulated");
+        let default = if is_eta { cu_eta } else { cu_k };
+        let Some((v, prm)) = v else {
+            return Ok(default);
+        };
+        let loc = prm.loc.clone();
+        let what = format!("\"{}\"", prm.written);
+        Ok(match v {
+            SpectrumValue::Rgb(c) => c,
+            SpectrumValue::Float(x) => Rgb::splat(x),
+            SpectrumValue::Named(n) => match metal_of(&n) {
+                Some((metal, part_eta)) => match metal_ior(metal) {
+                    Some((eta, k)) if crate::material::conductor::METAL_NAMES.contains(&metal) => {
+                        if part_eta {
+                            eta
+                        } else {
+                            k
+                        }
+                    }
+                    _ => {
+                        self.approximated(
+                            &loc,
+                            format!("{what} \"{n}\""),
+                            "trazo tabulates Au, Ag, Cu and Al at three wavelengths; copper is used",
+                        );
+                        if part_eta { cu_eta } else { cu_k }
+                    }
+                },
+                None => {
+                    self.unsupported(&loc, format!("{what} \"{n}\""), "not a metal spectrum; copper is used");
+                    default
+                }
+            },
+            SpectrumValue::Sampled(s) => {
+                let mean = s.iter().map(|x| x.1).sum::<f32>() / s.len() as f32;
+                self.approximated(
+                    &loc,
+                    format!("sampled spectrum {what}"),
+                    format!("the mean value {mean} is used at every wavelength"),
+                );
+                Rgb::splat(mean)
+            }
+            SpectrumValue::Blackbody { .. } | SpectrumValue::Texture(_) => {
+                self.unsupported(&loc, what, "trazo's conductors take constant η and k; copper's is used");
+                default
+            }
+        })
+    }
+
+    /// A conductor from `eta`/`k` or `reflectance` (with `prefix`
+    /// `"conductor."` for coatedconductor).
+    fn conductor(&mut self, p: &ParamList, prefix: &str, def: &mut MatDef) -> Result<MaterialKindDesc> {
+        let eta = p.spectrum(&format!("{prefix}eta"))?;
+        let k = p.spectrum(&format!("{prefix}k"))?;
+        let roughness = self.roughness(p, prefix, def)?;
+        let fresnel = match p.spectrum("reflectance")? {
+            Some((v, prm)) => {
+                if eta.is_some() || k.is_some() {
+                    return Err(prm.err(format!(
+                        "give either \"reflectance\" or \"{prefix}eta\" and \"{prefix}k\", not both"
+                    )));
+                }
+                def.locs.keys.push(("reflectance".into(), prm.loc.clone()));
+                let c = match self.color_value(v, prm, ColorUse::Albedo)? {
+                    Some(src) => self.constant_color(src, prm)?,
+                    None => Rgb::ONE,
+                };
+                ConductorDesc::Reflectance(c)
+            }
+            None => {
+                for (key, v) in [("eta", &eta), ("k", &k)] {
+                    if let Some((_, prm)) = v {
+                        def.locs.keys.push((key.into(), prm.loc.clone()));
+                    }
+                }
+                ConductorDesc::Complex {
+                    eta: self.metal_part(eta, true)?,
+                    k: self.metal_part(k, false)?,
+                }
+            }
+        };
+        Ok(MaterialKindDesc::Conductor {
+            fresnel,
+            tint: Rgb::ONE,
+            roughness,
+        })
+    }
+
+    /// Converts a material of type `kind`; `name` is the name trazo gives it.
+    pub(super) fn material(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc, name: String) -> Result<MatDef> {
+        let mut def = MatDef {
+            name,
+            kind: MatKind::Desc(MaterialKindDesc::Diffuse {
+                reflectance: ColorSource::Rgb(Rgb::splat(0.5)),
+            }),
+            locs: Locs::at(Some(loc.clone())),
+            tex_refs: Vec::new(),
+        };
+        let what = format!("material \"{kind}\"");
+        let desc = match kind {
+            "diffuse" => MaterialKindDesc::Diffuse {
+                reflectance: self.albedo(p, "reflectance", 0.5, "reflectance", &mut def)?,
+            },
+            "conductor" => self.conductor(p, "", &mut def)?,
+            "coatedconductor" => {
+                let m = self.conductor(p, "conductor.", &mut def)?;
+                self.layered_warning(
+                    p,
+                    loc,
+                    &what,
+                    "the dielectric coat is left out; the conductor below is rendered",
+                );
+                m
+            }
+            "dielectric" | "thindielectric" => {
+                let ior = self.eta(p, "eta", 1.5, &mut def)?;
+                let r = self.roughness(p, "", &mut def)?;
+                let roughness = self.isotropic(r, loc, &what);
+                if kind == "thindielectric" {
+                    self.approximated(
+                        loc,
+                        &what,
+                        "rendered as a solid dielectric: rays refract at each surface instead of passing a thin sheet",
+                    );
+                }
+                MaterialKindDesc::Dielectric {
+                    ior,
+                    ext_ior: 1.0,
+                    roughness,
+                    reflect_tint: Rgb::ONE,
+                    transmit_tint: Rgb::ONE,
+                }
+            }
+            "coateddiffuse" => {
+                let diffuse = self.albedo(p, "reflectance", 0.5, "diffuse", &mut def)?;
+                let r = self.roughness(p, "", &mut def)?;
+                let roughness = self.isotropic(r, loc, &what);
+                let ior = self.eta(p, "eta", 1.5, &mut def)?;
+                self.layered_warning(
+                    p,
+                    loc,
+                    &what,
+                    "rendered as trazo's plastic (a diffuse base under a dielectric coat, without the layer's thickness and medium)",
+                );
+                if ior == 1.0 {
+                    MaterialKindDesc::Diffuse { reflectance: diffuse }
+                } else {
+                    MaterialKindDesc::Plastic {
+                        diffuse,
+                        ior,
+                        ext_ior: 1.0,
+                        roughness,
+                        specular_tint: Rgb::ONE,
+                        nonlinear: false,
+                    }
+                }
+            }
+            "diffusetransmission" => {
+                let reflectance = self.albedo(p, "reflectance", 0.25, "reflectance", &mut def)?;
+                if let Some((v, prm)) = p.spectrum("transmittance")? {
+                    if let Some(ColorSource::Texture(t)) = self.color_value(v, prm, ColorUse::Albedo)? {
+                        def.tex_refs.push((t, prm.loc.clone()));
+                    }
+                }
+                self.approximated(
+                    loc,
+                    &what,
+                    "rendered as diffuse reflection only; the transmitted light is lost",
+                );
+                MaterialKindDesc::Diffuse { reflectance }
+            }
+            "subsurface" => {
+                let diffuse = self.albedo(p, "reflectance", 0.5, "diffuse", &mut def)?;
+                let r = self.roughness(p, "", &mut def)?;
+                let roughness = self.isotropic(r, loc, &what);
+                let ior = p.float("eta", 1.33)?;
+                Self::use_all(p);
+                self.approximated(
+                    loc,
+                    &what,
+                    "rendered as trazo's plastic with the reflectance (grey 0.5 if not given) under a dielectric coat of the same η; light does not scatter below the surface",
+                );
+                if ior > 0.0 && ior != 1.0 {
+                    MaterialKindDesc::Plastic {
+                        diffuse,
+                        ior,
+                        ext_ior: 1.0,
+                        roughness,
+                        specular_tint: Rgb::ONE,
+                        nonlinear: false,
+                    }
+                } else {
+                    MaterialKindDesc::Diffuse { reflectance: diffuse }
+                }
+            }
+            "hair" | "measured" => {
+                let reflectance = if kind == "hair" && p.has("reflectance") {
+                    self.albedo(p, "reflectance", 0.5, "reflectance", &mut def)?
+                } else if kind == "hair" && p.has("color") {
+                    self.albedo(p, "color", 0.5, "reflectance", &mut def)?
+                } else {
+                    ColorSource::Rgb(Rgb::splat(0.5))
+                };
+                Self::use_all(p);
+                self.approximated(
+                    loc,
+                    &what,
+                    "rendered as a diffuse surface (grey 0.5 unless a reflectance is given)",
+                );
+                MaterialKindDesc::Diffuse { reflectance }
+            }
+            "mix" => {
+                let Some((names, prm)) = p.strings("materials")? else {
+                    return Err(Error::scene(
+                        Some(loc.clone()),
+                        "materials",
+                        "mix needs \"string materials\" with the names of two materials",
+                    ));
+                };
+                if names.len() != 2 {
+                    return Err(prm.err(format!("needs two material names, found {}", names.len())));
+                }
+                let mloc = prm.loc.clone();
+                let amount = self.float_param(p, "amount", 0.5)?.map_or(0.5, |(a, _)| a);
+                // pbrt-v4 `MixMaterial::ChooseMaterial` picks the second
+                // with probability `amount`.
+                let pick = usize::from(amount >= 0.5);
+                self.approximated(
+                    loc,
+                    &what,
+                    format!(
+                        "only \"{}\", the material with the larger weight, is rendered",
+                        names[pick]
+                    ),
+                );
+                def.kind = MatKind::Mix {
+                    name: names[pick].clone(),
+                    loc: mloc,
+                };
+                return Ok(def);
+            }
+            _ => {
+                // interface, none and "": the shape only bounds a medium.
+                self.approximated(
+                    loc,
+                    format!("material \"{kind}\""),
+                    "rendered as an invisible surface (a dielectric of index 1)",
+                );
+                MaterialKindDesc::Dielectric {
+                    ior: 1.0,
+                    ext_ior: 1.0,
+                    roughness: 0.0,
+                    reflect_tint: Rgb::ONE,
+                    transmit_tint: Rgb::ONE,
+                }
+            }
+        };
+        def.kind = MatKind::Desc(desc);
+        Ok(def)
+    }
+
+    /// One warning for a layered material; its layer parameters count as read.
+    fn layered_warning(&mut self, p: &ParamList, loc: &SourceLoc, what: &str, how: &str) {
+        for name in [
+            "thickness",
+            "albedo",
+            "g",
+            "maxdepth",
+            "nsamples",
+            "interface.roughness",
+            "interface.uroughness",
+            "interface.vroughness",
+            "interface.eta",
+        ] {
+            p.find(name);
+        }
+        self.approximated(loc, what, how);
+    }
+
+    /// `Texture "name" "spectrum"|"float" "class" …`.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn texture(
+        &mut self,
+        name: &str,
+        ttype: &str,
+        class: &str,
+        p: &ParamList,
+        loc: &SourceLoc,
+        name_loc: &SourceLoc,
+        dir_rel: &Path,
+    ) -> Result<()> {
+        if ttype == "float" {
+            if !self.float_textures.insert(name.to_string()) {
+                return Err(Error::scene(
+                    Some(name_loc.clone()),
+                    "Texture",
+                    format!("the float texture \"{name}\" is already defined"),
+                ));
+            }
+            Self::use_all(p);
+            self.unsupported(
+                loc,
+                format!("float texture \"{name}\""),
+                "float textures are not supported; parameters that name it take their default values",
+            );
+            return Ok(());
+        }
+        if let Some(first) = self.spectrum_textures.get(name) {
+            return Err(Error::scene(
+                Some(name_loc.clone()),
+                "Texture",
+                format!("the texture \"{name}\" is already defined (at {first})"),
+            ));
+        }
+        let mut locs = Locs::at(Some(loc.clone()));
+        let what = format!("Texture \"{name}\" \"{class}\"");
+        let (kind, typical) = match class {
+            "imagemap" => {
+                let Some((file, prm)) = p.string("filename")? else {
+                    return Err(Error::scene(
+                        Some(loc.clone()),
+                        "filename",
+                        "imagemap needs a \"string filename\"",
+                    ));
+                };
+                locs.keys.push(("file".into(), prm.loc.clone()));
+                let (scale, offset) = self.uv_mapping(p, loc, &what)?;
+                let tint = p.float("scale", 1.0)?;
+                if tint < 0.0 {
+                    return Err(p
+                        .find("scale")
+                        .expect("read")
+                        .err(format!("must not be negative, got {tint}")));
+                }
+                if p.bool("invert", false)? {
+                    self.unsupported(
+                        loc,
+                        format!("{what} with \"bool invert\""),
+                        "the image is used as it is",
+                    );
+                }
+                let srgb = match p.string("encoding")? {
+                    None => None,
+                    Some((e, prm)) => match e.as_str() {
+                        "sRGB" => Some(true),
+                        "linear" => Some(false),
+                        _ => {
+                            let l = prm.loc.clone();
+                            self.approximated(&l, format!("encoding \"{e}\""), "decoded as sRGB");
+                            Some(true)
+                        }
+                    },
+                };
+                if let Some((w, prm)) = p.string("wrap")? {
+                    if w != "repeat" {
+                        let l = prm.loc.clone();
+                        self.approximated(&l, format!("wrap \"{w}\""), "the image repeats");
+                    }
+                }
+                if let Some((f, prm)) = p.string("filter")? {
+                    if f != "bilinear" {
+                        let l = prm.loc.clone();
+                        self.approximated(&l, format!("filter \"{f}\""), "images are filtered bilinearly");
+                    }
+                }
+                (
+                    TextureKind::Image {
+                        source: ImageSource::File(self.resolve(dir_rel, &file)),
+                        scale,
+                        offset,
+                        srgb,
+                        tint: Rgb::splat(tint),
+                    },
+                    Rgb::splat(0.5 * tint),
+                )
+            }
+            "checkerboard" => {
+                let even = self.texture_color(p, "tex1", Rgb::ONE)?;
+                let odd = self.texture_color(p, "tex2", Rgb::ZERO)?;
+                let dim = p.int_opt("dimension")?;
+                match dim {
+                    None | Some((2, _)) => {
+                        let (scale, offset) = self.uv_mapping(p, loc, &what)?;
+                        if offset != Vec2::ZERO {
+                            self.approximated(loc, format!("{what} with udelta/vdelta"), "the checks are not shifted");
+                        }
+                        if let Some(prm) = p.find("uscale").or(p.find("vscale")) {
+                            locs.keys.push(("scale".into(), prm.loc.clone()));
+                        }
+                        (TextureKind::Checkerboard { even, odd, scale }, 0.5 * (even + odd))
+                    }
+                    Some((3, _)) => {
+                        // pbrt-v4 maps points into texture space by the
+                        // inverse of the CTM; trazo's solid checks take one
+                        // scale in world space.
+                        let m = self.gs.ctm;
+                        let s = Mat3::from_mat4(m).determinant().abs().cbrt();
+                        let exact = s > 0.0 && m.abs_diff_eq(Mat4::from_scale(Vec3::splat(s)), 1e-6 * s.max(1.0));
+                        if !exact {
+                            self.approximated(
+                                loc,
+                                format!("{what} with dimension 3 under a rotation, translation or non-uniform scale"),
+                                "trazo's solid checks are axis-aligned in world space; only the transform's mean scale is used",
+                            );
+                        }
+                        let scale = if s > 0.0 { 1.0 / s } else { 1.0 };
+                        (TextureKind::Checkerboard3d { even, odd, scale }, 0.5 * (even + odd))
+                    }
+                    Some((d, prm)) => return Err(prm.err(format!("must be 2 or 3, got {d}"))),
+                }
+            }
+            "constant" => {
+                let c = self.texture_color(p, "value", Rgb::ONE)?;
+                (TextureKind::Constant(c), c)
+            }
+            "scale" => {
+                let tex = self.texture_color(p, "tex", Rgb::ONE)?;
+                let s = match p.spectrum("scale")? {
+                    Some((SpectrumValue::Float(s), _)) => s,
+                    Some((v, prm)) => {
+                        let src = self.color_value(v, prm, ColorUse::Unbounded)?;
+                        let c = match src {
+                            Some(src) => self.constant_color(src, prm)?,
+                            None => Rgb::ONE,
+                        };
+                        (c.x + c.y + c.z) / 3.0
+                    }
+                    None => 1.0,
+                };
+                let c = tex * s;
+                (TextureKind::Constant(c), c)
+            }
+            "mix" | "directionmix" => {
+                let a = self.texture_color(p, "tex1", Rgb::ZERO)?;
+                let b = self.texture_color(p, "tex2", Rgb::ONE)?;
+                let t = if class == "mix" {
+                    self.float_param(p, "amount", 0.5)?.map_or(0.5, |(v, _)| v)
+                } else {
+                    0.5
+                };
+                Self::use_all(p);
+                let c = a * (1.0 - t) + b * t;
+                self.approximated(
+                    loc,
+                    &what,
+                    format!("replaced by the constant blend [{} {} {}]", c.x, c.y, c.z),
+                );
+                (TextureKind::Constant(c), c)
+            }
+            "bilerp" => {
+                let mut sum = Rgb::ZERO;
+                for (k, d) in [("v00", 0.0), ("v01", 1.0), ("v10", 0.0), ("v11", 1.0)] {
+                    sum += self.texture_color(p, k, Rgb::splat(d))?;
+                }
+                let c = sum / 4.0;
+                self.approximated(
+                    loc,
+                    &what,
+                    format!("replaced by its mean colour [{} {} {}]", c.x, c.y, c.z),
+                );
+                (TextureKind::Constant(c), c)
+            }
+            _ => {
+                Self::use_all(p);
+                let c = Rgb::splat(0.5);
+                self.unsupported(loc, &what, "replaced by a constant grey of 0.5");
+                (TextureKind::Constant(c), c)
+            }
+        };
+        self.spectrum_textures.insert(name.to_string(), loc.clone());
+        self.texture_colors.insert(name.to_string(), typical);
+        self.desc.textures.push(TextureDesc {
+            name: name.to_string(),
+            kind,
+            locs,
+        });
+        Ok(())
+    }
+
+    /// A constant colour parameter of a texture (another texture stands
+    /// for its typical colour).
+    fn texture_color(&mut self, p: &ParamList, name: &str, default: Rgb) -> Result<Rgb> {
+        let Some((v, prm)) = p.spectrum(name)? else {
+            return Ok(default);
+        };
+        if let SpectrumValue::Float(x) = v {
+            return Ok(Rgb::splat(x.max(0.0)));
+        }
+        match self.color_value(v, prm, ColorUse::Unbounded)? {
+            Some(src) => self.constant_color(src, prm),
+            None => Ok(default),
+        }
+    }
+
+    /// pbrt-v4's `UVMapping` (s = su·u + du, t = sv·v + dv) as trazo's
+    /// scale and offset; other mappings are approximated by it.
+    fn uv_mapping(&mut self, p: &ParamList, loc: &SourceLoc, what: &str) -> Result<(Vec2, Vec2)> {
+        if let Some((m, _)) = p.string("mapping")? {
+            if m != "uv" {
+                Self::use_all(p);
+                self.approximated(
+                    loc,
+                    format!("{what} with mapping \"{m}\""),
+                    "the surface's (u, v) coordinates are used",
+                );
+            }
+        }
+        let scale = Vec2::new(p.float("uscale", 1.0)?, p.float("vscale", 1.0)?);
+        let offset = Vec2::new(p.float("udelta", 0.0)?, p.float("vdelta", 0.0)?);
+        Ok((scale, offset))
+    }
+}

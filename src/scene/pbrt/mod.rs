@@ -1,0 +1,1399 @@
+//! A reader for pbrt-v4 scene files (`.pbrt`), documented in
+//! docs/formats-pbrt.md with the support of every directive and parameter.
+//!
+//! The reader follows pbrt-v4's own parser and scene builder (parser.cpp,
+//! scene.cpp) for the graphics state: the current transformation matrix
+//! (CTM) is post-multiplied by each transform directive; `AttributeBegin`
+//! saves the CTM, material, area light and orientation, `AttributeEnd`
+//! restores them; a shape's object-to-world transform is the CTM when it is
+//! declared; the camera's CTM is camera-from-world, so the camera's
+//! camera-to-world matrix is its inverse. pbrt's camera space (+x right in
+//! the image, +y up, +z forward) is trazo's, so no axis is flipped: a scene
+//! renders as pbrt renders it, including pbrt's habit of showing world +x
+//! on the left of an image made by `LookAt 0 0 5  0 0 0  0 1 0`.
+//!
+//! Errors name the file, line and column (of the included file, for
+//! `Include`d text); elements that trazo approximates or cannot render add
+//! warnings of the form `file:line:col: <what> is unsupported/approximated:
+//! <how>` to [`SceneDesc::warnings`].
+
+mod lexer;
+mod lights;
+mod materials;
+mod options;
+mod params;
+mod shapes;
+mod spectrum;
+
+pub use spectrum::blackbody_rgb;
+
+use self::lexer::{Lexer, Tok};
+use self::params::{Param, ParamList, parse_number, parse_params};
+use super::desc::*;
+use super::native::{MAX_SCENE_BYTES, io_reason};
+use crate::color::Rgb;
+use crate::error::{Error, Result, SourceLoc};
+use crate::film::Filter;
+use crate::integrator::{IntegratorKind, PathSampling};
+use crate::sampling::SamplerKind;
+use glam::{Mat3, Mat4, Vec3};
+use std::collections::{HashMap, HashSet};
+use std::fmt::Display;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// How many times one warning is listed before the rest are only counted.
+const MAX_SAME_WARNING: usize = 10;
+
+/// Deepest nesting of `Include` and `Import`.
+const MAX_INCLUDE_DEPTH: usize = 64;
+
+/// Every directive of pbrt-v4 (and pbrt-v3's `WorldEnd`), for suggestions.
+const DIRECTIVES: [&str; 41] = [
+    "Accelerator",
+    "ActiveTransform",
+    "AreaLightSource",
+    "Attribute",
+    "AttributeBegin",
+    "AttributeEnd",
+    "Camera",
+    "ColorSpace",
+    "ConcatTransform",
+    "CoordinateSystem",
+    "CoordSysTransform",
+    "Film",
+    "Identity",
+    "Import",
+    "Include",
+    "Integrator",
+    "LightSource",
+    "LookAt",
+    "MakeNamedMaterial",
+    "MakeNamedMedium",
+    "Material",
+    "MediumInterface",
+    "NamedMaterial",
+    "ObjectBegin",
+    "ObjectEnd",
+    "ObjectInstance",
+    "Option",
+    "PixelFilter",
+    "ReverseOrientation",
+    "Rotate",
+    "Sampler",
+    "Scale",
+    "Shape",
+    "Texture",
+    "Transform",
+    "TransformBegin",
+    "TransformEnd",
+    "TransformTimes",
+    "Translate",
+    "WorldBegin",
+    "WorldEnd",
+];
+
+/// Reads a pbrt-v4 scene file and the files it includes. pbrt scenes have
+/// no parameters, so each `-D` definition only adds a warning.
+pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
+    let text = read_text(path, None)?;
+    let mut desc = parse(&text, path)?;
+    for (name, _) in defines {
+        desc.warnings.push(format!(
+            "-D {name}: pbrt scenes have no parameters; the definition is not used"
+        ));
+    }
+    Ok(desc)
+}
+
+/// Parses pbrt scene text that was read from `path` (used for messages and
+/// to resolve `Include`d and referenced files).
+pub fn parse(text: &str, path: &Path) -> Result<SceneDesc> {
+    let file: Arc<Path> = Arc::from(path);
+    let mut p = Parser::new(file.clone());
+    p.open_files
+        .push(std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()));
+    let mut lx = Lexer::new(file, text);
+    p.parse_file(&mut lx, Path::new(""))?;
+    let end = lx.end_loc();
+    p.finish(end)
+}
+
+/// Reads a scene file as UTF-8 text. `included_from` is the `Include`
+/// directive that names it, which errors then point at.
+fn read_text(path: &Path, included_from: Option<&SourceLoc>) -> Result<String> {
+    let fail = |message: String| match included_from {
+        Some(loc) => Error::scene(Some(loc.clone()), "Include", format!("{}: {message}", path.display())),
+        None => Error::file(path, message),
+    };
+    let meta = std::fs::metadata(path).map_err(|e| fail(format!("cannot read scene: {}", io_reason(&e))))?;
+    if meta.is_dir() {
+        return Err(fail("cannot read scene: this is a folder".into()));
+    }
+    if meta.len() > MAX_SCENE_BYTES {
+        return Err(fail("scene file is larger than 1 GiB".into()));
+    }
+    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read scene: {}", io_reason(&e))))?;
+    String::from_utf8(bytes).map_err(|e| {
+        let lossy = String::from_utf8_lossy(e.as_bytes()).into_owned();
+        let lx = Lexer::new(Arc::from(path), &lossy);
+        lx.error(e.utf8_error().valid_up_to(), "the file is not valid UTF-8 text")
+    })
+}
+
+/// Which material a shape uses.
+#[derive(Clone, Debug, PartialEq)]
+enum MatRef {
+    /// pbrt's default: diffuse, reflectance 0.5.
+    Default,
+    /// A material made by `Material` or `MakeNamedMaterial` (index into
+    /// `Parser::materials`).
+    Index(usize),
+    /// `NamedMaterial "name"`, resolved when the whole scene has been read.
+    Named(String, SourceLoc),
+}
+
+/// The area light that shapes declared after `AreaLightSource` carry.
+#[derive(Clone, Debug, PartialEq)]
+struct Emission {
+    radiance: Rgb,
+    loc: SourceLoc,
+}
+
+/// The graphics state that `AttributeBegin`/`AttributeEnd` save and
+/// restore (pbrt-v4 `BasicSceneBuilder::GraphicsState`).
+#[derive(Clone, Debug)]
+struct GraphicsState {
+    ctm: Mat4,
+    /// False after `ActiveTransform EndTime`: transforms then change only
+    /// the end of a motion, which trazo does not render.
+    start_active: bool,
+    reverse_orientation: bool,
+    material: MatRef,
+    area_light: Option<Emission>,
+    /// Default parameters from `Attribute "shape"|"light"|"material"|"medium"|"texture"`.
+    attributes: HashMap<&'static str, Vec<Param>>,
+}
+
+impl Default for GraphicsState {
+    fn default() -> Self {
+        GraphicsState {
+            ctm: Mat4::IDENTITY,
+            start_active: true,
+            reverse_orientation: false,
+            material: MatRef::Default,
+            area_light: None,
+            attributes: HashMap::new(),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Block {
+    Attribute,
+    Object,
+}
+
+/// A material as read, before names are resolved.
+#[derive(Clone, Debug)]
+struct MatDef {
+    /// The name given to trazo.
+    name: String,
+    kind: MatKind,
+    locs: Locs,
+    /// Texture names it uses, with where they were written.
+    tex_refs: Vec<(String, SourceLoc)>,
+}
+
+#[derive(Clone, Debug)]
+enum MatKind {
+    Desc(MaterialKindDesc),
+    /// pbrt's `mix`: the chosen one of two named materials.
+    Mix {
+        name: String,
+        loc: SourceLoc,
+    },
+}
+
+/// A shape waiting for its material to be resolved.
+#[derive(Clone, Debug)]
+struct PendingShape {
+    desc: ShapeDesc,
+    /// Analytic shapes (sphere, disk, cylinder) flip their normal under a
+    /// mirroring transform in pbrt; triangles keep theirs.
+    analytic: bool,
+    reverse: bool,
+    mat: MatRef,
+    emission: Option<Emission>,
+}
+
+/// An `ObjectBegin` … `ObjectEnd` definition.
+#[derive(Clone, Debug)]
+struct ObjectDef {
+    loc: SourceLoc,
+    shapes: Vec<PendingShape>,
+    meshes: Vec<MeshDesc>,
+}
+
+/// The camera as declared, converted when the film is known (at `WorldBegin`).
+#[derive(Clone, Debug)]
+struct CameraDef {
+    kind: String,
+    params: ParamList,
+    /// The CTM at `Camera`: camera-from-world.
+    ctm: Mat4,
+    loc: Option<SourceLoc>,
+}
+
+/// The reader's state while it walks the files.
+struct Parser {
+    desc: SceneDesc,
+    top_dir: PathBuf,
+    /// Canonical paths of the files being read, outermost first.
+    open_files: Vec<PathBuf>,
+    /// Where `WorldBegin` was.
+    world: Option<SourceLoc>,
+    gs: GraphicsState,
+    pushed: Vec<(GraphicsState, Block, SourceLoc)>,
+    named_coords: HashMap<String, Mat4>,
+    camera: CameraDef,
+    /// ISO of the film: exposure multiplies by ISO/100 (pbrt-v4 `PixelSensor`).
+    film_iso: f32,
+    materials: Vec<MatDef>,
+    named_materials: HashMap<String, usize>,
+    spectrum_textures: HashMap<String, SourceLoc>,
+    float_textures: HashSet<String>,
+    /// A colour that stands for each spectrum texture where only a constant
+    /// can be used.
+    texture_colors: HashMap<String, Rgb>,
+    shapes: Vec<PendingShape>,
+    current_object: Option<(String, ObjectDef)>,
+    objects: HashMap<String, ObjectDef>,
+    instance_uses: Vec<(String, Mat4, SourceLoc)>,
+    /// Where the infinite light that set the background was declared.
+    infinite_light: Option<SourceLoc>,
+    motion_warned: bool,
+    /// `pushed` may not shrink below this inside an `Import`ed file.
+    import_floor: usize,
+    /// How often each warning text (without its position) was given, and
+    /// where first.
+    warning_counts: HashMap<String, (usize, SourceLoc)>,
+}
+
+fn det3(m: &Mat4) -> f32 {
+    Mat3::from_mat4(*m).determinant()
+}
+
+impl Parser {
+    fn new(file: Arc<Path>) -> Parser {
+        let top_dir = file.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut desc = SceneDesc {
+            source: Some(file),
+            ..SceneDesc::default()
+        };
+        // pbrt-v4's defaults (scene.cpp, film.cpp, samplers.cpp, filters.cpp):
+        // 1280×720, 16 samples per pixel, volpath with maxdepth 5, Gaussian
+        // filter of radius 1.5 and σ 0.5.
+        desc.settings.width = 1280;
+        desc.settings.height = 720;
+        desc.settings.spp = 16;
+        desc.settings.max_depth = 6;
+        desc.settings.integrator = IntegratorKind::Path;
+        desc.settings.sampling = PathSampling::Mis;
+        desc.settings.sampler = SamplerKind::Stratified;
+        desc.settings.filter = Filter::Gaussian {
+            stddev: 0.5,
+            radius: 1.5,
+        };
+        Parser {
+            desc,
+            top_dir,
+            open_files: Vec::new(),
+            world: None,
+            gs: GraphicsState::default(),
+            pushed: Vec::new(),
+            named_coords: HashMap::new(),
+            camera: CameraDef {
+                kind: "perspective".into(),
+                params: ParamList::default(),
+                ctm: Mat4::IDENTITY,
+                loc: None,
+            },
+            film_iso: 100.0,
+            materials: Vec::new(),
+            named_materials: HashMap::new(),
+            spectrum_textures: HashMap::new(),
+            float_textures: HashSet::new(),
+            texture_colors: HashMap::new(),
+            shapes: Vec::new(),
+            current_object: None,
+            objects: HashMap::new(),
+            instance_uses: Vec::new(),
+            infinite_light: None,
+            motion_warned: false,
+            import_floor: 0,
+            warning_counts: HashMap::new(),
+        }
+    }
+
+    /// Adds a warning `loc: what is status: how`.
+    fn warn(&mut self, loc: &SourceLoc, what: impl Display, status: &str, how: impl Display) {
+        let message = format!("{what} is {status}: {how}");
+        let count = self.warning_counts.entry(message.clone()).or_insert((0, loc.clone()));
+        count.0 += 1;
+        // Large scenes repeat the same thing thousands of times; the
+        // repeats are counted in one summary line instead.
+        if count.0 <= MAX_SAME_WARNING {
+            self.desc.warnings.push(format!("{loc}: {message}"));
+        }
+    }
+
+    fn unsupported(&mut self, loc: &SourceLoc, what: impl Display, how: impl Display) {
+        self.warn(loc, what, "unsupported", how);
+    }
+
+    fn approximated(&mut self, loc: &SourceLoc, what: impl Display, how: impl Display) {
+        self.warn(loc, what, "approximated", how);
+    }
+
+    /// Warns about every parameter of `directive` that nothing read.
+    fn report_unused(&mut self, params: &ParamList, directive: &str) {
+        let unused: Vec<(SourceLoc, String)> = params.unused().map(|p| (p.loc.clone(), p.written.clone())).collect();
+        for (loc, written) in unused {
+            self.unsupported(&loc, format!("parameter \"{written}\" of {directive}"), "ignored");
+        }
+    }
+
+    /// Marks every parameter as read (after one warning about the whole
+    /// directive).
+    fn use_all(params: &ParamList) {
+        for p in &params.items {
+            p.used.set(true);
+        }
+    }
+
+    /// The directive's parameters followed by the `Attribute` defaults for
+    /// `target`.
+    fn with_attributes(&self, mut params: ParamList, target: &str) -> ParamList {
+        if let Some(extra) = self.gs.attributes.get(target) {
+            params.items.extend(extra.iter().cloned());
+        }
+        params
+    }
+
+    fn concat(&mut self, m: Mat4) {
+        if self.gs.start_active {
+            self.gs.ctm *= m;
+        }
+    }
+
+    fn set_ctm(&mut self, m: Mat4) {
+        if self.gs.start_active {
+            self.gs.ctm = m;
+        }
+    }
+
+    fn in_world(&self, lx: &Lexer, offset: usize, directive: &str) -> Result<()> {
+        if self.world.is_none() {
+            return Err(Error::scene(
+                Some(lx.loc(offset)),
+                directive,
+                "must come after WorldBegin (the scene description is inside the world block)",
+            ));
+        }
+        Ok(())
+    }
+
+    fn in_options(&self, lx: &Lexer, offset: usize, directive: &str) -> Result<()> {
+        if let Some(w) = &self.world {
+            return Err(Error::scene(
+                Some(lx.loc(offset)),
+                directive,
+                format!("is a rendering option and must come before WorldBegin (at {w})"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// A path written in the file being read (whose folder is `dir_rel`,
+    /// relative to the main file's folder), relative to the main file's
+    /// folder. Relative names are looked up next to the file that names
+    /// them, then (as pbrt-v4's `ResolveFilename` does) next to the main file.
+    fn resolve(&self, dir_rel: &Path, name: &str) -> PathBuf {
+        let p = Path::new(name);
+        if p.is_absolute() || dir_rel.as_os_str().is_empty() {
+            return p.to_path_buf();
+        }
+        let local = dir_rel.join(p);
+        if !self.top_dir.join(&local).exists() && self.top_dir.join(p).exists() {
+            return p.to_path_buf();
+        }
+        local
+    }
+
+    /// Reads the directives of one file.
+    fn parse_file(&mut self, lx: &mut Lexer, dir_rel: &Path) -> Result<()> {
+        while let Some(t) = lx.next()? {
+            let Tok::Word(name) = t.tok else {
+                return Err(lx.error(t.offset, format!("expected a directive, found {}", t.describe())));
+            };
+            self.directive(lx, name, t.offset, dir_rel)?;
+        }
+        Ok(())
+    }
+
+    fn directive(&mut self, lx: &mut Lexer, name: &str, offset: usize, dir_rel: &Path) -> Result<()> {
+        let loc = lx.loc(offset);
+        match name {
+            "AttributeBegin" | "TransformBegin" => {
+                // pbrt-v4 treats TransformBegin as AttributeBegin; pbrt-v3
+                // files use it before WorldBegin too, which is accepted.
+                if name == "AttributeBegin" {
+                    self.in_world(lx, offset, name)?;
+                }
+                self.pushed.push((self.gs.clone(), Block::Attribute, loc));
+            }
+            "AttributeEnd" | "TransformEnd" => {
+                if name == "AttributeEnd" {
+                    self.in_world(lx, offset, name)?;
+                }
+                let popped = if self.pushed.len() > self.import_floor {
+                    self.pushed.pop()
+                } else {
+                    None
+                };
+                match popped {
+                    Some((state, Block::Attribute, _)) => self.gs = state,
+                    Some((_, Block::Object, open)) => {
+                        return Err(Error::scene(
+                            Some(loc),
+                            name,
+                            format!("closes the ObjectBegin at {open}; use ObjectEnd"),
+                        ));
+                    }
+                    None => {
+                        return Err(Error::scene(
+                            Some(loc),
+                            name,
+                            format!("without a matching {}", name.replace("End", "Begin")),
+                        ));
+                    }
+                }
+            }
+            "Attribute" => {
+                let (target, toff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                let key = match target.as_str() {
+                    "shape" => "shape",
+                    "light" => "light",
+                    "material" => "material",
+                    "medium" => "medium",
+                    "texture" => "texture",
+                    _ => {
+                        return Err(lx.error(
+                            toff,
+                            format!(
+                                "unknown Attribute target \"{target}\": expected \"shape\", \"light\", \"material\", \"medium\" or \"texture\""
+                            ),
+                        ));
+                    }
+                };
+                let list = self.gs.attributes.entry(key).or_default();
+                for mut p in params.items {
+                    p.inherited = true;
+                    list.insert(0, p);
+                }
+            }
+            "Identity" => self.set_ctm(Mat4::IDENTITY),
+            "Translate" => {
+                let v = numbers::<3>(lx, name, offset)?;
+                self.concat(Mat4::from_translation(Vec3::from(v)));
+            }
+            "Scale" => {
+                let v = numbers::<3>(lx, name, offset)?;
+                self.concat(Mat4::from_scale(Vec3::from(v)));
+            }
+            "Rotate" => {
+                let v = numbers::<4>(lx, name, offset)?;
+                let axis = Vec3::new(v[1], v[2], v[3]);
+                let Some(axis) = axis.try_normalize() else {
+                    return Err(Error::scene(
+                        Some(loc),
+                        name,
+                        "the rotation axis must not be the zero vector",
+                    ));
+                };
+                self.concat(Mat4::from_axis_angle(axis, v[0].to_radians()));
+            }
+            "LookAt" => {
+                let v = numbers::<9>(lx, name, offset)?;
+                let m = look_at(
+                    Vec3::new(v[0], v[1], v[2]),
+                    Vec3::new(v[3], v[4], v[5]),
+                    Vec3::new(v[6], v[7], v[8]),
+                )
+                .map_err(|m| Error::scene(Some(loc), name, m))?;
+                self.concat(m);
+            }
+            "Transform" | "ConcatTransform" => {
+                // pbrt-v4 builds a matrix from the 16 numbers row by row and
+                // transposes it (scene.cpp): the numbers are the matrix
+                // column by column, translation in the 13th to 15th.
+                let m = Mat4::from_cols_array(&bracketed_16(lx, name, offset)?);
+                if name == "Transform" {
+                    self.set_ctm(m);
+                } else {
+                    self.concat(m);
+                }
+            }
+            "CoordinateSystem" => {
+                let (n, _) = quoted(lx, name, offset)?;
+                self.named_coords.insert(n, self.gs.ctm);
+            }
+            "CoordSysTransform" => {
+                let (n, _) = quoted(lx, name, offset)?;
+                match self.named_coords.get(&n) {
+                    Some(m) => {
+                        let m = *m;
+                        self.set_ctm(m);
+                    }
+                    None => self.unsupported(
+                        &loc,
+                        format!("CoordSysTransform \"{n}\""),
+                        "no coordinate system of that name was defined; the transform is unchanged",
+                    ),
+                }
+            }
+            "ActiveTransform" => {
+                let Some(t) = lx.next()? else {
+                    return Err(Error::scene(
+                        Some(loc),
+                        name,
+                        "needs All, StartTime or EndTime; the file ends",
+                    ));
+                };
+                match t.tok {
+                    Tok::Word("All") | Tok::Word("StartTime") => self.gs.start_active = true,
+                    Tok::Word("EndTime") => {
+                        self.gs.start_active = false;
+                        self.warn_motion(&loc);
+                    }
+                    _ => {
+                        return Err(lx.error(
+                            t.offset,
+                            format!(
+                                "ActiveTransform needs All, StartTime or EndTime, found {}",
+                                t.describe()
+                            ),
+                        ));
+                    }
+                }
+            }
+            "TransformTimes" => {
+                self.in_options(lx, offset, name)?;
+                numbers::<2>(lx, name, offset)?;
+                self.warn_motion(&loc);
+            }
+            "ReverseOrientation" => {
+                self.in_world(lx, offset, name)?;
+                self.gs.reverse_orientation = !self.gs.reverse_orientation;
+            }
+            "Camera" => {
+                self.in_options(lx, offset, name)?;
+                let (kind, koff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                check_kind(
+                    lx,
+                    koff,
+                    "Camera",
+                    &kind,
+                    &["perspective", "orthographic", "realistic", "spherical"],
+                )?;
+                // pbrt-v4 names the camera's space "camera" (scene.cpp).
+                if let Some(inv) = invert(&self.gs.ctm) {
+                    self.named_coords.insert("camera".into(), inv);
+                }
+                self.camera = CameraDef {
+                    kind,
+                    params,
+                    ctm: self.gs.ctm,
+                    loc: Some(loc),
+                };
+            }
+            "Film" => {
+                self.in_options(lx, offset, name)?;
+                let (kind, koff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                check_kind(lx, koff, "Film", &kind, &["rgb", "gbuffer", "spectral"])?;
+                self.film(&kind, &params, &loc)?;
+                self.report_unused(&params, &format!("Film \"{kind}\""));
+            }
+            "Sampler" => {
+                self.in_options(lx, offset, name)?;
+                let (kind, koff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                check_kind(
+                    lx,
+                    koff,
+                    "Sampler",
+                    &kind,
+                    &[
+                        "halton",
+                        "independent",
+                        "paddedsobol",
+                        "pmj02bn",
+                        "sobol",
+                        "stratified",
+                        "zsobol",
+                    ],
+                )?;
+                self.sampler(&kind, &params, &loc)?;
+                self.report_unused(&params, &format!("Sampler \"{kind}\""));
+            }
+            "Integrator" => {
+                self.in_options(lx, offset, name)?;
+                let (kind, koff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                check_kind(
+                    lx,
+                    koff,
+                    "Integrator",
+                    &kind,
+                    &[
+                        "ambientocclusion",
+                        "aov",
+                        "bdpt",
+                        "function",
+                        "lightpath",
+                        "mlt",
+                        "path",
+                        "randomwalk",
+                        "simplepath",
+                        "simplevolpath",
+                        "sppm",
+                        "volpath",
+                    ],
+                )?;
+                self.integrator(&kind, &params, &loc)?;
+                self.report_unused(&params, &format!("Integrator \"{kind}\""));
+            }
+            "PixelFilter" => {
+                self.in_options(lx, offset, name)?;
+                let (kind, koff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                check_kind(
+                    lx,
+                    koff,
+                    "PixelFilter",
+                    &kind,
+                    &["box", "gaussian", "mitchell", "sinc", "triangle"],
+                )?;
+                self.pixel_filter(&kind, &params, &loc)?;
+                self.report_unused(&params, &format!("PixelFilter \"{kind}\""));
+            }
+            "Accelerator" => {
+                self.in_options(lx, offset, name)?;
+                let (kind, koff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                check_kind(lx, koff, "Accelerator", &kind, &["bvh", "kdtree"])?;
+                Self::use_all(&params);
+                self.unsupported(
+                    &loc,
+                    format!("Accelerator \"{kind}\""),
+                    "ignored (trazo always builds its own SAH BVH)",
+                );
+            }
+            "ColorSpace" => {
+                let (n, _) = quoted(lx, name, offset)?;
+                if n != "srgb" {
+                    self.approximated(
+                        &loc,
+                        format!("ColorSpace \"{n}\""),
+                        "colours are read as linear sRGB (Rec. 709 primaries)",
+                    );
+                }
+            }
+            "Option" => {
+                let (n, _) = quoted(lx, name, offset)?;
+                let Some(v) = lx.next()? else {
+                    return Err(Error::scene(Some(loc), name, "needs a value; the file ends"));
+                };
+                let value = match &v.tok {
+                    Tok::Word(w) => w.to_string(),
+                    Tok::Str(s) => s.to_string(),
+                    _ => return Err(lx.error(v.offset, format!("Option needs a value, found {}", v.describe()))),
+                };
+                match (n.as_str(), value.parse::<u64>()) {
+                    ("seed", Ok(seed)) => self.desc.settings.seed = seed,
+                    _ => self.unsupported(&loc, format!("Option \"{n}\""), "ignored"),
+                }
+            }
+            "WorldBegin" => {
+                if let Some(first) = &self.world {
+                    return Err(Error::scene(
+                        Some(loc),
+                        name,
+                        format!("appears a second time (the first is at {first})"),
+                    ));
+                }
+                self.world = Some(loc);
+                self.gs.ctm = Mat4::IDENTITY;
+                self.gs.start_active = true;
+                self.named_coords.insert("world".into(), Mat4::IDENTITY);
+                self.finish_options()?;
+            }
+            "WorldEnd" => {
+                self.unsupported(
+                    &loc,
+                    "WorldEnd (pbrt-v3 syntax)",
+                    "ignored; pbrt-v4 ends the world at the end of the file",
+                );
+            }
+            "Include" | "Import" => {
+                let (file, foff) = quoted(lx, name, offset)?;
+                if name == "Import" {
+                    self.in_world(lx, offset, name)?;
+                }
+                let floc = lx.loc(foff);
+                self.include(&file, &floc, dir_rel, name == "Import")?;
+            }
+            "Shape" => {
+                self.in_world(lx, offset, name)?;
+                let (kind, koff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                check_kind(
+                    lx,
+                    koff,
+                    "Shape",
+                    &kind,
+                    &[
+                        "bilinearmesh",
+                        "curve",
+                        "cylinder",
+                        "disk",
+                        "loopsubdiv",
+                        "plymesh",
+                        "sphere",
+                        "trianglemesh",
+                    ],
+                )?;
+                let params = self.with_attributes(params, "shape");
+                self.shape(&kind, &params, loc, dir_rel)?;
+                self.report_unused(&params, &format!("Shape \"{kind}\""));
+            }
+            "Material" => {
+                self.in_world(lx, offset, name)?;
+                let (kind, koff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                check_kind(lx, koff, "Material", &kind, materials::MATERIAL_TYPES)?;
+                let params = self.with_attributes(params, "material");
+                let n = self.materials.len();
+                let def = self.material(&kind, &params, &loc, format!("{kind}#{n}"))?;
+                self.report_unused(&params, &format!("Material \"{kind}\""));
+                self.materials.push(def);
+                self.gs.material = MatRef::Index(n);
+            }
+            "MakeNamedMaterial" => {
+                self.in_world(lx, offset, name)?;
+                let (mname, moff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                let params = self.with_attributes(params, "material");
+                if let Some(&i) = self.named_materials.get(&mname) {
+                    let first = self.materials[i]
+                        .locs
+                        .item
+                        .clone()
+                        .map(|l| l.to_string())
+                        .unwrap_or_default();
+                    return Err(lx.error(
+                        moff,
+                        format!("the named material \"{mname}\" is already defined (at {first})"),
+                    ));
+                }
+                let Some((kind, kp)) = params.string("type")? else {
+                    return Err(lx.error(
+                        moff,
+                        format!("MakeNamedMaterial \"{mname}\" needs a \"string type\" parameter"),
+                    ));
+                };
+                if !materials::MATERIAL_TYPES.contains(&kind.as_str()) {
+                    return Err(kp.err(format!(
+                        "unknown material type \"{kind}\"{}",
+                        suggest(&kind, materials::MATERIAL_TYPES.iter().copied())
+                    )));
+                }
+                let def = self.material(&kind, &params, &loc, mname.clone())?;
+                self.report_unused(&params, &format!("MakeNamedMaterial \"{mname}\""));
+                self.named_materials.insert(mname, self.materials.len());
+                self.materials.push(def);
+            }
+            "NamedMaterial" => {
+                self.in_world(lx, offset, name)?;
+                let (mname, moff) = quoted(lx, name, offset)?;
+                self.gs.material = MatRef::Named(mname, lx.loc(moff));
+            }
+            "Texture" => {
+                self.in_world(lx, offset, name)?;
+                let (tname, noff) = quoted(lx, name, offset)?;
+                let (ttype, toff) = quoted(lx, name, offset)?;
+                let (class, coff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                if !matches!(ttype.as_str(), "spectrum" | "float" | "color") {
+                    return Err(lx.error(
+                        toff,
+                        format!("texture type \"{ttype}\" is unknown: it must be \"float\" or \"spectrum\""),
+                    ));
+                }
+                check_kind(lx, coff, "Texture", &class, materials::TEXTURE_CLASSES)?;
+                let params = self.with_attributes(params, "texture");
+                let nloc = lx.loc(noff);
+                self.texture(&tname, &ttype, &class, &params, &loc, &nloc, dir_rel)?;
+                self.report_unused(&params, &format!("Texture \"{tname}\""));
+            }
+            "LightSource" => {
+                self.in_world(lx, offset, name)?;
+                let (kind, koff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                check_kind(
+                    lx,
+                    koff,
+                    "LightSource",
+                    &kind,
+                    &["distant", "goniometric", "infinite", "point", "projection", "spot"],
+                )?;
+                let params = self.with_attributes(params, "light");
+                self.light_source(&kind, &params, &loc, dir_rel)?;
+                self.report_unused(&params, &format!("LightSource \"{kind}\""));
+            }
+            "AreaLightSource" => {
+                self.in_world(lx, offset, name)?;
+                let (kind, koff) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                check_kind(lx, koff, "AreaLightSource", &kind, &["diffuse"])?;
+                let params = self.with_attributes(params, "light");
+                self.area_light_source(&params, &loc)?;
+                self.report_unused(&params, &format!("AreaLightSource \"{kind}\""));
+            }
+            "MakeNamedMedium" => {
+                let (mname, _) = quoted(lx, name, offset)?;
+                let params = parse_params(lx)?;
+                Self::use_all(&params);
+                self.unsupported(
+                    &loc,
+                    format!("MakeNamedMedium \"{mname}\""),
+                    "participating media are not rendered; the medium is ignored",
+                );
+            }
+            "MediumInterface" => {
+                let (inside, _) = quoted(lx, name, offset)?;
+                if let Some(t) = lx.peek()? {
+                    if matches!(t.tok, Tok::Str(_)) {
+                        lx.next()?;
+                    }
+                }
+                if !inside.is_empty() {
+                    self.unsupported(&loc, "MediumInterface", "participating media are not rendered; ignored");
+                }
+            }
+            "ObjectBegin" => {
+                self.in_world(lx, offset, name)?;
+                let (oname, ooff) = quoted(lx, name, offset)?;
+                if let Some((open, _)) = &self.current_object {
+                    return Err(lx.error(
+                        offset,
+                        format!("ObjectBegin \"{oname}\" inside the definition of object \"{open}\""),
+                    ));
+                }
+                if let Some(def) = self.objects.get(&oname) {
+                    return Err(lx.error(
+                        ooff,
+                        format!("the object \"{oname}\" is already defined (at {})", def.loc),
+                    ));
+                }
+                self.pushed.push((self.gs.clone(), Block::Object, loc.clone()));
+                self.current_object = Some((
+                    oname,
+                    ObjectDef {
+                        loc,
+                        shapes: Vec::new(),
+                        meshes: Vec::new(),
+                    },
+                ));
+            }
+            "ObjectEnd" => {
+                self.in_world(lx, offset, name)?;
+                let open = self.pushed.last().filter(|_| self.pushed.len() > self.import_floor);
+                match open {
+                    Some((_, Block::Object, _)) => {
+                        let (state, _, _) = self.pushed.pop().expect("checked");
+                        self.gs = state;
+                        let (oname, def) = self.current_object.take().expect("an object is open");
+                        self.objects.insert(oname, def);
+                    }
+                    Some((_, Block::Attribute, open)) => {
+                        return Err(Error::scene(
+                            Some(loc),
+                            name,
+                            format!("the AttributeBegin at {open} is still open"),
+                        ));
+                    }
+                    None => return Err(Error::scene(Some(loc), name, "without a matching ObjectBegin")),
+                }
+            }
+            "ObjectInstance" => {
+                self.in_world(lx, offset, name)?;
+                let (oname, ooff) = quoted(lx, name, offset)?;
+                if let Some((open, _)) = &self.current_object {
+                    return Err(lx.error(
+                        offset,
+                        format!("ObjectInstance inside the definition of object \"{open}\""),
+                    ));
+                }
+                self.instance_uses.push((oname, self.gs.ctm, lx.loc(ooff)));
+            }
+            _ => {
+                return Err(Error::scene(
+                    Some(loc),
+                    name,
+                    format!("unknown directive{}", suggest(name, DIRECTIVES.iter().copied())),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn warn_motion(&mut self, loc: &SourceLoc) {
+        if !self.motion_warned {
+            self.motion_warned = true;
+            self.unsupported(
+                loc,
+                "motion blur (ActiveTransform, TransformTimes)",
+                "transforms for the end of the shutter interval are ignored; everything is rendered at the start",
+            );
+        }
+    }
+
+    /// `Include` (textual inclusion, pbrt-v4 parser.cpp) or `Import` (the
+    /// same, but the graphics state does not leak out of the file).
+    fn include(&mut self, name: &str, loc: &SourceLoc, dir_rel: &Path, import: bool) -> Result<()> {
+        let what = if import { "Import" } else { "Include" };
+        let rel = self.resolve(dir_rel, name);
+        let full = self.top_dir.join(&rel);
+        let canon = std::fs::canonicalize(&full).map_err(|e| {
+            Error::scene(
+                Some(loc.clone()),
+                what,
+                format!("cannot read {}: {}", full.display(), io_reason(&e)),
+            )
+        })?;
+        if let Some(i) = self.open_files.iter().position(|f| *f == canon) {
+            let chain: Vec<String> = self.open_files[i..]
+                .iter()
+                .chain(std::iter::once(&canon))
+                .map(|p| {
+                    p.file_name()
+                        .map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
+                })
+                .collect();
+            return Err(Error::scene(
+                Some(loc.clone()),
+                what,
+                format!("include loop: {}", chain.join(" → ")),
+            ));
+        }
+        if self.open_files.len() >= MAX_INCLUDE_DEPTH {
+            return Err(Error::scene(
+                Some(loc.clone()),
+                what,
+                format!("files are included more than {MAX_INCLUDE_DEPTH} levels deep"),
+            ));
+        }
+        let text = read_text(&full, Some(loc))?;
+        self.open_files.push(canon);
+        let saved = import.then(|| (self.gs.clone(), self.pushed.len(), self.import_floor));
+        if import {
+            self.import_floor = self.pushed.len();
+        }
+        let mut lx = Lexer::new(Arc::from(full.as_path()), &text);
+        let sub_dir = rel.parent().map(Path::to_path_buf).unwrap_or_default();
+        self.parse_file(&mut lx, &sub_dir)?;
+        if let Some((gs, depth, floor)) = saved {
+            if let Some((_, block, open)) = self.pushed.get(depth) {
+                let what = match block {
+                    Block::Attribute => "AttributeBegin",
+                    Block::Object => "ObjectBegin",
+                };
+                return Err(Error::scene(
+                    Some(open.clone()),
+                    what,
+                    "is not closed before the end of the imported file",
+                ));
+            }
+            self.gs = gs;
+            self.import_floor = floor;
+        }
+        self.open_files.pop();
+        Ok(())
+    }
+
+    /// The location of the main file's start (for defaults that no
+    /// directive wrote).
+    fn desc_loc(&self) -> SourceLoc {
+        SourceLoc {
+            file: self.desc.source.clone().unwrap_or_else(|| Arc::from(Path::new(""))),
+            line: 1,
+            column: 1,
+        }
+    }
+
+    /// Adds a shape to the world or to the object being defined.
+    fn add_shape(&mut self, mut shape: PendingShape) {
+        if let Some((oname, def)) = &mut self.current_object {
+            if let ShapeKind::InlineMesh(src) = &shape.desc.kind {
+                let name = format!("{oname}/{}", def.meshes.len());
+                def.meshes.push(MeshDesc {
+                    name: name.clone(),
+                    source: src.clone(),
+                    locs: shape.desc.locs.clone(),
+                });
+                shape.desc.kind = ShapeKind::Mesh(name);
+            }
+            def.shapes.push(shape);
+        } else {
+            self.shapes.push(shape);
+        }
+    }
+
+    /// Resolves names, places instances and validates.
+    fn finish(mut self, end: SourceLoc) -> Result<SceneDesc> {
+        if self.world.is_none() {
+            return Err(Error::scene(
+                Some(end),
+                "WorldBegin",
+                "the file ends before WorldBegin: a pbrt scene needs a world block",
+            ));
+        }
+        if let Some((_, block, open)) = self.pushed.last() {
+            let what = match block {
+                Block::Attribute => "AttributeBegin",
+                Block::Object => "ObjectBegin",
+            };
+            return Err(Error::scene(
+                Some(open.clone()),
+                what,
+                format!(
+                    "is never closed (the file ends first); add {}",
+                    what.replace("Begin", "End")
+                ),
+            ));
+        }
+
+        // Instances: each shape of the object, placed by the CTM of the
+        // instance (pbrt-v4: render-from-instance × the shape's own CTM).
+        let uses = std::mem::take(&mut self.instance_uses);
+        let mut used_objects: HashSet<String> = HashSet::new();
+        for (oname, ctm, loc) in uses {
+            let Some(def) = self.objects.get(&oname) else {
+                return Err(Error::scene(
+                    Some(loc),
+                    "ObjectInstance",
+                    format!(
+                        "no object named \"{oname}\"{}",
+                        suggest(&oname, self.objects.keys().map(String::as_str))
+                    ),
+                ));
+            };
+            for s in &def.shapes {
+                let mut s = s.clone();
+                s.desc.transform.push(TransformOp::Matrix(ctm));
+                self.shapes.push(s);
+            }
+            used_objects.insert(oname);
+        }
+        let mut objects: Vec<(String, ObjectDef)> = std::mem::take(&mut self.objects).into_iter().collect();
+        objects.sort_by_key(|a| (a.1.loc.file.clone(), a.1.loc.line, a.1.loc.column));
+        for (oname, def) in objects {
+            if used_objects.contains(&oname) {
+                self.desc.meshes.extend(def.meshes);
+            } else {
+                self.unsupported(
+                    &def.loc,
+                    format!("object \"{oname}\""),
+                    "it is never placed by ObjectInstance, so nothing is rendered",
+                );
+            }
+        }
+
+        // Texture references of materials.
+        for m in &self.materials {
+            for (t, loc) in &m.tex_refs {
+                if !self.spectrum_textures.contains_key(t) {
+                    let hint = if self.float_textures.contains(t) {
+                        " (a float texture of that name exists, but a colour needs a spectrum texture)".to_string()
+                    } else {
+                        suggest(t, self.spectrum_textures.keys().map(String::as_str))
+                    };
+                    return Err(Error::scene(
+                        Some(loc.clone()),
+                        "texture",
+                        format!("no texture named \"{t}\"{hint}"),
+                    ));
+                }
+            }
+        }
+
+        // Materials: each used (material, emission) pair becomes one of
+        // trazo's materials; named materials are all kept.
+        let mut names: HashSet<String> = HashSet::new();
+        let mut made: HashMap<(Option<usize>, Option<[u32; 3]>), String> = HashMap::new();
+        let mut named: Vec<(usize, String)> = self.named_materials.iter().map(|(n, &i)| (i, n.clone())).collect();
+        named.sort();
+        for (i, n) in named {
+            let base = self.resolve_material(i, 0)?;
+            let name = unique_name(&mut names, n);
+            let m = self.material_desc(base, None, name.clone());
+            self.desc.materials.push(m);
+            if base == i {
+                made.insert((Some(i), None), name);
+            }
+        }
+        let shapes = std::mem::take(&mut self.shapes);
+        for s in shapes {
+            let index = match &s.mat {
+                MatRef::Default => None,
+                MatRef::Index(i) => Some(*i),
+                MatRef::Named(n, loc) => match self.named_materials.get(n) {
+                    Some(&i) => Some(i),
+                    None => {
+                        return Err(Error::scene(
+                            Some(loc.clone()),
+                            "NamedMaterial",
+                            format!(
+                                "no material named \"{n}\"{}",
+                                suggest(n, self.named_materials.keys().map(String::as_str))
+                            ),
+                        ));
+                    }
+                },
+            };
+            let index = match index {
+                Some(i) => Some(self.resolve_material(i, 0)?),
+                None => None,
+            };
+            let key = (
+                index,
+                s.emission.as_ref().map(|e| e.radiance.to_array().map(f32::to_bits)),
+            );
+            let name = match made.get(&key) {
+                Some(n) => n.clone(),
+                None => {
+                    let base_name =
+                        index.map_or("diffuse (pbrt default)".to_string(), |i| self.materials[i].name.clone());
+                    let name = match &s.emission {
+                        Some(_) => unique_name(&mut names, format!("{base_name} + area light")),
+                        None => unique_name(&mut names, base_name),
+                    };
+                    let m = match index {
+                        Some(i) => self.material_desc(i, s.emission.as_ref(), name.clone()),
+                        None => {
+                            let mut m = MaterialDesc::with_kind(
+                                name.clone(),
+                                MaterialKindDesc::Diffuse {
+                                    reflectance: ColorSource::Rgb(Rgb::splat(0.5)),
+                                },
+                            );
+                            if let Some(e) = &s.emission {
+                                m.emission = ColorSource::Rgb(e.radiance);
+                                m.locs = Locs::at(Some(e.loc.clone()));
+                            }
+                            m
+                        }
+                    };
+                    self.desc.materials.push(m);
+                    made.insert(key, name.clone());
+                    name
+                }
+            };
+            let mut desc = s.desc;
+            desc.material = Some(name);
+            let total = desc.transform.iter().fold(Mat4::IDENTITY, |acc, op| match op {
+                TransformOp::Matrix(m) => *m * acc,
+                _ => acc,
+            });
+            // pbrt-v4 flips the normal of quadrics when the transform
+            // mirrors (shapes.h: reverseOrientation ^ transformSwapsHandedness);
+            // triangles, whose normal comes from the transformed vertices,
+            // keep the side they face in object space.
+            desc.flip_normals = s.reverse ^ (s.analytic && det3(&total) < 0.0);
+            self.desc.shapes.push(desc);
+        }
+        let mut repeated: Vec<(&String, &(usize, SourceLoc))> = self
+            .warning_counts
+            .iter()
+            .filter(|(_, (n, _))| *n > MAX_SAME_WARNING)
+            .collect();
+        repeated.sort_by_key(|(m, _)| m.as_str());
+        for (message, (n, first)) in repeated {
+            self.desc.warnings.push(format!(
+                "{first}: {message} ({} more times, not listed)",
+                n - MAX_SAME_WARNING
+            ));
+        }
+        self.desc.validate()?;
+        Ok(self.desc)
+    }
+
+    /// Follows `mix` materials to the one chosen.
+    fn resolve_material(&self, i: usize, depth: usize) -> Result<usize> {
+        match &self.materials[i].kind {
+            MatKind::Desc(_) => Ok(i),
+            MatKind::Mix { name, loc } => {
+                if depth > 32 {
+                    return Err(Error::scene(
+                        Some(loc.clone()),
+                        "materials",
+                        "mix materials refer to each other in a loop",
+                    ));
+                }
+                match self.named_materials.get(name) {
+                    Some(&j) => self.resolve_material(j, depth + 1),
+                    None => Err(Error::scene(
+                        Some(loc.clone()),
+                        "materials",
+                        format!(
+                            "no material named \"{name}\"{}",
+                            suggest(name, self.named_materials.keys().map(String::as_str))
+                        ),
+                    )),
+                }
+            }
+        }
+    }
+
+    fn material_desc(&self, i: usize, emission: Option<&Emission>, name: String) -> MaterialDesc {
+        let def = &self.materials[i];
+        let kind = match &def.kind {
+            MatKind::Desc(k) => k.clone(),
+            MatKind::Mix { .. } => unreachable!("resolved"),
+        };
+        let mut m = MaterialDesc::with_kind(name, kind);
+        m.locs = def.locs.clone();
+        if let Some(e) = emission {
+            m.emission = ColorSource::Rgb(e.radiance);
+            m.locs.keys.push(("emission".into(), e.loc.clone()));
+        }
+        m
+    }
+}
+
+/// `base`, or `base (2)`, `base (3)`, … if taken; the name is then taken.
+fn unique_name(names: &mut HashSet<String>, base: String) -> String {
+    let mut name = base.clone();
+    let mut k = 2;
+    while !names.insert(name.clone()) {
+        name = format!("{base} ({k})");
+        k += 1;
+    }
+    name
+}
+
+/// pbrt-v4's `LookAt`: camera-from-world for an eye at `eye` looking at
+/// `target`, with camera +x = up × direction (so world +x is on the left
+/// of an image looking down −z with +y up).
+fn look_at(eye: Vec3, target: Vec3, up: Vec3) -> std::result::Result<Mat4, String> {
+    let Some(dir) = (target - eye).try_normalize() else {
+        return Err("the eye and the point looked at are the same point".into());
+    };
+    let Some(up) = up.try_normalize() else {
+        return Err("the up vector must not be the zero vector".into());
+    };
+    let Some(right) = up.cross(dir).try_normalize() else {
+        return Err("the up vector is parallel to the viewing direction".into());
+    };
+    let new_up = dir.cross(right);
+    let world_from_camera = Mat4::from_cols(right.extend(0.0), new_up.extend(0.0), dir.extend(0.0), eye.extend(1.0));
+    Ok(world_from_camera.inverse())
+}
+
+/// The inverse of an affine matrix, if it has one.
+fn invert(m: &Mat4) -> Option<Mat4> {
+    let t = crate::geometry::Transform::from_matrix(*m).ok()?;
+    Some(t.inv)
+}
+
+/// `N` numbers after a directive.
+fn numbers<const N: usize>(lx: &mut Lexer, directive: &str, offset: usize) -> Result<[f32; N]> {
+    let mut out = [0.0; N];
+    for (i, slot) in out.iter_mut().enumerate() {
+        let Some(t) = lx.next()? else {
+            return Err(lx.error(
+                offset,
+                format!("{directive} needs {N} numbers; the file ends after {i}"),
+            ));
+        };
+        *slot = match &t.tok {
+            Tok::Word(w) => parse_number(lx, t.offset, w, directive)?,
+            _ => {
+                return Err(lx.error(
+                    t.offset,
+                    format!("{directive} needs {N} numbers, found {} after {i}", t.describe()),
+                ));
+            }
+        };
+    }
+    Ok(out)
+}
+
+/// `[ m00 … m33 ]` after `Transform` or `ConcatTransform`.
+fn bracketed_16(lx: &mut Lexer, directive: &str, offset: usize) -> Result<[f32; 16]> {
+    match lx.next()? {
+        Some(t) if t.tok == Tok::Open => {}
+        Some(t) => {
+            return Err(lx.error(
+                t.offset,
+                format!("{directive} needs [ and 16 numbers ], found {}", t.describe()),
+            ));
+        }
+        None => return Err(lx.error(offset, format!("{directive} needs [ and 16 numbers ]; the file ends"))),
+    }
+    let m = numbers::<16>(lx, directive, offset)?;
+    match lx.next()? {
+        Some(t) if t.tok == Tok::Close => Ok(m),
+        Some(t) => Err(lx.error(
+            t.offset,
+            format!("{directive} needs exactly 16 numbers, then ], found {}", t.describe()),
+        )),
+        None => Err(lx.error(offset, format!("{directive}: the file ends before ]"))),
+    }
+}
+
+/// A quoted string after a directive.
+fn quoted(lx: &mut Lexer, directive: &str, offset: usize) -> Result<(String, usize)> {
+    match lx.next()? {
+        Some(t) => match t.tok {
+            Tok::Str(s) => Ok((s.into_owned(), t.offset)),
+            _ => Err(lx.error(
+                t.offset,
+                format!("{directive} needs a quoted string, found {}", t.describe()),
+            )),
+        },
+        None => Err(lx.error(offset, format!("{directive} needs a quoted string; the file ends"))),
+    }
+}
+
+/// Checks that `kind` is one of pbrt-v4's types for `directive`.
+fn check_kind(lx: &Lexer, offset: usize, directive: &str, kind: &str, known: &[&str]) -> Result<()> {
+    if known.contains(&kind) {
+        return Ok(());
+    }
+    Err(lx.error(
+        offset,
+        format!(
+            "unknown {directive} type \"{kind}\"{}",
+            suggest(kind, known.iter().copied())
+        ),
+    ))
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,357 @@
+//! The rendering options before `WorldBegin` (pbrt-v4 film.cpp,
+//! samplers.cpp, integrators.cpp, filters.cpp, cameras.cpp): `Film`,
+//! `Sampler`, `Integrator`, `PixelFilter`, and the `Camera`, which is
+//! converted at `WorldBegin` when the film's size is known.
+
+use super::params::ParamList;
+use super::{Parser, invert};
+use crate::error::{Error, Result, SourceLoc};
+use crate::film::Filter;
+use crate::integrator::{IntegratorKind, PathSampling};
+use crate::sampling::SamplerKind;
+use crate::scene::desc::*;
+
+impl Parser {
+    pub(super) fn film(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {
+        for (key, param, default) in [("width", "xresolution", 1280), ("height", "yresolution", 720)] {
+            let v = match p.int_opt(param)? {
+                Some((v, prm)) => {
+                    if v < 1 || v > MAX_IMAGE_SIDE as i64 {
+                        return Err(prm.err(format!("must be between 1 and {MAX_IMAGE_SIDE} pixels, got {v}")));
+                    }
+                    self.desc.settings_locs.keys.push((key.into(), prm.loc.clone()));
+                    v as u32
+                }
+                None => default,
+            };
+            if key == "width" {
+                self.desc.settings.width = v;
+            } else {
+                self.desc.settings.height = v;
+            }
+        }
+        if kind != "rgb" {
+            self.approximated(
+                loc,
+                format!("Film \"{kind}\""),
+                "rendered as an RGB film (auxiliary images come from `trazo render --aov`)",
+            );
+        }
+        if let Some((f, prm)) = p.string("filename")? {
+            let l = prm.loc.clone();
+            self.unsupported(
+                &l,
+                format!("\"string filename\" \"{f}\""),
+                "ignored; the output file is chosen with `-o`",
+            );
+        }
+        if let Some((iso, prm)) = p.float_opt("iso")? {
+            if iso <= 0.0 {
+                return Err(prm.err(format!("must be positive, got {iso}")));
+            }
+            self.film_iso = iso;
+        }
+        if let Some((s, prm)) = p.string("sensor")? {
+            if s != "cie1931" {
+                let l = prm.loc.clone();
+                self.approximated(
+                    &l,
+                    format!("sensor \"{s}\""),
+                    "the CIE 1931 observer (plain sRGB) is used",
+                );
+            }
+        }
+        if let Some((wb, prm)) = p.float_opt("whitebalance")? {
+            if wb != 0.0 {
+                let l = prm.loc.clone();
+                self.unsupported(&l, "\"float whitebalance\"", "no white balancing is applied");
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) fn sampler(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {
+        let s = &mut self.desc.settings;
+        match kind {
+            "stratified" => {
+                // pbrt-v4: xsamples × ysamples strata (default 4 × 4).
+                let x = p.int_opt("xsamples")?;
+                let y = p.int_opt("ysamples")?;
+                let nx = x.as_ref().map_or(4, |(v, _)| *v);
+                let ny = y.as_ref().map_or(4, |(v, _)| *v);
+                for (v, prm) in [x, y].into_iter().flatten() {
+                    if !(1..=1 << 12).contains(&v) {
+                        return Err(prm.err(format!("must be between 1 and 4096, got {v}")));
+                    }
+                    self.desc.settings_locs.keys.push(("spp".into(), prm.loc.clone()));
+                }
+                s.spp = (nx * ny) as u32;
+                s.sampler = SamplerKind::Stratified;
+                if !p.bool("jitter", true)? {
+                    self.approximated(
+                        loc,
+                        "Sampler \"stratified\" with \"bool jitter\" false",
+                        "samples are jittered within their strata",
+                    );
+                }
+            }
+            _ => {
+                let default = if kind == "independent" { 4 } else { 16 };
+                s.spp = match p.int_opt("pixelsamples")? {
+                    Some((v, prm)) => {
+                        if v < 1 || v > MAX_SPP as i64 {
+                            return Err(prm.err(format!("must be between 1 and {MAX_SPP}, got {v}")));
+                        }
+                        self.desc.settings_locs.keys.push(("spp".into(), prm.loc.clone()));
+                        v as u32
+                    }
+                    None => default,
+                };
+                if kind == "independent" {
+                    self.desc.settings.sampler = SamplerKind::Independent;
+                } else {
+                    self.desc.settings.sampler = SamplerKind::Stratified;
+                    self.approximated(
+                        loc,
+                        format!("Sampler \"{kind}\""),
+                        "its low-discrepancy points are replaced by stratified jittered samples (same count)",
+                    );
+                }
+            }
+        }
+        if let Some((seed, _)) = p.int_opt("seed")? {
+            self.desc.settings.seed = seed as u64;
+        }
+        Ok(())
+    }
+
+    pub(super) fn integrator(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {
+        // pbrt's maxdepth counts bounces; trazo's max_depth counts path
+        // segments from the camera, one more.
+        let depth = match p.int_opt("maxdepth")? {
+            Some((v, prm)) => {
+                if v < 0 || v >= MAX_DEPTH as i64 {
+                    return Err(prm.err(format!("must be between 0 and {}, got {v}", MAX_DEPTH - 1)));
+                }
+                self.desc.settings_locs.keys.push(("max_depth".into(), prm.loc.clone()));
+                v as u32
+            }
+            None => 5,
+        };
+        let s = &mut self.desc.settings;
+        s.max_depth = depth + 1;
+        s.integrator = IntegratorKind::Path;
+        s.sampling = PathSampling::Mis;
+        if !matches!(kind, "path" | "volpath") {
+            self.approximated(
+                loc,
+                format!("Integrator \"{kind}\""),
+                "rendered by trazo's path tracer (next-event estimation with MIS) with the same depth",
+            );
+            Self::use_all(p);
+        }
+        if matches!(kind, "path" | "volpath") {
+            // Light sampling and regularisation change noise, not the
+            // expected image.
+            for (name, how) in [
+                ("lightsampler", "trazo picks lights in proportion to their power"),
+                ("regularize", "paths are not regularised"),
+            ] {
+                if let Some(prm) = p.find(name) {
+                    let l = prm.loc.clone();
+                    self.unsupported(&l, format!("\"{}\"", prm.written), how);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) fn pixel_filter(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {
+        let default = match kind {
+            "box" => 0.5,
+            "gaussian" => 1.5,
+            "sinc" => 4.0,
+            _ => 2.0,
+        };
+        let x = p.float_opt("xradius")?;
+        let y = p.float_opt("yradius")?;
+        let rx = x.as_ref().map_or(default, |(v, _)| *v);
+        let ry = y.as_ref().map_or(default, |(v, _)| *v);
+        if let Some((_, prm)) = x.as_ref().or(y.as_ref()) {
+            self.desc
+                .settings_locs
+                .keys
+                .push(("filter_radius".into(), prm.loc.clone()));
+        }
+        let radius = if rx == ry {
+            rx
+        } else {
+            self.approximated(
+                loc,
+                format!("PixelFilter \"{kind}\" with different x and y radii"),
+                format!(
+                    "trazo's filters are symmetric; the mean radius {} is used",
+                    0.5 * (rx + ry)
+                ),
+            );
+            0.5 * (rx + ry)
+        };
+        self.desc.settings.filter = match kind {
+            "box" => Filter::Box { radius },
+            "triangle" => Filter::Tent { radius },
+            "gaussian" => {
+                let sigma = p.float("sigma", 0.5)?;
+                if let Some((_, prm)) = p.float_opt("sigma")? {
+                    self.desc
+                        .settings_locs
+                        .keys
+                        .push(("filter_stddev".into(), prm.loc.clone()));
+                }
+                Filter::Gaussian { stddev: sigma, radius }
+            }
+            _ => {
+                Self::use_all(p);
+                self.approximated(
+                    loc,
+                    format!("PixelFilter \"{kind}\""),
+                    format!("replaced by a Gaussian filter (σ = 0.5 pixels) of the same radius {radius}"),
+                );
+                Filter::Gaussian { stddev: 0.5, radius }
+            }
+        };
+        Ok(())
+    }
+
+    /// Converts the camera once the film size is known (pbrt-v4 creates it
+    /// at WorldBegin too).
+    pub(super) fn finish_options(&mut self) -> Result<()> {
+        let cam = self.camera.clone();
+        let p = &cam.params;
+        let at = cam.loc.clone();
+        let (w, h) = (self.desc.settings.width as f32, self.desc.settings.height as f32);
+        let mut locs = Locs::at(at.clone());
+        locs.keys
+            .push(("to_world".into(), at.clone().unwrap_or_else(|| self.desc_loc())));
+        let world_from_camera = match invert(&cam.ctm) {
+            Some(m) => m,
+            None => {
+                return Err(Error::scene(
+                    at,
+                    "Camera",
+                    "the current transform is singular, so the camera has no view",
+                ));
+            }
+        };
+        // The screen window spans [-1, 1] along the shorter image axis
+        // (pbrt-v4 `CameraBase`/`PerspectiveCamera::Create`).
+        let mut frame = w / h;
+        if let Some((f, prm)) = p.float_opt("frameaspectratio")? {
+            if f <= 0.0 {
+                return Err(prm.err(format!("must be positive, got {f}")));
+            }
+            let l = prm.loc.clone();
+            self.approximated(
+                &l,
+                "\"float frameaspectratio\"",
+                "the field of view follows it, but the image keeps the film's aspect ratio",
+            );
+            frame = f;
+        }
+        let mut half_h = if frame > 1.0 { 1.0 } else { 1.0 / frame };
+        if let Some((sw, prm)) = p.floats("screenwindow")? {
+            if sw.len() != 4 {
+                return Err(prm.err(format!("needs 4 values (xmin xmax ymin ymax), found {}", sw.len())));
+            }
+            if sw[1] <= sw[0] || sw[3] <= sw[2] {
+                return Err(prm.err("needs xmin < xmax and ymin < ymax"));
+            }
+            half_h = 0.5 * (sw[3] - sw[2]);
+            let centred = sw[0] == -sw[1] && sw[2] == -sw[3];
+            let same_aspect = ((sw[1] - sw[0]) / (sw[3] - sw[2]) - w / h).abs() < 1e-4 * (w / h);
+            if !(centred && same_aspect) {
+                let l = prm.loc.clone();
+                self.approximated(
+                    &l,
+                    "\"float screenwindow\"",
+                    "trazo centres the window and takes its width from the image's aspect ratio; only its height is used",
+                );
+            }
+        }
+        let projection = match cam.kind.as_str() {
+            "orthographic" => ProjectionDesc::Orthographic { size: 2.0 * half_h },
+            kind => {
+                let fov = match p.float_opt("fov")? {
+                    Some((fov, prm)) => {
+                        if !(fov > 0.0 && fov < 180.0) {
+                            return Err(prm.err(format!("must be between 0 and 180 degrees (exclusive), got {fov}")));
+                        }
+                        locs.keys.push(("fov".into(), prm.loc.clone()));
+                        fov
+                    }
+                    None => 90.0,
+                };
+                if kind != "perspective" {
+                    Self::use_all(p);
+                    let l = at.clone().unwrap_or_else(|| self.desc_loc());
+                    self.approximated(
+                        &l,
+                        format!("Camera \"{kind}\""),
+                        format!(
+                            "rendered by a perspective camera with a {fov}° field of view on the shorter image axis"
+                        ),
+                    );
+                }
+                // pbrt's fov spans the screen window's shorter side; trazo's
+                // is vertical.
+                let vertical = 2.0 * ((fov.to_radians() * 0.5).tan() * half_h).atan();
+                ProjectionDesc::Perspective {
+                    fov: vertical.to_degrees(),
+                }
+            }
+        };
+        let lens = p.float_opt("lensradius")?;
+        let mut aperture_radius = 0.0;
+        if let Some((r, prm)) = lens {
+            if r.is_nan() || r < 0.0 {
+                return Err(prm.err(format!("must not be negative, got {r}")));
+            }
+            locs.keys.push(("aperture_radius".into(), prm.loc.clone()));
+            aperture_radius = r;
+        }
+        let mut focus_distance = 1e6;
+        if let Some((d, prm)) = p.float_opt("focaldistance")? {
+            if d.is_nan() || d <= 0.0 {
+                return Err(prm.err(format!("must be positive, got {d}")));
+            }
+            locs.keys.push(("focus_distance".into(), prm.loc.clone()));
+            focus_distance = d;
+        }
+        let open = p.float("shutteropen", 0.0)?;
+        let close = p.float("shutterclose", 1.0)?;
+        if close <= open {
+            let l = at.clone().unwrap_or_else(|| self.desc_loc());
+            return Err(Error::scene(
+                Some(l),
+                "Camera",
+                format!("shutterclose ({close}) must be after shutteropen ({open}): the shutter never opens"),
+            ));
+        }
+        // pbrt-v4's imaging ratio: exposure time × ISO / 100.
+        let ratio = (close - open) * self.film_iso / 100.0;
+        if ratio != 1.0 {
+            self.desc.settings.exposure = ratio.log2();
+        }
+        self.desc.camera = CameraDesc {
+            projection,
+            aperture_radius,
+            focus_distance: Some(focus_distance),
+            to_world: Some(world_from_camera),
+            locs,
+            ..CameraDesc::default()
+        };
+        if cam.kind == "orthographic" || cam.kind == "perspective" {
+            self.report_unused(p, &format!("Camera \"{}\"", cam.kind));
+        }
+        Ok(())
+    }
+}

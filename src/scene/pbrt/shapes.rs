@@ -1,0 +1,259 @@
+//! `Shape` (pbrt-v4 shapes.cpp, `Shape::Create` and each shape's
+//! `Create`): parameters, defaults and checks.
+
+use super::params::ParamList;
+use super::{Parser, PendingShape};
+use crate::error::{Error, Result, SourceLoc};
+use crate::geometry::TriangleMesh;
+use crate::scene::desc::*;
+use glam::{Vec2, Vec3};
+use std::path::Path;
+
+impl Parser {
+    /// Converts one `Shape` with the current graphics state.
+    pub(super) fn shape(&mut self, kind: &str, p: &ParamList, loc: SourceLoc, dir_rel: &Path) -> Result<()> {
+        let mut locs = Locs::at(Some(loc.clone()));
+        locs.keys.push(("transform".into(), loc.clone()));
+        let what = format!("Shape \"{kind}\"");
+        let (shape, analytic) = match kind {
+            "sphere" => {
+                let r = p.float_opt("radius")?;
+                let radius = r.as_ref().map_or(1.0, |(v, _)| *v);
+                if let Some((_, prm)) = &r {
+                    locs.keys.push(("radius".into(), prm.loc.clone()));
+                }
+                let zmin = p.float("zmin", -radius)?;
+                let zmax = p.float("zmax", radius)?;
+                let phimax = p.float("phimax", 360.0)?;
+                if zmin > -radius || zmax < radius || phimax < 360.0 {
+                    self.approximated(
+                        &loc,
+                        format!("{what} with zmin/zmax/phimax"),
+                        "the partial sphere is rendered as the full sphere",
+                    );
+                }
+                (
+                    ShapeKind::Sphere {
+                        center: Vec3::ZERO,
+                        radius,
+                    },
+                    true,
+                )
+            }
+            "disk" => {
+                let r = p.float_opt("radius")?;
+                let radius = r.as_ref().map_or(1.0, |(v, _)| *v);
+                if let Some((_, prm)) = &r {
+                    locs.keys.push(("radius".into(), prm.loc.clone()));
+                }
+                let height = p.float("height", 0.0)?;
+                if p.float("innerradius", 0.0)? > 0.0 {
+                    self.approximated(
+                        &loc,
+                        format!("{what} with innerradius"),
+                        "the disk is drawn without its hole",
+                    );
+                }
+                if p.float("phimax", 360.0)? < 360.0 {
+                    self.approximated(&loc, format!("{what} with phimax"), "the partial disk is drawn whole");
+                }
+                (
+                    ShapeKind::Disk {
+                        center: Vec3::new(0.0, 0.0, height),
+                        normal: Vec3::Z,
+                        radius,
+                    },
+                    true,
+                )
+            }
+            "cylinder" => {
+                let r = p.float_opt("radius")?;
+                let radius = r.as_ref().map_or(1.0, |(v, _)| *v);
+                if let Some((_, prm)) = &r {
+                    locs.keys.push(("radius".into(), prm.loc.clone()));
+                }
+                let zmin = p.float_opt("zmin")?;
+                let zmax = p.float_opt("zmax")?;
+                for (key, z) in [("p0", &zmin), ("p1", &zmax)] {
+                    if let Some((_, prm)) = z {
+                        locs.keys.push((key.into(), prm.loc.clone()));
+                    }
+                }
+                if p.float("phimax", 360.0)? < 360.0 {
+                    self.approximated(
+                        &loc,
+                        format!("{what} with phimax"),
+                        "the partial cylinder is drawn whole",
+                    );
+                }
+                (
+                    ShapeKind::Cylinder {
+                        p0: Vec3::new(0.0, 0.0, zmin.map_or(-1.0, |(v, _)| v)),
+                        p1: Vec3::new(0.0, 0.0, zmax.map_or(1.0, |(v, _)| v)),
+                        radius,
+                    },
+                    true,
+                )
+            }
+            "trianglemesh" => {
+                let mesh = self.mesh(p, &loc, 3, &mut locs)?;
+                (ShapeKind::InlineMesh(MeshSource::Inline(mesh)), false)
+            }
+            "bilinearmesh" => {
+                let mesh = self.mesh(p, &loc, 4, &mut locs)?;
+                (ShapeKind::InlineMesh(MeshSource::Inline(mesh)), false)
+            }
+            "plymesh" => {
+                let Some((file, prm)) = p.string("filename")? else {
+                    return Err(Error::scene(
+                        Some(loc),
+                        "filename",
+                        "plymesh needs a \"string filename\"",
+                    ));
+                };
+                locs.keys.push(("file".into(), prm.loc.clone()));
+                (
+                    ShapeKind::InlineMesh(MeshSource::File(self.resolve(dir_rel, &file))),
+                    false,
+                )
+            }
+            _ => {
+                // loopsubdiv and curve.
+                Self::use_all(p);
+                self.unsupported(&loc, &what, "the shape is skipped");
+                return Ok(());
+            }
+        };
+        let mut emission = self.gs.area_light.clone();
+        if emission.is_some() && self.current_object.is_some() {
+            emission = None;
+            self.unsupported(
+                &loc,
+                format!("AreaLightSource on {what} inside ObjectBegin"),
+                "area lights are not instanced (pbrt-v4 does not support them either); the shape does not emit",
+            );
+        }
+        let desc = ShapeDesc {
+            kind: shape,
+            transform: vec![TransformOp::Matrix(self.gs.ctm)],
+            material: None,
+            flip_normals: false,
+            locs,
+        };
+        self.add_shape(PendingShape {
+            desc,
+            analytic,
+            reverse: self.gs.reverse_orientation,
+            mat: self.gs.material.clone(),
+            emission,
+        });
+        Ok(())
+    }
+
+    /// A `trianglemesh` (`corners` = 3) or a `bilinearmesh` (`corners` = 4,
+    /// each patch v00 v10 v01 v11 split into two triangles).
+    fn mesh(&mut self, p: &ParamList, loc: &SourceLoc, corners: usize, locs: &mut Locs) -> Result<TriangleMesh> {
+        let kind = if corners == 3 { "trianglemesh" } else { "bilinearmesh" };
+        let Some((positions, pp)) = p.vec3s("P", &["point3"])? else {
+            return Err(Error::scene(
+                Some(loc.clone()),
+                "P",
+                format!("{kind} needs vertex positions \"point3 P\""),
+            ));
+        };
+        let n = positions.len();
+        let p_loc = pp.loc.clone();
+        let indices: Vec<u32> = match p.ints("indices")? {
+            Some((idx, prm)) => {
+                locs.keys.push(("indices".into(), prm.loc.clone()));
+                if idx.len() % corners != 0 {
+                    return Err(prm.err(format!(
+                        "needs {corners} indices per {}, found {} indices",
+                        if corners == 3 { "triangle" } else { "patch" },
+                        idx.len()
+                    )));
+                }
+                if let Some(&bad) = idx.iter().find(|&&i| i < 0 || i as usize >= n) {
+                    return Err(prm.err(format!(
+                        "index {bad} is out of range: \"point3 P\" has {n} points (indices 0 to {})",
+                        n as i64 - 1
+                    )));
+                }
+                idx.into_iter().map(|i| i as u32).collect()
+            }
+            // pbrt-v4 allows leaving out the indices of a single triangle
+            // or patch.
+            None if n == corners => (0..corners as u32).collect(),
+            None => {
+                return Err(Error::scene(
+                    Some(p_loc),
+                    "indices",
+                    format!("{kind} needs \"integer indices\" (only a mesh of exactly {corners} points may omit them)"),
+                ));
+            }
+        };
+        let normals = match p.vec3s("N", &["normal3"])? {
+            Some((nv, prm)) if nv.len() != n => {
+                return Err(prm.err(format!("{} normals given for {n} points; need one per point", nv.len())));
+            }
+            Some((nv, _)) => nv,
+            None => Vec::new(),
+        };
+        let uvs: Vec<Vec2> = match p.vec2s("uv")? {
+            Some((uv, prm)) if uv.len() != n => {
+                return Err(prm.err(format!(
+                    "{} texture coordinates given for {n} points; need one per point",
+                    uv.len()
+                )));
+            }
+            Some((uv, _)) => uv,
+            None => Vec::new(),
+        };
+        if let Some(prm) = p.find("S") {
+            let l = prm.loc.clone();
+            self.unsupported(&l, format!("\"{}\" of {kind}", prm.written), "tangents are ignored");
+        }
+        if let Some(prm) = p.find("faceIndices") {
+            let l = prm.loc.clone();
+            self.unsupported(&l, format!("\"{}\" of {kind}", prm.written), "face indices are ignored");
+        }
+        let faces: Vec<[u32; 3]> = if corners == 3 {
+            indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+        } else {
+            let mut faces = Vec::with_capacity(indices.len() / 2);
+            let mut bent = false;
+            for c in indices.chunks_exact(4) {
+                let [a, b, cc, d] = [c[0], c[1], c[2], c[3]];
+                // The patch's corners in order around it are v00 v10 v11 v01.
+                faces.push([a, b, d]);
+                faces.push([a, d, cc]);
+                bent |= !is_planar([a, b, cc, d].map(|i| positions[i as usize]));
+            }
+            if bent {
+                self.approximated(
+                    loc,
+                    "Shape \"bilinearmesh\" with non-planar patches",
+                    "each patch is split into two flat triangles",
+                );
+            }
+            faces
+        };
+        Ok(TriangleMesh {
+            positions,
+            normals,
+            uvs,
+            indices: faces,
+        })
+    }
+}
+
+/// Whether a bilinear patch v00 v10 v01 v11 lies in a plane.
+fn is_planar([p00, p10, p01, p11]: [Vec3; 4]) -> bool {
+    let n = (p10 - p00).cross(p01 - p00);
+    let scale = (p10 - p00).length().max((p01 - p00).length()).max((p11 - p00).length());
+    match n.try_normalize() {
+        Some(n) => (p11 - p00).dot(n).abs() <= 1e-4 * scale,
+        // Degenerate corners: any fourth point is in some plane with them.
+        None => true,
+    }
+}

@@ -1,0 +1,201 @@
+//! Spectral quantities of pbrt-v4 reduced to trazo's linear sRGB colours:
+//! blackbody emitters and the named spectra that pbrt-v4 ships
+//! (`GetNamedSpectrum` in pbrt-v4's spectrum.cpp).
+
+use crate::color::{Rgb, luminance};
+
+/// Linear sRGB colour of a blackbody at `kelvin`, scaled to luminance 1.
+///
+/// pbrt-v4 divides an emitter's spectrum by its luminance
+/// (`SpectrumToPhotometric`), so a `blackbody` light of any temperature has
+/// luminance equal to its `scale`; this reproduces that. The colour is
+/// Planck's law integrated from 360 to 830 nm in 1 nm steps against the
+/// CIE 1931 colour matching functions, approximated by the multi-lobe
+/// Gaussian fit of Wyman, Sloan and Shirley ("Simple Analytic
+/// Approximations to the CIE XYZ Color Matching Functions", JCGT 2(2),
+/// 2013; errors below 1% of the peak), then mapped from XYZ to linear sRGB
+/// with the IEC 61966-2-1 matrix. Components outside the sRGB gamut (very
+/// low temperatures) are clipped to 0 before normalising.
+pub fn blackbody_rgb(kelvin: f32) -> Rgb {
+    // Second radiation constant hc/k in nm·K.
+    const C2: f64 = 1.438_776_9e7;
+    let t = kelvin as f64;
+    let rgb = xyz_to_linear_srgb((360..=830).map(|nm| {
+        let l = nm as f64;
+        // Planck's law up to a constant factor.
+        let b = 1.0 / (l.powi(5) * (C2 / (l * t)).exp_m1());
+        let b = if b.is_finite() { b } else { 0.0 };
+        let (xb, yb, zb) = cie_1931(l);
+        (b * xb, b * yb, b * zb)
+    }));
+    let lum = luminance(rgb);
+    if lum > 0.0 && lum.is_finite() {
+        rgb / lum
+    } else {
+        // Below about 400 K nothing visible is emitted; a dim red is the
+        // honest limit of the hue.
+        Rgb::new(1.0 / 0.2126, 0.0, 0.0)
+    }
+}
+
+/// Linear sRGB colour of a sampled emission spectrum (pairs of wavelength
+/// in nm and value, linearly interpolated and zero outside, as pbrt-v4's
+/// `PiecewiseLinearSpectrum`), scaled to luminance 1 as pbrt-v4 scales
+/// emitters; black if nothing visible is emitted.
+pub fn sampled_rgb(samples: &[(f32, f32)]) -> Rgb {
+    let value = |l: f64| -> f64 {
+        let i = samples.partition_point(|&(w, _)| (w as f64) < l);
+        if i == 0 || i == samples.len() {
+            // Exactly at the first sample, or outside the range.
+            return match samples.first() {
+                Some(&(w, v)) if (w as f64 - l).abs() < 1e-9 => v as f64,
+                _ => 0.0,
+            };
+        }
+        let (w0, v0) = samples[i - 1];
+        let (w1, v1) = samples[i];
+        let t = (l - w0 as f64) / (w1 as f64 - w0 as f64);
+        v0 as f64 * (1.0 - t) + v1 as f64 * t
+    };
+    let rgb = xyz_to_linear_srgb((360..=830).map(|nm| {
+        let v = value(nm as f64);
+        let (x, y, z) = cie_1931(nm as f64);
+        (v * x, v * y, v * z)
+    }));
+    let lum = luminance(rgb);
+    if lum > 0.0 && lum.is_finite() {
+        rgb / lum
+    } else {
+        Rgb::ZERO
+    }
+}
+
+/// Sums XYZ samples and converts the total to linear sRGB (IEC 61966-2-1
+/// matrix), clipping negative components.
+fn xyz_to_linear_srgb(samples: impl Iterator<Item = (f64, f64, f64)>) -> Rgb {
+    let (x, y, z) = samples.fold((0.0, 0.0, 0.0), |a, s| (a.0 + s.0, a.1 + s.1, a.2 + s.2));
+    // Normalise in f64 first: very cold blackbodies are far below f32's range.
+    let m = x.max(y).max(z);
+    let (x, y, z) = if m > 0.0 { (x / m, y / m, z / m) } else { (x, y, z) };
+    Rgb::new(
+        (3.240_454_2 * x - 1.537_138_5 * y - 0.498_531_4 * z) as f32,
+        (-0.969_266 * x + 1.876_010_8 * y + 0.041_556 * z) as f32,
+        (0.055_643_4 * x - 0.204_025_9 * y + 1.057_225_2 * z) as f32,
+    )
+    .max(Rgb::ZERO)
+}
+
+/// The CIE 1931 2° colour matching functions x̄, ȳ, z̄ at `nm`, by the
+/// piecewise-Gaussian fit of Wyman, Sloan and Shirley (2013), Eq. 2.
+fn cie_1931(nm: f64) -> (f64, f64, f64) {
+    // A Gaussian with different widths left and right of its mean.
+    let g = |mu: f64, s1: f64, s2: f64| {
+        let s = if nm < mu { s1 } else { s2 };
+        (-0.5 * ((nm - mu) / s).powi(2)).exp()
+    };
+    let x = 1.056 * g(599.8, 37.9, 31.0) + 0.362 * g(442.0, 16.0, 26.7) - 0.065 * g(501.1, 20.4, 26.2);
+    let y = 0.821 * g(568.8, 46.9, 40.5) + 0.286 * g(530.9, 16.3, 31.1);
+    let z = 1.217 * g(437.0, 11.8, 36.0) + 0.681 * g(459.0, 26.0, 13.8);
+    (x, y, z)
+}
+
+/// The index of refraction near the sodium d line (587.6 nm) of pbrt-v4's
+/// named glass spectra (Schott glasses; pbrt's F5, F10 and F11 are SF5,
+/// SF10 and SF11), read from pbrt-v4's tables; trazo uses it for every
+/// wavelength.
+pub fn glass_ior(name: &str) -> Option<f32> {
+    Some(match name {
+        "glass-BK7" => 1.5168,
+        "glass-BAF10" => 1.6700,
+        "glass-FK51A" => 1.4866,
+        "glass-LASF9" => 1.8503,
+        "glass-F5" => 1.6727,
+        "glass-F10" => 1.7283,
+        "glass-F11" => 1.7847,
+        _ => return None,
+    })
+}
+
+/// The metal of a named pbrt-v4 conductor spectrum: `"metal-Au-eta"` →
+/// (`"Au"`, true), `"metal-Cu-k"` → (`"Cu"`, false).
+pub fn metal_of(name: &str) -> Option<(&str, bool)> {
+    let rest = name.strip_prefix("metal-")?;
+    if let Some(m) = rest.strip_suffix("-eta") {
+        Some((m, true))
+    } else {
+        rest.strip_suffix("-k").map(|m| (m, false))
+    }
+}
+
+/// The colour of a named illuminant spectrum used as an emitter's
+/// spectrum, normalised to luminance 1 as pbrt-v4 normalises emitters.
+/// D65 is sRGB's white; illuminant A is a 2856 K blackbody; D50 is close
+/// to a 5003 K blackbody. Returns `None` for names that are not
+/// illuminants, and `(colour, exact)` otherwise.
+pub fn illuminant_rgb(name: &str) -> Option<(Rgb, bool)> {
+    match name {
+        "stdillum-D65" => Some((Rgb::ONE, true)),
+        "stdillum-A" => Some((blackbody_rgb(2856.0), true)),
+        "stdillum-D50" => Some((blackbody_rgb(5003.0), false)),
+        n if n.starts_with("stdillum-") || n.starts_with("illum-") => Some((Rgb::ONE, false)),
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blackbody_colours_follow_temperature() {
+        for t in [1500.0, 2700.0, 4000.0, 6500.0, 10000.0] {
+            let c = blackbody_rgb(t);
+            assert!((luminance(c) - 1.0).abs() < 1e-4, "{t}: {c}");
+            assert!(c.min_element() >= 0.0);
+        }
+        // Incandescent light is orange: red > green > blue.
+        let warm = blackbody_rgb(2700.0);
+        assert!(warm.x > warm.y && warm.y > warm.z, "{warm}");
+        // 6500 K is close to sRGB's white point (D65).
+        let white = blackbody_rgb(6500.0);
+        assert!((white - Rgb::ONE).abs().max_element() < 0.12, "{white}");
+        // Hot stars are blue.
+        let hot = blackbody_rgb(15000.0);
+        assert!(hot.z > hot.x, "{hot}");
+        // Deep red at very low temperatures, never NaN.
+        let cold = blackbody_rgb(300.0);
+        assert!(cold.is_finite() && cold.x > 0.0);
+    }
+
+    #[test]
+    fn colour_matching_functions_peak_where_cie_tabulates() {
+        // ȳ peaks near 555 nm at about 1; x̄ has its big lobe near 600 nm.
+        let (_, y555, _) = cie_1931(555.0);
+        assert!((y555 - 1.0).abs() < 0.02, "{y555}");
+        let (x600, _, _) = cie_1931(600.0);
+        assert!((x600 - 1.06).abs() < 0.03, "{x600}");
+    }
+
+    #[test]
+    fn sampled_spectra_become_colours() {
+        // A flat spectrum is (nearly) white: the fit's white point is E, not D65.
+        let flat = sampled_rgb(&[(300.0, 2.0), (900.0, 2.0)]);
+        assert!((luminance(flat) - 1.0).abs() < 1e-4);
+        assert!(flat.max_element() / flat.min_element() < 1.4, "{flat}");
+        // Long wavelengths only: red.
+        let red = sampled_rgb(&[(600.0, 1.0), (700.0, 1.0)]);
+        assert!(red.x > 2.0 * red.y && red.x > 2.0 * red.z, "{red}");
+        assert_eq!(sampled_rgb(&[(100.0, 1.0), (200.0, 1.0)]), Rgb::ZERO);
+    }
+
+    #[test]
+    fn named_spectra() {
+        assert_eq!(glass_ior("glass-BK7"), Some(1.5168));
+        assert_eq!(glass_ior("glass-XYZ"), None);
+        assert_eq!(metal_of("metal-Au-eta"), Some(("Au", true)));
+        assert_eq!(metal_of("metal-CuZn-k"), Some(("CuZn", false)));
+        assert_eq!(metal_of("glass-BK7"), None);
+        assert_eq!(illuminant_rgb("stdillum-D65"), Some((Rgb::ONE, true)));
+        assert!(illuminant_rgb("metal-Au-k").is_none());
+    }
+}

@@ -1,0 +1,1108 @@
+//! Directive by directive: what each produces in the description, and the
+//! errors and warnings of malformed or unsupported input.
+
+use super::*;
+use glam::{Vec2, Vec4};
+
+fn parse_str(s: &str) -> Result<SceneDesc> {
+    parse(s, Path::new("test.pbrt"))
+}
+
+/// A scene with `world` after WorldBegin.
+fn world(world: &str) -> SceneDesc {
+    parse_str(&format!("WorldBegin\n{world}")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn error_of(s: &str) -> String {
+    parse_str(s).unwrap_err().to_string()
+}
+
+/// The object-to-world matrix of shape `i`.
+fn matrix(d: &SceneDesc, i: usize) -> Mat4 {
+    d.shapes[i].transform.iter().fold(Mat4::IDENTITY, |acc, op| match op {
+        TransformOp::Matrix(m) => *m * acc,
+        _ => panic!("pbrt shapes carry matrices"),
+    })
+}
+
+fn close(a: Vec3, b: Vec3) -> bool {
+    (a - b).length() < 1e-5
+}
+
+fn material(d: &SceneDesc, shape: usize) -> &MaterialDesc {
+    let name = d.shapes[shape]
+        .material
+        .as_ref()
+        .expect("pbrt shapes name their material");
+    d.materials.iter().find(|m| &m.name == name).expect("defined")
+}
+
+#[test]
+fn options_become_settings() {
+    let d = parse_str(
+        r#"Film "rgb" "integer xresolution" 64 "integer yresolution" [32]
+Sampler "independent" "integer pixelsamples" 8
+Integrator "volpath" "integer maxdepth" [3]
+PixelFilter "triangle" "float xradius" 1.5 "float yradius" 1.5
+WorldBegin"#,
+    )
+    .unwrap();
+    let s = &d.settings;
+    assert_eq!((s.width, s.height, s.spp, s.max_depth), (64, 32, 8, 4));
+    assert_eq!(s.sampler, SamplerKind::Independent);
+    assert_eq!(s.integrator, IntegratorKind::Path);
+    assert_eq!(s.sampling, PathSampling::Mis);
+    assert_eq!(s.filter, Filter::Tent { radius: 1.5 });
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+
+    // pbrt-v4's defaults: 1280×720, 16 spp, maxdepth 5, Gaussian filter.
+    let d = world("");
+    let s = &d.settings;
+    assert_eq!((s.width, s.height, s.spp, s.max_depth), (1280, 720, 16, 6));
+    assert_eq!(
+        s.filter,
+        Filter::Gaussian {
+            stddev: 0.5,
+            radius: 1.5
+        }
+    );
+
+    let d = parse_str(
+        r#"Sampler "stratified" "integer xsamples" 3 "integer ysamples" 5
+PixelFilter "gaussian" "float sigma" 0.25 "float xradius" 1 "float yradius" 1
+Integrator "bdpt" "integer maxdepth" 2
+Sampler "zsobol" "integer pixelsamples" 32
+WorldBegin"#,
+    )
+    .unwrap();
+    assert_eq!(d.settings.spp, 32);
+    assert_eq!(d.settings.max_depth, 3);
+    assert_eq!(
+        d.settings.filter,
+        Filter::Gaussian {
+            stddev: 0.25,
+            radius: 1.0
+        }
+    );
+    let w = d.warnings.join("\n");
+    assert!(w.contains("test.pbrt:3:1: Integrator \"bdpt\" is approximated"), "{w}");
+    assert!(w.contains("test.pbrt:4:1: Sampler \"zsobol\" is approximated"), "{w}");
+}
+
+#[test]
+fn film_iso_and_shutter_set_the_exposure() {
+    let d = parse_str("Film \"rgb\" \"float iso\" 400\nCamera \"perspective\" \"float shutterclose\" 0.5\nWorldBegin")
+        .unwrap();
+    // Imaging ratio 0.5 × 400 / 100 = 2: one stop.
+    assert!((d.settings.exposure - 1.0).abs() < 1e-6);
+}
+
+#[test]
+fn perspective_fov_is_for_the_shorter_image_axis() {
+    let fov = |w: u32, h: u32| {
+        let d = parse_str(&format!(
+            "Film \"rgb\" \"integer xresolution\" {w} \"integer yresolution\" {h}\nCamera \"perspective\" \"float fov\" 60\nWorldBegin"
+        ))
+        .unwrap();
+        match d.camera.projection {
+            ProjectionDesc::Perspective { fov } => fov,
+            p => panic!("{p:?}"),
+        }
+    };
+    // Landscape: the vertical axis is the shorter one.
+    assert!((fov(200, 100) - 60.0).abs() < 1e-4);
+    // Portrait: 60° across; vertically tan(fov_y/2) = 2·tan(30°).
+    let expected = 2.0 * (2.0 * 30f32.to_radians().tan()).atan().to_degrees();
+    assert!(
+        (fov(100, 200) - expected).abs() < 1e-3,
+        "{} vs {expected}",
+        fov(100, 200)
+    );
+    assert!((fov(100, 100) - 60.0).abs() < 1e-4);
+    // Film after Camera counts too: pbrt creates the camera at WorldBegin.
+    let d = parse_str(
+        "Camera \"perspective\" \"float fov\" 60\nFilm \"rgb\" \"integer xresolution\" 100 \"integer yresolution\" 200\nWorldBegin",
+    )
+    .unwrap();
+    assert!(
+        matches!(d.camera.projection, ProjectionDesc::Perspective { fov } if (fov - expected).abs() < 1e-3),
+        "{:?}",
+        d.camera.projection
+    );
+}
+
+#[test]
+fn orthographic_screen_window_and_lens() {
+    let size = |w: u32, h: u32, extra: &str| {
+        let d = parse_str(&format!(
+            "Film \"rgb\" \"integer xresolution\" {w} \"integer yresolution\" {h}\nCamera \"orthographic\" {extra}\nWorldBegin"
+        ))
+        .unwrap();
+        match d.camera.projection {
+            ProjectionDesc::Orthographic { size } => (size, d.warnings),
+            p => panic!("{p:?}"),
+        }
+    };
+    assert_eq!(size(200, 100, "").0, 2.0);
+    assert_eq!(size(100, 200, "").0, 4.0);
+    let (s, w) = size(200, 100, "\"float screenwindow\" [-4 4 -2 2]");
+    assert_eq!(s, 4.0);
+    assert!(w.is_empty(), "a centred window of the image's shape is exact: {w:?}");
+    let (s, w) = size(200, 100, "\"float screenwindow\" [0 1 0 3]");
+    assert_eq!(s, 3.0);
+    assert!(
+        w[0].starts_with("test.pbrt:2:23: \"float screenwindow\" is approximated"),
+        "{w:?}"
+    );
+
+    let d = parse_str("Camera \"perspective\" \"float lensradius\" 0.1 \"float focaldistance\" 4\nWorldBegin").unwrap();
+    assert_eq!(d.camera.aperture_radius, 0.1);
+    assert_eq!(d.camera.focus_distance, Some(4.0));
+}
+
+#[test]
+fn look_at_reproduces_pbrts_handedness() {
+    let d = parse_str("LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\"\nWorldBegin").unwrap();
+    let to_world = d.camera.to_world.expect("pbrt cameras give a matrix");
+    assert!(close(to_world.transform_point3(Vec3::ZERO), Vec3::new(0.0, 0.0, 5.0)));
+    // Forward is −z, up is +y, and image-right (camera +x) is world −x.
+    assert!(close(to_world.transform_vector3(Vec3::Z), -Vec3::Z));
+    assert!(close(to_world.transform_vector3(Vec3::Y), Vec3::Y));
+    assert!(close(to_world.transform_vector3(Vec3::X), -Vec3::X));
+    // Mirroring first gives the conventional view.
+    let d = parse_str("Scale -1 1 1\nLookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\"\nWorldBegin").unwrap();
+    assert!(close(d.camera.to_world.unwrap().transform_vector3(Vec3::X), Vec3::X));
+}
+
+#[test]
+fn transforms_post_multiply() {
+    let d = world(
+        "Translate 1 0 0\nScale 2 2 2\nShape \"sphere\"\nIdentity\nRotate 90 0 0 1\nTranslate 1 0 0\nShape \"sphere\"",
+    );
+    // CTM = T · S: the scale applies to the object first.
+    let m = matrix(&d, 0);
+    assert!(close(m.transform_point3(Vec3::ZERO), Vec3::X));
+    assert!(close(m.transform_point3(Vec3::X), Vec3::new(3.0, 0.0, 0.0)));
+    // CTM = R · T: the translation is rotated.
+    let m = matrix(&d, 1);
+    assert!(close(m.transform_point3(Vec3::ZERO), Vec3::Y));
+}
+
+#[test]
+fn transform_numbers_are_column_major_and_concat_multiplies() {
+    // pbrt reads the 16 numbers as rows and transposes them, so the
+    // translation is the 13th to 15th number.
+    let d = world(
+        "Translate 9 9 9\nTransform [1 0 0 0  0 1 0 0  0 0 1 0  5 6 7 1]\nShape \"sphere\"\n\
+         Identity\nTranslate 1 0 0\nConcatTransform [0 1 0 0  -1 0 0 0  0 0 1 0  0 0 0 1]\nShape \"sphere\"",
+    );
+    // Transform replaces the CTM.
+    assert!(close(
+        matrix(&d, 0).transform_point3(Vec3::ZERO),
+        Vec3::new(5.0, 6.0, 7.0)
+    ));
+    // ConcatTransform post-multiplies: x → y (first column is (0 1 0)),
+    // then the earlier translation.
+    let m = matrix(&d, 1);
+    assert!(close(m.transform_point3(Vec3::X), Vec3::new(1.0, 1.0, 0.0)));
+    assert_eq!(m.col(0), Vec4::new(0.0, 1.0, 0.0, 0.0));
+}
+
+#[test]
+fn attribute_blocks_restore_the_graphics_state() {
+    let d = world(
+        r#"Material "diffuse" "rgb reflectance" [0.1 0.2 0.3]
+AttributeBegin
+  Translate 0 5 0
+  Material "conductor"
+  ReverseOrientation
+  AreaLightSource "diffuse" "rgb L" [1 1 1]
+  Shape "sphere"
+AttributeEnd
+Shape "sphere"
+TransformBegin
+  Translate 1 0 0
+TransformEnd
+Shape "disk""#,
+    );
+    assert!(close(
+        matrix(&d, 0).transform_point3(Vec3::ZERO),
+        Vec3::new(0.0, 5.0, 0.0)
+    ));
+    assert!(d.shapes[0].flip_normals);
+    assert!(matches!(material(&d, 0).kind, MaterialKindDesc::Conductor { .. }));
+    assert_eq!(material(&d, 0).emission, ColorSource::Rgb(Rgb::ONE));
+    for i in [1, 2] {
+        assert_eq!(matrix(&d, i), Mat4::IDENTITY);
+        assert!(!d.shapes[i].flip_normals);
+        let m = material(&d, i);
+        assert_eq!(
+            m.kind,
+            MaterialKindDesc::Diffuse {
+                reflectance: ColorSource::Rgb(Rgb::new(0.1, 0.2, 0.3))
+            }
+        );
+        assert_eq!(m.emission, ColorSource::Rgb(Rgb::ZERO));
+    }
+}
+
+#[test]
+fn mirrored_quadrics_flip_like_pbrt_but_triangles_keep_their_side() {
+    let d = world(
+        "Scale -1 1 1\nShape \"sphere\"\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]\n\
+         ReverseOrientation\nShape \"sphere\"\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]",
+    );
+    let flips: Vec<bool> = d.shapes.iter().map(|s| s.flip_normals).collect();
+    assert_eq!(flips, vec![true, false, false, true]);
+}
+
+#[test]
+fn coordinate_systems_and_the_camera_space() {
+    let d = parse_str(
+        r#"LookAt 0 0 5  0 0 0  0 1 0
+Camera "perspective"
+WorldBegin
+Translate 3 0 0
+CoordinateSystem "shifted"
+Identity
+CoordSysTransform "shifted"
+Shape "sphere"
+CoordSysTransform "camera"
+Translate 0 0 1
+Shape "sphere"
+CoordSysTransform "world"
+Shape "sphere""#,
+    )
+    .unwrap();
+    assert!(close(
+        matrix(&d, 0).transform_point3(Vec3::ZERO),
+        Vec3::new(3.0, 0.0, 0.0)
+    ));
+    // One unit in front of the camera at z = 5 looking down −z.
+    assert!(close(
+        matrix(&d, 1).transform_point3(Vec3::ZERO),
+        Vec3::new(0.0, 0.0, 4.0)
+    ));
+    assert_eq!(matrix(&d, 2), Mat4::IDENTITY);
+
+    let d = world("CoordSysTransform \"nowhere\"");
+    assert!(d.warnings[0].starts_with("test.pbrt:2:1: CoordSysTransform \"nowhere\" is unsupported"));
+}
+
+#[test]
+fn analytic_shapes() {
+    let d = world(
+        r#"Shape "sphere" "float radius" 2
+Shape "disk" "float height" 0.5 "float radius" 3
+Shape "cylinder" "float radius" 0.5 "float zmin" -2 "float zmax" 3
+Shape "sphere" "float zmax" 0.5
+Shape "disk" "float innerradius" 0.5
+Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3]
+Shape "loopsubdiv" "integer levels" 2"#,
+    );
+    assert_eq!(
+        d.shapes[0].kind,
+        ShapeKind::Sphere {
+            center: Vec3::ZERO,
+            radius: 2.0
+        }
+    );
+    assert_eq!(
+        d.shapes[1].kind,
+        ShapeKind::Disk {
+            center: Vec3::new(0.0, 0.0, 0.5),
+            normal: Vec3::Z,
+            radius: 3.0
+        }
+    );
+    assert_eq!(
+        d.shapes[2].kind,
+        ShapeKind::Cylinder {
+            p0: Vec3::new(0.0, 0.0, -2.0),
+            p1: Vec3::new(0.0, 0.0, 3.0),
+            radius: 0.5
+        }
+    );
+    assert_eq!(d.shapes.len(), 5, "curves and subdivision surfaces are skipped");
+    let w = &d.warnings;
+    assert!(
+        w[0].starts_with("test.pbrt:5:1: Shape \"sphere\" with zmin/zmax/phimax is approximated"),
+        "{w:?}"
+    );
+    assert!(
+        w[1].starts_with("test.pbrt:6:1: Shape \"disk\" with innerradius is approximated"),
+        "{w:?}"
+    );
+    assert!(
+        w[2].starts_with("test.pbrt:7:1: Shape \"curve\" is unsupported"),
+        "{w:?}"
+    );
+    assert!(
+        w[3].starts_with("test.pbrt:8:1: Shape \"loopsubdiv\" is unsupported"),
+        "{w:?}"
+    );
+    // The default material is pbrt's: diffuse 0.5.
+    assert_eq!(
+        material(&d, 0).kind,
+        MaterialKindDesc::Diffuse {
+            reflectance: ColorSource::Rgb(Rgb::splat(0.5))
+        }
+    );
+}
+
+#[test]
+fn meshes() {
+    let d = world(
+        r#"Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0  1 1 0] "integer indices" [0 1 2  2 1 3]
+  "normal N" [0 0 1 0 0 1 0 0 1 0 0 1] "point2 uv" [0 0 1 0 0 1 1 1]
+Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0]
+Shape "bilinearmesh" "point3 P" [0 0 0  1 0 0  0 1 0  1 1 0]
+Shape "bilinearmesh" "point3 P" [0 0 0  1 0 0  0 1 0  1 1 1] "integer indices" [0 1 2 3]
+Shape "plymesh" "string filename" "models/bunny.ply""#,
+    );
+    let mesh = |i: usize| match &d.shapes[i].kind {
+        ShapeKind::InlineMesh(MeshSource::Inline(m)) => m.clone(),
+        k => panic!("{k:?}"),
+    };
+    let m = mesh(0);
+    assert_eq!(m.indices, vec![[0, 1, 2], [2, 1, 3]]);
+    assert_eq!((m.normals.len(), m.uvs.len()), (4, 4));
+    assert_eq!(m.uvs[3], Vec2::ONE);
+    // Three points need no indices.
+    assert_eq!(mesh(1).indices, vec![[0, 1, 2]]);
+    // A patch v00 v10 v01 v11 is two triangles with its normal (+z).
+    let q = mesh(2);
+    assert_eq!(q.indices, vec![[0, 1, 3], [0, 3, 2]]);
+    for i in 0..2 {
+        let [a, b, c] = q.vertices(i);
+        assert!((b - a).cross(c - a).z > 0.0);
+    }
+    assert_eq!(
+        d.shapes[4].kind,
+        ShapeKind::InlineMesh(MeshSource::File(PathBuf::from("models/bunny.ply")))
+    );
+    // Only the bent patch is approximated.
+    assert_eq!(d.warnings.len(), 1, "{:?}", d.warnings);
+    assert!(d.warnings[0].starts_with("test.pbrt:6:1: Shape \"bilinearmesh\" with non-planar patches is approximated"));
+}
+
+#[test]
+fn bad_meshes_are_errors_at_the_parameter() {
+    let e = error_of("WorldBegin\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 3]");
+    assert!(
+        e.starts_with("test.pbrt:2:53: `integer indices`: index 3 is out of range"),
+        "{e}"
+    );
+    let e =
+        error_of("WorldBegin\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 -1]");
+    assert!(e.contains("index -1 is out of range"), "{e}");
+    let e =
+        error_of("WorldBegin\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0 1 1 1] \"integer indices\" [0 1]");
+    assert!(e.contains("needs 3 indices per triangle, found 2"), "{e}");
+    let e = error_of("WorldBegin\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0 1 1 1]");
+    assert!(e.starts_with("test.pbrt:2:22: `indices`: trianglemesh needs"), "{e}");
+    let e = error_of("WorldBegin\nShape \"trianglemesh\" \"integer indices\" [0 1 2]");
+    assert!(e.starts_with("test.pbrt:2:1: `P`"), "{e}");
+    let e = error_of("WorldBegin\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"normal N\" [0 0 1]");
+    assert!(e.contains("1 normals given for 3 points"), "{e}");
+    let e = error_of("WorldBegin\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"point2 uv\" [0 0]");
+    assert!(e.contains("1 texture coordinates given for 3 points"), "{e}");
+    let e = error_of(
+        "WorldBegin\nShape \"bilinearmesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0 1 1 1 2 2 2] \"integer indices\" [0 1 2]",
+    );
+    assert!(e.contains("needs 4 indices per patch"), "{e}");
+    let e = error_of("WorldBegin\nShape \"plymesh\"");
+    assert!(e.starts_with("test.pbrt:2:1: `filename`: plymesh needs"), "{e}");
+    let e = error_of("WorldBegin\nShape \"sphere\" \"float radius\" -1");
+    assert!(
+        e.starts_with("test.pbrt:2:16: `shape[0].radius`: must be positive"),
+        "{e}"
+    );
+}
+
+#[test]
+fn materials_map_to_the_nearest_model() {
+    let d = world(
+        r#"Material "conductor" "spectrum eta" "metal-Au-eta" "spectrum k" "metal-Au-k" "float roughness" 0.04
+Shape "sphere"
+Material "conductor" "rgb reflectance" [0.9 0.8 0.7] "float uroughness" 0.01 "float vroughness" 0.09 "bool remaproughness" false
+Shape "sphere"
+Material "dielectric" "float eta" 1.33
+Shape "sphere"
+Material "dielectric" "spectrum eta" "glass-BK7" "float roughness" 0.25
+Shape "sphere"
+Material "coateddiffuse" "rgb reflectance" [0.2 0.3 0.4] "float roughness" 0
+Shape "sphere"
+Material "conductor"
+Shape "sphere""#,
+    );
+    let (au_eta, au_k) = crate::material::conductor::metal_ior("Au").unwrap();
+    assert_eq!(
+        material(&d, 0).kind,
+        MaterialKindDesc::Conductor {
+            fresnel: ConductorDesc::Complex { eta: au_eta, k: au_k },
+            tint: Rgb::ONE,
+            // remaproughness: α = √roughness.
+            roughness: (0.2, 0.2),
+        }
+    );
+    assert_eq!(
+        material(&d, 1).kind,
+        MaterialKindDesc::Conductor {
+            fresnel: ConductorDesc::Reflectance(Rgb::new(0.9, 0.8, 0.7)),
+            tint: Rgb::ONE,
+            roughness: (0.01, 0.09),
+        }
+    );
+    assert!(
+        matches!(material(&d, 2).kind, MaterialKindDesc::Dielectric { ior, roughness, .. } if ior == 1.33 && roughness == 0.0)
+    );
+    assert!(
+        matches!(material(&d, 3).kind, MaterialKindDesc::Dielectric { ior, roughness, .. } if ior == 1.5168 && roughness == 0.5)
+    );
+    assert_eq!(
+        material(&d, 4).kind,
+        MaterialKindDesc::Plastic {
+            diffuse: ColorSource::Rgb(Rgb::new(0.2, 0.3, 0.4)),
+            ior: 1.5,
+            ext_ior: 1.0,
+            roughness: 0.0,
+            specular_tint: Rgb::ONE,
+            nonlinear: false,
+        }
+    );
+    // pbrt-v4's default conductor is copper.
+    let (cu_eta, cu_k) = crate::material::conductor::metal_ior("Cu").unwrap();
+    assert!(matches!(
+        material(&d, 5).kind,
+        MaterialKindDesc::Conductor { fresnel: ConductorDesc::Complex { eta, k }, .. } if eta == cu_eta && k == cu_k
+    ));
+    let w = d.warnings.join("\n");
+    assert!(
+        w.contains("test.pbrt:8:23: \"spectrum eta\" \"glass-BK7\" is approximated"),
+        "{w}"
+    );
+    assert!(
+        w.contains("test.pbrt:10:1: material \"coateddiffuse\" is approximated"),
+        "{w}"
+    );
+}
+
+#[test]
+fn other_materials_are_approximated_with_warnings() {
+    for (kind, expect) in [
+        ("thindielectric", "Dielectric"),
+        ("diffusetransmission", "Diffuse"),
+        ("coatedconductor", "Conductor"),
+        ("measured", "Diffuse"),
+        ("hair", "Diffuse"),
+        ("subsurface", "Plastic"),
+        ("interface", "Dielectric"),
+    ] {
+        let d = world(&format!("Material \"{kind}\"\nShape \"sphere\""));
+        let k = format!("{:?}", material(&d, 0).kind);
+        assert!(k.starts_with(expect), "{kind}: {k}");
+        assert!(
+            d.warnings
+                .iter()
+                .any(|w| w.starts_with(&format!("test.pbrt:2:1: material \"{kind}\" is approximated"))),
+            "{kind}: {:?}",
+            d.warnings
+        );
+    }
+}
+
+#[test]
+fn named_and_mixed_materials() {
+    let d = world(
+        r#"NamedMaterial "later"
+Shape "sphere"
+MakeNamedMaterial "later" "string type" "diffuse" "rgb reflectance" [0.1 0.1 0.1]
+MakeNamedMaterial "metal" "string type" "conductor"
+MakeNamedMaterial "blend" "string type" "mix" "string materials" ["later" "metal"] "float amount" 0.8
+NamedMaterial "blend"
+Shape "sphere""#,
+    );
+    // Named materials are resolved when the file has been read, as pbrt does.
+    assert_eq!(d.shapes[0].material.as_deref(), Some("later"));
+    // mix picks the second material with probability `amount`.
+    assert!(matches!(material(&d, 1).kind, MaterialKindDesc::Conductor { .. }));
+    assert!(
+        d.warnings
+            .iter()
+            .any(|w| w.contains("material \"mix\" is approximated"))
+    );
+
+    let e = error_of(
+        "WorldBegin\nNamedMaterial \"nope\"\nShape \"sphere\"\nMakeNamedMaterial \"nop\" \"string type\" \"diffuse\"",
+    );
+    assert!(
+        e.starts_with("test.pbrt:2:15: `NamedMaterial`: no material named \"nope\" (did you mean \"nop\"?)"),
+        "{e}"
+    );
+    let e = error_of(
+        "WorldBegin\nMakeNamedMaterial \"a\" \"string type\" \"diffuse\"\nMakeNamedMaterial \"a\" \"string type\" \"diffuse\"",
+    );
+    assert!(
+        e.starts_with("test.pbrt:3:19: the named material \"a\" is already defined (at test.pbrt:2:1)"),
+        "{e}"
+    );
+    let e = error_of("WorldBegin\nMakeNamedMaterial \"a\" \"rgb reflectance\" [1 1 1]");
+    assert!(e.contains("needs a \"string type\""), "{e}");
+    let e = error_of("WorldBegin\nMaterial \"difuse\"");
+    assert!(
+        e.contains("unknown Material type \"difuse\" (did you mean \"diffuse\"?)"),
+        "{e}"
+    );
+    let e = error_of("WorldBegin\nMaterial \"diffuse\" \"rgb reflectance\" [1.5 0 0]");
+    assert!(e.contains("must not exceed 1"), "{e}");
+}
+
+#[test]
+fn textures() {
+    let d = world(
+        r#"Texture "img" "spectrum" "imagemap" "string filename" "textures/wood.png" "float uscale" 2 "float vscale" 3 "float udelta" 0.5 "float scale" 0.8 "string encoding" "linear"
+Texture "checks" "spectrum" "checkerboard" "rgb tex1" [1 0 0] "rgb tex2" [0 0 1] "float uscale" 4 "float vscale" 4
+Scale 0.5 0.5 0.5
+Texture "solid" "spectrum" "checkerboard" "integer dimension" 3 "rgb tex1" [1 1 1] "rgb tex2" [0 0 0]
+Texture "bump" "float" "imagemap" "string filename" "bump.png"
+Texture "gray" "spectrum" "constant" "rgb value" [0.3 0.3 0.3]
+Material "diffuse" "texture reflectance" "checks"
+Shape "sphere""#,
+    );
+    assert_eq!(
+        d.textures[0].kind,
+        TextureKind::Image {
+            source: ImageSource::File(PathBuf::from("textures/wood.png")),
+            scale: Vec2::new(2.0, 3.0),
+            offset: Vec2::new(0.5, 0.0),
+            srgb: Some(false),
+            tint: Rgb::splat(0.8),
+        }
+    );
+    assert_eq!(
+        d.textures[1].kind,
+        TextureKind::Checkerboard {
+            even: Rgb::X,
+            odd: Rgb::Z,
+            scale: Vec2::splat(4.0)
+        }
+    );
+    // pbrt looks solid textures up in texture space: the inverse of the CTM.
+    assert_eq!(
+        d.textures[2].kind,
+        TextureKind::Checkerboard3d {
+            even: Rgb::ONE,
+            odd: Rgb::ZERO,
+            scale: 2.0
+        }
+    );
+    assert_eq!(d.textures[3].kind, TextureKind::Constant(Rgb::splat(0.3)));
+    assert_eq!(d.textures.len(), 4, "float textures are skipped");
+    assert_eq!(
+        material(&d, 0).kind,
+        MaterialKindDesc::Diffuse {
+            reflectance: ColorSource::Texture("checks".into())
+        }
+    );
+    assert!(
+        d.warnings[0].starts_with("test.pbrt:6:1: float texture \"bump\" is unsupported"),
+        "{:?}",
+        d.warnings
+    );
+
+    let e = error_of("WorldBegin\nMaterial \"diffuse\" \"texture reflectance\" \"nothing\"\nShape \"sphere\"");
+    assert!(
+        e.starts_with("test.pbrt:2:20: `texture`: no texture named \"nothing\""),
+        "{e}"
+    );
+    let e = error_of(
+        "WorldBegin\nTexture \"b\" \"float\" \"constant\"\nMaterial \"diffuse\" \"texture reflectance\" \"b\"",
+    );
+    assert!(e.contains("a float texture of that name exists"), "{e}");
+    let e = error_of("WorldBegin\nTexture \"t\" \"color3\" \"constant\"");
+    assert!(
+        e.starts_with("test.pbrt:2:13: texture type \"color3\" is unknown"),
+        "{e}"
+    );
+    let e = error_of("WorldBegin\nTexture \"t\" \"spectrum\" \"checkerboard\" \"integer dimension\" 4");
+    assert!(e.contains("must be 2 or 3, got 4"), "{e}");
+    let e = error_of("WorldBegin\nTexture \"t\" \"spectrum\" \"constant\"\nTexture \"t\" \"spectrum\" \"constant\"");
+    assert!(
+        e.starts_with("test.pbrt:3:9: `Texture`: the texture \"t\" is already defined"),
+        "{e}"
+    );
+}
+
+#[test]
+fn lights() {
+    let d = world(
+        r#"Translate 0 1 0
+LightSource "point" "rgb I" [1 2 3] "float scale" 2 "point3 from" [1 0 0]
+LightSource "spot" "point3 from" [0 0 0] "point3 to" [0 -1 0] "float coneangle" 40 "float conedeltaangle" 10 "blackbody I" 3000
+LightSource "distant" "point3 from" [0 10 0] "point3 to" [0 0 0] "rgb L" [4 4 4]
+Identity
+LightSource "infinite" "rgb L" [0.1 0.2 0.3] "float scale" 2
+LightSource "point" "float power" 100"#,
+    );
+    assert_eq!(
+        d.lights[0].kind,
+        LightKind::Point {
+            position: Vec3::new(1.0, 1.0, 0.0),
+            intensity: Rgb::new(2.0, 4.0, 6.0),
+            falloff: true
+        }
+    );
+    match &d.lights[1].kind {
+        LightKind::Spot {
+            position,
+            to,
+            intensity,
+            inner_angle,
+            outer_angle,
+            ..
+        } => {
+            assert_eq!((*position, *to), (Vec3::Y, Vec3::ZERO));
+            assert_eq!((*inner_angle, *outer_angle), (30.0, 40.0));
+            assert_eq!(*intensity, blackbody_rgb(3000.0));
+        }
+        k => panic!("{k:?}"),
+    }
+    assert_eq!(
+        d.lights[2].kind,
+        LightKind::Directional {
+            direction: Vec3::new(0.0, -10.0, 0.0),
+            irradiance: Rgb::splat(4.0)
+        }
+    );
+    assert_eq!(d.background, BackgroundDesc::Constant(Rgb::new(0.2, 0.4, 0.6)));
+    // power = 4π·I for a point light.
+    match d.lights[3].kind {
+        LightKind::Point { intensity, .. } => assert!((intensity.x - 100.0 / (4.0 * PI_F32)).abs() < 1e-4),
+        ref k => panic!("{k:?}"),
+    }
+    assert!(
+        d.warnings[0].starts_with("test.pbrt:4:110: \"blackbody I\" 3000 K is approximated"),
+        "{:?}",
+        d.warnings
+    );
+}
+
+const PI_F32: f32 = std::f32::consts::PI;
+
+#[test]
+fn environment_maps_are_read_as_latitude_longitude() {
+    let d = world("Rotate -90 1 0 0\nLightSource \"infinite\" \"string filename\" \"sky.exr\" \"float scale\" 3");
+    let BackgroundDesc::Image { path, scale, transform } = &d.background else {
+        panic!("{:?}", d.background)
+    };
+    assert_eq!((path.as_path(), *scale), (Path::new("sky.exr"), 3.0));
+    let m = transform.iter().fold(Mat4::IDENTITY, |acc, op| match op {
+        TransformOp::Matrix(m) => *m * acc,
+        _ => acc,
+    });
+    // The top of the map (trazo's +y) is pbrt's +z, which Rotate -90 about
+    // x turns to world +y.
+    assert!(close(m.transform_vector3(Vec3::Y), Vec3::Y));
+    assert!(d.warnings[0].contains("is approximated: pbrt-v4 stores it in an equal-area octahedral layout"));
+    let e = error_of("WorldBegin\nLightSource \"infinite\" \"string filename\" \"sky.exr\" \"rgb L\" [1 1 1]");
+    assert!(e.contains("give either \"L\" or \"filename\""), "{e}");
+}
+
+#[test]
+fn area_lights_make_emissive_materials_per_combination() {
+    let d = world(
+        r#"NamedMaterial "m"
+MakeNamedMaterial "m" "string type" "diffuse"
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [5 5 5] "float scale" 2
+  Shape "sphere"
+  Shape "sphere"
+  AreaLightSource "diffuse" "rgb L" [1 0 0] "bool twosided" true
+  Shape "sphere"
+AttributeEnd
+Shape "sphere""#,
+    );
+    let names: Vec<&str> = d.shapes.iter().map(|s| s.material.as_deref().unwrap()).collect();
+    assert_eq!(names[0], names[1]);
+    assert_ne!(names[0], names[2]);
+    assert_eq!(names[3], "m");
+    assert_eq!(material(&d, 0).emission, ColorSource::Rgb(Rgb::splat(10.0)));
+    assert_eq!(material(&d, 2).emission, ColorSource::Rgb(Rgb::X));
+    assert_eq!(material(&d, 3).emission, ColorSource::Rgb(Rgb::ZERO));
+    assert!(
+        d.warnings[0].starts_with("test.pbrt:8:3: AreaLightSource with \"bool twosided\" true is approximated"),
+        "{:?}",
+        d.warnings
+    );
+}
+
+#[test]
+fn object_instances() {
+    let d = world(
+        r#"ObjectBegin "thing"
+  Material "conductor"
+  Shape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0]
+  Translate 0 0 1
+  Shape "sphere" "float radius" 0.5
+ObjectEnd
+Translate 10 0 0
+ObjectInstance "thing"
+Identity
+Scale -1 1 1
+ObjectInstance "thing"
+ObjectBegin "unused"
+ObjectEnd
+Shape "disk""#,
+    );
+    assert_eq!(d.meshes.len(), 1);
+    let mesh = &d.meshes[0].name;
+    let placed: Vec<&ShapeDesc> = d
+        .shapes
+        .iter()
+        .filter(|s| s.kind == ShapeKind::Mesh(mesh.clone()))
+        .collect();
+    assert_eq!(placed.len(), 2);
+    let spheres: Vec<usize> = (0..d.shapes.len())
+        .filter(|&i| matches!(d.shapes[i].kind, ShapeKind::Sphere { .. }))
+        .collect();
+    assert_eq!(spheres.len(), 2);
+    // World = instance CTM × the shape's CTM inside the object.
+    assert!(close(
+        matrix(&d, spheres[0]).transform_point3(Vec3::ZERO),
+        Vec3::new(10.0, 0.0, 1.0)
+    ));
+    assert!(close(
+        matrix(&d, spheres[1]).transform_point3(Vec3::X),
+        Vec3::new(-1.0, 0.0, 1.0)
+    ));
+    assert!(d.shapes[spheres[1]].flip_normals, "mirrored quadric");
+    assert!(matches!(
+        material(&d, spheres[0]).kind,
+        MaterialKindDesc::Conductor { .. }
+    ));
+    assert!(
+        d.warnings
+            .iter()
+            .any(|w| w.starts_with("test.pbrt:13:1: object \"unused\" is unsupported"))
+    );
+
+    let e = error_of("WorldBegin\nObjectInstance \"nothing\"");
+    assert!(
+        e.starts_with("test.pbrt:2:16: `ObjectInstance`: no object named \"nothing\""),
+        "{e}"
+    );
+    let e = error_of("WorldBegin\nObjectBegin \"a\"\nObjectBegin \"b\"");
+    assert!(e.contains("inside the definition of object \"a\""), "{e}");
+    let e = error_of("WorldBegin\nObjectBegin \"a\"\nObjectEnd\nObjectBegin \"a\"");
+    assert!(e.contains("already defined (at test.pbrt:2:1)"), "{e}");
+    let e = error_of("WorldBegin\nObjectBegin \"a\"\nAttributeEnd");
+    assert!(e.contains("closes the ObjectBegin at test.pbrt:2:1"), "{e}");
+    let e = error_of("WorldBegin\nAttributeBegin\nObjectEnd");
+    assert!(e.contains("the AttributeBegin at test.pbrt:2:1 is still open"), "{e}");
+}
+
+#[test]
+fn attribute_directive_sets_defaults() {
+    let d = world("Attribute \"shape\" \"float radius\" 3\nShape \"sphere\"\nShape \"sphere\" \"float radius\" 1");
+    assert!(matches!(d.shapes[0].kind, ShapeKind::Sphere { radius, .. } if radius == 3.0));
+    assert!(matches!(d.shapes[1].kind, ShapeKind::Sphere { radius, .. } if radius == 1.0));
+    let e = error_of("WorldBegin\nAttribute \"camera\" \"float fov\" 3");
+    assert!(
+        e.starts_with("test.pbrt:2:11: unknown Attribute target \"camera\""),
+        "{e}"
+    );
+}
+
+#[test]
+fn structural_errors_name_the_place() {
+    let cases: &[(&str, &str)] = &[
+        (
+            "WorldBegin\nShpe \"sphere\"",
+            "test.pbrt:2:1: `Shpe`: unknown directive (did you mean \"Shape\"?)",
+        ),
+        (
+            "WorldBegin\nWorldBegin",
+            "test.pbrt:2:1: `WorldBegin`: appears a second time (the first is at test.pbrt:1:1)",
+        ),
+        (
+            "WorldBegin\nAttributeEnd",
+            "test.pbrt:2:1: `AttributeEnd`: without a matching AttributeBegin",
+        ),
+        (
+            "WorldBegin\nTransformEnd",
+            "test.pbrt:2:1: `TransformEnd`: without a matching TransformBegin",
+        ),
+        (
+            "Shape \"sphere\"\nWorldBegin",
+            "test.pbrt:1:1: `Shape`: must come after WorldBegin",
+        ),
+        (
+            "WorldBegin\nCamera \"perspective\"",
+            "test.pbrt:2:1: `Camera`: is a rendering option and must come before WorldBegin",
+        ),
+        (
+            "Camera \"perspective\"\n",
+            "test.pbrt:2:1: `WorldBegin`: the file ends before WorldBegin",
+        ),
+        (
+            "WorldBegin\n  AttributeBegin\nShape \"sphere\"",
+            "test.pbrt:2:3: `AttributeBegin`: is never closed",
+        ),
+        (
+            "WorldBegin\nObjectBegin \"x\"",
+            "test.pbrt:2:1: `ObjectBegin`: is never closed",
+        ),
+        (
+            "WorldBegin\nTranslate 1 2",
+            "test.pbrt:2:1: Translate needs 3 numbers; the file ends after 2",
+        ),
+        (
+            "WorldBegin\nTranslate 1 2 Shape",
+            "test.pbrt:2:15: Translate: expected a number, found `Shape`",
+        ),
+        (
+            "WorldBegin\nRotate 10 0 0 0",
+            "test.pbrt:2:1: `Rotate`: the rotation axis must not be the zero vector",
+        ),
+        (
+            "LookAt 0 0 0 0 0 0 0 1 0\nWorldBegin",
+            "test.pbrt:1:1: `LookAt`: the eye and the point looked at are the same point",
+        ),
+        (
+            "LookAt 0 0 1 0 0 0 0 0 1\nWorldBegin",
+            "test.pbrt:1:1: `LookAt`: the up vector is parallel",
+        ),
+        (
+            "Transform 1 0 0 0\nWorldBegin",
+            "test.pbrt:1:11: Transform needs [ and 16 numbers ], found `1`",
+        ),
+        (
+            "ConcatTransform [1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1 0]",
+            "test.pbrt:1:50: ConcatTransform needs exactly 16 numbers, then ]",
+        ),
+        (
+            "WorldBegin\n\"sphere\"",
+            "test.pbrt:2:1: expected a directive, found the string \"sphere\"",
+        ),
+        (
+            "WorldBegin\nShape sphere",
+            "test.pbrt:2:7: Shape needs a quoted string, found `sphere`",
+        ),
+        (
+            "WorldBegin\nShape \"sphear\"",
+            "test.pbrt:2:7: unknown Shape type \"sphear\" (did you mean \"sphere\"?)",
+        ),
+        (
+            "WorldBegin\nShape \"sphere\" \"float radius\" \"big\"",
+            "test.pbrt:2:31: \"float radius\": expected a number, found \"big\"",
+        ),
+        (
+            "WorldBegin\nShape \"sphere\" \"integer radius\" 2",
+            "test.pbrt:2:16: `integer radius`: `radius` must be of type float, not integer",
+        ),
+        (
+            "WorldBegin\nShape \"sphere\" \"float radius\" [1 2]",
+            "test.pbrt:2:16: `float radius`: expected one value, found 2",
+        ),
+        (
+            "Film \"rgb\" \"integer xresolution\" 0\nWorldBegin",
+            "test.pbrt:1:12: `integer xresolution`: must be between 1 and 65536 pixels, got 0",
+        ),
+        (
+            "Camera \"perspective\" \"float fov\" 180\nWorldBegin",
+            "test.pbrt:1:22: `float fov`: must be between 0 and 180 degrees",
+        ),
+        (
+            "Scale 0 1 1\nCamera \"perspective\"\nWorldBegin",
+            "test.pbrt:2:1: `Camera`: the current transform is singular",
+        ),
+        (
+            "WorldBegin\nScale 0 1 1\nShape \"sphere\"",
+            "test.pbrt:3:1: `shape[0].transform`: matrix: the matrix is singular",
+        ),
+        (
+            "WorldBegin\nImport",
+            "test.pbrt:2:1: Import needs a quoted string; the file ends",
+        ),
+        (
+            "Import \"x.pbrt\"\nWorldBegin",
+            "test.pbrt:1:1: `Import`: must come after WorldBegin",
+        ),
+        (
+            "WorldBegin\nInclude \"does-not-exist.pbrt\"",
+            "test.pbrt:2:9: `Include`: cannot read does-not-exist.pbrt: file not found",
+        ),
+        (
+            "WorldBegin\nLightSource \"spot\" \"float coneangle\" 200",
+            "test.pbrt:2:20: `light[0].outer_angle`: must be at most 180 degrees",
+        ),
+        (
+            "WorldBegin\nLightSource \"point\" \"rgb I\" [1 1]",
+            "test.pbrt:2:21: `rgb I`: needs groups of 3 numbers, found 2 numbers",
+        ),
+        (
+            "WorldBegin\nAreaLightSource \"diffuse\" \"float scale\" -1",
+            "test.pbrt:2:1: `L`: the emitted radiance must not be negative",
+        ),
+        (
+            "WorldBegin\nActiveTransform Sometimes",
+            "test.pbrt:2:17: ActiveTransform needs All, StartTime or EndTime, found `Sometimes`",
+        ),
+    ];
+    for (text, expected) in cases {
+        let e = error_of(text);
+        assert!(e.starts_with(expected), "{text:?}\n  gave: {e}\n  want: {expected}");
+        assert!(!e.contains('\n'), "{e}");
+    }
+}
+
+#[test]
+fn unsupported_parameters_and_directives_warn_with_positions() {
+    let d = parse_str(
+        r#"Film "rgb" "string filename" "out.exr" "float diagonal" 35
+Accelerator "kdtree"
+Option "disablepixeljitter" true
+WorldBegin
+MakeNamedMedium "fog" "string type" "homogeneous"
+MediumInterface "fog" ""
+Shape "sphere" "float alpha" 0.5
+WorldEnd"#,
+    )
+    .unwrap();
+    let w = d.warnings.join("\n");
+    for expected in [
+        "test.pbrt:1:12: \"string filename\" \"out.exr\" is unsupported",
+        "test.pbrt:1:40: parameter \"float diagonal\" of Film \"rgb\" is unsupported: ignored",
+        "test.pbrt:2:1: Accelerator \"kdtree\" is unsupported",
+        "test.pbrt:3:1: Option \"disablepixeljitter\" is unsupported",
+        "test.pbrt:5:1: MakeNamedMedium \"fog\" is unsupported",
+        "test.pbrt:6:1: MediumInterface is unsupported",
+        "test.pbrt:7:16: parameter \"float alpha\" of Shape \"sphere\" is unsupported: ignored",
+        "test.pbrt:8:1: WorldEnd (pbrt-v3 syntax) is unsupported",
+    ] {
+        assert!(w.contains(expected), "missing {expected:?} in\n{w}");
+    }
+}
+
+#[test]
+fn repeated_warnings_are_counted_after_ten() {
+    let d = world(&"Shape \"sphere\" \"float alpha\" 0.5\n".repeat(25));
+    assert_eq!(d.warnings.len(), 11, "{:?}", d.warnings);
+    assert_eq!(
+        d.warnings[10],
+        "test.pbrt:2:16: parameter \"float alpha\" of Shape \"sphere\" is unsupported: ignored (15 more times, not listed)"
+    );
+}
+
+#[test]
+fn imported_files_keep_their_blocks_to_themselves() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    std::fs::write(
+        root.join("main.pbrt"),
+        "WorldBegin\nAttributeBegin\nImport \"i.pbrt\"\nAttributeEnd\n",
+    )
+    .unwrap();
+    std::fs::write(root.join("i.pbrt"), "Shape \"sphere\"\nAttributeEnd\n").unwrap();
+    let e = load(&root.join("main.pbrt"), &[]).unwrap_err().to_string();
+    assert!(
+        e.contains("i.pbrt:2:1: `AttributeEnd`: without a matching AttributeBegin"),
+        "{e}"
+    );
+    std::fs::write(root.join("i.pbrt"), "AttributeBegin\nShape \"sphere\"\n").unwrap();
+    let e = load(&root.join("main.pbrt"), &[]).unwrap_err().to_string();
+    assert!(
+        e.contains("i.pbrt:1:1: `AttributeBegin`: is not closed before the end of the imported file"),
+        "{e}"
+    );
+}
+
+#[test]
+fn repeated_parameters_take_the_last_value() {
+    let d = world("Shape \"sphere\" \"float radius\" 1 \"float radius\" 2");
+    assert!(matches!(d.shapes[0].kind, ShapeKind::Sphere { radius, .. } if radius == 2.0));
+    assert!(
+        d.warnings[0].starts_with("test.pbrt:2:16: parameter \"float radius\""),
+        "{:?}",
+        d.warnings
+    );
+}
+
+#[test]
+fn defines_only_warn() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("s.pbrt");
+    std::fs::write(&f, "WorldBegin\n").unwrap();
+    let d = load(&f, &[("x".into(), "1".into())]).unwrap();
+    assert_eq!(
+        d.warnings,
+        vec!["-D x: pbrt scenes have no parameters; the definition is not used"]
+    );
+}
+
+#[test]
+fn includes_resolve_relative_to_the_including_file_and_detect_loops() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    std::fs::create_dir_all(root.join("parts/more")).unwrap();
+    std::fs::write(
+        root.join("main.pbrt"),
+        "WorldBegin\nInclude \"parts/geometry.pbrt\"\nShape \"disk\"\n",
+    )
+    .unwrap();
+    std::fs::write(
+        root.join("parts/geometry.pbrt"),
+        "Translate 0 2 0\nInclude \"more/deeper.pbrt\"\nShape \"plymesh\" \"string filename\" \"mesh.ply\"\n",
+    )
+    .unwrap();
+    std::fs::write(root.join("parts/mesh.ply"), "").unwrap();
+    std::fs::write(root.join("parts/more/deeper.pbrt"), "Shape \"sphere\"\n").unwrap();
+    let d = load(&root.join("main.pbrt"), &[]).unwrap();
+    assert_eq!(d.shapes.len(), 3);
+    // Include is textual: the CTM set in the included file stays in force.
+    for i in 0..3 {
+        assert!(close(
+            matrix(&d, i).transform_point3(Vec3::ZERO),
+            Vec3::new(0.0, 2.0, 0.0)
+        ));
+    }
+    assert_eq!(
+        d.shapes[1].kind,
+        ShapeKind::InlineMesh(MeshSource::File(PathBuf::from("parts/mesh.ply")))
+    );
+    // Positions inside included files are their own.
+    assert!(
+        d.shapes[0]
+            .locs
+            .item
+            .as_ref()
+            .unwrap()
+            .to_string()
+            .ends_with("deeper.pbrt:1:1")
+    );
+
+    // Import keeps its graphics state to itself.
+    std::fs::write(
+        root.join("imp.pbrt"),
+        "WorldBegin\nImport \"parts/geometry.pbrt\"\nShape \"disk\"\n",
+    )
+    .unwrap();
+    let d = load(&root.join("imp.pbrt"), &[]).unwrap();
+    assert_eq!(matrix(&d, 2), Mat4::IDENTITY);
+
+    // A loop: a → b → a.
+    std::fs::write(root.join("a.pbrt"), "WorldBegin\nInclude \"parts/b.pbrt\"\n").unwrap();
+    std::fs::write(root.join("parts/b.pbrt"), "\n  Include \"../a.pbrt\"\n").unwrap();
+    let e = load(&root.join("a.pbrt"), &[]).unwrap_err().to_string();
+    assert!(
+        e.contains("b.pbrt:2:11: `Include`: include loop: a.pbrt → b.pbrt → a.pbrt"),
+        "{e}"
+    );
+
+    // Errors inside an included file point into it.
+    std::fs::write(root.join("c.pbrt"), "WorldBegin\nInclude \"parts/bad.pbrt\"\n").unwrap();
+    std::fs::write(root.join("parts/bad.pbrt"), "Shape \"sphere\"\n  Bogus\n").unwrap();
+    let e = load(&root.join("c.pbrt"), &[]).unwrap_err().to_string();
+    assert!(e.contains("bad.pbrt:2:3: `Bogus`: unknown directive"), "{e}");
+}

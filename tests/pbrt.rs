@@ -1,0 +1,375 @@
+//! pbrt-v4 scenes end to end: pbrt's camera conventions in rendered
+//! images, instancing in the built scene, the Cornell box against the
+//! native one, and the command line's errors (exit status 2, file:line:col)
+//! and warnings for pbrt files.
+
+use assert_cmd::Command;
+use std::fs;
+use std::path::{Path, PathBuf};
+use trazo::color::luminance;
+use trazo::film::Film;
+use trazo::render::{RenderOptions, render};
+use trazo::scene::desc::SceneDesc;
+use trazo::{Rgb, Vec2, Vec3};
+
+fn repo(p: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
+}
+
+fn parse(text: &str) -> SceneDesc {
+    trazo::scene::pbrt::parse(text, Path::new("test.pbrt")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn render_desc(desc: &SceneDesc) -> Film {
+    let scene = trazo::scene::build(desc).unwrap_or_else(|e| panic!("{e}"));
+    render(&scene, &RenderOptions::default()).unwrap().film
+}
+
+/// Mean colour of the pixels in columns `x0..x1` and rows `y0..y1`.
+fn region_mean(film: &Film, (x0, x1): (u32, u32), (y0, y1): (u32, u32)) -> Rgb {
+    let mut sum = Rgb::ZERO;
+    for y in y0..y1 {
+        for x in x0..x1 {
+            sum += film.pixels[(y * film.width + x) as usize].value();
+        }
+    }
+    sum / ((x1 - x0) * (y1 - y0)) as f32
+}
+
+/// A red sphere at +x and a green one at −x, seen by pbrt's `LookAt` from
+/// +z: pbrt puts world +x on the image's left, and so must trazo.
+#[test]
+fn look_at_puts_world_x_on_the_left_as_pbrt_does() {
+    let scene = r#"
+LookAt 0 0 5  0 0 0  0 1 0
+Camera "perspective" "float fov" 30
+Film "rgb" "integer xresolution" 48 "integer yresolution" 24
+Sampler "independent" "integer pixelsamples" 4
+Integrator "path" "integer maxdepth" 1
+WorldBegin
+LightSource "distant" "point3 from" [0 0 5] "point3 to" [0 0 0] "rgb L" [3 3 3]
+AttributeBegin
+  Material "diffuse" "rgb reflectance" [0.8 0 0]
+  Translate 1.2 0 0
+  Shape "sphere" "float radius" 0.6
+AttributeEnd
+AttributeBegin
+  Material "diffuse" "rgb reflectance" [0 0.8 0]
+  Translate -1.2 0 0
+  Shape "sphere" "float radius" 0.6
+AttributeEnd
+"#;
+    let film = render_desc(&parse(scene));
+    let left = region_mean(&film, (0, 24), (0, 24));
+    let right = region_mean(&film, (24, 48), (0, 24));
+    assert!(left.x > 0.05 && left.x > 20.0 * left.y, "left half: {left}");
+    assert!(right.y > 0.05 && right.y > 20.0 * right.x, "right half: {right}");
+
+    // `Scale -1 1 1` before LookAt (as scenes converted from right-handed
+    // tools do) swaps them back.
+    let film = render_desc(&parse(&scene.replace("LookAt", "Scale -1 1 1\nLookAt")));
+    let left = region_mean(&film, (0, 24), (0, 24));
+    assert!(left.y > 20.0 * left.x, "mirrored: {left}");
+}
+
+/// pbrt's `fov` spans the shorter image axis: the rays through the middle
+/// of the image's edges show it.
+#[test]
+fn fov_spans_the_shorter_axis_in_portrait_and_landscape() {
+    let angle_deg = |d: Vec3| d.angle_between(Vec3::Z).to_degrees();
+    let wide = 2.0f32 * 30f32.to_radians().tan();
+    for (w, h) in [(40u32, 20u32), (20, 40)] {
+        let desc = parse(&format!(
+            "Camera \"perspective\" \"float fov\" 60\nFilm \"rgb\" \"integer xresolution\" {w} \"integer yresolution\" {h}\nWorldBegin\nShape \"sphere\""
+        ));
+        let scene = trazo::scene::build(&desc).unwrap();
+        let cam = &scene.camera;
+        let side = angle_deg(cam.generate_ray(Vec2::new(0.0, h as f32 / 2.0), Vec2::ZERO).dir);
+        let top = angle_deg(cam.generate_ray(Vec2::new(w as f32 / 2.0, 0.0), Vec2::ZERO).dir);
+        let (short, long) = if w > h { (top, side) } else { (side, top) };
+        assert!(
+            (short - 30.0).abs() < 0.01,
+            "{w}×{h}: half-angle across the short side {short}"
+        );
+        assert!(
+            (long - wide.atan().to_degrees()).abs() < 0.01,
+            "{w}×{h}: half-angle across the long side {long}"
+        );
+    }
+}
+
+#[test]
+fn object_instances_become_instances() {
+    let desc = parse(
+        r#"WorldBegin
+LightSource "point" "point3 from" [0 5 5] "rgb I" [10 10 10]
+ObjectBegin "tri"
+  Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0]
+  Shape "sphere" "float radius" 0.25
+ObjectEnd
+ObjectInstance "tri"
+Translate 2 0 0
+ObjectInstance "tri"
+Translate 2 0 0
+ObjectInstance "tri"
+"#,
+    );
+    let scene = trazo::scene::build(&desc).unwrap();
+    assert_eq!(scene.geometry.instances.len(), 3);
+    // Analytic shapes are copied per instance.
+    assert_eq!(scene.geometry.shapes.len(), 3);
+}
+
+/// Per region of a 4 × 4 grid: mean luminance and the variance of that mean.
+fn regions(film: &Film) -> Vec<(Rgb, f64, f64)> {
+    let (w, h) = (film.width, film.height);
+    let mut out = Vec::new();
+    for ry in 0..4 {
+        for rx in 0..4 {
+            let (x0, x1, y0, y1) = (rx * w / 4, (rx + 1) * w / 4, ry * h / 4, (ry + 1) * h / 4);
+            let n = ((x1 - x0) * (y1 - y0)) as f64;
+            let (mut lum, mut var) = (0.0, 0.0);
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let p = &film.pixels[(y * w + x) as usize];
+                    lum += luminance(p.value()) as f64;
+                    var += p.variance_of_mean();
+                }
+            }
+            out.push((region_mean(film, (x0, x1), (y0, y1)), lum / n, var / (n * n)));
+        }
+    }
+    out
+}
+
+/// scenes/pbrt/cornell-box.pbrt renders the image of scenes/cornell-box.toml:
+/// red wall left, green right, and every region's mean luminance within
+/// the noise of the two estimates.
+#[test]
+fn the_pbrt_cornell_box_matches_the_native_one() {
+    let mut images = Vec::new();
+    for path in ["scenes/cornell-box.toml", "scenes/pbrt/cornell-box.pbrt"] {
+        let mut desc = trazo::scene::load(&repo(path), &[]).unwrap();
+        assert!(desc.warnings.is_empty(), "{path}: {:?}", desc.warnings);
+        desc.settings.width = 32;
+        desc.settings.height = 32;
+        desc.settings.spp = 64;
+        images.push(render_desc(&desc));
+    }
+    let (native, pbrt) = (regions(&images[0]), regions(&images[1]));
+    for (i, ((c0, m0, v0), (c1, m1, v1))) in native.iter().zip(&pbrt).enumerate() {
+        let sigma = (v0 + v1).sqrt();
+        assert!(
+            (m0 - m1).abs() <= 5.0 * sigma + 1e-4,
+            "region {i}: native {m0:.4}, pbrt {m1:.4}, σ {sigma:.4}"
+        );
+        // The walls' colours are on the same sides.
+        if i % 4 == 0 && (1..3).contains(&(i / 4)) {
+            assert!(c0.x > 2.0 * c0.y && c1.x > 2.0 * c1.y, "left wall red: {c0} {c1}");
+        }
+        if i % 4 == 3 && (1..3).contains(&(i / 4)) {
+            assert!(c0.y > 1.2 * c0.x && c1.y > 1.2 * c1.x, "right wall green: {c0} {c1}");
+        }
+    }
+}
+
+fn trazo() -> Command {
+    Command::cargo_bin("trazo").unwrap()
+}
+
+/// Runs `trazo render` on `scene` expecting exit status 2 and a single
+/// line on stderr; returns it.
+fn render_fails(scene: &Path, out: &Path) -> String {
+    let o = trazo()
+        .args(["render", "-q", "-o"])
+        .arg(out)
+        .arg(scene)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(2), "{}: {err}", scene.display());
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "one line expected, got: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    lines[0].to_string()
+}
+
+#[test]
+fn malformed_pbrt_files_exit_2_naming_file_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.png");
+    let cases: &[(&str, &str)] = &[
+        ("WorldBegin\nShape \"sphere\n", "s.pbrt:2:7: unterminated string"),
+        (
+            "WorldBegin\nShape \"sphere\" \"float radius\" 1.5.2\n",
+            "s.pbrt:2:31: \"float radius\": expected a number, found `1.5.2`",
+        ),
+        (
+            "WorldBegin\nShape \"sphere\" \"float radius\" [1\n",
+            "s.pbrt:2:31: unclosed `[`",
+        ),
+        ("WorldBegin\nSphere \"x\"\n", "s.pbrt:2:1: `Sphere`: unknown directive"),
+        (
+            "WorldBegin\nShape \"sphere\" \"rgb radius\" [1 1 1]\n",
+            "s.pbrt:2:16: `rgb radius`: `radius` must be of type float",
+        ),
+        (
+            "WorldBegin\nShape \"sphere\" \"float radius\" [1 2]\n",
+            "s.pbrt:2:16: `float radius`: expected one value, found 2",
+        ),
+        (
+            "WorldBegin\nShape \"sphere\" \"flaot radius\" 1\n",
+            "s.pbrt:2:16: unknown parameter type \"flaot\"",
+        ),
+        (
+            "WorldBegin\nWorldBegin\n",
+            "s.pbrt:2:1: `WorldBegin`: appears a second time",
+        ),
+        (
+            "WorldBegin\nAttributeEnd\n",
+            "s.pbrt:2:1: `AttributeEnd`: without a matching AttributeBegin",
+        ),
+        (
+            "WorldBegin\n\nObjectInstance \"tree\"\n",
+            "s.pbrt:3:16: `ObjectInstance`: no object named \"tree\"",
+        ),
+        (
+            "WorldBegin\nNamedMaterial \"gold\"\nShape \"sphere\"\n",
+            "s.pbrt:2:15: `NamedMaterial`: no material named \"gold\"",
+        ),
+        (
+            "WorldBegin\nMaterial \"diffuse\" \"texture reflectance\" \"wood\"\n",
+            "s.pbrt:2:20: `texture`: no texture named \"wood\"",
+        ),
+        (
+            "WorldBegin\nInclude \"missing.pbrt\"\n",
+            "s.pbrt:2:9: `Include`: cannot read",
+        ),
+        (
+            "WorldBegin\nShape \"sphere\" \"float radius\" -2\n",
+            "s.pbrt:2:16: `shape[0].radius`: must be positive",
+        ),
+        ("Shape \"sphere\"\n", "s.pbrt:1:1: `Shape`: must come after WorldBegin"),
+        (
+            "Film \"rgb\"\n",
+            "s.pbrt:2:1: `WorldBegin`: the file ends before WorldBegin",
+        ),
+        (
+            "WorldBegin\nAttributeBegin\n",
+            "s.pbrt:2:1: `AttributeBegin`: is never closed",
+        ),
+        (
+            "WorldBegin\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 5]\n",
+            "s.pbrt:2:53: `integer indices`: index 5 is out of range",
+        ),
+    ];
+    for (text, expected) in cases {
+        let scene = dir.path().join("s.pbrt");
+        fs::write(&scene, text).unwrap();
+        let line = render_fails(&scene, &out);
+        let at = line
+            .find("s.pbrt:")
+            .unwrap_or_else(|| panic!("{text:?}: no position in {line}"));
+        assert!(
+            line[at..].starts_with(expected),
+            "{text:?}\n  gave: {line}\n  want: {expected}"
+        );
+        assert!(!out.exists(), "no image is written on errors");
+    }
+
+    // An include loop names the Include directive that closes the loop.
+    fs::write(dir.path().join("a.pbrt"), "WorldBegin\nInclude \"b.pbrt\"\n").unwrap();
+    fs::write(dir.path().join("b.pbrt"), "# b\nInclude \"a.pbrt\"\n").unwrap();
+    let line = render_fails(&dir.path().join("a.pbrt"), &out);
+    assert!(
+        line.contains("b.pbrt:2:9: `Include`: include loop: a.pbrt → b.pbrt → a.pbrt"),
+        "{line}"
+    );
+
+    // An error in an included file is at its own line and column.
+    fs::write(dir.path().join("c.pbrt"), "WorldBegin\nInclude \"d.pbrt\"\n").unwrap();
+    fs::write(dir.path().join("d.pbrt"), "\n\n    Translate 1 x 3\n").unwrap();
+    let line = render_fails(&dir.path().join("c.pbrt"), &out);
+    assert!(
+        line.contains("d.pbrt:3:17: Translate: expected a number, found `x`"),
+        "{line}"
+    );
+
+    // Text that is not UTF-8.
+    fs::write(dir.path().join("e.pbrt"), b"WorldBegin\n# caf\xe9\n").unwrap();
+    let line = render_fails(&dir.path().join("e.pbrt"), &out);
+    assert!(line.contains("e.pbrt:2:6: the file is not valid UTF-8 text"), "{line}");
+}
+
+#[test]
+fn unsupported_elements_warn_with_positions_and_still_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("w.pbrt");
+    fs::write(
+        &scene,
+        r#"Film "rgb" "integer xresolution" 16 "integer yresolution" 12
+Sampler "halton" "integer pixelsamples" 2
+WorldBegin
+LightSource "point" "point3 from" [0 3 3] "blackbody I" 5000 "float scale" 20
+Material "hair"
+Shape "sphere" "float phimax" 180
+Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3]
+Shape "disk" "float alpha" 0.5
+"#,
+    )
+    .unwrap();
+    let out = dir.path().join("w.png");
+    let o = trazo()
+        .args(["render", "-q", "-o"])
+        .arg(&out)
+        .arg(&scene)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(out.is_file());
+    for expected in [
+        "w.pbrt:2:1: Sampler \"halton\" is approximated",
+        "w.pbrt:4:43: \"blackbody I\" 5000 K is approximated",
+        "w.pbrt:5:1: material \"hair\" is approximated",
+        "w.pbrt:6:1: Shape \"sphere\" with zmin/zmax/phimax is approximated",
+        "w.pbrt:7:1: Shape \"curve\" is unsupported",
+        "w.pbrt:8:14: parameter \"float alpha\" of Shape \"disk\" is unsupported: ignored",
+    ] {
+        assert!(
+            err.lines().any(|l| l.starts_with("warning: ") && l.contains(expected)),
+            "missing {expected:?} in\n{err}"
+        );
+    }
+}
+
+#[test]
+fn the_example_pbrt_scene_renders_without_warnings() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cb.png");
+    let o = trazo()
+        .args(["render", "-q", "--width", "24", "--height", "24", "--spp", "1", "-o"])
+        .arg(&out)
+        .arg(repo("scenes/pbrt/cornell-box.pbrt"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("warning"), "{err}");
+    assert!(out.is_file());
+}
+
+#[test]
+fn the_extension_picks_the_reader_and_defines_warn() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("x.PBRT");
+    fs::write(&scene, "WorldBegin\nShape \"sphere\"\n").unwrap();
+    let d = trazo::scene::load(&scene, &[("size".into(), "2".into())]).unwrap();
+    assert_eq!(d.shapes.len(), 1);
+    assert_eq!(d.warnings.len(), 1, "{:?}", d.warnings);
+    assert!(d.warnings[0].contains("-D size"));
+    let other = dir.path().join("x.stl");
+    fs::write(&other, "").unwrap();
+    let e = trazo::scene::load(&other, &[]).unwrap_err().to_string();
+    assert!(e.contains(".pbrt"), "{e}");
+}
