@@ -8,6 +8,7 @@
 pub mod build;
 pub mod builtin;
 pub mod desc;
+pub mod gltf;
 pub mod native;
 pub mod obj;
 
@@ -88,11 +89,13 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
     let mut desc = match ext.as_str() {
         "toml" => native::load(path)?,
         "obj" => builtin::framed_model(path)?,
+        // glTF warns about unused -D definitions itself.
+        "gltf" | "glb" => return gltf::load(path, defines),
         _ => {
             return Err(Error::file(
                 path,
                 format!(
-                    "unknown scene format{}: trazo reads .toml scenes and .obj models",
+                    "unknown scene format{}: trazo reads .toml scenes, .gltf/.glb scenes and .obj models",
                     if ext.is_empty() {
                         String::new()
                     } else {
