@@ -665,6 +665,19 @@ fn unsupported_features_warn_with_their_place() {
     assert!(has("KHR_materials_clearcoat is unsupported").contains(":1:"));
     has("alphaMode MASK is approximated");
     assert!(has("LINES primitives are unsupported").contains(":5:"));
+
+    // A primitive without POSITION is skipped (§3.7.2.1), the rest drawn.
+    let body = format!(
+        r#""scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],"meshes":[{{"primitives":[{{{prim}}},{{"attributes":{{}}}}]}}]"#
+    );
+    a.write_embedded(&path, &body);
+    let d = load(&path, &[]).unwrap();
+    assert_eq!(d.shapes.len(), 1);
+    has_warning(&d, "without POSITION");
+}
+
+fn has_warning(d: &SceneDesc, s: &str) {
+    assert!(d.warnings.iter().any(|w| w.contains(s)), "{s}: {:?}", d.warnings);
 }
 
 #[test]
@@ -781,6 +794,18 @@ fn bad_data_is_an_error_naming_the_element() {
     );
     assert!(
         e.contains(":2:") && e.contains("nodes[0].mesh") && e.contains("does not exist"),
+        "{e}"
+    );
+
+    // A POSITION accessor that does not exist (the gltf crate 1.4 would
+    // panic validating it).
+    let e = load_error(
+        dir.path(),
+        &a,
+        &format!(r#"{scene},"meshes":[{{"primitives":[{{"attributes":{{"POSITION":99}}}}]}}]"#),
+    );
+    assert!(
+        e.contains("meshes[0].primitives[0].attributes.POSITION") && e.contains("does not exist"),
         "{e}"
     );
 

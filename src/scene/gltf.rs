@@ -124,16 +124,35 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
         }
     }
     root.extensions_required.clear();
+    // The gltf crate's validation (1.4) indexes the accessors with each
+    // primitive's POSITION before checking that it exists: check first.
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let position = prim.attributes.get(&Checked::Valid(json::mesh::Semantic::Positions));
+            if position.is_some_and(|a| a.value() >= root.accessors.len()) {
+                return Err(reader.err(
+                    &format!("meshes[{m}].primitives[{p}].attributes.POSITION"),
+                    "refers to an element that does not exist",
+                ));
+            }
+        }
+    }
     // The gltf crate's checks: references in range, enumerations known,
     // required members present.
     let mut problems = Vec::new();
     json::validation::Validate::validate(&root, &root, json::Path::new, &mut |p, e| {
         let p = p();
         // §3.7.2.1 asks POSITION accessors for min and max, which many
-        // exporters omit; trazo computes bounds itself.
-        let bounds = matches!(e, json::validation::Error::Missing)
-            && (p.as_str().ends_with("].min") || p.as_str().ends_with("].max"));
-        if !bounds {
+        // exporters omit or get wrong; trazo computes bounds itself. A
+        // primitive without POSITION is skipped with a warning (§3.7.2.1:
+        // "client implementations SHOULD skip primitive's rendering").
+        let tolerated = match e {
+            json::validation::Error::Missing | json::validation::Error::Invalid => {
+                p.as_str().ends_with("].min") || p.as_str().ends_with("].max")
+            }
+            _ => false,
+        } || (matches!(e, json::validation::Error::Missing) && p.as_str().ends_with("[\"POSITION\"]"));
+        if !tolerated {
             problems.push((p, e));
         }
     });
@@ -751,8 +770,9 @@ impl<'a> Reader<'a> {
                 }
             }
         }
-        // Primitives per mesh: (mesh, material name, shape locations).
-        let mut converted: HashMap<usize, Vec<Option<(TriangleMesh, String)>>> = HashMap::new();
+        // Primitives per mesh: triangles (taken by the first placement),
+        // material name and local bounds.
+        let mut converted: HashMap<usize, Vec<Option<(TriangleMesh, String, Aabb)>>> = HashMap::new();
         let mut named: HashMap<(usize, usize), String> = HashMap::new();
         for p in placed {
             let Some(m) = root.nodes[p.node].mesh.map(|m| m.value()) else {
@@ -775,9 +795,8 @@ impl<'a> Reader<'a> {
             let placed_once = uses[&m] == 1;
             let prims = converted.get_mut(&m).expect("converted above");
             for (pi, prim) in prims.iter_mut().enumerate() {
-                let Some((mesh, material)) = prim else { continue };
+                let Some((mesh, material, local)) = prim else { continue };
                 let prim_at = format!("meshes[{m}].primitives[{pi}]");
-                let local = mesh.bounds();
                 for corner in 0..8 {
                     let c = Vec3::new(
                         if corner & 1 == 0 { local.min.x } else { local.max.x },
@@ -803,7 +822,7 @@ impl<'a> Reader<'a> {
                             let name = prim_at.clone();
                             self.desc.meshes.push(MeshDesc {
                                 name: name.clone(),
-                                source: MeshSource::Inline(mesh.clone()),
+                                source: MeshSource::Inline(std::mem::take(mesh)),
                                 locs: Locs::at(Some(self.loc(&prim_at))),
                             });
                             named.insert((m, pi), name.clone());
@@ -826,7 +845,7 @@ impl<'a> Reader<'a> {
 
     /// The triangles and material of each primitive of mesh `m`; `None`
     /// for primitives that are skipped (with a warning).
-    fn convert_mesh(&mut self, root: &json::Root, m: usize) -> Result<Vec<Option<(TriangleMesh, String)>>> {
+    fn convert_mesh(&mut self, root: &json::Root, m: usize) -> Result<Vec<Option<(TriangleMesh, String, Aabb)>>> {
         let mesh = &root.meshes[m];
         if mesh.weights.is_some() || mesh.primitives.iter().any(|p| p.targets.is_some()) {
             self.warn(
@@ -839,8 +858,13 @@ impl<'a> Reader<'a> {
             let tri = self.convert_primitive(root, m, p)?;
             let item = match tri {
                 Some(t) => {
-                    let material = self.material(root, mesh.primitives[p].material.map(|i| i.value()))?;
-                    Some((t, material))
+                    let material = self.material(
+                        root,
+                        mesh.primitives[p].material.map(|i| i.value()),
+                        &format!("meshes[{m}].primitives[{p}]"),
+                    )?;
+                    let bounds = t.bounds();
+                    Some((t, material, bounds))
                 }
                 None => None,
             };
@@ -1356,16 +1380,37 @@ impl<'a> Reader<'a> {
         Ok(name)
     }
 
+    /// The mean colour of the image a texture reference shows (for
+    /// materials that cannot vary over a surface).
+    fn texture_average(&mut self, root: &json::Root, info: &json::texture::Info) -> Result<Rgb> {
+        let image = root.textures[info.index.value()].source.value();
+        match self.image_source(root, image)? {
+            ImageSource::Data(img) => Ok(img.average()),
+            ImageSource::File(rel) => {
+                let full = self.base_dir.join(rel);
+                let img = ImageTexture::load(&full, Some(true)).map_err(|e| {
+                    let reason = match e {
+                        Error::File { message, .. } => message,
+                        other => other.to_string(),
+                    };
+                    self.err(&format!("images[{image}].uri"), format!("{}: {reason}", full.display()))
+                })?;
+                Ok(img.average())
+            }
+        }
+    }
+
     /// The name of the material for glTF material `m` (`None`: the
-    /// default material of §3.9.6), converting it on first use.
-    fn material(&mut self, root: &json::Root, m: Option<usize>) -> Result<String> {
+    /// default material of §3.9.6, reported at `user`, the first primitive
+    /// that uses it), converting it on first use.
+    fn material(&mut self, root: &json::Root, m: Option<usize>, user: &str) -> Result<String> {
         if let Some(name) = self.materials.get(&m) {
             return Ok(name.clone());
         }
         let default = json::Material::default();
         let (mat, at, name) = match m {
             Some(i) => (&root.materials[i], format!("materials[{i}]"), format!("materials[{i}]")),
-            None => (&default, "meshes".to_string(), "glTF default material".to_string()),
+            None => (&default, user.to_string(), "glTF default material".to_string()),
         };
         let desc = self.convert_material(root, mat, &at, &name)?;
         self.desc.materials.push(desc);
@@ -1470,15 +1515,19 @@ impl<'a> Reader<'a> {
                     "a metallic factor between 0 and 1 is approximated: ≥ 0.5 is taken as a metal, < 0.5 as a dielectric",
                 );
             }
-            if pbr.base_color_texture.is_some() {
-                self.warn(
-                    &base_texture_at,
-                    "baseColorTexture on a metal is approximated: the base colour factor alone sets the reflectance",
-                );
-            }
+            let reflectance = match &pbr.base_color_texture {
+                Some(info) => {
+                    self.warn(
+                        &base_texture_at,
+                        "baseColorTexture on a metal is approximated: the reflectance is the base colour factor times the texture's average colour",
+                    );
+                    base * self.texture_average(root, info)?
+                }
+                None => base,
+            };
             locs.keys.push(("reflectance".into(), self.loc(&base_at)));
             MaterialKindDesc::Conductor {
-                fresnel: ConductorDesc::Reflectance(base),
+                fresnel: ConductorDesc::Reflectance(reflectance),
                 tint: Rgb::ONE,
                 roughness: (alpha, alpha),
             }
@@ -1502,19 +1551,23 @@ impl<'a> Reader<'a> {
                 );
             }
             if transmission_factor > 0.5 {
-                if pbr.base_color_texture.is_some() {
-                    self.warn(
-                        &base_texture_at,
-                        "baseColorTexture on a transmissive material is approximated: the base colour factor alone tints the transmission",
-                    );
-                }
+                let transmit_tint = match &pbr.base_color_texture {
+                    Some(info) => {
+                        self.warn(
+                            &base_texture_at,
+                            "baseColorTexture on a transmissive material is approximated: the transmission is tinted by the base colour factor times the texture's average colour",
+                        );
+                        base * self.texture_average(root, info)?
+                    }
+                    None => base,
+                };
                 locs.keys.push(("transmit_tint".into(), self.loc(&base_at)));
                 MaterialKindDesc::Dielectric {
                     ior,
                     ext_ior: 1.0,
                     roughness: alpha,
                     reflect_tint: Rgb::ONE,
-                    transmit_tint: base,
+                    transmit_tint,
                 }
             } else {
                 let diffuse = match &pbr.base_color_texture {
@@ -1969,7 +2022,7 @@ mod tests {
         let l = loc.loc("meshes[0].primitives[0].attributes[\"POSITION\"]");
         assert_eq!((l.line, l.column), (3, 37));
         let l = loc.loc("meshes[0].primitives[0].indices");
-        assert_eq!((l.line, l.column), (3, 22));
+        assert_eq!((l.line, l.column), (3, 21));
         let l = loc.loc("x[1]");
         assert_eq!((l.line, l.column), (5, 3));
         let l = loc.loc("extensionsRequired[0] = \"FOO\"");
