@@ -543,6 +543,14 @@ struct Reader<'a> {
     desc: SceneDesc,
 }
 
+/// A primitive ready to place: its triangles (taken by the first
+/// placement), material name and local bounds.
+struct Primitive {
+    mesh: TriangleMesh,
+    material: String,
+    bounds: Aabb,
+}
+
 /// A node reached from the scene's roots, with its world transform.
 struct Placed {
     node: usize,
@@ -770,9 +778,8 @@ impl<'a> Reader<'a> {
                 }
             }
         }
-        // Primitives per mesh: triangles (taken by the first placement),
-        // material name and local bounds.
-        let mut converted: HashMap<usize, Vec<Option<(TriangleMesh, String, Aabb)>>> = HashMap::new();
+        // Primitives per mesh (`None`: skipped).
+        let mut converted: HashMap<usize, Vec<Option<Primitive>>> = HashMap::new();
         let mut named: HashMap<(usize, usize), String> = HashMap::new();
         for p in placed {
             let Some(m) = root.nodes[p.node].mesh.map(|m| m.value()) else {
@@ -795,7 +802,14 @@ impl<'a> Reader<'a> {
             let placed_once = uses[&m] == 1;
             let prims = converted.get_mut(&m).expect("converted above");
             for (pi, prim) in prims.iter_mut().enumerate() {
-                let Some((mesh, material, local)) = prim else { continue };
+                let Some(Primitive {
+                    mesh,
+                    material,
+                    bounds: local,
+                }) = prim
+                else {
+                    continue;
+                };
                 let prim_at = format!("meshes[{m}].primitives[{pi}]");
                 for corner in 0..8 {
                     let c = Vec3::new(
@@ -845,7 +859,7 @@ impl<'a> Reader<'a> {
 
     /// The triangles and material of each primitive of mesh `m`; `None`
     /// for primitives that are skipped (with a warning).
-    fn convert_mesh(&mut self, root: &json::Root, m: usize) -> Result<Vec<Option<(TriangleMesh, String, Aabb)>>> {
+    fn convert_mesh(&mut self, root: &json::Root, m: usize) -> Result<Vec<Option<Primitive>>> {
         let mesh = &root.meshes[m];
         if mesh.weights.is_some() || mesh.primitives.iter().any(|p| p.targets.is_some()) {
             self.warn(
@@ -864,7 +878,11 @@ impl<'a> Reader<'a> {
                         &format!("meshes[{m}].primitives[{p}]"),
                     )?;
                     let bounds = t.bounds();
-                    Some((t, material, bounds))
+                    Some(Primitive {
+                        mesh: t,
+                        material,
+                        bounds,
+                    })
                 }
                 None => None,
             };
