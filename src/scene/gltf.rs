@@ -50,7 +50,7 @@ const MAX_BUFFER_BYTES: u64 = 1 << 32;
 /// are zeros plus sparse substitutions, so no buffer bounds its count).
 const MAX_ZERO_ACCESSOR_VALUES: u64 = 1 << 28;
 
-/// GLB chunk types (glTF 2.0 §4.4.3).
+/// GLB chunk types (glTF 2.0 §4, "Chunks").
 const CHUNK_JSON: u32 = 0x4E4F_534A;
 const CHUNK_BIN: u32 = 0x004E_4942;
 
@@ -92,7 +92,7 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
             message: "the glTF JSON is not valid UTF-8 text".into(),
         }
     })?;
-    // A byte-order mark is not allowed (§3.2) but harmless.
+    // glTF JSON must not start with a byte-order mark, but one is harmless.
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut root: json::Root = json::deserialize::from_str(text).map_err(|e| json_syntax_error(&loc_file, &e))?;
 
@@ -192,7 +192,7 @@ fn read_file(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
 }
 
 /// Splits a GLB file into its JSON chunk and optional BIN chunk (glTF 2.0
-/// §4.4): a 12-byte header (magic, version 2, total length), then chunks of
+/// §4, "GLB File Format Specification"): a 12-byte header (magic, version 2, total length), then chunks of
 /// (length, type, data); the first is JSON, a BIN chunk may follow, chunks
 /// of other types are skipped.
 fn split_glb<'b>(path: &Path, bytes: &'b [u8]) -> Result<(&'b [u8], Option<&'b [u8]>)> {
@@ -262,7 +262,7 @@ fn split_glb<'b>(path: &Path, bytes: &'b [u8]) -> Result<(&'b [u8], Option<&'b [
             }
             (false, CHUNK_BIN) if bin.is_none() => bin = Some(data),
             (false, CHUNK_JSON) => return Err(bad(offset + 4, "a second JSON chunk".into())),
-            // §4.4.3.1: chunks of unknown types are ignored.
+            // §4, "Chunks": chunks of unknown types are ignored.
             _ => {}
         }
         offset = end;
@@ -682,7 +682,7 @@ impl<'a> Reader<'a> {
             roots.iter().rev().map(|&n| (n, Mat4::IDENTITY, None)).collect();
         while let Some((n, parent_world, parent)) = stack.pop() {
             if visited[n] {
-                // §3.5.3: nodes form disjoint strict trees; a second parent
+                // §3.5.2: nodes form disjoint strict trees; a second parent
                 // (or a cycle) would place the node twice or forever.
                 let at = match parent {
                     Some(p) => format!("nodes[{p}].children"),
@@ -716,7 +716,7 @@ impl<'a> Reader<'a> {
         Ok(placed)
     }
 
-    /// A node's transform: its matrix (column-major, §5.25) or
+    /// A node's transform (§3.5.3): its matrix (column-major) or
     /// translation × rotation × scale.
     fn local_transform(&mut self, root: &json::Root, n: usize) -> Result<Mat4> {
         let node = &root.nodes[n];
@@ -981,7 +981,7 @@ impl<'a> Reader<'a> {
         }
         if let Some(a) = uv {
             let values = self.read_floats(root, a, AccessorType::Vec2, "TEXCOORD_0")?;
-            // glTF's (0, 0) is the image's top-left corner (§3.7.2.1);
+            // glTF's (0, 0) is the image's top-left corner (§3.8.1);
             // trazo's v runs up from the bottom row.
             mesh.uvs = values.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])).collect();
             let uv_at = format!("{at}.attributes.TEXCOORD_0");
@@ -1040,7 +1040,7 @@ impl<'a> Reader<'a> {
         let at = format!("buffers[{b}]");
         let (data, source): (Cow<'a, [u8]>, String) = match &buffer.uri {
             None => match self.bin {
-                // §4.4.3.2: the first buffer without a uri is the BIN chunk.
+                // §4, "Binary buffer": buffer 0 without a uri is the BIN chunk.
                 Some(bin) if b == 0 => (Cow::Borrowed(bin), "the GLB binary chunk".into()),
                 Some(_) => {
                     return Err(self.err(&at, "has no uri; only buffer 0 can refer to the GLB binary chunk"));
@@ -1852,7 +1852,8 @@ impl<'a> Reader<'a> {
 }
 
 fn decode_f32(ct: ComponentType, normalized: bool, b: &[u8]) -> f32 {
-    // §3.11 (KHR_mesh_quantization, and core for texture coordinates):
+    // §3.11, "normalized integers" (used by KHR_mesh_quantization and
+    // by core texture coordinates):
     // normalized integers map to [0, 1] or [−1, 1].
     match ct {
         ComponentType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
@@ -1919,7 +1920,7 @@ fn component_name(c: ComponentType) -> &'static str {
     }
 }
 
-/// A relative URI reference (§3.3.2) as a file path: percent-escapes
+/// A relative URI reference (RFC 3986) as a file path: percent-escapes
 /// decoded; absolute URLs (`http:`, `file:` …) are refused.
 fn uri_to_path(uri: &str) -> std::result::Result<PathBuf, String> {
     if let Some(colon) = uri.find(':') {
