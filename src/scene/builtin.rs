@@ -63,34 +63,33 @@ fn load_model(path: &Path) -> Result<Model> {
     }
 }
 
-/// Sets up a studio around geometry with bounds `bounds`: a camera in
-/// front and a little above whose view holds the bounding sphere, a key
-/// and a fill light, a sky gradient, and a ground plane under it all.
-pub fn studio(d: &mut SceneDesc, bounds: Aabb) {
+/// A perspective camera (40° vertical field of view, +y up) that looks at
+/// `bounds` from the front, a little above and to the right, far enough
+/// away that their bounding sphere fits the view.
+pub fn framing_camera(bounds: &Aabb) -> CameraDesc {
     let center = bounds.centroid();
     let radius = (bounds.extent().length() * 0.5).max(1e-6);
     let fov = 40.0f32;
     let distance = radius / (fov.to_radians() * 0.5).sin() * 1.05;
     let view_dir = Vec3::new(0.35, 0.3, 1.0).normalize();
-    d.camera = CameraDesc {
+    CameraDesc {
         projection: ProjectionDesc::Perspective { fov },
         from: center + view_dir * distance,
         to: center,
         up: Vec3::Y,
         ..CameraDesc::default()
-    };
+    }
+}
+
+/// Studio lighting for a scene that brings none: a key and a fill
+/// directional light, a blue-grey gradient background (which also lights
+/// the path tracer's scenes) and a little ambient light for Whitted.
+pub fn add_studio_lights(d: &mut SceneDesc) {
     d.background = BackgroundDesc::Gradient {
         top: Rgb::new(0.55, 0.6, 0.7),
         bottom: Rgb::splat(0.15),
     };
     d.ambient = Rgb::splat(0.08);
-    d.materials.push(MaterialDesc::classic(
-        "studio-ground",
-        ClassicDesc {
-            diffuse: ColorSource::Rgb(Rgb::splat(0.5)),
-            ..ClassicDesc::default()
-        },
-    ));
     d.lights.push(LightDesc::new(LightKind::Directional {
         direction: Vec3::new(-0.5, -1.0, -0.6).normalize(),
         irradiance: Rgb::splat(2.6),
@@ -99,6 +98,21 @@ pub fn studio(d: &mut SceneDesc, bounds: Aabb) {
         direction: Vec3::new(0.8, -0.3, -0.5).normalize(),
         irradiance: Rgb::new(0.6, 0.65, 0.8),
     }));
+}
+
+/// Sets up a studio around geometry with bounds `bounds`: the
+/// [`framing_camera`], the [`add_studio_lights`] and a grey ground plane
+/// under it all.
+pub fn studio(d: &mut SceneDesc, bounds: Aabb) {
+    d.camera = framing_camera(&bounds);
+    add_studio_lights(d);
+    d.materials.push(MaterialDesc::classic(
+        "studio-ground",
+        ClassicDesc {
+            diffuse: ColorSource::Rgb(Rgb::splat(0.5)),
+            ..ClassicDesc::default()
+        },
+    ));
     d.shapes.push(ShapeDesc::new(
         ShapeKind::Plane {
             point: Vec3::new(0.0, bounds.min.y, 0.0),

@@ -8,6 +8,7 @@
 pub mod build;
 pub mod builtin;
 pub mod desc;
+pub mod gltf;
 pub mod mitsuba;
 pub mod native;
 pub mod obj;
@@ -92,13 +93,14 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
         "xml" => return mitsuba::load(path, defines),
         "toml" => native::load(path)?,
         "obj" | "ply" => builtin::framed_model(path)?,
-        // pbrt::load warns about -D definitions itself.
+        // These readers warn about -D definitions themselves.
         "pbrt" => return pbrt::load(path, defines),
+        "gltf" | "glb" => return gltf::load(path, defines),
         _ => {
             return Err(Error::file(
                 path,
                 format!(
-                    "unknown scene format{}: trazo reads .toml (trazo), .xml (Mitsuba 3) and .pbrt (pbrt-v4) scenes, and .obj and .ply models",
+                    "unknown scene format{}: trazo reads .toml (trazo), .xml (Mitsuba 3), .pbrt (pbrt-v4) and .gltf/.glb (glTF 2.0) scenes, and .obj and .ply models",
                     if ext.is_empty() {
                         String::new()
                     } else {

@@ -46,6 +46,42 @@ impl ImageTexture {
             .map_err(|e| Error::file(path, format!("cannot read image: {e}")))?
             .decode()
             .map_err(|e| Error::file(path, format!("cannot decode image: {e}")))?;
+        Ok(Self::from_decoded(img, srgb))
+    }
+
+    /// Decodes a PNG or JPEG image held in memory (an image embedded in a
+    /// glTF file, say); 8- and 16-bit images are decoded from sRGB when
+    /// `srgb` is true. Errors are plain reasons, for the caller to place.
+    pub fn from_encoded(bytes: &[u8], srgb: bool) -> Result<ImageTexture, String> {
+        let reader = ::image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| format!("cannot read image: {e}"))?;
+        if !matches!(
+            reader.format(),
+            Some(::image::ImageFormat::Png | ::image::ImageFormat::Jpeg)
+        ) {
+            return Err("not a PNG or JPEG image".into());
+        }
+        let (w, h) = reader
+            .into_dimensions()
+            .map_err(|e| format!("not a readable image: {e}"))?;
+        // Checked before decoding, which allocates by the header's size.
+        if w as u64 * h as u64 > MAX_TEXTURE_PIXELS {
+            return Err(format!(
+                "image of {w}×{h} pixels is larger than the limit of 16384×16384"
+            ));
+        }
+        let img = ::image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| format!("cannot read image: {e}"))?
+            .decode()
+            .map_err(|e| format!("cannot decode image: {e}"))?;
+        Ok(Self::from_decoded(img, Some(srgb)))
+    }
+
+    /// Linear pixels of a decoded image: integer images from sRGB unless
+    /// `srgb` is `Some(false)`, float images as they are unless `Some(true)`.
+    fn from_decoded(img: ::image::DynamicImage, srgb: Option<bool>) -> ImageTexture {
         let is_float = matches!(img.color(), ::image::ColorType::Rgb32F | ::image::ColorType::Rgba32F);
         let decode_srgb = srgb.unwrap_or(!is_float);
         let rgb = img.to_rgb32f();
@@ -60,11 +96,11 @@ impl ImageTexture {
                 }
             })
             .collect();
-        Ok(ImageTexture {
+        ImageTexture {
             width: rgb.width(),
             height: rgb.height(),
             pixels,
-        })
+        }
     }
 
     fn load_exr(path: &Path) -> Result<ImageTexture> {
@@ -141,6 +177,21 @@ mod tests {
         assert_eq!(t.pixels[0].y, 1.0);
         let lin = ImageTexture::load(&path, Some(false)).unwrap();
         assert!((lin.pixels[0].x - 128.0 / 255.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn encoded_png_in_memory_is_decoded() {
+        let img = ::image::RgbImage::from_pixel(3, 1, ::image::Rgb([128, 255, 0]));
+        let mut png = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut png), ::image::ImageFormat::Png)
+            .unwrap();
+        let t = ImageTexture::from_encoded(&png, true).unwrap();
+        assert_eq!((t.width, t.height), (3, 1));
+        assert!((t.pixels[2].x - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
+        let lin = ImageTexture::from_encoded(&png, false).unwrap();
+        assert!((lin.pixels[0].x - 128.0 / 255.0).abs() < 1e-6);
+        assert!(ImageTexture::from_encoded(b"garbage", true).is_err());
+        assert!(ImageTexture::from_encoded(&png[..png.len() / 2], true).is_err());
     }
 
     #[test]
