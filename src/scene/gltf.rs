@@ -7,7 +7,7 @@
 //! every length checked against the bytes that are actually there. Errors and
 //! warnings name the place in the JSON by line and column (in a `.glb`, of its
 //! JSON chunk) and the element by its JSON path, e.g.
-//! `meshes[0].primitives[1].indices`. docs/formats-gltf.md lists what is
+//! `meshes[0].primitives[1].indices`. docs/formats.md lists what is
 //! supported, approximated and ignored.
 
 use super::builtin;

@@ -1,7 +1,7 @@
 //! Stanford PLY meshes, read by hand: ASCII, binary little-endian and
 //! binary big-endian, following Greg Turk's description of the format
 //! ("The PLY Polygon File Format") as the Stanford scans, rply, Blender and
-//! MeshLab write it. docs/formats-ply.md lists what is read and what is
+//! MeshLab write it. docs/formats.md lists what is read and what is
 //! skipped.
 //!
 //! The reader never trusts a count before checking it against the bytes

@@ -1,5 +1,5 @@
 //! A reader for pbrt-v4 scene files (`.pbrt`), documented in
-//! docs/formats-pbrt.md with the support of every directive and parameter.
+//! docs/formats.md with the support of every directive and parameter.
 //!
 //! The reader follows pbrt-v4's own parser and scene builder (parser.cpp,
 //! scene.cpp) for the graphics state: the current transformation matrix
