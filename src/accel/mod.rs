@@ -3,6 +3,8 @@
 
 pub mod aggregate;
 pub mod bvh;
+pub mod queries;
 
 pub use aggregate::Aggregate;
 pub use bvh::{Bvh, BvhNode};
+pub use queries::{QueryHit, TriangleBvh};

@@ -1,6 +1,8 @@
 //! The `trazo` command line: maps flags onto library calls. No rendering
 //! logic lives here.
 
+mod bench;
+
 use crate::error::{Error, Result};
 use crate::film::Tonemap;
 use crate::film::io::{ImageFormat, read_image, write_image};
@@ -42,6 +44,9 @@ enum Command {
     /// Compare two images (PNG, EXR, HDR, PFM): RMSE, relative MSE and the
     /// mean of each channel; the exit status says whether they agree.
     Diff(DiffArgs),
+    /// Benchmarks of the renderer's kernels on your own inputs.
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
 }
 
 #[derive(Args, Debug)]
@@ -202,6 +207,7 @@ pub fn main() -> ExitCode {
         Command::Render(args) => run_render(args),
         Command::Compare(args) => run_compare(args),
         Command::Diff(args) => return run_diff(args),
+        Command::Bench(command) => bench::run(command),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -264,8 +270,13 @@ fn default_output(scene: Option<&Path>) -> PathBuf {
 /// Fails early, before a long render, if the output cannot be written.
 fn check_output(path: &Path) -> Result<()> {
     ImageFormat::from_path(path)?;
+    check_writable(path)
+}
+
+/// Fails early if a file cannot be created at `path`.
+fn check_writable(path: &Path) -> Result<()> {
     if path.is_dir() {
-        return Err(Error::file(path, "cannot write the image: this is a folder"));
+        return Err(Error::file(path, "cannot write: this is a folder"));
     }
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
