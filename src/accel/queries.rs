@@ -9,8 +9,8 @@
 //! file holds 8 bytes per ray: the hit parameter `t` (`f32`, `+inf` for a
 //! miss) and the primitive number (`u32`, `u32::MAX` for a miss).
 
-use super::Bvh;
-use crate::geometry::triangle::intersect_triangle;
+use super::{Bvh, Bvh4};
+use crate::geometry::triangle::{TriangleRay, intersect_triangle_with};
 use crate::geometry::{Ray, TriangleMesh};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -29,7 +29,7 @@ pub const MISS: u32 = u32::MAX;
 /// leaf's triangles are contiguous in memory.
 #[derive(Clone, Debug)]
 pub struct TriangleBvh {
-    bvh: Bvh,
+    bvh: Bvh4,
     /// Vertices of the triangle at each leaf position.
     vertices: Vec<[Vec3; 3]>,
     /// The caller's number of the triangle at each leaf position.
@@ -62,7 +62,9 @@ impl TriangleBvh {
             .into_par_iter()
             .map(|i| mesh.triangle_bounds(i))
             .collect();
-        let (bvh, order) = Bvh::build(&bounds);
+        let (binary, order) = Bvh::build(&bounds);
+        let bvh = Bvh4::from_binary(&binary);
+        drop(binary);
         let vertices = order.par_iter().map(|&i| mesh.vertices(i as usize)).collect();
         let ids = order.iter().map(|&i| ids.map_or(i, |ids| ids[i as usize])).collect();
         TriangleBvh { bvh, vertices, ids }
@@ -88,11 +90,14 @@ impl TriangleBvh {
     /// The closest hit along `ray` within its interval.
     #[inline]
     pub fn closest_hit(&self, ray: &Ray) -> QueryHit {
+        let Some(pre) = TriangleRay::new(ray) else {
+            return QueryHit::NONE;
+        };
         let mut r = *ray;
         let mut best = MISS;
         self.bvh.traverse(&mut r, false, |k, r| {
             let [p0, p1, p2] = self.vertices[k as usize];
-            match intersect_triangle(r, p0, p1, p2) {
+            match intersect_triangle_with(r, &pre, p0, p1, p2) {
                 Some(h) => {
                     r.t_max = h.t;
                     best = k;
@@ -114,10 +119,13 @@ impl TriangleBvh {
     /// Whether anything lies along `ray` within its interval.
     #[inline]
     pub fn any_hit(&self, ray: &Ray) -> bool {
+        let Some(pre) = TriangleRay::new(ray) else {
+            return false;
+        };
         let mut r = *ray;
         self.bvh.traverse(&mut r, true, |k, r| {
             let [p0, p1, p2] = self.vertices[k as usize];
-            intersect_triangle(r, p0, p1, p2).is_some()
+            intersect_triangle_with(r, &pre, p0, p1, p2).is_some()
         })
     }
 
@@ -194,6 +202,7 @@ pub fn encode_rays(rays: &[Ray]) -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::triangle::intersect_triangle;
     use crate::sampling::rng::Pcg32;
     use crate::sampling::warp::sample_sphere_uniform;
     use glam::Vec2;
