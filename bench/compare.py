@@ -164,10 +164,16 @@ def ray_section(args, work):
 
 
 def find_libllvm():
+    """The newest libLLVM shared library on the system (Dr.Jit's LLVM backend needs version 16 or later)."""
     if os.environ.get("DRJIT_LIBLLVM_PATH"):
         return os.environ["DRJIT_LIBLLVM_PATH"]
-    found = sorted(glob.glob("/usr/lib/x86_64-linux-gnu/libLLVM*.so*") + glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*"))
-    return found[-1] if found else None
+    found = glob.glob("/usr/lib/x86_64-linux-gnu/libLLVM*.so*") + glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*")
+    versioned = []
+    for path in found:
+        m = re.search(r"(?:libLLVM-|llvm-)(\d+)", path)
+        if m and int(m.group(1)) >= 16:
+            versioned.append((int(m.group(1)), path))
+    return max(versioned)[1] if versioned else None
 
 
 MITSUBA = r"""
@@ -187,7 +193,7 @@ def mitsuba_time(variant, scene, res, spp, out):
     if variant.startswith("llvm"):
         lib = find_libllvm()
         if not lib:
-            return None, "no libLLVM found (apt-get install libllvm19, or set DRJIT_LIBLLVM_PATH)"
+            return None, "no libLLVM 16 or later found (apt-get install libllvm19, or set DRJIT_LIBLLVM_PATH)"
         env["DRJIT_LIBLLVM_PATH"] = lib
     r = subprocess.run([sys.executable, "-c", MITSUBA, variant, scene, str(res), str(spp), out],
                        capture_output=True, text=True, env=env)
