@@ -4,6 +4,7 @@
 
 pub mod aov;
 pub mod path;
+pub mod photon;
 pub mod whitted;
 
 pub use path::{PathSampling, PathTracer};
