@@ -65,8 +65,13 @@ pub struct RenderStats {
     pub invalid_samples: u64,
     /// Threads used.
     pub threads: usize,
-    /// Samples per pixel completed.
+    /// Samples per pixel completed (SPPM: iterations).
     pub spp: u32,
+    /// Photons emitted (photon mapping).
+    pub photons_emitted: u64,
+    /// Seconds spent tracing photons and building photon maps (included
+    /// in `seconds`).
+    pub photon_seconds: f64,
 }
 
 impl RenderStats {
@@ -111,11 +116,19 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
             },
             options,
         ),
+        IntegratorKind::Photon => crate::integrator::photon::jensen::render(scene, options),
+        IntegratorKind::Sppm => crate::integrator::photon::sppm::render(scene, options),
     }
 }
 
 /// Renders `scene` with a given integrator.
 pub fn render_with<I: Integrator>(scene: &Scene, integrator: &I, options: &RenderOptions) -> Result<RenderOutput> {
+    in_thread_pool(options, || render_passes(scene, integrator, options))
+}
+
+/// Runs `work` on `options.threads` threads (every core when `None`):
+/// whatever it starts with rayon runs there.
+pub fn in_thread_pool<T: Send>(options: &RenderOptions, work: impl FnOnce() -> T + Send) -> Result<T> {
     let pool = match options.threads {
         Some(0) => return Err(Error::Invalid("--threads must be at least 1".into())),
         Some(n) => Some(
@@ -126,10 +139,9 @@ pub fn render_with<I: Integrator>(scene: &Scene, integrator: &I, options: &Rende
         ),
         None => None,
     };
-    let run = || render_passes(scene, integrator, options);
     Ok(match pool {
-        Some(p) => p.install(run),
-        None => run(),
+        Some(p) => p.install(work),
+        None => work(),
     })
 }
 
