@@ -9,7 +9,8 @@ use crate::film::Film;
 use crate::film::Tonemap;
 use crate::film::io::{ImageFormat, read_image, write_image};
 use crate::integrator::aov::Aov;
-use crate::integrator::{IntegratorKind, PathSampling};
+use crate::integrator::photon::{MAX_GATHER, MAX_PHOTONS};
+use crate::integrator::{IntegratorKind, PathSampling, PhotonKernel};
 use crate::render::checkpoint::checkpoint_path;
 use crate::render::compare::{Budget, Contestant, compare, side_by_side, table};
 use crate::render::{Control, RenderOptions, RenderStats, Stop, render_controlled};
@@ -38,7 +39,7 @@ pub const EXIT_ABORTED: u8 = 131;
 #[command(
     name = "trazo",
     version,
-    about = "trazo: a physically based renderer (Whitted ray tracing and Monte Carlo path tracing)",
+    about = "trazo: a physically based renderer (Whitted ray tracing, Monte Carlo path tracing and photon mapping)",
     long_about = None
 )]
 struct Cli {
@@ -129,6 +130,33 @@ struct SceneArgs {
     #[arg(short, long)]
     verbose: bool,
 
+    /// Photons emitted for photon mapping's global map, or per SPPM
+    /// iteration (overrides the scene).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=(MAX_PHOTONS as i64)))]
+    photons: Option<u32>,
+
+    /// Photons emitted for photon mapping's caustic map.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=(MAX_PHOTONS as i64)))]
+    caustic_photons: Option<u32>,
+
+    /// Photons in each radiance estimate (the k nearest).
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=(MAX_GATHER as i64)))]
+    photon_gather: Option<u32>,
+
+    /// Largest photon search radius (SPPM: the initial radius), in scene
+    /// units; 0 chooses one from the scene's size.
+    #[arg(long, value_name = "R")]
+    photon_radius: Option<f32>,
+
+    /// Final-gather rays per camera sample for photon mapping; 0 reads the
+    /// global map directly.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=(MAX_GATHER as i64)))]
+    final_gather: Option<u32>,
+
+    /// Density estimation kernel for photon mapping.
+    #[arg(long, value_name = "NAME", value_parser = PhotonKernel::NAMES)]
+    photon_kernel: Option<String>,
+
     /// Set a scene parameter: a Mitsuba `$name` default (may be repeated).
     #[arg(short = 'D', value_name = "NAME=VALUE", value_parser = parse_define)]
     defines: Vec<(String, String)>,
@@ -159,7 +187,9 @@ struct RenderArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=(MAX_SPP as i64)))]
     spp: Option<u32>,
 
-    /// Rendering algorithm (overrides the scene).
+    /// Rendering algorithm (overrides the scene): whitted, path, photon
+    /// (Jensen's photon mapping) or sppm (stochastic progressive photon
+    /// mapping; --spp is then the number of iterations).
     #[arg(long, value_name = "NAME", value_parser = IntegratorKind::NAMES)]
     integrator: Option<String>,
 
@@ -296,6 +326,29 @@ impl SceneArgs {
         }
         if let Some(v) = self.exposure {
             s.exposure = v;
+        }
+        if let Some(v) = self.photons {
+            s.photon.photons = v;
+        }
+        if let Some(v) = self.caustic_photons {
+            s.photon.caustic_photons = v;
+        }
+        if let Some(v) = self.photon_gather {
+            s.photon.gather = v;
+        }
+        if let Some(v) = self.photon_radius {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::Invalid(format!(
+                    "--photon-radius must be 0 (automatic) or a positive number, got {v}"
+                )));
+            }
+            s.photon.radius = v;
+        }
+        if let Some(v) = self.final_gather {
+            s.photon.final_gather = v;
+        }
+        if let Some(v) = &self.photon_kernel {
+            s.photon.kernel = PhotonKernel::from_name(v).expect("clap checked the value");
         }
         Ok(desc)
     }
@@ -535,6 +588,14 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
                 "checkpoint → {} (continue with: trazo render --resume {})",
                 checkpoint_file.display(),
                 checkpoint_file.display()
+            );
+        }
+        if st.photons_emitted > 0 {
+            eprintln!(
+                "photons: {} emitted in {:.2} s ({:.2} M photons/s, tracing and map building)",
+                st.photons_emitted,
+                st.photon_seconds,
+                st.photons_emitted as f64 / st.photon_seconds.max(1e-9) / 1e6
             );
         }
     }

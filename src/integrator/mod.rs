@@ -4,9 +4,11 @@
 
 pub mod aov;
 pub mod path;
+pub mod photon;
 pub mod whitted;
 
 pub use path::{PathSampling, PathTracer};
+pub use photon::{PhotonKernel, PhotonMapper, PhotonSettings};
 pub use whitted::Whitted;
 
 use crate::color::Rgb;
@@ -22,17 +24,23 @@ pub enum IntegratorKind {
     /// Kajiya's path tracer.
     #[default]
     Path,
+    /// Jensen's two-pass photon mapping.
+    Photon,
+    /// Stochastic progressive photon mapping.
+    Sppm,
 }
 
 impl IntegratorKind {
     /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 2] = ["whitted", "path"];
+    pub const NAMES: [&'static str; 4] = ["whitted", "path", "photon", "sppm"];
 
     /// Parses one of [`IntegratorKind::NAMES`].
     pub fn from_name(s: &str) -> Option<IntegratorKind> {
         match s {
             "whitted" => Some(IntegratorKind::Whitted),
             "path" => Some(IntegratorKind::Path),
+            "photon" => Some(IntegratorKind::Photon),
+            "sppm" => Some(IntegratorKind::Sppm),
             _ => None,
         }
     }
@@ -42,6 +50,8 @@ impl IntegratorKind {
         match self {
             IntegratorKind::Whitted => "whitted",
             IntegratorKind::Path => "path",
+            IntegratorKind::Photon => "photon",
+            IntegratorKind::Sppm => "sppm",
         }
     }
 }

@@ -16,8 +16,10 @@
 //! with what density it would have chosen a given direction
 //! ([`Light::pdf_li`]).
 
+pub mod emission;
 pub mod environment;
 
+pub use emission::{EmissionSample, scene_bounding_sphere};
 pub use environment::{Background, EnvironmentMap};
 
 use crate::accel::aggregate::{EmitterArea, EmitterRef};

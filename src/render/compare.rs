@@ -203,6 +203,9 @@ mod tests {
         assert_eq!(Contestant::parse("path").unwrap().label, "path:mis");
         assert!(Contestant::parse("path:magic").is_err());
         assert!(Contestant::parse("whitted:mis").is_err());
-        assert!(Contestant::parse("photon").is_err());
+        assert_eq!(Contestant::parse("photon").unwrap().integrator, IntegratorKind::Photon);
+        assert_eq!(Contestant::parse("sppm").unwrap().label, "sppm");
+        assert!(Contestant::parse("photon:mis").is_err());
+        assert!(Contestant::parse("bdpt").is_err());
     }
 }

@@ -74,8 +74,13 @@ pub struct RenderStats {
     pub invalid_samples: u64,
     /// Threads used.
     pub threads: usize,
-    /// Samples per pixel completed.
+    /// Samples per pixel completed (SPPM: iterations).
     pub spp: u32,
+    /// Photons emitted (photon mapping).
+    pub photons_emitted: u64,
+    /// Seconds spent tracing photons and building photon maps (included
+    /// in `seconds`).
+    pub photon_seconds: f64,
     /// The first few dropped samples, in pass, tile and pixel order (at
     /// most [`MAX_INVALID_EXAMPLES`]), to show where they happen.
     pub invalid_examples: Vec<InvalidSample>,
@@ -182,6 +187,8 @@ pub fn render_controlled(scene: &Scene, options: &RenderOptions, control: &mut C
             options,
             control,
         ),
+        IntegratorKind::Photon => crate::integrator::photon::jensen::render(scene, options),
+        IntegratorKind::Sppm => crate::integrator::photon::sppm::render(scene, options),
     }
 }
 
@@ -217,6 +224,12 @@ pub fn render_with_control<I: Integrator>(
             )));
         }
     }
+    in_thread_pool(options, || render_passes(scene, integrator, options, control))
+}
+
+/// Runs `work` on `options.threads` threads (every core when `None`):
+/// whatever it starts with rayon runs there.
+pub fn in_thread_pool<T: Send>(options: &RenderOptions, work: impl FnOnce() -> T + Send) -> Result<T> {
     let pool = match options.threads {
         Some(0) => return Err(Error::Invalid("--threads must be at least 1".into())),
         Some(n) => Some(
@@ -227,10 +240,9 @@ pub fn render_with_control<I: Integrator>(
         ),
         None => None,
     };
-    let mut run = || render_passes(scene, integrator, options, control);
     Ok(match pool {
-        Some(p) => p.install(run),
-        None => run(),
+        Some(p) => p.install(work),
+        None => work(),
     })
 }
 

@@ -10,7 +10,8 @@ use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::film::{Filter, Tonemap};
 use crate::geometry::{Transform, TriangleMesh};
-use crate::integrator::{IntegratorKind, PathSampling};
+use crate::integrator::photon::{MAX_GATHER, MAX_PHOTONS};
+use crate::integrator::{IntegratorKind, PathSampling, PhotonSettings};
 use crate::sampling::SamplerKind;
 use glam::{Mat4, Vec2, Vec3};
 use std::path::{Path, PathBuf};
@@ -70,6 +71,8 @@ pub struct RenderSettings {
     pub tonemap: Tonemap,
     /// Exposure compensation in stops, applied before tone mapping.
     pub exposure: f32,
+    /// Photon mapping and SPPM parameters.
+    pub photon: PhotonSettings,
 }
 
 impl Default for RenderSettings {
@@ -87,6 +90,7 @@ impl Default for RenderSettings {
             filter: Filter::default(),
             tonemap: Tonemap::default(),
             exposure: 0.0,
+            photon: PhotonSettings::default(),
         }
     }
 }
@@ -1054,6 +1058,33 @@ impl SceneDesc {
             return Err(c.err("max_depth", format!("must be at most {MAX_DEPTH}, got {}", s.max_depth)));
         }
         c.finite("exposure", s.exposure)?;
+        let ph = &s.photon;
+        for (key, v, max) in [
+            ("photons", ph.photons, MAX_PHOTONS),
+            ("caustic_photons", ph.caustic_photons, MAX_PHOTONS),
+            ("photon_gather", ph.gather, MAX_GATHER),
+            ("final_gather", ph.final_gather, MAX_GATHER),
+        ] {
+            if v > max {
+                return Err(c.err(key, format!("must be at most {max}, got {v}")));
+            }
+        }
+        if ph.gather == 0 {
+            return Err(c.err("photon_gather", "must be at least 1"));
+        }
+        c.finite("photon_radius", ph.radius)?;
+        if ph.radius < 0.0 {
+            return Err(c.err(
+                "photon_radius",
+                format!("must be 0 (automatic) or positive, got {}", ph.radius),
+            ));
+        }
+        if !(ph.alpha > 0.0 && ph.alpha < 1.0) {
+            return Err(c.err(
+                "sppm_alpha",
+                format!("must be between 0 and 1 (exclusive), got {}", ph.alpha),
+            ));
+        }
         match s.filter {
             Filter::Box { radius } | Filter::Tent { radius } => {
                 c.positive("filter_radius", radius)?;

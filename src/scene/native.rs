@@ -10,7 +10,7 @@ use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::film::{Filter, Tonemap};
 use crate::geometry::TriangleMesh;
-use crate::integrator::{IntegratorKind, PathSampling};
+use crate::integrator::{IntegratorKind, PathSampling, PhotonKernel};
 use crate::sampling::SamplerKind;
 use glam::{Mat4, Vec2, Vec3, Vec4};
 use serde_spanned::Spanned;
@@ -484,6 +484,27 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     }
     if let Some(e) = t.number("exposure")? {
         s.exposure = e;
+    }
+    if let Some(n) = t.unsigned("photons", u32::MAX as u64)? {
+        s.photon.photons = n as u32;
+    }
+    if let Some(n) = t.unsigned("caustic_photons", u32::MAX as u64)? {
+        s.photon.caustic_photons = n as u32;
+    }
+    if let Some(n) = t.unsigned("photon_gather", u32::MAX as u64)? {
+        s.photon.gather = n as u32;
+    }
+    if let Some(r) = t.number("photon_radius")? {
+        s.photon.radius = r;
+    }
+    if let Some(n) = t.unsigned("final_gather", u32::MAX as u64)? {
+        s.photon.final_gather = n as u32;
+    }
+    if let Some(k) = t.choice("photon_kernel", &PhotonKernel::NAMES)? {
+        s.photon.kernel = PhotonKernel::from_name(&k).expect("checked");
+    }
+    if let Some(a) = t.number("sppm_alpha")? {
+        s.photon.alpha = a;
     }
     if let Some(f) = t.choice("filter", &Filter::NAMES)? {
         s.filter = Filter::from_name(&f).expect("checked");

@@ -1,0 +1,257 @@
+//! Photon mapping: light traced forward from the lights and stored where it
+//! lands, then read back by density estimation.
+//!
+//! - [`map`]: the photon map, a kd-tree with k-nearest and radius queries.
+//! - [`trace`]: the photon pass shared by both algorithms, multi-threaded
+//!   and deterministic.
+//! - [`jensen`]: Jensen's two-pass photon mapping (`--integrator photon`):
+//!   a global and a caustic map, direct light by next-event estimation,
+//!   final gathering for diffuse interreflection.
+//! - [`sppm`]: stochastic progressive photon mapping (`--integrator sppm`,
+//!   Hachisuka and Jensen 2009): iterations of camera and photon passes
+//!   whose radii shrink, so that the image converges to the path tracer's.
+//!
+//! ```toml
+//! [render]
+//! integrator = "photon"   # or "sppm"
+//! photons = 200000        # photons per pass (SPPM: per iteration)
+//! caustic_photons = 200000
+//! photon_gather = 64      # photons per radiance estimate (k nearest)
+//! photon_radius = 0       # largest search radius (SPPM: initial radius); 0: from the scene's size
+//! final_gather = 16       # final-gather rays per camera sample (0: read the global map directly)
+//! photon_kernel = "cone"  # or "epanechnikov", "box"
+//! sppm_alpha = 0.6667     # share of new photons SPPM keeps per iteration
+//! ```
+
+pub mod jensen;
+pub mod map;
+pub mod sppm;
+pub mod trace;
+
+pub use jensen::PhotonMapper;
+pub use map::{Nearest, Photon, PhotonMap};
+
+use crate::color::Rgb;
+use crate::geometry::SurfaceHit;
+use crate::light::ShadowTarget;
+use crate::material::{Bsdf, Frame, TransportMode};
+use crate::sampling::Sampler;
+use crate::scene::Scene;
+use glam::Vec3;
+use std::f32::consts::PI;
+
+/// The weighting of photons by distance in a density estimate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum PhotonKernel {
+    /// Constant over the disk (the plain nearest-neighbour estimate).
+    Box,
+    /// Jensen's cone filter, w = 1 − d/r (Jensen 2001, eq. 7.8 with k = 1),
+    /// normalised by 1 − 2/3.
+    #[default]
+    Cone,
+    /// Epanechnikov's kernel, w = 1 − d²/r², normalised by 1/2 (Silverman
+    /// 1986: the kernel of least mean integrated squared error).
+    Epanechnikov,
+}
+
+impl PhotonKernel {
+    /// The names accepted on the command line and in scene files.
+    pub const NAMES: [&'static str; 3] = ["box", "cone", "epanechnikov"];
+
+    /// Parses one of [`PhotonKernel::NAMES`].
+    pub fn from_name(s: &str) -> Option<PhotonKernel> {
+        match s {
+            "box" => Some(PhotonKernel::Box),
+            "cone" => Some(PhotonKernel::Cone),
+            "epanechnikov" => Some(PhotonKernel::Epanechnikov),
+            _ => None,
+        }
+    }
+
+    /// This kernel's name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            PhotonKernel::Box => "box",
+            PhotonKernel::Cone => "cone",
+            PhotonKernel::Epanechnikov => "epanechnikov",
+        }
+    }
+
+    /// Weight of a photon at squared distance `d2` in a disk of squared
+    /// radius `r2`, divided by the kernel's integral over the disk: the
+    /// weights of photons sum to a density estimate per unit area.
+    #[inline]
+    pub fn weight(&self, d2: f32, r2: f32) -> f32 {
+        match self {
+            PhotonKernel::Box => 1.0 / (PI * r2),
+            PhotonKernel::Cone => (1.0 - (d2 / r2).sqrt()).max(0.0) * 3.0 / (PI * r2),
+            PhotonKernel::Epanechnikov => (1.0 - d2 / r2).max(0.0) * 2.0 / (PI * r2),
+        }
+    }
+}
+
+/// The photon mappers' parameters (the `[render]` keys above).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhotonSettings {
+    /// Photons emitted for the global map (SPPM: per iteration).
+    pub photons: u32,
+    /// Photons emitted for the caustic map.
+    pub caustic_photons: u32,
+    /// Photons in a radiance estimate (k nearest).
+    pub gather: u32,
+    /// Largest search radius (SPPM: the initial radius); 0 chooses one from
+    /// the scene's size.
+    pub radius: f32,
+    /// Final-gather rays per camera sample; 0 reads the global map at the
+    /// first diffuse surface.
+    pub final_gather: u32,
+    /// Density estimation kernel.
+    pub kernel: PhotonKernel,
+    /// SPPM's α: the share of new photons kept at each iteration.
+    pub alpha: f32,
+}
+
+impl Default for PhotonSettings {
+    fn default() -> Self {
+        PhotonSettings {
+            photons: 200_000,
+            caustic_photons: 200_000,
+            gather: 64,
+            radius: 0.0,
+            final_gather: 16,
+            kernel: PhotonKernel::default(),
+            alpha: 2.0 / 3.0,
+        }
+    }
+}
+
+/// Most photons one map may hold (32 bytes each).
+pub const MAX_PHOTONS: u32 = 100_000_000;
+/// Most photons in one radiance estimate, and most final-gather rays.
+pub const MAX_GATHER: u32 = 16_384;
+
+impl PhotonSettings {
+    /// The search radius: the one given, or a fraction of the scene's
+    /// bounding radius (`fraction`: 0.1 for Jensen's maximum search radius,
+    /// 0.02 for SPPM's initial radius).
+    pub fn radius_or(&self, scene: &Scene, fraction: f32) -> f32 {
+        if self.radius > 0.0 {
+            self.radius
+        } else {
+            crate::light::scene_bounding_sphere(scene).1 * fraction
+        }
+    }
+}
+
+/// Whether a photon that landed on a surface of normal `photon_n` may be
+/// counted at a point of normal `n`: both on one side of the same surface
+/// (Jensen 2001, §7.2, discarding photons of nearby surfaces in corners).
+#[inline]
+pub(crate) fn same_surface(photon_n: Vec3, n: Vec3) -> bool {
+    photon_n.dot(n) > 0.7
+}
+
+/// The BSDF at a surface as the camera-side passes see it.
+pub(crate) struct ShadingPoint<'a> {
+    pub(crate) bsdf: Bsdf<'a>,
+    pub(crate) frame: Frame,
+    /// Outgoing direction in the local frame.
+    pub(crate) wo: Vec3,
+    /// Whether `wo` is on the geometric front.
+    pub(crate) front_o: bool,
+}
+
+impl<'a> ShadingPoint<'a> {
+    /// The shading point of `hit` seen along `-wo_world`; `None` for the
+    /// back of a one-sided opaque surface, which is black.
+    pub(crate) fn new(scene: &'a Scene, hit: &SurfaceHit, wo_world: Vec3) -> Option<ShadingPoint<'a>> {
+        let m = &scene.materials[hit.material as usize];
+        let bsdf = m.bsdf(&scene.images, &crate::texture::TexCoord { uv: hit.uv, p: hit.p });
+        if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
+            return None;
+        }
+        let frame = Frame::new(hit.ns, hit.tangent);
+        Some(ShadingPoint {
+            bsdf,
+            frame,
+            wo: frame.to_local(wo_world),
+            front_o: hit.ng.dot(wo_world) > 0.0,
+        })
+    }
+
+    /// f(wo, wi) for a world direction `wi` (toward the light), zero when
+    /// the geometric and shading normals disagree about the side.
+    #[inline]
+    pub(crate) fn eval(&self, hit: &SurfaceHit, wi_world: Vec3) -> Rgb {
+        let wi = self.frame.to_local(wi_world);
+        let front_i = hit.ng.dot(wi_world) > 0.0;
+        if (front_i == self.front_o) != (wi.z * self.wo.z > 0.0) {
+            return Rgb::ZERO;
+        }
+        self.bsdf.eval(self.wo, wi, TransportMode::Radiance)
+    }
+
+    /// Reflected radiance from the photons of `map` near `hit`: the density
+    /// estimate Σ f·Φ·w(d) (Jensen 2001, eq. 7.6) over the `k` nearest within
+    /// √`max_r2`. When fewer than `k` are found, the disk is the whole
+    /// search disk.
+    pub(crate) fn photon_radiance(
+        &self,
+        hit: &SurfaceHit,
+        map: &PhotonMap,
+        k: usize,
+        max_r2: f32,
+        kernel: PhotonKernel,
+        found: &mut Nearest,
+    ) -> Rgb {
+        let Some(far) = map.nearest(hit.p, k, max_r2, found) else {
+            return Rgb::ZERO;
+        };
+        let r2 = if found.len() < k { max_r2 } else { far };
+        if r2 <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let mut sum = Rgb::ZERO;
+        for (d2, index) in found.iter() {
+            let ph = map.photon(index);
+            if !same_surface(ph.normal(), hit.ng) {
+                continue;
+            }
+            let f = self.eval(hit, ph.wi());
+            sum += f * ph.power * kernel.weight(d2, r2);
+        }
+        sum
+    }
+
+    /// Direct light by next-event estimation: one light chosen by power,
+    /// one point on it, one shadow ray. Light found by hitting emitters is
+    /// never added after a non-specular bounce, so this is the only
+    /// estimate of direct light and needs no MIS weight.
+    pub(crate) fn direct_light(&self, scene: &Scene, hit: &SurfaceHit, sampler: &mut Sampler, rays: &mut u64) -> Rgb {
+        if scene.lights.is_empty() {
+            return Rgb::ZERO;
+        }
+        let (light_index, pmf, _) = scene.light_distribution.sample(sampler.next_1d());
+        let (u_pick, u) = (sampler.next_1d(), sampler.next_2d());
+        let Some(ls) = scene.lights[light_index].sample_li(scene, hit.p, u_pick, u) else {
+            return Rgb::ZERO;
+        };
+        if ls.li == Rgb::ZERO || pmf <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let f = self.eval(hit, ls.wi);
+        if f == Rgb::ZERO {
+            return Rgb::ZERO;
+        }
+        *rays += 1;
+        let shadow = match ls.target {
+            ShadowTarget::Point(p) => hit.spawn_ray_to(p),
+            ShadowTarget::Infinity => hit.spawn_ray(ls.wi),
+        };
+        if scene.occluded(&shadow) {
+            return Rgb::ZERO;
+        }
+        let cos = self.frame.to_local(ls.wi).z.abs();
+        f * ls.li * (cos / (ls.pdf * pmf))
+    }
+}

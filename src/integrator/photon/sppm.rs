@@ -1,0 +1,243 @@
+//! Stochastic progressive photon mapping (Hachisuka and Jensen 2009,
+//! "Stochastic Progressive Photon Mapping"; Hachisuka, Ogaki and Jensen
+//! 2008, "Progressive Photon Mapping").
+//!
+//! Photon mapping's bias comes from the disk over which it averages
+//! photons; SPPM makes the disk of every pixel shrink as photons arrive, so
+//! that bias and noise both vanish and the image converges to the path
+//! tracer's. Each iteration:
+//!
+//! 1. **Camera pass.** Every pixel traces one camera ray (a new random
+//!    position in the pixel each time: the "stochastic" of SPPM, which
+//!    anti-aliases and integrates depth of field and glossy chains) through
+//!    specular bounces to its *visible point*, the first surface with a
+//!    non-delta lobe. Emission seen on the way and direct light at the
+//!    visible point (next-event estimation) go to the pixel's direct sum.
+//! 2. **Photon pass.** `photons` photons are traced from the lights; those
+//!    that have bounced at least once are stored (direct light is already
+//!    counted) in a kd-tree.
+//! 3. **Update** (Hachisuka et al. 2008, eqs. 5–7). The M photons within
+//!    the pixel's radius R add flux Φ = Σ β·f·Φp. With N the pixel's photon
+//!    count so far and α ∈ (0, 1):
+//!
+//!    ```text
+//!    N' = N + α·M      R'² = R²·(N + α·M)/(N + M)      τ' = (τ + Φ)·R'²/R²
+//!    ```
+//!
+//! After k iterations the pixel is `direct/k + τ/(k·π·R²)` (photon powers
+//! are per iteration). α = 2/3 is the usual choice; Knaus and Zwicker 2011
+//! show any α in (0, 1) converges.
+//!
+//! A surface with both delta and non-delta lobes (a smooth coat over a
+//! diffuse base) is treated by choosing: with the delta lobes' probability
+//! the path continues specularly, otherwise the visible point is here; the
+//! choice's probability divides the throughput.
+//!
+//! The visible point is found and updated by its own pixel's thread (a
+//! radius query of the photon kd-tree), so no two threads touch one
+//! pixel's statistics: the image is identical for any number of threads.
+
+use super::jensen::specular_bounce;
+use super::trace::{PhotonStore, trace_photons};
+use super::{PhotonMap, ShadingPoint, same_surface};
+use crate::color::Rgb;
+use crate::error::Result;
+use crate::film::{AovSum, Film, PixelSum};
+use crate::integrator::aov::camera_aov;
+use crate::render::{RenderOptions, RenderOutput, RenderStats};
+use crate::sampling::Sampler;
+use crate::scene::Scene;
+use glam::{DVec3, Vec2};
+use rayon::prelude::*;
+use std::f64::consts::PI;
+use std::time::Instant;
+
+/// One pixel's progressive statistics.
+#[derive(Clone, Copy, Debug, Default)]
+struct PixelState {
+    /// Squared radius R².
+    r2: f32,
+    /// Accumulated photon count N.
+    n: f64,
+    /// Accumulated, radius-scaled flux τ.
+    tau: DVec3,
+    /// Sum over iterations of directly estimated light.
+    direct: DVec3,
+    /// Auxiliary values, when requested.
+    aov: AovSum,
+}
+
+/// Renders `scene` with SPPM: `spp` iterations (or as many as the time
+/// limit allows, at most `spp`), each of one camera sample per pixel and
+/// `photons` photons.
+pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
+    crate::render::in_thread_pool(options, || iterate(scene, options))
+}
+
+fn iterate(scene: &Scene, options: &RenderOptions) -> RenderOutput {
+    let s = &scene.settings;
+    let p = s.photon;
+    let (w, h) = (s.width as usize, s.height as usize);
+    let r0 = p.radius_or(scene, 0.02);
+    let mut pixels = vec![
+        PixelState {
+            r2: r0 * r0,
+            ..PixelState::default()
+        };
+        w * h
+    ];
+    let start = Instant::now();
+    let mut stats = RenderStats {
+        threads: rayon::current_num_threads(),
+        ..RenderStats::default()
+    };
+    let mut iterations = 0u32;
+    while iterations < s.spp {
+        let photon_start = Instant::now();
+        let pass = trace_photons(
+            scene,
+            p.photons,
+            s.seed,
+            2 + iterations as u64,
+            s.max_depth,
+            PhotonStore::Indirect,
+        );
+        stats.rays += pass.rays;
+        stats.photons_emitted += pass.emitted;
+        let map = PhotonMap::build(pass.photons);
+        stats.photon_seconds += photon_start.elapsed().as_secs_f64();
+
+        let rays: u64 = pixels
+            .par_chunks_mut(w)
+            .enumerate()
+            .map(|(y, row)| {
+                let mut sampler = Sampler::new(s.sampler, s.spp, s.seed);
+                let mut rays = 0u64;
+                for (x, px) in row.iter_mut().enumerate() {
+                    camera_sample(
+                        scene,
+                        options,
+                        &map,
+                        x as u32,
+                        y as u32,
+                        iterations,
+                        px,
+                        &mut sampler,
+                        &mut rays,
+                    );
+                }
+                rays
+            })
+            .sum();
+        stats.rays += rays;
+        iterations += 1;
+        if options.time_limit.is_some_and(|limit| start.elapsed() >= limit) {
+            break;
+        }
+    }
+
+    let mut film = Film::new(s.width, s.height);
+    let k = iterations.max(1) as f64;
+    for (sum, px) in film.pixels.iter_mut().zip(&pixels) {
+        let indirect = px.tau / (k * PI * px.r2 as f64);
+        let l = px.direct / k + indirect;
+        *sum = PixelSum {
+            rgb: l,
+            weight: 1.0,
+            lum_sq: crate::color::luminance(l.as_vec3()) as f64 * crate::color::luminance(l.as_vec3()) as f64,
+        };
+    }
+    if options.aovs {
+        film.aovs = Some(pixels.iter().map(|px| px.aov).collect());
+    }
+    stats.samples = (w * h) as u64 * iterations as u64;
+    stats.spp = iterations;
+    stats.seconds = start.elapsed().as_secs_f64();
+    RenderOutput { film, stats }
+}
+
+/// One iteration's camera sample of pixel (x, y): its direct light, its
+/// visible point and the update of its statistics from `map`.
+#[allow(clippy::too_many_arguments)]
+fn camera_sample(
+    scene: &Scene,
+    options: &RenderOptions,
+    map: &PhotonMap,
+    x: u32,
+    y: u32,
+    iteration: u32,
+    px: &mut PixelState,
+    sampler: &mut Sampler,
+    rays: &mut u64,
+) {
+    let s = &scene.settings;
+    sampler.start_pixel_sample(x, y, iteration);
+    let offset = s.filter.sample(sampler.pixel_2d());
+    let lens = sampler.next_2d();
+    let camera_ray = scene
+        .camera
+        .generate_ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset, lens);
+    if options.aovs {
+        px.aov.add(&camera_aov(scene, &camera_ray));
+    }
+    let mut l = Rgb::ZERO;
+    let mut beta = Rgb::ONE;
+    let mut ray = camera_ray;
+    for depth in 1..=s.max_depth {
+        *rays += 1;
+        let Some(hit) = scene.intersect(&ray) else {
+            if scene.environment_light.is_some() {
+                l += beta * scene.background.eval(ray.dir);
+            }
+            break;
+        };
+        let wo_world = -ray.dir.normalize();
+        let m = &scene.materials[hit.material as usize];
+        if m.is_emissive() && hit.is_front(wo_world) {
+            l += beta * m.emission_at(&scene.images, &crate::texture::TexCoord { uv: hit.uv, p: hit.p });
+        }
+        if depth == s.max_depth {
+            break;
+        }
+        let Some(sp) = ShadingPoint::new(scene, &hit, wo_world) else {
+            break;
+        };
+        if sp.bsdf.has_smooth() {
+            let p_delta = sp.bsdf.delta_probability(sp.wo).clamp(0.0, 1.0);
+            let u = if p_delta > 0.0 { sampler.next_1d() } else { 1.0 };
+            if u >= p_delta {
+                // The visible point.
+                let beta_vp = beta / (1.0 - p_delta);
+                l += beta_vp * sp.direct_light(scene, &hit, sampler, rays);
+                let (mut m_count, mut phi) = (0u64, Rgb::ZERO);
+                map.for_each_within(hit.p, px.r2, |ph, _| {
+                    if same_surface(ph.normal(), hit.ng) {
+                        m_count += 1;
+                        phi += sp.eval(&hit, ph.wi()) * ph.power;
+                    }
+                });
+                if m_count > 0 {
+                    let alpha = s.photon.alpha as f64;
+                    let m = m_count as f64;
+                    let n_new = px.n + alpha * m;
+                    let ratio = n_new / (px.n + m);
+                    px.tau = (px.tau + (beta_vp * phi).as_dvec3()) * ratio;
+                    px.r2 = (px.r2 as f64 * ratio) as f32;
+                    px.n = n_new;
+                }
+                break;
+            }
+            beta /= p_delta;
+        }
+        match specular_bounce(&hit, &sp, sampler.next_1d()) {
+            Some((weight, next)) => {
+                beta *= weight;
+                ray = next;
+            }
+            None => break,
+        }
+    }
+    if l.is_finite() {
+        px.direct += l.as_dvec3();
+    }
+}

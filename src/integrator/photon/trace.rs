@@ -1,0 +1,196 @@
+//! The photon pass (Jensen 2001, ch. 5): photons leave the lights, chosen
+//! in proportion to their power, and bounce through the scene's BSDFs
+//! (traced as importance, [`TransportMode::Importance`]), stored wherever
+//! they land on a surface with a non-delta lobe.
+//!
+//! Each photon starts with `Le·cos/(p_A·p_ω) / (p_light·N)`, its share of
+//! the emitted power. At every bounce Russian roulette keeps it with
+//! probability q = min(1, max(β·f·cos/pdf) / max(β)) and divides the
+//! survivor by q (Jensen 2001, §5.3): photon powers stay about constant, and
+//! the map is not filled with dim photons.
+//!
+//! Photons are traced on all cores in chunks; photon i's random numbers
+//! come from (seed, pass, i) alone and chunks are concatenated in order, so
+//! a pass is identical for any number of threads.
+
+use super::Photon;
+use crate::color::Rgb;
+use crate::material::{Frame, TransportMode};
+use crate::sampling::rng::{Pcg32, hash_u64s};
+use crate::scene::Scene;
+use glam::Vec2;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Which photons a pass stores.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PhotonStore {
+    /// Every landing on a surface with a non-delta lobe: Jensen's global map.
+    All,
+    /// Only light that reached such a surface through one or more specular
+    /// (delta) bounces and nothing else, L S+ D: the caustic map. Paths end
+    /// at their first non-delta surface.
+    Caustic,
+    /// Every landing but the first: light that has bounced at least once.
+    /// SPPM's map, whose direct light comes from next-event estimation.
+    Indirect,
+}
+
+/// What a photon pass produced.
+#[derive(Clone, Debug, Default)]
+pub struct PhotonPass {
+    /// The stored photons.
+    pub photons: Vec<Photon>,
+    /// Photons emitted.
+    pub emitted: u64,
+    /// Rays traced.
+    pub rays: u64,
+    /// Wall time in seconds.
+    pub seconds: f64,
+}
+
+/// Photons per work unit.
+const CHUNK: u32 = 2048;
+
+/// Emits `count` photons and traces each for at most `max_depth` segments.
+/// `pass` separates the random numbers of successive passes.
+pub fn trace_photons(
+    scene: &Scene,
+    count: u32,
+    seed: u64,
+    pass: u64,
+    max_depth: u32,
+    store: PhotonStore,
+) -> PhotonPass {
+    let start = Instant::now();
+    if scene.lights.is_empty() || count == 0 || scene.light_distribution.is_empty() {
+        return PhotonPass {
+            emitted: count as u64,
+            ..PhotonPass::default()
+        };
+    }
+    let bounds = crate::light::scene_bounding_sphere(scene);
+    let chunks = count.div_ceil(CHUNK);
+    let parts: Vec<(Vec<Photon>, u64)> = (0..chunks)
+        .into_par_iter()
+        .map(|c| {
+            let mut photons = Vec::new();
+            let mut rays = 0u64;
+            for i in c * CHUNK..((c + 1) * CHUNK).min(count) {
+                let mut rng = Pcg32::new(hash_u64s(&[seed, pass, i as u64]), 0x9e37);
+                trace_one(
+                    scene,
+                    bounds,
+                    count,
+                    max_depth,
+                    store,
+                    &mut rng,
+                    &mut photons,
+                    &mut rays,
+                );
+            }
+            (photons, rays)
+        })
+        .collect();
+    let total: usize = parts.iter().map(|p| p.0.len()).sum();
+    let mut photons = Vec::with_capacity(total);
+    let mut rays = 0;
+    for (p, r) in parts {
+        photons.extend_from_slice(&p);
+        rays += r;
+    }
+    PhotonPass {
+        photons,
+        emitted: count as u64,
+        rays,
+        seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn trace_one(
+    scene: &Scene,
+    bounds: (glam::Vec3, f32),
+    count: u32,
+    max_depth: u32,
+    store: PhotonStore,
+    rng: &mut Pcg32,
+    out: &mut Vec<Photon>,
+    rays: &mut u64,
+) {
+    let (light_index, pmf, _) = scene.light_distribution.sample(rng.next_f32());
+    if pmf <= 0.0 {
+        return;
+    }
+    let u_pick = rng.next_f32();
+    let u_pos = Vec2::new(rng.next_f32(), rng.next_f32());
+    let u_dir = Vec2::new(rng.next_f32(), rng.next_f32());
+    let Some(emitted) = scene.lights[light_index].sample_le(scene, bounds, u_pick, u_pos, u_dir) else {
+        return;
+    };
+    let mut beta = emitted.weight / (pmf * count as f32);
+    let mut ray = emitted.ray;
+    let mut only_specular = true;
+    for depth in 0..max_depth {
+        *rays += 1;
+        let Some(hit) = scene.intersect(&ray) else {
+            return;
+        };
+        let m = &scene.materials[hit.material as usize];
+        let tc = crate::texture::TexCoord { uv: hit.uv, p: hit.p };
+        let bsdf = m.bsdf(&scene.images, &tc);
+        let wo_world = -ray.dir.normalize();
+        if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
+            return; // the back of a one-sided surface absorbs
+        }
+        if bsdf.has_smooth() {
+            let keep = match store {
+                PhotonStore::All => true,
+                PhotonStore::Caustic => depth > 0 && only_specular,
+                PhotonStore::Indirect => depth > 0,
+            };
+            if keep {
+                out.push(Photon::new(hit.p, beta, wo_world, hit.ng));
+            }
+            if store == PhotonStore::Caustic {
+                return;
+            }
+        }
+        if depth + 1 == max_depth {
+            return;
+        }
+        let frame = Frame::new(hit.ns, hit.tangent);
+        let wo = frame.to_local(wo_world);
+        let (u_lobe, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
+        let Some(bs) = bsdf.sample(wo, u_lobe, u, TransportMode::Importance) else {
+            return;
+        };
+        if bs.pdf <= 0.0 || bs.f == Rgb::ZERO || bs.wi.z == 0.0 || wo.z == 0.0 {
+            return;
+        }
+        let wi_world = frame.to_world(bs.wi);
+        let reflection = bs.wi.z * wo.z > 0.0;
+        let front_o = hit.ng.dot(wo_world) > 0.0;
+        let ng_wi = hit.ng.dot(wi_world);
+        if (ng_wi > 0.0) != (front_o == reflection) {
+            return; // the shading normal sent the photon through the surface
+        }
+        // The adjoint BSDF with shading normals (Veach 1997, eq. 5.21):
+        // |wo·ns| |wi·ng| / (|wo·ng| |wi·ns|).
+        let ng_wo = hit.ng.dot(wo_world).abs();
+        if ng_wo == 0.0 {
+            return;
+        }
+        let correction = wo.z.abs() * ng_wi.abs() / (ng_wo * bs.wi.z.abs());
+        let next = beta * bs.f * (bs.wi.z.abs() * correction / bs.pdf);
+        let q = (next.max_element() / beta.max_element()).min(1.0);
+        if q.is_nan() || q <= 0.0 || rng.next_f32() >= q {
+            return;
+        }
+        beta = next / q;
+        if !bs.delta {
+            only_specular = false;
+        }
+        ray = hit.spawn_ray(wi_world);
+    }
+}

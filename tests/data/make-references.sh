@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Renders the reference images that tests/photon.rs and tests/denoise.rs
+# compare against: long path-traced renders of small images. They are
+# committed; rerun this only when the scenes change, never to make a test
+# pass.
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+root="$(cd "$here/../.." && pwd)"
+(cd "$root" && cargo build --release --quiet)
+trazo="$root/target/release/trazo"
+# The Cornell box, 32×32.
+"$trazo" render -q --width 32 --height 32 --spp 32768 --seed 101 -o "$here/cornell-32-ref.exr"
+# The caustic scene, 64×48, path traced with next-event estimation and MIS.
+"$trazo" render -q "$root/scenes/caustic.toml" --integrator path --width 64 --height 48 --spp 131072 --seed 102 -o "$here/caustic-64-ref.exr"
