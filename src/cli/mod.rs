@@ -287,7 +287,7 @@ pub fn main() -> ExitCode {
         Command::Render(args) => run_render(args),
         Command::Compare(args) => run_compare(args).map(|()| ExitCode::SUCCESS),
         Command::Diff(args) => return run_diff(args),
-        Command::Bench(command) => bench::run(command),
+        Command::Bench(command) => bench::run(command).map(|()| ExitCode::SUCCESS),
     };
     match result {
         Ok(code) => code,
