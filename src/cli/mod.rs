@@ -3,6 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::film::Tonemap;
+use crate::film::denoise::{DenoiserKind, denoise_film};
 use crate::film::io::{ImageFormat, read_image, write_image};
 use crate::integrator::aov::Aov;
 use crate::integrator::photon::{MAX_GATHER, MAX_PHOTONS};
@@ -182,6 +183,14 @@ struct RenderArgs {
     #[arg(long, value_name = "NAME", value_parser = PathSampling::NAMES)]
     sampling: Option<String>,
 
+    /// Denoise the image, guided by the albedo and normal images: with
+    /// Intel Open Image Denoise if its library is found (see
+    /// tools/oidn/setup), else with the built-in à-trous filter;
+    /// --denoise=oidn or --denoise=atrous to choose. The noisy image is
+    /// kept as OUTPUT-NAME.noisy.<ext>.
+    #[arg(long, value_name = "KIND", num_args = 0..=1, require_equals = true, default_missing_value = "auto", value_parser = DenoiserKind::NAMES)]
+    denoise: Option<String>,
+
     /// Also write auxiliary images (comma-separated: albedo, normal,
     /// depth) as OUTPUT-NAME.<aov>.exr next to the output.
     #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = Aov::NAMES)]
@@ -194,7 +203,8 @@ struct CompareArgs {
     scene: SceneArgs,
 
     /// The contestants, comma-separated: whitted, path, path:uniform,
-    /// path:cosine, path:bsdf, path:mis.
+    /// path:cosine, path:bsdf, path:mis, photon, sppm; a suffix +denoise,
+    /// +atrous or +oidn denoises a contestant's image (e.g. path:mis+denoise).
     #[arg(long, value_name = "LIST", default_value = "whitted,path:uniform,path:mis")]
     integrators: String,
 
@@ -341,6 +351,19 @@ fn check_output(path: &Path) -> Result<()> {
     }
 }
 
+/// `out.png` → `out.noisy.png`.
+fn sibling_path(output: &Path, tag: &str) -> PathBuf {
+    let stem = output
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = output
+        .extension()
+        .map(|e| format!(".{}", e.to_string_lossy()))
+        .unwrap_or_default();
+    output.with_file_name(format!("{stem}.{tag}{ext}"))
+}
+
 /// `out.png` → `out.albedo.exr`.
 fn aov_path(output: &Path, aov: Aov) -> PathBuf {
     let stem = output
@@ -404,13 +427,37 @@ fn run_render(args: RenderArgs) -> Result<()> {
         print_scene_stats(&scene, load_seconds);
     }
 
+    let denoiser = args
+        .denoise
+        .as_deref()
+        .map(|d| DenoiserKind::from_name(d).expect("clap checked the value"));
+    if denoiser == Some(DenoiserKind::Oidn) {
+        // Fail before rendering, not after.
+        crate::film::denoise::oidn::Library::find()?;
+    }
     let s = scene.settings.clone();
     let options = RenderOptions {
-        aovs: !aovs.is_empty(),
+        aovs: !aovs.is_empty() || denoiser.is_some(),
         ..args.scene.options()
     };
     let out = render(&scene, &options)?;
-    write_image(&output, &out.film.to_image(), s.tonemap, s.exposure)?;
+    let mut denoise_note = None;
+    match denoiser {
+        None => write_image(&output, &out.film.to_image(), s.tonemap, s.exposure)?,
+        Some(kind) => {
+            let noisy = sibling_path(&output, "noisy");
+            write_image(&noisy, &out.film.to_image(), s.tonemap, s.exposure)?;
+            let start = Instant::now();
+            let d = denoise_film(&out.film, kind)?;
+            write_image(&output, &d.image, s.tonemap, s.exposure)?;
+            denoise_note = Some(format!(
+                "denoised with {} in {:.2} s (the noisy image: {})",
+                d.denoiser,
+                start.elapsed().as_secs_f64(),
+                noisy.display()
+            ));
+        }
+    }
     for aov in &aovs {
         let img = out.film.aov_image(*aov).expect("AOVs were recorded");
         write_image(&aov_path(&output, *aov), &img, s.tonemap, 0.0)?;
@@ -438,6 +485,9 @@ fn run_render(args: RenderArgs) -> Result<()> {
             st.threads,
             output.display()
         );
+        if let Some(note) = denoise_note {
+            eprintln!("{note}");
+        }
         if st.photons_emitted > 0 {
             eprintln!(
                 "photons: {} emitted in {:.2} s ({:.2} M photons/s, tracing and map building)",
