@@ -575,6 +575,7 @@ fn photon_mapping_sppm_and_denoising_from_the_command_line() {
     for flag in [
         "--photons",
         "--caustic-photons",
+        "--sppm-photons",
         "--photon-gather",
         "--photon-radius",
         "--final-gather",

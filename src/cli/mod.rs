@@ -114,10 +114,13 @@ struct SceneArgs {
     #[arg(short, long)]
     verbose: bool,
 
-    /// Photons emitted for photon mapping's global map, or per SPPM
-    /// iteration (overrides the scene).
+    /// Photons emitted for photon mapping's global map (overrides the scene).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=(MAX_PHOTONS as i64)))]
     photons: Option<u32>,
+
+    /// Photons per SPPM iteration; 0: one per pixel.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=(MAX_PHOTONS as i64)))]
+    sppm_photons: Option<u32>,
 
     /// Photons emitted for photon mapping's caustic map.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=(MAX_PHOTONS as i64)))]
@@ -283,6 +286,9 @@ impl SceneArgs {
         }
         if let Some(v) = self.photons {
             s.photon.photons = v;
+        }
+        if let Some(v) = self.sppm_photons {
+            s.photon.sppm_photons = v;
         }
         if let Some(v) = self.caustic_photons {
             s.photon.caustic_photons = v;

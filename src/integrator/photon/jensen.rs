@@ -68,6 +68,9 @@ pub struct PhotonMapper {
     pub global: PhotonMap,
     /// Photons that arrived through specular bounces only.
     pub caustic: PhotonMap,
+    /// Irradiance at every fourth global photon (`power` holds E, the
+    /// normal faces the side the light arrived on); for final gathering.
+    pub irradiance: PhotonMap,
     settings: PhotonSettings,
     max_depth: u32,
     max_r2: f32,
@@ -104,9 +107,15 @@ impl PhotonMapper {
             || PhotonMap::build(caustic.photons),
         );
         let r = s.radius_or(scene, 0.1);
+        let irradiance = if s.final_gather > 0 {
+            precompute_irradiance(&global, s.gather as usize, r * r, s.kernel)
+        } else {
+            PhotonMap::default()
+        };
         PhotonMapper {
             global,
             caustic,
+            irradiance,
             settings: s,
             max_depth,
             max_r2: r * r,
@@ -185,7 +194,6 @@ impl PhotonMapper {
         found: &mut Nearest,
     ) -> Rgb {
         let n = self.settings.final_gather;
-        let k = self.settings.gather as usize;
         let mut sum = Rgb::ZERO;
         for _ in 0..n {
             let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
@@ -212,7 +220,7 @@ impl PhotonMapper {
                     break;
                 };
                 if sp2.bsdf.has_smooth() {
-                    sum += weight * sp2.photon_radiance(&h, &self.global, k, self.max_r2, self.settings.kernel, found);
+                    sum += weight * self.irradiance_radiance(&h, &sp2, found);
                 }
                 match specular_bounce(&h, &sp2, sampler.next_1d()) {
                     Some((w, next)) => {
@@ -225,6 +233,65 @@ impl PhotonMapper {
         }
         sum / n as f32
     }
+}
+
+impl PhotonMapper {
+    /// Radiance leaving `hit` toward `sp.wo` from the nearest precomputed
+    /// irradiance on the same side of the same surface: albedo/π·E.
+    fn irradiance_radiance(&self, hit: &SurfaceHit, sp: &ShadingPoint, found: &mut Nearest) -> Rgb {
+        let side = if sp.front_o { hit.ng } else { -hit.ng };
+        if self
+            .irradiance
+            .nearest(hit.p, IRRADIANCE_CANDIDATES, self.max_r2, found)
+            .is_none()
+        {
+            return Rgb::ZERO;
+        }
+        let mut best: Option<(f32, u32)> = None;
+        for (d2, index) in found.iter() {
+            if super::same_surface(self.irradiance.photon(index).normal(), side) && best.is_none_or(|(b, _)| d2 < b) {
+                best = Some((d2, index));
+            }
+        }
+        match best {
+            Some((_, index)) => sp.bsdf.albedo() * (self.irradiance.photon(index).power / std::f32::consts::PI),
+            None => Rgb::ZERO,
+        }
+    }
+}
+
+/// Nearest precomputed-irradiance points examined for one on the right
+/// side of the right surface.
+const IRRADIANCE_CANDIDATES: usize = 8;
+/// Irradiance is precomputed at one global photon in this many.
+const IRRADIANCE_STRIDE: usize = 4;
+
+/// The irradiance at every [`IRRADIANCE_STRIDE`]-th photon of `global`,
+/// from the photons that arrived on its side of its surface.
+fn precompute_irradiance(global: &PhotonMap, k: usize, max_r2: f32, kernel: super::PhotonKernel) -> PhotonMap {
+    use rayon::prelude::*;
+    let photons = global.photons();
+    let points: Vec<super::Photon> = (0..photons.len())
+        .into_par_iter()
+        .step_by(IRRADIANCE_STRIDE)
+        .map_init(Nearest::default, |found, i| {
+            let ph = &photons[i];
+            let n = ph.normal();
+            let side = if ph.wi().dot(n) >= 0.0 { n } else { -n };
+            let mut e = Rgb::ZERO;
+            if let Some(far) = global.nearest(ph.p, k, max_r2, found) {
+                let r2 = if found.len() < k { max_r2 } else { far };
+                for (d2, index) in found.iter() {
+                    let q = global.photon(index);
+                    if super::same_surface(q.normal(), n) && q.wi().dot(side) > 0.0 {
+                        e += q.power * kernel.weight(d2, r2);
+                    }
+                }
+            }
+            super::Photon::new(ph.p, e, ph.wi(), side)
+        })
+        .collect();
+    PhotonMap::build(points)
 }
 
 impl Integrator for PhotonMapper {

@@ -13,7 +13,8 @@
 //!    specular bounces to its *visible point*, the first surface with a
 //!    non-delta lobe. Emission seen on the way and direct light at the
 //!    visible point (next-event estimation) go to the pixel's direct sum.
-//! 2. **Photon pass.** `photons` photons are traced from the lights; those
+//! 2. **Photon pass.** `sppm_photons` photons (by default one per pixel)
+//!    are traced from the lights; those
 //!    that have bounced at least once are stored (direct light is already
 //!    counted) in a kd-tree.
 //! 3. **Update** (Hachisuka et al. 2008, eqs. 5–7). The M photons within
@@ -69,7 +70,7 @@ struct PixelState {
 
 /// Renders `scene` with SPPM: `spp` iterations (or as many as the time
 /// limit allows, at most `spp`), each of one camera sample per pixel and
-/// `photons` photons.
+/// `sppm_photons` photons.
 pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
     crate::render::in_thread_pool(options, || iterate(scene, options))
 }
@@ -79,6 +80,7 @@ fn iterate(scene: &Scene, options: &RenderOptions) -> RenderOutput {
     let p = s.photon;
     let (w, h) = (s.width as usize, s.height as usize);
     let r0 = p.radius_or(scene, 0.02);
+    let photons = p.sppm_photons_for((w * h) as u64);
     let mut pixels = vec![
         PixelState {
             r2: r0 * r0,
@@ -96,7 +98,7 @@ fn iterate(scene: &Scene, options: &RenderOptions) -> RenderOutput {
         let photon_start = Instant::now();
         let pass = trace_photons(
             scene,
-            p.photons,
+            photons,
             s.seed,
             2 + iterations as u64,
             s.max_depth,
