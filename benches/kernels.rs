@@ -6,13 +6,22 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 use trazo::Vec3;
+use trazo::accel::TriangleBvh;
 use trazo::accel::aggregate::{Aggregate, MeshObject};
+use trazo::geometry::Aabb;
 use trazo::geometry::shape::{Shape, Sphere};
 use trazo::geometry::triangle::intersect_triangle;
 use trazo::geometry::{Ray, TriangleMesh};
+use trazo::integrator::{Integrator, PathSampling, PathTracer, RayStats};
+use trazo::material::bsdf::{Bsdf, TransportMode};
+use trazo::material::conductor::{ConductorBsdf, ConductorFresnel};
+use trazo::material::lambert::LambertBsdf;
+use trazo::material::microfacet::Ggx;
 use trazo::render::{RenderOptions, render};
 use trazo::sampling::Pcg32;
+use trazo::sampling::{Sampler, SamplerKind};
 use trazo::scene::builtin::cornell_box;
+use trazo::{Rgb, Vec2};
 
 fn random_rays(n: usize, seed: u64) -> Vec<Ray> {
     let mut r = Pcg32::new(seed, 0);
@@ -39,6 +48,14 @@ fn intersection(c: &mut Criterion) {
         Vec3::new(1.0, -1.0, 0.0),
         Vec3::new(0.0, 1.0, 0.0),
     );
+    let aabb = Aabb::new(Vec3::splat(-0.5), Vec3::splat(0.5));
+    c.bench_function("ray-box x1024", |b| {
+        b.iter(|| {
+            rays.iter()
+                .filter(|r| black_box(&aabb).intersect(r, r.dir.recip()).is_some())
+                .count()
+        })
+    });
     c.bench_function("ray-triangle x1024", |b| {
         b.iter(|| {
             rays.iter()
@@ -67,10 +84,83 @@ fn traversal(c: &mut Criterion) {
     c.bench_function("bvh any-hit 160k triangles x4096", |b| {
         b.iter(|| rays.iter().filter(|r| g.occluded(black_box(r))).count())
     });
+    let wide = TriangleBvh::build(&TriangleMesh::uv_sphere(Vec3::ZERO, 1.0, 400, 200), None);
+    c.bench_function("bvh4 closest-hit 160k triangles x4096", |b| {
+        b.iter(|| {
+            rays.iter()
+                .filter(|r| wide.closest_hit(black_box(r)).t.is_finite())
+                .count()
+        })
+    });
+    c.bench_function("bvh4 any-hit 160k triangles x4096", |b| {
+        b.iter(|| rays.iter().filter(|r| wide.any_hit(black_box(r))).count())
+    });
     let mesh = TriangleMesh::uv_sphere(Vec3::ZERO, 1.0, 400, 200);
     let bounds: Vec<_> = (0..mesh.len()).map(|i| mesh.triangle_bounds(i)).collect();
     c.bench_function("bvh build 160k triangles", |b| {
         b.iter(|| trazo::accel::Bvh::build(black_box(&bounds)))
+    });
+}
+
+fn bsdf_sampling(c: &mut Criterion) {
+    let mut r = Pcg32::new(5, 0);
+    let inputs: Vec<(Vec3, f32, Vec2)> = (0..1024)
+        .map(|_| {
+            let wo = Vec3::new(r.next_f32() - 0.5, r.next_f32() - 0.5, r.next_f32() + 0.05).normalize();
+            (wo, r.next_f32(), Vec2::new(r.next_f32(), r.next_f32()))
+        })
+        .collect();
+    let bsdfs = [
+        (
+            "lambert",
+            Bsdf::Lambert(LambertBsdf {
+                albedo: Rgb::splat(0.5),
+            }),
+        ),
+        (
+            "rough conductor",
+            Bsdf::Conductor(ConductorBsdf {
+                fresnel: ConductorFresnel::Complex {
+                    eta: Rgb::new(0.2, 0.9, 1.1),
+                    k: Rgb::new(3.9, 2.4, 2.2),
+                },
+                tint: Rgb::splat(1.0),
+                ggx: Ggx::isotropic(0.2),
+            }),
+        ),
+    ];
+    for (name, bsdf) in bsdfs {
+        c.bench_function(&format!("bsdf sample {name} x1024"), |b| {
+            b.iter(|| {
+                inputs
+                    .iter()
+                    .filter_map(|&(wo, ul, u)| black_box(&bsdf).sample(wo, ul, u, TransportMode::Radiance))
+                    .count()
+            })
+        });
+    }
+}
+
+fn path_sample(c: &mut Criterion) {
+    let scene = trazo::scene::build(&cornell_box()).unwrap();
+    let integrator = PathTracer {
+        max_depth: 8,
+        rr_depth: 5,
+        sampling: PathSampling::Mis,
+    };
+    let mut sampler = Sampler::new(SamplerKind::Independent, 1 << 20, 0);
+    let mut stats = RayStats::default();
+    let mut index = 0u32;
+    c.bench_function("path sample cornell box mis (one camera ray)", |b| {
+        b.iter(|| {
+            index = index.wrapping_add(1);
+            let (x, y) = (index % 512, (index / 512) % 512);
+            sampler.start_pixel_sample(x, y, index);
+            let ray = scene
+                .camera
+                .generate_ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), sampler.next_2d());
+            integrator.radiance(&scene, black_box(&ray), &mut sampler, &mut stats)
+        })
     });
 }
 
@@ -88,5 +178,12 @@ fn whole_render(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, intersection, traversal, whole_render);
+criterion_group!(
+    benches,
+    intersection,
+    traversal,
+    bsdf_sampling,
+    path_sample,
+    whole_render
+);
 criterion_main!(benches);

@@ -43,6 +43,7 @@ pub mod cli;
 pub mod color;
 pub mod error;
 pub mod film;
+pub mod fuzz;
 pub mod geometry;
 pub mod integrator;
 pub mod light;

@@ -580,3 +580,293 @@ fn a_million_triangles_render() {
     let img = trazo::render::render_image(&scene).unwrap();
     assert!(img.get(12, 12).x > 0.0 && img.get(0, 0) == Rgb::ZERO);
 }
+
+/// Robust ray offsetting (pbrt-v4 §6.8): a ray spawned from a hit point
+/// away from the surface never meets that surface again, and one spawned
+/// into a closed surface meets its far side, not the point it left — for
+/// scenes from 10⁻⁴ to 10⁵ units across and far from the origin.
+#[test]
+fn spawned_rays_never_hit_the_surface_they_leave_at_any_scale() {
+    use trazo::sampling::warp::sample_sphere_uniform;
+    let shapes = [
+        ShapeKind::Sphere {
+            center: Vec3::ZERO,
+            radius: 1.0,
+        },
+        ShapeKind::Rectangle {
+            corner: Vec3::new(-1.0, -1.0, 0.0),
+            edge_u: Vec3::new(2.0, 0.3, 0.1),
+            edge_v: Vec3::new(0.2, 2.0, -0.4),
+        },
+        ShapeKind::Cuboid {
+            min: Vec3::splat(-1.0),
+            max: Vec3::new(1.0, 0.5, 0.8),
+        },
+        ShapeKind::InlineMesh(MeshSource::UvSphere {
+            segments: 24,
+            rings: 12,
+        }),
+    ];
+    let mut rng = Pcg32::new(7, 1);
+    let mut rand2 = || trazo::Vec2::new(rng.next_f32(), rng.next_f32());
+    for kind in &shapes {
+        for scale in [1e-4f32, 1.0, 1e5] {
+            for offset in [0.0f32, 1e3] {
+                let mut d = SceneDesc::default();
+                let shift = Vec3::new(offset, -0.5 * offset, 2.0 * offset) * scale;
+                d.shapes.push(
+                    ShapeDesc::new(kind.clone(), None)
+                        .with(TransformOp::Rotate {
+                            axis: Vec3::new(1.0, 2.0, 3.0),
+                            degrees: 37.0,
+                        })
+                        .with(TransformOp::Scale(Vec3::splat(scale)))
+                        .with(TransformOp::Translate(shift)),
+                );
+                let scene = trazo::scene::build(&d).unwrap();
+                let closed = !matches!(kind, ShapeKind::Rectangle { .. });
+                let mut hits = 0;
+                for _ in 0..2000 {
+                    // A ray from outside toward a random point near the shape.
+                    let from = shift + sample_sphere_uniform(rand2()) * 10.0 * scale;
+                    let to = shift + sample_sphere_uniform(rand2()) * 0.5 * scale;
+                    let Some(hit) = scene.intersect(&Ray::new(from, (to - from).normalize())) else {
+                        continue;
+                    };
+                    hits += 1;
+                    let w = sample_sphere_uniform(rand2());
+                    let leaving = if hit.ng.dot(from - hit.p) > 0.0 {
+                        hit.ng
+                    } else {
+                        -hit.ng
+                    };
+                    let away = if w.dot(leaving) > 0.0 { w } else { -w };
+                    // Every shape here is convex: once left, it is never met again.
+                    if let Some(again) = scene.intersect(&hit.spawn_ray(away)) {
+                        panic!(
+                            "{kind:?} at scale {scale}, offset {offset}: the outgoing ray met the surface again at t = {}",
+                            again.t
+                        );
+                    }
+                    if closed && away.dot(leaving) > 0.2 {
+                        // Into the shape: the way out, not the point it left (near an
+                        // edge of a box that may be close, but never within the
+                        // rounding error of the start).
+                        if let Some(inside) = scene.intersect(&hit.spawn_ray(-away)) {
+                            assert!(
+                                (inside.p - hit.p).length() > 4.0 * hit.p_error.length(),
+                                "{kind:?} at scale {scale}, offset {offset}: the ray into the shape hit its start (t = {})",
+                                inside.t
+                            );
+                        } else {
+                            panic!("{kind:?} at scale {scale}, offset {offset}: the ray into the shape escaped");
+                        }
+                    }
+                }
+                assert!(hits > 200, "{kind:?} at scale {scale}: only {hits} rays hit");
+            }
+        }
+    }
+}
+
+fn small_box(spp: u32) -> trazo::scene::Scene {
+    let mut d = cornell_box();
+    d.settings.width = 24;
+    d.settings.height = 20;
+    d.settings.spp = spp;
+    trazo::scene::build(&d).unwrap()
+}
+
+/// The film after every pass of an uninterrupted render, by samples per pixel.
+fn films_by_pass(scene: &trazo::scene::Scene, aovs: bool) -> Vec<(u32, trazo::film::Film)> {
+    use trazo::render::{Control, render_controlled};
+    let mut films = Vec::new();
+    let mut save = |f: &trazo::film::Film, st: &trazo::render::RenderStats| films.push((st.spp, f.clone()));
+    let options = RenderOptions {
+        aovs,
+        ..RenderOptions::default()
+    };
+    let mut control = Control {
+        checkpoint_every: Some(std::time::Duration::ZERO),
+        on_checkpoint: Some(&mut save),
+        ..Control::default()
+    };
+    let out = render_controlled(scene, &options, &mut control).unwrap();
+    assert_eq!(out.stopped, None);
+    drop(control);
+    films.push((out.stats.spp, out.film));
+    films
+}
+
+/// A render interrupted at a pass boundary, saved to a checkpoint's bytes and
+/// resumed on another number of threads ends with the same film, bit for
+/// bit, as one that never stopped.
+#[test]
+fn a_resumed_render_equals_an_uninterrupted_one() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use trazo::render::checkpoint::Checkpoint;
+    use trazo::render::{Control, Stop, render_controlled};
+    let scene = small_box(37);
+    let reference = films_by_pass(&scene, true);
+    assert_eq!(
+        reference.iter().map(|f| f.0).collect::<Vec<_>>(),
+        [1, 2, 4, 8, 16, 32, 37]
+    );
+    for stop_at in [1u32, 8, 32] {
+        let cancel = AtomicBool::new(false);
+        let mut saved = None;
+        let mut save = |f: &trazo::film::Film, st: &trazo::render::RenderStats| {
+            if st.spp >= stop_at {
+                saved = Some((f.clone(), st.clone()));
+                cancel.store(true, Ordering::Relaxed);
+            }
+        };
+        let options = RenderOptions {
+            aovs: true,
+            threads: Some(2),
+            ..RenderOptions::default()
+        };
+        let mut control = Control {
+            cancel: Some(&cancel),
+            checkpoint_every: Some(std::time::Duration::ZERO),
+            on_checkpoint: Some(&mut save),
+            ..Control::default()
+        };
+        let partial = render_controlled(&scene, &options, &mut control).unwrap();
+        drop(control);
+        assert_eq!(partial.stopped, Some(Stop::Interrupted));
+        assert_eq!(partial.stats.spp, stop_at);
+        // The interrupted film is exactly the uninterrupted one after as many passes.
+        let same_pass = &reference.iter().find(|f| f.0 == stop_at).unwrap().1;
+        assert!(partial.film == *same_pass, "stopped at {stop_at}");
+        let (film, stats) = saved.unwrap();
+        let checkpoint = Checkpoint {
+            job: vec![("scene".into(), "box".into())],
+            target_spp: 37,
+            film,
+            stats,
+        };
+        let back = Checkpoint::from_bytes(&checkpoint.to_bytes()).unwrap();
+        let options = RenderOptions {
+            aovs: true,
+            threads: Some(1),
+            ..RenderOptions::default()
+        };
+        let mut control = Control {
+            resume: Some((back.film, back.stats)),
+            ..Control::default()
+        };
+        let resumed = render_controlled(&scene, &options, &mut control).unwrap();
+        assert_eq!(resumed.stopped, None);
+        assert_eq!(resumed.stats.spp, 37);
+        assert_eq!(resumed.stats.samples, 37 * 24 * 20);
+        assert!(resumed.film == reference.last().unwrap().1, "resumed from {stop_at}");
+    }
+    // A film that is not at a pass boundary cannot be resumed.
+    let (_, film) = reference[2].clone();
+    let stats = trazo::render::RenderStats {
+        spp: 3,
+        ..Default::default()
+    };
+    let mut control = Control {
+        resume: Some((film, stats)),
+        ..Control::default()
+    };
+    let options = RenderOptions {
+        aovs: true,
+        ..RenderOptions::default()
+    };
+    assert!(render_controlled(&scene, &options, &mut control).is_err());
+}
+
+/// Cancelling in the middle of a pass, from another thread, leaves the film
+/// of the passes completed before it: never a half pass.
+#[test]
+fn an_interrupt_mid_pass_keeps_whole_passes() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use trazo::render::{Control, Stop, render_controlled};
+    let mut d = cornell_box();
+    d.settings.width = 64;
+    d.settings.height = 64;
+    d.settings.spp = 4096;
+    let scene = trazo::scene::build(&d).unwrap();
+    let cancel = AtomicBool::new(false);
+    let first_pass_done = AtomicBool::new(false);
+    let started = std::time::Instant::now();
+    let out = std::thread::scope(|s| {
+        s.spawn(|| {
+            while !first_pass_done.load(Ordering::Relaxed) {
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+            cancel.store(true, Ordering::Relaxed);
+        });
+        let mut done = |_: &trazo::film::Film, _: &trazo::render::RenderStats| {
+            first_pass_done.store(true, Ordering::Relaxed);
+        };
+        let mut control = Control {
+            cancel: Some(&cancel),
+            checkpoint_every: Some(std::time::Duration::ZERO),
+            on_checkpoint: Some(&mut done),
+            ..Control::default()
+        };
+        render_controlled(&scene, &RenderOptions::default(), &mut control).unwrap()
+    });
+    assert!(
+        started.elapsed().as_secs_f64() < 10.0,
+        "the interrupt was not obeyed promptly"
+    );
+    assert_eq!(out.stopped, Some(Stop::Interrupted));
+    let spp = out.stats.spp;
+    assert!(
+        spp < 4096 && trazo::render::pass_schedule(4096).iter().any(|p| p.1 == spp),
+        "{spp}"
+    );
+    assert_eq!(out.stats.samples, spp as u64 * 64 * 64);
+    assert!(out.film.pixels.iter().all(|p| p.weight == spp as f64), "{spp}");
+}
+
+/// An integrator that returns NaN or infinity for some samples: they are
+/// counted, dropped before the film, and the first few are reported with
+/// their pixel and sample index.
+#[test]
+fn non_finite_samples_are_dropped_counted_and_located() {
+    struct Faulty;
+    impl trazo::integrator::Integrator for Faulty {
+        fn radiance(
+            &self,
+            _: &trazo::scene::Scene,
+            ray: &Ray,
+            sampler: &mut trazo::sampling::Sampler,
+            _: &mut trazo::integrator::RayStats,
+        ) -> Rgb {
+            let u = sampler.next_1d();
+            if ray.dir.x > 0.2 && u < 0.25 {
+                Rgb::new(f32::NAN, 1.0, 1.0)
+            } else if ray.dir.x < -0.2 && u < 0.25 {
+                Rgb::splat(f32::INFINITY)
+            } else {
+                Rgb::splat(0.5)
+            }
+        }
+    }
+    let scene = small_box(16);
+    let out = trazo::render::render_with(&scene, &Faulty, &RenderOptions::default()).unwrap();
+    let st = &out.stats;
+    assert!(st.invalid_samples > 100, "{}", st.invalid_samples);
+    assert_eq!(st.invalid_examples.len(), trazo::render::MAX_INVALID_EXAMPLES);
+    for e in &st.invalid_examples {
+        assert!(!e.value.is_finite());
+        assert!(e.x < 24 && e.y < 20 && e.index < 16);
+    }
+    let total: f64 = out.film.pixels.iter().map(|p| p.weight).sum();
+    assert_eq!(total as u64 + st.invalid_samples, st.samples);
+    assert!(out.film.pixels.iter().all(|p| p.rgb.is_finite()));
+    assert!(
+        out.film
+            .to_image()
+            .pixels
+            .iter()
+            .all(|p| *p == Rgb::splat(0.5) || *p == Rgb::ZERO)
+    );
+}

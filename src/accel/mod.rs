@@ -3,6 +3,10 @@
 
 pub mod aggregate;
 pub mod bvh;
+pub mod queries;
+pub mod wide;
 
 pub use aggregate::Aggregate;
 pub use bvh::{Bvh, BvhNode};
+pub use queries::{QueryHit, TriangleBvh};
+pub use wide::Bvh4;

@@ -1,15 +1,20 @@
 //! The `trazo` command line: maps flags onto library calls. No rendering
 //! logic lives here.
 
+mod bench;
+mod job;
+
 use crate::error::{Error, Result};
+use crate::film::Film;
 use crate::film::Tonemap;
 use crate::film::denoise::{DenoiserKind, denoise_film};
 use crate::film::io::{ImageFormat, read_image, write_image};
 use crate::integrator::aov::Aov;
 use crate::integrator::photon::{MAX_GATHER, MAX_PHOTONS};
 use crate::integrator::{IntegratorKind, PathSampling, PhotonKernel};
+use crate::render::checkpoint::checkpoint_path;
 use crate::render::compare::{Budget, Contestant, compare, side_by_side, table};
-use crate::render::{RenderOptions, render};
+use crate::render::{Control, RenderOptions, RenderStats, Stop, render_controlled};
 use crate::sampling::SamplerKind;
 use crate::scene::desc::{MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP};
 use crate::scene::{self, SceneDesc, builtin};
@@ -21,6 +26,15 @@ use std::time::{Duration, Instant};
 /// Exit status for bad input: unreadable or invalid scenes, bad options,
 /// unwritable outputs.
 pub const EXIT_USAGE: u8 = 2;
+
+/// Exit status of a render stopped by Ctrl-C or SIGTERM (128 + SIGINT, as
+/// shells report it): the image of the passes completed and a checkpoint
+/// were written, unless no pass was complete.
+pub const EXIT_INTERRUPTED: u8 = 130;
+
+/// Exit status after a second Ctrl-C or SIGTERM: trazo stopped at once and
+/// wrote nothing more (files written earlier are whole).
+pub const EXIT_ABORTED: u8 = 131;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -44,6 +58,9 @@ enum Command {
     /// Compare two images (PNG, EXR, HDR, PFM): RMSE, relative MSE and the
     /// mean of each channel; the exit status says whether they agree.
     Diff(DiffArgs),
+    /// Benchmarks of the renderer's kernels on your own inputs.
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
 }
 
 #[derive(Args, Debug)]
@@ -198,6 +215,44 @@ struct RenderArgs {
     /// depth) as OUTPUT-NAME.<aov>.exr next to the output.
     #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = Aov::NAMES)]
     aov: Vec<String>,
+
+    /// Stop after this many seconds (from the start of the command) and
+    /// write the image of the passes completed; without --spp, render as
+    /// many samples as the time allows. A checkpoint is kept so that the
+    /// render can be continued with --resume.
+    #[arg(long, value_name = "SECS", value_parser = parse_seconds)]
+    time_limit: Option<f64>,
+
+    /// Write a checkpoint (OUTPUT.trazo-checkpoint) at the end of a pass
+    /// whenever this many seconds have passed since the last one, so that a
+    /// crash or power loss loses at most that much work.
+    #[arg(long, value_name = "SECS", value_parser = parse_seconds)]
+    checkpoint_every: Option<f64>,
+
+    /// Continue an interrupted render from its checkpoint, which holds the
+    /// scene, the output and every setting; the image is the same, bit for
+    /// bit, as if it had never stopped. Only --threads, --time-limit,
+    /// --checkpoint-every, --max-memory, --quiet and --verbose may be given
+    /// with it.
+    #[arg(long, value_name = "CHECKPOINT", conflicts_with_all = [
+        "scene", "width", "height", "max_depth", "seed", "sampler", "tonemap", "exposure", "defines",
+        "output", "spp", "integrator", "sampling", "aov",
+    ])]
+    resume: Option<PathBuf>,
+
+    /// Refuse to start a render whose estimated memory (film, auxiliary
+    /// images, geometry and BVH, textures) exceeds this size: a number of
+    /// bytes with K, M, G or T (e.g. 512M, 16G). Default: 90% of the
+    /// machine's memory.
+    #[arg(long, value_name = "SIZE", value_parser = scene::memory::parse_size)]
+    max_memory: Option<u64>,
+}
+
+fn parse_seconds(s: &str) -> std::result::Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!("expected a number of seconds ≥ 0, got \"{s}\"")),
+    }
 }
 
 #[derive(Args, Debug)]
@@ -243,11 +298,12 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Render(args) => run_render(args),
-        Command::Compare(args) => run_compare(args),
+        Command::Compare(args) => run_compare(args).map(|()| ExitCode::SUCCESS),
         Command::Diff(args) => return run_diff(args),
+        Command::Bench(command) => bench::run(command).map(|()| ExitCode::SUCCESS),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::from(EXIT_USAGE)
@@ -333,8 +389,13 @@ fn default_output(scene: Option<&Path>) -> PathBuf {
 /// Fails early, before a long render, if the output cannot be written.
 fn check_output(path: &Path) -> Result<()> {
     ImageFormat::from_path(path)?;
+    check_writable(path)
+}
+
+/// Fails early if a file cannot be created at `path`.
+fn check_writable(path: &Path) -> Result<()> {
     if path.is_dir() {
-        return Err(Error::file(path, "cannot write the image: this is a folder"));
+        return Err(Error::file(path, "cannot write: this is a folder"));
     }
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
@@ -401,12 +462,31 @@ fn print_scene_stats(scene: &scene::Scene, load_seconds: f64) {
     eprintln!("load and build: {load_seconds:.3} s");
 }
 
-fn run_render(args: RenderArgs) -> Result<()> {
+fn run_render(args: RenderArgs) -> Result<ExitCode> {
+    let started = Instant::now();
+    // Ctrl-C and SIGTERM set this flag (the render then stops after the
+    // work in flight); a second one ends the process at once.
+    let interrupt = job::install_interrupt_handler()?;
+    let (args, resume) = match &args.resume {
+        Some(path) => {
+            let (stored, checkpoint) = job::resume_args(path, &args)?;
+            (stored, Some((path.clone(), checkpoint)))
+        }
+        None => (args, None),
+    };
     let output = args
         .output
         .clone()
         .unwrap_or_else(|| default_output(args.scene.scene.as_deref()));
     check_output(&output)?;
+    let checkpoint_file = checkpoint_path(&output);
+    if resume.is_none() && checkpoint_file.is_file() {
+        eprintln!(
+            "warning: {} holds an unfinished render, which this render replaces (to continue that one instead: trazo render --resume {})",
+            checkpoint_file.display(),
+            checkpoint_file.display()
+        );
+    }
     let aovs: Vec<Aov> = args
         .aov
         .iter()
@@ -415,8 +495,11 @@ fn run_render(args: RenderArgs) -> Result<()> {
 
     let load_start = Instant::now();
     let mut desc = args.scene.load()?;
-    if let Some(v) = args.spp {
-        desc.settings.spp = v;
+    match (args.spp, args.time_limit) {
+        (Some(v), _) => desc.settings.spp = v,
+        // A time limit alone: as many samples as the time allows.
+        (None, Some(_)) => desc.settings.spp = MAX_SPP,
+        (None, None) => {}
     }
     if let Some(v) = &args.integrator {
         desc.settings.integrator = IntegratorKind::from_name(v).expect("clap checked the value");
@@ -424,13 +507,21 @@ fn run_render(args: RenderArgs) -> Result<()> {
     if let Some(v) = &args.sampling {
         desc.settings.sampling = PathSampling::from_name(v).expect("clap checked the value");
     }
-    let scene = scene::build(&desc)?;
+    let limits = scene::BuildLimits {
+        max_memory: Some(args.max_memory.unwrap_or_else(scene::memory::default_limit)),
+        aovs: !aovs.is_empty(),
+    };
+    let scene = scene::build_limited(&desc, &limits)?;
     let load_seconds = load_start.elapsed().as_secs_f64();
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
     if args.scene.verbose {
         print_scene_stats(&scene, load_seconds);
+    }
+    let job = job::Job::new(&args, &output, &desc, &scene)?;
+    if let Some((path, checkpoint)) = &resume {
+        job.check_resume(path, checkpoint)?;
     }
 
     let denoiser = args
@@ -446,7 +537,25 @@ fn run_render(args: RenderArgs) -> Result<()> {
         aovs: !aovs.is_empty() || denoiser.is_some(),
         ..args.scene.options()
     };
-    let out = render(&scene, &options)?;
+    let mut save = |film: &Film, stats: &RenderStats| {
+        if let Err(e) = job.checkpoint(film, stats).write(&checkpoint_file) {
+            eprintln!("warning: {e}");
+        }
+    };
+    let mut control = Control {
+        resume: resume.map(|(_, c)| (c.film, c.stats)),
+        cancel: Some(interrupt.as_ref()),
+        deadline: args.time_limit.map(|t| started + Duration::from_secs_f64(t)),
+        checkpoint_every: args.checkpoint_every.map(Duration::from_secs_f64),
+        on_checkpoint: Some(&mut save),
+    };
+    let out = render_controlled(&scene, &options, &mut control)?;
+    drop(control);
+    let st = &out.stats;
+    if st.spp == 0 {
+        eprintln!("interrupted before the first pass was complete: nothing was written");
+        return Ok(ExitCode::from(EXIT_INTERRUPTED));
+    }
     let mut denoise_note = None;
     match denoiser {
         None => write_image(&output, &out.film.to_image(), s.tonemap, s.exposure)?,
@@ -468,23 +577,59 @@ fn run_render(args: RenderArgs) -> Result<()> {
         let img = out.film.aov_image(*aov).expect("AOVs were recorded");
         write_image(&aov_path(&output, *aov), &img, s.tonemap, 0.0)?;
     }
-    let st = &out.stats;
+    match out.stopped {
+        Some(_) => job.checkpoint(&out.film, st).write(&checkpoint_file)?,
+        None => {
+            // The render is complete: its checkpoint is stale.
+            if checkpoint_file.is_file() {
+                std::fs::remove_file(&checkpoint_file)
+                    .map_err(|e| Error::file(&checkpoint_file, format!("cannot remove the stale checkpoint: {e}")))?;
+            }
+        }
+    }
     if st.invalid_samples > 0 {
         eprintln!(
-            "warning: {} samples were NaN or infinite and were dropped",
-            st.invalid_samples
+            "warning: {} samples were NaN or infinite and were dropped{}",
+            st.invalid_samples,
+            if args.scene.verbose {
+                ":"
+            } else {
+                " (--verbose shows where)"
+            }
         );
+        if args.scene.verbose {
+            for e in &st.invalid_examples {
+                eprintln!(
+                    "  pixel ({}, {}) sample {}: ({}, {}, {})",
+                    e.x, e.y, e.index, e.value.x, e.value.y, e.value.z
+                );
+            }
+            if st.invalid_samples > st.invalid_examples.len() as u64 {
+                eprintln!("  … and {} more", st.invalid_samples - st.invalid_examples.len() as u64);
+            }
+        }
     }
-    if !args.scene.quiet {
+    let spp = if st.spp == s.spp {
+        format!("{} spp", s.spp)
+    } else if s.spp == MAX_SPP {
+        format!("{} spp", st.spp)
+    } else {
+        format!("{} of {} spp", st.spp, s.spp)
+    };
+    if !args.scene.quiet || out.stopped == Some(Stop::Interrupted) {
         let integrator = match s.integrator {
             IntegratorKind::Path => format!("path:{}", s.sampling.name()),
             other => other.name().to_string(),
         };
+        let why = match out.stopped {
+            Some(Stop::Interrupted) => "interrupted: ",
+            Some(Stop::TimeLimit) => "time limit reached: ",
+            None => "",
+        };
         eprintln!(
-            "rendered {}×{} at {} spp with {integrator} in {:.2} s ({:.2} M samples/s, {:.2} M rays/s, {} threads) → {}",
+            "{why}rendered {}×{} at {spp} with {integrator} in {:.2} s ({:.2} M samples/s, {:.2} M rays/s, {} threads) → {}",
             s.width,
             s.height,
-            s.spp,
             st.seconds,
             st.samples_per_second() / 1e6,
             st.rays_per_second() / 1e6,
@@ -493,6 +638,13 @@ fn run_render(args: RenderArgs) -> Result<()> {
         );
         if let Some(note) = denoise_note {
             eprintln!("{note}");
+        }
+        if out.stopped.is_some() {
+            eprintln!(
+                "checkpoint → {} (continue with: trazo render --resume {})",
+                checkpoint_file.display(),
+                checkpoint_file.display()
+            );
         }
         if st.photons_emitted > 0 {
             eprintln!(
@@ -503,7 +655,10 @@ fn run_render(args: RenderArgs) -> Result<()> {
             );
         }
     }
-    Ok(())
+    Ok(match out.stopped {
+        Some(Stop::Interrupted) => ExitCode::from(EXIT_INTERRUPTED),
+        _ => ExitCode::SUCCESS,
+    })
 }
 
 /// Exit status of `trazo diff` when the images differ by more than allowed.

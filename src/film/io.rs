@@ -9,7 +9,7 @@ use super::{Image, Tonemap};
 use crate::color::{Rgb, linear_to_srgb};
 use crate::error::{Error, Result};
 use std::fs::{self, File};
-use std::io::{BufWriter, Read, Write};
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 /// Image file formats.
@@ -185,14 +185,36 @@ pub fn write_atomic_path(path: &Path, write: impl FnOnce(&Path) -> Result<(), St
     Ok(())
 }
 
+/// Largest image file read, in bytes.
+pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 32;
+
+/// The first four bytes of every OpenEXR file.
+pub const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+
+/// Most pixels an OpenEXR file may describe per byte of its size. No EXR
+/// compression packs more than a few hundred pixels into a byte, so a
+/// header that claims more is lying, and is refused before the pixels are
+/// allocated.
+const MAX_EXR_PIXELS_PER_BYTE: u64 = 4096;
+
 /// Reads an image of any supported format as linear RGB (8-bit images are
 /// decoded from sRGB).
 pub fn read_image(path: &Path) -> Result<Image> {
-    match ImageFormat::from_path(path)? {
-        ImageFormat::Exr => read_exr(path),
-        ImageFormat::Pfm => read_pfm(path),
+    let format = ImageFormat::from_path(path)?;
+    let bytes = crate::scene::native::read_limited(path, MAX_IMAGE_FILE_BYTES)
+        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    decode_image(&bytes, format).map_err(|e| Error::file(path, e))
+}
+
+/// Decodes an image file held in memory, in the given format, as linear RGB
+/// (8-bit images are decoded from sRGB). Sizes in headers are checked
+/// against the data before pixels are allocated. Errors are plain reasons.
+pub fn decode_image(bytes: &[u8], format: ImageFormat) -> Result<Image, String> {
+    match format {
+        ImageFormat::Exr => decode_exr(bytes),
+        ImageFormat::Pfm => parse_pfm(bytes).map_err(|m| format!("not a valid PFM file: {m}")),
         ImageFormat::Png | ImageFormat::Hdr => {
-            let t = crate::texture::ImageTexture::load(path, None)?;
+            let t = crate::texture::ImageTexture::decode(bytes, None)?;
             Ok(Image {
                 width: t.width,
                 height: t.height,
@@ -204,23 +226,59 @@ pub fn read_image(path: &Path) -> Result<Image> {
 
 /// Reads the first RGB(A) layer of an OpenEXR file.
 pub fn read_exr(path: &Path) -> Result<Image> {
-    let img = exr::prelude::read_first_rgba_layer_from_file(
-        path,
-        |res, _| Image::new(res.width() as u32, res.height() as u32),
-        |img: &mut Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            let w = img.width as usize;
-            img.pixels[pos.y() * w + pos.x()] = Rgb::new(r, g, b);
-        },
-    )
-    .map_err(|e| Error::file(path, format!("cannot read OpenEXR image: {e}")))?;
+    let bytes = crate::scene::native::read_limited(path, MAX_IMAGE_FILE_BYTES)
+        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    decode_exr(&bytes).map_err(|e| Error::file(path, e))
+}
+
+/// Decodes the first RGB(A) layer of an OpenEXR file held in memory. The
+/// header's size is checked against the texture limit and the file's
+/// length before the pixels are allocated.
+pub fn decode_exr(bytes: &[u8]) -> Result<Image, String> {
+    use exr::prelude::{ReadChannels, ReadLayers, read};
+    let bad = |e: exr::error::Error| format!("cannot read OpenEXR image: {e}");
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false).map_err(bad)?;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        let pixels = size.width() as u64 * size.height() as u64;
+        if pixels > crate::texture::image::MAX_TEXTURE_PIXELS {
+            return Err(format!(
+                "OpenEXR image of {}×{} pixels is larger than the limit of 16384×16384",
+                size.width(),
+                size.height()
+            ));
+        }
+        if pixels > bytes.len() as u64 * MAX_EXR_PIXELS_PER_BYTE {
+            return Err(format!(
+                "OpenEXR header claims {}×{} pixels, more than a file of {} bytes can hold",
+                size.width(),
+                size.height(),
+                bytes.len()
+            ));
+        }
+    }
+    let img = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |res, _| super::Image::new(res.width() as u32, res.height() as u32),
+            |img: &mut super::Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                let w = img.width as usize;
+                if let Some(p) = img.pixels.get_mut(pos.y() * w + pos.x()) {
+                    *p = Rgb::new(r, g, b);
+                }
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(bad)?;
     Ok(img.layer_data.channel_data.pixels)
 }
 
 /// Reads a PFM file (colour "PF" or greyscale "Pf", either byte order).
 pub fn read_pfm(path: &Path) -> Result<Image> {
-    let mut bytes = Vec::new();
-    File::open(path)
-        .and_then(|mut f| f.read_to_end(&mut bytes))
+    let bytes = crate::scene::native::read_limited(path, MAX_IMAGE_FILE_BYTES)
         .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
     parse_pfm(&bytes).map_err(|m| Error::file(path, format!("not a valid PFM file: {m}")))
 }
@@ -252,8 +310,8 @@ fn parse_pfm(bytes: &[u8]) -> Result<Image, String> {
     let h: u32 = token()?.parse().map_err(|_| "bad height".to_string())?;
     let scale: f32 = token()?.parse().map_err(|_| "bad scale".to_string())?;
     let data = &bytes[(pos + 1).min(bytes.len())..];
-    let need = w as u64 * h as u64 * channels as u64 * 4;
-    if (data.len() as u64) < need {
+    let need = w as u128 * h as u128 * channels as u128 * 4;
+    if (data.len() as u128) < need {
         return Err(format!(
             "{w}×{h} pixels need {need} bytes of data, the file has {}",
             data.len()

@@ -34,24 +34,59 @@ fn difference_of_products(a: f32, b: f32, c: f32, d: f32) -> f32 {
     dop + err
 }
 
+/// What the watertight test needs of a ray, computed once per ray rather
+/// than once per triangle (Woop et al. 2013, section 3): the axis
+/// permutation that makes |d.z| largest and the shear that maps the
+/// direction to +z.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleRay {
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f32,
+    sy: f32,
+    sz: f32,
+}
+
+impl TriangleRay {
+    /// Precomputes for `ray`; `None` for a zero direction.
+    #[inline]
+    pub fn new(ray: &Ray) -> Option<TriangleRay> {
+        let kz = ray.dir.abs().max_position();
+        let kx = if kz == 2 { 0 } else { kz + 1 };
+        let ky = if kx == 2 { 0 } else { kx + 1 };
+        let d = permute(ray.dir, kx, ky, kz);
+        if d.z == 0.0 {
+            return None;
+        }
+        let sz = 1.0 / d.z;
+        Some(TriangleRay {
+            kx,
+            ky,
+            kz,
+            sx: -d.x * sz,
+            sy: -d.y * sz,
+            sz,
+        })
+    }
+}
+
 /// Intersects `ray` with the triangle (p0, p1, p2) within the ray's interval.
 #[inline]
 pub fn intersect_triangle(ray: &Ray, p0: Vec3, p1: Vec3, p2: Vec3) -> Option<TriangleHit> {
+    intersect_triangle_with(ray, &TriangleRay::new(ray)?, p0, p1, p2)
+}
+
+/// [`intersect_triangle`] with the per-ray part precomputed.
+#[inline]
+pub fn intersect_triangle_with(ray: &Ray, pre: &TriangleRay, p0: Vec3, p1: Vec3, p2: Vec3) -> Option<TriangleHit> {
+    let (kx, ky, kz) = (pre.kx, pre.ky, pre.kz);
+    let (sx, sy, sz) = (pre.sx, pre.sy, pre.sz);
     // Translate to the ray origin and permute so that |d.z| is largest.
-    let kz = ray.dir.abs().max_position();
-    let kx = if kz == 2 { 0 } else { kz + 1 };
-    let ky = if kx == 2 { 0 } else { kx + 1 };
-    let d = permute(ray.dir, kx, ky, kz);
     let mut p0t = permute(p0 - ray.origin, kx, ky, kz);
     let mut p1t = permute(p1 - ray.origin, kx, ky, kz);
     let mut p2t = permute(p2 - ray.origin, kx, ky, kz);
-    if d.z == 0.0 {
-        return None; // zero direction
-    }
     // Shear so that the ray direction becomes +z.
-    let sz = 1.0 / d.z;
-    let sx = -d.x * sz;
-    let sy = -d.y * sz;
     p0t.x += sx * p0t.z;
     p0t.y += sy * p0t.z;
     p1t.x += sx * p1t.z;

@@ -8,7 +8,15 @@
 //! numbers depend only on its pixel, its index and the seed, and each
 //! pixel's samples are added in index order, so the result is bit-identical
 //! whatever the number of threads or the tile order.
+//!
+//! Long renders are controlled by a [`Control`]: a cancellation flag (set by
+//! the command line's signal handler), a deadline, periodic checkpoints and
+//! resuming from one. A pass that is cut short is abandoned, so the film
+//! always holds whole passes; and because the pass schedule depends only on
+//! the samples per pixel asked for, a render resumed from a checkpoint
+//! ends with the same image, bit for bit, as one that never stopped.
 
+pub mod checkpoint;
 pub mod compare;
 
 use crate::error::{Error, Result};
@@ -21,6 +29,7 @@ use glam::Vec2;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::io::IsTerminal;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// How to render (as opposed to what: that is the scene's settings).
@@ -72,6 +81,25 @@ pub struct RenderStats {
     /// Seconds spent tracing photons and building photon maps (included
     /// in `seconds`).
     pub photon_seconds: f64,
+    /// The first few dropped samples, in pass, tile and pixel order (at
+    /// most [`MAX_INVALID_EXAMPLES`]), to show where they happen.
+    pub invalid_examples: Vec<InvalidSample>,
+}
+
+/// Most dropped samples whose place is remembered.
+pub const MAX_INVALID_EXAMPLES: usize = 8;
+
+/// A sample whose radiance was NaN or infinite, and was dropped.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InvalidSample {
+    /// Pixel column.
+    pub x: u32,
+    /// Pixel row, from the top.
+    pub y: u32,
+    /// The sample's index within its pixel.
+    pub index: u32,
+    /// The value the integrator returned.
+    pub value: crate::Rgb,
 }
 
 impl RenderStats {
@@ -93,6 +121,42 @@ pub struct RenderOutput {
     pub film: Film,
     /// Figures.
     pub stats: RenderStats,
+    /// Why the render stopped before the samples per pixel asked for, if it
+    /// did; the film then holds `stats.spp` samples per pixel.
+    pub stopped: Option<Stop>,
+}
+
+/// Why a render stopped early.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stop {
+    /// The cancellation flag was set (Ctrl-C, SIGTERM).
+    Interrupted,
+    /// The deadline passed.
+    TimeLimit,
+}
+
+/// Saves a render's state at a pass boundary (see [`Control::on_checkpoint`]).
+pub type CheckpointFn<'a> = dyn FnMut(&Film, &RenderStats) + Send + 'a;
+
+/// What a long render does besides rendering: where it starts, when it
+/// stops early, and when it saves its state.
+#[derive(Default)]
+pub struct Control<'a> {
+    /// Start from this film and these statistics (read from a checkpoint)
+    /// instead of an empty film. `stats.spp` must be a pass boundary of the
+    /// schedule for the scene's samples per pixel ([`pass_schedule`]).
+    pub resume: Option<(Film, RenderStats)>,
+    /// When set (by a signal handler, say), the pass in flight is abandoned
+    /// within a tile row and the render returns the film of whole passes.
+    pub cancel: Option<&'a AtomicBool>,
+    /// At this instant the pass in flight is abandoned, as by `cancel` —
+    /// unless no pass is complete yet, so that there is always an image.
+    pub deadline: Option<Instant>,
+    /// Call `on_checkpoint` after a pass when at least this long has passed
+    /// since the last call (or the start).
+    pub checkpoint_every: Option<Duration>,
+    /// Saves the state at a pass boundary (writes a checkpoint file).
+    pub on_checkpoint: Option<&'a mut CheckpointFn<'a>>,
 }
 
 /// Renders `scene` with its own settings into an in-memory image, using
@@ -104,10 +168,16 @@ pub fn render_image(scene: &Scene) -> Result<Image> {
 
 /// Renders `scene` with its settings.
 pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
+    render_controlled(scene, options, &mut Control::default())
+}
+
+/// Renders `scene` with its settings under `control` (resume, cancel,
+/// deadline, checkpoints).
+pub fn render_controlled(scene: &Scene, options: &RenderOptions, control: &mut Control) -> Result<RenderOutput> {
     let s = &scene.settings;
     match s.integrator {
-        IntegratorKind::Whitted => render_with(scene, &Whitted { max_depth: s.max_depth }, options),
-        IntegratorKind::Path => render_with(
+        IntegratorKind::Whitted => render_with_control(scene, &Whitted { max_depth: s.max_depth }, options, control),
+        IntegratorKind::Path => render_with_control(
             scene,
             &PathTracer {
                 max_depth: s.max_depth,
@@ -115,6 +185,7 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
                 sampling: s.sampling,
             },
             options,
+            control,
         ),
         IntegratorKind::Photon => crate::integrator::photon::jensen::render(scene, options),
         IntegratorKind::Sppm => crate::integrator::photon::sppm::render(scene, options),
@@ -123,7 +194,37 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
 
 /// Renders `scene` with a given integrator.
 pub fn render_with<I: Integrator>(scene: &Scene, integrator: &I, options: &RenderOptions) -> Result<RenderOutput> {
-    in_thread_pool(options, || render_passes(scene, integrator, options))
+    render_with_control(scene, integrator, options, &mut Control::default())
+}
+
+/// Renders `scene` with a given integrator under `control`.
+pub fn render_with_control<I: Integrator>(
+    scene: &Scene,
+    integrator: &I,
+    options: &RenderOptions,
+    control: &mut Control,
+) -> Result<RenderOutput> {
+    let s = &scene.settings;
+    if let Some((film, stats)) = &control.resume {
+        if (film.width, film.height) != (s.width, s.height) {
+            return Err(Error::Invalid(format!(
+                "cannot resume: the saved film is {}×{} but the scene renders {}×{}",
+                film.width, film.height, s.width, s.height
+            )));
+        }
+        if film.aovs.is_some() != options.aovs {
+            return Err(Error::Invalid(
+                "cannot resume: the saved film and the render disagree on auxiliary images".into(),
+            ));
+        }
+        if options.time_limit.is_some() || !pass_schedule(s.spp).iter().any(|p| p.1 == stats.spp) {
+            return Err(Error::Invalid(format!(
+                "cannot resume: {} samples per pixel is not the end of a pass of a {}-spp render",
+                stats.spp, s.spp
+            )));
+        }
+    }
+    in_thread_pool(options, || render_passes(scene, integrator, options, control))
 }
 
 /// Runs `work` on `options.threads` threads (every core when `None`):
@@ -193,45 +294,81 @@ struct TileResult {
     aovs: Vec<AovSum>,
     rays: RayStats,
     invalid: u64,
+    invalid_examples: Vec<InvalidSample>,
 }
 
-fn render_passes<I: Integrator>(scene: &Scene, integrator: &I, options: &RenderOptions) -> RenderOutput {
+fn render_passes<I: Integrator>(
+    scene: &Scene,
+    integrator: &I,
+    options: &RenderOptions,
+    control: &mut Control,
+) -> RenderOutput {
     let s = &scene.settings;
     let (w, h) = (s.width, s.height);
-    let mut film = Film::new(w, h);
-    if options.aovs {
-        film.aovs = Some(vec![AovSum::default(); (w * h) as usize]);
-    }
+    let start = Instant::now();
+    let (mut film, mut stats) = match control.resume.take() {
+        Some((film, stats)) => (film, stats),
+        None => {
+            let mut film = Film::new(w, h);
+            if options.aovs {
+                film.aovs = Some(vec![AovSum::default(); (w * h) as usize]);
+            }
+            (film, RenderStats::default())
+        }
+    };
+    stats.threads = rayon::current_num_threads();
+    let earlier_seconds = stats.seconds;
     let tiles = tiles(w, h, options.tile_size);
     let bar = match options.time_limit {
         Some(limit) => progress_bar(options.progress, limit.as_millis().max(1) as u64),
         None => progress_bar(options.progress, w as u64 * h as u64 * s.spp as u64),
     };
-    let start = Instant::now();
-    let mut stats = RenderStats {
-        threads: rayon::current_num_threads(),
-        ..RenderStats::default()
-    };
-    let passes = match options.time_limit {
+    if let (Some(b), None) = (&bar, options.time_limit) {
+        b.set_position(w as u64 * h as u64 * stats.spp as u64);
+    }
+    let passes: Vec<(u32, u32)> = match options.time_limit {
         Some(_) => (0..s.spp).map(|i| (i, i + 1)).collect(),
         None => pass_schedule(s.spp),
     };
+    let cancel = control.cancel;
+    let deadline = control.deadline;
+    let mut last_checkpoint = Instant::now();
+    let mut stopped = None;
 
-    for (first, end) in passes {
-        let results: Vec<TileResult> = tiles
+    let done = stats.spp;
+    for (first, end) in passes.into_iter().filter(|p| p.0 >= done) {
+        // The deadline never stops the first pass: there is always an image.
+        let deadline_now = deadline.filter(|_| stats.spp > 0);
+        let stop_now = || -> Option<Stop> {
+            if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                Some(Stop::Interrupted)
+            } else if deadline_now.is_some_and(|d| Instant::now() >= d) {
+                Some(Stop::TimeLimit)
+            } else {
+                None
+            }
+        };
+        let film_ref = &film;
+        let results: Vec<Option<TileResult>> = tiles
             .par_iter()
             .map(|&tile| {
                 let mut sampler = Sampler::new(s.sampler, s.spp, s.seed);
                 let mut rays = RayStats::default();
                 let mut invalid = 0u64;
+                let mut invalid_examples = Vec::new();
                 let n = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
                 let mut sums = Vec::with_capacity(n);
                 let mut aovs = Vec::with_capacity(if options.aovs { n } else { 0 });
                 for y in tile.y0..tile.y1 {
+                    // Checked once a row, so that an interrupt is obeyed
+                    // within a row of a tile.
+                    if stop_now().is_some() {
+                        return None;
+                    }
                     for x in tile.x0..tile.x1 {
                         let i = (y * w + x) as usize;
-                        let mut sum = film.pixels[i];
-                        let mut aov = film.aovs.as_ref().map(|a| a[i]).unwrap_or_default();
+                        let mut sum = film_ref.pixels[i];
+                        let mut aov = film_ref.aovs.as_ref().map(|a| a[i]).unwrap_or_default();
                         for index in first..end {
                             sampler.start_pixel_sample(x, y, index);
                             let offset = s.filter.sample(sampler.pixel_2d());
@@ -244,9 +381,15 @@ fn render_passes<I: Integrator>(scene: &Scene, integrator: &I, options: &RenderO
                                 sum.add(l, 1.0);
                             } else {
                                 invalid += 1;
+                                if invalid_examples.len() < MAX_INVALID_EXAMPLES {
+                                    invalid_examples.push(InvalidSample { x, y, index, value: l });
+                                }
                             }
                             if options.aovs {
-                                aov.add(&camera_aov(scene, &ray));
+                                let a = camera_aov(scene, &ray);
+                                if a.albedo.is_finite() && a.normal.is_finite() && a.depth.is_finite() {
+                                    aov.add(&a);
+                                }
                             }
                         }
                         sums.push(sum);
@@ -261,16 +404,22 @@ fn render_passes<I: Integrator>(scene: &Scene, integrator: &I, options: &RenderO
                         None => b.inc(n as u64 * (end - first) as u64),
                     }
                 }
-                TileResult {
+                Some(TileResult {
                     tile,
                     sums,
                     aovs,
                     rays,
                     invalid,
-                }
+                    invalid_examples,
+                })
             })
             .collect();
-        for r in results {
+        if results.iter().any(Option::is_none) {
+            // A pass cut short is abandoned: the film keeps whole passes.
+            stopped = Some(stop_now().unwrap_or(Stop::Interrupted));
+            break;
+        }
+        for r in results.into_iter().flatten() {
             let mut k = 0;
             for y in r.tile.y0..r.tile.y1 {
                 for x in r.tile.x0..r.tile.x1 {
@@ -284,18 +433,33 @@ fn render_passes<I: Integrator>(scene: &Scene, integrator: &I, options: &RenderO
             }
             stats.rays += r.rays.rays;
             stats.invalid_samples += r.invalid;
+            let room = MAX_INVALID_EXAMPLES - stats.invalid_examples.len();
+            stats.invalid_examples.extend(r.invalid_examples.into_iter().take(room));
         }
         stats.samples += w as u64 * h as u64 * (end - first) as u64;
         stats.spp = end;
+        stats.seconds = earlier_seconds + start.elapsed().as_secs_f64();
         if options.time_limit.is_some_and(|limit| start.elapsed() >= limit) {
             break;
+        }
+        if end < s.spp {
+            if let Some(why) = stop_now() {
+                stopped = Some(why);
+                break;
+            }
+            if let (Some(every), Some(save)) = (control.checkpoint_every, control.on_checkpoint.as_mut()) {
+                if last_checkpoint.elapsed() >= every {
+                    save(&film, &stats);
+                    last_checkpoint = Instant::now();
+                }
+            }
         }
     }
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    stats.seconds = start.elapsed().as_secs_f64();
-    RenderOutput { film, stats }
+    stats.seconds = earlier_seconds + start.elapsed().as_secs_f64();
+    RenderOutput { film, stats, stopped }
 }
 
 fn progress_bar(enabled: bool, total: u64) -> Option<ProgressBar> {

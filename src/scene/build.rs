@@ -4,6 +4,7 @@
 
 use super::Scene;
 use super::desc::*;
+use super::memory::{BYTES_PER_TEXEL, MemoryEstimate, mesh_bytes};
 use super::native::io_reason;
 use crate::accel::aggregate::{Aggregate, EmitterRef, MeshInstance, MeshObject, ShapeInstance};
 use crate::camera::{Camera, Projection};
@@ -19,10 +20,32 @@ use crate::texture::{ImageTexture, Texture};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+/// Limits checked while a scene is built.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BuildLimits {
+    /// Largest estimated memory of the render in bytes (see
+    /// [`super::memory`]); `None`: no limit.
+    pub max_memory: Option<u64>,
+    /// Whether the render will record auxiliary images (they count toward
+    /// the memory).
+    pub aovs: bool,
+}
+
 /// Builds a renderable scene. Validates the description first, so that
 /// scenes made in code get the same checks as scenes read from files.
 pub fn build(desc: &SceneDesc) -> Result<Scene> {
+    build_limited(desc, &BuildLimits::default())
+}
+
+/// Builds a renderable scene, refusing with an error, before allocating,
+/// a render whose estimated memory exceeds `limits.max_memory`: the
+/// estimate is checked before anything is loaded, after each image is read
+/// and before the BVH is built.
+pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     desc.validate()?;
+    let mut memory = MemoryEstimate::for_film(desc.settings.width, desc.settings.height, limits.aovs);
+    memory.geometry = described_mesh_bytes(desc);
+    memory.check(limits.max_memory)?;
     let base_dir: PathBuf = desc
         .source
         .as_ref()
@@ -54,11 +77,20 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
                 srgb,
                 tint,
             } => {
-                let img = match source {
+                let mut img = match source {
                     ImageSource::File(path) => ImageTexture::load(&base_dir.join(path), *srgb)
                         .map_err(|e| Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e)))?,
                     ImageSource::Data(data) => (**data).clone(),
                 };
+                memory.textures += img.pixels.len() as u64 * BYTES_PER_TEXEL;
+                memory.check(limits.max_memory)?;
+                let bad = img.sanitize();
+                if bad > 0 {
+                    warnings.push(format!(
+                        "{}texture[{i}]: {bad} texels are NaN, infinite or negative; they are read as black",
+                        t.locs.key("file").map(|l| format!("{l}: ")).unwrap_or_default()
+                    ));
+                }
                 images.push(img);
                 Texture::Image {
                     image: images.len() as u32 - 1,
@@ -209,6 +241,12 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
         }
     }
 
+    memory.geometry = meshes
+        .iter()
+        .map(|m| mesh_bytes(m.len() as u64, m.positions.len() as u64))
+        .sum::<u64>()
+        + mesh_bytes((shapes.len() + instances.len()) as u64, 0);
+    memory.check(limits.max_memory)?;
     let mut geometry = Aggregate::build(meshes, shapes, mesh_objects, instances);
 
     // Lights: the explicit ones, then one per emissive surface.
@@ -240,6 +278,14 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
     for (emitter, material) in emitters {
         let area = geometry.emitter_area(emitter);
         if area.total.is_nan() || area.total <= 0.0 {
+            warnings.push(format!(
+                "{}: an emissive surface has zero area and emits no light",
+                match emitter {
+                    EmitterRef::Shape(i) => format!("shape[{}]", desc_index_of_shape(desc, i as usize)),
+                    EmitterRef::MeshObject(i) => format!("emissive mesh {i}"),
+                    EmitterRef::Instance(i) => format!("emissive mesh instance {i}"),
+                }
+            ));
             continue;
         }
         let index = lights.len() as u32;
@@ -283,8 +329,20 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
         },
         BackgroundDesc::Image { path, scale, transform } => {
             let full = base_dir.join(path);
-            let image = ImageTexture::load(&full, None)
+            let mut image = ImageTexture::load(&full, None)
                 .map_err(|e| Error::scene(desc.world_locs.key("background"), "world.background", reason_of(e)))?;
+            memory.textures += image.pixels.len() as u64 * BYTES_PER_TEXEL;
+            memory.check(limits.max_memory)?;
+            let bad = image.sanitize();
+            if bad > 0 {
+                warnings.push(format!(
+                    "{}world.background: {bad} texels are NaN, infinite or negative; they are read as black",
+                    desc.world_locs
+                        .key("background")
+                        .map(|l| format!("{l}: "))
+                        .unwrap_or_default()
+                ));
+            }
             let to_world = compose(transform)
                 .map_err(|e| Error::scene(desc.world_locs.key("background"), "world.background", e))?;
             Background::Image(Box::new(EnvironmentMap::new(image, *scale, to_world)))
@@ -327,6 +385,30 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
     let powers: Vec<f32> = scene.lights.iter().map(|l| l.power(&scene, radius)).collect();
     scene.light_distribution = Distribution1D::new(&powers);
     Ok(scene)
+}
+
+/// Bytes of the meshes a description holds itself (inline meshes and
+/// generated spheres; mesh files are counted once they are read). A named
+/// mesh counts once, however often it is placed.
+fn described_mesh_bytes(desc: &SceneDesc) -> u64 {
+    let source_bytes = |src: &MeshSource| match src {
+        MeshSource::Inline(m) => mesh_bytes(m.len() as u64, m.positions.len() as u64),
+        MeshSource::UvSphere { segments, rings } => mesh_bytes(
+            2 * *segments as u64 * *rings as u64,
+            (*segments as u64 + 1) * (*rings as u64 + 1),
+        ),
+        MeshSource::File(_) => 0,
+    };
+    let named: u64 = desc.meshes.iter().map(|m| source_bytes(&m.source)).sum();
+    let inline: u64 = desc
+        .shapes
+        .iter()
+        .map(|s| match &s.kind {
+            ShapeKind::InlineMesh(src) => source_bytes(src),
+            _ => 0,
+        })
+        .sum();
+    named + inline
 }
 
 /// The scale factor of a transform that is a similarity (rotation and
@@ -447,6 +529,30 @@ pub fn compose(ops: &[TransformOp]) -> Result<Transform, String> {
 
 /// Loads a mesh; a mesh file's warnings go to `warnings`.
 fn load_mesh_source(
+    src: &MeshSource,
+    base_dir: &Path,
+    locs: &Locs,
+    what: &str,
+    warnings: &mut Vec<String>,
+) -> Result<TriangleMesh> {
+    let mesh = read_mesh_source(src, base_dir, locs, what, warnings)?;
+    let degenerate = (0..mesh.len())
+        .filter(|&i| {
+            let [a, b, c] = mesh.vertices(i);
+            (b - a).cross(c - a).length_squared() == 0.0
+        })
+        .count();
+    if degenerate > 0 {
+        warnings.push(format!(
+            "{}{what}: {degenerate} of {} triangles have zero area; they are never hit and emit no light",
+            locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default(),
+            mesh.len()
+        ));
+    }
+    Ok(mesh)
+}
+
+fn read_mesh_source(
     src: &MeshSource,
     base_dir: &Path,
     locs: &Locs,

@@ -35,31 +35,36 @@ struct Model {
 fn load_model(path: &Path) -> Result<Model> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("obj") => {
-            let s = super::obj::load_obj_scene(path)?;
-            let names: Vec<String> = s.materials.iter().map(|m| m.name.clone()).collect();
-            Ok(Model {
-                parts: s
-                    .parts
-                    .into_iter()
-                    .map(|(m, i)| (m, i.map(|i| names[i].clone())))
-                    .collect(),
-                materials: s.materials,
-                textures: s.textures,
-                warnings: s.warnings,
-            })
-        }
+        Some("obj") => Ok(obj_model(super::obj::load_obj_scene(path)?)),
         // Through `read_ply` rather than `load_ply_mesh`, to keep its warnings.
-        Some("ply") => super::ply::read_ply(path).map(|p| Model {
-            parts: vec![(p.mesh, None)],
-            materials: Vec::new(),
-            textures: Vec::new(),
-            warnings: p.warnings,
-        }),
+        Some("ply") => super::ply::read_ply(path).map(ply_model),
         _ => Err(Error::file(
             path,
             "unknown model format: trazo reads .obj and .ply models",
         )),
+    }
+}
+
+fn obj_model(s: super::obj::ObjScene) -> Model {
+    let names: Vec<String> = s.materials.iter().map(|m| m.name.clone()).collect();
+    Model {
+        parts: s
+            .parts
+            .into_iter()
+            .map(|(m, i)| (m, i.map(|i| names[i].clone())))
+            .collect(),
+        materials: s.materials,
+        textures: s.textures,
+        warnings: s.warnings,
+    }
+}
+
+fn ply_model(p: super::ply::PlyMesh) -> Model {
+    Model {
+        parts: vec![(p.mesh, None)],
+        materials: Vec::new(),
+        textures: Vec::new(),
+        warnings: p.warnings,
     }
 }
 
@@ -126,7 +131,20 @@ pub fn studio(d: &mut SceneDesc, bounds: Aabb) {
 /// `.ply`): the model on a ground plane in a studio (see [`studio`]); parts
 /// without a material are light grey.
 pub fn framed_model(path: &Path) -> Result<SceneDesc> {
-    let model = load_model(path)?;
+    frame(load_model(path)?, path)
+}
+
+/// [`framed_model`] for an OBJ file already read from `path`.
+pub fn framed_obj(obj: super::obj::ObjScene, path: &Path) -> Result<SceneDesc> {
+    frame(obj_model(obj), path)
+}
+
+/// [`framed_model`] for a PLY file already read from `path`.
+pub fn framed_ply(ply: super::ply::PlyMesh, path: &Path) -> Result<SceneDesc> {
+    frame(ply_model(ply), path)
+}
+
+fn frame(model: Model, path: &Path) -> Result<SceneDesc> {
     let bounds = model.parts.iter().fold(Aabb::EMPTY, |b, (m, _)| b.union(&m.bounds()));
     let mut d = SceneDesc {
         source: Some(std::sync::Arc::from(path)),

@@ -66,6 +66,13 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
         },
         "scene",
     )?;
+    parse_bytes(&bytes, path, defines)
+}
+
+/// Reads a glTF scene held in memory: the bytes of a `.gltf` (JSON) or
+/// `.glb` file that was read from `path` (which names it in messages and
+/// resolves external buffers and images).
+pub fn parse_bytes(bytes: &[u8], path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
     if bytes.is_empty() {
         return Err(Error::file(path, "the file is empty"));
     }
@@ -78,11 +85,11 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
         ));
     }
     let (json_bytes, bin, loc_file) = if bytes.starts_with(b"glTF") {
-        let (json, bin) = split_glb(path, &bytes)?;
+        let (json, bin) = split_glb(path, bytes)?;
         let name = PathBuf::from(format!("{} (JSON chunk)", path.display()));
         (json, bin, Arc::from(name.as_path()))
     } else {
-        (&bytes[..], None, Arc::from(path))
+        (bytes, None, Arc::from(path))
     };
     let text = std::str::from_utf8(json_bytes).map_err(|e| {
         let lossy = String::from_utf8_lossy(json_bytes);
@@ -188,7 +195,7 @@ fn read_file(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
             ),
         ));
     }
-    std::fs::read(path).map_err(|e| Error::file(path, format!("cannot read {what}: {}", io_reason(&e))))
+    super::native::read_limited(path, limit).map_err(|e| Error::file(path, format!("cannot read {what}: {e}")))
 }
 
 /// Splits a GLB file into its JSON chunk and optional BIN chunk (glTF 2.0

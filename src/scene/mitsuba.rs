@@ -225,7 +225,8 @@ impl Loader {
         if meta.len() > MAX_XML_BYTES {
             return Err(Error::file(path, "scene file is larger than 256 MiB"));
         }
-        let bytes = std::fs::read(path).map_err(|e| Error::file(path, format!("cannot read: {}", io_reason(&e))))?;
+        let bytes = super::native::read_limited(path, MAX_XML_BYTES)
+            .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
         let text = String::from_utf8(bytes)
             .map_err(|e| Error::file(path, format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to())))?;
         self.include_stack.push(canonical);
@@ -908,8 +909,15 @@ impl Loader {
                 .iter()
                 .find(|p| p.attribute("name") == Some("sample_count"))
                 .expect("found");
+            if !(1..=MAX_SPP as i64).contains(&n) {
+                return Err(self.err(
+                    f,
+                    *p,
+                    format!("`sample_count` must be between 1 and {MAX_SPP}, got {n}"),
+                ));
+            }
             self.desc.settings_locs.keys.push(("spp".into(), f.loc_of(*p)));
-            self.desc.settings.spp = n.clamp(0, u32::MAX as i64) as u32;
+            self.desc.settings.spp = n as u32;
         }
         if let Some(seed) = self.integer(f, &props, "seed", &mut used)? {
             self.desc.settings.seed = seed.max(0) as u64;

@@ -9,13 +9,14 @@ pub mod build;
 pub mod builtin;
 pub mod desc;
 pub mod gltf;
+pub mod memory;
 pub mod mitsuba;
 pub mod native;
 pub mod obj;
 pub mod pbrt;
 pub mod ply;
 
-pub use build::build;
+pub use build::{BuildLimits, build, build_limited};
 pub use desc::{RenderSettings, SceneDesc};
 
 use crate::accel::Aggregate;

@@ -33,7 +33,8 @@ pub fn load(path: &Path) -> Result<SceneDesc> {
     if meta.len() > MAX_SCENE_BYTES {
         return Err(Error::file(path, "scene file is larger than 1 GiB"));
     }
-    let bytes = std::fs::read(path).map_err(|e| Error::file(path, format!("cannot read scene: {}", io_reason(&e))))?;
+    let bytes =
+        read_limited(path, MAX_SCENE_BYTES).map_err(|e| Error::file(path, format!("cannot read scene: {e}")))?;
     let text = String::from_utf8(bytes).map_err(|e| {
         let loc = SourceLoc::from_offset(
             &Arc::from(path),
@@ -47,6 +48,22 @@ pub fn load(path: &Path) -> Result<SceneDesc> {
         }
     })?;
     parse(&text, path)
+}
+
+/// Reads at most `limit` bytes of a file: a longer file (or a device such as
+/// `/dev/zero`, whose metadata say nothing of its length) is an error
+/// rather than an unbounded allocation. Errors are short reasons.
+pub fn read_limited(path: &Path, limit: u64) -> std::result::Result<Vec<u8>, String> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| io_reason(&e))?;
+    let mut bytes = Vec::new();
+    file.take(limit.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(|e| io_reason(&e))?;
+    if bytes.len() as u64 > limit {
+        return Err(format!("the file is larger than the limit of {limit} bytes"));
+    }
+    Ok(bytes)
 }
 
 /// A short reason for an I/O error ("file not found", …).

@@ -6,6 +6,7 @@ use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::geometry::TriangleMesh;
 use glam::{Vec2, Vec3};
+use std::cell::RefCell;
 use std::path::Path;
 
 /// An OBJ file's triangles grouped by material, with the materials and
@@ -58,11 +59,85 @@ fn to_mesh(m: &tobj::Mesh) -> TriangleMesh {
 /// reflection (`illum` 3, 5, 8: reflectivity `Ks`) and refraction (`illum`
 /// 4, 6, 7, 9, or `d` < 1: transmission, index of refraction `Ni`).
 pub fn load_obj_scene(path: &Path) -> Result<ObjScene> {
-    if !path.is_file() {
+    let bytes = read_obj(path)?;
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let warnings = RefCell::new(Vec::new());
+    let mut scene = parse_obj_scene_with(&bytes, path, |mtl| {
+        let full = dir.join(mtl);
+        let text = super::native::read_limited(&full, super::native::MAX_SCENE_BYTES)
+            .map_err(|_| tobj::LoadError::OpenFileFailed)?;
+        read_mtl(&text, &full, &mut warnings.borrow_mut())
+    })?;
+    scene.warnings.splice(0..0, warnings.into_inner());
+    Ok(scene)
+}
+
+/// Parses the bytes of an OBJ file read from `path` (which names it in
+/// messages and resolves texture files); `mtl`, if given, is the text of
+/// every MTL library the file names (without it, materials are grey).
+pub fn parse_obj_scene(obj: &[u8], mtl: Option<&[u8]>, path: &Path) -> Result<ObjScene> {
+    let warnings = RefCell::new(Vec::new());
+    let mut scene = parse_obj_scene_with(obj, path, |name| match mtl {
+        Some(m) => read_mtl(m, name, &mut warnings.borrow_mut()),
+        None => Err(tobj::LoadError::OpenFileFailed),
+    })?;
+    scene.warnings.splice(0..0, warnings.into_inner());
+    Ok(scene)
+}
+
+/// Parses an MTL library with tobj, after rewriting the colour statements
+/// that tobj cannot read (it panics on fewer than three numbers): by the
+/// MTL specification `Kd 0.5` means `Kd 0.5 0.5 0.5`; statements without
+/// numbers (`Kd spectral f.rfl`, `Kd xyz …`) are dropped with a warning.
+fn read_mtl(bytes: &[u8], path: &Path, warnings: &mut Vec<String>) -> tobj::MTLLoadResult {
+    let text = String::from_utf8_lossy(bytes);
+    let mut fixed = String::with_capacity(text.len());
+    for (n, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let key = words.next();
+        if matches!(key, Some("Ka" | "Kd" | "Ks" | "Ke")) {
+            let numbers: Vec<&str> = words.take_while(|w| w.parse::<f32>().is_ok()).take(3).collect();
+            match numbers.as_slice() {
+                [] => {
+                    warnings.push(format!(
+                        "{}:{}: `{}` without numbers is unsupported and ignored",
+                        path.display(),
+                        n + 1,
+                        line.trim()
+                    ));
+                    fixed.push('\n');
+                    continue;
+                }
+                [v] => fixed.push_str(&format!("{} {v} {v} {v}", key.unwrap_or_default())),
+                [r, g] => fixed.push_str(&format!("{} {r} {g} {g}", key.unwrap_or_default())),
+                _ => fixed.push_str(line),
+            }
+        } else {
+            fixed.push_str(line);
+        }
+        fixed.push('\n');
+    }
+    tobj::load_mtl_buf(&mut std::io::Cursor::new(fixed.as_bytes()))
+}
+
+/// Reads an OBJ file whole, refusing folders, missing files and files larger
+/// than scene files may be.
+fn read_obj(path: &Path) -> Result<Vec<u8>> {
+    let meta = std::fs::metadata(path).map_err(|_| Error::file(path, "mesh file not found"))?;
+    if !meta.is_file() {
         return Err(Error::file(path, "mesh file not found"));
     }
-    let (models, materials) =
-        tobj::load_obj(path, &load_options()).map_err(|e| Error::file(path, format!("cannot read OBJ: {e}")))?;
+    super::native::read_limited(path, super::native::MAX_SCENE_BYTES)
+        .map_err(|e| Error::file(path, format!("cannot read OBJ: {e}")))
+}
+
+fn parse_obj_scene_with(
+    bytes: &[u8],
+    path: &Path,
+    mtl_loader: impl Fn(&Path) -> tobj::MTLLoadResult,
+) -> Result<ObjScene> {
+    let (models, materials) = tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &load_options(), mtl_loader)
+        .map_err(|e| Error::file(path, format!("cannot read OBJ: {e}")))?;
     let mut out = ObjScene::default();
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let stem = path
@@ -209,12 +284,17 @@ fn parse_rgb(v: &str) -> Option<Rgb> {
 /// and texture coordinates where every vertex has them (materials are the
 /// scene's business).
 pub fn load_obj_mesh(path: &Path) -> Result<TriangleMesh> {
-    if !path.is_file() {
-        return Err(Error::file(path, "mesh file not found"));
-    }
-    // A missing MTL file is not an error here: materials come from the scene.
-    let (models, _materials) =
-        tobj::load_obj(path, &load_options()).map_err(|e| Error::file(path, format!("cannot read OBJ: {e}")))?;
+    parse_obj_mesh(&read_obj(path)?, path)
+}
+
+/// Parses the bytes of an OBJ file read from `path` (named in messages)
+/// into one mesh, as [`load_obj_mesh`] does.
+pub fn parse_obj_mesh(bytes: &[u8], path: &Path) -> Result<TriangleMesh> {
+    // MTL files are not read: materials come from the scene.
+    let (models, _materials) = tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &load_options(), |_| {
+        Err(tobj::LoadError::OpenFileFailed)
+    })
+    .map_err(|e| Error::file(path, format!("cannot read OBJ: {e}")))?;
     let parts: Vec<TriangleMesh> = models.iter().map(|m| to_mesh(&m.mesh)).collect();
     let all_normals = parts.iter().all(|m| !m.normals.is_empty() || m.positions.is_empty());
     let all_uvs = parts.iter().all(|m| !m.uvs.is_empty() || m.positions.is_empty());

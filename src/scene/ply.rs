@@ -11,7 +11,6 @@
 //! bytes that remain. Errors in the header and in ASCII data name
 //! `file:line:column`; errors in binary data name the byte offset.
 
-use super::native::io_reason;
 use crate::error::{Error, Result, SourceLoc};
 use crate::geometry::TriangleMesh;
 use glam::{Vec2, Vec3};
@@ -33,10 +32,14 @@ pub struct PlyMesh {
     pub warnings: Vec<String>,
 }
 
+/// Largest PLY file read, in bytes.
+pub const MAX_PLY_BYTES: u64 = 1 << 34;
+
 /// Reads a PLY file: see [`parse_ply`]. A missing or unreadable file is an
 /// [`Error::File`] naming the path.
 pub fn read_ply(path: &Path) -> Result<PlyMesh> {
-    let bytes = std::fs::read(path).map_err(|e| Error::file(path, format!("cannot read PLY: {}", io_reason(&e))))?;
+    let bytes = super::native::read_limited(path, MAX_PLY_BYTES)
+        .map_err(|e| Error::file(path, format!("cannot read PLY: {e}")))?;
     parse_ply(&bytes, path)
 }
 

@@ -21,47 +21,43 @@ pub struct ImageTexture {
 pub const MAX_TEXTURE_PIXELS: u64 = 16384 * 16384;
 
 impl ImageTexture {
-    /// Reads a PNG, JPEG, Radiance HDR or OpenEXR file. Integer images are
+    /// Reads a PNG, JPEG, Radiance HDR, OpenEXR or PFM file. Integer images are
     /// decoded from sRGB unless `srgb` is `Some(false)`; float images are
     /// taken as linear unless `srgb` is `Some(true)`.
     pub fn load(path: &Path, srgb: Option<bool>) -> Result<ImageTexture> {
-        let reader = ::image::ImageReader::open(path)
-            .map_err(|e| Error::file(path, format!("cannot open image: {e}")))?
-            .with_guessed_format()
-            .map_err(|e| Error::file(path, format!("cannot read image: {e}")))?;
-        let (w, h) = reader
-            .into_dimensions()
-            .map_err(|e| Error::file(path, format!("not a readable image: {e}")))?;
-        if w as u64 * h as u64 > MAX_TEXTURE_PIXELS {
-            return Err(Error::file(
-                path,
-                format!("image of {w}×{h} pixels is larger than the limit of 16384×16384"),
-            ));
-        }
-        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
-            return Self::load_exr(path);
-        }
-        let img = ::image::ImageReader::open(path)
-            .and_then(|r| r.with_guessed_format())
-            .map_err(|e| Error::file(path, format!("cannot read image: {e}")))?
-            .decode()
-            .map_err(|e| Error::file(path, format!("cannot decode image: {e}")))?;
-        Ok(Self::from_decoded(img, srgb))
+        let bytes = crate::scene::native::read_limited(path, crate::film::io::MAX_IMAGE_FILE_BYTES)
+            .map_err(|e| Error::file(path, format!("cannot open image: {e}")))?;
+        Self::decode(&bytes, srgb).map_err(|e| Error::file(path, e))
     }
 
-    /// Decodes a PNG or JPEG image held in memory (an image embedded in a
-    /// glTF file, say); 8- and 16-bit images are decoded from sRGB when
-    /// `srgb` is true. Errors are plain reasons, for the caller to place.
-    pub fn from_encoded(bytes: &[u8], srgb: bool) -> Result<ImageTexture, String> {
+    /// Decodes a PNG, JPEG, Radiance HDR, OpenEXR or PFM image held in
+    /// memory (told apart by their first bytes), as [`ImageTexture::load`] does.
+    /// The size in the header is checked before any pixel is allocated.
+    /// Errors are plain reasons, for the caller to place.
+    pub fn decode(bytes: &[u8], srgb: Option<bool>) -> Result<ImageTexture, String> {
+        let is_pfm = bytes.starts_with(b"PF") || bytes.starts_with(b"Pf");
+        if bytes.starts_with(&crate::film::io::EXR_MAGIC) || is_pfm {
+            let format = if is_pfm {
+                crate::film::io::ImageFormat::Pfm
+            } else {
+                crate::film::io::ImageFormat::Exr
+            };
+            let image = crate::film::io::decode_image(bytes, format)?;
+            let mut t = ImageTexture {
+                width: image.width,
+                height: image.height,
+                pixels: image.pixels,
+            };
+            if srgb == Some(true) {
+                for p in &mut t.pixels {
+                    *p = Rgb::new(srgb_to_linear(p.x), srgb_to_linear(p.y), srgb_to_linear(p.z));
+                }
+            }
+            return Ok(t);
+        }
         let reader = ::image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
             .map_err(|e| format!("cannot read image: {e}"))?;
-        if !matches!(
-            reader.format(),
-            Some(::image::ImageFormat::Png | ::image::ImageFormat::Jpeg)
-        ) {
-            return Err("not a PNG or JPEG image".into());
-        }
         let (w, h) = reader
             .into_dimensions()
             .map_err(|e| format!("not a readable image: {e}"))?;
@@ -76,7 +72,33 @@ impl ImageTexture {
             .map_err(|e| format!("cannot read image: {e}"))?
             .decode()
             .map_err(|e| format!("cannot decode image: {e}"))?;
-        Ok(Self::from_decoded(img, Some(srgb)))
+        Ok(Self::from_decoded(img, srgb))
+    }
+
+    /// Decodes a PNG or JPEG image held in memory (an image embedded in a
+    /// glTF file, say); 8- and 16-bit images are decoded from sRGB when
+    /// `srgb` is true. Errors are plain reasons, for the caller to place.
+    pub fn from_encoded(bytes: &[u8], srgb: bool) -> Result<ImageTexture, String> {
+        let format = ::image::guess_format(bytes).map_err(|e| format!("cannot read image: {e}"))?;
+        if !matches!(format, ::image::ImageFormat::Png | ::image::ImageFormat::Jpeg) {
+            return Err("not a PNG or JPEG image".into());
+        }
+        Self::decode(bytes, Some(srgb))
+    }
+
+    /// Replaces texels that are not finite (NaN or infinite, as float
+    /// images may hold) or negative by black, so that they cannot poison
+    /// the samples or the light-sampling tables; returns how many were
+    /// replaced.
+    pub fn sanitize(&mut self) -> usize {
+        let mut replaced = 0;
+        for p in &mut self.pixels {
+            if !p.is_finite() || p.min_element() < 0.0 {
+                *p = if p.is_finite() { p.max(Rgb::ZERO) } else { Rgb::ZERO };
+                replaced += 1;
+            }
+        }
+        replaced
     }
 
     /// Linear pixels of a decoded image: integer images from sRGB unless
@@ -101,15 +123,6 @@ impl ImageTexture {
             height: rgb.height(),
             pixels,
         }
-    }
-
-    fn load_exr(path: &Path) -> Result<ImageTexture> {
-        let image = crate::film::io::read_exr(path)?;
-        Ok(ImageTexture {
-            width: image.width,
-            height: image.height,
-            pixels: image.pixels,
-        })
     }
 
     /// The texel at integer coordinates, wrapping around the edges.

@@ -155,7 +155,11 @@ fn iterate(scene: &Scene, options: &RenderOptions) -> RenderOutput {
     stats.samples = (w * h) as u64 * iterations as u64;
     stats.spp = iterations;
     stats.seconds = start.elapsed().as_secs_f64();
-    RenderOutput { film, stats }
+    RenderOutput {
+        film,
+        stats,
+        stopped: None,
+    }
 }
 
 /// One iteration's camera sample of pixel (x, y): its direct light, its

@@ -133,7 +133,8 @@ fn read_text(path: &Path, included_from: Option<&SourceLoc>) -> Result<String> {
     if meta.len() > MAX_SCENE_BYTES {
         return Err(fail("scene file is larger than 1 GiB".into()));
     }
-    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read scene: {}", io_reason(&e))))?;
+    let bytes =
+        super::native::read_limited(path, MAX_SCENE_BYTES).map_err(|e| fail(format!("cannot read scene: {e}")))?;
     String::from_utf8(bytes).map_err(|e| {
         let lossy = String::from_utf8_lossy(e.as_bytes()).into_owned();
         let lx = Lexer::new(Arc::from(path), &lossy);

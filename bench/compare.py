@@ -1,0 +1,248 @@
+"""Side-by-side speed comparison of trazo with Embree and Mitsuba 3 (see bench/compare).
+
+Every peer runs on the same inputs in the same run; the table quotes ratios.
+"""
+import argparse
+import glob
+import multiprocessing as mp
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+
+def bumpy_sphere(triangles):
+    """A displaced UV sphere with about `triangles` triangles (vertices, indices)."""
+    nv = max(4, int(round((triangles / 4) ** 0.5)))
+    nu = 2 * nv
+    theta = (np.arange(nv + 1) / nv * np.pi)[:, None]
+    phi = (np.arange(nu) / nu * 2 * np.pi)[None, :]
+    r = 1.0 + 0.05 * np.sin(7 * phi) * np.sin(5 * theta) + 0.02 * np.cos(31 * phi + 13 * theta)
+    x = r * np.sin(theta) * np.cos(phi)
+    y = r * np.cos(theta) * np.ones_like(phi)
+    z = r * np.sin(theta) * np.sin(phi)
+    verts = np.stack([x, y, z], axis=-1).reshape(-1, 3).astype(np.float32)
+    j, i = np.meshgrid(np.arange(nv), np.arange(nu), indexing="ij")
+    a = j * nu + i
+    b = j * nu + (i + 1) % nu
+    c = (j + 1) * nu + (i + 1) % nu
+    d = (j + 1) * nu + i
+    tris = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    return verts, tris.astype(np.uint32)
+
+
+def write_ply(path, verts, tris):
+    with open(path, "wb") as f:
+        f.write(
+            (
+                "ply\nformat binary_little_endian 1.0\n"
+                f"element vertex {len(verts)}\nproperty float x\nproperty float y\nproperty float z\n"
+                f"element face {len(tris)}\nproperty list uchar uint vertex_indices\nend_header\n"
+            ).encode()
+        )
+        f.write(verts.astype("<f4").tobytes())
+        face = np.zeros(len(tris), dtype=[("n", "u1"), ("i", "<u4", 3)])
+        face["n"] = 3
+        face["i"] = tris
+        f.write(face.tobytes())
+
+
+def camera_rays(n):
+    """Coherent rays: a pinhole camera's primary rays, row by row."""
+    side = int(n**0.5)
+    u, v = np.meshgrid((np.arange(side) + 0.5) / side, (np.arange(side) + 0.5) / side)
+    d = np.stack([(u - 0.5) * 0.8, (0.5 - v) * 0.8, -np.ones_like(u)], -1).reshape(-1, 3)
+    o = np.broadcast_to(np.array([0.0, 0.0, 3.0]), d.shape)
+    return np.ascontiguousarray(o, np.float32), np.ascontiguousarray(d, np.float32)
+
+
+def random_rays(n, rng):
+    """Incoherent rays: origins in the mesh's bounding box, directions uniform on the sphere."""
+    o = rng.uniform(-1.3, 1.3, (n, 3)).astype(np.float32)
+    d = rng.normal(size=(n, 3)).astype(np.float32)
+    return o, d
+
+
+def write_rays(path, o, d):
+    np.concatenate([o, d], axis=1).astype("<f4").tofile(path)
+
+
+_scene = None
+
+
+def _embree_worker(args):
+    verts, tris, o, d, occluded = args
+    from embreex import mesh_construction, rtcore_scene
+
+    scene = rtcore_scene.EmbreeScene()
+    mesh_construction.TriangleMesh(scene, verts, tris)
+    scene.run(o[:16], d[:16])  # build before timing
+    start = time.perf_counter()
+    scene.run(o, d, query="OCCLUDED" if occluded else "INTERSECT")
+    return time.perf_counter() - start
+
+
+def embree(verts, tris, o, d, occluded, procs):
+    """Rays/s of Embree, one process per core (embreex traces in one thread)."""
+    parts = [(verts, tris, oo, dd, occluded) for oo, dd in zip(np.array_split(o, procs), np.array_split(d, procs))]
+    with mp.get_context("fork").Pool(procs) as pool:
+        times = pool.map(_embree_worker, parts)
+    return len(o) / max(times)
+
+
+def embree_build(verts, tris):
+    from embreex import mesh_construction, rtcore_scene
+
+    start = time.perf_counter()
+    scene = rtcore_scene.EmbreeScene()
+    mesh_construction.TriangleMesh(scene, verts, tris)
+    scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))
+    return time.perf_counter() - start, scene
+
+
+def trazo_rays(trazo, mesh, rays, hits):
+    out = subprocess.run(
+        [trazo, "bench", "rays", "--mesh", mesh, "--rays", rays, "--hits", hits],
+        check=True, capture_output=True, text=True,
+    ).stdout
+    build = float(re.search(r"build: ([0-9.]+) s", out).group(1))
+    closest = float(re.search(r"closest-hit: ([0-9.]+) rays/s", out).group(1))
+    anyhit = float(re.search(r"any-hit: ([0-9.]+) rays/s", out).group(1))
+    return build, closest, anyhit
+
+
+def agreement(scene, o, d, hits_path):
+    """Fraction of rays on which trazo's and Embree's closest hits agree."""
+    k = min(len(o), 100_000)
+    ref = scene.run(o[:k], d[:k], output=1)
+    h = np.fromfile(hits_path, dtype=[("t", "<f4"), ("p", "<u4")])[:k]
+    miss_ref = ref["primID"] < 0
+    miss = h["p"] == 0xFFFFFFFF
+    t_ok = np.isclose(h["t"], ref["tfar"], rtol=1e-4, atol=1e-6) | (miss & miss_ref)
+    return np.mean((miss == miss_ref) & t_ok)
+
+
+def peak_rss_kb(cmd):
+    r = subprocess.run(["/usr/bin/time", "-f", "%M"] + cmd, capture_output=True, text=True)
+    return int(r.stderr.strip().splitlines()[-1]) if r.returncode == 0 else None
+
+
+def ray_section(args, work):
+    rng = np.random.default_rng(1)
+    verts, tris = bumpy_sphere(args.triangles)
+    mesh = os.path.join(work, "mesh.ply")
+    write_ply(mesh, verts, tris)
+    print(f"mesh: {len(tris)} triangles; rays: {args.rays} per set; {os.cpu_count()} cores")
+    build_embree, scene = embree_build(verts, tris)
+    rows = []
+    for name, (o, d) in [("coherent", camera_rays(args.rays)), ("incoherent", random_rays(args.rays, rng))]:
+        rays = os.path.join(work, f"{name}.bin")
+        hits = os.path.join(work, f"{name}.hits")
+        write_rays(rays, o, d)
+        build, t_closest, t_any = trazo_rays(args.trazo, mesh, rays, hits)
+        e_closest = embree(verts, tris, o, d, False, os.cpu_count())
+        e_any = embree(verts, tris, o, d, True, os.cpu_count())
+        agree = agreement(scene, o, d, hits)
+        rows.append((name, t_closest, e_closest, t_any, e_any, agree, build))
+    print()
+    print("| rays | query | trazo rays/s | Embree rays/s | trazo / Embree |")
+    print("|---|---|---|---|---|")
+    for name, tc, ec, ta, ea, _, _ in rows:
+        print(f"| {name} | closest hit | {tc / 1e6:.2f} M | {ec / 1e6:.2f} M | {tc / ec:.2f} |")
+        print(f"| {name} | any hit | {ta / 1e6:.2f} M | {ea / 1e6:.2f} M | {ta / ea:.2f} |")
+    print()
+    print(f"BVH build, {len(tris)} triangles: trazo {rows[0][6]:.3f} s, Embree {build_embree:.3f} s (one process)")
+    print("closest hits agreeing with Embree's (first 100k rays): " + ", ".join(f"{r[0]} {100 * r[5]:.3f}%" for r in rows))
+    rays = os.path.join(work, "coherent.bin")
+    rss = peak_rss_kb([args.trazo, "bench", "rays", "--mesh", mesh, "--rays", rays])
+    if rss:
+        print(f"trazo peak memory (load + build + trace): {rss / 1024:.0f} MiB, {rss * 1024 / len(tris):.0f} bytes/triangle")
+
+
+def find_libllvm():
+    """The newest libLLVM shared library on the system (Dr.Jit's LLVM backend needs version 16 or later)."""
+    if os.environ.get("DRJIT_LIBLLVM_PATH"):
+        return os.environ["DRJIT_LIBLLVM_PATH"]
+    found = glob.glob("/usr/lib/x86_64-linux-gnu/libLLVM*.so*") + glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*")
+    versioned = []
+    for path in found:
+        m = re.search(r"(?:libLLVM-|llvm-)(\d+)", path)
+        if m and int(m.group(1)) >= 16:
+            versioned.append((int(m.group(1)), path))
+    return max(versioned)[1] if versioned else None
+
+
+MITSUBA = r"""
+import sys, time, numpy as np, mitsuba as mi
+variant, scene_path, res, spp, out = sys.argv[1:6]
+mi.set_variant(variant)
+scene = mi.load_file(scene_path, res=res, spp=spp)
+start = time.perf_counter()
+img = np.array(mi.render(scene, spp=int(spp), seed=0))
+print(f"{time.perf_counter() - start:.3f}")
+mi.Bitmap(img).write(out)
+"""
+
+
+def mitsuba_time(variant, scene, res, spp, out):
+    env = dict(os.environ)
+    if variant.startswith("llvm"):
+        lib = find_libllvm()
+        if not lib:
+            return None, "no libLLVM 16 or later found (apt-get install libllvm19, or set DRJIT_LIBLLVM_PATH)"
+        env["DRJIT_LIBLLVM_PATH"] = lib
+    r = subprocess.run([sys.executable, "-c", MITSUBA, variant, scene, str(res), str(spp), out],
+                       capture_output=True, text=True, env=env)
+    if r.returncode != 0:
+        return None, (r.stderr.strip().splitlines() or ["failed"])[-1]
+    return float(r.stdout.strip().splitlines()[-1]), None
+
+
+def render_section(args, work):
+    scene = os.path.join(args.root, "tools/crosscheck/scenes/cornell-box.xml")
+    print(f"Cornell box ({os.path.relpath(scene, args.root)}), {args.res}×{args.res}, {args.spp} spp, max depth 8, {os.cpu_count()} cores")
+    out = os.path.join(work, "trazo.exr")
+    r = subprocess.run([args.trazo, "render", scene, "-o", out, "--spp", str(args.spp), "--width", str(args.res),
+                        "--height", str(args.res), "--max-depth", "8"], capture_output=True, text=True, check=True)
+    t_trazo = float(re.search(r" in ([0-9.]+) s", r.stderr).group(1))
+    rows = [("trazo (path:mis)", t_trazo, None)]
+    for variant in ["llvm_ad_rgb", "scalar_rgb"]:
+        t, why = mitsuba_time(variant, scene, args.res, args.spp, os.path.join(work, f"{variant}.exr"))
+        rows.append((f"Mitsuba 3 {variant}", t, why))
+    samples = args.res * args.res * args.spp
+    print()
+    print("| renderer | render time | samples/s | trazo time / peer time |")
+    print("|---|---|---|---|")
+    for name, t, why in rows:
+        if t is None:
+            print(f"| {name} | unavailable: {why} | | |")
+        else:
+            print(f"| {name} | {t:.2f} s | {samples / t / 1e6:.2f} M | {t_trazo / t:.2f} |")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--trazo", required=True)
+    ap.add_argument("--root", required=True)
+    ap.add_argument("--rays-only", action="store_true")
+    ap.add_argument("--render-only", action="store_true")
+    ap.add_argument("--spp", type=int, default=256)
+    ap.add_argument("--res", type=int, default=512)
+    ap.add_argument("--triangles", type=int, default=1_000_000)
+    ap.add_argument("--rays", type=int, default=1_000_000)
+    args = ap.parse_args()
+    print(f"date: {time.strftime('%Y-%m-%d')}, cores: {os.cpu_count()}")
+    with tempfile.TemporaryDirectory() as work:
+        if not args.render_only:
+            ray_section(args, work)
+            print()
+        if not args.rays_only:
+            render_section(args, work)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,331 @@
+//! A four-wide BVH, collapsed from the binary SAH tree.
+//!
+//! Each node stores the boxes of up to four children in structure-of-arrays
+//! form, so that one ray is tested against all four boxes with the same
+//! few vector instructions (the "multi-BVH" layout of Ernst and Greiner
+//! 2008 and Wald et al. 2008, which Embree uses). Collapsing follows the
+//! usual greedy rule: a node adopts the children of its largest interior
+//! child until it has four. Leaves keep the binary tree's primitive
+//! ranges, so callers store primitives in the order [`Bvh::build`] gives.
+
+use super::bvh::{Bvh, BvhNode};
+use crate::geometry::Ray;
+use crate::geometry::bounds::gamma;
+
+/// Widening of the slab test's far distance that makes it conservative
+/// under rounding (pbrt-v4, section 6.8.2).
+const SLAB_ROUNDING: f32 = 1.0 + 2.0 * gamma(3);
+
+/// Traversal stack depth: a collapsed tree is at most as deep as its
+/// binary tree (64) and each level pushes at most three entries.
+const STACK: usize = 3 * 64 + 4;
+
+/// One node: four child boxes and what each child is.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct Bvh4Node {
+    /// Box bounds of the children, one array per coordinate and side.
+    bounds: [[f32; 4]; 6],
+    /// Interior child: node index. Leaf child: first primitive position.
+    child: [u32; 4],
+    /// Leaf child: number of primitives; interior child or empty slot: 0.
+    count: [u32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<Bvh4Node>() == 128);
+
+const MIN_X: usize = 0;
+const MIN_Y: usize = 1;
+const MIN_Z: usize = 2;
+const MAX_X: usize = 3;
+const MAX_Y: usize = 4;
+const MAX_Z: usize = 5;
+
+impl Bvh4Node {
+    const EMPTY: Bvh4Node = Bvh4Node {
+        bounds: [
+            [f32::INFINITY; 4],
+            [f32::INFINITY; 4],
+            [f32::INFINITY; 4],
+            [f32::NEG_INFINITY; 4],
+            [f32::NEG_INFINITY; 4],
+            [f32::NEG_INFINITY; 4],
+        ],
+        child: [0; 4],
+        count: [0; 4],
+    };
+}
+
+/// A four-wide BVH over primitives numbered as in the binary tree it was
+/// collapsed from.
+#[derive(Clone, Debug, Default)]
+pub struct Bvh4 {
+    nodes: Vec<Bvh4Node>,
+    /// A tree with a single leaf and no interior node.
+    root_leaf: Option<(u32, u32)>,
+}
+
+/// One entry of the traversal stack.
+#[derive(Clone, Copy, Default)]
+struct StackEntry {
+    /// Node index or first primitive.
+    child: u32,
+    /// Primitive count, or 0 for a node.
+    count: u32,
+    /// Where the ray enters the child's box.
+    t_enter: f32,
+}
+
+impl Bvh4 {
+    /// Collapses a binary tree.
+    pub fn from_binary(bvh: &Bvh) -> Bvh4 {
+        let nodes = bvh.nodes();
+        if nodes.is_empty() {
+            return Bvh4::default();
+        }
+        if nodes[0].count > 0 {
+            return Bvh4 {
+                nodes: Vec::new(),
+                root_leaf: Some((nodes[0].offset, nodes[0].count as u32)),
+            };
+        }
+        let mut wide = Vec::with_capacity(nodes.len() / 3 + 1);
+        collapse(nodes, 0, &mut wide);
+        Bvh4 {
+            nodes: wide,
+            root_leaf: None,
+        }
+    }
+
+    /// Number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Bytes used by the nodes.
+    pub fn memory_bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<Bvh4Node>()
+    }
+
+    /// Visits the leaves whose boxes the ray enters within its interval,
+    /// nearest box first, calling `test(k, ray)` for each primitive
+    /// position `k`; `test` shrinks `ray.t_max` on a hit and returns
+    /// whether it hit. With `any_hit`, stops at the first hit. Returns
+    /// whether anything was hit.
+    #[inline]
+    pub fn traverse<F: FnMut(u32, &mut Ray) -> bool>(&self, ray: &mut Ray, any_hit: bool, mut test: F) -> bool {
+        if let Some((first, count)) = self.root_leaf {
+            let mut hit = false;
+            for k in first..first + count {
+                if test(k, ray) {
+                    hit = true;
+                    if any_hit {
+                        return true;
+                    }
+                }
+            }
+            return hit;
+        }
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let inv = ray.dir.recip();
+        let org = ray.origin;
+        // Per ray, pick which side of each box is entered first, so that a
+        // box test is two subtractions and multiplications per axis.
+        let (near_x, far_x) = if inv.x < 0.0 { (MAX_X, MIN_X) } else { (MIN_X, MAX_X) };
+        let (near_y, far_y) = if inv.y < 0.0 { (MAX_Y, MIN_Y) } else { (MIN_Y, MAX_Y) };
+        let (near_z, far_z) = if inv.z < 0.0 { (MAX_Z, MIN_Z) } else { (MIN_Z, MAX_Z) };
+
+        let mut stack = [StackEntry::default(); STACK];
+        stack[0] = StackEntry {
+            child: 0,
+            count: 0,
+            t_enter: ray.t_min,
+        };
+        let mut sp = 1usize;
+        let mut hit = false;
+        while sp > 0 {
+            sp -= 1;
+            let entry = stack[sp];
+            if entry.t_enter > ray.t_max {
+                continue;
+            }
+            if entry.count > 0 {
+                for k in entry.child..entry.child + entry.count {
+                    if test(k, ray) {
+                        hit = true;
+                        if any_hit {
+                            return true;
+                        }
+                    }
+                }
+                continue;
+            }
+            let node = &self.nodes[entry.child as usize];
+            let b = &node.bounds;
+            let mut t_enter = [0f32; 4];
+            let mut mask = [false; 4];
+            for i in 0..4 {
+                let tx0 = (b[near_x][i] - org.x) * inv.x;
+                let ty0 = (b[near_y][i] - org.y) * inv.y;
+                let tz0 = (b[near_z][i] - org.z) * inv.z;
+                let tx1 = (b[far_x][i] - org.x) * inv.x;
+                let ty1 = (b[far_y][i] - org.y) * inv.y;
+                let tz1 = (b[far_z][i] - org.z) * inv.z;
+                let t0 = max(max(tx0, ty0), max(tz0, ray.t_min));
+                let t1 = min(min(tx1, ty1), min(tz1, ray.t_max)) * SLAB_ROUNDING;
+                t_enter[i] = t0;
+                mask[i] = t0 <= t1;
+            }
+            // Push the children that were hit, farthest first, so that the
+            // nearest is visited next.
+            let base = sp;
+            for i in 0..4 {
+                if mask[i] {
+                    let e = StackEntry {
+                        child: node.child[i],
+                        count: node.count[i],
+                        t_enter: t_enter[i],
+                    };
+                    // Insertion sort by decreasing entry distance.
+                    let mut j = sp;
+                    while j > base && stack[j - 1].t_enter < e.t_enter {
+                        stack[j] = stack[j - 1];
+                        j -= 1;
+                    }
+                    stack[j] = e;
+                    sp += 1;
+                }
+            }
+        }
+        hit
+    }
+}
+
+/// `max` that compiles to one instruction; a NaN in `a` yields `b`.
+#[inline(always)]
+fn max(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+/// `min` that compiles to one instruction; a NaN in `a` yields `b`.
+#[inline(always)]
+fn min(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+/// Writes the wide node for binary interior node `index` (and, depth
+/// first, its subtree); returns its index in `wide`.
+fn collapse(nodes: &[BvhNode], index: usize, wide: &mut Vec<Bvh4Node>) -> u32 {
+    // Gather up to four children: open the largest interior child until
+    // there are four or only leaves remain.
+    let node = &nodes[index];
+    let mut kids: Vec<usize> = vec![index + 1, node.offset as usize];
+    while kids.len() < 4 {
+        let open = kids
+            .iter()
+            .enumerate()
+            .filter(|(_, k)| nodes[**k].count == 0)
+            .max_by(|a, b| area(&nodes[*a.1]).total_cmp(&area(&nodes[*b.1])))
+            .map(|(i, _)| i);
+        let Some(i) = open else { break };
+        let k = kids.swap_remove(i);
+        kids.push(k + 1);
+        kids.push(nodes[k].offset as usize);
+    }
+    let me = wide.len();
+    wide.push(Bvh4Node::EMPTY);
+    let mut out = Bvh4Node::EMPTY;
+    for (slot, &k) in kids.iter().enumerate() {
+        let n = &nodes[k];
+        out.bounds[MIN_X][slot] = n.min.x;
+        out.bounds[MIN_Y][slot] = n.min.y;
+        out.bounds[MIN_Z][slot] = n.min.z;
+        out.bounds[MAX_X][slot] = n.max.x;
+        out.bounds[MAX_Y][slot] = n.max.y;
+        out.bounds[MAX_Z][slot] = n.max.z;
+        if n.count > 0 {
+            out.child[slot] = n.offset;
+            out.count[slot] = n.count as u32;
+        } else {
+            out.child[slot] = collapse(nodes, k, wide);
+        }
+    }
+    wide[me] = out;
+    me as u32
+}
+
+fn area(n: &BvhNode) -> f32 {
+    let d = n.max - n.min;
+    d.x * d.y + d.y * d.z + d.z * d.x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{Aabb, TriangleMesh};
+    use crate::sampling::rng::Pcg32;
+    use crate::sampling::warp::sample_sphere_uniform;
+    use glam::{Vec2, Vec3};
+
+    /// Primitive positions hit by the binary and the wide tree must agree,
+    /// for closest and any hit, on boxes as primitives.
+    #[test]
+    fn wide_tree_finds_what_the_binary_tree_finds() {
+        let mut rng = Pcg32::new(11, 2);
+        for n in [1usize, 2, 3, 7, 100, 2000] {
+            let boxes: Vec<Aabb> = (0..n)
+                .map(|_| {
+                    let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0;
+                    let h = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.3 + Vec3::splat(0.01);
+                    Aabb::new(c - h, c + h)
+                })
+                .collect();
+            let (bvh, order) = Bvh::build(&boxes);
+            let wide = Bvh4::from_binary(&bvh);
+            let prim = |k: u32| boxes[order[k as usize] as usize];
+            for _ in 0..300 {
+                let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 12.0 - Vec3::ONE;
+                let d = sample_sphere_uniform(Vec2::new(rng.next_f32(), rng.next_f32()));
+                let test = |k: u32, r: &mut Ray| {
+                    let b = prim(k);
+                    match b.intersect(r, r.dir.recip()) {
+                        Some((t0, _)) if t0 > r.t_min => {
+                            r.t_max = t0;
+                            true
+                        }
+                        _ => false,
+                    }
+                };
+                let mut r1 = Ray::with_interval(o, d, 1e-4, f32::INFINITY);
+                let mut r2 = r1;
+                let h1 = bvh.traverse(&mut r1, false, test);
+                let h2 = wide.traverse(&mut r2, false, test);
+                assert_eq!(h1, h2, "n = {n}");
+                assert_eq!(r1.t_max, r2.t_max, "n = {n}");
+                let mut r3 = Ray::with_interval(o, d, 1e-4, f32::INFINITY);
+                assert_eq!(wide.traverse(&mut r3, true, test), h1);
+            }
+        }
+    }
+
+    #[test]
+    fn leaves_cover_every_primitive_once_in_fewer_nodes() {
+        let mesh = TriangleMesh::uv_sphere(Vec3::ZERO, 1.0, 64, 32);
+        let bounds: Vec<Aabb> = (0..mesh.len()).map(|i| mesh.triangle_bounds(i)).collect();
+        let (bvh, _) = Bvh::build(&bounds);
+        let wide = Bvh4::from_binary(&bvh);
+        let mut seen = vec![0u32; mesh.len()];
+        for n in &wide.nodes {
+            for slot in 0..4 {
+                for k in n.child[slot]..n.child[slot] + n.count[slot] {
+                    seen[k as usize] += 1;
+                }
+            }
+        }
+        assert!(seen.iter().all(|&c| c == 1));
+        let interior = bvh.nodes().iter().filter(|n| n.count == 0).count();
+        assert!(wide.node_count() <= interior && wide.node_count() * 3 >= interior);
+    }
+}

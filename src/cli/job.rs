@@ -1,0 +1,166 @@
+//! A render as its checkpoint records it: the command-line settings that
+//! decide the image, written so that `trazo render --resume` can parse them
+//! again; and the interrupt handler.
+
+use super::{Cli, Command, RenderArgs};
+use crate::error::{Error, Result};
+use crate::film::Film;
+use crate::render::RenderStats;
+use crate::render::checkpoint::{Checkpoint, fnv1a};
+use crate::scene::{Scene, SceneDesc};
+use clap::Parser;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+/// This program's version, recorded in checkpoints.
+const VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// Makes Ctrl-C (SIGINT) and SIGTERM set the returned flag; a second one
+/// ends the process at once with [`super::EXIT_ABORTED`], writing nothing.
+pub(super) fn install_interrupt_handler() -> Result<Arc<AtomicBool>> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let flag = Arc::new(AtomicBool::new(false));
+    for signal in [SIGINT, SIGTERM] {
+        // Registered first, so it runs first: it ends the process only if
+        // the flag was already set by an earlier signal.
+        signal_hook::flag::register_conditional_shutdown(signal, super::EXIT_ABORTED as i32, Arc::clone(&flag))
+            .and_then(|_| signal_hook::flag::register(signal, Arc::clone(&flag)))
+            .map_err(|e| Error::Invalid(format!("cannot install the interrupt handler: {e}")))?;
+    }
+    Ok(flag)
+}
+
+/// The settings of a render that a checkpoint records.
+pub(super) struct Job {
+    entries: Vec<(String, String)>,
+    target_spp: u32,
+}
+
+fn absolute(p: &Path) -> PathBuf {
+    std::fs::canonicalize(p)
+        .or_else(|_| std::path::absolute(p))
+        .unwrap_or_else(|_| p.to_path_buf())
+}
+
+/// A hash of the scene file's bytes, to notice a scene edited between an
+/// interruption and its resumption.
+fn scene_hash(path: &Path) -> Result<String> {
+    let bytes = crate::scene::native::read_limited(path, crate::scene::native::MAX_SCENE_BYTES << 2)
+        .map_err(|e| Error::file(path, format!("cannot read scene: {e}")))?;
+    Ok(format!("{:016x}", fnv1a(&bytes)))
+}
+
+impl Job {
+    /// The job of `args` as loaded into `desc` and built into `scene`.
+    pub(super) fn new(args: &RenderArgs, output: &Path, desc: &SceneDesc, scene: &Scene) -> Result<Job> {
+        let mut arg = Vec::new();
+        let a = &args.scene;
+        if let Some(p) = &a.scene {
+            arg.push(absolute(p).to_string_lossy().into_owned());
+        }
+        for (name, value) in &a.defines {
+            arg.push(format!("-D{name}={value}"));
+        }
+        arg.push(format!("--output={}", absolute(output).to_string_lossy()));
+        // The samples per pixel in effect (a time limit alone sets the
+        // largest), which fix the pass schedule and the stratification.
+        arg.push(format!("--spp={}", desc.settings.spp));
+        let optional = [
+            ("width", a.width.map(|v| v.to_string())),
+            ("height", a.height.map(|v| v.to_string())),
+            ("max-depth", a.max_depth.map(|v| v.to_string())),
+            ("seed", a.seed.map(|v| v.to_string())),
+            ("sampler", a.sampler.clone()),
+            ("tonemap", a.tonemap.clone()),
+            ("exposure", a.exposure.map(|v| v.to_string())),
+            ("integrator", args.integrator.clone()),
+            ("sampling", args.sampling.clone()),
+            ("aov", (!args.aov.is_empty()).then(|| args.aov.join(","))),
+        ];
+        for (flag, value) in optional {
+            if let Some(v) = value {
+                arg.push(format!("--{flag}={v}"));
+            }
+        }
+        let mut entries = vec![("trazo".to_string(), VERSION.to_string())];
+        entries.extend(arg.into_iter().map(|v| ("arg".to_string(), v)));
+        if let Some(p) = &a.scene {
+            entries.push(("scene_hash".into(), scene_hash(p)?));
+        }
+        entries.push(("settings".into(), format!("{:?}", scene.settings)));
+        Ok(Job {
+            entries,
+            target_spp: scene.settings.spp,
+        })
+    }
+
+    /// The checkpoint of this job at the end of a pass.
+    pub(super) fn checkpoint(&self, film: &Film, stats: &RenderStats) -> Checkpoint {
+        Checkpoint {
+            job: self.entries.clone(),
+            target_spp: self.target_spp,
+            film: film.clone(),
+            stats: stats.clone(),
+        }
+    }
+
+    fn value(&self, key: &str) -> Option<&str> {
+        self.entries.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+    }
+
+    /// Checks that `checkpoint` (read from `path`) belongs to this job: the
+    /// settings are the same (the scene file was checked by [`resume_args`]).
+    pub(super) fn check_resume(&self, path: &Path, checkpoint: &Checkpoint) -> Result<()> {
+        if self.value("settings") != checkpoint.job_value("settings") || self.target_spp != checkpoint.target_spp {
+            return Err(Error::file(
+                path,
+                "cannot resume: the scene's render settings are not those of the checkpoint",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The render arguments a checkpoint holds, with the run-control flags
+/// (threads, output verbosity, time limit, checkpoint interval, memory
+/// limit) of the command that resumes it; and the checkpoint.
+pub(super) fn resume_args(path: &Path, current: &RenderArgs) -> Result<(RenderArgs, Checkpoint)> {
+    let checkpoint = Checkpoint::read(path)?;
+    let stored: Vec<&str> = checkpoint.job_values("arg").collect();
+    if stored.is_empty() {
+        return Err(Error::file(path, "invalid checkpoint: it records no render settings"));
+    }
+    let cli = Cli::try_parse_from(["trazo", "render"].into_iter().chain(stored.iter().copied())).map_err(|e| {
+        let first = e.to_string().lines().next().unwrap_or_default().to_string();
+        Error::file(path, format!("invalid checkpoint: its settings do not parse: {first}"))
+    })?;
+    let Command::Render(mut args) = cli.command else {
+        unreachable!("parsed as a render command")
+    };
+    // Before loading anything: an edited scene would mix two images.
+    let stored_hash = checkpoint.job_value("scene_hash");
+    let current_hash = args.scene.scene.as_deref().map(scene_hash).transpose()?;
+    if stored_hash != current_hash.as_deref() {
+        return Err(Error::file(
+            path,
+            format!(
+                "cannot resume: the scene file {} has changed since the checkpoint was written",
+                args.scene.scene.as_deref().unwrap_or(Path::new("?")).display()
+            ),
+        ));
+    }
+    if let Some(v) = checkpoint.job_value("trazo").filter(|v| *v != VERSION) {
+        eprintln!(
+            "warning: {}: written by trazo {v}, resumed by trazo {VERSION}: the image may differ from an uninterrupted render",
+            path.display()
+        );
+    }
+    args.scene.threads = current.scene.threads;
+    args.scene.quiet = current.scene.quiet;
+    args.scene.verbose = current.scene.verbose;
+    args.time_limit = current.time_limit;
+    args.checkpoint_every = current.checkpoint_every;
+    args.max_memory = current.max_memory;
+    Ok((args, checkpoint))
+}

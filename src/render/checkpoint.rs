@@ -1,0 +1,415 @@
+//! Checkpoints: the state of a render at the end of a pass, so that an
+//! interrupted render can continue where it stopped.
+//!
+//! A checkpoint holds the job (the caller's settings as `key = value`
+//! pairs: the command line stores the scene's absolute path, the `-D`
+//! definitions and every flag that changes the image), the samples per
+//! pixel asked for and done, the statistics so far and the film's sums in
+//! double precision. Because a sample's random numbers depend only on its
+//! pixel, index and seed, and each pixel's samples are added in index
+//! order, continuing from a checkpoint with the same pass schedule gives
+//! the same image, bit for bit, as a render that was never interrupted.
+//!
+//! The file is binary, little-endian:
+//!
+//! ```text
+//! "TRAZOCKP"  version: u32
+//! job: count u32, then per pair: key (len u32, UTF-8), value (len u32, UTF-8)
+//! width u32, height u32, target spp u32, done spp u32, flags u32 (1: AOVs)
+//! samples u64, rays u64, invalid samples u64, seconds f64
+//! width·height pixels: Σw·L (3 × f64), Σw (f64), Σw·Y² (f64)
+//! if AOVs, width·height: Σalbedo (3 × f64), Σnormal (3 × f64), Σdepth, count
+//! FNV-1a 64 of everything above: u64
+//! ```
+//!
+//! It is written atomically (temporary file, fsync, rename) and checked
+//! whole when read: magic, version, sizes against the file's length before
+//! anything is allocated, the checksum, and finite sums.
+
+use super::RenderStats;
+use crate::error::{Error, Result};
+use crate::film::{AovSum, Film, PixelSum};
+use crate::scene::desc::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_SPP};
+use glam::DVec3;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The first bytes of every checkpoint.
+pub const MAGIC: &[u8; 8] = b"TRAZOCKP";
+/// The version of the layout this code reads and writes.
+pub const VERSION: u32 = 1;
+/// Largest job description accepted when reading, in bytes.
+const MAX_JOB_BYTES: usize = 1 << 20;
+/// Bytes per pixel record and per AOV record.
+const PIXEL_BYTES: usize = 5 * 8;
+const AOV_BYTES: usize = 8 * 8;
+
+/// The state of a render between two passes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Checkpoint {
+    /// The render's settings as the caller chose to record them, in order;
+    /// a key may repeat.
+    pub job: Vec<(String, String)>,
+    /// Samples per pixel the render was asked for.
+    pub target_spp: u32,
+    /// The film after `stats.spp` samples per pixel.
+    pub film: Film,
+    /// Statistics up to this point (`spp` is the samples per pixel done).
+    pub stats: RenderStats,
+}
+
+/// The checkpoint that belongs to an output image: `OUT.trazo-checkpoint`
+/// next to it.
+pub fn checkpoint_path(output: &Path) -> PathBuf {
+    let mut name = output.file_name().map(|n| n.to_os_string()).unwrap_or_default();
+    name.push(".trazo-checkpoint");
+    output.with_file_name(name)
+}
+
+impl Checkpoint {
+    /// The first value recorded for `key`.
+    pub fn job_value(&self, key: &str) -> Option<&str> {
+        self.job.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+    }
+
+    /// Every value recorded for `key`, in order.
+    pub fn job_values<'a>(&'a self, key: &'a str) -> impl Iterator<Item = &'a str> + 'a {
+        self.job.iter().filter(move |(k, _)| k == key).map(|(_, v)| v.as_str())
+    }
+
+    /// The file's bytes.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let f = &self.film;
+        let n = f.pixels.len();
+        let mut b = Vec::with_capacity(64 + n * (PIXEL_BYTES + if f.aovs.is_some() { AOV_BYTES } else { 0 }));
+        b.extend_from_slice(MAGIC);
+        put_u32(&mut b, VERSION);
+        put_u32(&mut b, self.job.len() as u32);
+        for (k, v) in &self.job {
+            for s in [k, v] {
+                put_u32(&mut b, s.len() as u32);
+                b.extend_from_slice(s.as_bytes());
+            }
+        }
+        for v in [
+            f.width,
+            f.height,
+            self.target_spp,
+            self.stats.spp,
+            u32::from(f.aovs.is_some()),
+        ] {
+            put_u32(&mut b, v);
+        }
+        let s = &self.stats;
+        for v in [s.samples, s.rays, s.invalid_samples, s.seconds.to_bits()] {
+            put_u64(&mut b, v);
+        }
+        for p in &f.pixels {
+            for v in [p.rgb.x, p.rgb.y, p.rgb.z, p.weight, p.lum_sq] {
+                put_u64(&mut b, v.to_bits());
+            }
+        }
+        if let Some(aovs) = &f.aovs {
+            for a in aovs {
+                let vals = [
+                    a.albedo.x, a.albedo.y, a.albedo.z, a.normal.x, a.normal.y, a.normal.z, a.depth, a.count,
+                ];
+                for v in vals {
+                    put_u64(&mut b, v.to_bits());
+                }
+            }
+        }
+        let sum = fnv1a(&b);
+        put_u64(&mut b, sum);
+        b
+    }
+
+    /// Parses and checks a checkpoint file's bytes. Errors are plain
+    /// reasons ("truncated", "checksum mismatch", …).
+    pub fn from_bytes(bytes: &[u8]) -> Result<Checkpoint, String> {
+        if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
+            return Err("not a trazo checkpoint (wrong magic bytes)".into());
+        }
+        let mut r = Reader {
+            bytes,
+            pos: MAGIC.len(),
+        };
+        let version = r.u32()?;
+        if version != VERSION {
+            return Err(format!(
+                "checkpoint version {version} is not supported (this trazo reads version {VERSION})"
+            ));
+        }
+        if bytes.len() < MAGIC.len() + 4 + 8 {
+            return Err("truncated".into());
+        }
+        let (body, tail) = bytes.split_at(bytes.len() - 8);
+        let stored = u64::from_le_bytes(tail.try_into().expect("8 bytes"));
+        if fnv1a(body) != stored {
+            return Err("corrupt or truncated (checksum mismatch)".into());
+        }
+        let mut r = Reader {
+            bytes: body,
+            pos: r.pos,
+        };
+        let pairs = r.u32()? as usize;
+        // Each pair needs at least its two lengths.
+        if pairs > r.remaining() / 8 {
+            return Err(format!("truncated: {pairs} settings announced"));
+        }
+        let mut job = Vec::with_capacity(pairs);
+        let mut job_bytes = 0;
+        for _ in 0..pairs {
+            let k = r.string()?;
+            let v = r.string()?;
+            job_bytes += k.len() + v.len();
+            if job_bytes > MAX_JOB_BYTES {
+                return Err("the settings are larger than 1 MiB".into());
+            }
+            job.push((k, v));
+        }
+        let (width, height, target_spp, spp, flags) = (r.u32()?, r.u32()?, r.u32()?, r.u32()?, r.u32()?);
+        if width == 0 || height == 0 || width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
+            return Err(format!("bad image size {width}×{height}"));
+        }
+        if width as u64 * height as u64 > MAX_IMAGE_PIXELS {
+            return Err(format!("image of {width}×{height} pixels is larger than the limit"));
+        }
+        if target_spp == 0 || target_spp > MAX_SPP || spp > target_spp {
+            return Err(format!("bad sample counts: {spp} of {target_spp} samples per pixel"));
+        }
+        if flags > 1 {
+            return Err(format!("unknown flags {flags:#x}"));
+        }
+        let aovs = flags & 1 == 1;
+        let mut stats = RenderStats {
+            samples: r.u64()?,
+            rays: r.u64()?,
+            invalid_samples: r.u64()?,
+            seconds: f64::from_bits(r.u64()?),
+            spp,
+            ..RenderStats::default()
+        };
+        if !(stats.seconds.is_finite() && stats.seconds >= 0.0) {
+            return Err("bad render time".into());
+        }
+        let n = width as usize * height as usize;
+        let need = n as u128 * (PIXEL_BYTES + if aovs { AOV_BYTES } else { 0 }) as u128;
+        if need != r.remaining() as u128 {
+            return Err(format!(
+                "{width}×{height} pixels need {need} bytes of sums, the file has {}",
+                r.remaining()
+            ));
+        }
+        let mut pixels = Vec::with_capacity(n);
+        for _ in 0..n {
+            let p = PixelSum {
+                rgb: DVec3::new(r.f64()?, r.f64()?, r.f64()?),
+                weight: r.f64()?,
+                lum_sq: r.f64()?,
+            };
+            if !(p.rgb.is_finite() && p.weight.is_finite() && p.lum_sq.is_finite() && p.weight >= 0.0) {
+                return Err("a pixel sum is not a finite number".into());
+            }
+            pixels.push(p);
+        }
+        let aovs = if aovs {
+            let mut v = Vec::with_capacity(n);
+            for _ in 0..n {
+                let a = AovSum {
+                    albedo: DVec3::new(r.f64()?, r.f64()?, r.f64()?),
+                    normal: DVec3::new(r.f64()?, r.f64()?, r.f64()?),
+                    depth: r.f64()?,
+                    count: r.f64()?,
+                };
+                if !(a.albedo.is_finite() && a.normal.is_finite() && a.depth.is_finite() && a.count.is_finite()) {
+                    return Err("an auxiliary sum is not a finite number".into());
+                }
+                v.push(a);
+            }
+            Some(v)
+        } else {
+            None
+        };
+        stats.threads = 0;
+        Ok(Checkpoint {
+            job,
+            target_spp,
+            film: Film {
+                width,
+                height,
+                pixels,
+                aovs,
+            },
+            stats,
+        })
+    }
+
+    /// Writes the checkpoint atomically: a reader (or a later resume) sees
+    /// the old file or the new one, never a part.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        let bytes = self.to_bytes();
+        crate::film::io::write_atomic(path, |f| f.write_all(&bytes).map_err(|e| e.to_string()))
+    }
+
+    /// Reads and checks a checkpoint file.
+    pub fn read(path: &Path) -> Result<Checkpoint> {
+        // The largest checkpoint: the largest image with AOVs.
+        let limit = MAX_IMAGE_PIXELS * (PIXEL_BYTES + AOV_BYTES) as u64 + (4 << 20);
+        let bytes = crate::scene::native::read_limited(path, limit)
+            .map_err(|e| Error::file(path, format!("cannot read checkpoint: {e}")))?;
+        Checkpoint::from_bytes(&bytes).map_err(|e| Error::file(path, format!("invalid checkpoint: {e}")))
+    }
+}
+
+fn put_u32(b: &mut Vec<u8>, v: u32) {
+    b.extend_from_slice(&v.to_le_bytes());
+}
+
+fn put_u64(b: &mut Vec<u8>, v: u64) {
+    b.extend_from_slice(&v.to_le_bytes());
+}
+
+/// 64-bit FNV-1a: cheap, and enough to catch truncation and bit rot (it is
+/// not meant to resist tampering).
+pub fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+/// A cursor over bytes whose reads fail, rather than panic, at the end.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl Reader<'_> {
+    fn remaining(&self) -> usize {
+        self.bytes.len() - self.pos
+    }
+
+    fn take(&mut self, n: usize) -> Result<&[u8], String> {
+        if n > self.remaining() {
+            return Err(format!("truncated at byte {}", self.pos));
+        }
+        let s = &self.bytes[self.pos..self.pos + n];
+        self.pos += n;
+        Ok(s)
+    }
+
+    fn u32(&mut self) -> Result<u32, String> {
+        Ok(u32::from_le_bytes(self.take(4)?.try_into().expect("4 bytes")))
+    }
+
+    fn u64(&mut self) -> Result<u64, String> {
+        Ok(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes")))
+    }
+
+    fn f64(&mut self) -> Result<f64, String> {
+        self.u64().map(f64::from_bits)
+    }
+
+    fn string(&mut self) -> Result<String, String> {
+        let len = self.u32()? as usize;
+        let at = self.pos;
+        let b = self.take(len)?;
+        String::from_utf8(b.to_vec()).map_err(|_| format!("a setting at byte {at} is not UTF-8 text"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> Checkpoint {
+        let mut film = Film::new(3, 2);
+        for (i, p) in film.pixels.iter_mut().enumerate() {
+            p.add(crate::Rgb::new(i as f32, 0.5, 1e-3), 1.0);
+        }
+        film.aovs = Some(vec![
+            AovSum {
+                albedo: DVec3::splat(0.25),
+                normal: DVec3::Z,
+                depth: 3.5,
+                count: 1.0,
+            };
+            6
+        ]);
+        Checkpoint {
+            job: vec![
+                ("scene".into(), "/tmp/a b/scène.toml".into()),
+                ("define".into(), "spp=4".into()),
+                ("define".into(), "x=".into()),
+            ],
+            target_spp: 16,
+            film,
+            stats: RenderStats {
+                seconds: 1.25,
+                samples: 6,
+                rays: 12,
+                invalid_samples: 1,
+                spp: 1,
+                ..RenderStats::default()
+            },
+        }
+    }
+
+    #[test]
+    fn round_trips_bit_for_bit() {
+        let c = sample();
+        let back = Checkpoint::from_bytes(&c.to_bytes()).unwrap();
+        assert_eq!(back, c);
+        assert_eq!(back.job_values("define").collect::<Vec<_>>(), ["spp=4", "x="]);
+        assert_eq!(back.job_value("scene"), Some("/tmp/a b/scène.toml"));
+        let mut plain = sample();
+        plain.film.aovs = None;
+        assert_eq!(Checkpoint::from_bytes(&plain.to_bytes()).unwrap(), plain);
+    }
+
+    #[test]
+    fn damaged_files_are_refused_with_a_reason() {
+        let bytes = sample().to_bytes();
+        for len in [0, 4, 8, 12, 20, bytes.len() / 2, bytes.len() - 1] {
+            assert!(Checkpoint::from_bytes(&bytes[..len]).is_err(), "truncated to {len}");
+        }
+        let mut flipped = bytes.clone();
+        flipped[bytes.len() / 2] ^= 1;
+        let e = Checkpoint::from_bytes(&flipped).unwrap_err();
+        assert!(e.contains("checksum"), "{e}");
+        let mut version = bytes.clone();
+        version[8] = 9;
+        assert!(Checkpoint::from_bytes(&version).unwrap_err().contains("version"));
+        assert!(Checkpoint::from_bytes(b"PNG\x89....").unwrap_err().contains("magic"));
+    }
+
+    #[test]
+    fn absurd_sizes_are_refused_before_allocating() {
+        // A valid checksum over a header that announces a huge image.
+        let mut b = Vec::new();
+        b.extend_from_slice(MAGIC);
+        put_u32(&mut b, VERSION);
+        put_u32(&mut b, 0);
+        for v in [65_536, 4096, 16, 1, 0] {
+            put_u32(&mut b, v);
+        }
+        for _ in 0..4 {
+            put_u64(&mut b, 0);
+        }
+        let sum = fnv1a(&b);
+        put_u64(&mut b, sum);
+        let e = Checkpoint::from_bytes(&b).unwrap_err();
+        assert!(e.contains("need"), "{e}");
+    }
+
+    #[test]
+    fn the_checkpoint_sits_next_to_the_output() {
+        assert_eq!(
+            checkpoint_path(Path::new("renders/box.exr")),
+            PathBuf::from("renders/box.exr.trazo-checkpoint")
+        );
+    }
+}

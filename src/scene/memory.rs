@@ -1,0 +1,176 @@
+//! How much memory a render will need, estimated before it is allocated,
+//! and the limit it is checked against (`--max-memory`).
+//!
+//! The estimate counts what grows with the input: the film (pixel sums, the
+//! copy a pass works on, the checkpoint and output buffers), the auxiliary
+//! images, texture images, and triangle meshes with their BVH (including
+//! the temporaries of the build). [`crate::scene::build_limited`] checks it
+//! three times: before anything is loaded (film and the meshes the
+//! description holds), after each texture is read, and once all meshes are
+//! read, before the BVH is built.
+
+use crate::error::{Error, Result};
+
+/// Bytes per pixel of the film: the sums (40), a pass's copy of them (40),
+/// the checkpoint buffer (40), the output image (12) and its encoding (12).
+pub const FILM_BYTES_PER_PIXEL: u64 = 144;
+/// Bytes per pixel of the auxiliary images: the sums (64), a pass's copy
+/// (64), the checkpoint buffer (64) and three output images (36).
+pub const AOV_BYTES_PER_PIXEL: u64 = 228;
+/// Bytes per triangle of a mesh with its share of the BVH: indices (12),
+/// the primitive's reference and bounds during the build (40), BVH nodes
+/// and the build's ordering (about 64), with room for the build's bins.
+pub const BYTES_PER_TRIANGLE: u64 = 160;
+/// Bytes per vertex: position, normal and texture coordinates.
+pub const BYTES_PER_VERTEX: u64 = 32;
+/// Bytes per texel of a decoded texture (linear RGB, f32).
+pub const BYTES_PER_TEXEL: u64 = 12;
+/// The limit used when the machine's memory cannot be read.
+pub const FALLBACK_LIMIT: u64 = 4 << 30;
+
+/// The parts of a render's memory, in bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MemoryEstimate {
+    /// Film and output buffers.
+    pub film: u64,
+    /// Auxiliary images.
+    pub aovs: u64,
+    /// Triangle meshes and the BVH.
+    pub geometry: u64,
+    /// Texture and environment images.
+    pub textures: u64,
+}
+
+impl MemoryEstimate {
+    /// The film's share for a `width`×`height` image, with or without
+    /// auxiliary images.
+    pub fn for_film(width: u32, height: u32, aovs: bool) -> MemoryEstimate {
+        let pixels = width as u64 * height as u64;
+        MemoryEstimate {
+            film: pixels * FILM_BYTES_PER_PIXEL,
+            aovs: if aovs { pixels * AOV_BYTES_PER_PIXEL } else { 0 },
+            ..MemoryEstimate::default()
+        }
+    }
+
+    /// Everything.
+    pub fn total(&self) -> u64 {
+        self.film
+            .saturating_add(self.aovs)
+            .saturating_add(self.geometry)
+            .saturating_add(self.textures)
+    }
+
+    /// An error if the total exceeds `limit`, naming each part.
+    pub fn check(&self, limit: Option<u64>) -> Result<()> {
+        match limit {
+            Some(limit) if self.total() > limit => Err(Error::Invalid(format!(
+                "the render needs about {} (film {}, auxiliary images {}, geometry {}, textures {}), more than the memory limit of {}: lower the resolution or raise the limit with --max-memory",
+                format_bytes(self.total()),
+                format_bytes(self.film),
+                format_bytes(self.aovs),
+                format_bytes(self.geometry),
+                format_bytes(self.textures),
+                format_bytes(limit)
+            ))),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// Bytes of a mesh of `triangles` triangles and `vertices` vertices, with
+/// its BVH.
+pub fn mesh_bytes(triangles: u64, vertices: u64) -> u64 {
+    triangles
+        .saturating_mul(BYTES_PER_TRIANGLE)
+        .saturating_add(vertices.saturating_mul(BYTES_PER_VERTEX))
+}
+
+/// "1.5 GiB", "512 MiB", "900 KiB", "12 bytes".
+pub fn format_bytes(bytes: u64) -> String {
+    const UNITS: [(&str, u64); 4] = [("TiB", 1 << 40), ("GiB", 1 << 30), ("MiB", 1 << 20), ("KiB", 1 << 10)];
+    for (name, size) in UNITS {
+        if bytes >= size {
+            return format!("{:.1} {name}", bytes as f64 / size as f64);
+        }
+    }
+    format!("{bytes} bytes")
+}
+
+/// Parses a size: a number of bytes with an optional unit K, M, G or T
+/// (powers of 1024; "KB", "KiB", "MB", "MiB", … mean the same), e.g.
+/// `512M`, `4G`, `1.5GiB`, `1000000`.
+pub fn parse_size(text: &str) -> std::result::Result<u64, String> {
+    let t = text.trim();
+    let split = t.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let value: f64 = number
+        .parse()
+        .map_err(|_| format!("expected a size such as 512M or 4G, got \"{text}\""))?;
+    let unit = unit.trim().to_ascii_uppercase();
+    let scale: u64 = match unit.trim_end_matches("IB").trim_end_matches('B') {
+        "" => 1,
+        "K" => 1 << 10,
+        "M" => 1 << 20,
+        "G" => 1 << 30,
+        "T" => 1 << 40,
+        _ => return Err(format!("unknown unit in \"{text}\": use K, M, G or T")),
+    };
+    let bytes = value * scale as f64;
+    if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
+        return Err(format!("\"{text}\" is not a usable size"));
+    }
+    Ok(bytes as u64)
+}
+
+/// The machine's physical memory, where it can be read (Linux:
+/// `/proc/meminfo`).
+pub fn machine_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// The default memory limit: 90% of the machine's memory, or
+/// [`FALLBACK_LIMIT`] where it cannot be read.
+pub fn default_limit() -> u64 {
+    machine_memory().map_or(FALLBACK_LIMIT, |m| m / 10 * 9)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_parse_with_binary_units() {
+        assert_eq!(parse_size("512M"), Ok(512 << 20));
+        assert_eq!(parse_size("4G"), Ok(4 << 30));
+        assert_eq!(parse_size("4gib"), Ok(4 << 30));
+        assert_eq!(parse_size("1.5GB"), Ok(3 << 29));
+        assert_eq!(parse_size("1000"), Ok(1000));
+        assert_eq!(parse_size(" 2 T "), Ok(2 << 40));
+        for bad in ["", "G", "-1G", "4X", "0", "1e99T", "nan"] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn the_refusal_names_every_part() {
+        let e = MemoryEstimate::for_film(1000, 1000, true);
+        assert_eq!(e.total(), 1_000_000 * (FILM_BYTES_PER_PIXEL + AOV_BYTES_PER_PIXEL));
+        assert!(e.check(Some(e.total())).is_ok());
+        assert!(e.check(None).is_ok());
+        let msg = e.check(Some(100 << 20)).unwrap_err().to_string();
+        assert!(msg.contains("film 137.3 MiB") && msg.contains("100.0 MiB"), "{msg}");
+    }
+
+    #[test]
+    fn the_default_limit_follows_the_machine() {
+        let limit = default_limit();
+        match machine_memory() {
+            Some(m) => assert!(limit < m && limit > m / 2),
+            None => assert_eq!(limit, FALLBACK_LIMIT),
+        }
+    }
+}

@@ -1,0 +1,430 @@
+//! Long renders through the command line: Ctrl-C and SIGTERM, checkpoints,
+//! `--resume`, `--time-limit`, `kill -9` during writes, and the memory
+//! limit. Signals are sent with the system's `kill`, so most tests are
+//! Unix-only.
+
+use assert_cmd::Command;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Stdio};
+use std::time::{Duration, Instant};
+use trazo::render::checkpoint::Checkpoint;
+
+fn trazo() -> Command {
+    Command::cargo_bin("trazo").unwrap()
+}
+
+fn trazo_bin() -> PathBuf {
+    assert_cmd::cargo::cargo_bin("trazo")
+}
+
+fn spawn(args: &[&str]) -> Child {
+    std::process::Command::new(trazo_bin())
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+#[cfg(unix)]
+fn signal(child: &Child, sig: &str) {
+    let status = std::process::Command::new("kill")
+        .args([sig, &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+}
+
+/// Waits for `path` to exist (the first checkpoint: one pass is done).
+fn wait_for(path: &Path, child: &mut Child) {
+    let start = Instant::now();
+    while !path.exists() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "trazo ended before writing {}",
+            path.display()
+        );
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no {} after 60 s",
+            path.display()
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+/// Waits for the child to end; returns its status code and stderr.
+fn finish(mut child: Child, within: Duration) -> (Option<i32>, String) {
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            let mut err = String::new();
+            use std::io::Read;
+            child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+            assert!(!err.contains("panicked"), "{err}");
+            return (status.code(), err);
+        }
+        if start.elapsed() > within {
+            let _ = child.kill();
+            panic!("trazo did not end within {within:?}");
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Ctrl-C: within seconds, the image of the passes done, a checkpoint that
+/// holds the same film, and exit status 130; `--resume` then finishes with
+/// the same image, bit for bit, as a render that was never interrupted, and
+/// removes the checkpoint.
+#[cfg(unix)]
+#[test]
+fn ctrl_c_keeps_the_passes_done_and_resume_finishes_them_identically() {
+    let dir = tempfile::tempdir().unwrap();
+    let full = dir.path().join("full.pfm");
+    let common = ["--width", "64", "--height", "48", "--spp", "256", "--seed", "7", "-q"];
+    let out = trazo().args(["render", "-o", s(&full)]).args(common).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    let part = dir.path().join("part.pfm");
+    let checkpoint = dir.path().join("part.pfm.trazo-checkpoint");
+    let mut child = spawn(&[&["render", "-o", s(&part), "--checkpoint-every", "0"], &common[..]].concat());
+    wait_for(&checkpoint, &mut child);
+    let sent = Instant::now();
+    signal(&child, "-INT");
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert!(sent.elapsed() < Duration::from_secs(5), "took {:?}", sent.elapsed());
+    assert_eq!(code, Some(130), "{err}");
+    let c = Checkpoint::read(&checkpoint).unwrap();
+    let spp = c.stats.spp;
+    assert!((1..256).contains(&spp), "{spp}");
+    assert!(
+        err.contains(&format!("interrupted: rendered 64×48 at {spp} of 256 spp")),
+        "{err}"
+    );
+    assert!(err.contains("--resume"), "{err}");
+    // The image is the checkpoint's film.
+    let img = trazo::film::io::read_image(&part).unwrap();
+    assert_eq!(img, c.film.to_image());
+    assert!(c.job_values("arg").any(|a| a == "--seed=7"), "{:?}", c.job);
+
+    // Resume (only run-control flags may be given) → identical to `full`.
+    let out = trazo()
+        .args(["render", "--resume", s(&checkpoint), "--threads", "1"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("rendered 64×48 at 256 spp"), "{err}");
+    assert_eq!(std::fs::read(&part).unwrap(), std::fs::read(&full).unwrap());
+    assert!(!checkpoint.exists(), "the stale checkpoint is removed");
+}
+
+/// SIGTERM is handled like Ctrl-C; a second signal ends trazo at once with
+/// status 131, writing nothing.
+#[cfg(unix)]
+#[test]
+fn sigterm_stops_gracefully_and_a_second_signal_aborts() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("t.png");
+    let checkpoint = dir.path().join("t.png.trazo-checkpoint");
+    let args = [
+        "render",
+        "-o",
+        s(&out),
+        "--width",
+        "96",
+        "--height",
+        "96",
+        "--spp",
+        "100000",
+    ];
+    let mut child = spawn(&[&args[..], &["--checkpoint-every", "0"]].concat());
+    wait_for(&checkpoint, &mut child);
+    signal(&child, "-TERM");
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert_eq!(code, Some(130), "{err}");
+    assert!(out.exists());
+
+    // A second signal while the first is being handled (here: while the
+    // large image is encoded) ends the process at once.
+    let out2 = dir.path().join("u.png");
+    let checkpoint2 = dir.path().join("u.png.trazo-checkpoint");
+    let args = [
+        "render",
+        "-o",
+        s(&out2),
+        "--integrator",
+        "whitted",
+        "--width",
+        "1536",
+        "--height",
+        "1536",
+        "--spp",
+        "100000",
+        "--checkpoint-every",
+        "0",
+    ];
+    let mut child = spawn(&args);
+    wait_for(&checkpoint2, &mut child);
+    let pid = child.id().to_string();
+    let status = std::process::Command::new("sh")
+        .args(["-c", &format!("kill -INT {pid}; sleep 0.01; kill -INT {pid}")])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert_eq!(code, Some(131), "{err}");
+    assert!(!out2.exists(), "no image is written after a second signal");
+}
+
+/// `--time-limit`: stops on time with the image of whole passes (as many
+/// samples as the time allowed) and a checkpoint to continue from.
+#[test]
+fn a_time_limit_writes_whole_passes_on_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("t.exr");
+    let start = Instant::now();
+    let o = trazo()
+        .args([
+            "render",
+            "-o",
+            s(&out),
+            "--width",
+            "64",
+            "--height",
+            "64",
+            "--time-limit",
+            "1.5",
+        ])
+        .output()
+        .unwrap();
+    let took = start.elapsed();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(took < Duration::from_secs(8), "{took:?}");
+    assert!(err.contains("time limit reached: rendered 64×64 at "), "{err}");
+    let c = Checkpoint::read(&dir.path().join("t.exr.trazo-checkpoint")).unwrap();
+    assert!(c.stats.spp >= 1);
+    assert!(c.film.pixels.iter().all(|p| p.weight == c.stats.spp as f64));
+    assert!(err.contains(&format!("at {} spp", c.stats.spp)), "{err}");
+    // A render that finishes within its time limit is simply complete.
+    let out2 = dir.path().join("u.png");
+    let o = trazo()
+        .args([
+            "render",
+            "-o",
+            s(&out2),
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--spp",
+            "4",
+        ])
+        .args(["--time-limit", "600"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && err.contains("at 4 spp"), "{err}");
+    assert!(!dir.path().join("u.png.trazo-checkpoint").exists());
+}
+
+/// `kill -9` at any moment, even in the middle of writing a checkpoint,
+/// leaves a whole checkpoint (or none) and the old image untouched: never a
+/// truncated file.
+#[cfg(unix)]
+#[test]
+fn kill_9_during_writes_leaves_whole_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("big.pfm");
+    let checkpoint = dir.path().join("big.pfm.trazo-checkpoint");
+    // An old image that must survive.
+    trazo()
+        .args([
+            "render",
+            "-o",
+            s(&out),
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "1",
+            "-q",
+        ])
+        .assert()
+        .success();
+    let old = std::fs::read(&out).unwrap();
+    // Whitted at 1 spp per pass on a large film: most of the time goes to
+    // writing the 40 MB checkpoint after each pass.
+    let args = [
+        "render",
+        "-o",
+        s(&out),
+        "--integrator",
+        "whitted",
+        "--width",
+        "1024",
+        "--height",
+        "1024",
+        "--spp",
+        "100000",
+        "--checkpoint-every",
+        "0",
+        "-q",
+    ];
+    let mut kills = 0;
+    for delay_ms in [150u64, 500, 900, 1400, 3000] {
+        let mut child = spawn(&args);
+        std::thread::sleep(Duration::from_millis(delay_ms));
+        let _ = child.kill(); // SIGKILL
+        let _ = child.wait();
+        kills += 1;
+        if checkpoint.exists() {
+            let c = Checkpoint::read(&checkpoint).unwrap_or_else(|e| panic!("after kill at {delay_ms} ms: {e}"));
+            assert_eq!((c.film.width, c.film.height), (1024, 1024));
+        }
+        assert_eq!(std::fs::read(&out).unwrap(), old);
+    }
+    assert_eq!(kills, 5);
+    assert!(checkpoint.exists(), "some checkpoint was completed");
+}
+
+/// Bad checkpoints and mismatched resumes are errors (status 2, one line).
+#[test]
+fn bad_checkpoints_and_resumes_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let fails = |args: &[&str]| {
+        let o = trazo().args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(!err.contains("panicked"));
+        err
+    };
+    let garbage = dir.path().join("g.trazo-checkpoint");
+    std::fs::write(&garbage, b"TRAZOCKP\x01\0\0\0garbage").unwrap();
+    let e = fails(&["render", "--resume", s(&garbage)]);
+    assert!(
+        e.contains("g.trazo-checkpoint") && e.contains("invalid checkpoint"),
+        "{e}"
+    );
+    let e = fails(&["render", "--resume", s(&dir.path().join("none"))]);
+    assert!(e.contains("not found"), "{e}");
+    // Flags that change the image cannot be combined with --resume.
+    let o = trazo()
+        .args(["render", "--resume", s(&garbage), "--spp", "4"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("cannot be used with"));
+
+    // A scene edited after the interruption.
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        "[render]\nwidth = 8\nheight = 8\n\n[[shape]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n",
+    )
+    .unwrap();
+    let out = dir.path().join("s.png");
+    trazo()
+        .args([
+            "render",
+            s(&scene),
+            "-o",
+            s(&out),
+            "--time-limit",
+            "0",
+            "--spp",
+            "64",
+            "-q",
+        ])
+        .assert()
+        .success();
+    let checkpoint = dir.path().join("s.png.trazo-checkpoint");
+    let c = Checkpoint::read(&checkpoint).unwrap();
+    assert_eq!(c.stats.spp, 1, "a zero time limit still renders the first pass");
+    std::fs::write(
+        &scene,
+        std::fs::read_to_string(&scene)
+            .unwrap()
+            .replace("radius = 1", "radius = 2"),
+    )
+    .unwrap();
+    let e = fails(&["render", "--resume", s(&checkpoint)]);
+    assert!(e.contains("has changed"), "{e}");
+    // A truncated checkpoint.
+    let bytes = std::fs::read(&checkpoint).unwrap();
+    std::fs::write(&checkpoint, &bytes[..bytes.len() - 100]).unwrap();
+    let e = fails(&["render", "--resume", s(&checkpoint)]);
+    assert!(e.contains("checksum"), "{e}");
+}
+
+/// The memory estimate refuses, before allocating, a render above
+/// `--max-memory`: a huge film, or a huge mesh.
+#[test]
+fn renders_above_the_memory_limit_are_refused_before_they_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| {
+        let start = Instant::now();
+        let o = trazo().current_dir(dir.path()).args(args).output().unwrap();
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+            start.elapsed(),
+        )
+    };
+    let (code, err, took) = run(&["render", "--width", "60000", "--height", "4000", "--max-memory", "1G"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.starts_with("error: the render needs about 32.2 GiB (film 32.2 GiB")
+            && err.contains("more than the memory limit of 1.0 GiB"),
+        "{err}"
+    );
+    assert!(took < Duration::from_secs(5));
+    let (code, err, _) = run(&[
+        "render",
+        "--width",
+        "64",
+        "--height",
+        "64",
+        "--aov",
+        "albedo",
+        "--max-memory",
+        "1M",
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("auxiliary images 912.0 KiB"), "{err}");
+    let scene = dir.path().join("m.toml");
+    std::fs::write(
+        &scene,
+        "[[shape]]\ntype = \"mesh\"\ngenerate = \"uv_sphere\"\nsegments = 7000\nrings = 7000\n",
+    )
+    .unwrap();
+    let (code, err, took) = run(&["render", s(&scene), "--max-memory", "2G"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("geometry 16.1 GiB"), "{err}");
+    assert!(took < Duration::from_secs(5), "refused before building: {took:?}");
+    let (code, err, _) = run(&["render", "--max-memory", "12X"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("unit"), "{err}");
+    // Under the limit, the same kind of render goes ahead.
+    let (code, err, _) = run(&[
+        "render",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--spp",
+        "1",
+        "--max-memory",
+        "64M",
+        "-o",
+        "x.png",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+}
