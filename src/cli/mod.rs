@@ -236,7 +236,8 @@ struct RenderArgs {
     /// with it.
     #[arg(long, value_name = "CHECKPOINT", conflicts_with_all = [
         "scene", "width", "height", "max_depth", "seed", "sampler", "tonemap", "exposure", "defines",
-        "output", "spp", "integrator", "sampling", "aov",
+        "output", "spp", "integrator", "sampling", "aov", "denoise", "photons", "caustic_photons",
+        "sppm_photons", "photon_gather", "photon_radius", "final_gather", "photon_kernel",
     ])]
     resume: Option<PathBuf>,
 
@@ -507,6 +508,11 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     if let Some(v) = &args.sampling {
         desc.settings.sampling = PathSampling::from_name(v).expect("clap checked the value");
     }
+    // SPPM's state is not a film of samples: it has no checkpoints.
+    let resumable = desc.settings.integrator != IntegratorKind::Sppm;
+    if !resumable && (args.checkpoint_every.is_some() || resume.is_some()) {
+        return Err(Error::Invalid(crate::integrator::photon::sppm::NOT_RESUMABLE.into()));
+    }
     let limits = scene::BuildLimits {
         max_memory: Some(args.max_memory.unwrap_or_else(scene::memory::default_limit)),
         aovs: !aovs.is_empty(),
@@ -578,9 +584,10 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         write_image(&aov_path(&output, *aov), &img, s.tonemap, 0.0)?;
     }
     match out.stopped {
-        Some(_) => job.checkpoint(&out.film, st).write(&checkpoint_file)?,
-        None => {
-            // The render is complete: its checkpoint is stale.
+        Some(_) if resumable => job.checkpoint(&out.film, st).write(&checkpoint_file)?,
+        _ => {
+            // The render is complete (or cannot be continued): a
+            // checkpoint of an earlier render to this output is stale.
             if checkpoint_file.is_file() {
                 std::fs::remove_file(&checkpoint_file)
                     .map_err(|e| Error::file(&checkpoint_file, format!("cannot remove the stale checkpoint: {e}")))?;
@@ -639,7 +646,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         if let Some(note) = denoise_note {
             eprintln!("{note}");
         }
-        if out.stopped.is_some() {
+        if out.stopped.is_some() && resumable {
             eprintln!(
                 "checkpoint → {} (continue with: trazo render --resume {})",
                 checkpoint_file.display(),

@@ -30,13 +30,13 @@
 //! shrink.
 
 use super::trace::{PhotonStore, trace_photons};
-use super::{Nearest, PhotonMap, PhotonSettings, ShadingPoint};
+use super::{Nearest, PhotonMap, PhotonSettings, ShadingPoint, camera_segment};
 use crate::color::Rgb;
 use crate::error::Result;
 use crate::geometry::{Ray, SurfaceHit};
 use crate::integrator::{Integrator, RayStats};
 use crate::material::TransportMode;
-use crate::render::{RenderOptions, RenderOutput};
+use crate::render::{Control, RenderOptions, RenderOutput};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use std::cell::RefCell;
@@ -139,22 +139,8 @@ impl PhotonMapper {
         let mut beta = Rgb::ONE;
         let mut ray = *camera_ray;
         for depth in 1..=self.max_depth {
-            stats.rays += 1;
-            let Some(hit) = scene.intersect(&ray) else {
-                if scene.environment_light.is_some() {
-                    l += beta * scene.background.eval(ray.dir);
-                }
-                break;
-            };
-            let wo_world = -ray.dir.normalize();
-            let m = &scene.materials[hit.material as usize];
-            if m.is_emissive() && hit.is_front(wo_world) {
-                l += beta * m.emission_at(&scene.images, &crate::texture::TexCoord { uv: hit.uv, p: hit.p });
-            }
-            if depth == self.max_depth {
-                break;
-            }
-            let Some(sp) = ShadingPoint::new(scene, &hit, wo_world) else {
+            let last = depth == self.max_depth;
+            let Some((hit, sp)) = camera_segment(scene, &ray, beta, last, &mut l, &mut stats.rays) else {
                 break;
             };
             if sp.bsdf.has_smooth() {
@@ -331,9 +317,16 @@ fn scene_has_specular(scene: &Scene) -> bool {
 }
 
 /// Renders `scene` with photon mapping: the photon pass, then the camera
-/// passes of [`crate::render::render_with`]. The photon pass's time counts
-/// against a time limit and in the statistics.
-pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
+/// passes of [`crate::render::render_with_control`], which obey `control`
+/// as the path tracer's do. The photon pass's time counts against a time
+/// limit and in the statistics.
+///
+/// The photon maps depend only on the scene's settings and seed, so a
+/// render resumed from a checkpoint (a film of whole camera passes) traces
+/// the same maps again and ends with the same image as one that never
+/// stopped. A cancellation during the photon pass abandons the first camera
+/// pass, leaving no image.
+pub fn render(scene: &Scene, options: &RenderOptions, control: &mut Control) -> Result<RenderOutput> {
     crate::render::in_thread_pool(options, || {
         let mapper = PhotonMapper::build(scene);
         let mut opts = options.clone();
@@ -341,7 +334,7 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
         if let Some(limit) = opts.time_limit {
             opts.time_limit = Some(limit.saturating_sub(std::time::Duration::from_secs_f64(mapper.stats.seconds)));
         }
-        let mut out = crate::render::render_with(scene, &mapper, &opts)?;
+        let mut out = crate::render::render_with_control(scene, &mapper, &opts, control)?;
         out.stats.seconds += mapper.stats.seconds;
         out.stats.rays += mapper.stats.rays;
         out.stats.photons_emitted += mapper.stats.emitted;

@@ -33,7 +33,7 @@ pub use jensen::PhotonMapper;
 pub use map::{Nearest, Photon, PhotonMap};
 
 use crate::color::Rgb;
-use crate::geometry::SurfaceHit;
+use crate::geometry::{Ray, SurfaceHit};
 use crate::light::ShadowTarget;
 use crate::material::{Bsdf, Frame, TransportMode};
 use crate::sampling::Sampler;
@@ -162,6 +162,38 @@ impl PhotonSettings {
 #[inline]
 pub(crate) fn same_surface(photon_n: Vec3, n: Vec3) -> bool {
     photon_n.dot(n) > 0.7
+}
+
+/// One segment of a camera path as both photon integrators follow it:
+/// traces `ray`, adds to `l` the light seen along it (the environment on a
+/// miss, emission from the front of an emitter) weighted by `beta`, and
+/// returns the surface to go on from; `None` where the path ends (a miss,
+/// the `last` segment, the back of a one-sided surface).
+pub(crate) fn camera_segment<'a>(
+    scene: &'a Scene,
+    ray: &Ray,
+    beta: Rgb,
+    last: bool,
+    l: &mut Rgb,
+    rays: &mut u64,
+) -> Option<(SurfaceHit, ShadingPoint<'a>)> {
+    *rays += 1;
+    let Some(hit) = scene.intersect(ray) else {
+        if scene.environment_light.is_some() {
+            *l += beta * scene.background.eval(ray.dir);
+        }
+        return None;
+    };
+    let wo_world = -ray.dir.normalize();
+    let m = &scene.materials[hit.material as usize];
+    if m.is_emissive() && hit.is_front(wo_world) {
+        *l += beta * m.emission_at(&scene.images, &crate::texture::TexCoord { uv: hit.uv, p: hit.p });
+    }
+    if last {
+        return None;
+    }
+    let sp = ShadingPoint::new(scene, &hit, wo_world)?;
+    Some((hit, sp))
 }
 
 /// The BSDF at a surface as the camera-side passes see it.

@@ -40,17 +40,18 @@
 
 use super::jensen::specular_bounce;
 use super::trace::{PhotonStore, trace_photons};
-use super::{PhotonMap, ShadingPoint, same_surface};
+use super::{PhotonMap, camera_segment, same_surface};
 use crate::color::Rgb;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::film::{AovSum, Film, PixelSum};
 use crate::integrator::aov::camera_aov;
-use crate::render::{RenderOptions, RenderOutput, RenderStats};
+use crate::render::{Control, RenderOptions, RenderOutput, RenderStats, Stop};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use glam::{DVec3, Vec2};
 use rayon::prelude::*;
 use std::f64::consts::PI;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// One pixel's progressive statistics.
@@ -69,13 +70,31 @@ struct PixelState {
 }
 
 /// Renders `scene` with SPPM: `spp` iterations (or as many as the time
-/// limit allows, at most `spp`), each of one camera sample per pixel and
-/// `sppm_photons` photons.
-pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
-    crate::render::in_thread_pool(options, || iterate(scene, options))
+/// limit or `control`'s deadline allow, at most `spp`), each of one camera
+/// sample per pixel and `sppm_photons` photons.
+///
+/// `control`'s cancellation flag and deadline are obeyed between
+/// iterations: the image is always that of whole iterations, and the
+/// deadline never stops the first. SPPM cannot be checkpointed or resumed
+/// (its state is every pixel's radius, photon count and flux, not a film
+/// of samples), so a `control` that asks for either is an error.
+pub fn render(scene: &Scene, options: &RenderOptions, control: &mut Control) -> Result<RenderOutput> {
+    if control.resume.is_some() || control.checkpoint_every.is_some() {
+        return Err(Error::Invalid(NOT_RESUMABLE.into()));
+    }
+    let (cancel, deadline) = (control.cancel, control.deadline);
+    crate::render::in_thread_pool(options, || iterate(scene, options, cancel, deadline))
 }
 
-fn iterate(scene: &Scene, options: &RenderOptions) -> RenderOutput {
+/// Why SPPM refuses checkpoints.
+pub const NOT_RESUMABLE: &str = "SPPM renders cannot be checkpointed or resumed (its state is per-pixel radii and photon statistics, not a film): drop --checkpoint-every/--resume, or use --integrator photon or path";
+
+fn iterate(
+    scene: &Scene,
+    options: &RenderOptions,
+    cancel: Option<&AtomicBool>,
+    deadline: Option<Instant>,
+) -> RenderOutput {
     let s = &scene.settings;
     let p = s.photon;
     let (w, h) = (s.width as usize, s.height as usize);
@@ -94,7 +113,18 @@ fn iterate(scene: &Scene, options: &RenderOptions) -> RenderOutput {
         ..RenderStats::default()
     };
     let mut iterations = 0u32;
+    let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
+    let mut stopped = None;
     while iterations < s.spp {
+        if cancelled() {
+            stopped = Some(Stop::Interrupted);
+            break;
+        }
+        // The deadline never stops the first iteration: there is always an image.
+        if iterations > 0 && deadline.is_some_and(|d| Instant::now() >= d) {
+            stopped = Some(Stop::TimeLimit);
+            break;
+        }
         let photon_start = Instant::now();
         let pass = trace_photons(
             scene,
@@ -108,6 +138,11 @@ fn iterate(scene: &Scene, options: &RenderOptions) -> RenderOutput {
         stats.photons_emitted += pass.emitted;
         let map = PhotonMap::build(pass.photons);
         stats.photon_seconds += photon_start.elapsed().as_secs_f64();
+        if cancelled() {
+            // The camera pass would only delay the exit.
+            stopped = Some(Stop::Interrupted);
+            break;
+        }
 
         let rays: u64 = pixels
             .par_chunks_mut(w)
@@ -155,11 +190,7 @@ fn iterate(scene: &Scene, options: &RenderOptions) -> RenderOutput {
     stats.samples = (w * h) as u64 * iterations as u64;
     stats.spp = iterations;
     stats.seconds = start.elapsed().as_secs_f64();
-    RenderOutput {
-        film,
-        stats,
-        stopped: None,
-    }
+    RenderOutput { film, stats, stopped }
 }
 
 /// One iteration's camera sample of pixel (x, y): its direct light, its
@@ -190,22 +221,7 @@ fn camera_sample(
     let mut beta = Rgb::ONE;
     let mut ray = camera_ray;
     for depth in 1..=s.max_depth {
-        *rays += 1;
-        let Some(hit) = scene.intersect(&ray) else {
-            if scene.environment_light.is_some() {
-                l += beta * scene.background.eval(ray.dir);
-            }
-            break;
-        };
-        let wo_world = -ray.dir.normalize();
-        let m = &scene.materials[hit.material as usize];
-        if m.is_emissive() && hit.is_front(wo_world) {
-            l += beta * m.emission_at(&scene.images, &crate::texture::TexCoord { uv: hit.uv, p: hit.p });
-        }
-        if depth == s.max_depth {
-            break;
-        }
-        let Some(sp) = ShadingPoint::new(scene, &hit, wo_world) else {
+        let Some((hit, sp)) = camera_segment(scene, &ray, beta, depth == s.max_depth, &mut l, rays) else {
             break;
         };
         if sp.bsdf.has_smooth() {
