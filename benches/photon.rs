@@ -4,7 +4,7 @@
 //! Run with `cargo bench --bench photon`; figures are recorded in
 //! BENCHMARKS.md.
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 use trazo::Vec3;
 use trazo::integrator::photon::trace::{PhotonStore, trace_photons};
@@ -16,11 +16,13 @@ fn photon_kernels(c: &mut Criterion) {
     let scene = trazo::scene::build(&cornell_box()).unwrap();
     let mut group = c.benchmark_group("photon");
     group.sample_size(10);
+    group.throughput(Throughput::Elements(100_000));
     group.bench_function("trace 100k photons, cornell box", |b| {
         b.iter(|| trace_photons(&scene, 100_000, 1, 0, 8, PhotonStore::All).photons.len())
     });
     let photons = trace_photons(&scene, 200_000, 1, 0, 8, PhotonStore::All).photons;
     let stored = photons.len();
+    group.throughput(Throughput::Elements(stored as u64));
     group.bench_function(format!("build kd-tree of {stored} photons"), |b| {
         b.iter(|| PhotonMap::build(black_box(photons.clone())).len())
     });
@@ -34,6 +36,19 @@ fn photon_kernels(c: &mut Criterion) {
         })
         .collect();
     let mut found = Nearest::default();
+    let within: usize = queries
+        .iter()
+        .map(|q| {
+            let mut n = 0;
+            map.for_each_within(*q, 0.035 * 0.035, |_, _| n += 1);
+            n
+        })
+        .sum();
+    eprintln!(
+        "{stored} photons stored from 200k emitted; a radius-0.035 query finds {:.1} photons on average",
+        within as f64 / queries.len() as f64
+    );
+    group.throughput(Throughput::Elements(queries.len() as u64));
     for k in [8usize, 64] {
         group.bench_function(format!("k-nearest k={k} x1024"), |b| {
             b.iter(|| {
