@@ -484,6 +484,31 @@ fn photon_mapping_stops_on_ctrl_c_and_resumes_identically() {
     assert!(err.contains("rendered 48×36 at 256 spp with photon"), "{err}");
     assert_eq!(std::fs::read(&part).unwrap(), std::fs::read(&full).unwrap());
     assert!(!checkpoint.exists());
+
+    // Ctrl-C during a long photon pass (20 M photons take many seconds)
+    // ends it at once, with no image.
+    let none = dir.path().join("none.png");
+    let child = spawn(&[
+        "render",
+        "-o",
+        s(&none),
+        "--integrator",
+        "photon",
+        "--photons",
+        "20000000",
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    std::thread::sleep(Duration::from_millis(800));
+    let sent = Instant::now();
+    signal(&child, "-INT");
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert!(sent.elapsed() < Duration::from_secs(2), "took {:?}", sent.elapsed());
+    assert_eq!(code, Some(130), "{err}");
+    assert!(err.contains("nothing was written"), "{err}");
+    assert!(!none.exists());
 }
 
 /// SPPM obeys Ctrl-C and the time limit between iterations: the image is

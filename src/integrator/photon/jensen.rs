@@ -29,7 +29,7 @@
 //! consistent: the error vanishes as photons grow in number and the disks
 //! shrink.
 
-use super::trace::{PhotonStore, trace_photons};
+use super::trace::{PhotonStore, trace_photons_until};
 use super::{Nearest, PhotonMap, PhotonSettings, ShadingPoint, camera_segment};
 use crate::color::Rgb;
 use crate::error::Result;
@@ -40,6 +40,7 @@ use crate::render::{Control, RenderOptions, RenderOutput};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use std::cell::RefCell;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Most specular bounces a final-gather ray follows to a diffuse surface.
@@ -86,15 +87,33 @@ thread_local! {
 impl PhotonMapper {
     /// Traces the photons and builds the maps for `scene` with its settings.
     pub fn build(scene: &Scene) -> PhotonMapper {
+        Self::build_until(scene, None).expect("nothing cancels the build")
+    }
+
+    /// [`PhotonMapper::build`], giving up (`None`) soon after `cancel` is
+    /// set.
+    pub fn build_until(scene: &Scene, cancel: Option<&AtomicBool>) -> Option<PhotonMapper> {
         let start = Instant::now();
+        let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
         let s = scene.settings.photon;
         let (seed, max_depth) = (scene.settings.seed, scene.settings.max_depth);
-        let global = trace_photons(scene, s.photons, seed, 0, max_depth, PhotonStore::All);
-        let caustic = if s.final_gather > 0 && scene_has_specular(scene) {
-            trace_photons(scene, s.caustic_photons, seed, 1, max_depth, PhotonStore::Caustic)
+        let global = trace_photons_until(scene, s.photons, seed, 0, max_depth, PhotonStore::All, cancel);
+        let caustic = if s.final_gather > 0 && scene_has_specular(scene) && !cancelled() {
+            trace_photons_until(
+                scene,
+                s.caustic_photons,
+                seed,
+                1,
+                max_depth,
+                PhotonStore::Caustic,
+                cancel,
+            )
         } else {
             Default::default()
         };
+        if cancelled() {
+            return None;
+        }
         let stats = PhotonPassStats {
             emitted: global.emitted + caustic.emitted,
             global: global.photons.len(),
@@ -112,7 +131,7 @@ impl PhotonMapper {
         } else {
             PhotonMap::default()
         };
-        PhotonMapper {
+        Some(PhotonMapper {
             global,
             caustic,
             irradiance,
@@ -123,7 +142,7 @@ impl PhotonMapper {
                 seconds: start.elapsed().as_secs_f64(),
                 ..stats
             },
-        }
+        })
     }
 
     /// Radiance arriving at the camera along `ray`.
@@ -324,11 +343,18 @@ fn scene_has_specular(scene: &Scene) -> bool {
 /// The photon maps depend only on the scene's settings and seed, so a
 /// render resumed from a checkpoint (a film of whole camera passes) traces
 /// the same maps again and ends with the same image as one that never
-/// stopped. A cancellation during the photon pass abandons the first camera
-/// pass, leaving no image.
+/// stopped. A cancellation during the photon pass ends it within a chunk
+/// of photons and leaves no image.
 pub fn render(scene: &Scene, options: &RenderOptions, control: &mut Control) -> Result<RenderOutput> {
     crate::render::in_thread_pool(options, || {
-        let mapper = PhotonMapper::build(scene);
+        let Some(mapper) = PhotonMapper::build_until(scene, control.cancel) else {
+            // Interrupted before any camera pass: no image.
+            return Ok(RenderOutput {
+                film: crate::film::Film::new(scene.settings.width, scene.settings.height),
+                stats: crate::render::RenderStats::default(),
+                stopped: Some(crate::render::Stop::Interrupted),
+            });
+        };
         let mut opts = options.clone();
         opts.threads = None; // already in the pool
         if let Some(limit) = opts.time_limit {

@@ -39,7 +39,7 @@
 //! pixel's statistics: the image is identical for any number of threads.
 
 use super::jensen::specular_bounce;
-use super::trace::{PhotonStore, trace_photons};
+use super::trace::{PhotonStore, trace_photons_until};
 use super::{PhotonMap, camera_segment, same_surface};
 use crate::color::Rgb;
 use crate::error::{Error, Result};
@@ -126,23 +126,24 @@ fn iterate(
             break;
         }
         let photon_start = Instant::now();
-        let pass = trace_photons(
+        let pass = trace_photons_until(
             scene,
             photons,
             s.seed,
             2 + iterations as u64,
             s.max_depth,
             PhotonStore::Indirect,
+            cancel,
         );
+        if cancelled() {
+            // The photon pass may be incomplete; the iteration is dropped.
+            stopped = Some(Stop::Interrupted);
+            break;
+        }
         stats.rays += pass.rays;
         stats.photons_emitted += pass.emitted;
         let map = PhotonMap::build(pass.photons);
         stats.photon_seconds += photon_start.elapsed().as_secs_f64();
-        if cancelled() {
-            // The camera pass would only delay the exit.
-            stopped = Some(Stop::Interrupted);
-            break;
-        }
 
         let rays: u64 = pixels
             .par_chunks_mut(w)
