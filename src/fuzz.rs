@@ -30,7 +30,7 @@ pub const TARGETS: [(&str, Target); 8] = [
 ];
 
 /// Memory a fuzzed scene may use.
-const MAX_MEMORY: u64 = 256 << 20;
+const MAX_MEMORY: u64 = 64 << 20;
 
 /// Builds and renders a scene that a reader accepted, shrunk to 4×4 pixels,
 /// one sample and at most four bounces.

@@ -254,6 +254,7 @@ const IMAGE_CASES: &[(&str, Option<&[&str]>)] = &[
     ),
     ("image/garbage.exr", Some(&["garbage.exr", "OpenEXR"])),
     ("image/valid.exr", None),
+    ("image/empty.pfm", Some(&["empty.pfm", "no pixels"])),
     ("image/truncated.exr", Some(&["truncated.exr", "OpenEXR"])),
     (
         "image/absurd-size.exr",

@@ -870,3 +870,31 @@ fn non_finite_samples_are_dropped_counted_and_located() {
             .all(|p| *p == Rgb::splat(0.5) || *p == Rgb::ZERO)
     );
 }
+
+/// The memory estimate bounds what the geometry really holds once built,
+/// without overstating it more than the build's temporaries explain.
+#[test]
+fn the_geometry_estimate_bounds_the_built_bvh_and_meshes() {
+    let mut d = SceneDesc::default();
+    d.shapes.push(ShapeDesc::new(
+        ShapeKind::InlineMesh(MeshSource::UvSphere {
+            segments: 300,
+            rings: 200,
+        }),
+        None,
+    ));
+    let scene = trazo::scene::build(&d).unwrap();
+    let g = scene.geometry.stats();
+    let held = (g.bvh_bytes + g.mesh_bytes) as u64;
+    let estimate = trazo::scene::memory::mesh_bytes(g.triangles as u64, 301 * 201);
+    assert!(
+        estimate >= held && estimate <= 3 * held,
+        "estimate {estimate} for {held} bytes held"
+    );
+    let limits = trazo::scene::BuildLimits {
+        max_memory: Some(estimate / 2),
+        aovs: false,
+    };
+    let e = trazo::scene::build_limited(&d, &limits).unwrap_err().to_string();
+    assert!(e.contains("more than the memory limit"), "{e}");
+}

@@ -309,6 +309,9 @@ fn parse_pfm(bytes: &[u8]) -> Result<Image, String> {
     let w: u32 = token()?.parse().map_err(|_| "bad width".to_string())?;
     let h: u32 = token()?.parse().map_err(|_| "bad height".to_string())?;
     let scale: f32 = token()?.parse().map_err(|_| "bad scale".to_string())?;
+    if w == 0 || h == 0 {
+        return Err(format!("an image of {w}×{h} pixels has no pixels"));
+    }
     let data = &bytes[(pos + 1).min(bytes.len())..];
     let need = w as u128 * h as u128 * channels as u128 * 4;
     if (data.len() as u128) < need {

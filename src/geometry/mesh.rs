@@ -4,7 +4,7 @@ use super::bounds::{Aabb, gamma};
 use super::ray::Ray;
 use super::shape::{AreaSample, LocalSurface};
 use super::transform::Transform;
-use super::triangle::{TriangleHit, intersect_triangle};
+use super::triangle::{TriangleHit, TriangleRay, intersect_triangle, intersect_triangle_with};
 use crate::sampling::warp::{orthonormal_basis, sample_triangle_uniform};
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -140,6 +140,14 @@ impl TriangleMesh {
     pub fn intersect(&self, i: usize, ray: &Ray) -> Option<TriangleHit> {
         let [a, b, c] = self.vertices(i);
         intersect_triangle(ray, a, b, c)
+    }
+
+    /// [`TriangleMesh::intersect`] with the ray's part of the test
+    /// computed once for all the triangles a traversal meets.
+    #[inline]
+    pub fn intersect_with(&self, i: usize, ray: &Ray, pre: &TriangleRay) -> Option<TriangleHit> {
+        let [a, b, c] = self.vertices(i);
+        intersect_triangle_with(ray, pre, a, b, c)
     }
 
     /// Area of triangle `i`.

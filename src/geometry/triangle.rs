@@ -25,13 +25,12 @@ fn permute(v: Vec3, x: usize, y: usize, z: usize) -> Vec3 {
     Vec3::new(v[x], v[y], v[z])
 }
 
-/// `a·b − c·d` with one rounding error (Kahan's algorithm with FMA).
+/// `a·b − c·d` with its sign exact: products of two f32 are exact in f64,
+/// so only the difference is rounded. (Kahan's FMA form is as accurate but
+/// calls a library `fmaf` on targets built without FMA.)
 #[inline]
 fn difference_of_products(a: f32, b: f32, c: f32, d: f32) -> f32 {
-    let cd = c * d;
-    let err = (-c).mul_add(d, cd);
-    let dop = a.mul_add(b, -cd);
-    dop + err
+    (a as f64 * b as f64 - c as f64 * d as f64) as f32
 }
 
 /// What the watertight test needs of a ray, computed once per ray rather
@@ -94,15 +93,11 @@ pub fn intersect_triangle_with(ray: &Ray, pre: &TriangleRay, p0: Vec3, p1: Vec3,
     p2t.x += sx * p2t.z;
     p2t.y += sy * p2t.z;
 
-    let mut e0 = difference_of_products(p1t.x, p2t.y, p1t.y, p2t.x);
-    let mut e1 = difference_of_products(p2t.x, p0t.y, p2t.y, p0t.x);
-    let mut e2 = difference_of_products(p0t.x, p1t.y, p0t.y, p1t.x);
-    if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
-        let f = |ax: f32, by: f32, ay: f32, bx: f32| -> f32 { (ax as f64 * by as f64 - ay as f64 * bx as f64) as f32 };
-        e0 = f(p1t.x, p2t.y, p1t.y, p2t.x);
-        e1 = f(p2t.x, p0t.y, p2t.y, p0t.x);
-        e2 = f(p0t.x, p1t.y, p0t.y, p1t.x);
-    }
+    // Edge functions with exact signs: a ray through an edge shared by two
+    // triangles hits exactly one of them (watertightness).
+    let e0 = difference_of_products(p1t.x, p2t.y, p1t.y, p2t.x);
+    let e1 = difference_of_products(p2t.x, p0t.y, p2t.y, p0t.x);
+    let e2 = difference_of_products(p0t.x, p1t.y, p0t.y, p1t.x);
     if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
         return None;
     }

@@ -35,6 +35,17 @@ impl ImageTexture {
     /// The size in the header is checked before any pixel is allocated.
     /// Errors are plain reasons, for the caller to place.
     pub fn decode(bytes: &[u8], srgb: Option<bool>) -> Result<ImageTexture, String> {
+        let t = Self::decode_any_size(bytes, srgb)?;
+        if t.pixels.is_empty() || t.pixels.len() != t.width as usize * t.height as usize {
+            return Err(format!(
+                "an image of {}×{} pixels cannot be a texture",
+                t.width, t.height
+            ));
+        }
+        Ok(t)
+    }
+
+    fn decode_any_size(bytes: &[u8], srgb: Option<bool>) -> Result<ImageTexture, String> {
         let is_pfm = bytes.starts_with(b"PF") || bytes.starts_with(b"Pf");
         if bytes.starts_with(&crate::film::io::EXR_MAGIC) || is_pfm {
             let format = if is_pfm {
