@@ -74,6 +74,11 @@ def write_rays(path, o, d):
 _scene = None
 
 
+# Each timing is the best of this many runs, for trazo and Embree alike
+# (a single run on a shared 2-core machine varies by tens of percent).
+REPEAT = 3
+
+
 def _embree_worker(args):
     verts, tris, o, d, occluded = args
     from embreex import mesh_construction, rtcore_scene
@@ -81,9 +86,12 @@ def _embree_worker(args):
     scene = rtcore_scene.EmbreeScene()
     mesh_construction.TriangleMesh(scene, verts, tris)
     scene.run(o[:16], d[:16])  # build before timing
-    start = time.perf_counter()
-    scene.run(o, d, query="OCCLUDED" if occluded else "INTERSECT")
-    return time.perf_counter() - start
+    best = float("inf")
+    for _ in range(REPEAT):
+        start = time.perf_counter()
+        scene.run(o, d, query="OCCLUDED" if occluded else "INTERSECT")
+        best = min(best, time.perf_counter() - start)
+    return best
 
 
 def embree(verts, tris, o, d, occluded, procs):
@@ -106,7 +114,7 @@ def embree_build(verts, tris):
 
 def trazo_rays(trazo, mesh, rays, hits):
     out = subprocess.run(
-        [trazo, "bench", "rays", "--mesh", mesh, "--rays", rays, "--hits", hits],
+        [trazo, "bench", "rays", "--mesh", mesh, "--rays", rays, "--hits", hits, "--repeat", str(REPEAT)],
         check=True, capture_output=True, text=True,
     ).stdout
     build = float(re.search(r"build: ([0-9.]+) s", out).group(1))
@@ -154,7 +162,11 @@ def embree_memory(mesh, rays):
     verts, tris = read_ply(mesh)
     r = np.fromfile(rays, dtype="<f4").reshape(-1, 6)
     o, d = np.ascontiguousarray(r[:, :3]), np.ascontiguousarray(r[:, 3:])
-    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    del r
+    # Resident memory now (KiB), not the peak so far: reading the PLY made
+    # temporaries that are gone.
+    with open("/proc/self/statm") as f:
+        before = int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") // 1024
     scene = rtcore_scene.EmbreeScene()
     mesh_construction.TriangleMesh(scene, verts, tris)
     scene.run(o, d)
@@ -242,26 +254,57 @@ def mitsuba_time(variant, scene, res, spp, out):
     return float(r.stdout.strip().splitlines()[-1]), None
 
 
+def relmse(trazo, image, reference):
+    """Relative MSE of `image` against `reference`, as `trazo diff` computes it."""
+    r = subprocess.run([trazo, "diff", image, reference], capture_output=True, text=True)
+    m = re.search(r"relative MSE: ([0-9.eE+-]+)", r.stdout + r.stderr)
+    return float(m.group(1)) if m else None
+
+
+def reference_image(args, scene):
+    """A converged image of the Cornell box: Mitsuba llvm_ad_rgb (scalar_rgb
+    if LLVM is missing) at --reference-spp, cached in bench/.cache."""
+    cache = os.path.join(args.root, "bench", ".cache")
+    os.makedirs(cache, exist_ok=True)
+    path = os.path.join(cache, f"cornell-{args.res}px-{args.reference_spp}spp.exr")
+    if not os.path.exists(path):
+        print(f"rendering the reference ({args.reference_spp} spp, once; cached in {os.path.relpath(path, args.root)})...",
+              file=sys.stderr)
+        for variant in ["llvm_ad_rgb", "scalar_rgb"]:
+            t, _ = mitsuba_time(variant, scene, args.res, args.reference_spp, path + ".tmp.exr")
+            if t is not None:
+                os.replace(path + ".tmp.exr", path)
+                break
+    return path if os.path.exists(path) else None
+
+
 def render_section(args, work):
     scene = os.path.join(args.root, "tools/crosscheck/scenes/cornell-box.xml")
+    reference = None if args.reference_spp == 0 else reference_image(args, scene)
     print(f"Cornell box ({os.path.relpath(scene, args.root)}), {args.res}×{args.res}, {args.spp} spp, max depth 8, {os.cpu_count()} cores")
     out = os.path.join(work, "trazo.exr")
     r = subprocess.run([args.trazo, "render", scene, "-o", out, "--spp", str(args.spp), "--width", str(args.res),
                         "--height", str(args.res), "--max-depth", "8"], capture_output=True, text=True, check=True)
     t_trazo = float(re.search(r" in ([0-9.]+) s", r.stderr).group(1))
-    rows = [("trazo (path:mis)", t_trazo, None)]
+    rows = [("trazo (path:mis)", t_trazo, None, out)]
     for variant in ["llvm_ad_rgb", "scalar_rgb"]:
-        t, why = mitsuba_time(variant, scene, args.res, args.spp, os.path.join(work, f"{variant}.exr"))
-        rows.append((f"Mitsuba 3 {variant}", t, why))
+        image = os.path.join(work, f"{variant}.exr")
+        t, why = mitsuba_time(variant, scene, args.res, args.spp, image)
+        rows.append((f"Mitsuba 3 {variant}", t, why, image))
     samples = args.res * args.res * args.spp
     print()
-    print("| renderer | render time | samples/s | trazo time / peer time |")
-    print("|---|---|---|---|")
-    for name, t, why in rows:
+    if reference:
+        print(f"error: relative MSE against {args.reference_spp} spp of Mitsuba ({os.path.relpath(reference, args.root)})")
+        print()
+    print("| renderer | render time | samples/s | trazo time / peer time | relative MSE |")
+    print("|---|---|---|---|---|")
+    for name, t, why, image in rows:
         if t is None:
-            print(f"| {name} | unavailable: {why} | | |")
+            print(f"| {name} | unavailable: {why} | | | |")
         else:
-            print(f"| {name} | {t:.2f} s | {samples / t / 1e6:.2f} M | {t_trazo / t:.2f} |")
+            err = relmse(args.trazo, image, reference) if reference else None
+            err = f"{err:.2e}" if err is not None else "–"
+            print(f"| {name} | {t:.2f} s | {samples / t / 1e6:.2f} M | {t_trazo / t:.2f} | {err} |")
 
 
 def main():
@@ -277,6 +320,8 @@ def main():
     ap.add_argument("--res", type=int, default=512)
     ap.add_argument("--triangles", type=int, default=1_000_000)
     ap.add_argument("--rays", type=int, default=1_000_000)
+    ap.add_argument("--reference-spp", type=int, default=2048,
+                    help="samples of the cached Mitsuba reference image the errors are measured against (0: none)")
     args = ap.parse_args()
     print(f"date: {time.strftime('%Y-%m-%d')}, cores: {os.cpu_count()}")
     with tempfile.TemporaryDirectory() as work:
