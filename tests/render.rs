@@ -670,11 +670,82 @@ fn spawned_rays_never_hit_the_surface_they_leave_at_any_scale() {
 }
 
 fn small_box(spp: u32) -> trazo::scene::Scene {
+    small_box_filtered(spp, trazo::film::filter::Filter::default())
+}
+
+fn small_box_filtered(spp: u32, filter: trazo::film::filter::Filter) -> trazo::scene::Scene {
     let mut d = cornell_box();
     d.settings.width = 24;
     d.settings.height = 20;
     d.settings.spp = spp;
+    d.settings.filter = filter;
     trazo::scene::build(&d).unwrap()
+}
+
+/// With a filter wider than a pixel, samples are splatted into their
+/// neighbours: the image is still the same for any number of threads and
+/// for a render resumed from a pass boundary, and it converges to the
+/// image that filter importance sampling gives (the same expectation).
+#[test]
+fn splatted_filters_stay_deterministic_and_agree_with_importance_sampling() {
+    use trazo::film::filter::Filter;
+    use trazo::render::{Control, render_controlled};
+    let gaussian = Filter::Gaussian {
+        stddev: 0.5,
+        radius: 2.0,
+    };
+    let scene = small_box_filtered(12, gaussian);
+    let by_threads: Vec<_> = [1, 2, 3]
+        .map(|t| {
+            render(
+                &scene,
+                &RenderOptions {
+                    threads: Some(t),
+                    tile_size: 8,
+                    ..RenderOptions::default()
+                },
+            )
+            .unwrap()
+            .film
+        })
+        .into_iter()
+        .collect();
+    assert!(by_threads[0] == by_threads[1] && by_threads[0] == by_threads[2]);
+    // Resume from the film after the passes of 1, 2 and 4 samples.
+    let passes = films_by_pass(&scene, false);
+    let (spp, film) = passes[2].clone();
+    assert_eq!(spp, 4);
+    let stats = trazo::render::RenderStats {
+        spp,
+        samples: spp as u64 * 24 * 20,
+        ..Default::default()
+    };
+    let mut control = Control {
+        resume: Some((film, stats)),
+        ..Control::default()
+    };
+    let resumed = render_controlled(&scene, &RenderOptions::default(), &mut control).unwrap();
+    assert!(resumed.film == passes.last().unwrap().1);
+    // Splatting and filter importance sampling estimate the same image: at
+    // many samples their means over the image agree to within the noise.
+    let mean = |f: &trazo::film::Film| {
+        let n = f.pixels.len() as f64;
+        f.pixels
+            .iter()
+            .map(|p| trazo::color::luminance(p.value()) as f64)
+            .sum::<f64>()
+            / n
+    };
+    let splatted = render(&small_box_filtered(256, gaussian), &RenderOptions::default())
+        .unwrap()
+        .film;
+    let mut fis_scene = small_box_filtered(256, gaussian);
+    fis_scene.settings.filter = Filter::Box { radius: 0.5 };
+    let (a, b) = (
+        mean(&splatted),
+        mean(&render(&fis_scene, &RenderOptions::default()).unwrap().film),
+    );
+    assert!((a - b).abs() < 0.02 * b, "{a} vs {b}");
 }
 
 /// The film after every pass of an uninterrupted render, by samples per pixel.

@@ -60,6 +60,20 @@ impl Filter {
         }
     }
 
+    /// The filter's (unnormalised) 1D profile at offset `x` in pixels;
+    /// [`Filter::sample`] draws offsets with this density.
+    pub fn eval_1d(&self, x: f32) -> f32 {
+        let r = self.radius();
+        if x.abs() > r {
+            return 0.0;
+        }
+        match *self {
+            Filter::Box { .. } => 1.0,
+            Filter::Tent { radius } => 1.0 - x.abs() / radius,
+            Filter::Gaussian { stddev, .. } => (-x * x / (2.0 * stddev * stddev)).exp(),
+        }
+    }
+
     /// An offset from the pixel centre distributed like the filter, from
     /// `u` ∈ [0,1)² (stratification of `u` carries over).
     #[inline]

@@ -10,6 +10,7 @@ pub mod denoise;
 pub mod filter;
 pub mod io;
 pub mod metrics;
+pub mod splat;
 pub mod text;
 pub mod tonemap;
 
@@ -73,6 +74,23 @@ impl PixelSum {
         self.weight += w;
         let y = luminance(l) as f64;
         self.lum_sq += w * y * y;
+    }
+
+    /// Adds one sample whose luminance is already known.
+    #[inline]
+    pub fn add_with_luminance(&mut self, l: Rgb, y: f32, w: f32) {
+        let w = w as f64;
+        self.rgb += l.as_dvec3() * w;
+        self.weight += w;
+        self.lum_sq += w * (y as f64) * (y as f64);
+    }
+
+    /// Adds another sum's samples.
+    #[inline]
+    pub fn merge(&mut self, o: &PixelSum) {
+        self.rgb += o.rgb;
+        self.weight += o.weight;
+        self.lum_sq += o.lum_sq;
     }
 
     /// The pixel's estimate (black without samples).

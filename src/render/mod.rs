@@ -20,6 +20,7 @@ pub mod checkpoint;
 pub mod compare;
 
 use crate::error::{Error, Result};
+use crate::film::splat::{MAX_TAPS, Splat};
 use crate::film::{AovSum, Film, Image, PixelSum};
 use crate::integrator::aov::camera_aov;
 use crate::integrator::{Integrator, IntegratorKind, PathTracer, RayStats, Whitted};
@@ -290,7 +291,13 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
 /// What one tile of one pass produced.
 struct TileResult {
     tile: Tile,
+    /// The tile's pixels after this pass (filter importance sampling), or
+    /// empty when splatting.
     sums: Vec<PixelSum>,
+    /// Splatting: what this pass adds to the pixels of `splat_rect` (the
+    /// tile and its margin, within the image).
+    splats: Vec<PixelSum>,
+    splat_rect: Tile,
     aovs: Vec<AovSum>,
     rays: RayStats,
     invalid: u64,
@@ -319,6 +326,7 @@ fn render_passes<I: Integrator>(
     stats.threads = rayon::current_num_threads();
     let earlier_seconds = stats.seconds;
     let tiles = tiles(w, h, options.tile_size);
+    let splat = Splat::new(&s.filter);
     let bar = match options.time_limit {
         Some(limit) => progress_bar(options.progress, limit.as_millis().max(1) as u64),
         None => progress_bar(options.progress, w as u64 * h as u64 * s.spp as u64),
@@ -357,7 +365,22 @@ fn render_passes<I: Integrator>(
                 let mut invalid = 0u64;
                 let mut invalid_examples = Vec::new();
                 let n = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
-                let mut sums = Vec::with_capacity(n);
+                let mut sums = Vec::with_capacity(if splat.is_some() { 0 } else { n });
+                let splat_rect = match &splat {
+                    Some(sp) => Tile {
+                        x0: tile.x0.saturating_sub(sp.margin),
+                        y0: tile.y0.saturating_sub(sp.margin),
+                        x1: (tile.x1 + sp.margin).min(w),
+                        y1: (tile.y1 + sp.margin).min(h),
+                    },
+                    None => tile,
+                };
+                let splat_width = splat_rect.x1 - splat_rect.x0;
+                let mut splats = match &splat {
+                    Some(_) => vec![PixelSum::default(); (splat_width * (splat_rect.y1 - splat_rect.y0)) as usize],
+                    None => Vec::new(),
+                };
+                let (mut taps_x, mut taps_y) = ([(0u32, 0f32); MAX_TAPS], [(0u32, 0f32); MAX_TAPS]);
                 let mut aovs = Vec::with_capacity(if options.aovs { n } else { 0 });
                 for y in tile.y0..tile.y1 {
                     // Checked once a row, so that an interrupt is obeyed
@@ -371,14 +394,33 @@ fn render_passes<I: Integrator>(
                         let mut aov = film_ref.aovs.as_ref().map(|a| a[i]).unwrap_or_default();
                         for index in first..end {
                             sampler.start_pixel_sample(x, y, index);
-                            let offset = s.filter.sample(sampler.pixel_2d());
+                            let u = sampler.pixel_2d();
+                            let position = match &splat {
+                                Some(_) => Vec2::new(x as f32, y as f32) + u,
+                                None => Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + s.filter.sample(u),
+                            };
                             let lens = sampler.next_2d();
-                            let ray = scene
-                                .camera
-                                .generate_ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset, lens);
+                            let ray = scene.camera.generate_ray(position, lens);
                             let l = integrator.radiance(scene, &ray, &mut sampler, &mut rays);
                             if l.is_finite() {
-                                sum.add(l, 1.0);
+                                match &splat {
+                                    None => sum.add(l, 1.0),
+                                    Some(sp) => {
+                                        let y_l = crate::color::luminance(l);
+                                        let nx = sp.taps(position.x, splat_rect.x0, splat_rect.x1, &mut taps_x);
+                                        let ny = sp.taps(position.y, splat_rect.y0, splat_rect.y1, &mut taps_y);
+                                        for &(py, wy) in &taps_y[..ny] {
+                                            let row = ((py - splat_rect.y0) * splat_width) as usize;
+                                            for &(px, wx) in &taps_x[..nx] {
+                                                splats[row + (px - splat_rect.x0) as usize].add_with_luminance(
+                                                    l,
+                                                    y_l,
+                                                    wx * wy,
+                                                );
+                                            }
+                                        }
+                                    }
+                                }
                             } else {
                                 invalid += 1;
                                 if invalid_examples.len() < MAX_INVALID_EXAMPLES {
@@ -392,7 +434,9 @@ fn render_passes<I: Integrator>(
                                 }
                             }
                         }
-                        sums.push(sum);
+                        if splat.is_none() {
+                            sums.push(sum);
+                        }
                         if options.aovs {
                             aovs.push(aov);
                         }
@@ -407,6 +451,8 @@ fn render_passes<I: Integrator>(
                 Some(TileResult {
                     tile,
                     sums,
+                    splats,
+                    splat_rect,
                     aovs,
                     rays,
                     invalid,
@@ -424,10 +470,25 @@ fn render_passes<I: Integrator>(
             for y in r.tile.y0..r.tile.y1 {
                 for x in r.tile.x0..r.tile.x1 {
                     let i = (y * w + x) as usize;
-                    film.pixels[i] = r.sums[k];
+                    if !r.sums.is_empty() {
+                        film.pixels[i] = r.sums[k];
+                    }
                     if let Some(a) = film.aovs.as_mut() {
                         a[i] = r.aovs[k];
                     }
+                    k += 1;
+                }
+            }
+            // Tiles add their splats in tile order: the same sums in the
+            // same order on any number of threads.
+            let rect = r.splat_rect;
+            let mut k = 0;
+            for y in rect.y0..rect.y1 {
+                if r.splats.is_empty() {
+                    break;
+                }
+                for x in rect.x0..rect.x1 {
+                    film.pixels[(y * w + x) as usize].merge(&r.splats[k]);
                     k += 1;
                 }
             }
