@@ -105,8 +105,9 @@ struct SceneArgs {
     seed: Option<u64>,
 
     /// Placement of samples inside pixels: center (one ray through the
-    /// centre: aliasing), independent (random jitter) or stratified
-    /// (jittered grid).
+    /// centre: aliasing), independent (random jitter), stratified
+    /// (jittered grid) or sobol (Owen-scrambled Sobol points, stratified
+    /// in every dimension of the path).
     #[arg(long, value_name = "KIND", value_parser = SamplerKind::NAMES)]
     sampler: Option<String>,
 
