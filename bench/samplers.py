@@ -7,10 +7,12 @@ with each sampler at each spp for several seeds, and prints the mean relative
 MSE (the formula of `trazo diff`) with its standard error over the seeds, the
 relative MSE of the seeds' average image (for an unbiased sampler about the
 single-seed figure divided by the seed count, plus the reference's own noise)
-and the mean image brightness against the reference's, in standard errors.
+and the mean image value against the reference's, in standard errors (those
+of the seeds' mean and of the reference's mean, the latter scaled from the
+independent sampler's spread).
 
     flock /tmp/trazo-cpu.lock python3 bench/samplers.py [--scene FILE] \
-        [--size 128] [--ref-spp 8192] [--spp 16,64] [--seeds 4]
+        [--size 128] [--ref-spp 8192] [--spp 16,64] [--seeds 8]
 
 Only the standard library: images go through PFM files.
 """
@@ -60,7 +62,7 @@ def main():
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--ref-spp", type=int, default=8192)
     ap.add_argument("--spp", default="16,64")
-    ap.add_argument("--seeds", type=int, default=4)
+    ap.add_argument("--seeds", type=int, default=8)
     ap.add_argument("--samplers", default="independent,stratified,sobol")
     args = ap.parse_args()
 
@@ -74,8 +76,12 @@ def main():
     print("| sampler | spp | relMSE (mean ± s.e. over seeds) | relMSE of the seed average "
           "| mean − reference (s.e.) | render time |")
     print("|---|---|---|---|---|---|")
+    samplers = args.samplers.split(",")
+    if samplers[0] != "independent":
+        sys.exit("the first sampler must be independent: it estimates the reference's noise")
     for spp in [int(s) for s in args.spp.split(",")]:
-        for sampler in args.samplers.split(","):
+        ref_se = 0.0
+        for sampler in samplers:
             errs, means, times = [], [], []
             avg = [0.0] * len(ref)
             for seed in range(1, args.seeds + 1):
@@ -91,7 +97,12 @@ def main():
             se = math.sqrt(sum((x - e) ** 2 for x in errs) / (n - 1) / n) if n > 1 else float("nan")
             m = sum(means) / n
             mse = math.sqrt(sum((x - m) ** 2 for x in means) / (n - 1) / n) if n > 1 else float("nan")
-            z = (m - ref_mean) / mse if mse > 0 else float("nan")
+            if sampler == "independent":
+                # The reference's own error of the mean, scaled from the
+                # independent renders at this spp.
+                ref_se = mse * math.sqrt(spp / args.ref_spp)
+            total_se = math.hypot(mse, ref_se)
+            z = (m - ref_mean) / total_se if total_se > 0 else float("nan")
             print(f"| {sampler} | {spp} | {e:.5f} ± {se:.5f} | {rel_mse(avg, ref):.5f} "
                   f"| {m - ref_mean:+.5f} ({z:+.1f}) | {sum(times) / n:.2f} s |")
             sys.stdout.flush()

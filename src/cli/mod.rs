@@ -104,10 +104,10 @@ struct SceneArgs {
     #[arg(long, value_name = "S")]
     seed: Option<u64>,
 
-    /// Placement of samples inside pixels: center (one ray through the
-    /// centre: aliasing), independent (random jitter), stratified
-    /// (jittered grid) or sobol (Owen-scrambled Sobol points, stratified
-    /// in every dimension of the path).
+    /// How samples are placed: sobol (Owen-scrambled Sobol points,
+    /// stratified in every dimension of a path; the default), stratified
+    /// (jittered grid of pixel positions), independent (random) or center
+    /// (one ray through each pixel centre: aliasing).
     #[arg(long, value_name = "KIND", value_parser = SamplerKind::NAMES)]
     sampler: Option<String>,
 
