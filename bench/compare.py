@@ -131,6 +131,37 @@ def peak_rss_kb(cmd):
     return int(r.stderr.strip().splitlines()[-1]) if r.returncode == 0 else None
 
 
+def read_ply(path):
+    """The vertices and triangles of a PLY written by write_ply."""
+    with open(path, "rb") as f:
+        header = b""
+        while not header.endswith(b"end_header\n"):
+            header += f.readline()
+        nv = int(re.search(rb"element vertex (\d+)", header).group(1))
+        nf = int(re.search(rb"element face (\d+)", header).group(1))
+        verts = np.frombuffer(f.read(12 * nv), dtype="<f4").reshape(-1, 3)
+        faces = np.frombuffer(f.read(13 * nf), dtype=[("n", "u1"), ("i", "<u4", 3)])
+    return np.ascontiguousarray(verts), np.ascontiguousarray(faces["i"])
+
+
+def embree_memory(mesh, rays):
+    """Run in a child process: peak memory of Embree's default build and one
+    trace, from the same PLY and ray file trazo reads. Prints the process's
+    peak RSS and the part of it that building and tracing added (KiB)."""
+    import resource
+    from embreex import mesh_construction, rtcore_scene
+
+    verts, tris = read_ply(mesh)
+    r = np.fromfile(rays, dtype="<f4").reshape(-1, 6)
+    o, d = np.ascontiguousarray(r[:, :3]), np.ascontiguousarray(r[:, 3:])
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    scene = rtcore_scene.EmbreeScene()
+    mesh_construction.TriangleMesh(scene, verts, tris)
+    scene.run(o, d)
+    after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    print(after, after - before)
+
+
 def ray_section(args, work):
     rng = np.random.default_rng(1)
     verts, tris = bumpy_sphere(args.triangles)
@@ -161,6 +192,15 @@ def ray_section(args, work):
     rss = peak_rss_kb([args.trazo, "bench", "rays", "--mesh", mesh, "--rays", rays])
     if rss:
         print(f"trazo peak memory (load + build + trace): {rss / 1024:.0f} MiB, {rss * 1024 / len(tris):.0f} bytes/triangle")
+    out = subprocess.run(
+        [sys.executable, os.path.abspath(__file__), "--embree-memory", mesh, rays],
+        check=True, capture_output=True, text=True,
+    ).stdout.split()
+    peak, added = int(out[0]), int(out[1])
+    print(
+        f"Embree peak memory (Python + load + build + trace): {peak / 1024:.0f} MiB, "
+        f"{peak * 1024 / len(tris):.0f} bytes/triangle; of which build + trace {added * 1024 / len(tris):.0f} bytes/triangle"
+    )
 
 
 def find_libllvm():
@@ -225,6 +265,9 @@ def render_section(args, work):
 
 
 def main():
+    if len(sys.argv) == 4 and sys.argv[1] == "--embree-memory":
+        embree_memory(sys.argv[2], sys.argv[3])
+        return
     ap = argparse.ArgumentParser()
     ap.add_argument("--trazo", required=True)
     ap.add_argument("--root", required=True)

@@ -593,3 +593,152 @@ fn a_lone_obj_brings_its_mtl_materials() {
         "the MTL's red reaches the image: {c:?}"
     );
 }
+
+#[test]
+fn photon_mapping_sppm_and_denoising_from_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = trazo().args(["render", "--help"]).output().unwrap();
+    let help = String::from_utf8_lossy(&out.stdout);
+    for flag in [
+        "--photons",
+        "--caustic-photons",
+        "--sppm-photons",
+        "--photon-gather",
+        "--photon-radius",
+        "--final-gather",
+        "--photon-kernel",
+        "--denoise",
+        "sppm",
+    ] {
+        assert!(help.contains(flag), "render --help lacks {flag}");
+    }
+    for (integrator, extra) in [("photon", "--final-gather=2"), ("sppm", "--photon-radius=0.05")] {
+        let img = dir.path().join(format!("{integrator}.png"));
+        let o = trazo()
+            .args([
+                "render",
+                "--width",
+                "16",
+                "--height",
+                "16",
+                "--spp",
+                "2",
+                "--photons",
+                "5000",
+            ])
+            .args(["--integrator", integrator, extra, "-o"])
+            .arg(&img)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        assert!(err.contains("photons/s") && err.contains(integrator), "{err}");
+        assert!(img.is_file());
+    }
+    // The built-in filter, chosen by name; the noisy image is kept.
+    let img = dir.path().join("box.png");
+    let o = trazo()
+        .args([
+            "render",
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--spp",
+            "2",
+            "--denoise=atrous",
+            "-o",
+        ])
+        .arg(&img)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("à-trous"), "{err}");
+    assert!(img.is_file() && dir.path().join("box.noisy.png").is_file());
+    // Without the library, auto falls back to it and oidn is an error.
+    let o = trazo()
+        .env("TRAZO_OIDN", "/nonexistent/libOpenImageDenoise.so.2")
+        .args([
+            "render",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "1",
+            "--denoise",
+            "-o",
+        ])
+        .arg(dir.path().join("auto.png"))
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("à-trous"));
+    let bad = dir.path().join("never.png");
+    let out = trazo()
+        .env("TRAZO_OIDN", "/nonexistent/libOpenImageDenoise.so.2")
+        .args(["render", "--width", "8", "--height", "8", "--denoise=oidn", "-o"])
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("tools/oidn/setup") && err.contains("--denoise atrous"),
+        "{err}"
+    );
+    assert!(!bad.exists(), "nothing is rendered when the denoiser is missing");
+    let out = trazo().args(["render", "--denoise=blur"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("atrous"));
+    assert!(fails(&["render", "--photon-radius=-1", "-o", "/tmp/trazo-neg.png"]).contains("--photon-radius"));
+}
+
+#[test]
+fn bad_photon_settings_name_their_key() {
+    let e = scene_error(&SPHERE.replace("spp = 1", "spp = 1\nphoton_gather = 0"));
+    assert!(e.contains("`render.photon_gather`") && e.contains("at least 1"), "{e}");
+    let e = scene_error(&SPHERE.replace("spp = 1", "spp = 1\nphoton_kernel = \"gauss\""));
+    assert!(e.contains("photon_kernel") && e.contains("epanechnikov"), "{e}");
+    let e = scene_error(&SPHERE.replace("spp = 1", "spp = 1\nsppm_alpha = 1.5"));
+    assert!(e.contains("`render.sppm_alpha`"), "{e}");
+    let e = scene_error(&SPHERE.replace("spp = 1", "spp = 1\nphoton_radius = -2"));
+    assert!(e.contains("`render.photon_radius`"), "{e}");
+}
+
+#[test]
+fn compare_accepts_photon_sppm_and_denoised_contestants() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cmp.png");
+    let o = trazo()
+        .args([
+            "compare",
+            "-q",
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--spp",
+            "2",
+            "--photons",
+            "5000",
+        ])
+        .args([
+            "--final-gather",
+            "2",
+            "--integrators",
+            "path:mis,path:mis+atrous,photon,sppm",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let table = String::from_utf8_lossy(&o.stdout);
+    for label in ["| path:mis |", "| path:mis+atrous |", "| photon |", "| sppm |"] {
+        assert!(table.contains(label), "{table}");
+    }
+    assert!(out.is_file());
+    assert!(fails(&["compare", "--integrators", "path+blur"]).contains("+blur"));
+}

@@ -428,3 +428,168 @@ fn renders_above_the_memory_limit_are_refused_before_they_start() {
     ]);
     assert_eq!(code, Some(0), "{err}");
 }
+
+/// Photon mapping obeys Ctrl-C like the path tracer: the image of whole
+/// camera passes, a checkpoint, status 130; `--resume` traces the same
+/// photon maps again and ends with the image of a render that never
+/// stopped, bit for bit.
+#[cfg(unix)]
+#[test]
+fn photon_mapping_stops_on_ctrl_c_and_resumes_identically() {
+    let dir = tempfile::tempdir().unwrap();
+    let full = dir.path().join("full.pfm");
+    let common = [
+        "--integrator",
+        "photon",
+        "--photons",
+        "20000",
+        "--final-gather",
+        "4",
+        "--width",
+        "48",
+        "--height",
+        "36",
+        "--spp",
+        "256",
+        "--seed",
+        "3",
+        "-q",
+    ];
+    let out = trazo().args(["render", "-o", s(&full)]).args(common).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    let part = dir.path().join("part.pfm");
+    let checkpoint = dir.path().join("part.pfm.trazo-checkpoint");
+    let mut child = spawn(&[&["render", "-o", s(&part), "--checkpoint-every", "0"], &common[..]].concat());
+    wait_for(&checkpoint, &mut child);
+    signal(&child, "-INT");
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert_eq!(code, Some(130), "{err}");
+    let c = Checkpoint::read(&checkpoint).unwrap();
+    let spp = c.stats.spp;
+    assert!((1..256).contains(&spp), "{spp}");
+    assert!(
+        err.contains(&format!("interrupted: rendered 48×36 at {spp} of 256 spp with photon")),
+        "{err}"
+    );
+    assert_eq!(trazo::film::io::read_image(&part).unwrap(), c.film.to_image());
+    assert!(c.job_values("arg").any(|a| a == "--photons=20000"), "{:?}", c.job);
+
+    let out = trazo()
+        .args(["render", "--resume", s(&checkpoint), "--threads", "1"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("rendered 48×36 at 256 spp with photon"), "{err}");
+    assert_eq!(std::fs::read(&part).unwrap(), std::fs::read(&full).unwrap());
+    assert!(!checkpoint.exists());
+
+    // Ctrl-C during a long photon pass (20 M photons take many seconds)
+    // ends it at once, with no image.
+    let none = dir.path().join("none.png");
+    let child = spawn(&[
+        "render",
+        "-o",
+        s(&none),
+        "--integrator",
+        "photon",
+        "--photons",
+        "20000000",
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    std::thread::sleep(Duration::from_millis(800));
+    let sent = Instant::now();
+    signal(&child, "-INT");
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert!(sent.elapsed() < Duration::from_secs(2), "took {:?}", sent.elapsed());
+    assert_eq!(code, Some(130), "{err}");
+    assert!(err.contains("nothing was written"), "{err}");
+    assert!(!none.exists());
+}
+
+/// SPPM obeys Ctrl-C and the time limit between iterations: the image is
+/// that of whole iterations (the same as a render asked for that many),
+/// the status that of the path tracer; it cannot be checkpointed, which is
+/// refused up front (status 2), and no checkpoint is left behind.
+#[cfg(unix)]
+#[test]
+fn sppm_stops_after_whole_iterations_and_refuses_checkpoints() {
+    let dir = tempfile::tempdir().unwrap();
+    let part = dir.path().join("part.pfm");
+    let common = [
+        "--integrator",
+        "sppm",
+        "--sppm-photons",
+        "2000",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--seed",
+        "5",
+        "--threads",
+        "2",
+        // Samples that do not depend on --spp, so that N iterations of a
+        // long render are those of a render asked for N.
+        "--sampler",
+        "independent",
+    ];
+    let child = spawn(&[&["render", "-o", s(&part), "--spp", "1000000"], &common[..]].concat());
+    std::thread::sleep(Duration::from_millis(1500));
+    let sent = Instant::now();
+    signal(&child, "-INT");
+    let (code, err) = finish(child, Duration::from_secs(20));
+    assert!(sent.elapsed() < Duration::from_secs(5), "took {:?}", sent.elapsed());
+    assert_eq!(code, Some(130), "{err}");
+    let done: u32 = err
+        .split("interrupted: rendered 32×24 at ")
+        .nth(1)
+        .and_then(|rest| rest.split(" of ").next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{err}"));
+    assert!(done >= 1, "{err}");
+    assert!(!err.contains("--resume"), "{err}");
+    assert!(!dir.path().join("part.pfm.trazo-checkpoint").exists());
+    let whole = dir.path().join("whole.pfm");
+    let o = trazo()
+        .args(["render", "-q", "-o", s(&whole), "--spp", &done.to_string()])
+        .args(common)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (a, b) = (
+        trazo::film::io::read_image(&part).unwrap(),
+        trazo::film::io::read_image(&whole).unwrap(),
+    );
+    assert!(a == b, "the interrupted image is not that of {done} whole iterations");
+
+    // A time limit alone: as many iterations as fit, then a normal exit.
+    let timed = dir.path().join("timed.png");
+    let start = Instant::now();
+    let o = trazo()
+        .args(["render", "-o", s(&timed), "--time-limit", "1"])
+        .args(common)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(start.elapsed() < Duration::from_secs(8), "{:?}", start.elapsed());
+    assert!(err.contains("time limit reached: rendered 32×24 at "), "{err}");
+    assert!(timed.exists() && !dir.path().join("timed.png.trazo-checkpoint").exists());
+
+    // Checkpoints are refused before anything is rendered.
+    let o = trazo()
+        .args(["render", "-o", s(&dir.path().join("c.png")), "--checkpoint-every", "5"])
+        .args(common)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("SPPM renders cannot be checkpointed"), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(!dir.path().join("c.png").exists());
+}

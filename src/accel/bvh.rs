@@ -38,8 +38,37 @@ pub struct Bvh {
 
 /// Bins per axis in the SAH sweep.
 const BINS: usize = 16;
-/// Cost of visiting a node relative to intersecting one primitive.
-const TRAVERSAL_COST: f32 = 0.125;
+/// The surface-area heuristic's prices (Goldsmith and Salmon 1987;
+/// MacDonald and Booth 1990), relative to one leaf test.
+#[derive(Clone, Copy, Debug)]
+pub struct SahCosts {
+    /// Cost of visiting a node.
+    pub traversal: f32,
+    /// Primitives tested together in one leaf test: 1 when they are tested
+    /// one at a time, 4 for blocks of four triangles, whose test costs
+    /// about what one triangle's does.
+    pub block: u32,
+}
+
+impl SahCosts {
+    /// Primitives tested one at a time, a node visit an eighth of a test.
+    pub const ONE_AT_A_TIME: SahCosts = SahCosts {
+        traversal: 0.125,
+        block: 1,
+    };
+    /// Blocks of four triangles (measured with `trazo bench rays` on a
+    /// 1 M-triangle mesh: 15–18% more rays/s than leaves priced one
+    /// triangle at a time, and a faster build).
+    pub const BLOCKS_OF_FOUR: SahCosts = SahCosts {
+        traversal: 0.5,
+        block: 4,
+    };
+
+    #[inline]
+    fn leaf(&self, n: usize) -> f32 {
+        n.div_ceil(self.block as usize) as f32
+    }
+}
 /// Leaves never hold more primitives than this (unless they are identical).
 const MAX_LEAF: usize = 8;
 /// Subtrees with more primitives than this are built on another thread.
@@ -61,6 +90,11 @@ impl Bvh {
     /// caller must store its primitives: leaf ranges index into that order
     /// (`order[k]` is the input index of the primitive at position `k`).
     pub fn build(bounds: &[Aabb]) -> (Bvh, Vec<u32>) {
+        Bvh::build_with(bounds, SahCosts::ONE_AT_A_TIME)
+    }
+
+    /// [`Bvh::build`] with the given SAH prices.
+    pub fn build_with(bounds: &[Aabb], costs: SahCosts) -> (Bvh, Vec<u32>) {
         if bounds.is_empty() {
             return (Bvh::default(), Vec::new());
         }
@@ -73,7 +107,7 @@ impl Bvh {
                 index: i as u32,
             })
             .collect();
-        let nodes = build_recursive(&mut prims, 0, 0);
+        let nodes = build_recursive(&mut prims, 0, 0, &costs);
         let order = prims.iter().map(|p| p.index).collect();
         (Bvh { nodes }, order)
     }
@@ -159,9 +193,9 @@ impl Bvh {
 /// Builds the subtree over `prims` (whose first element is at global
 /// position `base`) and returns its nodes with indices relative to the
 /// subtree's root at index 0.
-fn build_recursive(prims: &mut [PrimInfo], base: usize, depth: usize) -> Vec<BvhNode> {
+fn build_recursive(prims: &mut [PrimInfo], base: usize, depth: usize, costs: &SahCosts) -> Vec<BvhNode> {
     let mut nodes = Vec::with_capacity(2 * prims.len());
-    build_into(&mut nodes, prims, base, depth);
+    build_into(&mut nodes, prims, base, depth, costs);
     nodes
 }
 
@@ -175,7 +209,7 @@ fn make_leaf(nodes: &mut Vec<BvhNode>, bounds: Aabb, base: usize, count: usize) 
     });
 }
 
-fn build_into(nodes: &mut Vec<BvhNode>, prims: &mut [PrimInfo], base: usize, depth: usize) {
+fn build_into(nodes: &mut Vec<BvhNode>, prims: &mut [PrimInfo], base: usize, depth: usize, costs: &SahCosts) {
     let n = prims.len();
     let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(&p.bounds));
     if n == 1 {
@@ -184,13 +218,13 @@ fn build_into(nodes: &mut Vec<BvhNode>, prims: &mut [PrimInfo], base: usize, dep
     }
     let centroid_bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union_point(p.centroid));
 
-    let split = find_split(prims, &bounds, &centroid_bounds);
+    let split = find_split(prims, &bounds, &centroid_bounds, costs);
     // Past this depth only median splits are taken, which bound the rest
     // of the tree's depth by log2(n) and so protect the traversal stack.
     let deep = depth + (usize::BITS - n.leading_zeros()) as usize + 2 >= MAX_DEPTH;
     let (axis, mid) = match split {
         Some((axis, bin, cost)) if !deep => {
-            if n <= MAX_LEAF && (n as f32) <= cost {
+            if n <= MAX_LEAF && costs.leaf(n) <= cost {
                 make_leaf(nodes, bounds, base, n);
                 return;
             }
@@ -225,16 +259,16 @@ fn build_into(nodes: &mut Vec<BvhNode>, prims: &mut [PrimInfo], base: usize, dep
     let (left, right) = prims.split_at_mut(mid);
     if n > PARALLEL_THRESHOLD {
         let (ln, rn) = rayon::join(
-            || build_recursive(left, base, depth + 1),
-            || build_recursive(right, base + mid, depth + 1),
+            || build_recursive(left, base, depth + 1, costs),
+            || build_recursive(right, base + mid, depth + 1, costs),
         );
         append_subtree(nodes, ln);
         nodes[me].offset = nodes.len() as u32;
         append_subtree(nodes, rn);
     } else {
-        build_into(nodes, left, base, depth + 1);
+        build_into(nodes, left, base, depth + 1, costs);
         nodes[me].offset = nodes.len() as u32;
-        build_into(nodes, right, base + mid, depth + 1);
+        build_into(nodes, right, base + mid, depth + 1, costs);
     }
 }
 
@@ -267,10 +301,9 @@ fn bin_of(c: f32, lo: f32, scale: f32) -> usize {
     (((c - lo) * scale) as usize).min(BINS - 1)
 }
 
-/// The best (axis, last bin of the left side, SAH cost relative to one
-/// primitive intersection) over all three axes, or `None` if all centroids
-/// coincide.
-fn find_split(prims: &[PrimInfo], bounds: &Aabb, cb: &Aabb) -> Option<(usize, usize, f32)> {
+/// The best (axis, last bin of the left side, SAH cost relative to one leaf
+/// test) over all three axes, or `None` if all centroids coincide.
+fn find_split(prims: &[PrimInfo], bounds: &Aabb, cb: &Aabb, costs: &SahCosts) -> Option<(usize, usize, f32)> {
     let area = bounds.surface_area().max(f32::MIN_POSITIVE);
     let mut best: Option<(usize, usize, f32)> = None;
     for axis in 0..3 {
@@ -306,7 +339,8 @@ fn find_split(prims: &[PrimInfo], bounds: &Aabb, cb: &Aabb) -> Option<(usize, us
             if nl == 0 || nr == 0 {
                 continue;
             }
-            let cost = TRAVERSAL_COST + (acc.surface_area() * nl as f32 + right_area[i + 1] * nr as f32) / area;
+            let cost = costs.traversal
+                + (acc.surface_area() * costs.leaf(nl as usize) + right_area[i + 1] * costs.leaf(nr as usize)) / area;
             if best.is_none_or(|(_, _, c)| cost < c) {
                 best = Some((axis, i, cost));
             }

@@ -9,8 +9,9 @@
 //! file holds 8 bytes per ray: the hit parameter `t` (`f32`, `+inf` for a
 //! miss) and the primitive number (`u32`, `u32::MAX` for a miss).
 
+use super::bvh::SahCosts;
 use super::{Bvh, Bvh4};
-use crate::geometry::triangle::{TriangleRay, intersect_triangle_with};
+use crate::geometry::triangle::{Triangle4, TriangleRay};
 use crate::geometry::{Ray, TriangleMesh};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -25,15 +26,15 @@ pub const HIT_BYTES: usize = 8;
 /// The primitive number of a miss.
 pub const MISS: u32 = u32::MAX;
 
-/// A BVH over triangles whose vertices are copied in leaf order, so that a
-/// leaf's triangles are contiguous in memory.
+/// A BVH over triangles copied, leaf by leaf, into blocks of four that one
+/// ray tests at once; a leaf of the tree names its blocks.
 #[derive(Clone, Debug)]
 pub struct TriangleBvh {
     bvh: Bvh4,
-    /// Vertices of the triangle at each leaf position.
-    vertices: Vec<[Vec3; 3]>,
-    /// The caller's number of the triangle at each leaf position.
-    ids: Vec<u32>,
+    /// Each leaf's triangles, four to a block.
+    blocks: Vec<Triangle4>,
+    /// Number of triangles.
+    triangles: usize,
 }
 
 /// The closest hit of a ray.
@@ -62,29 +63,47 @@ impl TriangleBvh {
             .into_par_iter()
             .map(|i| mesh.triangle_bounds(i))
             .collect();
-        let (binary, order) = Bvh::build(&bounds);
-        let bvh = Bvh4::from_binary(&binary);
+        let (binary, order) = Bvh::build_with(&bounds, SahCosts::BLOCKS_OF_FOUR);
+        drop(bounds);
+        let mut bvh = Bvh4::from_binary(&binary);
         drop(binary);
-        let vertices = order.par_iter().map(|&i| mesh.vertices(i as usize)).collect();
-        let ids = order.iter().map(|&i| ids.map_or(i, |ids| ids[i as usize])).collect();
-        TriangleBvh { bvh, vertices, ids }
+        // Leaves hold at most a few blocks' worth of triangles; a leaf's
+        // last block may be partly empty.
+        let mut blocks = Vec::with_capacity(mesh.len() / 3 + 1);
+        let mut lane_data = Vec::with_capacity(4);
+        bvh.remap_leaves(|first, count| {
+            let start = blocks.len() as u32;
+            for chunk in order[first as usize..(first + count) as usize].chunks(4) {
+                lane_data.clear();
+                lane_data.extend(
+                    chunk
+                        .iter()
+                        .map(|&i| (mesh.vertices(i as usize), ids.map_or(i, |ids| ids[i as usize]))),
+                );
+                blocks.push(Triangle4::new(&lane_data));
+            }
+            (start, blocks.len() as u32 - start)
+        });
+        TriangleBvh {
+            bvh,
+            blocks,
+            triangles: mesh.len(),
+        }
     }
 
     /// Number of triangles.
     pub fn len(&self) -> usize {
-        self.ids.len()
+        self.triangles
     }
 
     /// Whether there are no triangles.
     pub fn is_empty(&self) -> bool {
-        self.ids.is_empty()
+        self.triangles == 0
     }
 
-    /// Bytes held: nodes, vertex copies and ids.
+    /// Bytes held: nodes and triangle blocks (with their ids).
     pub fn memory_bytes(&self) -> usize {
-        self.bvh.memory_bytes()
-            + self.vertices.len() * std::mem::size_of::<[Vec3; 3]>()
-            + self.ids.len() * std::mem::size_of::<u32>()
+        self.bvh.memory_bytes() + self.blocks.len() * std::mem::size_of::<Triangle4>()
     }
 
     /// The closest hit along `ray` within its interval.
@@ -95,24 +114,19 @@ impl TriangleBvh {
         };
         let mut r = *ray;
         let mut best = MISS;
-        self.bvh.traverse(&mut r, false, |k, r| {
-            let [p0, p1, p2] = self.vertices[k as usize];
-            match intersect_triangle_with(r, &pre, p0, p1, p2) {
-                Some(h) => {
-                    r.t_max = h.t;
-                    best = k;
+        self.bvh
+            .traverse(&mut r, false, |k, r| match self.blocks[k as usize].intersect(r, &pre) {
+                Some((lane, t)) => {
+                    r.t_max = t;
+                    best = self.blocks[k as usize].ids[lane];
                     true
                 }
                 None => false,
-            }
-        });
+            });
         if best == MISS {
             QueryHit::NONE
         } else {
-            QueryHit {
-                t: r.t_max,
-                prim: self.ids[best as usize],
-            }
+            QueryHit { t: r.t_max, prim: best }
         }
     }
 
@@ -124,8 +138,7 @@ impl TriangleBvh {
         };
         let mut r = *ray;
         self.bvh.traverse(&mut r, true, |k, r| {
-            let [p0, p1, p2] = self.vertices[k as usize];
-            intersect_triangle_with(r, &pre, p0, p1, p2).is_some()
+            self.blocks[k as usize].intersect(r, &pre).is_some()
         })
     }
 

@@ -99,6 +99,33 @@ impl Bvh4 {
         }
     }
 
+    /// Renumbers every leaf: `f(first, count)` gives the leaf's new first
+    /// position and count, which [`Bvh4::traverse`] then hands to its test.
+    /// Leaves are visited in the order of their primitives, so a caller can
+    /// repack a leaf's primitives into blocks (four triangles a block, say)
+    /// and number the blocks instead.
+    pub fn remap_leaves(&mut self, mut f: impl FnMut(u32, u32) -> (u32, u32)) {
+        if let Some((first, count)) = self.root_leaf {
+            self.root_leaf = Some(f(first, count));
+            return;
+        }
+        let mut leaves: Vec<(usize, usize)> = Vec::new();
+        for (n, node) in self.nodes.iter().enumerate() {
+            for slot in 0..4 {
+                if node.count[slot] > 0 {
+                    leaves.push((n, slot));
+                }
+            }
+        }
+        leaves.sort_unstable_by_key(|&(n, slot)| self.nodes[n].child[slot]);
+        for (n, slot) in leaves {
+            let node = &mut self.nodes[n];
+            let (first, count) = f(node.child[slot], node.count[slot]);
+            node.child[slot] = first;
+            node.count[slot] = count;
+        }
+    }
+
     /// Number of nodes.
     pub fn node_count(&self) -> usize {
         self.nodes.len()

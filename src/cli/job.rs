@@ -77,6 +77,14 @@ impl Job {
             ("integrator", args.integrator.clone()),
             ("sampling", args.sampling.clone()),
             ("aov", (!args.aov.is_empty()).then(|| args.aov.join(","))),
+            ("denoise", args.denoise.clone()),
+            ("photons", a.photons.map(|v| v.to_string())),
+            ("caustic-photons", a.caustic_photons.map(|v| v.to_string())),
+            ("sppm-photons", a.sppm_photons.map(|v| v.to_string())),
+            ("photon-gather", a.photon_gather.map(|v| v.to_string())),
+            ("photon-radius", a.photon_radius.map(|v| v.to_string())),
+            ("final-gather", a.final_gather.map(|v| v.to_string())),
+            ("photon-kernel", a.photon_kernel.clone()),
         ];
         for (flag, value) in optional {
             if let Some(v) = value {

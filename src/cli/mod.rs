@@ -7,6 +7,7 @@ mod job;
 use crate::error::{Error, Result};
 use crate::film::Film;
 use crate::film::Tonemap;
+use crate::film::denoise::{DenoiserKind, denoise_film};
 use crate::film::io::{ImageFormat, read_image, write_image};
 use crate::integrator::aov::Aov;
 use crate::integrator::photon::{MAX_GATHER, MAX_PHOTONS};
@@ -131,10 +132,13 @@ struct SceneArgs {
     #[arg(short, long)]
     verbose: bool,
 
-    /// Photons emitted for photon mapping's global map, or per SPPM
-    /// iteration (overrides the scene).
+    /// Photons emitted for photon mapping's global map (overrides the scene).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=(MAX_PHOTONS as i64)))]
     photons: Option<u32>,
+
+    /// Photons per SPPM iteration; 0: one per pixel.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=(MAX_PHOTONS as i64)))]
+    sppm_photons: Option<u32>,
 
     /// Photons emitted for photon mapping's caustic map.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=(MAX_PHOTONS as i64)))]
@@ -200,6 +204,14 @@ struct RenderArgs {
     #[arg(long, value_name = "NAME", value_parser = PathSampling::NAMES)]
     sampling: Option<String>,
 
+    /// Denoise the image, guided by the albedo and normal images: with
+    /// Intel Open Image Denoise if its library is found (see
+    /// tools/oidn/setup), else with the built-in à-trous filter;
+    /// --denoise=oidn or --denoise=atrous to choose. The noisy image is
+    /// kept as OUTPUT-NAME.noisy.<ext>.
+    #[arg(long, value_name = "KIND", num_args = 0..=1, require_equals = true, default_missing_value = "auto", value_parser = DenoiserKind::NAMES)]
+    denoise: Option<String>,
+
     /// Also write auxiliary images (comma-separated: albedo, normal,
     /// depth) as OUTPUT-NAME.<aov>.exr next to the output.
     #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = Aov::NAMES)]
@@ -225,7 +237,8 @@ struct RenderArgs {
     /// with it.
     #[arg(long, value_name = "CHECKPOINT", conflicts_with_all = [
         "scene", "width", "height", "max_depth", "seed", "sampler", "tonemap", "exposure", "defines",
-        "output", "spp", "integrator", "sampling", "aov",
+        "output", "spp", "integrator", "sampling", "aov", "denoise", "photons", "caustic_photons",
+        "sppm_photons", "photon_gather", "photon_radius", "final_gather", "photon_kernel",
     ])]
     resume: Option<PathBuf>,
 
@@ -250,7 +263,8 @@ struct CompareArgs {
     scene: SceneArgs,
 
     /// The contestants, comma-separated: whitted, path, path:uniform,
-    /// path:cosine, path:bsdf, path:mis.
+    /// path:cosine, path:bsdf, path:mis, photon, sppm; a suffix +denoise,
+    /// +atrous or +oidn denoises a contestant's image (e.g. path:mis+denoise).
     #[arg(long, value_name = "LIST", default_value = "whitted,path:uniform,path:mis")]
     integrators: String,
 
@@ -331,6 +345,9 @@ impl SceneArgs {
         if let Some(v) = self.photons {
             s.photon.photons = v;
         }
+        if let Some(v) = self.sppm_photons {
+            s.photon.sppm_photons = v;
+        }
         if let Some(v) = self.caustic_photons {
             s.photon.caustic_photons = v;
         }
@@ -401,6 +418,19 @@ fn check_writable(path: &Path) -> Result<()> {
         }
         Err(e) => Err(Error::file(path, format!("cannot write in {}: {e}", dir.display()))),
     }
+}
+
+/// `out.png` → `out.noisy.png`.
+fn sibling_path(output: &Path, tag: &str) -> PathBuf {
+    let stem = output
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = output
+        .extension()
+        .map(|e| format!(".{}", e.to_string_lossy()))
+        .unwrap_or_default();
+    output.with_file_name(format!("{stem}.{tag}{ext}"))
 }
 
 /// `out.png` → `out.albedo.exr`.
@@ -479,6 +509,11 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     if let Some(v) = &args.sampling {
         desc.settings.sampling = PathSampling::from_name(v).expect("clap checked the value");
     }
+    // SPPM's state is not a film of samples: it has no checkpoints.
+    let resumable = desc.settings.integrator != IntegratorKind::Sppm;
+    if !resumable && (args.checkpoint_every.is_some() || resume.is_some()) {
+        return Err(Error::Invalid(crate::integrator::photon::sppm::NOT_RESUMABLE.into()));
+    }
     let limits = scene::BuildLimits {
         max_memory: Some(args.max_memory.unwrap_or_else(scene::memory::default_limit)),
         aovs: !aovs.is_empty(),
@@ -496,9 +531,17 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         job.check_resume(path, checkpoint)?;
     }
 
+    let denoiser = args
+        .denoise
+        .as_deref()
+        .map(|d| DenoiserKind::from_name(d).expect("clap checked the value"));
+    if denoiser == Some(DenoiserKind::Oidn) {
+        // Fail before rendering, not after.
+        crate::film::denoise::oidn::Library::find()?;
+    }
     let s = scene.settings.clone();
     let options = RenderOptions {
-        aovs: !aovs.is_empty(),
+        aovs: !aovs.is_empty() || denoiser.is_some(),
         ..args.scene.options()
     };
     let mut save = |film: &Film, stats: &RenderStats| {
@@ -520,15 +563,32 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         eprintln!("interrupted before the first pass was complete: nothing was written");
         return Ok(ExitCode::from(EXIT_INTERRUPTED));
     }
-    write_image(&output, &out.film.to_image(), s.tonemap, s.exposure)?;
+    let mut denoise_note = None;
+    match denoiser {
+        None => write_image(&output, &out.film.to_image(), s.tonemap, s.exposure)?,
+        Some(kind) => {
+            let noisy = sibling_path(&output, "noisy");
+            write_image(&noisy, &out.film.to_image(), s.tonemap, s.exposure)?;
+            let start = Instant::now();
+            let d = denoise_film(&out.film, kind)?;
+            write_image(&output, &d.image, s.tonemap, s.exposure)?;
+            denoise_note = Some(format!(
+                "denoised with {} in {:.2} s (the noisy image: {})",
+                d.denoiser,
+                start.elapsed().as_secs_f64(),
+                noisy.display()
+            ));
+        }
+    }
     for aov in &aovs {
         let img = out.film.aov_image(*aov).expect("AOVs were recorded");
         write_image(&aov_path(&output, *aov), &img, s.tonemap, 0.0)?;
     }
     match out.stopped {
-        Some(_) => job.checkpoint(&out.film, st).write(&checkpoint_file)?,
-        None => {
-            // The render is complete: its checkpoint is stale.
+        Some(_) if resumable => job.checkpoint(&out.film, st).write(&checkpoint_file)?,
+        _ => {
+            // The render is complete (or cannot be continued): a
+            // checkpoint of an earlier render to this output is stale.
             if checkpoint_file.is_file() {
                 std::fs::remove_file(&checkpoint_file)
                     .map_err(|e| Error::file(&checkpoint_file, format!("cannot remove the stale checkpoint: {e}")))?;
@@ -584,7 +644,10 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             st.threads,
             output.display()
         );
-        if out.stopped.is_some() {
+        if let Some(note) = denoise_note {
+            eprintln!("{note}");
+        }
+        if out.stopped.is_some() && resumable {
             eprintln!(
                 "checkpoint → {} (continue with: trazo render --resume {})",
                 checkpoint_file.display(),

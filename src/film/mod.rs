@@ -6,6 +6,7 @@
 //! split between threads or passes. Tone mapping happens only when an
 //! 8-bit image is written.
 
+pub mod denoise;
 pub mod filter;
 pub mod io;
 pub mod metrics;

@@ -237,7 +237,12 @@ impl Shape {
     /// 1/area); `None` for the plane, which has no finite area.
     pub fn sample_area(&self, u: Vec2) -> Option<AreaSample> {
         let mut s = self.sample_area_point(u)?;
-        s.uv = self.surface(s.p).uv;
+        s.uv = match self {
+            // The sample is corner + u.x·edge_u + u.y·edge_v: its surface
+            // coordinates are u itself (no need to project it back).
+            Shape::Rectangle(_) => u,
+            _ => self.surface(s.p).uv,
+        };
         Some(s)
     }
 
@@ -798,8 +803,18 @@ mod tests {
                 let t = s.intersect(&r).expect("sample not on surface");
                 assert!((t - 1e-2).abs() < 1e-3, "{s:?}: {t}");
                 assert!((s.surface(a.p).n - a.n).length() < 1e-3);
+                // Textured emitters read the sample's surface coordinates.
+                assert!((s.surface(a.p).uv - a.uv).length() < 1e-4, "{s:?}: {}", a.uv);
             }
         }
+        // A sheared parallelogram's samples carry their (a, b) coordinates.
+        let sheared = Shape::Rectangle(Rectangle {
+            corner: Vec3::new(1.0, 2.0, 3.0),
+            edge_u: Vec3::new(2.0, 0.5, 0.0),
+            edge_v: Vec3::new(0.7, 0.0, 1.5),
+        });
+        let a = sheared.sample_area(Vec2::new(0.25, 0.8)).unwrap();
+        assert!((sheared.surface(a.p).uv - Vec2::new(0.25, 0.8)).length() < 1e-5);
     }
 
     #[test]

@@ -6,27 +6,49 @@ use super::{RenderOptions, render};
 use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::film::Image;
+use crate::film::denoise::{DenoiserKind, denoise_film};
 use crate::film::metrics::relative_mse;
 use crate::film::text::{GLYPH_H, draw_text, text_width};
 use crate::integrator::{IntegratorKind, PathSampling};
 use crate::scene::SceneDesc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-/// One contestant: an integrator and, for the path tracer, its estimator.
+/// One contestant: an integrator, for the path tracer its estimator, and
+/// optionally a denoiser applied to its image.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Contestant {
-    /// As the user wrote it (`whitted`, `path:mis`, …).
+    /// As the user wrote it (`whitted`, `path:mis`, `path:mis+denoise`, …).
     pub label: String,
     /// Algorithm.
     pub integrator: IntegratorKind,
     /// Estimator (path tracer only).
     pub sampling: PathSampling,
+    /// Denoiser run on the result.
+    pub denoise: Option<DenoiserKind>,
 }
 
 impl Contestant {
-    /// Parses `whitted`, `path` or `path:uniform|cosine|bsdf|mis`.
+    /// Parses `whitted`, `path`, `path:uniform|cosine|bsdf|mis`, `photon`
+    /// or `sppm`, optionally followed by `+denoise` (Open Image Denoise if
+    /// available, else the built-in filter), `+atrous` or `+oidn`.
     pub fn parse(spec: &str) -> Result<Contestant> {
         let spec = spec.trim();
+        let (spec, denoise) = match spec.split_once('+') {
+            None => (spec, None),
+            Some((base, suffix)) => {
+                let kind = match suffix {
+                    "denoise" => DenoiserKind::Auto,
+                    other => DenoiserKind::from_name(other)
+                        .filter(|k| *k != DenoiserKind::Auto)
+                        .ok_or_else(|| {
+                            Error::Invalid(format!(
+                                "unknown denoiser \"+{other}\" in --integrators (expected +denoise, +atrous or +oidn)"
+                            ))
+                        })?,
+                };
+                (base, Some((suffix, kind)))
+            }
+        };
         let (name, variant) = match spec.split_once(':') {
             Some((n, v)) => (n, Some(v)),
             None => (spec, None),
@@ -51,14 +73,18 @@ impl Contestant {
                 )));
             }
         };
-        let label = match integrator {
+        let mut label = match integrator {
             IntegratorKind::Path => format!("path:{}", sampling.name()),
             _ => name.to_string(),
         };
+        if let Some((suffix, _)) = denoise {
+            label = format!("{label}+{suffix}");
+        }
         Ok(Contestant {
             label,
             integrator,
             sampling,
+            denoise: denoise.map(|d| d.1),
         })
     }
 }
@@ -90,8 +116,9 @@ pub struct ComparisonRow {
     pub msamples_per_second: f64,
     /// Millions of rays per second.
     pub mrays_per_second: f64,
-    /// Mean over pixels of the standard error of the pixel's luminance.
-    pub mean_standard_error: f64,
+    /// Mean over pixels of the standard error of the pixel's luminance
+    /// (`None` where it does not apply: SPPM, denoised images).
+    pub mean_standard_error: Option<f64>,
     /// Relative MSE against the reference, when one is given.
     pub rel_mse: Option<f64>,
     /// The image.
@@ -112,6 +139,7 @@ pub fn compare(
         d.settings.integrator = c.integrator;
         d.settings.sampling = c.sampling;
         let mut opts = options.clone();
+        opts.aovs |= c.denoise.is_some();
         match budget {
             Budget::Spp(n) => d.settings.spp = n,
             Budget::Time { limit, max_spp } => {
@@ -121,15 +149,29 @@ pub fn compare(
         }
         let scene = crate::scene::build(&d)?;
         let out = render(&scene, &opts)?;
-        let image = out.film.to_image();
+        let mut seconds = out.stats.seconds;
+        let mut mean_standard_error = match c.integrator {
+            IntegratorKind::Sppm => None,
+            _ => Some(out.film.mean_standard_error()),
+        };
+        let image = match c.denoise {
+            Some(kind) => {
+                let start = Instant::now();
+                let d = denoise_film(&out.film, kind)?;
+                seconds += start.elapsed().as_secs_f64();
+                mean_standard_error = None;
+                d.image
+            }
+            None => out.film.to_image(),
+        };
         let rel_mse = reference.map(|r| relative_mse(&image, r)).transpose()?;
         rows.push(ComparisonRow {
             label: c.label.clone(),
             spp: out.stats.spp,
-            seconds: out.stats.seconds,
+            seconds,
             msamples_per_second: out.stats.samples_per_second() / 1e6,
             mrays_per_second: out.stats.rays_per_second() / 1e6,
-            mean_standard_error: out.film.mean_standard_error(),
+            mean_standard_error,
             rel_mse,
             image,
         });
@@ -145,9 +187,10 @@ pub fn table(rows: &[ComparisonRow]) -> String {
     s.push_str("|---|---|---|---|---|---|");
     s.push_str(if with_ref { "---|\n" } else { "\n" });
     for r in rows {
+        let error = r.mean_standard_error.map_or("—".to_string(), |e| format!("{e:.5}"));
         s.push_str(&format!(
-            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.5} |",
-            r.label, r.spp, r.seconds, r.msamples_per_second, r.mrays_per_second, r.mean_standard_error
+            "| {} | {} | {:.2} | {:.2} | {:.2} | {} |",
+            r.label, r.spp, r.seconds, r.msamples_per_second, r.mrays_per_second, error
         ));
         if let Some(e) = r.rel_mse {
             s.push_str(&format!(" {e:.5} |"));
@@ -207,5 +250,17 @@ mod tests {
         assert_eq!(Contestant::parse("sppm").unwrap().label, "sppm");
         assert!(Contestant::parse("photon:mis").is_err());
         assert!(Contestant::parse("bdpt").is_err());
+        let d = Contestant::parse("path:mis+denoise").unwrap();
+        assert_eq!(
+            (d.label.as_str(), d.denoise),
+            ("path:mis+denoise", Some(DenoiserKind::Auto))
+        );
+        assert_eq!(
+            Contestant::parse("path+atrous").unwrap().denoise,
+            Some(DenoiserKind::Atrous)
+        );
+        assert_eq!(Contestant::parse("sppm+oidn").unwrap().label, "sppm+oidn");
+        assert!(Contestant::parse("path+auto").is_err());
+        assert!(Contestant::parse("path+blur").is_err());
     }
 }

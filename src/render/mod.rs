@@ -187,8 +187,8 @@ pub fn render_controlled(scene: &Scene, options: &RenderOptions, control: &mut C
             options,
             control,
         ),
-        IntegratorKind::Photon => crate::integrator::photon::jensen::render(scene, options),
-        IntegratorKind::Sppm => crate::integrator::photon::sppm::render(scene, options),
+        IntegratorKind::Photon => crate::integrator::photon::jensen::render(scene, options, control),
+        IntegratorKind::Sppm => crate::integrator::photon::sppm::render(scene, options, control),
     }
 }
 

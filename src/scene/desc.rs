@@ -1062,6 +1062,7 @@ impl SceneDesc {
         for (key, v, max) in [
             ("photons", ph.photons, MAX_PHOTONS),
             ("caustic_photons", ph.caustic_photons, MAX_PHOTONS),
+            ("sppm_photons", ph.sppm_photons, MAX_PHOTONS),
             ("photon_gather", ph.gather, MAX_GATHER),
             ("final_gather", ph.final_gather, MAX_GATHER),
         ] {

@@ -491,6 +491,9 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     if let Some(n) = t.unsigned("caustic_photons", u32::MAX as u64)? {
         s.photon.caustic_photons = n as u32;
     }
+    if let Some(n) = t.unsigned("sppm_photons", u32::MAX as u64)? {
+        s.photon.sppm_photons = n as u32;
+    }
     if let Some(n) = t.unsigned("photon_gather", u32::MAX as u64)? {
         s.photon.gather = n as u32;
     }

@@ -10,5 +10,7 @@ root="$(cd "$here/../.." && pwd)"
 trazo="$root/target/release/trazo"
 # The Cornell box, 32×32.
 "$trazo" render -q --width 32 --height 32 --spp 32768 --seed 101 -o "$here/cornell-32-ref.exr"
+# The Cornell box, 64×64 (for the denoisers).
+"$trazo" render -q --width 64 --height 64 --spp 8192 --seed 103 -o "$here/cornell-64-ref.exr"
 # The caustic scene, 64×48, path traced with next-event estimation and MIS.
 "$trazo" render -q "$root/scenes/caustic.toml" --integrator path --width 64 --height 48 --spp 131072 --seed 102 -o "$here/caustic-64-ref.exr"

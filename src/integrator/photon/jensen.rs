@@ -29,17 +29,18 @@
 //! consistent: the error vanishes as photons grow in number and the disks
 //! shrink.
 
-use super::trace::{PhotonStore, trace_photons};
-use super::{Nearest, PhotonMap, PhotonSettings, ShadingPoint};
+use super::trace::{PhotonStore, trace_photons_until};
+use super::{Nearest, PhotonMap, PhotonSettings, ShadingPoint, camera_segment};
 use crate::color::Rgb;
 use crate::error::Result;
 use crate::geometry::{Ray, SurfaceHit};
 use crate::integrator::{Integrator, RayStats};
 use crate::material::TransportMode;
-use crate::render::{RenderOptions, RenderOutput};
+use crate::render::{Control, RenderOptions, RenderOutput};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use std::cell::RefCell;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Most specular bounces a final-gather ray follows to a diffuse surface.
@@ -68,6 +69,9 @@ pub struct PhotonMapper {
     pub global: PhotonMap,
     /// Photons that arrived through specular bounces only.
     pub caustic: PhotonMap,
+    /// Irradiance at every fourth global photon (`power` holds E, the
+    /// normal faces the side the light arrived on); for final gathering.
+    pub irradiance: PhotonMap,
     settings: PhotonSettings,
     max_depth: u32,
     max_r2: f32,
@@ -83,15 +87,33 @@ thread_local! {
 impl PhotonMapper {
     /// Traces the photons and builds the maps for `scene` with its settings.
     pub fn build(scene: &Scene) -> PhotonMapper {
+        Self::build_until(scene, None).expect("nothing cancels the build")
+    }
+
+    /// [`PhotonMapper::build`], giving up (`None`) soon after `cancel` is
+    /// set.
+    pub fn build_until(scene: &Scene, cancel: Option<&AtomicBool>) -> Option<PhotonMapper> {
         let start = Instant::now();
+        let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
         let s = scene.settings.photon;
         let (seed, max_depth) = (scene.settings.seed, scene.settings.max_depth);
-        let global = trace_photons(scene, s.photons, seed, 0, max_depth, PhotonStore::All);
-        let caustic = if s.final_gather > 0 && scene_has_specular(scene) {
-            trace_photons(scene, s.caustic_photons, seed, 1, max_depth, PhotonStore::Caustic)
+        let global = trace_photons_until(scene, s.photons, seed, 0, max_depth, PhotonStore::All, cancel);
+        let caustic = if s.final_gather > 0 && scene_has_specular(scene) && !cancelled() {
+            trace_photons_until(
+                scene,
+                s.caustic_photons,
+                seed,
+                1,
+                max_depth,
+                PhotonStore::Caustic,
+                cancel,
+            )
         } else {
             Default::default()
         };
+        if cancelled() {
+            return None;
+        }
         let stats = PhotonPassStats {
             emitted: global.emitted + caustic.emitted,
             global: global.photons.len(),
@@ -104,9 +126,15 @@ impl PhotonMapper {
             || PhotonMap::build(caustic.photons),
         );
         let r = s.radius_or(scene, 0.1);
-        PhotonMapper {
+        let irradiance = if s.final_gather > 0 {
+            precompute_irradiance(&global, s.gather as usize, r * r, s.kernel)
+        } else {
+            PhotonMap::default()
+        };
+        Some(PhotonMapper {
             global,
             caustic,
+            irradiance,
             settings: s,
             max_depth,
             max_r2: r * r,
@@ -114,7 +142,7 @@ impl PhotonMapper {
                 seconds: start.elapsed().as_secs_f64(),
                 ..stats
             },
-        }
+        })
     }
 
     /// Radiance arriving at the camera along `ray`.
@@ -130,22 +158,8 @@ impl PhotonMapper {
         let mut beta = Rgb::ONE;
         let mut ray = *camera_ray;
         for depth in 1..=self.max_depth {
-            stats.rays += 1;
-            let Some(hit) = scene.intersect(&ray) else {
-                if scene.environment_light.is_some() {
-                    l += beta * scene.background.eval(ray.dir);
-                }
-                break;
-            };
-            let wo_world = -ray.dir.normalize();
-            let m = &scene.materials[hit.material as usize];
-            if m.is_emissive() && hit.is_front(wo_world) {
-                l += beta * m.emission_at(&scene.images, &crate::texture::TexCoord { uv: hit.uv, p: hit.p });
-            }
-            if depth == self.max_depth {
-                break;
-            }
-            let Some(sp) = ShadingPoint::new(scene, &hit, wo_world) else {
+            let last = depth == self.max_depth;
+            let Some((hit, sp)) = camera_segment(scene, &ray, beta, last, &mut l, &mut stats.rays) else {
                 break;
             };
             if sp.bsdf.has_smooth() {
@@ -185,7 +199,6 @@ impl PhotonMapper {
         found: &mut Nearest,
     ) -> Rgb {
         let n = self.settings.final_gather;
-        let k = self.settings.gather as usize;
         let mut sum = Rgb::ZERO;
         for _ in 0..n {
             let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
@@ -212,7 +225,7 @@ impl PhotonMapper {
                     break;
                 };
                 if sp2.bsdf.has_smooth() {
-                    sum += weight * sp2.photon_radiance(&h, &self.global, k, self.max_r2, self.settings.kernel, found);
+                    sum += weight * self.irradiance_radiance(&h, &sp2, found);
                 }
                 match specular_bounce(&h, &sp2, sampler.next_1d()) {
                     Some((w, next)) => {
@@ -225,6 +238,65 @@ impl PhotonMapper {
         }
         sum / n as f32
     }
+}
+
+impl PhotonMapper {
+    /// Radiance leaving `hit` toward `sp.wo` from the nearest precomputed
+    /// irradiance on the same side of the same surface: albedo/π·E.
+    fn irradiance_radiance(&self, hit: &SurfaceHit, sp: &ShadingPoint, found: &mut Nearest) -> Rgb {
+        let side = if sp.front_o { hit.ng } else { -hit.ng };
+        if self
+            .irradiance
+            .nearest(hit.p, IRRADIANCE_CANDIDATES, self.max_r2, found)
+            .is_none()
+        {
+            return Rgb::ZERO;
+        }
+        let mut best: Option<(f32, u32)> = None;
+        for (d2, index) in found.iter() {
+            if super::same_surface(self.irradiance.photon(index).normal(), side) && best.is_none_or(|(b, _)| d2 < b) {
+                best = Some((d2, index));
+            }
+        }
+        match best {
+            Some((_, index)) => sp.bsdf.albedo() * (self.irradiance.photon(index).power / std::f32::consts::PI),
+            None => Rgb::ZERO,
+        }
+    }
+}
+
+/// Nearest precomputed-irradiance points examined for one on the right
+/// side of the right surface.
+const IRRADIANCE_CANDIDATES: usize = 8;
+/// Irradiance is precomputed at one global photon in this many.
+const IRRADIANCE_STRIDE: usize = 4;
+
+/// The irradiance at every [`IRRADIANCE_STRIDE`]-th photon of `global`,
+/// from the photons that arrived on its side of its surface.
+fn precompute_irradiance(global: &PhotonMap, k: usize, max_r2: f32, kernel: super::PhotonKernel) -> PhotonMap {
+    use rayon::prelude::*;
+    let photons = global.photons();
+    let points: Vec<super::Photon> = (0..photons.len())
+        .into_par_iter()
+        .step_by(IRRADIANCE_STRIDE)
+        .map_init(Nearest::default, |found, i| {
+            let ph = &photons[i];
+            let n = ph.normal();
+            let side = if ph.wi().dot(n) >= 0.0 { n } else { -n };
+            let mut e = Rgb::ZERO;
+            if let Some(far) = global.nearest(ph.p, k, max_r2, found) {
+                let r2 = if found.len() < k { max_r2 } else { far };
+                for (d2, index) in found.iter() {
+                    let q = global.photon(index);
+                    if super::same_surface(q.normal(), n) && q.wi().dot(side) > 0.0 {
+                        e += q.power * kernel.weight(d2, r2);
+                    }
+                }
+            }
+            super::Photon::new(ph.p, e, ph.wi(), side)
+        })
+        .collect();
+    PhotonMap::build(points)
 }
 
 impl Integrator for PhotonMapper {
@@ -264,17 +336,31 @@ fn scene_has_specular(scene: &Scene) -> bool {
 }
 
 /// Renders `scene` with photon mapping: the photon pass, then the camera
-/// passes of [`crate::render::render_with`]. The photon pass's time counts
-/// against a time limit and in the statistics.
-pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
+/// passes of [`crate::render::render_with_control`], which obey `control`
+/// as the path tracer's do. The photon pass's time counts against a time
+/// limit and in the statistics.
+///
+/// The photon maps depend only on the scene's settings and seed, so a
+/// render resumed from a checkpoint (a film of whole camera passes) traces
+/// the same maps again and ends with the same image as one that never
+/// stopped. A cancellation during the photon pass ends it within a chunk
+/// of photons and leaves no image.
+pub fn render(scene: &Scene, options: &RenderOptions, control: &mut Control) -> Result<RenderOutput> {
     crate::render::in_thread_pool(options, || {
-        let mapper = PhotonMapper::build(scene);
+        let Some(mapper) = PhotonMapper::build_until(scene, control.cancel) else {
+            // Interrupted before any camera pass: no image.
+            return Ok(RenderOutput {
+                film: crate::film::Film::new(scene.settings.width, scene.settings.height),
+                stats: crate::render::RenderStats::default(),
+                stopped: Some(crate::render::Stop::Interrupted),
+            });
+        };
         let mut opts = options.clone();
         opts.threads = None; // already in the pool
         if let Some(limit) = opts.time_limit {
             opts.time_limit = Some(limit.saturating_sub(std::time::Duration::from_secs_f64(mapper.stats.seconds)));
         }
-        let mut out = crate::render::render_with(scene, &mapper, &opts)?;
+        let mut out = crate::render::render_with_control(scene, &mapper, &opts, control)?;
         out.stats.seconds += mapper.stats.seconds;
         out.stats.rays += mapper.stats.rays;
         out.stats.photons_emitted += mapper.stats.emitted;

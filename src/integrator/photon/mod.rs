@@ -14,12 +14,13 @@
 //! ```toml
 //! [render]
 //! integrator = "photon"   # or "sppm"
-//! photons = 200000        # photons per pass (SPPM: per iteration)
+//! photons = 200000        # photons for the global map
 //! caustic_photons = 200000
 //! photon_gather = 64      # photons per radiance estimate (k nearest)
 //! photon_radius = 0       # largest search radius (SPPM: initial radius); 0: from the scene's size
 //! final_gather = 16       # final-gather rays per camera sample (0: read the global map directly)
 //! photon_kernel = "cone"  # or "epanechnikov", "box"
+//! sppm_photons = 0        # photons per SPPM iteration; 0: one per pixel
 //! sppm_alpha = 0.6667     # share of new photons SPPM keeps per iteration
 //! ```
 
@@ -32,7 +33,7 @@ pub use jensen::PhotonMapper;
 pub use map::{Nearest, Photon, PhotonMap};
 
 use crate::color::Rgb;
-use crate::geometry::SurfaceHit;
+use crate::geometry::{Ray, SurfaceHit};
 use crate::light::ShadowTarget;
 use crate::material::{Bsdf, Frame, TransportMode};
 use crate::sampling::Sampler;
@@ -93,7 +94,7 @@ impl PhotonKernel {
 /// The photon mappers' parameters (the `[render]` keys above).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PhotonSettings {
-    /// Photons emitted for the global map (SPPM: per iteration).
+    /// Photons emitted for the global map.
     pub photons: u32,
     /// Photons emitted for the caustic map.
     pub caustic_photons: u32,
@@ -107,6 +108,8 @@ pub struct PhotonSettings {
     pub final_gather: u32,
     /// Density estimation kernel.
     pub kernel: PhotonKernel,
+    /// Photons per SPPM iteration; 0: as many as pixels (pbrt's default).
+    pub sppm_photons: u32,
     /// SPPM's α: the share of new photons kept at each iteration.
     pub alpha: f32,
 }
@@ -120,6 +123,7 @@ impl Default for PhotonSettings {
             radius: 0.0,
             final_gather: 16,
             kernel: PhotonKernel::default(),
+            sppm_photons: 0,
             alpha: 2.0 / 3.0,
         }
     }
@@ -131,6 +135,15 @@ pub const MAX_PHOTONS: u32 = 100_000_000;
 pub const MAX_GATHER: u32 = 16_384;
 
 impl PhotonSettings {
+    /// Photons per SPPM iteration for an image of `pixels` pixels.
+    pub fn sppm_photons_for(&self, pixels: u64) -> u32 {
+        if self.sppm_photons > 0 {
+            self.sppm_photons
+        } else {
+            pixels.clamp(1, MAX_PHOTONS as u64) as u32
+        }
+    }
+
     /// The search radius: the one given, or a fraction of the scene's
     /// bounding radius (`fraction`: 0.1 for Jensen's maximum search radius,
     /// 0.02 for SPPM's initial radius).
@@ -149,6 +162,38 @@ impl PhotonSettings {
 #[inline]
 pub(crate) fn same_surface(photon_n: Vec3, n: Vec3) -> bool {
     photon_n.dot(n) > 0.7
+}
+
+/// One segment of a camera path as both photon integrators follow it:
+/// traces `ray`, adds to `l` the light seen along it (the environment on a
+/// miss, emission from the front of an emitter) weighted by `beta`, and
+/// returns the surface to go on from; `None` where the path ends (a miss,
+/// the `last` segment, the back of a one-sided surface).
+pub(crate) fn camera_segment<'a>(
+    scene: &'a Scene,
+    ray: &Ray,
+    beta: Rgb,
+    last: bool,
+    l: &mut Rgb,
+    rays: &mut u64,
+) -> Option<(SurfaceHit, ShadingPoint<'a>)> {
+    *rays += 1;
+    let Some(hit) = scene.intersect(ray) else {
+        if scene.environment_light.is_some() {
+            *l += beta * scene.background.eval(ray.dir);
+        }
+        return None;
+    };
+    let wo_world = -ray.dir.normalize();
+    let m = &scene.materials[hit.material as usize];
+    if m.is_emissive() && hit.is_front(wo_world) {
+        *l += beta * m.emission_at(&scene.images, &crate::texture::TexCoord { uv: hit.uv, p: hit.p });
+    }
+    if last {
+        return None;
+    }
+    let sp = ShadingPoint::new(scene, &hit, wo_world)?;
+    Some((hit, sp))
 }
 
 /// The BSDF at a surface as the camera-side passes see it.

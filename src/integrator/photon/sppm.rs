@@ -13,7 +13,8 @@
 //!    specular bounces to its *visible point*, the first surface with a
 //!    non-delta lobe. Emission seen on the way and direct light at the
 //!    visible point (next-event estimation) go to the pixel's direct sum.
-//! 2. **Photon pass.** `photons` photons are traced from the lights; those
+//! 2. **Photon pass.** `sppm_photons` photons (by default one per pixel)
+//!    are traced from the lights; those
 //!    that have bounced at least once are stored (direct light is already
 //!    counted) in a kd-tree.
 //! 3. **Update** (Hachisuka et al. 2008, eqs. 5–7). The M photons within
@@ -38,18 +39,19 @@
 //! pixel's statistics: the image is identical for any number of threads.
 
 use super::jensen::specular_bounce;
-use super::trace::{PhotonStore, trace_photons};
-use super::{PhotonMap, ShadingPoint, same_surface};
+use super::trace::{PhotonStore, trace_photons_until};
+use super::{PhotonMap, camera_segment, same_surface};
 use crate::color::Rgb;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::film::{AovSum, Film, PixelSum};
 use crate::integrator::aov::camera_aov;
-use crate::render::{RenderOptions, RenderOutput, RenderStats};
+use crate::render::{Control, RenderOptions, RenderOutput, RenderStats, Stop};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use glam::{DVec3, Vec2};
 use rayon::prelude::*;
 use std::f64::consts::PI;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// One pixel's progressive statistics.
@@ -68,17 +70,36 @@ struct PixelState {
 }
 
 /// Renders `scene` with SPPM: `spp` iterations (or as many as the time
-/// limit allows, at most `spp`), each of one camera sample per pixel and
-/// `photons` photons.
-pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
-    crate::render::in_thread_pool(options, || iterate(scene, options))
+/// limit or `control`'s deadline allow, at most `spp`), each of one camera
+/// sample per pixel and `sppm_photons` photons.
+///
+/// `control`'s cancellation flag and deadline are obeyed between
+/// iterations: the image is always that of whole iterations, and the
+/// deadline never stops the first. SPPM cannot be checkpointed or resumed
+/// (its state is every pixel's radius, photon count and flux, not a film
+/// of samples), so a `control` that asks for either is an error.
+pub fn render(scene: &Scene, options: &RenderOptions, control: &mut Control) -> Result<RenderOutput> {
+    if control.resume.is_some() || control.checkpoint_every.is_some() {
+        return Err(Error::Invalid(NOT_RESUMABLE.into()));
+    }
+    let (cancel, deadline) = (control.cancel, control.deadline);
+    crate::render::in_thread_pool(options, || iterate(scene, options, cancel, deadline))
 }
 
-fn iterate(scene: &Scene, options: &RenderOptions) -> RenderOutput {
+/// Why SPPM refuses checkpoints.
+pub const NOT_RESUMABLE: &str = "SPPM renders cannot be checkpointed or resumed (its state is per-pixel radii and photon statistics, not a film): drop --checkpoint-every/--resume, or use --integrator photon or path";
+
+fn iterate(
+    scene: &Scene,
+    options: &RenderOptions,
+    cancel: Option<&AtomicBool>,
+    deadline: Option<Instant>,
+) -> RenderOutput {
     let s = &scene.settings;
     let p = s.photon;
     let (w, h) = (s.width as usize, s.height as usize);
     let r0 = p.radius_or(scene, 0.02);
+    let photons = p.sppm_photons_for((w * h) as u64);
     let mut pixels = vec![
         PixelState {
             r2: r0 * r0,
@@ -92,16 +113,33 @@ fn iterate(scene: &Scene, options: &RenderOptions) -> RenderOutput {
         ..RenderStats::default()
     };
     let mut iterations = 0u32;
+    let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
+    let mut stopped = None;
     while iterations < s.spp {
+        if cancelled() {
+            stopped = Some(Stop::Interrupted);
+            break;
+        }
+        // The deadline never stops the first iteration: there is always an image.
+        if iterations > 0 && deadline.is_some_and(|d| Instant::now() >= d) {
+            stopped = Some(Stop::TimeLimit);
+            break;
+        }
         let photon_start = Instant::now();
-        let pass = trace_photons(
+        let pass = trace_photons_until(
             scene,
-            p.photons,
+            photons,
             s.seed,
             2 + iterations as u64,
             s.max_depth,
             PhotonStore::Indirect,
+            cancel,
         );
+        if cancelled() {
+            // The photon pass may be incomplete; the iteration is dropped.
+            stopped = Some(Stop::Interrupted);
+            break;
+        }
         stats.rays += pass.rays;
         stats.photons_emitted += pass.emitted;
         let map = PhotonMap::build(pass.photons);
@@ -153,11 +191,7 @@ fn iterate(scene: &Scene, options: &RenderOptions) -> RenderOutput {
     stats.samples = (w * h) as u64 * iterations as u64;
     stats.spp = iterations;
     stats.seconds = start.elapsed().as_secs_f64();
-    RenderOutput {
-        film,
-        stats,
-        stopped: None,
-    }
+    RenderOutput { film, stats, stopped }
 }
 
 /// One iteration's camera sample of pixel (x, y): its direct light, its
@@ -188,22 +222,7 @@ fn camera_sample(
     let mut beta = Rgb::ONE;
     let mut ray = camera_ray;
     for depth in 1..=s.max_depth {
-        *rays += 1;
-        let Some(hit) = scene.intersect(&ray) else {
-            if scene.environment_light.is_some() {
-                l += beta * scene.background.eval(ray.dir);
-            }
-            break;
-        };
-        let wo_world = -ray.dir.normalize();
-        let m = &scene.materials[hit.material as usize];
-        if m.is_emissive() && hit.is_front(wo_world) {
-            l += beta * m.emission_at(&scene.images, &crate::texture::TexCoord { uv: hit.uv, p: hit.p });
-        }
-        if depth == s.max_depth {
-            break;
-        }
-        let Some(sp) = ShadingPoint::new(scene, &hit, wo_world) else {
+        let Some((hit, sp)) = camera_segment(scene, &ray, beta, depth == s.max_depth, &mut l, rays) else {
             break;
         };
         if sp.bsdf.has_smooth() {

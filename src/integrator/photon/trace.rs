@@ -20,6 +20,7 @@ use crate::sampling::rng::{Pcg32, hash_u64s};
 use crate::scene::Scene;
 use glam::Vec2;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Which photons a pass stores.
@@ -62,6 +63,21 @@ pub fn trace_photons(
     max_depth: u32,
     store: PhotonStore,
 ) -> PhotonPass {
+    trace_photons_until(scene, count, seed, pass, max_depth, store, None)
+}
+
+/// [`trace_photons`], giving up when `cancel` is set (checked before each
+/// chunk of photons): the pass is then incomplete and must not be used;
+/// the caller checks the flag.
+pub fn trace_photons_until(
+    scene: &Scene,
+    count: u32,
+    seed: u64,
+    pass: u64,
+    max_depth: u32,
+    store: PhotonStore,
+    cancel: Option<&AtomicBool>,
+) -> PhotonPass {
     let start = Instant::now();
     if scene.lights.is_empty() || count == 0 || scene.light_distribution.is_empty() {
         return PhotonPass {
@@ -76,6 +92,9 @@ pub fn trace_photons(
         .map(|c| {
             let mut photons = Vec::new();
             let mut rays = 0u64;
+            if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                return (photons, rays);
+            }
             for i in c * CHUNK..((c + 1) * CHUNK).min(count) {
                 let mut rng = Pcg32::new(hash_u64s(&[seed, pass, i as u64]), 0x9e37);
                 trace_one(
