@@ -95,6 +95,33 @@ fn renders_the_default_scene() {
     assert!(left[0] > left[1] && right[1] > right[0], "{left:?} {right:?}");
 }
 
+/// Every sampler name renders from the command line; `--sampler sobol`
+/// (the default) gives the same image as no flag; a wrong name is refused
+/// with the list of names.
+#[test]
+fn every_sampler_renders_and_sobol_is_the_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let render = |extra: &[&str], name: &str| -> Vec<u8> {
+        let out = dir.path().join(name);
+        let o = trazo()
+            .args(["render", "-q", "--width", "12", "--height", "12", "--spp", "4", "-o"])
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&o.stderr));
+        fs::read(&out).unwrap()
+    };
+    let default = render(&[], "default.pfm");
+    assert_eq!(render(&["--sampler", "sobol"], "sobol.pfm"), default);
+    assert_ne!(render(&["--sampler", "stratified"], "stratified.pfm"), default);
+    render(&["--sampler", "independent"], "independent.pfm");
+    render(&["--sampler", "center"], "center.pfm");
+    let o = trazo().args(["render", "--sampler", "halton"]).output().unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("sobol"));
+}
+
 #[test]
 fn default_output_name_follows_the_scene() {
     let dir = tempfile::tempdir().unwrap();

@@ -463,6 +463,54 @@ fn same_seed_gives_identical_images_for_any_thread_count() {
     assert_ne!(render_desc(&d, Some(2)), one, "another seed gives another image");
 }
 
+/// The Sobol sampler keeps the determinism of the others, and converges to
+/// the same image as the stratified sampler: the per-pixel differences of
+/// two independent renders are what their estimated variances explain, and
+/// so is the difference of the image means (a bias would show there).
+#[test]
+fn sobol_renders_are_deterministic_and_agree_with_stratified() {
+    let mut d = cornell_box();
+    d.settings.width = 24;
+    d.settings.height = 24;
+    d.settings.spp = 16;
+    d.settings.seed = 5;
+    d.settings.sampler = SamplerKind::Sobol;
+    let one = render_desc(&d, Some(1));
+    assert_eq!(one, render_desc(&d, Some(2)), "same image for 1 and 2 threads");
+
+    d.settings.spp = 256;
+    let sobol = render_desc(&d, Some(2));
+    d.settings.sampler = SamplerKind::Stratified;
+    d.settings.seed = 6;
+    let stratified = render_desc(&d, Some(2));
+    let (mut chi2, mut n, mut diff_sum, mut var_sum) = (0.0, 0usize, 0.0, 0.0);
+    for (a, b) in sobol.pixels.iter().zip(&stratified.pixels) {
+        let (ya, yb) = (
+            trazo::color::luminance(a.value()) as f64,
+            trazo::color::luminance(b.value()) as f64,
+        );
+        let var = a.variance_of_mean() + b.variance_of_mean();
+        diff_sum += ya - yb;
+        var_sum += var;
+        if var > 0.0 {
+            chi2 += (ya - yb).powi(2) / var;
+            n += 1;
+        } else {
+            assert!((ya - yb).abs() < 1e-5, "noiseless pixels agree: {ya} vs {yb}");
+        }
+    }
+    // The sample variance overestimates the variance of a stratified or
+    // Sobol mean, so the normalised squared difference is at most about 1
+    // on average; a biased sampler would push it far above.
+    assert!(n > 400, "the test must cover noisy pixels ({n})");
+    let per_pixel = chi2 / n as f64;
+    assert!(per_pixel < 1.5, "mean normalised squared difference {per_pixel}");
+    let z = diff_sum / var_sum.sqrt();
+    assert!(z.abs() < 4.0, "image means differ by {z} standard errors");
+    let e = trazo::film::metrics::relative_mse(&sobol.to_image(), &stratified.to_image()).unwrap();
+    assert!(e < 0.01, "relative MSE {e}");
+}
+
 /// The Cornell box scaled by 10⁻³ and 10³ renders the same image: ray
 /// offsets follow the scale, so there is no self-intersection acne at
 /// small scales and no light leaking at large ones.

@@ -105,9 +105,10 @@ struct SceneArgs {
     #[arg(long, value_name = "S")]
     seed: Option<u64>,
 
-    /// Placement of samples inside pixels: center (one ray through the
-    /// centre: aliasing), independent (random jitter) or stratified
-    /// (jittered grid).
+    /// How samples are placed: sobol (Owen-scrambled Sobol points,
+    /// stratified in every dimension of a path; the default), stratified
+    /// (jittered grid of pixel positions), independent (random) or center
+    /// (one ray through each pixel centre: aliasing).
     #[arg(long, value_name = "KIND", value_parser = SamplerKind::NAMES)]
     sampler: Option<String>,
 

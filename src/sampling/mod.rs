@@ -5,6 +5,7 @@ pub mod chi2;
 pub mod distribution;
 pub mod rng;
 pub mod sampler;
+pub mod sobol;
 pub mod warp;
 
 pub use distribution::{Distribution1D, Distribution2D};

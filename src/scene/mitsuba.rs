@@ -893,6 +893,10 @@ impl Loader {
         self.desc.settings.sampler = match ty.as_str() {
             "independent" => SamplerKind::Independent,
             "stratified" => SamplerKind::Stratified,
+            // Mitsuba's ldsampler pads randomised (0,2)-sequences per
+            // dimension pair (Kollig and Keller 2002), as trazo's Sobol
+            // sampler does.
+            "ldsampler" | "sobol" => SamplerKind::Sobol,
             other => {
                 self.warn(
                     f,
@@ -922,7 +926,7 @@ impl Loader {
         if let Some(seed) = self.integer(f, &props, "seed", &mut used)? {
             self.desc.settings.seed = seed.max(0) as u64;
         }
-        for ignored in ["jitter", "scramble_seed"] {
+        for ignored in ["jitter", "scramble_seed", "dimension"] {
             let _ = Self::find(&props, ignored, &mut used);
         }
         self.unused(f, node, &props, &used);
@@ -1743,6 +1747,25 @@ mod tests {
         assert!(matches!(d.background, BackgroundDesc::Constant(c) if c == Rgb::ONE));
         let m = &d.materials[0];
         assert!(!m.two_sided, "Mitsuba BSDFs are one-sided");
+    }
+
+    #[test]
+    fn sampler_types_map_to_trazo_samplers() {
+        for (ty, kind, warns) in [
+            ("independent", SamplerKind::Independent, false),
+            ("stratified", SamplerKind::Stratified, false),
+            ("ldsampler", SamplerKind::Sobol, false),
+            ("multijitter", SamplerKind::Stratified, true),
+        ] {
+            let d =
+                parse_str(&SPHERE.replace("sampler type=\"independent\"", &format!("sampler type=\"{ty}\""))).unwrap();
+            assert_eq!(d.settings.sampler, kind, "{ty}");
+            assert_eq!(
+                d.warnings.iter().any(|w| w.contains("approximated by stratified")),
+                warns,
+                "{ty}"
+            );
+        }
     }
 
     #[test]

@@ -986,6 +986,17 @@ material = "red"
     }
 
     #[test]
+    fn every_sampler_name_is_read_and_sobol_is_the_default() {
+        assert_eq!(parse_str(MINIMAL).unwrap().settings.sampler, SamplerKind::Sobol);
+        for name in SamplerKind::NAMES {
+            let d = parse_str(&MINIMAL.replace("spp = 4", &format!("spp = 4\nsampler = \"{name}\""))).unwrap();
+            assert_eq!(d.settings.sampler.name(), name);
+        }
+        let e = error_of(&MINIMAL.replace("spp = 4", "spp = 4\nsampler = \"halton\""));
+        assert!(e.starts_with("test.toml:6:") && e.contains("sobol"), "{e}");
+    }
+
+    #[test]
     fn syntax_errors_have_positions() {
         let e = error_of("[render]\nwidth = = 3\n");
         assert!(e.starts_with("test.toml:2:"), "{e}");

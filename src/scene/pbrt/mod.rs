@@ -293,15 +293,16 @@ impl Parser {
             ..SceneDesc::default()
         };
         // pbrt-v4's defaults (scene.cpp, film.cpp, samplers.cpp, filters.cpp):
-        // 1280×720, 16 samples per pixel, volpath with maxdepth 5, Gaussian
-        // filter of radius 1.5 and σ 0.5.
+        // 1280×720, 16 samples per pixel of the Owen-scrambled ZSobol
+        // sampler, volpath with maxdepth 5, Gaussian filter of radius 1.5
+        // and σ 0.5.
         desc.settings.width = 1280;
         desc.settings.height = 720;
         desc.settings.spp = 16;
         desc.settings.max_depth = 6;
         desc.settings.integrator = IntegratorKind::Path;
         desc.settings.sampling = PathSampling::Mis;
-        desc.settings.sampler = SamplerKind::Stratified;
+        desc.settings.sampler = SamplerKind::Sobol;
         desc.settings.filter = Filter::Gaussian {
             stddev: 0.5,
             radius: 1.5,

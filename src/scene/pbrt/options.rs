@@ -107,15 +107,22 @@ impl Parser {
                     }
                     None => default,
                 };
-                if kind == "independent" {
-                    self.desc.settings.sampler = SamplerKind::Independent;
-                } else {
-                    self.desc.settings.sampler = SamplerKind::Stratified;
-                    self.approximated(
-                        loc,
-                        format!("Sampler \"{kind}\""),
-                        "its low-discrepancy points are replaced by stratified jittered samples (same count)",
-                    );
+                match kind {
+                    "independent" => self.desc.settings.sampler = SamplerKind::Independent,
+                    // pbrt's padded and Z-order Sobol samplers with Owen
+                    // scrambling (their default) pad per-pixel scrambled
+                    // Sobol dimension pairs, as trazo's Sobol sampler does;
+                    // ZSobol's Morton-ordered indices only change which
+                    // scramble a pixel gets.
+                    "zsobol" | "paddedsobol" => self.desc.settings.sampler = SamplerKind::Sobol,
+                    _ => {
+                        self.desc.settings.sampler = SamplerKind::Sobol;
+                        self.approximated(
+                            loc,
+                            format!("Sampler \"{kind}\""),
+                            "its low-discrepancy points are replaced by per-pixel Owen-scrambled Sobol points (same count)",
+                        );
+                    }
                 }
             }
         }

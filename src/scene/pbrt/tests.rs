@@ -59,6 +59,7 @@ WorldBegin"#,
     let d = world("");
     let s = &d.settings;
     assert_eq!((s.width, s.height, s.spp, s.max_depth), (1280, 720, 16, 6));
+    assert_eq!(s.sampler, SamplerKind::Sobol, "pbrt's default sampler is ZSobol");
     assert_eq!(
         s.filter,
         Filter::Gaussian {
@@ -86,7 +87,13 @@ WorldBegin"#,
     );
     let w = d.warnings.join("\n");
     assert!(w.contains("test.pbrt:3:1: Integrator \"bdpt\" is approximated"), "{w}");
-    assert!(w.contains("test.pbrt:4:1: Sampler \"zsobol\" is approximated"), "{w}");
+    assert_eq!(d.settings.sampler, SamplerKind::Sobol);
+    assert!(!w.contains("Sampler"), "ZSobol is read as trazo's Sobol sampler: {w}");
+
+    let d = parse_str("Sampler \"pmj02bn\" \"integer pixelsamples\" 8\nWorldBegin").unwrap();
+    assert_eq!((d.settings.sampler, d.settings.spp), (SamplerKind::Sobol, 8));
+    let w = d.warnings.join("\n");
+    assert!(w.contains("test.pbrt:1:1: Sampler \"pmj02bn\" is approximated"), "{w}");
 }
 
 #[test]
