@@ -277,17 +277,20 @@ mod tests {
         assert!(intersect_triangle(&short, P0, P1, P2).is_none());
     }
 
+    /// A skew quad split along its diagonal q0–q2 into two triangles.
+    const DIAGONAL_QUAD: [Vec3; 4] = [
+        Vec3::new(-0.3, -0.7, 0.1),
+        Vec3::new(1.7, -0.2, 0.3),
+        Vec3::new(1.1, 1.9, -0.2),
+        Vec3::new(-0.6, 1.3, 0.0),
+    ];
+
     #[test]
     fn shared_edges_are_watertight() {
         // A quad split along its diagonal: every ray through the quad must
         // hit at least one of the two triangles, including rays through the
         // diagonal itself.
-        let q = [
-            Vec3::new(-0.3, -0.7, 0.1),
-            Vec3::new(1.7, -0.2, 0.3),
-            Vec3::new(1.1, 1.9, -0.2),
-            Vec3::new(-0.6, 1.3, 0.0),
-        ];
+        let q = DIAGONAL_QUAD;
         let mut rng = Pcg32::new(12, 0);
         for _ in 0..20_000 {
             // Points on the shared diagonal q0–q2.
@@ -353,12 +356,7 @@ mod tests {
     /// one of them, as with the one-triangle test.
     #[test]
     fn four_lanes_are_watertight() {
-        let q = [
-            Vec3::new(-0.3, -0.7, 0.1),
-            Vec3::new(1.7, -0.2, 0.3),
-            Vec3::new(1.1, 1.9, -0.2),
-            Vec3::new(-0.6, 1.3, 0.0),
-        ];
+        let q = DIAGONAL_QUAD;
         let block = Triangle4::new(&[([q[0], q[1], q[2]], 0), ([q[0], q[2], q[3]], 1)]);
         let mut rng = Pcg32::new(13, 0);
         for _ in 0..20_000 {
