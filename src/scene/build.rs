@@ -43,7 +43,8 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
 /// and before the BVH is built.
 pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     desc.validate()?;
-    let mut memory = MemoryEstimate::for_film(desc.settings.width, desc.settings.height, limits.aovs);
+    let margin = crate::film::splat::Splat::new(&desc.settings.filter).map_or(0, |s| s.margin);
+    let mut memory = MemoryEstimate::for_filtered_film(desc.settings.width, desc.settings.height, limits.aovs, margin);
     memory.geometry = described_mesh_bytes(desc);
     memory.check(limits.max_memory)?;
     let base_dir: PathBuf = desc

@@ -29,6 +29,8 @@ pub const BYTES_PER_TRIANGLE: u64 = 224;
 pub const BYTES_PER_VERTEX: u64 = 32;
 /// Bytes per texel of a decoded texture (linear RGB, f32).
 pub const BYTES_PER_TEXEL: u64 = 12;
+/// Bytes of one pixel's sums.
+pub const PIXEL_SUM_BYTES: u64 = 40;
 /// The limit used when the machine's memory cannot be read.
 pub const FALLBACK_LIMIT: u64 = 4 << 30;
 
@@ -49,9 +51,19 @@ impl MemoryEstimate {
     /// The film's share for a `width`×`height` image, with or without
     /// auxiliary images.
     pub fn for_film(width: u32, height: u32, aovs: bool) -> MemoryEstimate {
+        MemoryEstimate::for_filtered_film(width, height, aovs, 0)
+    }
+
+    /// [`MemoryEstimate::for_film`] for a filter that splats `margin`
+    /// pixels beyond each 16-pixel tile: a pass's copy of the sums then
+    /// covers the tiles with their margins, (16 + 2·margin)² / 16² times
+    /// the image.
+    pub fn for_filtered_film(width: u32, height: u32, aovs: bool, margin: u32) -> MemoryEstimate {
         let pixels = width as u64 * height as u64;
+        let side = 16 + 2 * margin as u64;
+        let splat_extra = PIXEL_SUM_BYTES * (side * side - 256) / 256;
         MemoryEstimate {
-            film: pixels * FILM_BYTES_PER_PIXEL,
+            film: pixels * (FILM_BYTES_PER_PIXEL + splat_extra),
             aovs: if aovs { pixels * AOV_BYTES_PER_PIXEL } else { 0 },
             ..MemoryEstimate::default()
         }
@@ -157,6 +169,16 @@ mod tests {
         for bad in ["", "G", "-1G", "4X", "0", "1e99T", "nan"] {
             assert!(parse_size(bad).is_err(), "{bad}");
         }
+    }
+
+    /// A splatting filter's tile margins are counted: Mitsuba's Gaussian
+    /// (margin 2) holds 20² / 16² of the image in a pass's copy.
+    #[test]
+    fn splat_margins_add_to_the_film() {
+        assert_eq!(std::mem::size_of::<crate::film::PixelSum>() as u64, PIXEL_SUM_BYTES);
+        let plain = MemoryEstimate::for_film(100, 100, false).film;
+        let splat = MemoryEstimate::for_filtered_film(100, 100, false, 2).film;
+        assert_eq!(splat - plain, 100 * 100 * (PIXEL_SUM_BYTES * (400 - 256) / 256));
     }
 
     #[test]
