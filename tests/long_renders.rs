@@ -365,7 +365,7 @@ fn bad_checkpoints_and_resumes_are_clear_errors() {
 }
 
 /// The memory estimate refuses, before allocating, a render above
-/// `--max-memory`: a huge film, or a huge mesh.
+/// `--max-memory`: a huge film, a huge mesh, or huge photon maps.
 #[test]
 fn renders_above_the_memory_limit_are_refused_before_they_start() {
     let dir = tempfile::tempdir().unwrap();
@@ -409,6 +409,19 @@ fn renders_above_the_memory_limit_are_refused_before_they_start() {
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("geometry 21.9 GiB"), "{err}");
     assert!(took < Duration::from_secs(5), "refused before building: {took:?}");
+    // Photon maps: 10⁸ photons would need tens of gigabytes.
+    let (code, err, took) = run(&[
+        "render",
+        "--integrator",
+        "photon",
+        "--photons",
+        "100000000",
+        "--max-memory",
+        "1G",
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("photon maps 24.3 GiB"), "{err}");
+    assert!(took < Duration::from_secs(5), "refused before tracing: {took:?}");
     let (code, err, _) = run(&["render", "--max-memory", "12X"]);
     assert_eq!(code, Some(2));
     assert!(err.contains("unit"), "{err}");

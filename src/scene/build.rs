@@ -4,7 +4,7 @@
 
 use super::Scene;
 use super::desc::*;
-use super::memory::{BYTES_PER_TEXEL, MemoryEstimate, mesh_bytes};
+use super::memory::{BYTES_PER_TEXEL, MemoryEstimate, mesh_bytes, photon_bytes};
 use super::native::io_reason;
 use crate::accel::aggregate::{Aggregate, EmitterRef, MeshInstance, MeshObject, ShapeInstance};
 use crate::camera::{Camera, Projection};
@@ -46,6 +46,15 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     let margin = crate::film::splat::Splat::new(&desc.settings.filter).map_or(0, |s| s.margin);
     let mut memory = MemoryEstimate::for_filtered_film(desc.settings.width, desc.settings.height, limits.aovs, margin);
     memory.geometry = described_mesh_bytes(desc);
+    let (st, ph) = (&desc.settings, &desc.settings.photon);
+    memory.photons = match st.integrator {
+        crate::integrator::IntegratorKind::Photon => photon_bytes(ph.photons as u64 + ph.caustic_photons as u64),
+        crate::integrator::IntegratorKind::Sppm => photon_bytes(match ph.sppm_photons {
+            0 => st.width as u64 * st.height as u64,
+            n => n as u64,
+        }),
+        _ => 0,
+    };
     memory.check(limits.max_memory)?;
     let base_dir: PathBuf = desc
         .source
