@@ -169,10 +169,11 @@ fn whole_render(c: &mut Criterion) {
     d.settings.width = 128;
     d.settings.height = 128;
     d.settings.spp = 4;
+    d.settings.integrator = trazo::integrator::IntegratorKind::Path;
     let scene = trazo::scene::build(&d).unwrap();
     let mut g = c.benchmark_group("render");
     g.sample_size(10);
-    g.bench_function("cornell box whitted 128x128 4spp", |b| {
+    g.bench_function("cornell box path mis 128x128 4spp", |b| {
         b.iter(|| render(&scene, &RenderOptions::default()).unwrap())
     });
     g.finish();
