@@ -388,24 +388,30 @@ mod tests {
         // 4 standard errors of that mean, measured from the pixel estimates.
         let f = |u: f64, v: f64, w: f64| u * u + v * w * u.exp();
         let integral = 1.0 / 3.0 + (std::f64::consts::E - 1.0) / 4.0;
-        let spp = 16;
-        let mut s = Sampler::new(SamplerKind::Sobol, spp, 1);
-        let mut estimates = Vec::new();
-        for y in 0..50 {
-            for x in 0..50 {
-                let mut sum = 0.0;
-                for i in 0..spp {
-                    s.start_pixel_sample(x, y, i);
-                    let p = s.pixel_2d();
-                    let w = s.next_1d();
-                    sum += f(p.x as f64, p.y as f64, w as f64);
+        // Each pixel's 16-sample estimate of f, for 50×50 pixels, and
+        // their mean and variance.
+        let pixel_estimates = |kind: SamplerKind| {
+            let spp = 16;
+            let mut s = Sampler::new(kind, spp, 1);
+            let mut estimates = Vec::new();
+            for y in 0..50 {
+                for x in 0..50 {
+                    let mut sum = 0.0;
+                    for i in 0..spp {
+                        s.start_pixel_sample(x, y, i);
+                        let p = s.pixel_2d();
+                        let w = s.next_1d();
+                        sum += f(p.x as f64, p.y as f64, w as f64);
+                    }
+                    estimates.push(sum / spp as f64);
                 }
-                estimates.push(sum / spp as f64);
             }
-        }
-        let n = estimates.len() as f64;
-        let mean = estimates.iter().sum::<f64>() / n;
-        let var = estimates.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0);
+            let n = estimates.len() as f64;
+            let mean = estimates.iter().sum::<f64>() / n;
+            let var = estimates.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0);
+            (mean, var, n)
+        };
+        let (mean, var, n) = pixel_estimates(SamplerKind::Sobol);
         let stderr = (var / n).sqrt();
         assert!(
             (mean - integral).abs() < 4.0 * stderr,
@@ -413,22 +419,7 @@ mod tests {
         );
         // Stratification pays: the per-pixel variance is below that of 16
         // independent samples of f, measured the same way.
-        let mut ind = Sampler::new(SamplerKind::Independent, spp, 1);
-        let mut ind_estimates = Vec::new();
-        for y in 0..50 {
-            for x in 0..50 {
-                let mut sum = 0.0;
-                for i in 0..spp {
-                    ind.start_pixel_sample(x, y, i);
-                    let p = ind.pixel_2d();
-                    let w = ind.next_1d();
-                    sum += f(p.x as f64, p.y as f64, w as f64);
-                }
-                ind_estimates.push(sum / spp as f64);
-            }
-        }
-        let ind_mean = ind_estimates.iter().sum::<f64>() / n;
-        let ind_var = ind_estimates.iter().map(|e| (e - ind_mean).powi(2)).sum::<f64>() / (n - 1.0);
+        let (_, ind_var, _) = pixel_estimates(SamplerKind::Independent);
         assert!(var < 0.5 * ind_var, "sobol variance {var} vs independent {ind_var}");
     }
 
