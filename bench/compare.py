@@ -1,9 +1,11 @@
-"""Side-by-side speed comparison of trazo with Embree and Mitsuba 3 (see bench/compare).
+"""Side-by-side speed comparison of trazo with Embree, Mitsuba 3 and Blender
+Cycles (see bench/compare).
 
 Every peer runs on the same inputs in the same run; the table quotes ratios.
 """
 import argparse
 import glob
+import json
 import multiprocessing as mp
 import os
 import re
@@ -254,6 +256,25 @@ def mitsuba_time(variant, scene, res, spp, out):
     return float(r.stdout.strip().splitlines()[-1]), None
 
 
+def cycles_time(res, spp, out):
+    """Render the Cornell box in Blender Cycles (bench/cycles_cornell.py, in a
+    child process): (best render time, the child's report) or (None, why)."""
+    script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "cycles_cornell.py")
+    r = subprocess.run([sys.executable, script, "--res", str(res), "--spp", str(spp), "--repeat", str(REPEAT),
+                        "--out", out], capture_output=True, text=True)
+    if r.returncode != 0:
+        return None, (r.stderr.strip().splitlines() or ["failed"])[-1]
+    report = json.loads(r.stdout.strip().splitlines()[-1])
+    return min(report["render_s"]), report
+
+
+def channel_means(trazo, image, reference):
+    """The mean R, G, B of `image` and of `reference`, as `trazo diff` prints them."""
+    r = subprocess.run([trazo, "diff", image, reference], capture_output=True, text=True)
+    means = re.findall(r"mean R G B: ([0-9.eE+-]+) ([0-9.eE+-]+) ([0-9.eE+-]+)", r.stdout)
+    return [[float(x) for x in m] for m in means] if len(means) == 2 else None
+
+
 def relmse(trazo, image, reference):
     """Relative MSE of `image` against `reference`, as `trazo diff` computes it."""
     r = subprocess.run([trazo, "diff", image, reference], capture_output=True, text=True)
@@ -291,6 +312,12 @@ def render_section(args, work):
         image = os.path.join(work, f"{variant}.exr")
         t, why = mitsuba_time(variant, scene, args.res, args.spp, image)
         rows.append((f"Mitsuba 3 {variant}", t, why, image))
+    cycles = None
+    if args.cycles:
+        image = os.path.join(work, "cycles.exr")
+        t, cycles = cycles_time(args.res, args.spp, image)
+        name = f"Blender Cycles {cycles['settings']['blender']} CPU" if t is not None else "Blender Cycles CPU"
+        rows.append((name, t, cycles if t is None else None, image))
     samples = args.res * args.res * args.spp
     print()
     if reference:
@@ -305,6 +332,26 @@ def render_section(args, work):
             err = relmse(args.trazo, image, reference) if reference else None
             err = f"{err:.2e}" if err is not None else "–"
             print(f"| {name} | {t:.2f} s | {samples / t / 1e6:.2f} M | {t_trazo / t:.2f} | {err} |")
+    if isinstance(cycles, dict):
+        print_cycles_notes(args, cycles, rows[-1][3], reference)
+
+
+def print_cycles_notes(args, report, image, reference):
+    times = report["render_s"]
+    s = report["settings"]
+    print()
+    print(f"Cycles: render time is the best of {len(times)} "
+          + (f"({', '.join(f'{t:.2f}' for t in times)} s)" if len(times) > 1 else "(one render took over 3 minutes)")
+          + f"; not counted: Blender start-up (import bpy) {report['import_s']:.2f} s, scene set-up {report['setup_s']:.2f} s")
+    print(f"Cycles settings: {s['device']}, {s['threads']} threads, {s['samples']} spp, sampling pattern "
+          f"{s['sampling_pattern'].lower()}, light tree {'on' if s['light_tree'] else 'off'}, max bounces "
+          f"{s['max_bounces']} (= Mitsuba max depth 8), no adaptive sampling, no denoising, no clamping, "
+          f"filter glossy 0, pixel filter {s['pixel_filter']}, view transform {s['view_transform']}, linear EXR")
+    if reference:
+        means = channel_means(args.trazo, image, reference)
+        if means:
+            ratio = " ".join(f"{a / b:.4f}" for a, b in zip(*means))
+            print(f"Cycles image mean / Mitsuba reference mean, R G B: {ratio}")
 
 
 def main():
@@ -320,6 +367,8 @@ def main():
     ap.add_argument("--res", type=int, default=512)
     ap.add_argument("--triangles", type=int, default=1_000_000)
     ap.add_argument("--rays", type=int, default=1_000_000)
+    ap.add_argument("--cycles", action="store_true",
+                    help="also render the Cornell box in Blender Cycles (bpy, installed by bench/compare --cycles)")
     ap.add_argument("--reference-spp", type=int, default=2048,
                     help="samples of the cached Mitsuba reference image the errors are measured against (0: none)")
     args = ap.parse_args()
