@@ -329,11 +329,11 @@ fn random_aggregate(seed: u64) -> Aggregate {
                 min: c,
                 max: c + Vec3::new(v(), v(), v()) + 0.1,
             }),
-            2 => Shape::Rectangle(Rectangle {
-                corner: c,
-                edge_u: Vec3::new(v(), v(), v()) * 2.0 - 1.0,
-                edge_v: Vec3::new(v(), v(), v()) * 2.0 - 1.0,
-            }),
+            2 => Shape::Rectangle(Rectangle::new(
+                c,
+                Vec3::new(v(), v(), v()) * 2.0 - 1.0,
+                Vec3::new(v(), v(), v()) * 2.0 - 1.0,
+            )),
             _ => Shape::Disk(Disk {
                 center: c,
                 normal: (Vec3::new(v(), v(), v()) - 0.5).normalize(),

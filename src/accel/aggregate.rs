@@ -583,11 +583,11 @@ fn bake_transform(mut s: ShapeInstance) -> ShapeInstance {
     };
     match s.shape {
         Shape::Rectangle(r) => {
-            s.shape = Shape::Rectangle(crate::geometry::shape::Rectangle {
-                corner: t.point(r.corner),
-                edge_u: t.vector(r.edge_u),
-                edge_v: t.vector(r.edge_v),
-            });
+            s.shape = Shape::Rectangle(crate::geometry::shape::Rectangle::new(
+                t.point(r.corner()),
+                t.vector(r.edge_u()),
+                t.vector(r.edge_v()),
+            ));
             // (M a) × (M b) = det M · M⁻ᵀ (a × b): a mirroring map turns the
             // edges' cross product against the transformed normal.
             s.flip_normals ^= t.swaps_handedness();
@@ -814,11 +814,11 @@ mod tests {
     /// surface coordinates, and, as an emitter, density 1 / world area.
     #[test]
     fn transformed_rectangles_are_baked_exactly() {
-        let rect = Shape::Rectangle(crate::geometry::shape::Rectangle {
-            corner: Vec3::new(-1.0, -1.0, 0.0),
-            edge_u: Vec3::new(2.0, 0.0, 0.0),
-            edge_v: Vec3::new(0.0, 2.0, 0.0),
-        });
+        let rect = Shape::Rectangle(crate::geometry::shape::Rectangle::new(
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 2.0, 0.0),
+        ));
         for mirror in [1.0, -1.0] {
             let t = Transform::scale(Vec3::new(mirror * 2.0, 0.5, 1.0))
                 .unwrap()

@@ -37,12 +37,15 @@ pub struct Plane {
 /// front side is along `edge_u × edge_v`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rectangle {
-    /// The corner at (u, v) = (0, 0).
-    pub corner: Vec3,
-    /// The edge along u.
-    pub edge_u: Vec3,
-    /// The edge along v.
-    pub edge_v: Vec3,
+    corner: Vec3,
+    edge_u: Vec3,
+    edge_v: Vec3,
+    // Computed once, not per ray: the unit normal and the dual basis of
+    // the edges, which gives (a, b) of a point in the plane by two dot
+    // products. Each ray meets a wall of a room in its first test.
+    normal: Vec3,
+    dual_u: Vec3,
+    dual_v: Vec3,
 }
 
 /// A disk with centre, unit normal (front side) and radius.
@@ -191,12 +194,11 @@ impl Shape {
                 }
             }
             Shape::Rectangle(r) => {
-                let n = r.edge_u.cross(r.edge_v);
-                let p = project_to_plane(p, r.corner, n.normalize());
+                let p = project_to_plane(p, r.corner, r.normal);
                 LocalSurface {
                     p,
                     p_error: planar_error(p, r.corner),
-                    n: n.normalize(),
+                    n: r.normal,
                     uv: r.coordinates(p),
                     dpdu: r.edge_u,
                 }
@@ -259,7 +261,7 @@ impl Shape {
             Shape::Plane(_) => None,
             Shape::Rectangle(r) => Some(AreaSample {
                 p: r.corner + u.x * r.edge_u + u.y * r.edge_v,
-                n: r.edge_u.cross(r.edge_v).normalize(),
+                n: r.normal,
                 uv: Vec2::ZERO,
             }),
             Shape::Disk(d) => {
@@ -386,10 +388,42 @@ impl Sphere {
 }
 
 impl Rectangle {
+    /// The parallelogram with this corner and edges. A zero-area one (parallel
+    /// edges) is never hit.
+    pub fn new(corner: Vec3, edge_u: Vec3, edge_v: Vec3) -> Rectangle {
+        let n = edge_u.cross(edge_v);
+        let len2 = n.length_squared();
+        // (edge_v × n)·edge_u = (n × edge_u)·edge_v = |n|², and each is
+        // orthogonal to the other edge.
+        Rectangle {
+            corner,
+            edge_u,
+            edge_v,
+            normal: n / len2.sqrt(),
+            dual_u: edge_v.cross(n) / len2,
+            dual_v: n.cross(edge_u) / len2,
+        }
+    }
+
+    /// The corner at (u, v) = (0, 0).
+    pub fn corner(&self) -> Vec3 {
+        self.corner
+    }
+
+    /// The edge along u.
+    pub fn edge_u(&self) -> Vec3 {
+        self.edge_u
+    }
+
+    /// The edge along v.
+    pub fn edge_v(&self) -> Vec3 {
+        self.edge_v
+    }
+
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<f32> {
-        let n = self.edge_u.cross(self.edge_v);
-        let t = intersect_plane(ray, self.corner, n)?;
+        // NaN for a zero-area rectangle, which every comparison rejects.
+        let t = intersect_plane(ray, self.corner, self.normal)?;
         let uv = self.coordinates(ray.at(t));
         if (0.0..=1.0).contains(&uv.x) && (0.0..=1.0).contains(&uv.y) {
             Some(t)
@@ -402,10 +436,8 @@ impl Rectangle {
     /// by the dual basis of the two edges.
     #[inline]
     fn coordinates(&self, p: Vec3) -> Vec2 {
-        let n = self.edge_u.cross(self.edge_v);
-        let w = n / n.length_squared();
         let q = p - self.corner;
-        Vec2::new(w.dot(q.cross(self.edge_v)), w.dot(self.edge_u.cross(q)))
+        Vec2::new(self.dual_u.dot(q), self.dual_v.dot(q))
     }
 }
 
@@ -678,11 +710,11 @@ mod tests {
 
     #[test]
     fn rectangle_inside_edges_outside() {
-        let r = Shape::Rectangle(Rectangle {
-            corner: Vec3::ZERO,
-            edge_u: Vec3::new(2.0, 0.0, 0.0),
-            edge_v: Vec3::new(0.0, 0.0, -1.0),
-        });
+        let r = Shape::Rectangle(Rectangle::new(
+            Vec3::ZERO,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, -1.0),
+        ));
         let down = -Vec3::Y;
         assert!(r.intersect(&Ray::new(Vec3::new(1.0, 1.0, -0.5), down)).is_some());
         // Exactly on the edge counts as a hit.
@@ -697,11 +729,11 @@ mod tests {
 
     #[test]
     fn sheared_parallelogram_coordinates() {
-        let r = Rectangle {
-            corner: Vec3::new(1.0, 0.0, 0.0),
-            edge_u: Vec3::new(1.0, 0.0, 0.0),
-            edge_v: Vec3::new(1.0, 1.0, 0.0),
-        };
+        let r = Rectangle::new(
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+        );
         let p = r.corner + 0.3 * r.edge_u + 0.6 * r.edge_v;
         let uv = r.coordinates(p);
         assert!(near(uv.x, 0.3, 1e-6) && near(uv.y, 0.6, 1e-6));
@@ -773,11 +805,7 @@ mod tests {
                 center: Vec3::ONE,
                 radius: 0.5,
             }),
-            Shape::Rectangle(Rectangle {
-                corner: Vec3::ZERO,
-                edge_u: Vec3::X,
-                edge_v: Vec3::Z,
-            }),
+            Shape::Rectangle(Rectangle::new(Vec3::ZERO, Vec3::X, Vec3::Z)),
             Shape::Disk(Disk {
                 center: Vec3::Y,
                 normal: Vec3::new(0.0, 0.6, 0.8),
@@ -808,11 +836,11 @@ mod tests {
             }
         }
         // A sheared parallelogram's samples carry their (a, b) coordinates.
-        let sheared = Shape::Rectangle(Rectangle {
-            corner: Vec3::new(1.0, 2.0, 3.0),
-            edge_u: Vec3::new(2.0, 0.5, 0.0),
-            edge_v: Vec3::new(0.7, 0.0, 1.5),
-        });
+        let sheared = Shape::Rectangle(Rectangle::new(
+            Vec3::new(1.0, 2.0, 3.0),
+            Vec3::new(2.0, 0.5, 0.0),
+            Vec3::new(0.7, 0.0, 1.5),
+        ));
         let a = sheared.sample_area(Vec2::new(0.25, 0.8)).unwrap();
         assert!((sheared.surface(a.p).uv - Vec2::new(0.25, 0.8)).length() < 1e-5);
     }

@@ -170,11 +170,9 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 radius: *radius,
             })),
             ShapeKind::Plane { point, normal } => Some(Shape::Plane(Plane::new(*point, *normal))),
-            ShapeKind::Rectangle { corner, edge_u, edge_v } => Some(Shape::Rectangle(Rectangle {
-                corner: *corner,
-                edge_u: *edge_u,
-                edge_v: *edge_v,
-            })),
+            ShapeKind::Rectangle { corner, edge_u, edge_v } => {
+                Some(Shape::Rectangle(Rectangle::new(*corner, *edge_u, *edge_v)))
+            }
             ShapeKind::Disk { center, normal, radius } => Some(Shape::Disk(Disk {
                 center: *center,
                 normal: normal.normalize(),
