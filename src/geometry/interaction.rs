@@ -63,19 +63,40 @@ pub const SHADOW_EPSILON: f32 = 1.0 - 1e-4;
 #[inline]
 pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
     let d = n.abs().dot(p_error);
-    let mut offset = n * d;
-    if w.dot(n) < 0.0 {
-        offset = -offset;
-    }
-    let mut po = p + offset;
-    for i in 0..3 {
-        if offset[i] > 0.0 {
-            po[i] = next_float_up(po[i]);
-        } else if offset[i] < 0.0 {
-            po[i] = next_float_down(po[i]);
-        }
-    }
-    po
+    let d = if w.dot(n) < 0.0 { -d } else { d };
+    let offset = n * d;
+    let po = p + offset;
+    // Which way each coordinate moves is as good as random from ray to
+    // ray, so the step is taken on the bits with selects instead of the
+    // branches of next_float_up/down (which it equals, as a test checks).
+    Vec3::new(
+        step_away(po.x, offset.x),
+        step_away(po.y, offset.y),
+        step_away(po.z, offset.z),
+    )
+}
+
+/// `x` moved by one unit in the last place in the direction of `o`'s sign
+/// (unchanged for `o == 0` and for infinite `x`).
+#[inline]
+fn step_away(x: f32, o: f32) -> f32 {
+    let (xb, ob) = (x.to_bits(), o.to_bits());
+    let magnitude = xb & 0x7fff_ffff;
+    // Same sign: the magnitude grows by one ulp; otherwise it shrinks, and
+    // from zero the result is the smallest subnormal of o's sign.
+    let same_sign = (xb ^ ob) & 0x8000_0000 == 0;
+    let stepped = if same_sign {
+        xb.wrapping_add(1)
+    } else {
+        xb.wrapping_sub(1)
+    };
+    let stepped = if magnitude == 0 {
+        (ob & 0x8000_0000) | 1
+    } else {
+        stepped
+    };
+    let keep = (o == 0.0) | (magnitude == 0x7f80_0000);
+    f32::from_bits(if keep { xb } else { stepped })
 }
 
 /// The smallest float greater than `v`.
@@ -114,6 +135,41 @@ mod tests {
         assert!(next_float_down(0.0) < 0.0);
         assert!(next_float_up(-1.0) > -1.0);
         assert_eq!(next_float_up(next_float_down(3.5)), 3.5);
+    }
+
+    /// The branch-free step equals pbrt's next_float_up/down.
+    #[test]
+    fn step_away_matches_next_float() {
+        let mut rng = crate::sampling::rng::Pcg32::new(7, 0);
+        let mut values = vec![
+            0.0f32,
+            -0.0,
+            1.0,
+            -1.0,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            f32::MAX,
+            -f32::MAX,
+        ];
+        values.extend([f32::from_bits(1), -f32::from_bits(1)]); // subnormals
+        for _ in 0..10_000 {
+            let e = rng.next_f32() * 60.0 - 30.0;
+            values.push((rng.next_f32() - 0.5) * 2f32.powf(e));
+        }
+        for &x in &values {
+            for o in [1e-7f32, -1e-7, 0.0, -0.0] {
+                let expect = if o > 0.0 {
+                    next_float_up(x)
+                } else if o < 0.0 {
+                    next_float_down(x)
+                } else {
+                    x
+                };
+                assert_eq!(step_away(x, o).to_bits(), expect.to_bits(), "x = {x:e}, o = {o:e}");
+            }
+        }
+        assert_eq!(step_away(f32::INFINITY, 1.0), f32::INFINITY);
+        assert_eq!(step_away(f32::NEG_INFINITY, -1.0), f32::NEG_INFINITY);
     }
 
     #[test]
