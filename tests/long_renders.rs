@@ -112,14 +112,21 @@ fn ctrl_c_keeps_the_passes_done_and_resume_finishes_them_identically() {
     assert!(c.job_values("arg").any(|a| a == "--seed=7"), "{:?}", c.job);
 
     // Resume (only run-control flags may be given) → identical to `full`.
+    resume_matches_uninterrupted(&checkpoint, &part, &full, "rendered 64×48 at 256 spp");
+}
+
+/// Resumes from `checkpoint` (writing `part`), expects `finished` in the
+/// report, an image byte-identical to the uninterrupted render `full`, and
+/// the checkpoint removed.
+fn resume_matches_uninterrupted(checkpoint: &Path, part: &Path, full: &Path, finished: &str) {
     let out = trazo()
-        .args(["render", "--resume", s(&checkpoint), "--threads", "1"])
+        .args(["render", "--resume", s(checkpoint), "--threads", "1"])
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
-    assert!(err.contains("rendered 64×48 at 256 spp"), "{err}");
-    assert_eq!(std::fs::read(&part).unwrap(), std::fs::read(&full).unwrap());
+    assert!(err.contains(finished), "{err}");
+    assert_eq!(std::fs::read(part).unwrap(), std::fs::read(full).unwrap());
     assert!(!checkpoint.exists(), "the stale checkpoint is removed");
 }
 
@@ -488,15 +495,7 @@ fn photon_mapping_stops_on_ctrl_c_and_resumes_identically() {
     assert_eq!(trazo::film::io::read_image(&part).unwrap(), c.film.to_image());
     assert!(c.job_values("arg").any(|a| a == "--photons=20000"), "{:?}", c.job);
 
-    let out = trazo()
-        .args(["render", "--resume", s(&checkpoint), "--threads", "1"])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    assert!(err.contains("rendered 48×36 at 256 spp with photon"), "{err}");
-    assert_eq!(std::fs::read(&part).unwrap(), std::fs::read(&full).unwrap());
-    assert!(!checkpoint.exists());
+    resume_matches_uninterrupted(&checkpoint, &part, &full, "rendered 48×36 at 256 spp with photon");
 
     // Ctrl-C during a long photon pass (20 M photons take many seconds)
     // ends it at once, with no image.
