@@ -9,4 +9,4 @@ pub mod wide;
 pub use aggregate::Aggregate;
 pub use bvh::{Bvh, BvhNode};
 pub use queries::{QueryHit, TriangleBvh};
-pub use wide::Bvh4;
+pub use wide::{Bvh4, Bvh8, WideBvh};

@@ -1,11 +1,11 @@
-//! A four-wide BVH, collapsed from the binary SAH tree.
+//! Four- and eight-wide BVHs, collapsed from the binary SAH tree.
 //!
-//! Each node stores the boxes of up to four children in structure-of-arrays
-//! form, so that one ray is tested against all four boxes with the same
-//! few vector instructions (the "multi-BVH" layout of Ernst and Greiner
+//! Each node stores the boxes of up to `W` children in structure-of-arrays
+//! form, so that one ray is tested against four boxes at a time with the
+//! same few vector instructions (the "multi-BVH" layout of Ernst and Greiner
 //! 2008 and Wald et al. 2008, which Embree uses). Collapsing follows the
 //! usual greedy rule: a node adopts the children of its largest interior
-//! child until it has four. Leaves keep the binary tree's primitive
+//! child until it has `W`. Leaves keep the binary tree's primitive
 //! ranges, so callers store primitives in the order [`Bvh::build`] gives.
 
 use super::bvh::{Bvh, BvhNode};
@@ -18,23 +18,27 @@ use glam::Vec4;
 /// under rounding (pbrt-v4, section 6.8.2).
 const SLAB_ROUNDING: f32 = 1.0 + 2.0 * gamma(3);
 
-/// Traversal stack depth: a collapsed tree is at most as deep as its
-/// binary tree (64) and each level pushes at most three entries.
-const STACK: usize = 3 * 64 + 4;
+/// Widest node supported.
+const MAX_WIDTH: usize = 8;
 
-/// One node: four child boxes and what each child is.
+/// Traversal stack depth: a collapsed tree is at most as deep as its
+/// binary tree (64) and each level pushes at most `W − 1` entries.
+const STACK: usize = (MAX_WIDTH - 1) * 64 + MAX_WIDTH;
+
+/// One node: `W` child boxes and what each child is.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-pub struct Bvh4Node {
+pub struct WideNode<const W: usize> {
     /// Box bounds of the children, one array per coordinate and side.
-    bounds: [[f32; 4]; 6],
+    bounds: [[f32; W]; 6],
     /// Interior child: node index. Leaf child: first primitive position.
-    child: [u32; 4],
+    child: [u32; W],
     /// Leaf child: number of primitives; interior child or empty slot: 0.
-    count: [u32; 4],
+    count: [u32; W],
 }
 
-const _: () = assert!(std::mem::size_of::<Bvh4Node>() == 128);
+const _: () = assert!(std::mem::size_of::<WideNode<4>>() == 128);
+const _: () = assert!(std::mem::size_of::<WideNode<8>>() == 256);
 
 const MIN_X: usize = 0;
 const MIN_Y: usize = 1;
@@ -43,28 +47,42 @@ const MAX_X: usize = 3;
 const MAX_Y: usize = 4;
 const MAX_Z: usize = 5;
 
-impl Bvh4Node {
-    const EMPTY: Bvh4Node = Bvh4Node {
+impl<const W: usize> WideNode<W> {
+    const EMPTY: WideNode<W> = WideNode {
         bounds: [
-            [f32::INFINITY; 4],
-            [f32::INFINITY; 4],
-            [f32::INFINITY; 4],
-            [f32::NEG_INFINITY; 4],
-            [f32::NEG_INFINITY; 4],
-            [f32::NEG_INFINITY; 4],
+            [f32::INFINITY; W],
+            [f32::INFINITY; W],
+            [f32::INFINITY; W],
+            [f32::NEG_INFINITY; W],
+            [f32::NEG_INFINITY; W],
+            [f32::NEG_INFINITY; W],
         ],
-        child: [0; 4],
-        count: [0; 4],
+        child: [0; W],
+        count: [0; W],
     };
 }
 
-/// A four-wide BVH over primitives numbered as in the binary tree it was
-/// collapsed from.
-#[derive(Clone, Debug, Default)]
-pub struct Bvh4 {
-    nodes: Vec<Bvh4Node>,
+/// A `W`-wide BVH (`W` = 4 or 8) over primitives numbered as in the binary
+/// tree it was collapsed from.
+#[derive(Clone, Debug)]
+pub struct WideBvh<const W: usize> {
+    nodes: Vec<WideNode<W>>,
     /// A tree with a single leaf and no interior node.
     root_leaf: Option<(u32, u32)>,
+}
+
+/// Four children a node: one SSE/NEON register of boxes per test.
+pub type Bvh4 = WideBvh<4>;
+/// Eight children a node: shallower trees, two registers per test.
+pub type Bvh8 = WideBvh<8>;
+
+impl<const W: usize> Default for WideBvh<W> {
+    fn default() -> Self {
+        WideBvh {
+            nodes: Vec::new(),
+            root_leaf: None,
+        }
+    }
 }
 
 /// One entry of the traversal stack.
@@ -78,29 +96,33 @@ struct StackEntry {
     t_enter: f32,
 }
 
-impl Bvh4 {
+impl<const W: usize> WideBvh<W> {
+    const VALID_WIDTH: () = assert!(W == 4 || W == 8);
+
     /// Collapses a binary tree.
-    pub fn from_binary(bvh: &Bvh) -> Bvh4 {
+    pub fn from_binary(bvh: &Bvh) -> WideBvh<W> {
+        #[allow(clippy::let_unit_value)]
+        let () = Self::VALID_WIDTH;
         let nodes = bvh.nodes();
         if nodes.is_empty() {
-            return Bvh4::default();
+            return WideBvh::default();
         }
         if nodes[0].count > 0 {
-            return Bvh4 {
+            return WideBvh {
                 nodes: Vec::new(),
                 root_leaf: Some((nodes[0].offset, nodes[0].count as u32)),
             };
         }
         let mut wide = Vec::with_capacity(nodes.len() / 3 + 1);
         collapse(nodes, 0, &mut wide);
-        Bvh4 {
+        WideBvh {
             nodes: wide,
             root_leaf: None,
         }
     }
 
     /// Renumbers every leaf: `f(first, count)` gives the leaf's new first
-    /// position and count, which [`Bvh4::traverse`] then hands to its test.
+    /// position and count, which [`WideBvh::traverse`] then hands to its test.
     /// Leaves are visited in the order of their primitives, so a caller can
     /// repack a leaf's primitives into blocks (four triangles a block, say)
     /// and number the blocks instead.
@@ -111,7 +133,7 @@ impl Bvh4 {
         }
         let mut leaves: Vec<(usize, usize)> = Vec::new();
         for (n, node) in self.nodes.iter().enumerate() {
-            for slot in 0..4 {
+            for slot in 0..W {
                 if node.count[slot] > 0 {
                     leaves.push((n, slot));
                 }
@@ -133,7 +155,7 @@ impl Bvh4 {
 
     /// Bytes used by the nodes.
     pub fn memory_bytes(&self) -> usize {
-        self.nodes.len() * std::mem::size_of::<Bvh4Node>()
+        self.nodes.len() * std::mem::size_of::<WideNode<W>>()
     }
 
     /// Visits the leaves whose boxes the ray enters within its interval,
@@ -194,34 +216,38 @@ impl Bvh4 {
             }
             let node = &self.nodes[entry.child as usize];
             let b = &node.bounds;
-            // The four slab tests at once: glam's Vec4 is an SSE register
+            // Four slab tests at once: glam's Vec4 is an SSE register
             // on x86-64 (and NEON on aarch64), so this is a dozen vector
             // instructions without `unsafe`. `max`/`min` return their
             // second operand when the first is NaN (0·∞ for a ray in a
             // box's face plane), as the scalar slab test does.
-            let tx0 = (Vec4::from_array(b[near_x]) - ox) * ix;
-            let ty0 = (Vec4::from_array(b[near_y]) - oy) * iy;
-            let tz0 = (Vec4::from_array(b[near_z]) - oz) * iz;
-            let tx1 = (Vec4::from_array(b[far_x]) - ox) * ix;
-            let ty1 = (Vec4::from_array(b[far_y]) - oy) * iy;
-            let tz1 = (Vec4::from_array(b[far_z]) - oz) * iz;
-            let t0 = tx0.max(ty0).max(tz0.max(Vec4::splat(ray.t_min)));
-            let t1 = tx1.min(ty1).min(tz1.min(Vec4::splat(ray.t_max))) * SLAB_ROUNDING;
-            let hits = t0.cmple(t1).bitmask();
+            let mut hits = 0;
+            let mut t_enter = [0.0f32; W];
+            for c in 0..W / 4 {
+                let lanes = |plane: usize| Vec4::from_slice(&b[plane][4 * c..4 * c + 4]);
+                let tx0 = (lanes(near_x) - ox) * ix;
+                let ty0 = (lanes(near_y) - oy) * iy;
+                let tz0 = (lanes(near_z) - oz) * iz;
+                let tx1 = (lanes(far_x) - ox) * ix;
+                let ty1 = (lanes(far_y) - oy) * iy;
+                let tz1 = (lanes(far_z) - oz) * iz;
+                let t0 = tx0.max(ty0).max(tz0.max(Vec4::splat(ray.t_min)));
+                let t1 = tx1.min(ty1).min(tz1.min(Vec4::splat(ray.t_max))) * SLAB_ROUNDING;
+                hits |= t0.cmple(t1).bitmask() << (4 * c);
+                t0.write_to_slice(&mut t_enter[4 * c..4 * c + 4]);
+            }
             if hits == 0 {
                 continue;
             }
-            let t_enter = t0.to_array();
-            let mask = [hits & 1 != 0, hits & 2 != 0, hits & 4 != 0, hits & 8 != 0];
             // Push the children that were hit, farthest first, so that the
             // nearest is visited next.
             let base = stack.len();
-            for i in 0..4 {
-                if mask[i] {
+            for (i, &t) in t_enter.iter().enumerate() {
+                if hits & (1 << i) != 0 {
                     let e = StackEntry {
                         child: node.child[i],
                         count: node.count[i],
-                        t_enter: t_enter[i],
+                        t_enter: t,
                     };
                     // Insertion sort by decreasing entry distance.
                     let mut j = stack.len();
@@ -240,12 +266,12 @@ impl Bvh4 {
 
 /// Writes the wide node for binary interior node `index` (and, depth
 /// first, its subtree); returns its index in `wide`.
-fn collapse(nodes: &[BvhNode], index: usize, wide: &mut Vec<Bvh4Node>) -> u32 {
-    // Gather up to four children: open the largest interior child until
-    // there are four or only leaves remain.
+fn collapse<const W: usize>(nodes: &[BvhNode], index: usize, wide: &mut Vec<WideNode<W>>) -> u32 {
+    // Gather up to `W` children: open the largest interior child until
+    // there are `W` or only leaves remain.
     let node = &nodes[index];
     let mut kids: Vec<usize> = vec![index + 1, node.offset as usize];
-    while kids.len() < 4 {
+    while kids.len() < W {
         let open = kids
             .iter()
             .enumerate()
@@ -258,8 +284,8 @@ fn collapse(nodes: &[BvhNode], index: usize, wide: &mut Vec<Bvh4Node>) -> u32 {
         kids.push(nodes[k].offset as usize);
     }
     let me = wide.len();
-    wide.push(Bvh4Node::EMPTY);
-    let mut out = Bvh4Node::EMPTY;
+    wide.push(WideNode::EMPTY);
+    let mut out = WideNode::EMPTY;
     for (slot, &k) in kids.iter().enumerate() {
         let n = &nodes[k];
         out.bounds[MIN_X][slot] = n.min.x;
@@ -307,6 +333,7 @@ mod tests {
                 .collect();
             let (bvh, order) = Bvh::build(&boxes);
             let wide = Bvh4::from_binary(&bvh);
+            let wide8 = Bvh8::from_binary(&bvh);
             let prim = |k: u32| boxes[order[k as usize] as usize];
             for _ in 0..300 {
                 let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 12.0 - Vec3::ONE;
@@ -329,8 +356,34 @@ mod tests {
                 assert_eq!(r1.t_max, r2.t_max, "n = {n}");
                 let mut r3 = Ray::with_interval(o, d, 1e-4, f32::INFINITY);
                 assert_eq!(wide.traverse(&mut r3, true, test), h1);
+                let mut r4 = Ray::with_interval(o, d, 1e-4, f32::INFINITY);
+                assert_eq!(wide8.traverse(&mut r4, false, test), h1, "n = {n}");
+                assert_eq!(r4.t_max, r1.t_max, "n = {n}");
+                let mut r5 = Ray::with_interval(o, d, 1e-4, f32::INFINITY);
+                assert_eq!(wide8.traverse(&mut r5, true, test), h1);
             }
         }
+    }
+
+    /// Every primitive in exactly one leaf; a `W`-wide node replaces at
+    /// most `W − 1` binary interior nodes.
+    fn check_collapse<const W: usize>(bvh: &Bvh, primitives: usize) {
+        let wide = WideBvh::<W>::from_binary(bvh);
+        let mut seen = vec![0u32; primitives];
+        for n in &wide.nodes {
+            for slot in 0..W {
+                for k in n.child[slot]..n.child[slot] + n.count[slot] {
+                    seen[k as usize] += 1;
+                }
+            }
+        }
+        assert!(seen.iter().all(|&c| c == 1), "W = {W}");
+        let interior = bvh.nodes().iter().filter(|n| n.count == 0).count();
+        assert!(
+            wide.node_count() <= interior && wide.node_count() * (W - 1) >= interior,
+            "W = {W}: {} nodes for {interior}",
+            wide.node_count()
+        );
     }
 
     #[test]
@@ -338,17 +391,8 @@ mod tests {
         let mesh = TriangleMesh::uv_sphere(Vec3::ZERO, 1.0, 64, 32);
         let bounds: Vec<Aabb> = (0..mesh.len()).map(|i| mesh.triangle_bounds(i)).collect();
         let (bvh, _) = Bvh::build(&bounds);
-        let wide = Bvh4::from_binary(&bvh);
-        let mut seen = vec![0u32; mesh.len()];
-        for n in &wide.nodes {
-            for slot in 0..4 {
-                for k in n.child[slot]..n.child[slot] + n.count[slot] {
-                    seen[k as usize] += 1;
-                }
-            }
-        }
-        assert!(seen.iter().all(|&c| c == 1));
-        let interior = bvh.nodes().iter().filter(|n| n.count == 0).count();
-        assert!(wide.node_count() <= interior && wide.node_count() * 3 >= interior);
+        check_collapse::<4>(&bvh, mesh.len());
+        check_collapse::<8>(&bvh, mesh.len());
+        assert!(Bvh8::from_binary(&bvh).node_count() < Bvh4::from_binary(&bvh).node_count());
     }
 }
