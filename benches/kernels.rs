@@ -78,21 +78,21 @@ fn traversal(c: &mut Criterion) {
         vec![],
     );
     let rays = random_rays(4096, 2);
-    c.bench_function("bvh closest-hit 160k triangles x4096", |b| {
+    c.bench_function("aggregate closest-hit 160k triangles x4096", |b| {
         b.iter(|| rays.iter().filter(|r| g.intersect(black_box(r)).is_some()).count())
     });
-    c.bench_function("bvh any-hit 160k triangles x4096", |b| {
+    c.bench_function("aggregate any-hit 160k triangles x4096", |b| {
         b.iter(|| rays.iter().filter(|r| g.occluded(black_box(r))).count())
     });
     let wide = TriangleBvh::build(&TriangleMesh::uv_sphere(Vec3::ZERO, 1.0, 400, 200), None);
-    c.bench_function("bvh4 closest-hit 160k triangles x4096", |b| {
+    c.bench_function("triangle-bvh closest-hit 160k triangles x4096", |b| {
         b.iter(|| {
             rays.iter()
                 .filter(|r| wide.closest_hit(black_box(r)).t.is_finite())
                 .count()
         })
     });
-    c.bench_function("bvh4 any-hit 160k triangles x4096", |b| {
+    c.bench_function("triangle-bvh any-hit 160k triangles x4096", |b| {
         b.iter(|| rays.iter().filter(|r| wide.any_hit(black_box(r))).count())
     });
     let mesh = TriangleMesh::uv_sphere(Vec3::ZERO, 1.0, 400, 200);
