@@ -371,6 +371,60 @@ fn bad_checkpoints_and_resumes_are_clear_errors() {
     assert!(e.contains("checksum"), "{e}");
 }
 
+/// A resume refuses a scene whose referenced files (here an OBJ mesh)
+/// changed since the checkpoint, naming the file; the same bytes again, even
+/// rewritten, resume.
+#[test]
+fn resume_notices_an_edited_mesh_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("quad.obj");
+    let quad = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3 4\n";
+    std::fs::write(&obj, quad).unwrap();
+    let scene = dir.path().join("m.toml");
+    std::fs::write(
+        &scene,
+        "[render]\nwidth = 8\nheight = 8\n\n[camera]\nfrom = [0, 0, 4]\nto = [0, 0, 0]\n\n[world]\nambient = 0.2\n\n\
+         [[mesh]]\nname = \"quad\"\nfile = \"quad.obj\"\n\n\
+         [[shape]]\ntype = \"mesh\"\nmesh = \"quad\"\n",
+    )
+    .unwrap();
+    let out = dir.path().join("m.png");
+    trazo()
+        .args([
+            "render",
+            s(&scene),
+            "-o",
+            s(&out),
+            "--time-limit",
+            "0",
+            "--spp",
+            "64",
+            "-q",
+        ])
+        .assert()
+        .success();
+    let checkpoint = dir.path().join("m.png.trazo-checkpoint");
+    let c = Checkpoint::read(&checkpoint).unwrap();
+    let files: Vec<&str> = c.job_values("file").collect();
+    assert_eq!(files.len(), 2, "the scene and its mesh: {files:?}");
+    assert!(files.iter().any(|f| f.ends_with("quad.obj")), "{files:?}");
+
+    std::fs::write(&obj, quad.replace("v 1 1 0", "v 1 1.5 0")).unwrap();
+    let o = trazo().args(["render", "--resume", s(&checkpoint)]).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("quad.obj has changed"), "{err}");
+    assert!(checkpoint.exists(), "a refused resume keeps the checkpoint");
+
+    std::fs::write(&obj, quad).unwrap();
+    trazo()
+        .args(["render", "--resume", s(&checkpoint), "-q"])
+        .assert()
+        .success();
+    assert!(out.exists() && !checkpoint.exists());
+}
+
 /// The memory estimate refuses, before allocating, a render above
 /// `--max-memory`: a huge film, a huge mesh, or huge photon maps.
 #[test]

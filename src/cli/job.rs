@@ -7,6 +7,7 @@ use crate::error::{Error, Result};
 use crate::film::Film;
 use crate::render::RenderStats;
 use crate::render::checkpoint::{Checkpoint, fnv1a};
+use crate::scene::native::FileRead;
 use crate::scene::{Scene, SceneDesc};
 use clap::Parser;
 use std::path::{Path, PathBuf};
@@ -31,6 +32,10 @@ pub(super) fn install_interrupt_handler() -> Result<Arc<AtomicBool>> {
     Ok(flag)
 }
 
+/// Most bytes of file records a checkpoint names one by one (well within
+/// what a checkpoint's reader accepts).
+const MAX_LISTED_FILE_BYTES: usize = 16 << 20;
+
 /// The settings of a render that a checkpoint records.
 pub(super) struct Job {
     entries: Vec<(String, String)>,
@@ -53,7 +58,13 @@ fn scene_hash(path: &Path) -> Result<String> {
 
 impl Job {
     /// The job of `args` as loaded into `desc` and built into `scene`.
-    pub(super) fn new(args: &RenderArgs, output: &Path, desc: &SceneDesc, scene: &Scene) -> Result<Job> {
+    pub(super) fn new(
+        args: &RenderArgs,
+        output: &Path,
+        desc: &SceneDesc,
+        scene: &Scene,
+        files: &[FileRead],
+    ) -> Result<Job> {
         let mut arg = Vec::new();
         let a = &args.scene;
         if let Some(p) = &a.scene {
@@ -97,6 +108,18 @@ impl Job {
             entries.push(("scene_hash".into(), scene_hash(p)?));
         }
         entries.push(("settings".into(), format!("{:?}", scene.settings)));
+        // The hash first: a path may hold spaces.
+        let mut listed: Vec<(String, String)> = files
+            .iter()
+            .map(|f| ("file".to_string(), format!("{:016x} {}", f.hash, f.path.display())))
+            .collect();
+        if listed.iter().map(|(_, v)| v.len() + 16).sum::<usize>() > MAX_LISTED_FILE_BYTES {
+            // Too many to name one by one and still read back: one hash.
+            let all: String = listed.iter().map(|(_, v)| format!("{v}\n")).collect();
+            let summary = format!("(the {} files the scene reads)", files.len());
+            listed = vec![("file".into(), format!("{:016x} {summary}", fnv1a(all.as_bytes())))];
+        }
+        entries.extend(listed);
         Ok(Job {
             entries,
             target_spp: scene.settings.spp,
@@ -118,7 +141,8 @@ impl Job {
     }
 
     /// Checks that `checkpoint` (read from `path`) belongs to this job: the
-    /// settings are the same (the scene file was checked by [`resume_args`]).
+    /// settings are the same and so is every file the scene was loaded from
+    /// (the scene file itself was checked by [`resume_args`]).
     pub(super) fn check_resume(&self, path: &Path, checkpoint: &Checkpoint) -> Result<()> {
         if self.value("settings") != checkpoint.job_value("settings") || self.target_spp != checkpoint.target_spp {
             return Err(Error::file(
@@ -126,8 +150,39 @@ impl Job {
                 "cannot resume: the scene's render settings are not those of the checkpoint",
             ));
         }
+        // Checkpoints written before files were recorded name none.
+        let then: Vec<(&str, &str)> = checkpoint.job_values("file").filter_map(hash_and_path).collect();
+        if then.is_empty() {
+            return Ok(());
+        }
+        let now: Vec<(&str, &str)> = self
+            .entries
+            .iter()
+            .filter(|(k, _)| k == "file")
+            .filter_map(|(_, v)| hash_and_path(v))
+            .collect();
+        let hash_now = |p: &str| now.iter().find(|(_, q)| *q == p).map(|(h, _)| *h);
+        if let Some((_, changed)) = then.iter().find(|(h, p)| hash_now(p) != Some(*h)) {
+            let how = if hash_now(changed).is_some() {
+                "has changed since the checkpoint was written"
+            } else {
+                "was read when the checkpoint was written and is not now"
+            };
+            return Err(Error::file(path, format!("cannot resume: {changed} {how}")));
+        }
+        if let Some((_, new)) = now.iter().find(|(_, p)| !then.iter().any(|(_, q)| q == p)) {
+            return Err(Error::file(
+                path,
+                format!("cannot resume: the scene now reads {new}, which it did not when the checkpoint was written"),
+            ));
+        }
         Ok(())
     }
+}
+
+/// A `file` entry's hash and path.
+fn hash_and_path(entry: &str) -> Option<(&str, &str)> {
+    entry.split_once(' ')
 }
 
 /// The render arguments a checkpoint holds, with the run-control flags

@@ -496,7 +496,10 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         .collect();
 
     let load_start = Instant::now();
-    let mut desc = args.scene.load()?;
+    // Every file read while loading goes into the checkpoint, so that a
+    // resume notices an edited mesh or texture, not only the scene file.
+    let (desc, mut files) = scene::native::record_file_reads(|| args.scene.load());
+    let mut desc = desc?;
     match (args.spp, args.time_limit) {
         (Some(v), _) => desc.settings.spp = v,
         // A time limit alone: as many samples as the time allows.
@@ -518,7 +521,11 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         max_memory: Some(args.max_memory.unwrap_or_else(scene::memory::default_limit)),
         aovs: !aovs.is_empty(),
     };
-    let scene = scene::build_limited(&desc, &limits)?;
+    let (scene, built_from) = scene::native::record_file_reads(|| scene::build_limited(&desc, &limits));
+    let scene = scene?;
+    files.extend(built_from);
+    files.sort();
+    files.dedup();
     let load_seconds = load_start.elapsed().as_secs_f64();
     for w in &scene.warnings {
         eprintln!("warning: {w}");
@@ -526,7 +533,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     if args.scene.verbose {
         print_scene_stats(&scene, load_seconds);
     }
-    let job = job::Job::new(&args, &output, &desc, &scene)?;
+    let job = job::Job::new(&args, &output, &desc, &scene, &files)?;
     if let Some((path, checkpoint)) = &resume {
         job.check_resume(path, checkpoint)?;
     }

@@ -38,8 +38,9 @@ use std::path::{Path, PathBuf};
 pub const MAGIC: &[u8; 8] = b"TRAZOCKP";
 /// The version of the layout this code reads and writes.
 pub const VERSION: u32 = 1;
-/// Largest job description accepted when reading, in bytes.
-const MAX_JOB_BYTES: usize = 1 << 20;
+/// Largest job description accepted when reading, in bytes: room for the
+/// settings and some hundred thousand recorded scene files.
+const MAX_JOB_BYTES: usize = 32 << 20;
 /// Bytes per pixel record and per AOV record.
 const PIXEL_BYTES: usize = 5 * 8;
 const AOV_BYTES: usize = 8 * 8;
