@@ -9,6 +9,7 @@
 //! have no bounds and are tested outside the tree.
 
 use super::bvh::Bvh;
+use super::queries::TriangleBvh;
 use super::wide::Bvh4;
 use crate::geometry::mesh::TriangleMesh;
 use crate::geometry::shape::{LocalSurface, Shape};
@@ -62,10 +63,21 @@ pub struct MeshInstance {
 /// What the top-level BVH holds.
 #[derive(Clone, Copy, Debug)]
 enum PrimRef {
-    Triangle { object: u32, tri: u32 },
+    Triangle {
+        object: u32,
+        tri: u32,
+    },
+    /// A large world-space mesh object, traced through its own tree.
+    Object(u32),
     Shape(u32),
     Instance(u32),
 }
+
+/// World-space meshes with at least this many triangles get a tree of their
+/// own, over blocks of four triangles tested at once; smaller ones (the
+/// boxes of a Cornell box) are single triangles in the top-level tree, where
+/// blocks measured slower.
+const OBJECT_TREE_MIN_TRIANGLES: usize = 256;
 
 /// Which primitive a ray hit, and where on it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -155,6 +167,8 @@ pub struct Aggregate {
     /// Instanced mesh placements.
     pub instances: Vec<MeshInstance>,
     blas: Vec<Option<Bvh4>>,
+    /// Per mesh object, its own tree if it is large.
+    object_trees: Vec<Option<TriangleBvh>>,
     prims: Vec<PrimRef>,
     unbounded: Vec<u32>,
     bvh: Bvh4,
@@ -214,8 +228,20 @@ impl Aggregate {
                 None => unbounded.push(i as u32),
             }
         }
+        let object_trees: Vec<Option<TriangleBvh>> = mesh_objects
+            .iter()
+            .map(|obj| {
+                let m = &meshes[obj.mesh as usize];
+                (m.len() >= OBJECT_TREE_MIN_TRIANGLES).then(|| TriangleBvh::build(m, None))
+            })
+            .collect();
         for (o, obj) in mesh_objects.iter().enumerate() {
             let m = &meshes[obj.mesh as usize];
+            if object_trees[o].is_some() {
+                refs.push(PrimRef::Object(o as u32));
+                bounds.push(m.bounds());
+                continue;
+            }
             for t in 0..m.len() {
                 refs.push(PrimRef::Triangle {
                     object: o as u32,
@@ -250,6 +276,10 @@ impl Aggregate {
             stats.nodes += b.node_count();
             stats.bvh_bytes += b.memory_bytes();
         }
+        for t in object_trees.iter().flatten() {
+            stats.nodes += t.node_count();
+            stats.bvh_bytes += t.memory_bytes();
+        }
         stats.mesh_bytes = meshes
             .iter()
             .map(|m| m.positions.len() * 12 + m.normals.len() * 12 + m.uvs.len() * 8 + m.indices.len() * 12)
@@ -260,6 +290,7 @@ impl Aggregate {
             mesh_objects,
             instances,
             blas,
+            object_trees,
             prims,
             unbounded,
             bvh,
@@ -317,6 +348,20 @@ impl Aggregate {
                     ),
                     None => false,
                 }
+            }
+            PrimRef::Object(object) => {
+                let tree = self.object_trees[object as usize]
+                    .as_ref()
+                    .expect("object refs name objects with trees");
+                tree.traverse(ray, &pre, any_hit, |tri, t, b, ray| {
+                    on_hit(
+                        Hit {
+                            t,
+                            prim: HitPrim::Triangle { object, tri, b },
+                        },
+                        ray,
+                    )
+                })
             }
             PrimRef::Shape(i) => match self.shape_intersect(i, ray) {
                 Some(t) => on_hit(

@@ -94,6 +94,33 @@ impl TriangleBvh {
         }
     }
 
+    /// Visits the triangles the ray may hit, nearest boxes first, calling
+    /// `on_hit(id, t, barycentrics, ray)` for the nearest hit of each block
+    /// of four within the ray's interval; `on_hit` shrinks `ray.t_max` and
+    /// returns `true` to accept. With `any_hit`, the first accepted hit ends
+    /// the search. The scene aggregate traces large meshes this way.
+    #[inline]
+    pub fn traverse(
+        &self,
+        ray: &mut Ray,
+        pre: &TriangleRay,
+        any_hit: bool,
+        mut on_hit: impl FnMut(u32, f32, [f32; 3], &mut Ray) -> bool,
+    ) -> bool {
+        self.bvh.traverse(ray, any_hit, |k, r| {
+            let block = &self.blocks[k as usize];
+            match block.intersect_barycentric(r, pre) {
+                Some((lane, t, b)) => on_hit(block.ids[lane], t, b, r),
+                None => false,
+            }
+        })
+    }
+
+    /// Number of tree nodes.
+    pub fn node_count(&self) -> usize {
+        self.bvh.node_count()
+    }
+
     /// Number of triangles.
     pub fn len(&self) -> usize {
         self.triangles

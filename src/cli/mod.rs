@@ -454,7 +454,7 @@ fn print_scene_stats(scene: &scene::Scene, load_seconds: f64) {
         scene.materials.len() - 1,
     );
     eprintln!(
-        "bvh: {} primitives, {} nodes, {:.1} MiB (meshes {:.1} MiB), built in {:.3} s",
+        "bvh: {} top-level primitives, {} nodes, {:.1} MiB (meshes {:.1} MiB), built in {:.3} s",
         g.primitives,
         g.nodes,
         g.bvh_bytes as f64 / (1 << 20) as f64,

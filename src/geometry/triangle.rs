@@ -176,6 +176,13 @@ impl Triangle4 {
     /// watertightness needs) and again in f64 in a lane where one is zero.
     #[inline]
     pub fn intersect(&self, ray: &Ray, pre: &TriangleRay) -> Option<(usize, f32)> {
+        self.intersect_barycentric(ray, pre).map(|(lane, t, _)| (lane, t))
+    }
+
+    /// [`Triangle4::intersect`] with the barycentrics of the hit, as
+    /// [`intersect_triangle_with`] gives them.
+    #[inline(always)]
+    pub fn intersect_barycentric(&self, ray: &Ray, pre: &TriangleRay) -> Option<(usize, f32, [f32; 3])> {
         let (kx, ky, kz) = (pre.kx, pre.ky, pre.kz);
         let (ox, oy, oz) = (
             Vec4::splat(ray.origin[kx]),
@@ -242,7 +249,11 @@ impl Triangle4 {
                 best = Some((lane, tl));
             }
         }
-        best
+        best.map(|(lane, t)| {
+            let inv_det = 1.0 / det.to_array()[lane];
+            let b = [e0, e1, e2].map(|e| e.to_array()[lane] * inv_det);
+            (lane, t, b)
+        })
     }
 }
 
