@@ -370,14 +370,15 @@ fn random_aggregate(seed: u64) -> Aggregate {
         m
     };
     // A large world-space mesh (traced through its own tree of triangle
-    // blocks), a small one (single triangles in the top-level tree) and an
-    // instanced one.
+    // blocks), a small one (single triangles in the top-level tree), and a
+    // small and a large instanced one (the same two kinds of tree).
     let world = soup(300, &mut v);
     let shared = soup(40, &mut v);
     let small_world = soup(30, &mut v);
-    let instances = (0..5)
-        .map(|_| MeshInstance {
-            mesh: 1,
+    let large_shared = soup(260, &mut v);
+    let instances = (0..8)
+        .map(|k| MeshInstance {
+            mesh: if k < 5 { 1 } else { 3 },
             transform: Transform::rotate(Vec3::new(v(), v(), v()) + 0.1, v() * 360.0)
                 .unwrap()
                 .then(&Transform::translate(Vec3::new(v(), v(), v()) * 10.0 - 5.0)),
@@ -387,7 +388,7 @@ fn random_aggregate(seed: u64) -> Aggregate {
         })
         .collect();
     Aggregate::build(
-        vec![world, shared, small_world],
+        vec![world, shared, small_world, large_shared],
         shapes,
         vec![
             MeshObject {

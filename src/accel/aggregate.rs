@@ -73,11 +73,12 @@ enum PrimRef {
     Instance(u32),
 }
 
-/// World-space meshes with at least this many triangles get a tree of their
-/// own, over blocks of four triangles tested at once; smaller ones (the
-/// boxes of a Cornell box) are single triangles in the top-level tree, where
-/// blocks measured slower.
-const OBJECT_TREE_MIN_TRIANGLES: usize = 256;
+/// Meshes with at least this many triangles are traced through a tree over
+/// blocks of four triangles tested at once (a [`TriangleBvh`]): a world-space
+/// one as a single top-level primitive, an instanced one as its bottom
+/// level. Smaller world-space meshes (the boxes of a Cornell box) are single
+/// triangles in the top-level tree, where blocks measured slower.
+const BLOCK_TREE_MIN_TRIANGLES: usize = 256;
 
 /// Which primitive a ray hit, and where on it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -166,7 +167,10 @@ pub struct Aggregate {
     pub mesh_objects: Vec<MeshObject>,
     /// Instanced mesh placements.
     pub instances: Vec<MeshInstance>,
+    /// Per mesh, the bottom-level tree of a small instanced mesh.
     blas: Vec<Option<Bvh4>>,
+    /// Per mesh, the bottom-level tree of a large instanced mesh.
+    blas_blocks: Vec<Option<TriangleBvh>>,
     /// Per mesh object, its own tree if it is large.
     object_trees: Vec<Option<TriangleBvh>>,
     prims: Vec<PrimRef>,
@@ -193,12 +197,17 @@ impl Aggregate {
         for inst in &instances {
             instanced[inst.mesh as usize] = true;
         }
+        let blas_blocks: Vec<Option<TriangleBvh>> = meshes
+            .iter()
+            .enumerate()
+            .map(|(i, m)| (instanced[i] && m.len() >= BLOCK_TREE_MIN_TRIANGLES).then(|| TriangleBvh::build(m, None)))
+            .collect();
         let built: Vec<(usize, Bvh, Vec<u32>)> = {
             use rayon::prelude::*;
             meshes
                 .par_iter()
                 .enumerate()
-                .filter(|(i, _)| instanced[*i])
+                .filter(|(i, _)| instanced[*i] && blas_blocks[*i].is_none())
                 .map(|(i, m)| {
                     let bounds: Vec<Aabb> = (0..m.len()).map(|t| m.triangle_bounds(t)).collect();
                     let (bvh, order) = Bvh::build(&bounds);
@@ -232,7 +241,7 @@ impl Aggregate {
             .iter()
             .map(|obj| {
                 let m = &meshes[obj.mesh as usize];
-                (m.len() >= OBJECT_TREE_MIN_TRIANGLES).then(|| TriangleBvh::build(m, None))
+                (m.len() >= BLOCK_TREE_MIN_TRIANGLES).then(|| TriangleBvh::build(m, None))
             })
             .collect();
         for (o, obj) in mesh_objects.iter().enumerate() {
@@ -251,7 +260,11 @@ impl Aggregate {
             }
         }
         for (i, inst) in instances.iter().enumerate() {
-            let b = blas[inst.mesh as usize].as_ref().map_or(Aabb::EMPTY, |b| b.bounds());
+            let b = match (&blas[inst.mesh as usize], &blas_blocks[inst.mesh as usize]) {
+                (_, Some(_)) => meshes[inst.mesh as usize].bounds(),
+                (Some(b), None) => b.bounds(),
+                (None, None) => Aabb::EMPTY,
+            };
             refs.push(PrimRef::Instance(i as u32));
             bounds.push(inst.transform.aabb(&b));
         }
@@ -276,7 +289,7 @@ impl Aggregate {
             stats.nodes += b.node_count();
             stats.bvh_bytes += b.memory_bytes();
         }
-        for t in object_trees.iter().flatten() {
+        for t in object_trees.iter().chain(&blas_blocks).flatten() {
             stats.nodes += t.node_count();
             stats.bvh_bytes += t.memory_bytes();
         }
@@ -290,6 +303,7 @@ impl Aggregate {
             mesh_objects,
             instances,
             blas,
+            blas_blocks,
             object_trees,
             prims,
             unbounded,
@@ -376,12 +390,25 @@ impl Aggregate {
             PrimRef::Instance(i) => {
                 let inst = &self.instances[i as usize];
                 let mesh = &self.meshes[inst.mesh as usize];
-                let Some(blas) = &self.blas[inst.mesh as usize] else {
-                    return false;
-                };
                 // The object-space ray keeps the world ray's parameter.
                 let mut obj_ray = inst.transform.inv_ray(ray);
                 let Some(obj_pre) = TriangleRay::new(&obj_ray) else {
+                    return false;
+                };
+                if let Some(tree) = &self.blas_blocks[inst.mesh as usize] {
+                    let hit = tree.traverse(&mut obj_ray, &obj_pre, any_hit, |tri, t, b, r| {
+                        on_hit(
+                            Hit {
+                                t,
+                                prim: HitPrim::Instance { instance: i, tri, b },
+                            },
+                            r,
+                        )
+                    });
+                    ray.t_max = obj_ray.t_max;
+                    return hit;
+                }
+                let Some(blas) = &self.blas[inst.mesh as usize] else {
                     return false;
                 };
                 let hit = blas.traverse(&mut obj_ray, any_hit, |tri, r| {
