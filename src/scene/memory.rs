@@ -23,10 +23,9 @@ pub const AOV_BYTES_PER_PIXEL: u64 = 228;
 /// million triangles and 2 million vertices peaks at 880 MiB resident
 /// (`/usr/bin/time -v trazo render sphere.toml`, `segments = 2000`,
 /// `rings = 1000`), 231 bytes a triangle with its vertices; this estimate
-/// gives 914 MiB. Since a mesh of 256 triangles or more placed once gets a
-/// tree of its own over blocks of four triangles, that sphere peaks at
-/// 532 MiB; meshes placed several times (instances) and small ones still
-/// cost what this constant says, so the estimate keeps it.
+/// gives 914 MiB. Since meshes of 256 triangles or more get a tree over
+/// blocks of four triangles, that sphere peaks at 532 MiB; smaller meshes
+/// still cost about what this constant says, so the estimate keeps it.
 pub const BYTES_PER_TRIANGLE: u64 = 224;
 /// Bytes per vertex: position, normal and texture coordinates.
 pub const BYTES_PER_VERTEX: u64 = 32;
