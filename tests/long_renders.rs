@@ -301,6 +301,28 @@ fn kill_9_during_writes_leaves_whole_files() {
     assert!(checkpoint.exists(), "some checkpoint was completed");
 }
 
+/// Renders `scene` to `out` with a zero time limit (so only the first of
+/// 64 samples per pixel); returns the checkpoint left behind, read back.
+fn render_first_pass(scene: &Path, out: &Path) -> (PathBuf, Checkpoint) {
+    trazo()
+        .args([
+            "render",
+            s(scene),
+            "-o",
+            s(out),
+            "--time-limit",
+            "0",
+            "--spp",
+            "64",
+            "-q",
+        ])
+        .assert()
+        .success();
+    let checkpoint = PathBuf::from(format!("{}.trazo-checkpoint", out.display()));
+    let c = Checkpoint::read(&checkpoint).unwrap();
+    (checkpoint, c)
+}
+
 /// Bad checkpoints and mismatched resumes are errors (status 2, one line).
 #[test]
 fn bad_checkpoints_and_resumes_are_clear_errors() {
@@ -337,23 +359,7 @@ fn bad_checkpoints_and_resumes_are_clear_errors() {
         "[render]\nwidth = 8\nheight = 8\n\n[[shape]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n",
     )
     .unwrap();
-    let out = dir.path().join("s.png");
-    trazo()
-        .args([
-            "render",
-            s(&scene),
-            "-o",
-            s(&out),
-            "--time-limit",
-            "0",
-            "--spp",
-            "64",
-            "-q",
-        ])
-        .assert()
-        .success();
-    let checkpoint = dir.path().join("s.png.trazo-checkpoint");
-    let c = Checkpoint::read(&checkpoint).unwrap();
+    let (checkpoint, c) = render_first_pass(&scene, &dir.path().join("s.png"));
     assert_eq!(c.stats.spp, 1, "a zero time limit still renders the first pass");
     std::fs::write(
         &scene,
@@ -389,22 +395,7 @@ fn resume_notices_an_edited_mesh_file() {
     )
     .unwrap();
     let out = dir.path().join("m.png");
-    trazo()
-        .args([
-            "render",
-            s(&scene),
-            "-o",
-            s(&out),
-            "--time-limit",
-            "0",
-            "--spp",
-            "64",
-            "-q",
-        ])
-        .assert()
-        .success();
-    let checkpoint = dir.path().join("m.png.trazo-checkpoint");
-    let c = Checkpoint::read(&checkpoint).unwrap();
+    let (checkpoint, c) = render_first_pass(&scene, &out);
     let files: Vec<&str> = c.job_values("file").collect();
     assert_eq!(files.len(), 2, "the scene and its mesh: {files:?}");
     assert!(files.iter().any(|f| f.ends_with("quad.obj")), "{files:?}");
