@@ -31,8 +31,9 @@ pub const MISS: u32 = u32::MAX;
 #[derive(Clone, Debug)]
 pub struct TriangleBvh {
     /// Eight-wide, as Embree's default on AVX machines: against four-wide
-    /// nodes it took 10–20% more rays per second on a million triangles,
-    /// coherent or not (BENCHMARKS.md).
+    /// nodes, incoherent rays on one to four million triangles ran 10–35%
+    /// faster and coherent ones the same; on a mesh that fits in the cache
+    /// it can be up to a tenth slower (BENCHMARKS.md).
     bvh: Bvh8,
     /// Each leaf's triangles, four to a block.
     blocks: Vec<Triangle4>,
