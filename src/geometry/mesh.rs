@@ -144,7 +144,7 @@ impl TriangleMesh {
 
     /// [`TriangleMesh::intersect`] with the ray's part of the test
     /// computed once for all the triangles a traversal meets.
-    #[inline]
+    #[inline(always)]
     pub fn intersect_with(&self, i: usize, ray: &Ray, pre: &TriangleRay) -> Option<TriangleHit> {
         let [a, b, c] = self.vertices(i);
         intersect_triangle_with(ray, pre, a, b, c)

@@ -420,8 +420,10 @@ impl Rectangle {
         self.edge_v
     }
 
-    #[inline]
-    fn intersect(&self, ray: &Ray) -> Option<f32> {
+    /// Distance to the intersection within the ray's interval. Always
+    /// inlined: the scene aggregate tests rectangles in its traversal loop.
+    #[inline(always)]
+    pub fn intersect(&self, ray: &Ray) -> Option<f32> {
         // NaN for a zero-area rectangle, which every comparison rejects.
         let t = intersect_plane(ray, self.corner, self.normal)?;
         let uv = self.coordinates(ray.at(t));

@@ -76,8 +76,9 @@ pub fn intersect_triangle(ray: &Ray, p0: Vec3, p1: Vec3, p2: Vec3) -> Option<Tri
     intersect_triangle_with(ray, &TriangleRay::new(ray)?, p0, p1, p2)
 }
 
-/// [`intersect_triangle`] with the per-ray part precomputed.
-#[inline]
+/// [`intersect_triangle`] with the per-ray part precomputed. Always
+/// inlined: it is the leaf test of every traversal that calls it.
+#[inline(always)]
 pub fn intersect_triangle_with(ray: &Ray, pre: &TriangleRay, p0: Vec3, p1: Vec3, p2: Vec3) -> Option<TriangleHit> {
     let (kx, ky, kz) = (pre.kx, pre.ky, pre.kz);
     let (sx, sy, sz) = (pre.sx, pre.sy, pre.sz);
