@@ -186,9 +186,16 @@ impl<const W: usize> WideBvh<W> {
         let (ix, iy, iz) = (Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z));
         // Per ray, pick which side of each box is entered first, so that a
         // box test is two subtractions and multiplications per axis.
-        let (near_x, far_x) = if inv.x < 0.0 { (MAX_X, MIN_X) } else { (MIN_X, MAX_X) };
-        let (near_y, far_y) = if inv.y < 0.0 { (MAX_Y, MIN_Y) } else { (MIN_Y, MAX_Y) };
-        let (near_z, far_z) = if inv.z < 0.0 { (MAX_Z, MIN_Z) } else { (MIN_Z, MAX_Z) };
+        // As arithmetic on the sign bits, so that the compiler sees every
+        // plane index below 6 and checks none of them.
+        let (sx, sy, sz) = (
+            (inv.x < 0.0) as usize * 3,
+            (inv.y < 0.0) as usize * 3,
+            (inv.z < 0.0) as usize * 3,
+        );
+        let (near_x, far_x) = (MIN_X + sx, MAX_X - sx);
+        let (near_y, far_y) = (MIN_Y + sy, MAX_Y - sy);
+        let (near_z, far_z) = (MIN_Z + sz, MAX_Z - sz);
 
         // An ArrayVec, not an array: a zeroed 2 KiB stack per ray cost
         // more than the traversal of a small scene.
