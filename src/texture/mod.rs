@@ -63,9 +63,19 @@ pub enum Texture {
 }
 
 impl Texture {
-    /// The colour at `tc`.
-    #[inline]
+    /// The colour at `tc`. A constant is read in place, without a call:
+    /// most materials and emitters have constant colours, and their look-up
+    /// sits in the path tracer's inner loop.
+    #[inline(always)]
     pub fn eval(&self, images: &[ImageTexture], tc: &TexCoord) -> Rgb {
+        match *self {
+            Texture::Constant(c) => c,
+            _ => self.eval_varying(images, tc),
+        }
+    }
+
+    /// [`Texture::eval`] of a texture that varies over the surface.
+    fn eval_varying(&self, images: &[ImageTexture], tc: &TexCoord) -> Rgb {
         match *self {
             Texture::Constant(c) => c,
             Texture::Checkerboard { even, odd, scale } => {
