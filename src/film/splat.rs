@@ -11,7 +11,9 @@
 //! margin of the filter's radius, merged into the film in tile order, so
 //! renders stay deterministic on any number of threads.
 
+use super::PixelSum;
 use super::filter::Filter;
+use glam::{DVec3, Vec4};
 
 /// Samples of the filter's profile on [0, radius].
 const TABLE: usize = 64;
@@ -89,9 +91,59 @@ impl Splat {
     }
 }
 
+/// What one pass splats into one pixel. Single precision suffices: a pass
+/// adds at most 16 samples per pixel (and their neighbours' tails) before
+/// the sum joins the film's double-precision one; and with colour and
+/// weight in one vector, a splat's inner loop is one multiply-add per pixel.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SplatSum {
+    /// (Σ w·r, Σ w·g, Σ w·b, Σ w).
+    rgb_weight: Vec4,
+    /// Σ w·Y² (luminance squared).
+    lum_sq: f32,
+}
+
+impl SplatSum {
+    /// Adds a sample with weight `w`; `rgb_one` is its colour with a fourth
+    /// component of 1, `lum_sq` its luminance squared.
+    #[inline(always)]
+    pub fn add(&mut self, rgb_one: Vec4, lum_sq: f32, w: f32) {
+        self.rgb_weight += rgb_one * w;
+        self.lum_sq += lum_sq * w;
+    }
+}
+
+impl PixelSum {
+    /// Adds what a pass splatted into this pixel.
+    #[inline]
+    pub fn merge_splat(&mut self, s: &SplatSum) {
+        let v = s.rgb_weight.as_dvec4();
+        self.rgb += DVec3::new(v.x, v.y, v.z);
+        self.weight += v.w;
+        self.lum_sq += s.lum_sq as f64;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn splat_sums_agree_with_pixel_sums() {
+        let mut exact = PixelSum::default();
+        let mut splat = SplatSum::default();
+        for (k, w) in [0.25f32, 0.5, 0.0625, 1.0].into_iter().enumerate() {
+            let l = crate::color::Rgb::new(0.5, 2.0, 0.125) * (k as f32 + 1.0);
+            let y = crate::color::luminance(l);
+            exact.add_with_luminance(l, y, w);
+            splat.add(l.extend(1.0), y * y, w);
+        }
+        let mut merged = PixelSum::default();
+        merged.merge_splat(&splat);
+        assert!((merged.rgb - exact.rgb).abs().max_element() < 1e-6 * exact.rgb.max_element());
+        assert!((merged.weight - exact.weight).abs() < 1e-7);
+        assert!((merged.lum_sq - exact.lum_sq).abs() < 1e-6 * exact.lum_sq);
+    }
 
     #[test]
     fn weights_sum_to_one_and_follow_the_filter() {

@@ -20,7 +20,7 @@ pub mod checkpoint;
 pub mod compare;
 
 use crate::error::{Error, Result};
-use crate::film::splat::{MAX_TAPS, Splat};
+use crate::film::splat::{MAX_TAPS, Splat, SplatSum};
 use crate::film::{AovSum, Film, Image, PixelSum};
 use crate::integrator::aov::camera_aov;
 use crate::integrator::{Integrator, IntegratorKind, PathTracer, RayStats, Whitted};
@@ -296,7 +296,7 @@ struct TileResult {
     sums: Vec<PixelSum>,
     /// Splatting: what this pass adds to the pixels of `splat_rect` (the
     /// tile and its margin, within the image).
-    splats: Vec<PixelSum>,
+    splats: Vec<SplatSum>,
     splat_rect: Tile,
     aovs: Vec<AovSum>,
     rays: RayStats,
@@ -377,7 +377,7 @@ fn render_passes<I: Integrator>(
                 };
                 let splat_width = splat_rect.x1 - splat_rect.x0;
                 let mut splats = match &splat {
-                    Some(_) => vec![PixelSum::default(); (splat_width * (splat_rect.y1 - splat_rect.y0)) as usize],
+                    Some(_) => vec![SplatSum::default(); (splat_width * (splat_rect.y1 - splat_rect.y0)) as usize],
                     None => Vec::new(),
                 };
                 let (mut taps_x, mut taps_y) = ([(0u32, 0f32); MAX_TAPS], [(0u32, 0f32); MAX_TAPS]);
@@ -407,16 +407,13 @@ fn render_passes<I: Integrator>(
                                     None => sum.add(l, 1.0),
                                     Some(sp) => {
                                         let y_l = crate::color::luminance(l);
+                                        let (rgb_one, y_sq) = (l.extend(1.0), y_l * y_l);
                                         let nx = sp.taps(position.x, splat_rect.x0, splat_rect.x1, &mut taps_x);
                                         let ny = sp.taps(position.y, splat_rect.y0, splat_rect.y1, &mut taps_y);
                                         for &(py, wy) in &taps_y[..ny] {
                                             let row = ((py - splat_rect.y0) * splat_width) as usize;
                                             for &(px, wx) in &taps_x[..nx] {
-                                                splats[row + (px - splat_rect.x0) as usize].add_with_luminance(
-                                                    l,
-                                                    y_l,
-                                                    wx * wy,
-                                                );
+                                                splats[row + (px - splat_rect.x0) as usize].add(rgb_one, y_sq, wx * wy);
                                             }
                                         }
                                     }
@@ -488,7 +485,7 @@ fn render_passes<I: Integrator>(
                     break;
                 }
                 for x in rect.x0..rect.x1 {
-                    film.pixels[(y * w + x) as usize].merge(&r.splats[k]);
+                    film.pixels[(y * w + x) as usize].merge_splat(&r.splats[k]);
                     k += 1;
                 }
             }
