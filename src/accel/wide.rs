@@ -256,9 +256,13 @@ impl<const W: usize> WideBvh<W> {
                         count: node.count[i],
                         t_enter: t,
                     };
-                    // Insertion sort by decreasing entry distance.
                     let mut j = stack.len();
                     stack.push(e);
+                    // A shadow ray stops at any hit: no order to keep.
+                    if any_hit {
+                        continue;
+                    }
+                    // Insertion sort by decreasing entry distance.
                     while j > base && stack[j - 1].t_enter < e.t_enter {
                         stack[j] = stack[j - 1];
                         j -= 1;
