@@ -368,11 +368,12 @@ impl Aggregate {
         let Some(pre) = TriangleRay::new(ray) else {
             return found;
         };
-        found |= self
-            .bvh
-            .traverse(ray, any_hit, #[inline(always)] |k, ray| {
-                self.test_primitive(k, ray, &pre, any_hit, &mut on_hit)
-            });
+        found |= self.bvh.traverse(
+            ray,
+            any_hit,
+            #[inline(always)]
+            |k, ray| self.test_primitive(k, ray, &pre, any_hit, &mut on_hit),
+        );
         found
     }
 
@@ -446,7 +447,13 @@ impl Aggregate {
 
     /// An instance: the ray in the mesh's object space through its tree.
     #[inline(never)]
-    fn test_instance<F: FnMut(Hit, &mut Ray) -> bool>(&self, i: u32, ray: &mut Ray, any_hit: bool, on_hit: &mut F) -> bool {
+    fn test_instance<F: FnMut(Hit, &mut Ray) -> bool>(
+        &self,
+        i: u32,
+        ray: &mut Ray,
+        any_hit: bool,
+        on_hit: &mut F,
+    ) -> bool {
         let inst = &self.instances[i as usize];
         let mesh = &self.meshes[inst.mesh as usize];
         // The object-space ray keeps the world ray's parameter.
