@@ -238,22 +238,25 @@ impl Light {
                 area,
                 sphere,
             } => {
-                let (lp, ln, uv, pdf) = match sphere.and_then(|(c, r)| sample_sphere_cone(c, r, p, u)) {
-                    Some((lp, ln, pdf)) => {
-                        let uv = match radiance {
-                            Texture::Constant(_) => Vec2::ZERO,
-                            _ => sphere_uv(ln),
-                        };
-                        (lp, ln, uv, Some(pdf))
-                    }
-                    None => {
-                        let s = scene.geometry.sample_emitter(*emitter, area, u_pick, u)?;
-                        if s.pdf_area.is_nan() || s.pdf_area <= 0.0 {
-                            return None;
+                // The point's density: per steradian from cone sampling of
+                // a sphere, per unit area otherwise.
+                let (lp, ln, uv, pdf_solid_angle, pdf_area) =
+                    match sphere.and_then(|(c, r)| sample_sphere_cone(c, r, p, u)) {
+                        Some((lp, ln, pdf)) => {
+                            let uv = match radiance {
+                                Texture::Constant(_) => Vec2::ZERO,
+                                _ => sphere_uv(ln),
+                            };
+                            (lp, ln, uv, Some(pdf), 0.0)
                         }
-                        (s.p, s.n, s.uv, None)
-                    }
-                };
+                        None => {
+                            let s = scene.geometry.sample_emitter(*emitter, area, u_pick, u)?;
+                            if s.pdf_area.is_nan() || s.pdf_area <= 0.0 {
+                                return None;
+                            }
+                            (s.p, s.n, s.uv, None, s.pdf_area)
+                        }
+                    };
                 let d = lp - p;
                 let dist2 = d.length_squared();
                 if dist2 == 0.0 {
@@ -266,9 +269,9 @@ impl Light {
                     return None;
                 }
                 // Area density to solid-angle density: p_ω = p_A · d² / cos θ_l.
-                let pdf = match pdf {
+                let pdf = match pdf_solid_angle {
                     Some(pdf) => pdf,
-                    None => scene.geometry.emitter_pdf_area(*emitter, area, ln) * dist2 / cos_light,
+                    None => pdf_area * dist2 / cos_light,
                 };
                 if !pdf.is_finite() || pdf <= 0.0 {
                     return None;

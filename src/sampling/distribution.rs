@@ -66,6 +66,10 @@ impl Distribution1D {
     pub fn sample(&self, u: f32) -> (usize, f32, f32) {
         let n = self.len();
         debug_assert!(n > 0);
+        if n == 1 {
+            // One item (a scene's only light): no search, no division.
+            return (0, 1.0, u);
+        }
         let u64 = u as f64;
         // The last i with cdf[i] <= u, skipping zero-probability items.
         let i = self.cdf.partition_point(|&c| c <= u64).saturating_sub(1).min(n - 1);
