@@ -364,15 +364,19 @@ impl Aggregate {
                 }
             }
         }
-        // A zero direction meets no triangle.
-        let Some(pre) = TriangleRay::new(ray) else {
+        // A zero direction meets nothing bounded.
+        if ray.dir == Vec3::ZERO {
             return found;
-        };
+        }
+        // The triangle test's per-ray set-up, made when the first triangle
+        // is met: many rays in a room meet only walls. (`Some(None)`: made,
+        // and no triangle test accepts the direction.)
+        let mut pre = None;
         found |= self.bvh.traverse(
             ray,
             any_hit,
             #[inline(always)]
-            |k, ray| self.test_primitive(k, ray, &pre, any_hit, &mut on_hit),
+            |k, ray| self.test_primitive(k, ray, &mut pre, any_hit, &mut on_hit),
         );
         found
     }
@@ -388,14 +392,18 @@ impl Aggregate {
         &self,
         k: u32,
         ray: &mut Ray,
-        pre: &TriangleRay,
+        pre: &mut Option<Option<TriangleRay>>,
         any_hit: bool,
         on_hit: &mut F,
     ) -> bool {
+        let mut triangle_ray = |ray: &Ray| *pre.get_or_insert_with(|| TriangleRay::new(ray));
         match self.prims[k as usize] {
             PrimRef::Triangle { object, tri, vertices } => {
                 let [p0, p1, p2] = self.triangle_vertices[vertices as usize];
-                match intersect_triangle_with(ray, pre, p0, p1, p2) {
+                let Some(tri_ray) = triangle_ray(ray) else {
+                    return false;
+                };
+                match intersect_triangle_with(ray, &tri_ray, p0, p1, p2) {
                     Some(h) => on_hit(
                         Hit {
                             t: h.t,
@@ -416,7 +424,10 @@ impl Aggregate {
                 ),
                 None => false,
             },
-            PrimRef::Object(object) => self.test_object(object, ray, pre, any_hit, on_hit),
+            PrimRef::Object(object) => match triangle_ray(ray) {
+                Some(tri_ray) => self.test_object(object, ray, &tri_ray, any_hit, on_hit),
+                None => false,
+            },
             PrimRef::Instance(i) => self.test_instance(i, ray, any_hit, on_hit),
         }
     }
