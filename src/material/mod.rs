@@ -318,8 +318,21 @@ impl Material {
         }
     }
 
-    /// The BSDF at a point.
+    /// The BSDF at a point. A diffuse material's is built in place, without
+    /// a call: it is the commonest material, its BSDF is one texture look-up,
+    /// and inlined the BSDF needs no trip through memory.
+    #[inline(always)]
     pub fn bsdf<'a>(&'a self, images: &[ImageTexture], tc: &TexCoord) -> Bsdf<'a> {
+        match &self.kind {
+            MaterialKind::Diffuse { reflectance } => Bsdf::Lambert(LambertBsdf {
+                albedo: reflectance.eval(images, tc),
+            }),
+            _ => self.bsdf_other(images, tc),
+        }
+    }
+
+    /// [`Material::bsdf`] of the materials other than diffuse.
+    fn bsdf_other<'a>(&'a self, images: &[ImageTexture], tc: &TexCoord) -> Bsdf<'a> {
         match &self.kind {
             MaterialKind::Classic { .. } => {
                 let c = self.classic(images, tc);
