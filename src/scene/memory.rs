@@ -25,11 +25,8 @@ pub const AOV_BYTES_PER_PIXEL: u64 = 228;
 /// `rings = 1000`), 231 bytes a triangle with its vertices; this estimate
 /// gives 914 MiB. Since meshes of 256 triangles or more get a tree over
 /// blocks of four triangles, that sphere peaks at 532 MiB; smaller meshes
-/// still cost about what was measured then, plus 40 bytes a triangle that
-/// the top level has held since (a copy of the triangle's vertices in tree
-/// order, 36 bytes, and a primitive reference grown by 4), so the estimate
-/// is 224 + 40.
-pub const BYTES_PER_TRIANGLE: u64 = 264;
+/// still cost about what this constant says, so the estimate keeps it.
+pub const BYTES_PER_TRIANGLE: u64 = 224;
 /// Bytes per vertex: position, normal and texture coordinates.
 pub const BYTES_PER_VERTEX: u64 = 32;
 /// Bytes per texel of a decoded texture (linear RGB, f32).
