@@ -465,7 +465,7 @@ fn renders_above_the_memory_limit_are_refused_before_they_start() {
     .unwrap();
     let (code, err, took) = run(&["render", s(&scene), "--max-memory", "2G"]);
     assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("geometry 21.9 GiB"), "{err}");
+    assert!(err.contains("geometry 13.9 GiB"), "{err}");
     assert!(took < Duration::from_secs(5), "refused before building: {took:?}");
     // Photon maps: 10⁸ photons would need tens of gigabytes.
     let (code, err, took) = run(&[

@@ -80,7 +80,7 @@ enum PrimRef {
 /// one as a single top-level primitive, an instanced one as its bottom
 /// level. Smaller world-space meshes (the boxes of a Cornell box) are single
 /// triangles in the top-level tree, where blocks measured slower.
-const BLOCK_TREE_MIN_TRIANGLES: usize = 256;
+pub const BLOCK_TREE_MIN_TRIANGLES: usize = 256;
 
 /// Which primitive a ray hit, and where on it.
 #[derive(Clone, Copy, Debug, PartialEq)]

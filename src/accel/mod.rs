@@ -6,7 +6,7 @@ pub mod bvh;
 pub mod queries;
 pub mod wide;
 
-pub use aggregate::Aggregate;
+pub use aggregate::{Aggregate, BLOCK_TREE_MIN_TRIANGLES};
 pub use bvh::{Bvh, BvhNode};
 pub use queries::{QueryHit, TriangleBvh};
 pub use wide::{Bvh4, Bvh8, WideBvh};

@@ -4,7 +4,7 @@
 
 use super::Scene;
 use super::desc::*;
-use super::memory::{BYTES_PER_TEXEL, MemoryEstimate, mesh_bytes, photon_bytes};
+use super::memory::{BYTES_PER_TEXEL, MemoryEstimate, mesh_bytes, photon_bytes, top_level_bytes};
 use super::native::io_reason;
 use crate::accel::aggregate::{Aggregate, EmitterRef, MeshInstance, MeshObject, ShapeInstance};
 use crate::camera::{Camera, Projection};
@@ -253,7 +253,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         .iter()
         .map(|m| mesh_bytes(m.len() as u64, m.positions.len() as u64))
         .sum::<u64>()
-        + mesh_bytes((shapes.len() + instances.len()) as u64, 0);
+        + top_level_bytes((shapes.len() + instances.len()) as u64);
     memory.check(limits.max_memory)?;
     let mut geometry = Aggregate::build(meshes, shapes, mesh_objects, instances);
 

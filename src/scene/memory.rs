@@ -17,16 +17,29 @@ pub const FILM_BYTES_PER_PIXEL: u64 = 144;
 /// Bytes per pixel of the auxiliary images: the sums (64), a pass's copy
 /// (64), the checkpoint buffer (64) and three output images (36).
 pub const AOV_BYTES_PER_PIXEL: u64 = 228;
-/// Bytes per triangle of a mesh with its share of the BVH at the peak of
-/// the build: indices, the primitive's reference, bounds and order, BVH
-/// nodes and the build's temporaries. Measured: a generated sphere of 3.996
-/// million triangles and 2 million vertices peaks at 880 MiB resident
-/// (`/usr/bin/time -v trazo render sphere.toml`, `segments = 2000`,
-/// `rings = 1000`), 231 bytes a triangle with its vertices; this estimate
-/// gives 914 MiB. Since meshes of 256 triangles or more get a tree over
-/// blocks of four triangles, that sphere peaks at 532 MiB; smaller meshes
-/// still cost about what this constant says, so the estimate keeps it.
-pub const BYTES_PER_TRIANGLE: u64 = 224;
+/// Meshes with at least this many triangles get their own tree over blocks
+/// of four triangles; smaller ones are single triangles in the top-level
+/// tree (see [`crate::accel::BLOCK_TREE_MIN_TRIANGLES`]), and cost more per
+/// triangle.
+pub const LARGE_MESH_MIN_TRIANGLES: u64 = crate::accel::BLOCK_TREE_MIN_TRIANGLES as u64;
+/// Bytes per triangle of a large mesh with its share of the BVH at the peak
+/// of the build: indices, the blocks of four triangles, the tree's nodes and
+/// the build's temporaries. Measured with `examples/memory_probe.rs` (the
+/// peak resident set of `scene::build` over what the description holds):
+/// 106–125 bytes a triangle with its vertices for one mesh of a million
+/// triangles, ten of 180 000, 2000 of 512 or 256 of 288; this price with
+/// the vertices' gives 152–157.
+pub const LARGE_MESH_BYTES_PER_TRIANGLE: u64 = 136;
+/// Bytes per triangle of a small mesh, whose triangles are top-level
+/// primitives: a reference (16), the vertices copied in tree order (36),
+/// bounds, tree nodes and the build's temporaries. Measured as above:
+/// 258–336 bytes a triangle with its vertices for meshes of 18 to 242
+/// triangles (30 000 to 2000 of them); this price gives 320–356.
+pub const SMALL_MESH_BYTES_PER_TRIANGLE: u64 = 300;
+/// Bytes per mesh besides its triangles and vertices (its vectors, its
+/// object record), which shows for meshes of a few triangles: 100 000
+/// two-triangle quads peak at 454 bytes a triangle (estimated 620).
+pub const BYTES_PER_MESH: u64 = 512;
 /// Bytes per vertex: position, normal and texture coordinates.
 pub const BYTES_PER_VERTEX: u64 = 32;
 /// Bytes per texel of a decoded texture (linear RGB, f32).
@@ -116,9 +129,21 @@ pub fn photon_bytes(emitted: u64) -> u64 {
 /// Bytes of a mesh of `triangles` triangles and `vertices` vertices, with
 /// its BVH.
 pub fn mesh_bytes(triangles: u64, vertices: u64) -> u64 {
+    let per_triangle = if triangles >= LARGE_MESH_MIN_TRIANGLES {
+        LARGE_MESH_BYTES_PER_TRIANGLE
+    } else {
+        SMALL_MESH_BYTES_PER_TRIANGLE
+    };
     triangles
-        .saturating_mul(BYTES_PER_TRIANGLE)
+        .saturating_mul(per_triangle)
         .saturating_add(vertices.saturating_mul(BYTES_PER_VERTEX))
+        .saturating_add(BYTES_PER_MESH)
+}
+
+/// Bytes of `count` analytic shapes and instances in the top-level tree:
+/// each costs about what a small mesh's triangle does.
+pub fn top_level_bytes(count: u64) -> u64 {
+    count.saturating_mul(SMALL_MESH_BYTES_PER_TRIANGLE)
 }
 
 /// "1.5 GiB", "512 MiB", "900 KiB", "12 bytes".
