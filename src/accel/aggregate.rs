@@ -372,7 +372,7 @@ impl Aggregate {
         // is met: many rays in a room meet only walls. (`Some(None)`: made,
         // and no triangle test accepts the direction.)
         let mut pre = None;
-        found |= self.bvh.traverse(
+        found |= self.bvh.traverse_small(
             ray,
             any_hit,
             #[inline(always)]
@@ -489,7 +489,7 @@ impl Aggregate {
         let Some(blas) = &self.blas[inst.mesh as usize] else {
             return false;
         };
-        let hit = blas.traverse(&mut obj_ray, any_hit, |tri, r| {
+        let hit = blas.traverse_small(&mut obj_ray, any_hit, |tri, r| {
             match mesh.intersect_with(tri as usize, r, &obj_pre) {
                 Some(h) => on_hit(
                     Hit {

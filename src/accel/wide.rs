@@ -164,7 +164,30 @@ impl<const W: usize> WideBvh<W> {
     /// whether it hit. With `any_hit`, stops at the first hit. Returns
     /// whether anything was hit.
     #[inline]
-    pub fn traverse<F: FnMut(u32, &mut Ray) -> bool>(&self, ray: &mut Ray, any_hit: bool, mut test: F) -> bool {
+    pub fn traverse<F: FnMut(u32, &mut Ray) -> bool>(&self, ray: &mut Ray, any_hit: bool, test: F) -> bool {
+        self.traverse_impl::<false, F>(ray, any_hit, test)
+    }
+
+    /// [`WideBvh::traverse`] with the root's children tested before the
+    /// loop instead of the root being pushed and popped. In a small tree
+    /// (a scene's top level, of which a ray visits three or four nodes)
+    /// the root is a good part of the visits: on the Cornell box 0.6% fewer
+    /// instructions and 12% fewer mispredicted branches per sample
+    /// (callgrind). In a large mesh's tree, where one visit in twenty is
+    /// the root's, the same code measured 2–8% fewer rays per second
+    /// (BENCHMARKS.md), so those keep the plain loop.
+    #[inline]
+    pub fn traverse_small<F: FnMut(u32, &mut Ray) -> bool>(&self, ray: &mut Ray, any_hit: bool, test: F) -> bool {
+        self.traverse_impl::<true, F>(ray, any_hit, test)
+    }
+
+    #[inline(always)]
+    fn traverse_impl<const ROOT_FIRST: bool, F: FnMut(u32, &mut Ray) -> bool>(
+        &self,
+        ray: &mut Ray,
+        any_hit: bool,
+        mut test: F,
+    ) -> bool {
         if let Some((first, count)) = self.root_leaf {
             let mut hit = false;
             for k in first..first + count {
@@ -200,11 +223,70 @@ impl<const W: usize> WideBvh<W> {
         // An ArrayVec, not an array: a zeroed 2 KiB stack per ray cost
         // more than the traversal of a small scene.
         let mut stack: ArrayVec<StackEntry, STACK> = ArrayVec::new();
-        stack.push(StackEntry {
-            child: 0,
-            count: 0,
-            t_enter: ray.t_min,
-        });
+        // The box test of a node's children and the push of those hit, as
+        // a macro so that the root's visit and the loop's share it with no
+        // call between them.
+        macro_rules! visit_node {
+            ($index:expr) => {{
+                let node = &self.nodes[$index as usize];
+                let b = &node.bounds;
+                // Four slab tests at once: glam's Vec4 is an SSE register
+                // on x86-64 (and NEON on aarch64), so this is a dozen vector
+                // instructions without `unsafe`. `max`/`min` return their
+                // second operand when the first is NaN (0·∞ for a ray in a
+                // box's face plane), as the scalar slab test does.
+                let mut hits = 0;
+                let mut t_enter = [0.0f32; W];
+                for c in 0..W / 4 {
+                    let lanes = |plane: usize| Vec4::from_slice(&b[plane][4 * c..4 * c + 4]);
+                    let tx0 = (lanes(near_x) - ox) * ix;
+                    let ty0 = (lanes(near_y) - oy) * iy;
+                    let tz0 = (lanes(near_z) - oz) * iz;
+                    let tx1 = (lanes(far_x) - ox) * ix;
+                    let ty1 = (lanes(far_y) - oy) * iy;
+                    let tz1 = (lanes(far_z) - oz) * iz;
+                    let t0 = tx0.max(ty0).max(tz0.max(Vec4::splat(ray.t_min)));
+                    let t1 = tx1.min(ty1).min(tz1.min(Vec4::splat(ray.t_max))) * SLAB_ROUNDING;
+                    hits |= t0.cmple(t1).bitmask() << (4 * c);
+                    t0.write_to_slice(&mut t_enter[4 * c..4 * c + 4]);
+                }
+                if hits != 0 {
+                    // Push the children that were hit, farthest first, so that the
+                    // nearest is visited next.
+                    let base = stack.len();
+                    for (i, &t) in t_enter.iter().enumerate() {
+                        if hits & (1 << i) != 0 {
+                            let e = StackEntry {
+                                child: node.child[i],
+                                count: node.count[i],
+                                t_enter: t,
+                            };
+                            let mut j = stack.len();
+                            stack.push(e);
+                            // A shadow ray stops at any hit: no order to keep.
+                            if any_hit {
+                                continue;
+                            }
+                            // Insertion sort by decreasing entry distance.
+                            while j > base && stack[j - 1].t_enter < e.t_enter {
+                                stack[j] = stack[j - 1];
+                                j -= 1;
+                            }
+                            stack[j] = e;
+                        }
+                    }
+                }
+            }};
+        }
+        if ROOT_FIRST {
+            visit_node!(0);
+        } else {
+            stack.push(StackEntry {
+                child: 0,
+                count: 0,
+                t_enter: ray.t_min,
+            });
+        }
         let mut hit = false;
         while let Some(entry) = stack.pop() {
             if entry.t_enter > ray.t_max {
@@ -221,55 +303,7 @@ impl<const W: usize> WideBvh<W> {
                 }
                 continue;
             }
-            let node = &self.nodes[entry.child as usize];
-            let b = &node.bounds;
-            // Four slab tests at once: glam's Vec4 is an SSE register
-            // on x86-64 (and NEON on aarch64), so this is a dozen vector
-            // instructions without `unsafe`. `max`/`min` return their
-            // second operand when the first is NaN (0·∞ for a ray in a
-            // box's face plane), as the scalar slab test does.
-            let mut hits = 0;
-            let mut t_enter = [0.0f32; W];
-            for c in 0..W / 4 {
-                let lanes = |plane: usize| Vec4::from_slice(&b[plane][4 * c..4 * c + 4]);
-                let tx0 = (lanes(near_x) - ox) * ix;
-                let ty0 = (lanes(near_y) - oy) * iy;
-                let tz0 = (lanes(near_z) - oz) * iz;
-                let tx1 = (lanes(far_x) - ox) * ix;
-                let ty1 = (lanes(far_y) - oy) * iy;
-                let tz1 = (lanes(far_z) - oz) * iz;
-                let t0 = tx0.max(ty0).max(tz0.max(Vec4::splat(ray.t_min)));
-                let t1 = tx1.min(ty1).min(tz1.min(Vec4::splat(ray.t_max))) * SLAB_ROUNDING;
-                hits |= t0.cmple(t1).bitmask() << (4 * c);
-                t0.write_to_slice(&mut t_enter[4 * c..4 * c + 4]);
-            }
-            if hits == 0 {
-                continue;
-            }
-            // Push the children that were hit, farthest first, so that the
-            // nearest is visited next.
-            let base = stack.len();
-            for (i, &t) in t_enter.iter().enumerate() {
-                if hits & (1 << i) != 0 {
-                    let e = StackEntry {
-                        child: node.child[i],
-                        count: node.count[i],
-                        t_enter: t,
-                    };
-                    let mut j = stack.len();
-                    stack.push(e);
-                    // A shadow ray stops at any hit: no order to keep.
-                    if any_hit {
-                        continue;
-                    }
-                    // Insertion sort by decreasing entry distance.
-                    while j > base && stack[j - 1].t_enter < e.t_enter {
-                        stack[j] = stack[j - 1];
-                        j -= 1;
-                    }
-                    stack[j] = e;
-                }
-            }
+            visit_node!(entry.child);
         }
         hit
     }

@@ -25,6 +25,8 @@ pub const MAX_TAPS: usize = 16;
 #[derive(Clone, Debug)]
 pub struct Splat {
     radius: f32,
+    /// Table steps per pixel: (TABLE − 1) / radius.
+    scale: f32,
     /// Pixels a tile's buffer extends beyond the tile on each side.
     pub margin: u32,
     /// The 1D profile at |x| = i·radius/(TABLE − 1), divided by its integral.
@@ -53,41 +55,36 @@ impl Splat {
             std::array::from_fn(|i| (filter.eval_1d(radius * i as f32 / (TABLE - 1) as f32) as f64 / integral) as f32);
         Some(Splat {
             radius,
+            scale: (TABLE - 1) as f32 / radius,
             margin: (radius - 0.5).ceil().max(0.0) as u32,
             table,
         })
     }
 
-    /// The weight of a sample at distance `x` (pixels) from a pixel centre.
-    #[inline]
+    /// The weight of a sample at distance `x` (pixels, |x| ≤ radius) from
+    /// a pixel centre. The index is clamped rather than tested, so that a
+    /// row of taps is computed without a branch.
+    #[inline(always)]
     fn weight(&self, x: f32) -> f32 {
-        let t = x.abs() / self.radius * (TABLE - 1) as f32;
-        if t >= (TABLE - 1) as f32 {
-            return 0.0;
-        }
-        let i = t as usize;
+        let t = (x.abs() * self.scale).min((TABLE - 1) as f32);
+        let i = (t as usize).min(TABLE - 2);
         let f = t - i as f32;
-        self.table[i] * (1.0 - f) + self.table[i + 1] * f
+        self.table[i] + (self.table[i + 1] - self.table[i]) * f
     }
 
-    /// Writes `(pixel, weight)` for the pixels in `[lo, hi)` whose centres
-    /// lie within the radius of position `p` along one axis; returns how
-    /// many.
+    /// The pixels in `[lo, hi)` whose centres lie within the radius of
+    /// position `p` along one axis, which are consecutive: writes their
+    /// weights to `weights` and returns the first pixel and how many.
     #[inline]
-    pub fn taps(&self, p: f32, lo: u32, hi: u32, out: &mut [(u32, f32); MAX_TAPS]) -> usize {
-        let first = ((p - self.radius - 0.5).ceil().max(lo as f32)) as u32;
-        let last = ((p + self.radius - 0.5).floor().min(hi as f32 - 1.0)).max(-1.0);
-        let mut n = 0;
-        let mut px = first;
-        while (px as f32) <= last && n < MAX_TAPS {
-            let w = self.weight(px as f32 + 0.5 - p);
-            if w > 0.0 {
-                out[n] = (px, w);
-                n += 1;
-            }
-            px += 1;
+    pub fn taps(&self, p: f32, lo: u32, hi: u32, weights: &mut [f32; MAX_TAPS]) -> (u32, usize) {
+        let first = (p - self.radius - 0.5).ceil().max(lo as f32);
+        let last = (p + self.radius - 0.5).floor().min(hi as f32 - 1.0);
+        let n = ((last - first + 1.0).max(0.0) as usize).min(MAX_TAPS);
+        let x0 = first + 0.5 - p;
+        for (k, w) in weights[..n].iter_mut().enumerate() {
+            *w = self.weight(x0 + k as f32);
         }
-        n
+        (first as u32, n)
     }
 }
 
@@ -153,32 +150,30 @@ mod tests {
         };
         let s = Splat::new(&g).unwrap();
         assert_eq!(s.margin, 2);
-        let mut taps = [(0, 0.0); MAX_TAPS];
+        let mut weights = [0.0; MAX_TAPS];
         for p in [10.0f32, 10.25, 10.5, 10.9] {
-            let n = s.taps(p, 0, 100, &mut taps);
-            assert!((3..=5).contains(&n), "{p}: {n}");
-            let sum: f32 = taps[..n].iter().map(|t| t.1).sum();
+            let (first, n) = s.taps(p, 0, 100, &mut weights);
+            assert!((4..=5).contains(&n), "{p}: {n}");
+            let sum: f32 = weights[..n].iter().sum();
             assert!((sum - 1.0).abs() < 0.02, "{p}: {sum}");
-            for &(px, w) in &taps[..n] {
-                let x = px as f32 + 0.5 - p;
-                assert!(x.abs() < 2.0);
+            for (k, &w) in weights[..n].iter().enumerate() {
+                let x = (first + k as u32) as f32 + 0.5 - p;
+                assert!(x.abs() <= 2.0);
                 let expect = g.eval_1d(x) / g.eval_1d(0.0) * s.table[0];
-                assert!((w - expect).abs() < 2e-3 * s.table[0], "{p} {px}: {w} vs {expect}");
+                assert!((w - expect).abs() < 2e-3 * s.table[0], "{p} {x}: {w} vs {expect}");
             }
         }
         // At the image's edge only pixels inside are touched.
-        let n = s.taps(0.3, 0, 100, &mut taps);
-        assert!(taps[..n].iter().all(|t| t.0 < 3) && n == 2, "{:?}", &taps[..n]);
-        let n = s.taps(99.9, 0, 100, &mut taps);
-        assert!(taps[..n].iter().all(|t| t.0 >= 98 && t.0 < 100), "{:?}", &taps[..n]);
+        assert_eq!(s.taps(0.3, 0, 100, &mut weights), (0, 2));
+        assert_eq!(s.taps(99.9, 0, 100, &mut weights), (98, 2));
         // The one-pixel box is left to filter importance sampling.
         assert!(Splat::new(&Filter::Box { radius: 0.5 }).is_none());
         let tent = Splat::new(&Filter::Tent { radius: 1.0 }).unwrap();
         assert_eq!(tent.margin, 1);
-        let n = tent.taps(5.5, 0, 10, &mut taps);
-        assert_eq!(
-            n, 1,
-            "a sample at a pixel centre reaches only that pixel under the unit tent"
-        );
+        let (first, n) = tent.taps(5.5, 0, 10, &mut weights);
+        // The unit tent's taps at a pixel centre: that pixel (weight 1) and
+        // its neighbours at the tent's edge (weight 0).
+        assert_eq!((first, n), (4, 3));
+        assert_eq!(weights[..3], [0.0, 1.0, 0.0]);
     }
 }

@@ -380,7 +380,7 @@ fn render_passes<I: Integrator>(
                     Some(_) => vec![SplatSum::default(); (splat_width * (splat_rect.y1 - splat_rect.y0)) as usize],
                     None => Vec::new(),
                 };
-                let (mut taps_x, mut taps_y) = ([(0u32, 0f32); MAX_TAPS], [(0u32, 0f32); MAX_TAPS]);
+                let (mut weights_x, mut weights_y) = ([0f32; MAX_TAPS], [0f32; MAX_TAPS]);
                 let mut aovs = Vec::with_capacity(if options.aovs { n } else { 0 });
                 for y in tile.y0..tile.y1 {
                     // Checked once a row, so that an interrupt is obeyed
@@ -408,13 +408,20 @@ fn render_passes<I: Integrator>(
                                     Some(sp) => {
                                         let y_l = crate::color::luminance(l);
                                         let (rgb_one, y_sq) = (l.extend(1.0), y_l * y_l);
-                                        let nx = sp.taps(position.x, splat_rect.x0, splat_rect.x1, &mut taps_x);
-                                        let ny = sp.taps(position.y, splat_rect.y0, splat_rect.y1, &mut taps_y);
-                                        for &(py, wy) in &taps_y[..ny] {
-                                            let row = ((py - splat_rect.y0) * splat_width) as usize;
-                                            for &(px, wx) in &taps_x[..nx] {
-                                                splats[row + (px - splat_rect.x0) as usize].add(rgb_one, y_sq, wx * wy);
+                                        let (x0, nx) =
+                                            sp.taps(position.x, splat_rect.x0, splat_rect.x1, &mut weights_x);
+                                        let (y0, ny) =
+                                            sp.taps(position.y, splat_rect.y0, splat_rect.y1, &mut weights_y);
+                                        // A sample's pixels are a block: one row slice at a time.
+                                        let mut start =
+                                            ((y0 - splat_rect.y0) * splat_width + x0 - splat_rect.x0) as usize;
+                                        for &wy in &weights_y[..ny] {
+                                            let (row_rgb, row_y_sq) = (rgb_one * wy, y_sq * wy);
+                                            let row = &mut splats[start..start + nx];
+                                            for (s, &wx) in row.iter_mut().zip(&weights_x[..nx]) {
+                                                s.add(row_rgb, row_y_sq, wx);
                                             }
+                                            start += splat_width as usize;
                                         }
                                     }
                                 }
