@@ -76,7 +76,7 @@ def write_rays(path, o, d):
 _scene = None
 
 
-# Each timing is the best of this many runs, for trazo and Embree alike
+# Each timing is the best of this many runs, for trazo and every peer alike
 # (a single run on a shared 2-core machine varies by tens of percent).
 REPEAT = 3
 
@@ -304,14 +304,36 @@ def render_section(args, work):
     reference = None if args.reference_spp == 0 else reference_image(args, scene)
     print(f"Cornell box ({os.path.relpath(scene, args.root)}), {args.res}×{args.res}, {args.spp} spp, max depth 8, {os.cpu_count()} cores")
     out = os.path.join(work, "trazo.exr")
-    r = subprocess.run([args.trazo, "render", scene, "-o", out, "--spp", str(args.spp), "--width", str(args.res),
-                        "--height", str(args.res), "--max-depth", "8"], capture_output=True, text=True, check=True)
-    t_trazo = float(re.search(r" in ([0-9.]+) s", r.stderr).group(1))
-    rows = [("trazo (path:mis)", t_trazo, None, out)]
+
+    def trazo_time():
+        r = subprocess.run([args.trazo, "render", scene, "-o", out, "--spp", str(args.spp), "--width", str(args.res),
+                            "--height", str(args.res), "--max-depth", "8"], capture_output=True, text=True, check=True)
+        return float(re.search(r" in ([0-9.]+) s", r.stderr).group(1)), None
+
+    # Each renderer's best of REPEAT runs, the renderers taking turns
+    # round by round, so that a slow spell of the shared machine does not
+    # decide a ratio; every run renders the same image (fixed seeds).
+    runners = [("trazo", "trazo (path:mis)", trazo_time, out)]
     for variant in ["llvm_ad_rgb", "scalar_rgb"]:
         image = os.path.join(work, f"{variant}.exr")
-        t, why = mitsuba_time(variant, scene, args.res, args.spp, image)
-        rows.append((f"Mitsuba 3 {variant}", t, why, image))
+        runners.append((variant, f"Mitsuba 3 {variant}",
+                        lambda v=variant, i=image: mitsuba_time(v, scene, args.res, args.spp, i), image))
+    runs = {key: [] for key, *_ in runners}
+    failed = {}
+    for _ in range(REPEAT):
+        for key, _name, run, _image in runners:
+            if key in failed:
+                continue
+            t, why = run()
+            if t is None:
+                failed[key] = why
+            else:
+                runs[key].append(t)
+    rows = [(name, min(runs[key]) if key not in failed else None, failed.get(key), image)
+            for key, name, _run, image in runners]
+    t_trazo = rows[0][1]
+    if t_trazo is None:
+        raise SystemExit(f"trazo failed: {failed['trazo']}")
     cycles = None
     if args.cycles:
         image = os.path.join(work, "cycles.exr")
@@ -332,6 +354,9 @@ def render_section(args, work):
             err = relmse(args.trazo, image, reference) if reference else None
             err = f"{err:.2e}" if err is not None else "–"
             print(f"| {name} | {t:.2f} s | {samples / t / 1e6:.2f} M | {t_trazo / t:.2f} | {err} |")
+    print()
+    print("render times, each the best of its runs: " + "; ".join(
+        f"{key} {', '.join(f'{t:.2f}' for t in times)} s" for key, times in runs.items() if times))
     if isinstance(cycles, dict):
         print_cycles_notes(args, cycles, rows[-1][3], reference)
 
