@@ -406,6 +406,12 @@ mod tests {
                 assert_eq!(r4.t_max, r1.t_max, "n = {n}");
                 let mut r5 = Ray::with_interval(o, d, 1e-4, f32::INFINITY);
                 assert_eq!(wide8.traverse(&mut r5, true, test), h1);
+                // The root visited before the loop finds the same.
+                let mut r6 = Ray::with_interval(o, d, 1e-4, f32::INFINITY);
+                assert_eq!(wide.traverse_small(&mut r6, false, test), h1, "n = {n}");
+                assert_eq!(r6.t_max, r1.t_max, "n = {n}");
+                let mut r7 = Ray::with_interval(o, d, 1e-4, f32::INFINITY);
+                assert_eq!(wide.traverse_small(&mut r7, true, test), h1);
             }
         }
     }
