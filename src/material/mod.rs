@@ -151,6 +151,14 @@ pub fn phong_exponent_for_alpha(alpha: f32) -> f32 {
     (2.0 / (alpha * alpha).max(1e-6) - 2.0).clamp(1.0, 10_000.0)
 }
 
+/// A diffuse material's BSDF: Lambert with the reflectance at `tc`.
+#[inline(always)]
+fn diffuse_bsdf<'a>(reflectance: &Texture, images: &[ImageTexture], tc: &TexCoord) -> Bsdf<'a> {
+    Bsdf::Lambert(LambertBsdf {
+        albedo: reflectance.eval(images, tc),
+    })
+}
+
 impl Material {
     /// A classical material.
     pub fn new_classic(
@@ -324,9 +332,7 @@ impl Material {
     #[inline(always)]
     pub fn bsdf<'a>(&'a self, images: &[ImageTexture], tc: &TexCoord) -> Bsdf<'a> {
         match &self.kind {
-            MaterialKind::Diffuse { reflectance } => Bsdf::Lambert(LambertBsdf {
-                albedo: reflectance.eval(images, tc),
-            }),
+            MaterialKind::Diffuse { reflectance } => diffuse_bsdf(reflectance, images, tc),
             _ => self.bsdf_other(images, tc),
         }
     }
@@ -338,9 +344,7 @@ impl Material {
                 let c = self.classic(images, tc);
                 Bsdf::Classic(ClassicBsdf::new(c.kd, c.ks, c.shininess, c.kr, c.kt, c.ior))
             }
-            MaterialKind::Diffuse { reflectance } => Bsdf::Lambert(LambertBsdf {
-                albedo: reflectance.eval(images, tc),
-            }),
+            MaterialKind::Diffuse { reflectance } => diffuse_bsdf(reflectance, images, tc),
             MaterialKind::Conductor { fresnel, tint, alpha } => Bsdf::Conductor(ConductorBsdf {
                 fresnel: *fresnel,
                 tint: *tint,
