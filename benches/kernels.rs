@@ -7,9 +7,9 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 use trazo::Vec3;
 use trazo::accel::TriangleBvh;
-use trazo::accel::aggregate::{Aggregate, MeshObject};
+use trazo::accel::aggregate::{Aggregate, MeshObject, ShapeInstance};
 use trazo::geometry::Aabb;
-use trazo::geometry::shape::{Shape, Sphere};
+use trazo::geometry::shape::{Rectangle, Shape, Sphere};
 use trazo::geometry::triangle::intersect_triangle;
 use trazo::geometry::{Ray, TriangleMesh};
 use trazo::integrator::{Integrator, PathSampling, PathTracer, RayStats};
@@ -102,6 +102,54 @@ fn traversal(c: &mut Criterion) {
     });
 }
 
+/// A clutter of `n` small rectangles and triangles in the unit cube around
+/// the origin, half of each.
+fn clutter(n: usize, seed: u64) -> Aggregate {
+    let mut r = Pcg32::new(seed, 9);
+    let mut v = || Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) - 0.5;
+    let shapes = (0..n / 2)
+        .map(|_| ShapeInstance {
+            shape: Shape::Rectangle(Rectangle::new(v(), v() * 0.4, v() * 0.4)),
+            transform: None,
+            material: 0,
+            light: None,
+            flip_normals: false,
+        })
+        .collect();
+    let mut mesh = TriangleMesh::default();
+    for t in 0..n - n / 2 {
+        let c = v();
+        mesh.positions.extend([c, c + v() * 0.4, c + v() * 0.4]);
+        mesh.indices.push([3 * t as u32, 3 * t as u32 + 1, 3 * t as u32 + 2]);
+    }
+    let object = MeshObject {
+        mesh: 0,
+        material: 0,
+        light: None,
+    };
+    Aggregate::build(vec![mesh], shapes, vec![object], vec![])
+}
+
+/// Small scenes traced without a tree (every primitive tested, eight at a
+/// time) against the same scenes through their tree: where the flat test
+/// stops paying.
+fn small_scenes(c: &mut Criterion) {
+    let rays = random_rays(4096, 3);
+    let mut g = c.benchmark_group("small scene closest-hit x4096");
+    for n in [8, 16, 24, 32, 48, 64] {
+        let flat = clutter(n, n as u64);
+        let tree = clutter(n, n as u64).without_flat();
+        g.bench_function(
+            format!("{n} primitives, flat ({} blocks)", flat.stats().flat_blocks),
+            |b| b.iter(|| rays.iter().filter(|r| flat.intersect(black_box(r)).is_some()).count()),
+        );
+        g.bench_function(format!("{n} primitives, tree"), |b| {
+            b.iter(|| rays.iter().filter(|r| tree.intersect(black_box(r)).is_some()).count())
+        });
+    }
+    g.finish();
+}
+
 fn bsdf_sampling(c: &mut Criterion) {
     let mut r = Pcg32::new(5, 0);
     let inputs: Vec<(Vec3, f32, Vec2)> = (0..1024)
@@ -183,6 +231,7 @@ criterion_group!(
     benches,
     intersection,
     traversal,
+    small_scenes,
     bsdf_sampling,
     path_sample,
     whole_render

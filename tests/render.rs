@@ -1,7 +1,7 @@
 //! Whole-pipeline tests through the library: closed-form shading,
 //! refraction, BVH against brute force, determinism, robustness to scale.
 
-use trazo::accel::aggregate::{Aggregate, MeshInstance, MeshObject, ShapeInstance};
+use trazo::accel::aggregate::{Aggregate, HitPrim, MeshInstance, MeshObject, ShapeInstance};
 use trazo::geometry::shape::{Cuboid, Disk, Rectangle, Shape, Sphere};
 use trazo::geometry::{Ray, Transform, TriangleMesh};
 use trazo::integrator::IntegratorKind;
@@ -471,6 +471,119 @@ fn bvh_agrees_with_brute_force_on_random_scenes() {
             hits += expect.is_some() as u32;
         }
         assert!(hits > 200, "the test must exercise hits ({hits})");
+    }
+}
+
+/// A room-sized scene: rectangles (some transformed, which are baked into
+/// world space) and two small meshes, few enough to be traced without the
+/// tree where the processor allows.
+fn small_planar_aggregate(seed: u64) -> Aggregate {
+    let mut r = Pcg32::new(seed, 3);
+    let mut v = || r.next_f32();
+    let mut shapes = Vec::new();
+    for i in 0..10 {
+        let c = Vec3::new(v(), v(), v()) * 4.0 - 2.0;
+        let transform = (i % 3 == 0).then(|| {
+            Transform::rotate(Vec3::new(v(), v(), v()) + 0.1, v() * 360.0)
+                .unwrap()
+                .then(&Transform::scale(Vec3::new(0.5 + v(), 0.5 + v(), 0.5 + v())).unwrap())
+        });
+        shapes.push(ShapeInstance {
+            shape: Shape::Rectangle(Rectangle::new(
+                c,
+                Vec3::new(v(), v(), v()) * 2.0 - 1.0,
+                Vec3::new(v(), v(), v()) * 2.0 - 1.0,
+            )),
+            transform,
+            material: 0,
+            light: None,
+            flip_normals: false,
+        });
+    }
+    let mut mesh = |n: usize| {
+        let mut m = TriangleMesh::default();
+        let centre = Vec3::new(v(), v(), v()) * 3.0 - 1.5;
+        for t in 0..n {
+            for _ in 0..3 {
+                m.positions.push(centre + Vec3::new(v(), v(), v()) - 0.5);
+            }
+            m.indices.push([3 * t as u32, 3 * t as u32 + 1, 3 * t as u32 + 2]);
+        }
+        m
+    };
+    let meshes = vec![mesh(12), mesh(20)];
+    let objects = (0..2)
+        .map(|mesh| MeshObject {
+            mesh,
+            material: 0,
+            light: None,
+        })
+        .collect();
+    Aggregate::build(meshes, shapes, objects, Vec::new())
+}
+
+/// Small scenes of rectangles and triangles are traced without the tree,
+/// every primitive tested eight at a time (on x86-64 with AVX): they find
+/// what testing every primitive one by one finds, and what the tree finds.
+#[test]
+fn small_scenes_without_a_tree_agree_with_brute_force_and_the_tree() {
+    for seed in 1..4 {
+        let flat = small_planar_aggregate(seed);
+        if cfg!(target_arch = "x86_64") && std::arch::is_x86_feature_detected!("avx") {
+            assert!(
+                flat.stats().flat_blocks > 0,
+                "42 rectangles and triangles are traced without a tree"
+            );
+        }
+        let tree = small_planar_aggregate(seed).without_flat();
+        assert_eq!(tree.stats().flat_blocks, 0);
+        let mut r = Pcg32::new(seed * 91, 5);
+        let mut hits = 0;
+        for i in 0..4000 {
+            let o = Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 8.0 - 4.0;
+            let target = Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 3.0 - 1.5;
+            let d = target - o;
+            let t_max = if i % 5 == 0 { 0.7 } else { f32::INFINITY };
+            let ray = Ray::with_interval(o, d, 1e-4, t_max);
+            let expect = brute_force_t(&flat, &ray);
+            let got = flat.intersect(&ray);
+            // Blocks of triangles compute their edge functions without
+            // fused multiply-adds, as the tree's blocks do.
+            match (got.map(|h| h.t), expect) {
+                (Some(a), Some(b)) => assert!((a - b).abs() <= 4.0 * f32::EPSILON * b, "ray {ray:?}: {a} vs {b}"),
+                (a, b) => assert_eq!(a, b, "ray {ray:?}"),
+            }
+            // The same primitive as through the tree (barycentrics equal
+            // but for the last bits).
+            match (got.map(|h| h.prim), tree.intersect(&ray).map(|h| h.prim)) {
+                (
+                    Some(HitPrim::Triangle { object, tri, b }),
+                    Some(HitPrim::Triangle {
+                        object: o2,
+                        tri: t2,
+                        b: b2,
+                    }),
+                ) => {
+                    assert_eq!((object, tri), (o2, t2), "ray {ray:?}");
+                    assert!(
+                        (0..3).all(|k| (b[k] - b2[k]).abs() <= 1e-5),
+                        "ray {ray:?}: {b:?} vs {b2:?}"
+                    );
+                }
+                (a, b) => assert_eq!(a, b, "ray {ray:?}: the same primitive as through the tree"),
+            }
+            if let Some(h) = got {
+                let p = flat.surface(&ray, &h).p;
+                let at = ray.origin + ray.dir * h.t;
+                assert!(
+                    (p - at).length() <= 1e-4 * (1.0 + at.length()),
+                    "ray {ray:?}: {p} vs {at}"
+                );
+                hits += 1;
+            }
+            assert_eq!(flat.occluded(&ray), expect.is_some(), "ray {ray:?}");
+        }
+        assert!(hits > 500, "the test must exercise hits ({hits})");
     }
 }
 

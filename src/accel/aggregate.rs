@@ -6,9 +6,12 @@
 //! the top-level BVH one by one. Meshes placed several times are stored
 //! once, in object space, with a BVH of their own; each placement is one
 //! top-level primitive holding a transform (instancing). Infinite planes
-//! have no bounds and are tested outside the tree.
+//! have no bounds and are tested outside the tree. A scene of a few dozen
+//! rectangles and triangles (a room) is traced without the tree: see
+//! [`FlatScene`](super::flat::FlatScene).
 
 use super::bvh::Bvh;
+use super::flat::{FLAT_MAX_PRIMITIVES, FLAT_MIN_PRIMITIVES, FlatHit, FlatScene};
 use super::queries::TriangleBvh;
 use super::wide::Bvh4;
 use crate::geometry::mesh::TriangleMesh;
@@ -131,6 +134,9 @@ pub struct BuildStats {
     pub bvh_bytes: usize,
     /// Bytes held by mesh data.
     pub mesh_bytes: usize,
+    /// Blocks of eight primitives where rays are traced without the tree,
+    /// every primitive tested (see [`FlatScene`]); 0 where the tree is used.
+    pub flat_blocks: usize,
 }
 
 /// A point sampled uniformly in the object space of an emitter, mapped to
@@ -180,6 +186,9 @@ pub struct Aggregate {
     triangle_vertices: Vec<[Vec3; 3]>,
     unbounded: Vec<u32>,
     bvh: Bvh4,
+    /// The bounded primitives without a tree, where they are few and all
+    /// rectangles or triangles; `bvh` is then not traversed.
+    flat: Option<FlatScene>,
     bounds: Aabb,
     stats: BuildStats,
 }
@@ -291,6 +300,7 @@ impl Aggregate {
         // ones: in a room, whose walls make every upper box the whole room,
         // that halves the boxes a ray visits.
         let bvh = Bvh4::from_binary(&bvh);
+        let flat = flat_scene(&prims, &shapes, &triangle_vertices);
         let blas: Vec<Option<Bvh4>> = blas.iter().map(|b| b.as_ref().map(Bvh4::from_binary)).collect();
 
         let mut stats = BuildStats {
@@ -300,8 +310,10 @@ impl Aggregate {
             nodes: bvh.node_count(),
             bvh_bytes: bvh.memory_bytes()
                 + prims.len() * std::mem::size_of::<PrimRef>()
-                + triangle_vertices.len() * std::mem::size_of::<[Vec3; 3]>(),
+                + triangle_vertices.len() * std::mem::size_of::<[Vec3; 3]>()
+                + flat.as_ref().map_or(0, FlatScene::memory_bytes),
             mesh_bytes: 0,
+            flat_blocks: flat.as_ref().map_or(0, FlatScene::blocks),
         };
         for b in blas.iter().flatten() {
             stats.nodes += b.node_count();
@@ -327,9 +339,18 @@ impl Aggregate {
             triangle_vertices,
             unbounded,
             bvh,
+            flat,
             bounds: scene_bounds,
             stats,
         }
+    }
+
+    /// The same geometry traced through its tree even where it is small
+    /// enough to be traced without one (for tests and benchmarks).
+    pub fn without_flat(mut self) -> Aggregate {
+        self.flat = None;
+        self.stats.flat_blocks = 0;
+        self
     }
 
     /// Figures from the build.
@@ -367,6 +388,23 @@ impl Aggregate {
         // A zero direction meets nothing bounded.
         if ray.dir == Vec3::ZERO {
             return found;
+        }
+        if let Some(flat) = &self.flat {
+            let hit = match flat.intersect(ray, any_hit) {
+                None => return found,
+                Some(FlatHit::Rectangle { id, t }) => Hit {
+                    t,
+                    prim: HitPrim::Shape(id),
+                },
+                Some(FlatHit::Triangle { id, t, b }) => match self.prims[id as usize] {
+                    PrimRef::Triangle { object, tri, .. } => Hit {
+                        t,
+                        prim: HitPrim::Triangle { object, tri, b },
+                    },
+                    _ => unreachable!("flat triangles are numbered by their top-level primitive"),
+                },
+            };
+            return on_hit(hit, ray) | found;
         }
         // The triangle test's per-ray set-up, made when the first triangle
         // is met: many rays in a room meet only walls. (`Some(None)`: made,
@@ -719,6 +757,34 @@ impl Aggregate {
             }
         }
     }
+}
+
+/// The top-level primitives as a [`FlatScene`], if they are few (but not
+/// so few that a tree of one or two leaves is faster) and all rectangles or
+/// triangles. Triangles are numbered by their place in
+/// `prims` (tree order, so that a block holds neighbours), rectangles by
+/// their shape.
+fn flat_scene(prims: &[PrimRef], shapes: &[ShapeInstance], triangle_vertices: &[[Vec3; 3]]) -> Option<FlatScene> {
+    if !(FLAT_MIN_PRIMITIVES..=FLAT_MAX_PRIMITIVES).contains(&prims.len()) {
+        return None;
+    }
+    let mut rectangles = Vec::new();
+    let mut triangles = Vec::new();
+    for (k, p) in prims.iter().enumerate() {
+        match *p {
+            PrimRef::Triangle { vertices, .. } => triangles.push((triangle_vertices[vertices as usize], k as u32)),
+            PrimRef::Shape(i) => match &shapes[i as usize] {
+                ShapeInstance {
+                    shape: Shape::Rectangle(r),
+                    transform: None,
+                    ..
+                } => rectangles.push((*r, i)),
+                _ => return None,
+            },
+            PrimRef::Object(_) | PrimRef::Instance(_) => return None,
+        }
+    }
+    FlatScene::new(&rectangles, &triangles)
 }
 
 /// The same shape with its transform applied, where the transformed shape

@@ -3,6 +3,8 @@
 
 pub mod bounds;
 pub mod interaction;
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod lanes;
 pub mod mesh;
 pub mod ray;
 pub mod shape;

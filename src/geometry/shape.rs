@@ -420,6 +420,12 @@ impl Rectangle {
         self.edge_v
     }
 
+    /// The corner, the unit normal and the dual basis of the edges, with
+    /// which [`Rectangle::intersect`] tests a ray.
+    pub(crate) fn test_frame(&self) -> [Vec3; 4] {
+        [self.corner, self.normal, self.dual_u, self.dual_v]
+    }
+
     /// Distance to the intersection within the ray's interval. Always
     /// inlined: the scene aggregate tests rectangles in its traversal loop.
     #[inline(always)]

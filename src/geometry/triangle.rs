@@ -39,12 +39,12 @@ fn difference_of_products(a: f32, b: f32, c: f32, d: f32) -> f32 {
 /// direction to +z.
 #[derive(Clone, Copy, Debug)]
 pub struct TriangleRay {
-    kx: usize,
-    ky: usize,
-    kz: usize,
-    sx: f32,
-    sy: f32,
-    sz: f32,
+    pub(crate) kx: usize,
+    pub(crate) ky: usize,
+    pub(crate) kz: usize,
+    pub(crate) sx: f32,
+    pub(crate) sy: f32,
+    pub(crate) sz: f32,
 }
 
 impl TriangleRay {

@@ -1,0 +1,760 @@
+//! Small scenes without a tree: every primitive tested, eight at a time.
+//!
+//! A room like the Cornell box is a few dozen planar primitives whose walls
+//! span the whole scene, so a BVH over them saves few tests and costs a
+//! stack, box tests and a branch per node: about 780 instructions per ray
+//! query on the Mitsuba Cornell box. Packed eight to a block in
+//! structure-of-arrays form (Embree's "triangle8" layout), the same
+//! primitives are each tested by a few AVX instructions, with no branch
+//! that depends on the ray. [`Aggregate`](super::Aggregate) traces scenes
+//! of [`FLAT_MIN_PRIMITIVES`] to [`FLAT_MAX_PRIMITIVES`] rectangles and
+//! triangles this way where the processor has AVX, and through its tree
+//! otherwise. `cargo bench --bench kernels -- "small scene"` measures both
+//! (BENCHMARKS.md): below about 20 primitives a tree of one or two leaves
+//! of scalar tests is faster; from 24 to 48, the blocks are 1.1–1.8×
+//! faster.
+//!
+//! A block's lanes compute what the one-primitive tests compute: the
+//! rectangle test's operations in the same order (the same distances), and
+//! the watertight triangle test of [`Triangle4`](crate::geometry::triangle::Triangle4).
+
+#[cfg(not(target_arch = "x86_64"))]
+use crate::geometry::{Ray, Rectangle};
+#[cfg(not(target_arch = "x86_64"))]
+use glam::Vec3;
+
+/// Scenes of at least this many rectangles and triangles (and at most
+/// [`FLAT_MAX_PRIMITIVES`]) are traced without a tree.
+pub const FLAT_MIN_PRIMITIVES: usize = 20;
+
+/// Scenes of at most this many rectangles and triangles (eight blocks of
+/// eight) are traced without a tree.
+pub const FLAT_MAX_PRIMITIVES: usize = 64;
+
+/// The nearest primitive a ray meets in a [`FlatScene`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FlatHit {
+    /// The rectangle the caller numbered `id`.
+    Rectangle {
+        /// The caller's number.
+        id: u32,
+        /// Ray parameter.
+        t: f32,
+    },
+    /// The triangle the caller numbered `id`.
+    Triangle {
+        /// The caller's number.
+        id: u32,
+        /// Ray parameter.
+        t: f32,
+        /// Barycentrics.
+        b: [f32; 3],
+    },
+}
+
+#[cfg(target_arch = "x86_64")]
+pub use avx::FlatScene;
+
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use super::FlatHit;
+    use crate::geometry::bounds::gamma;
+
+    /// Widening of the slab test's far distance that makes it conservative
+    /// under rounding (pbrt-v4, section 6.8.2), as in the trees.
+    const SLAB_ROUNDING: f32 = 1.0 + 2.0 * gamma(3);
+    use crate::accel::bvh::{Bvh, BvhNode};
+    use crate::geometry::lanes::{F8, LANES, Lanes, avx_available};
+    use crate::geometry::triangle::TriangleRay;
+    use crate::geometry::{Aabb, Ray, Rectangle};
+    use glam::Vec3;
+
+    /// The primitives of a flat scene, in blocks of eight, and the blocks'
+    /// boxes: a two-level tree whose root has a lane per block.
+    #[derive(Clone, Debug)]
+    pub struct FlatScene {
+        /// Block `b`'s box in lane `b`: `[min x, y, z, max x, y, z]`. The
+        /// rectangle blocks come first, then the triangle blocks; unused
+        /// lanes hold empty boxes.
+        bounds: [Lanes; 6],
+        rectangles: Vec<Rectangle8>,
+        triangles: Vec<Triangle8>,
+    }
+
+    /// Groups of at most eight primitives that lie near each other: the
+    /// largest subtrees of a binary SAH tree over their boxes with at most
+    /// eight primitives each.
+    fn spatial_groups(bounds: &[Aabb]) -> Vec<Vec<usize>> {
+        if bounds.is_empty() {
+            return Vec::new();
+        }
+        let (bvh, order) = Bvh::build(bounds);
+        let nodes = bvh.nodes();
+        // Primitives under each node (interior: first child next, second
+        // at `offset`), then the groups top-down.
+        fn size(nodes: &[BvhNode], i: usize, sizes: &mut [usize]) -> usize {
+            let n = &nodes[i];
+            sizes[i] = if n.count > 0 {
+                n.count as usize
+            } else {
+                size(nodes, i + 1, sizes) + size(nodes, n.offset as usize, sizes)
+            };
+            sizes[i]
+        }
+        fn collect(nodes: &[BvhNode], i: usize, sizes: &[usize], first: usize, out: &mut Vec<(usize, usize)>) {
+            if sizes[i] <= LANES {
+                out.push((first, sizes[i]));
+            } else {
+                collect(nodes, i + 1, sizes, first, out);
+                collect(nodes, nodes[i].offset as usize, sizes, first + sizes[i + 1], out);
+            }
+        }
+        let mut sizes = vec![0; nodes.len()];
+        size(nodes, 0, &mut sizes);
+        let mut ranges = Vec::new();
+        collect(nodes, 0, &sizes, 0, &mut ranges);
+        ranges
+            .into_iter()
+            .map(|(first, n)| order[first..first + n].iter().map(|&k| k as usize).collect())
+            .collect()
+    }
+
+    /// Eight rectangles: `[corner, normal, dual_u, dual_v][axis]`, and the
+    /// caller's numbers. An empty lane holds NaN, which every comparison
+    /// rejects.
+    #[derive(Clone, Copy, Debug)]
+    struct Rectangle8 {
+        v: [[Lanes; 3]; 4],
+        ids: [u32; LANES],
+    }
+
+    /// Eight triangles: `v[vertex][axis]`, and the caller's numbers. An
+    /// empty lane holds NaN vertices.
+    #[derive(Clone, Copy, Debug)]
+    struct Triangle8 {
+        v: [[Lanes; 3]; 3],
+        ids: [u32; LANES],
+    }
+
+    /// Packs `points[k][axis]` of up to eight primitives into lanes.
+    fn pack<const K: usize>(items: &[[Vec3; K]]) -> [[Lanes; 3]; K] {
+        let mut v = [[Lanes([f32::NAN; LANES]); 3]; K];
+        for (lane, points) in items.iter().enumerate() {
+            for (k, p) in points.iter().enumerate() {
+                for axis in 0..3 {
+                    v[k][axis].0[lane] = p[axis];
+                }
+            }
+        }
+        v
+    }
+
+    fn pack_ids<T>(chunk: &[&(T, u32)]) -> [u32; LANES] {
+        let mut ids = [u32::MAX; LANES];
+        for (lane, (_, id)) in chunk.iter().enumerate() {
+            ids[lane] = *id;
+        }
+        ids
+    }
+
+    /// `[x, y, z]` loaded.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn load3(v: &[Lanes; 3]) -> [F8; 3] {
+        [F8::load(&v[0]), F8::load(&v[1]), F8::load(&v[2])]
+    }
+
+    /// `a · b` in the order of glam's `Vec3::dot`.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn dot(a: [F8; 3], b: [F8; 3]) -> F8 {
+        a[0].mul(b[0]).add(a[1].mul(b[1])).add(a[2].mul(b[2]))
+    }
+
+    impl Rectangle8 {
+        /// Bit per lane the ray meets within `(ray.t_min, t_max]`, and the
+        /// lanes' distances: [`Rectangle::intersect`] on eight lanes.
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn intersect(&self, ray: &Ray, t_max: f32) -> (u32, F8) {
+            let corner = load3(&self.v[0]);
+            let n = load3(&self.v[1]);
+            let o = [
+                F8::splat(ray.origin.x),
+                F8::splat(ray.origin.y),
+                F8::splat(ray.origin.z),
+            ];
+            let d = [F8::splat(ray.dir.x), F8::splat(ray.dir.y), F8::splat(ray.dir.z)];
+            let denom = dot(n, d);
+            let q = [corner[0].sub(o[0]), corner[1].sub(o[1]), corner[2].sub(o[2])];
+            let t = dot(n, q).div(denom);
+            // The point `o + d·t` relative to the corner.
+            let r = [
+                o[0].add(d[0].mul(t)).sub(corner[0]),
+                o[1].add(d[1].mul(t)).sub(corner[1]),
+                o[2].add(d[2].mul(t)).sub(corner[2]),
+            ];
+            let u = dot(load3(&self.v[2]), r);
+            let v = dot(load3(&self.v[3]), r);
+            let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
+            let valid = denom
+                .ne(zero)
+                .and(t.gt(F8::splat(ray.t_min)))
+                .and(t.le(F8::splat(t_max)))
+                .and(t.abs().lt(F8::splat(f32::INFINITY)))
+                .and(u.ge(zero))
+                .and(u.le(one))
+                .and(v.ge(zero))
+                .and(v.le(one));
+            (valid.bits(), t)
+        }
+    }
+
+    /// The edge functions and their sum per lane, from which a hit lane's
+    /// barycentrics follow.
+    struct Edges {
+        e: [F8; 3],
+        det: F8,
+    }
+
+    impl Edges {
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn barycentrics(&self, lane: usize) -> [f32; 3] {
+            let inv_det = 1.0 / self.det.to_array()[lane];
+            [
+                self.e[0].to_array()[lane] * inv_det,
+                self.e[1].to_array()[lane] * inv_det,
+                self.e[2].to_array()[lane] * inv_det,
+            ]
+        }
+    }
+
+    /// What the triangle test needs of a ray, in lanes, made once per ray:
+    /// the axis permutation and shear of [`TriangleRay`], the permuted
+    /// origin and the interval's start.
+    struct RayLanes {
+        axes: [usize; 3],
+        origin: [F8; 3],
+        shear: [F8; 3],
+        t_min: F8,
+    }
+
+    impl RayLanes {
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn new(ray: &Ray, pre: &TriangleRay) -> RayLanes {
+            let axes = [pre.kx, pre.ky, pre.kz];
+            RayLanes {
+                axes,
+                origin: [
+                    F8::splat(ray.origin[pre.kx]),
+                    F8::splat(ray.origin[pre.ky]),
+                    F8::splat(ray.origin[pre.kz]),
+                ],
+                shear: [F8::splat(pre.sx), F8::splat(pre.sy), F8::splat(pre.sz)],
+                t_min: F8::splat(ray.t_min),
+            }
+        }
+
+        /// A vertex's lanes translated to the ray origin, permuted and
+        /// sheared (z scaled for the distance).
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn vertex(&self, v: &[Lanes; 3]) -> (F8, F8, F8) {
+            let [kx, ky, kz] = self.axes;
+            let z = F8::load(&v[kz]).sub(self.origin[2]);
+            (
+                F8::load(&v[kx]).sub(self.origin[0]).add(self.shear[0].mul(z)),
+                F8::load(&v[ky]).sub(self.origin[1]).add(self.shear[1].mul(z)),
+                z.mul(self.shear[2]),
+            )
+        }
+    }
+
+    /// `a·b − c·d` in f32.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn difference_of_products(a: F8, b: F8, c: F8, d: F8) -> F8 {
+        a.mul(b).sub(c.mul(d))
+    }
+
+    /// The largest of three magnitudes.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn max_abs(a: F8, b: F8, c: F8) -> F8 {
+        a.abs().max(b.abs()).max(c.abs())
+    }
+
+    impl Triangle8 {
+        /// Bit per lane the ray meets within `(ray.t_min, t_max]`, the
+        /// lanes' distances and their edge functions: the watertight test
+        /// of `Triangle4` on eight lanes.
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn intersect(&self, ray: &RayLanes, t_max: F8) -> (u32, F8, Edges) {
+            // Translate to the origin, permute so that |d.z| is largest,
+            // shear the direction onto +z; z is scaled for the distance only.
+            let (x0, y0, z0) = ray.vertex(&self.v[0]);
+            let (x1, y1, z1) = ray.vertex(&self.v[1]);
+            let (x2, y2, z2) = ray.vertex(&self.v[2]);
+            let mut e = [
+                difference_of_products(x1, y2, y1, x2),
+                difference_of_products(x2, y0, y2, x0),
+                difference_of_products(x0, y1, y0, x1),
+            ];
+            let zero = F8::splat(0.0);
+            if e[0].eq(zero).or(e[1].eq(zero)).or(e[2].eq(zero)).bits() != 0 {
+                // An edge function that rounds to zero gets its exact sign
+                // in double precision (Woop et al. 2013, section 4).
+                let exact = |ax: F8, by: F8, ay: F8, bx: F8| {
+                    let (ax, by, ay, bx) = (ax.to_array(), by.to_array(), ay.to_array(), bx.to_array());
+                    F8::from_array(std::array::from_fn(|i| {
+                        (ax[i] as f64 * by[i] as f64 - ay[i] as f64 * bx[i] as f64) as f32
+                    }))
+                };
+                e = [exact(x1, y2, y1, x2), exact(x2, y0, y2, x0), exact(x0, y1, y0, x1)];
+            }
+            let [e0, e1, e2] = e;
+            let negative = e0.lt(zero).or(e1.lt(zero)).or(e2.lt(zero));
+            let positive = e0.gt(zero).or(e1.gt(zero)).or(e2.gt(zero));
+            let det = e0.add(e1).add(e2);
+            let inside = det.ne(zero).and_not(negative.and(positive));
+            let edges = Edges { e, det };
+            // Most blocks lie off the ray: stop before the distances.
+            if inside.bits() == 0 {
+                return (0, zero, edges);
+            }
+            let t = e0.mul(z0).add(e1.mul(z1)).add(e2.mul(z2)).div(det);
+            // Reject hits whose t is not certainly positive given rounding
+            // (pbrt-v4, section 6.8.4), as the one-triangle test does.
+            let max_zt = max_abs(z0, z1, z2);
+            let max_xt = max_abs(x0, x1, x2);
+            let max_yt = max_abs(y0, y1, y2);
+            let delta_z = F8::splat(gamma(3)).mul(max_zt);
+            let delta_x = F8::splat(gamma(5)).mul(max_xt.add(max_zt));
+            let delta_y = F8::splat(gamma(5)).mul(max_yt.add(max_zt));
+            let delta_e = F8::splat(2.0).mul(
+                F8::splat(gamma(2))
+                    .mul(max_xt)
+                    .mul(max_yt)
+                    .add(delta_y.mul(max_xt))
+                    .add(delta_x.mul(max_yt)),
+            );
+            let max_e = max_abs(e0, e1, e2);
+            let delta_t = F8::splat(3.0)
+                .mul(
+                    F8::splat(gamma(3))
+                        .mul(max_e)
+                        .mul(max_zt)
+                        .add(delta_e.mul(max_zt))
+                        .add(delta_z.mul(max_e)),
+                )
+                .div(det.abs());
+            let valid = inside.and(t.gt(ray.t_min)).and(t.le(t_max)).and(t.gt(delta_t));
+            (valid.bits(), t, edges)
+        }
+    }
+
+    /// The lane with the smallest distance among the set bits of `mask`
+    /// that is at most `*t_max`, which it then becomes.
+    #[inline]
+    fn nearest_lane(mut mask: u32, t: &[f32; LANES], t_max: &mut f32) -> Option<usize> {
+        let mut best = None;
+        while mask != 0 {
+            let lane = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            if t[lane] <= *t_max {
+                *t_max = t[lane];
+                best = Some(lane);
+            }
+        }
+        best
+    }
+
+    impl FlatScene {
+        /// Packs rectangles and triangles, each with the caller's number,
+        /// into blocks of neighbours; `None` where the processor lacks AVX
+        /// or they need more than eight blocks.
+        pub fn new(rectangles: &[(Rectangle, u32)], triangles: &[([Vec3; 3], u32)]) -> Option<FlatScene> {
+            if !avx_available() {
+                return None;
+            }
+            let rectangle_groups = spatial_groups(
+                &rectangles
+                    .iter()
+                    .map(|(r, _)| {
+                        let [c, _, _, _] = r.test_frame();
+                        Aabb::from_points([c, c + r.edge_u(), c + r.edge_v(), c + r.edge_u() + r.edge_v()])
+                    })
+                    .collect::<Vec<_>>(),
+            );
+            let triangle_groups =
+                spatial_groups(&triangles.iter().map(|(t, _)| Aabb::from_points(*t)).collect::<Vec<_>>());
+            if rectangle_groups.len() + triangle_groups.len() > LANES {
+                return None;
+            }
+            let mut scene = FlatScene {
+                bounds: [
+                    Lanes([f32::INFINITY; LANES]),
+                    Lanes([f32::INFINITY; LANES]),
+                    Lanes([f32::INFINITY; LANES]),
+                    Lanes([f32::NEG_INFINITY; LANES]),
+                    Lanes([f32::NEG_INFINITY; LANES]),
+                    Lanes([f32::NEG_INFINITY; LANES]),
+                ],
+                rectangles: Vec::new(),
+                triangles: Vec::new(),
+            };
+            let mut set_bounds = |block: usize, points: &mut dyn Iterator<Item = Vec3>| {
+                let b = points.fold(Aabb::EMPTY, |b, p| b.union(&Aabb::from_points([p])));
+                for axis in 0..3 {
+                    scene.bounds[axis].0[block] = b.min[axis];
+                    scene.bounds[3 + axis].0[block] = b.max[axis];
+                }
+            };
+            for (block, group) in rectangle_groups.iter().enumerate() {
+                set_bounds(
+                    block,
+                    &mut group.iter().flat_map(|&k| {
+                        let r = &rectangles[k].0;
+                        let c = r.corner();
+                        [c, c + r.edge_u(), c + r.edge_v(), c + r.edge_u() + r.edge_v()]
+                    }),
+                );
+            }
+            for (i, group) in triangle_groups.iter().enumerate() {
+                set_bounds(
+                    rectangle_groups.len() + i,
+                    &mut group.iter().flat_map(|&k| triangles[k].0),
+                );
+            }
+            scene.rectangles = rectangle_groups
+                .iter()
+                .map(|group| {
+                    let members: Vec<&(Rectangle, u32)> = group.iter().map(|&k| &rectangles[k]).collect();
+                    Rectangle8 {
+                        v: pack(&members.iter().map(|(r, _)| r.test_frame()).collect::<Vec<_>>()),
+                        ids: pack_ids(&members),
+                    }
+                })
+                .collect();
+            scene.triangles = triangle_groups
+                .iter()
+                .map(|group| {
+                    let members: Vec<&([Vec3; 3], u32)> = group.iter().map(|&k| &triangles[k]).collect();
+                    Triangle8 {
+                        v: pack(&members.iter().map(|(t, _)| *t).collect::<Vec<_>>()),
+                        ids: pack_ids(&members),
+                    }
+                })
+                .collect();
+            Some(scene)
+        }
+
+        /// Number of blocks of eight.
+        pub fn blocks(&self) -> usize {
+            self.rectangles.len() + self.triangles.len()
+        }
+
+        /// Bytes held by the blocks.
+        pub fn memory_bytes(&self) -> usize {
+            std::mem::size_of::<[Lanes; 6]>()
+                + self.rectangles.len() * std::mem::size_of::<Rectangle8>()
+                + self.triangles.len() * std::mem::size_of::<Triangle8>()
+        }
+
+        /// The nearest hit within the ray's interval; with `any_hit`, some
+        /// hit.
+        #[inline]
+        #[allow(unsafe_code)]
+        pub fn intersect(&self, ray: &Ray, any_hit: bool) -> Option<FlatHit> {
+            // SAFETY: a `FlatScene` exists only where the processor has AVX.
+            unsafe { self.intersect_avx(ray, any_hit) }
+        }
+
+        #[target_feature(enable = "avx")]
+        fn intersect_avx(&self, ray: &Ray, any_hit: bool) -> Option<FlatHit> {
+            let (entered, t_enter) = self.enter_blocks(ray);
+            if entered == 0 {
+                return None;
+            }
+            let t_enter = t_enter.to_array();
+            let mut t_max = ray.t_max;
+            let mut best = None;
+            for (block, rectangles) in self.rectangles.iter().enumerate() {
+                if entered & (1 << block) == 0 || t_enter[block] > t_max {
+                    continue;
+                }
+                let (mask, t) = rectangles.intersect(ray, t_max);
+                if let Some(lane) = nearest_lane(mask, &t.to_array(), &mut t_max) {
+                    best = Some(FlatHit::Rectangle {
+                        id: rectangles.ids[lane],
+                        t: t_max,
+                    });
+                    if any_hit {
+                        return best;
+                    }
+                }
+            }
+            // The triangle test's set-up, made when a triangle block is
+            // entered: most rays in a room meet only walls.
+            let mut ray_lanes = None;
+            let mut best_triangle = None;
+            let first = self.rectangles.len();
+            for (i, triangles) in self.triangles.iter().enumerate() {
+                let block = first + i;
+                if entered & (1 << block) == 0 || t_enter[block] > t_max {
+                    continue;
+                }
+                if ray_lanes.is_none() {
+                    match TriangleRay::new(ray) {
+                        Some(pre) => ray_lanes = Some(RayLanes::new(ray, &pre)),
+                        None => break,
+                    }
+                }
+                let Some(ray_lanes) = &ray_lanes else { break };
+                let (mask, t, edges) = triangles.intersect(ray_lanes, F8::splat(t_max));
+                if let Some(lane) = nearest_lane(mask, &t.to_array(), &mut t_max) {
+                    best_triangle = Some((triangles.ids[lane], edges.barycentrics(lane)));
+                    if any_hit {
+                        break;
+                    }
+                }
+            }
+            match best_triangle {
+                Some((id, b)) => Some(FlatHit::Triangle { id, t: t_max, b }),
+                None => best,
+            }
+        }
+
+        /// The blocks whose boxes the ray enters within its interval, as a
+        /// bit per block, and where it enters each: the slab test of
+        /// `WideBvh` on eight lanes.
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn enter_blocks(&self, ray: &Ray) -> (u32, F8) {
+            let inv = ray.dir.recip();
+            let mut t0 = F8::splat(ray.t_min);
+            let mut t1 = F8::splat(ray.t_max);
+            for axis in 0..3 {
+                let (near, far) = if inv[axis] < 0.0 {
+                    (3 + axis, axis)
+                } else {
+                    (axis, 3 + axis)
+                };
+                let (o, i) = (F8::splat(ray.origin[axis]), F8::splat(inv[axis]));
+                // `max`/`min` return their second operand for NaN (0·∞ for
+                // a ray in a box's face plane), as the tree's test does.
+                t0 = F8::load(&self.bounds[near]).sub(o).mul(i).max(t0);
+                t1 = F8::load(&self.bounds[far]).sub(o).mul(i).min(t1);
+            }
+            let t1 = t1.mul(F8::splat(SLAB_ROUNDING));
+            (t0.le(t1).bits(), t0)
+        }
+    }
+}
+
+/// Where the processor is not x86-64 there are no flat scenes: the tree is
+/// used (the lane code is written for AVX, and measured only there).
+#[cfg(not(target_arch = "x86_64"))]
+#[derive(Clone, Debug)]
+pub struct FlatScene(std::convert::Infallible);
+
+#[cfg(not(target_arch = "x86_64"))]
+impl FlatScene {
+    /// Always `None` on this processor.
+    pub fn new(_rectangles: &[(Rectangle, u32)], _triangles: &[([Vec3; 3], u32)]) -> Option<FlatScene> {
+        None
+    }
+
+    /// Number of blocks of eight.
+    pub fn blocks(&self) -> usize {
+        match self.0 {}
+    }
+
+    /// Bytes held by the blocks.
+    pub fn memory_bytes(&self) -> usize {
+        match self.0 {}
+    }
+
+    /// The nearest hit within the ray's interval.
+    pub fn intersect(&self, _ray: &Ray, _any_hit: bool) -> Option<FlatHit> {
+        match self.0 {}
+    }
+}
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use super::*;
+    use crate::geometry::lanes::avx_available;
+    use crate::geometry::triangle::intersect_triangle;
+    use crate::geometry::{Ray, Rectangle};
+    use crate::sampling::rng::Pcg32;
+    use glam::Vec3;
+
+    fn random_point(rng: &mut Pcg32) -> Vec3 {
+        Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0
+    }
+
+    /// The nearest hit by the one-primitive tests, numbered as the flat
+    /// scene numbers them (rectangles by their number, triangles by theirs
+    /// plus 1000).
+    fn brute_force(rectangles: &[(Rectangle, u32)], triangles: &[([Vec3; 3], u32)], ray: &Ray) -> Option<(u32, f32)> {
+        let hits = rectangles
+            .iter()
+            .filter_map(|(r, id)| r.intersect(ray).map(|t| (*id, t)))
+            .chain(
+                triangles
+                    .iter()
+                    .filter_map(|(v, id)| intersect_triangle(ray, v[0], v[1], v[2]).map(|h| (*id, h.t))),
+            );
+        hits.min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
+    /// Blocks of rectangles and triangles find what testing each one finds:
+    /// the same rectangle at the same distance (its lanes compute the
+    /// one-rectangle test's operations), the same triangle at a distance
+    /// equal to the last bits, and a hit for any-hit queries exactly when
+    /// there is one.
+    #[test]
+    fn blocks_agree_with_one_primitive_at_a_time() {
+        if !avx_available() {
+            return;
+        }
+        let mut rng = Pcg32::new(31, 7);
+        let (mut hits, mut triangle_hits) = (0, 0);
+        for case in 0..300 {
+            let n_rect = case % 13;
+            let n_tri = (case * 7) % 29;
+            let rectangles: Vec<(Rectangle, u32)> = (0..n_rect)
+                .map(|i| {
+                    let c = random_point(&mut rng);
+                    let (u, v) = (random_point(&mut rng) * 0.8, random_point(&mut rng) * 0.8);
+                    (Rectangle::new(c, u, v), i as u32)
+                })
+                .collect();
+            let triangles: Vec<([Vec3; 3], u32)> = (0..n_tri)
+                .map(|i| {
+                    let c = random_point(&mut rng);
+                    let v = [c, c + random_point(&mut rng) * 0.7, c + random_point(&mut rng) * 0.7];
+                    (v, 1000 + i as u32)
+                })
+                .collect();
+            let Some(scene) = FlatScene::new(&rectangles, &triangles) else {
+                // More than eight blocks: the tree's case.
+                continue;
+            };
+            for k in 0..60 {
+                let origin = random_point(&mut rng) * 3.0;
+                let target = random_point(&mut rng) * 0.8;
+                let t_max = if k % 4 == 0 { 0.6 } else { f32::INFINITY };
+                let ray = Ray::with_interval(origin, target - origin, 1e-4, t_max);
+                let expected = brute_force(&rectangles, &triangles, &ray);
+                let got = scene.intersect(&ray, false).map(|h| match h {
+                    FlatHit::Rectangle { id, t } => (id, t),
+                    FlatHit::Triangle { id, t, .. } => (id, t),
+                });
+                match (got, expected) {
+                    (None, None) => {}
+                    (Some((id, t)), Some((id_e, t_e))) => {
+                        hits += 1;
+                        triangle_hits += (id >= 1000) as u32;
+                        let tolerance = if id >= 1000 || id_e >= 1000 { 1e-5 * t_e } else { 0.0 };
+                        assert!((t - t_e).abs() <= tolerance, "case {case}: t {t} vs {t_e}");
+                        // Two primitives this close along the ray may
+                        // swap; otherwise the same one.
+                        assert!(
+                            id == id_e || (t - t_e).abs() <= 1e-5 * t_e,
+                            "case {case}: {id} vs {id_e}"
+                        );
+                    }
+                    _ => panic!("case {case}: {got:?} vs {expected:?}"),
+                }
+                assert_eq!(scene.intersect(&ray, true).is_some(), expected.is_some(), "case {case}");
+            }
+        }
+        assert!(
+            hits > 2000 && triangle_hits > 500,
+            "{hits} hits, {triangle_hits} on triangles"
+        );
+    }
+
+    /// A hit triangle's barycentrics put the hit point where the ray is.
+    #[test]
+    fn triangle_hits_carry_their_barycentrics() {
+        if !avx_available() {
+            return;
+        }
+        let tris = [
+            ([Vec3::ZERO, Vec3::X, Vec3::Y], 0),
+            (
+                [
+                    Vec3::new(0.0, 0.0, -1.0),
+                    Vec3::new(2.0, 0.0, -1.0),
+                    Vec3::new(0.0, 2.0, -1.0),
+                ],
+                1,
+            ),
+        ];
+        let scene = FlatScene::new(&[], &tris).unwrap();
+        let ray = Ray::new(Vec3::new(0.2, 0.3, 2.0), -Vec3::Z);
+        let Some(FlatHit::Triangle { id: 0, t, b }) = scene.intersect(&ray, false) else {
+            panic!("the nearer triangle is hit");
+        };
+        assert!((t - 2.0).abs() < 1e-6);
+        let p = tris[0].0[0] * b[0] + tris[0].0[1] * b[1] + tris[0].0[2] * b[2];
+        assert!((p - ray.at(t)).length() < 1e-6, "{p} vs {}", ray.at(t));
+        // Beyond t_max nothing is hit; behind the first, the second is.
+        assert_eq!(
+            scene.intersect(&Ray::with_interval(ray.origin, ray.dir, 0.0, 1.5), false),
+            None
+        );
+        let from_inside = Ray::new(Vec3::new(0.2, 0.3, -0.5), -Vec3::Z);
+        assert!(matches!(
+            scene.intersect(&from_inside, false),
+            Some(FlatHit::Triangle { id: 1, .. })
+        ));
+    }
+
+    /// Rays through the diagonal shared by two triangles of a block hit
+    /// one of them, as with the one-triangle test.
+    #[test]
+    fn blocks_are_watertight() {
+        if !avx_available() {
+            return;
+        }
+        let q = [
+            Vec3::new(-0.3, -0.7, 0.1),
+            Vec3::new(1.7, -0.2, 0.3),
+            Vec3::new(1.1, 1.9, -0.2),
+            Vec3::new(-0.6, 1.3, 0.0),
+        ];
+        let scene = FlatScene::new(&[], &[([q[0], q[1], q[2]], 0), ([q[0], q[2], q[3]], 1)]).unwrap();
+        let mut rng = Pcg32::new(13, 0);
+        for _ in 0..20_000 {
+            let s = rng.next_f32();
+            let target = q[0] + (q[2] - q[0]) * s;
+            let origin = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 3.0);
+            let r = Ray::new(origin, target - origin);
+            assert!(
+                scene.intersect(&r, false).is_some(),
+                "ray slipped through the diagonal at s = {s}"
+            );
+        }
+    }
+
+    /// More than eight blocks' worth of primitives is left to the tree.
+    #[test]
+    fn more_than_eight_blocks_are_refused() {
+        if !avx_available() {
+            return;
+        }
+        let row: Vec<(Rectangle, u32)> = (0..72)
+            .map(|i| (Rectangle::new(Vec3::X * (10.0 * i as f32), Vec3::Y, Vec3::Z), i))
+            .collect();
+        let eight_blocks = FlatScene::new(&row[..64], &[]).expect("64 in a row fill eight blocks");
+        assert_eq!(eight_blocks.blocks(), 8);
+        assert!(FlatScene::new(&row, &[]).is_none());
+    }
+}

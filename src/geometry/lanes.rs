@@ -1,0 +1,156 @@
+//! Eight `f32` lanes in one AVX register, for the eight-wide primitive
+//! tests of flat scenes (`accel::flat`).
+//!
+//! Every operation is a function built for AVX: it may only run where the
+//! processor has AVX, which the compiler enforces by letting only other
+//! AVX functions call it. `FlatScene` checks for AVX once and enters the
+//! lane code through one such function. (Plain loops over `[f32; 8]` were
+//! tried first: the compiler vectorised them across the wrong dimension and
+//! the test took more instructions than the tree it replaced.)
+//!
+//! Comparisons follow Rust's scalar ones: ordered (false for NaN) except
+//! `ne`, which is true for NaN, so a lane computes what the one-primitive
+//! test computes.
+#![allow(unsafe_code)]
+
+use std::arch::x86_64::*;
+
+/// Lanes per value.
+pub const LANES: usize = 8;
+
+/// Eight `f32` as stored in a primitive block: aligned for one load.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(32))]
+pub struct Lanes(pub [f32; LANES]);
+
+/// Eight `f32` lanes in a register.
+#[derive(Clone, Copy, Debug)]
+pub struct F8(__m256);
+
+/// A lane mask: each lane all ones (true) or zero (false).
+#[derive(Clone, Copy, Debug)]
+pub struct M8(__m256);
+
+macro_rules! compare {
+    ($name:ident, $predicate:ident, $doc:literal) => {
+        #[doc = $doc]
+        #[inline]
+        #[target_feature(enable = "avx")]
+        pub fn $name(self, other: F8) -> M8 {
+            M8(_mm256_cmp_ps::<$predicate>(self.0, other.0))
+        }
+    };
+}
+
+macro_rules! binary {
+    ($name:ident, $intrinsic:ident, $doc:literal) => {
+        #[doc = $doc]
+        #[inline]
+        #[target_feature(enable = "avx")]
+        pub fn $name(self, other: F8) -> F8 {
+            F8($intrinsic(self.0, other.0))
+        }
+    };
+}
+
+impl F8 {
+    /// The stored lanes.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn load(lanes: &Lanes) -> F8 {
+        // SAFETY: `Lanes` is eight f32 aligned to 32 bytes.
+        F8(unsafe { _mm256_load_ps(lanes.0.as_ptr()) })
+    }
+
+    /// All lanes `x`.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn splat(x: f32) -> F8 {
+        F8(_mm256_set1_ps(x))
+    }
+
+    /// The lanes as an array.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn to_array(self) -> [f32; LANES] {
+        let mut out = Lanes([0.0; LANES]);
+        // SAFETY: `Lanes` is eight f32 aligned to 32 bytes.
+        unsafe { _mm256_store_ps(out.0.as_mut_ptr(), self.0) };
+        out.0
+    }
+
+    /// Lanes from an array.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn from_array(a: [f32; LANES]) -> F8 {
+        F8::load(&Lanes(a))
+    }
+
+    binary!(add, _mm256_add_ps, "Lane-wise sum.");
+    binary!(sub, _mm256_sub_ps, "Lane-wise difference.");
+    binary!(mul, _mm256_mul_ps, "Lane-wise product.");
+    binary!(div, _mm256_div_ps, "Lane-wise quotient.");
+    binary!(
+        min,
+        _mm256_min_ps,
+        "Lane-wise `if self < other { self } else { other }` (SSE's and glam's min)."
+    );
+    binary!(
+        max,
+        _mm256_max_ps,
+        "Lane-wise `if self > other { self } else { other }` (SSE's and glam's max)."
+    );
+
+    /// Lane-wise absolute value.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn abs(self) -> F8 {
+        F8(_mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0))
+    }
+
+    compare!(lt, _CMP_LT_OQ, "Lanes where `self < other`.");
+    compare!(le, _CMP_LE_OQ, "Lanes where `self <= other`.");
+    compare!(gt, _CMP_GT_OQ, "Lanes where `self > other`.");
+    compare!(ge, _CMP_GE_OQ, "Lanes where `self >= other`.");
+    compare!(eq, _CMP_EQ_OQ, "Lanes where `self == other`.");
+    compare!(
+        ne,
+        _CMP_NEQ_UQ,
+        "Lanes where `self != other` (true for NaN, as in Rust)."
+    );
+}
+
+impl M8 {
+    /// Lanes true in both.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn and(self, other: M8) -> M8 {
+        M8(_mm256_and_ps(self.0, other.0))
+    }
+
+    /// Lanes true in either.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn or(self, other: M8) -> M8 {
+        M8(_mm256_or_ps(self.0, other.0))
+    }
+
+    /// Lanes true in `self` and false in `other`.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn and_not(self, other: M8) -> M8 {
+        M8(_mm256_andnot_ps(other.0, self.0))
+    }
+
+    /// Bit `i` set where lane `i` is true.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn bits(self) -> u32 {
+        _mm256_movemask_ps(self.0) as u32
+    }
+}
+
+/// Whether this processor runs AVX instructions.
+pub fn avx_available() -> bool {
+    std::arch::is_x86_feature_detected!("avx")
+}
