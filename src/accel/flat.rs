@@ -589,6 +589,7 @@ mod tests {
     use super::*;
     use crate::geometry::lanes::avx_available;
     use crate::geometry::triangle::intersect_triangle;
+    use crate::geometry::triangle::tests::{DIAGONAL_QUAD, assert_diagonal_is_watertight};
     use crate::geometry::{Ray, Rectangle};
     use crate::sampling::rng::Pcg32;
     use glam::Vec3;
@@ -724,24 +725,9 @@ mod tests {
         if !avx_available() {
             return;
         }
-        let q = [
-            Vec3::new(-0.3, -0.7, 0.1),
-            Vec3::new(1.7, -0.2, 0.3),
-            Vec3::new(1.1, 1.9, -0.2),
-            Vec3::new(-0.6, 1.3, 0.0),
-        ];
+        let q = DIAGONAL_QUAD;
         let scene = FlatScene::new(&[], &[([q[0], q[1], q[2]], 0), ([q[0], q[2], q[3]], 1)]).unwrap();
-        let mut rng = Pcg32::new(13, 0);
-        for _ in 0..20_000 {
-            let s = rng.next_f32();
-            let target = q[0] + (q[2] - q[0]) * s;
-            let origin = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 3.0);
-            let r = Ray::new(origin, target - origin);
-            assert!(
-                scene.intersect(&r, false).is_some(),
-                "ray slipped through the diagonal at s = {s}"
-            );
-        }
+        assert_diagonal_is_watertight(13, |r| scene.intersect(r, false).is_some());
     }
 
     /// More than eight blocks' worth of primitives is left to the tree.

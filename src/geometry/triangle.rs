@@ -259,7 +259,7 @@ impl Triangle4 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::sampling::rng::Pcg32;
 
@@ -290,33 +290,34 @@ mod tests {
     }
 
     /// A skew quad split along its diagonal q0–q2 into two triangles.
-    const DIAGONAL_QUAD: [Vec3; 4] = [
+    pub(crate) const DIAGONAL_QUAD: [Vec3; 4] = [
         Vec3::new(-0.3, -0.7, 0.1),
         Vec3::new(1.7, -0.2, 0.3),
         Vec3::new(1.1, 1.9, -0.2),
         Vec3::new(-0.6, 1.3, 0.0),
     ];
 
-    #[test]
-    fn shared_edges_are_watertight() {
-        // A quad split along its diagonal: every ray through the quad must
-        // hit at least one of the two triangles, including rays through the
-        // diagonal itself.
+    /// Checks that `hits` finds a hit for 20 000 rays aimed at points on
+    /// the diagonal shared by `DIAGONAL_QUAD`'s two triangles (q0, q1, q2)
+    /// and (q0, q2, q3): no ray may slip through between them.
+    pub(crate) fn assert_diagonal_is_watertight(seed: u64, hits: impl Fn(&Ray) -> bool) {
         let q = DIAGONAL_QUAD;
-        let mut rng = Pcg32::new(12, 0);
+        let mut rng = Pcg32::new(seed, 0);
         for _ in 0..20_000 {
-            // Points on the shared diagonal q0–q2.
             let s = rng.next_f32();
             let target = q[0] + (q[2] - q[0]) * s;
             let origin = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 3.0);
             let r = Ray::new(origin, target - origin);
-            let a = intersect_triangle(&r, q[0], q[1], q[2]);
-            let b = intersect_triangle(&r, q[0], q[2], q[3]);
-            assert!(
-                a.is_some() || b.is_some(),
-                "ray slipped through the diagonal at s = {s}"
-            );
+            assert!(hits(&r), "ray slipped through the diagonal at s = {s}");
         }
+    }
+
+    #[test]
+    fn shared_edges_are_watertight() {
+        let q = DIAGONAL_QUAD;
+        assert_diagonal_is_watertight(12, |r| {
+            intersect_triangle(r, q[0], q[1], q[2]).is_some() || intersect_triangle(r, q[0], q[2], q[3]).is_some()
+        });
     }
 
     #[test]
@@ -370,16 +371,6 @@ mod tests {
     fn four_lanes_are_watertight() {
         let q = DIAGONAL_QUAD;
         let block = Triangle4::new(&[([q[0], q[1], q[2]], 0), ([q[0], q[2], q[3]], 1)]);
-        let mut rng = Pcg32::new(13, 0);
-        for _ in 0..20_000 {
-            let s = rng.next_f32();
-            let target = q[0] + (q[2] - q[0]) * s;
-            let origin = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 3.0);
-            let r = Ray::new(origin, target - origin);
-            assert!(
-                block.intersect(&r, &TriangleRay::new(&r).unwrap()).is_some(),
-                "ray slipped through the diagonal at s = {s}"
-            );
-        }
+        assert_diagonal_is_watertight(13, |r| block.intersect(r, &TriangleRay::new(r).unwrap()).is_some());
     }
 }
