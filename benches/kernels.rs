@@ -136,7 +136,7 @@ fn clutter(n: usize, seed: u64) -> Aggregate {
 fn small_scenes(c: &mut Criterion) {
     let rays = random_rays(4096, 3);
     let mut g = c.benchmark_group("small scene closest-hit x4096");
-    for n in [8, 16, 24, 32, 48, 64] {
+    for n in [8, 16, 24, 32, 48, 64, 96, 128] {
         let flat = clutter(n, n as u64);
         let tree = clutter(n, n as u64).without_flat();
         g.bench_function(

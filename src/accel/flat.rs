@@ -11,8 +11,9 @@
 //! triangles this way where the processor has AVX, and through its tree
 //! otherwise. `cargo bench --bench kernels -- "small scene"` measures both
 //! (BENCHMARKS.md): below about 20 primitives a tree of one or two leaves
-//! of scalar tests is faster; from 24 to 48, the blocks are 1.1–1.8×
-//! faster.
+//! of scalar tests is faster; from 48 to 128 primitives in a cluttered
+//! room, the blocks are 2–3× faster. Up to eight blocks take one
+//! eight-lane test of their boxes, up to sixteen two.
 //!
 //! A block's lanes compute what the one-primitive tests compute: the
 //! rectangle test's operations in the same order (the same distances), and
@@ -27,9 +28,9 @@ use glam::Vec3;
 /// [`FLAT_MAX_PRIMITIVES`]) are traced without a tree.
 pub const FLAT_MIN_PRIMITIVES: usize = 20;
 
-/// Scenes of at most this many rectangles and triangles (eight blocks of
+/// Scenes of at most this many rectangles and triangles (sixteen blocks of
 /// eight) are traced without a tree.
-pub const FLAT_MAX_PRIMITIVES: usize = 64;
+pub const FLAT_MAX_PRIMITIVES: usize = 128;
 
 /// The nearest primitive a ray meets in a [`FlatScene`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -69,26 +70,48 @@ mod avx {
     use crate::geometry::{Aabb, Ray, Rectangle};
     use glam::Vec3;
 
+    /// Most blocks in a flat scene: two eight-lane box tests at the root.
+    const MAX_BLOCKS: usize = 2 * LANES;
+
     /// The primitives of a flat scene, in blocks of eight, and the blocks'
     /// boxes: a two-level tree whose root has a lane per block.
     #[derive(Clone, Debug)]
     pub struct FlatScene {
-        /// Block `b`'s box in lane `b`: `[min x, y, z, max x, y, z]`. The
-        /// rectangle blocks come first, then the triangle blocks; unused
-        /// lanes hold empty boxes.
-        bounds: [Lanes; 6],
+        /// Block `8g + b`'s box in lane `b` of `bounds[g]`: `[min x, y, z,
+        /// max x, y, z]`. The rectangle blocks come first, then the
+        /// triangle blocks; unused lanes hold empty boxes.
+        bounds: [[Lanes; 6]; 2],
+        /// Whether there are more than eight blocks, so `bounds[1]` is
+        /// tested too (scenes of up to eight blocks skip it in one
+        /// predictable branch).
+        second_group: bool,
         rectangles: Vec<Rectangle8>,
         triangles: Vec<Triangle8>,
     }
 
-    /// Groups of at most eight primitives that lie near each other: the
-    /// largest subtrees of a binary SAH tree over their boxes with at most
-    /// eight primitives each.
-    fn spatial_groups(bounds: &[Aabb]) -> Vec<Vec<usize>> {
+    /// How primitives are grouped into blocks.
+    #[derive(Clone, Copy, PartialEq)]
+    enum Grouping {
+        /// The largest subtrees with at most eight primitives: tight boxes,
+        /// but blocks may be part empty.
+        Subtrees,
+        /// Runs of eight in the tree's order: full blocks, looser boxes.
+        Full,
+    }
+
+    /// Groups of at most eight primitives that lie near each other, from a
+    /// binary SAH tree over their boxes.
+    fn spatial_groups(bounds: &[Aabb], grouping: Grouping) -> Vec<Vec<usize>> {
         if bounds.is_empty() {
             return Vec::new();
         }
         let (bvh, order) = Bvh::build(bounds);
+        if grouping == Grouping::Full {
+            return order
+                .chunks(LANES)
+                .map(|c| c.iter().map(|&k| k as usize).collect())
+                .collect();
+        }
         let nodes = bvh.nodes();
         // Primitives under each node (interior: first child next, second
         // at `offset`), then the groups top-down.
@@ -374,43 +397,56 @@ mod avx {
 
     impl FlatScene {
         /// Packs rectangles and triangles, each with the caller's number,
-        /// into blocks of neighbours; `None` where the processor lacks AVX
-        /// or they need more than eight blocks.
+        /// into blocks of neighbours (whole subtrees where that fits in
+        /// sixteen blocks, else full blocks); `None` where the processor
+        /// lacks AVX or they need more than sixteen blocks.
         pub fn new(rectangles: &[(Rectangle, u32)], triangles: &[([Vec3; 3], u32)]) -> Option<FlatScene> {
             if !avx_available() {
                 return None;
             }
-            let rectangle_groups = spatial_groups(
-                &rectangles
-                    .iter()
-                    .map(|(r, _)| {
-                        let [c, _, _, _] = r.test_frame();
-                        Aabb::from_points([c, c + r.edge_u(), c + r.edge_v(), c + r.edge_u() + r.edge_v()])
-                    })
-                    .collect::<Vec<_>>(),
-            );
-            let triangle_groups =
-                spatial_groups(&triangles.iter().map(|(t, _)| Aabb::from_points(*t)).collect::<Vec<_>>());
-            if rectangle_groups.len() + triangle_groups.len() > LANES {
+            let rectangle_bounds: Vec<Aabb> = rectangles
+                .iter()
+                .map(|(r, _)| {
+                    let [c, _, _, _] = r.test_frame();
+                    Aabb::from_points([c, c + r.edge_u(), c + r.edge_v(), c + r.edge_u() + r.edge_v()])
+                })
+                .collect();
+            let triangle_bounds: Vec<Aabb> = triangles.iter().map(|(t, _)| Aabb::from_points(*t)).collect();
+            let group = |grouping| {
+                (
+                    spatial_groups(&rectangle_bounds, grouping),
+                    spatial_groups(&triangle_bounds, grouping),
+                )
+            };
+            let mut groups = group(Grouping::Subtrees);
+            if groups.0.len() + groups.1.len() > MAX_BLOCKS {
+                groups = group(Grouping::Full);
+            }
+            let (rectangle_groups, triangle_groups) = groups;
+            let blocks = rectangle_groups.len() + triangle_groups.len();
+            if blocks > MAX_BLOCKS {
                 return None;
             }
+            let empty = [
+                Lanes([f32::INFINITY; LANES]),
+                Lanes([f32::INFINITY; LANES]),
+                Lanes([f32::INFINITY; LANES]),
+                Lanes([f32::NEG_INFINITY; LANES]),
+                Lanes([f32::NEG_INFINITY; LANES]),
+                Lanes([f32::NEG_INFINITY; LANES]),
+            ];
             let mut scene = FlatScene {
-                bounds: [
-                    Lanes([f32::INFINITY; LANES]),
-                    Lanes([f32::INFINITY; LANES]),
-                    Lanes([f32::INFINITY; LANES]),
-                    Lanes([f32::NEG_INFINITY; LANES]),
-                    Lanes([f32::NEG_INFINITY; LANES]),
-                    Lanes([f32::NEG_INFINITY; LANES]),
-                ],
+                bounds: [empty; 2],
+                second_group: blocks > LANES,
                 rectangles: Vec::new(),
                 triangles: Vec::new(),
             };
             let mut set_bounds = |block: usize, points: &mut dyn Iterator<Item = Vec3>| {
                 let b = points.fold(Aabb::EMPTY, |b, p| b.union(&Aabb::from_points([p])));
+                let (group, lane) = (block / LANES, block % LANES);
                 for axis in 0..3 {
-                    scene.bounds[axis].0[block] = b.min[axis];
-                    scene.bounds[3 + axis].0[block] = b.max[axis];
+                    scene.bounds[group][axis].0[lane] = b.min[axis];
+                    scene.bounds[group][3 + axis].0[lane] = b.max[axis];
                 }
             };
             for (block, group) in rectangle_groups.iter().enumerate() {
@@ -459,7 +495,7 @@ mod avx {
 
         /// Bytes held by the blocks.
         pub fn memory_bytes(&self) -> usize {
-            std::mem::size_of::<[Lanes; 6]>()
+            std::mem::size_of::<[[Lanes; 6]; 2]>()
                 + self.rectangles.len() * std::mem::size_of::<Rectangle8>()
                 + self.triangles.len() * std::mem::size_of::<Triangle8>()
         }
@@ -479,7 +515,6 @@ mod avx {
             if entered == 0 {
                 return None;
             }
-            let t_enter = t_enter.to_array();
             let mut t_max = ray.t_max;
             let mut best = None;
             for (block, rectangles) in self.rectangles.iter().enumerate() {
@@ -530,28 +565,49 @@ mod avx {
 
         /// The blocks whose boxes the ray enters within its interval, as a
         /// bit per block, and where it enters each: the slab test of
-        /// `WideBvh` on eight lanes.
+        /// `WideBvh` on eight lanes, for the second eight blocks only
+        /// where there are more than eight (one predictable branch).
         #[inline]
         #[target_feature(enable = "avx")]
-        fn enter_blocks(&self, ray: &Ray) -> (u32, F8) {
+        fn enter_blocks(&self, ray: &Ray) -> (u32, [f32; MAX_BLOCKS]) {
             let inv = ray.dir.recip();
-            let mut t0 = F8::splat(ray.t_min);
-            let mut t1 = F8::splat(ray.t_max);
-            for axis in 0..3 {
+            let mut slabs = [(0, 0, F8::splat(0.0), F8::splat(0.0)); 3];
+            for (axis, slab) in slabs.iter_mut().enumerate() {
                 let (near, far) = if inv[axis] < 0.0 {
                     (3 + axis, axis)
                 } else {
                     (axis, 3 + axis)
                 };
-                let (o, i) = (F8::splat(ray.origin[axis]), F8::splat(inv[axis]));
-                // `max`/`min` return their second operand for NaN (0·∞ for
-                // a ray in a box's face plane), as the tree's test does.
-                t0 = F8::load(&self.bounds[near]).sub(o).mul(i).max(t0);
-                t1 = F8::load(&self.bounds[far]).sub(o).mul(i).min(t1);
+                *slab = (near, far, F8::splat(ray.origin[axis]), F8::splat(inv[axis]));
             }
-            let t1 = t1.mul(F8::splat(SLAB_ROUNDING));
-            (t0.le(t1).bits(), t0)
+            let mut t_enter = [f32::INFINITY; MAX_BLOCKS];
+            let (mut entered, t) = enter_group(&self.bounds[0], &slabs, ray);
+            t_enter[..LANES].copy_from_slice(&t.to_array());
+            if self.second_group {
+                let (second, t) = enter_group(&self.bounds[1], &slabs, ray);
+                entered |= second << LANES;
+                t_enter[LANES..].copy_from_slice(&t.to_array());
+            }
+            (entered, t_enter)
         }
+    }
+
+    /// The slab test of eight boxes: the lanes the ray enters within its
+    /// interval, and where. `slabs` holds, per axis, the near and far
+    /// planes' rows in `bounds`, the origin and the inverse direction.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn enter_group(bounds: &[Lanes; 6], slabs: &[(usize, usize, F8, F8); 3], ray: &Ray) -> (u32, F8) {
+        let mut t0 = F8::splat(ray.t_min);
+        let mut t1 = F8::splat(ray.t_max);
+        for &(near, far, o, i) in slabs {
+            // `max`/`min` return their second operand for NaN (0·∞ for a
+            // ray in a box's face plane), as the tree's test does.
+            t0 = F8::load(&bounds[near]).sub(o).mul(i).max(t0);
+            t1 = F8::load(&bounds[far]).sub(o).mul(i).min(t1);
+        }
+        let t1 = t1.mul(F8::splat(SLAB_ROUNDING));
+        (t0.le(t1).bits(), t0)
     }
 }
 
@@ -730,17 +786,17 @@ mod tests {
         assert_diagonal_is_watertight(13, |r| scene.intersect(r, false).is_some());
     }
 
-    /// More than eight blocks' worth of primitives is left to the tree.
+    /// More than sixteen blocks' worth of primitives is left to the tree.
     #[test]
-    fn more_than_eight_blocks_are_refused() {
+    fn more_than_sixteen_blocks_are_refused() {
         if !avx_available() {
             return;
         }
-        let row: Vec<(Rectangle, u32)> = (0..72)
+        let row: Vec<(Rectangle, u32)> = (0..136)
             .map(|i| (Rectangle::new(Vec3::X * (10.0 * i as f32), Vec3::Y, Vec3::Z), i))
             .collect();
-        let eight_blocks = FlatScene::new(&row[..64], &[]).expect("64 in a row fill eight blocks");
-        assert_eq!(eight_blocks.blocks(), 8);
+        let sixteen_blocks = FlatScene::new(&row[..128], &[]).expect("128 in a row fill sixteen blocks");
+        assert_eq!(sixteen_blocks.blocks(), 16);
         assert!(FlatScene::new(&row, &[]).is_none());
     }
 }
