@@ -24,11 +24,17 @@ use trazo::scene::builtin::cornell_box;
 use trazo::{Rgb, Vec2};
 
 fn random_rays(n: usize, seed: u64) -> Vec<Ray> {
+    random_rays_into(n, seed, 1.0)
+}
+
+/// Rays from a cube of side `6 * extent` toward points in the centred cube
+/// of side `extent`.
+fn random_rays_into(n: usize, seed: u64, extent: f32) -> Vec<Ray> {
     let mut r = Pcg32::new(seed, 0);
     (0..n)
         .map(|_| {
-            let o = Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 6.0 - 3.0;
-            let target = Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) - 0.5;
+            let o = (Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 6.0 - 3.0) * extent;
+            let target = (Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) - 0.5) * extent;
             Ray::new(o, (target - o).normalize())
         })
         .collect()
@@ -102,14 +108,15 @@ fn traversal(c: &mut Criterion) {
     });
 }
 
-/// A clutter of `n` small rectangles and triangles in the unit cube around
-/// the origin, half of each.
-fn clutter(n: usize, seed: u64) -> Aggregate {
+/// A clutter of `n` rectangles and triangles (edges up to 0.4 long) around
+/// the origin, half of each, their corners in the centred cube of side
+/// `extent`.
+fn clutter(n: usize, seed: u64, extent: f32) -> Aggregate {
     let mut r = Pcg32::new(seed, 9);
     let mut v = || Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) - 0.5;
     let shapes = (0..n / 2)
         .map(|_| ShapeInstance {
-            shape: Shape::Rectangle(Rectangle::new(v(), v() * 0.4, v() * 0.4)),
+            shape: Shape::Rectangle(Rectangle::new(v() * extent, v() * 0.4, v() * 0.4)),
             transform: None,
             material: 0,
             light: None,
@@ -118,7 +125,7 @@ fn clutter(n: usize, seed: u64) -> Aggregate {
         .collect();
     let mut mesh = TriangleMesh::default();
     for t in 0..n - n / 2 {
-        let c = v();
+        let c = v() * extent;
         mesh.positions.extend([c, c + v() * 0.4, c + v() * 0.4]);
         mesh.indices.push([3 * t as u32, 3 * t as u32 + 1, 3 * t as u32 + 2]);
     }
@@ -132,22 +139,29 @@ fn clutter(n: usize, seed: u64) -> Aggregate {
 
 /// Small scenes traced without a tree (every primitive tested, eight at a
 /// time) against the same scenes through their tree: where the flat test
-/// stops paying.
+/// stops paying. In a clutter (primitives overlapping in a unit cube, as
+/// the walls and boxes of a room overlap in extent) and spread out (a cube
+/// of side 8, where a tree separates them well).
 fn small_scenes(c: &mut Criterion) {
-    let rays = random_rays(4096, 3);
-    let mut g = c.benchmark_group("small scene closest-hit x4096");
-    for n in [8, 16, 24, 32, 48, 64, 96, 128] {
-        let flat = clutter(n, n as u64);
-        let tree = clutter(n, n as u64).without_flat();
-        g.bench_function(
-            format!("{n} primitives, flat ({} blocks)", flat.stats().flat_blocks),
-            |b| b.iter(|| rays.iter().filter(|r| flat.intersect(black_box(r)).is_some()).count()),
-        );
-        g.bench_function(format!("{n} primitives, tree"), |b| {
-            b.iter(|| rays.iter().filter(|r| tree.intersect(black_box(r)).is_some()).count())
-        });
+    for (name, extent, sizes) in [
+        ("small scene", 1.0, &[8, 16, 24, 32, 48, 64, 96, 128][..]),
+        ("small spread-out scene", 8.0, &[24, 48, 64, 96, 128][..]),
+    ] {
+        let rays = random_rays_into(4096, 3, extent);
+        let mut g = c.benchmark_group(format!("{name} closest-hit x4096"));
+        for &n in sizes {
+            let flat = clutter(n, n as u64, extent);
+            let tree = clutter(n, n as u64, extent).without_flat();
+            g.bench_function(
+                format!("{n} primitives, as built ({} flat blocks)", flat.stats().flat_blocks),
+                |b| b.iter(|| rays.iter().filter(|r| flat.intersect(black_box(r)).is_some()).count()),
+            );
+            g.bench_function(format!("{n} primitives, tree"), |b| {
+                b.iter(|| rays.iter().filter(|r| tree.intersect(black_box(r)).is_some()).count())
+            });
+        }
+        g.finish();
     }
-    g.finish();
 }
 
 fn bsdf_sampling(c: &mut Criterion) {

@@ -597,6 +597,33 @@ fn small_scenes_without_a_tree_agree_with_brute_force_and_the_tree() {
     }
 }
 
+/// Thirty rectangles as large as the space they fill (a room) are traced
+/// without the tree; the same thirty spread a hundred times farther apart
+/// keep their tree, which skips nearly all of them.
+#[test]
+fn only_rooms_are_traced_without_a_tree() {
+    let rectangles = |spacing: f32| {
+        let shapes = (0..30)
+            .map(|i| ShapeInstance {
+                shape: Shape::Rectangle(Rectangle::new(
+                    Vec3::new((i % 5) as f32, (i / 5) as f32, (i % 3) as f32) * spacing,
+                    Vec3::new(1.0, 0.0, 0.2),
+                    Vec3::new(0.0, 1.0, 0.3),
+                )),
+                transform: None,
+                material: 0,
+                light: None,
+                flip_normals: false,
+            })
+            .collect();
+        Aggregate::build(Vec::new(), shapes, Vec::new(), Vec::new())
+    };
+    if cfg!(target_arch = "x86_64") && std::arch::is_x86_feature_detected!("avx") {
+        assert!(rectangles(0.3).stats().flat_blocks > 0);
+    }
+    assert_eq!(rectangles(30.0).stats().flat_blocks, 0);
+}
+
 #[test]
 fn same_seed_gives_identical_images_for_any_thread_count() {
     let mut d = cornell_box();

@@ -11,7 +11,9 @@
 //! [`FlatScene`](super::flat::FlatScene).
 
 use super::bvh::Bvh;
-use super::flat::{FLAT_MAX_PRIMITIVES, FLAT_MIN_PRIMITIVES, FlatHit, FlatScene};
+use super::flat::{
+    FLAT_MAX_PRIMITIVES, FLAT_MIN_EXPECTED_HITS, FLAT_MIN_PRIMITIVES, FlatHit, FlatScene, expected_hits,
+};
 use super::queries::TriangleBvh;
 use super::wide::Bvh4;
 use crate::geometry::mesh::TriangleMesh;
@@ -760,8 +762,9 @@ impl Aggregate {
 }
 
 /// The top-level primitives as a [`FlatScene`], if they are few (but not
-/// so few that a tree of one or two leaves is faster) and all rectangles or
-/// triangles. Triangles are numbered by their place in
+/// so few that a tree of one or two leaves is faster), all rectangles or
+/// triangles, and large for the space they fill (a room, not a few small
+/// objects far apart, where a tree skips nearly all of them). Triangles are numbered by their place in
 /// `prims` (tree order, so that a block holds neighbours), rectangles by
 /// their shape.
 fn flat_scene(prims: &[PrimRef], shapes: &[ShapeInstance], triangle_vertices: &[[Vec3; 3]]) -> Option<FlatScene> {
@@ -783,6 +786,15 @@ fn flat_scene(prims: &[PrimRef], shapes: &[ShapeInstance], triangle_vertices: &[
             },
             PrimRef::Object(_) | PrimRef::Instance(_) => return None,
         }
+    }
+    let boxes: Vec<Aabb> = (rectangles.iter().map(|(r, _)| {
+        let c = r.corner();
+        Aabb::from_points([c, c + r.edge_u(), c + r.edge_v(), c + r.edge_u() + r.edge_v()])
+    }))
+    .chain(triangles.iter().map(|(t, _)| Aabb::from_points(*t)))
+    .collect();
+    if expected_hits(&boxes) < FLAT_MIN_EXPECTED_HITS {
+        return None;
     }
     FlatScene::new(&rectangles, &triangles)
 }
