@@ -8,8 +8,9 @@
 //! primitives are each tested by a few AVX instructions, with no branch
 //! that depends on the ray. [`Aggregate`](super::Aggregate) traces scenes
 //! of [`FLAT_MIN_PRIMITIVES`] to [`FLAT_MAX_PRIMITIVES`] rectangles and
-//! triangles this way where the processor has AVX, and through its tree
-//! otherwise. `cargo bench --bench kernels -- "small scene"` measures both
+//! triangles this way where the processor has AVX and the primitives are
+//! large for the space they fill ([`FLAT_MIN_EXPECTED_HITS`]), and through
+//! its tree otherwise. `cargo bench --bench kernels -- "small scene"` measures both
 //! (BENCHMARKS.md): below about 20 primitives a tree of one or two leaves
 //! of scalar tests is faster; from 48 to 128 primitives in a cluttered
 //! room, the blocks are 2–3× faster. Up to eight blocks take one
