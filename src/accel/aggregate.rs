@@ -764,9 +764,9 @@ impl Aggregate {
 /// The top-level primitives as a [`FlatScene`], if they are few (but not
 /// so few that a tree of one or two leaves is faster), all rectangles or
 /// triangles, and large for the space they fill (a room, not a few small
-/// objects far apart, where a tree skips nearly all of them). Triangles are numbered by their place in
-/// `prims` (tree order, so that a block holds neighbours), rectangles by
-/// their shape.
+/// objects far apart, where a tree skips nearly all of them). Triangles are
+/// numbered by their place in `prims` (tree order, so that a block holds
+/// neighbours), rectangles by their shape.
 fn flat_scene(prims: &[PrimRef], shapes: &[ShapeInstance], triangle_vertices: &[[Vec3; 3]]) -> Option<FlatScene> {
     if !(FLAT_MIN_PRIMITIVES..=FLAT_MAX_PRIMITIVES).contains(&prims.len()) {
         return None;
@@ -787,12 +787,9 @@ fn flat_scene(prims: &[PrimRef], shapes: &[ShapeInstance], triangle_vertices: &[
             PrimRef::Object(_) | PrimRef::Instance(_) => return None,
         }
     }
-    let boxes: Vec<Aabb> = (rectangles.iter().map(|(r, _)| {
-        let c = r.corner();
-        Aabb::from_points([c, c + r.edge_u(), c + r.edge_v(), c + r.edge_u() + r.edge_v()])
-    }))
-    .chain(triangles.iter().map(|(t, _)| Aabb::from_points(*t)))
-    .collect();
+    let boxes: Vec<Aabb> = (rectangles.iter().map(|(r, _)| r.bounds()))
+        .chain(triangles.iter().map(|(t, _)| Aabb::from_points(*t)))
+        .collect();
     if expected_hits(&boxes) < FLAT_MIN_EXPECTED_HITS {
         return None;
     }

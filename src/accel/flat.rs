@@ -430,13 +430,7 @@ mod avx {
             if !avx_available() {
                 return None;
             }
-            let rectangle_bounds: Vec<Aabb> = rectangles
-                .iter()
-                .map(|(r, _)| {
-                    let [c, _, _, _] = r.test_frame();
-                    Aabb::from_points([c, c + r.edge_u(), c + r.edge_v(), c + r.edge_u() + r.edge_v()])
-                })
-                .collect();
+            let rectangle_bounds: Vec<Aabb> = rectangles.iter().map(|(r, _)| r.bounds()).collect();
             let triangle_bounds: Vec<Aabb> = triangles.iter().map(|(t, _)| Aabb::from_points(*t)).collect();
             let group = |grouping| {
                 (
@@ -467,8 +461,8 @@ mod avx {
                 rectangles: Vec::new(),
                 triangles: Vec::new(),
             };
-            let mut set_bounds = |block: usize, points: &mut dyn Iterator<Item = Vec3>| {
-                let b = points.fold(Aabb::EMPTY, |b, p| b.union(&Aabb::from_points([p])));
+            let mut set_bounds = |block: usize, boxes: &[Aabb], members: &[usize]| {
+                let b = members.iter().fold(Aabb::EMPTY, |b, &k| b.union(&boxes[k]));
                 let (group, lane) = (block / LANES, block % LANES);
                 for axis in 0..3 {
                     scene.bounds[group][axis].0[lane] = b.min[axis];
@@ -476,20 +470,10 @@ mod avx {
                 }
             };
             for (block, group) in rectangle_groups.iter().enumerate() {
-                set_bounds(
-                    block,
-                    &mut group.iter().flat_map(|&k| {
-                        let r = &rectangles[k].0;
-                        let c = r.corner();
-                        [c, c + r.edge_u(), c + r.edge_v(), c + r.edge_u() + r.edge_v()]
-                    }),
-                );
+                set_bounds(block, &rectangle_bounds, group);
             }
             for (i, group) in triangle_groups.iter().enumerate() {
-                set_bounds(
-                    rectangle_groups.len() + i,
-                    &mut group.iter().flat_map(|&k| triangles[k].0),
-                );
+                set_bounds(rectangle_groups.len() + i, &triangle_bounds, group);
             }
             scene.rectangles = rectangle_groups
                 .iter()

@@ -141,12 +141,7 @@ impl Shape {
                 s.center + Vec3::splat(s.radius),
             )),
             Shape::Plane(_) => None,
-            Shape::Rectangle(r) => Some(Aabb::from_points([
-                r.corner,
-                r.corner + r.edge_u,
-                r.corner + r.edge_v,
-                r.corner + r.edge_u + r.edge_v,
-            ])),
+            Shape::Rectangle(r) => Some(r.bounds()),
             Shape::Disk(d) => {
                 // Extent of a disk along axis i is r·sqrt(1 − n_i²).
                 let e = (Vec3::ONE - d.normal * d.normal).max(Vec3::ZERO);
@@ -388,6 +383,16 @@ impl Sphere {
 }
 
 impl Rectangle {
+    /// The box of its four corners.
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points([
+            self.corner,
+            self.corner + self.edge_u,
+            self.corner + self.edge_v,
+            self.corner + self.edge_u + self.edge_v,
+        ])
+    }
+
     /// The parallelogram with this corner and edges. A zero-area one (parallel
     /// edges) is never hit.
     pub fn new(corner: Vec3, edge_u: Vec3, edge_v: Vec3) -> Rectangle {
