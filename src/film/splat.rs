@@ -67,7 +67,7 @@ impl Splat {
     #[inline(always)]
     fn weight(&self, x: f32) -> f32 {
         let t = (x.abs() * self.scale).min((TABLE - 1) as f32);
-        let i = (t as usize).min(TABLE - 2);
+        let i = (t as u32).min(TABLE as u32 - 2) as usize;
         let f = t - i as f32;
         self.table[i] + (self.table[i + 1] - self.table[i]) * f
     }
