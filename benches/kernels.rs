@@ -140,11 +140,14 @@ fn clutter(n: usize, seed: u64, extent: f32) -> Aggregate {
 /// Small scenes traced without a tree (every primitive tested, eight at a
 /// time) against the same scenes through their tree: where the flat test
 /// stops paying. In a clutter (primitives overlapping in a unit cube, as
-/// the walls and boxes of a room overlap in extent) and spread out (a cube
-/// of side 8, where a tree separates them well).
+/// the walls and boxes of a room overlap in extent), spread out (a cube of
+/// side 8, where a tree separates them well), and between.
 fn small_scenes(c: &mut Criterion) {
     for (name, extent, sizes) in [
         ("small scene", 1.0, &[8, 16, 24, 32, 48, 64, 96, 128][..]),
+        ("small scene in a cube of side 2", 2.0, &[24, 48, 64, 96, 128][..]),
+        ("small scene in a cube of side 3", 3.0, &[24, 48, 64, 96, 128][..]),
+        ("small scene in a cube of side 4", 4.0, &[24, 48, 64, 96, 128][..]),
         ("small spread-out scene", 8.0, &[24, 48, 64, 96, 128][..]),
     ] {
         let rays = random_rays_into(4096, 3, extent);

@@ -11,9 +11,7 @@
 //! [`FlatScene`](super::flat::FlatScene).
 
 use super::bvh::Bvh;
-use super::flat::{
-    FLAT_MAX_PRIMITIVES, FLAT_MIN_EXPECTED_HITS, FLAT_MIN_PRIMITIVES, FlatHit, FlatScene, expected_hits,
-};
+use super::flat::{FLAT_MAX_PRIMITIVES, FLAT_MIN_PRIMITIVES, FlatHit, FlatScene, expected_hits, flat_pays};
 use super::queries::TriangleBvh;
 use super::wide::Bvh4;
 use crate::geometry::mesh::TriangleMesh;
@@ -790,7 +788,7 @@ fn flat_scene(prims: &[PrimRef], shapes: &[ShapeInstance], triangle_vertices: &[
     let boxes: Vec<Aabb> = (rectangles.iter().map(|(r, _)| r.bounds()))
         .chain(triangles.iter().map(|(t, _)| Aabb::from_points(*t)))
         .collect();
-    if expected_hits(&boxes) < FLAT_MIN_EXPECTED_HITS {
+    if !flat_pays(boxes.len(), expected_hits(&boxes)) {
         return None;
     }
     FlatScene::new(&rectangles, &triangles)

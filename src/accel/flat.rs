@@ -9,7 +9,7 @@
 //! that depends on the ray. [`Aggregate`](super::Aggregate) traces scenes
 //! of [`FLAT_MIN_PRIMITIVES`] to [`FLAT_MAX_PRIMITIVES`] rectangles and
 //! triangles this way where the processor has AVX and the primitives are
-//! large for the space they fill ([`FLAT_MIN_EXPECTED_HITS`]), and through
+//! large for the space they fill ([`flat_pays`]), and through
 //! its tree otherwise. `cargo bench --bench kernels -- "small scene"` measures both
 //! (BENCHMARKS.md): below about 20 primitives a tree of one or two leaves
 //! of scalar tests is faster; from 48 to 128 primitives in a cluttered
@@ -34,17 +34,26 @@ pub const FLAT_MIN_PRIMITIVES: usize = 20;
 /// eight) are traced without a tree.
 pub const FLAT_MAX_PRIMITIVES: usize = 128;
 
-/// Scenes whose primitives a ray through their bounding box meets fewer
-/// than this many of, on average, are traced through their tree: it skips
-/// nearly every primitive there, and the blocks cannot. (By Cauchy's
-/// formula, as in the SAH, a random line through a convex box meets a
-/// convex box inside it with probability equal to the ratio of their
-/// surface areas.) A room's walls span the room: 3.0 for the Cornell box.
-/// Measured (`cargo bench --bench kernels -- "small"`): a clutter of small
-/// primitives in a unit cube (0.6–2.4) is 1.1–3× faster in blocks; the same
-/// primitives spread over a cube of side 8 (0.02–0.07) are 1.4–1.7×
-/// faster through the tree.
-pub const FLAT_MIN_EXPECTED_HITS: f32 = 0.25;
+/// Scenes are traced through their tree where their number of primitives
+/// times [`expected_hits`] (how many of the primitives' boxes a ray through
+/// the scene's box meets on average) is below this: the tree skips nearly
+/// every primitive there, and the blocks cannot. A room's walls span the
+/// room: 30 primitives × 3.0 on the Cornell box.
+///
+/// Fitted to `cargo bench --bench kernels -- "small"` (BENCHMARKS.md):
+/// clutters of 24 to 128 small primitives in cubes of side 1 to 8, flat
+/// against tree. Where the product is at most 15.7 the tree was faster (up
+/// to 2.2×), from 16.4 the blocks were as fast or faster (up to 3×); a
+/// threshold on the expected hits alone misplaced three of the 26
+/// scenes, as fewer primitives need more overlap before the blocks pay.
+pub const FLAT_MIN_HITS_TIMES_PRIMITIVES: f32 = 16.0;
+
+/// Whether `primitives` whose boxes a ray through the scene's box meets
+/// `expected_hits` of on average are traced faster in blocks than through
+/// a tree (see [`FLAT_MIN_HITS_TIMES_PRIMITIVES`]).
+pub fn flat_pays(primitives: usize, expected_hits: f32) -> bool {
+    primitives as f32 * expected_hits >= FLAT_MIN_HITS_TIMES_PRIMITIVES
+}
 
 /// How many of the boxes a random ray through their union meets on
 /// average: the sum of their surface areas over the union's (0 for an
