@@ -57,7 +57,9 @@ pub fn flat_pays(primitives: usize, expected_hits: f32) -> bool {
 
 /// How many of the boxes a random ray through their union meets on
 /// average: the sum of their surface areas over the union's (0 for an
-/// empty or degenerate union).
+/// empty or degenerate union). By Cauchy's formula, as in the SAH, a
+/// random line through a convex body meets a convex body inside it with
+/// probability equal to the ratio of their surface areas.
 pub fn expected_hits(boxes: &[Aabb]) -> f32 {
     let union = boxes.iter().fold(Aabb::EMPTY, |u, b| u.union(b));
     let area = union.surface_area();
