@@ -656,6 +656,21 @@ impl Aggregate {
         }
     }
 
+    /// The corner, edges and front normal of a rectangle emitter whose
+    /// transform was baked into it (see [`Aggregate::sample_emitter`]), or
+    /// `None` for other emitters.
+    pub fn emitter_parallelogram(&self, emitter: EmitterRef) -> Option<([Vec3; 3], Vec3)> {
+        let EmitterRef::Shape(i) = emitter else { return None };
+        let s = &self.shapes[i as usize];
+        match (&s.shape, &s.transform) {
+            (Shape::Rectangle(r), None) => {
+                let n = if s.flip_normals { -r.normal() } else { r.normal() };
+                Some(([r.corner(), r.edge_u(), r.edge_v()], n))
+            }
+            _ => None,
+        }
+    }
+
     /// Precomputes what sampling a point on an emitter needs.
     pub fn emitter_area(&self, emitter: EmitterRef) -> EmitterArea {
         match emitter {

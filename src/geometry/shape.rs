@@ -425,6 +425,11 @@ impl Rectangle {
         self.edge_v
     }
 
+    /// The unit normal, along edge_u × edge_v.
+    pub fn normal(&self) -> Vec3 {
+        self.normal
+    }
+
     /// The corner, the unit normal and the dual basis of the edges, with
     /// which [`Rectangle::intersect`] tests a ray.
     pub(crate) fn test_frame(&self) -> [Vec3; 4] {

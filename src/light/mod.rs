@@ -79,9 +79,44 @@ pub enum Light {
         /// Centre and radius when the emitter is a sphere, which is then
         /// sampled by the cone it subtends rather than by area.
         sphere: Option<(Vec3, f32)>,
+        /// The emitter itself when it is a rectangle in world space, which
+        /// is then sampled here rather than through the aggregate.
+        parallelogram: Option<Parallelogram>,
     },
     /// The background (see [`Background`]), as light from every direction.
     Environment,
+}
+
+/// A rectangle emitter in world space (its transform baked in), kept in the
+/// light so that sampling it is a few multiply-adds: the Cornell box's
+/// light is one, sampled at every bounce, and the general route (a match on
+/// the emitter, then on its shape, then a division by its area) cost about
+/// as many instructions again (BENCHMARKS.md). Points, normal, coordinates
+/// and density are those [`crate::accel::Aggregate::sample_emitter`] gives.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Parallelogram {
+    corner: Vec3,
+    edge_u: Vec3,
+    edge_v: Vec3,
+    /// The front side's unit normal.
+    normal: Vec3,
+    /// Density per unit area: one over the area.
+    pdf_area: f32,
+}
+
+impl Parallelogram {
+    /// The rectangle emitter `emitter` of `geometry` with area data `area`,
+    /// or `None` for other emitters.
+    pub fn of_emitter(geometry: &crate::accel::Aggregate, emitter: EmitterRef, area: &EmitterArea) -> Option<Self> {
+        let ([corner, edge_u, edge_v], normal) = geometry.emitter_parallelogram(emitter)?;
+        Some(Parallelogram {
+            corner,
+            edge_u,
+            edge_v,
+            normal,
+            pdf_area: 1.0 / area.total,
+        })
+    }
 }
 
 /// Where a shadow ray must go to test a light sample's visibility.
@@ -237,10 +272,20 @@ impl Light {
                 radiance,
                 area,
                 sphere,
+                parallelogram,
             } => {
                 // The point's density: per steradian from cone sampling of
                 // a sphere, per unit area otherwise.
-                let (lp, ln, uv, pdf_solid_angle, pdf_area) =
+                let (lp, ln, uv, pdf_solid_angle, pdf_area) = if let Some(r) = parallelogram {
+                    // What `Shape::sample_area` does for a rectangle.
+                    (
+                        r.corner + u.x * r.edge_u + u.y * r.edge_v,
+                        r.normal,
+                        u,
+                        None,
+                        r.pdf_area,
+                    )
+                } else {
                     match sphere.and_then(|(c, r)| sample_sphere_cone(c, r, p, u)) {
                         Some((lp, ln, pdf)) => {
                             let uv = match radiance {
@@ -256,7 +301,8 @@ impl Light {
                             }
                             (s.p, s.n, s.uv, None, s.pdf_area)
                         }
-                    };
+                    }
+                };
                 let d = lp - p;
                 let dist2 = d.length_squared();
                 if dist2 == 0.0 {
@@ -419,6 +465,65 @@ mod tests {
         // A far, tiny sphere takes the small-angle path.
         let (_, _, pdf) = sample_sphere_cone(Vec3::new(0.0, 1e4, 0.0), 1.0, p, Vec2::new(0.3, 0.6)).unwrap();
         assert!((pdf - sphere_cone_pdf(Vec3::new(0.0, 1e4, 0.0), 1.0, p)).abs() < 1e-3 * pdf);
+    }
+
+    /// A rectangle light sampled on its own gives what sampling it through
+    /// the aggregate gives, bit for bit: plain, transformed (baked) and
+    /// with its normal flipped.
+    #[test]
+    fn rectangle_lights_sample_as_the_aggregate_does() {
+        let text = r#"
+[[material]]
+name = "lamp"
+emission = [3, 2, 1]
+
+[[shape]]
+type = "rectangle"
+corner = [-0.5, 2, -0.5]
+edge_u = [1, 0, 0]
+edge_v = [0, 0, 1]
+material = "lamp"
+
+[[shape]]
+type = "rectangle"
+corner = [0, 0, 0]
+edge_u = [1, 0, 0]
+edge_v = [0, 1, 0]
+material = "lamp"
+flip_normals = true
+transform = [{ scale = [2, 3, 1] }, { rotate = { axis = [1, 1, 0], angle = 30 } }, { translate = [0.5, 1, -3] }]
+"#;
+        let desc = crate::scene::native::parse(text, std::path::Path::new("lights.toml")).unwrap();
+        let scene = crate::scene::build(&desc).unwrap();
+        assert_eq!(scene.lights.len(), 2);
+        let mut rng = Pcg32::new(11, 3);
+        for light in &scene.lights {
+            let Light::Area {
+                parallelogram: Some(r), ..
+            } = light
+            else {
+                panic!("each rectangle light gets the fast path")
+            };
+            let mut general = light.clone();
+            if let Light::Area { parallelogram, .. } = &mut general {
+                *parallelogram = None;
+            }
+            let mut hits = 0;
+            for _ in 0..2000 {
+                let p = r.corner + Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 6.0 - 3.0;
+                let u = Vec2::new(rng.next_f32(), rng.next_f32());
+                let (a, b) = (light.sample_li(&scene, p, 0.5, u), general.sample_li(&scene, p, 0.5, u));
+                match (a, b) {
+                    (Some(a), Some(b)) => {
+                        hits += 1;
+                        assert_eq!((a.wi, a.li, a.pdf, a.target), (b.wi, b.li, b.pdf, b.target));
+                    }
+                    (None, None) => {}
+                    _ => panic!("{p}: one route samples the light, the other does not"),
+                }
+            }
+            assert!(hits > 500, "{hits} samples reached the light");
+        }
     }
 
     #[test]

@@ -300,6 +300,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         lights.push(Light::Area {
             emitter,
             radiance: materials[material as usize].emission,
+            parallelogram: crate::light::Parallelogram::of_emitter(&geometry, emitter, &area),
             area,
             sphere: crate::light::emitter_sphere(&geometry, emitter),
         });
