@@ -553,11 +553,16 @@ mod avx {
                     }
                 }
             }
+            // Most rays in a room meet only walls: they enter no triangle
+            // block, and skip the loop over them.
+            let first = self.rectangles.len();
+            if entered >> first == 0 {
+                return best;
+            }
             // The triangle test's set-up, made when a triangle block is
-            // entered: most rays in a room meet only walls.
+            // entered within the interval.
             let mut ray_lanes = None;
             let mut best_triangle = None;
-            let first = self.rectangles.len();
             for (i, triangles) in self.triangles.iter().enumerate() {
                 let block = first + i;
                 if entered & (1 << block) == 0 || t_enter[block] > t_max {
