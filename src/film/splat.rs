@@ -77,8 +77,8 @@ impl Splat {
     /// weights to `weights` and returns the first pixel and how many.
     #[inline]
     pub fn taps(&self, p: f32, lo: u32, hi: u32, weights: &mut [f32; MAX_TAPS]) -> (u32, usize) {
-        let first = (p - self.radius - 0.5).ceil().max(lo as f32);
-        let last = (p + self.radius - 0.5).floor().min(hi as f32 - 1.0);
+        let first = ceil_in_film(p - self.radius - 0.5).max(lo as f32);
+        let last = floor_in_film(p + self.radius - 0.5).min(hi as f32 - 1.0);
         let n = ((last - first + 1.0).max(0.0) as usize).min(MAX_TAPS);
         let x0 = first + 0.5 - p;
         for (k, w) in weights[..n].iter_mut().enumerate() {
@@ -86,6 +86,26 @@ impl Splat {
         }
         (first as u32, n)
     }
+}
+
+/// `x.ceil()` for |x| < 2³¹ (film coordinates are far smaller) by a
+/// conversion to integer: x86-64 without SSE4.1 has no rounding
+/// instruction, and `f32::ceil` is a call into libm, which cost about 45
+/// instructions per sample (two calls) on the Cornell box. Signed zeros
+/// may differ, which no caller sees.
+#[inline(always)]
+fn ceil_in_film(x: f32) -> f32 {
+    // On integers, so that the comparison is a flag and not a branch: which
+    // way it goes is as good as random from sample to sample.
+    let i = x as i32;
+    (i + ((i as f32) < x) as i32) as f32
+}
+
+/// `x.floor()` for |x| < 2³¹; see [`ceil_in_film`].
+#[inline(always)]
+fn floor_in_film(x: f32) -> f32 {
+    let i = x as i32;
+    (i - ((i as f32) > x) as i32) as f32
 }
 
 /// What one pass splats into one pixel. Single precision suffices: a pass
@@ -140,6 +160,25 @@ mod tests {
         assert!((merged.rgb - exact.rgb).abs().max_element() < 1e-6 * exact.rgb.max_element());
         assert!((merged.weight - exact.weight).abs() < 1e-7);
         assert!((merged.lum_sq - exact.lum_sq).abs() < 1e-6 * exact.lum_sq);
+    }
+
+    #[test]
+    fn film_rounding_matches_floor_and_ceil() {
+        let mut rng = crate::sampling::rng::Pcg32::new(3, 9);
+        let mut xs = vec![
+            0.0f32, -0.0, 0.5, -0.5, 1.0, -1.0, 2.5, -2.5, 8388607.5, 8388608.0, -8388609.0, 1e9, -1e9,
+        ];
+        xs.extend((0..10_000).map(|_| (rng.next_f32() - 0.5) * 4096.0));
+        // Integers and their nearest neighbours.
+        for _ in 0..1000 {
+            let x = ((rng.next_f32() - 0.5) * 8.0).round();
+            xs.extend([x, x + 1e-6, x - 1e-6]);
+        }
+        for x in xs {
+            // Equal as numbers: the sign of a zero may differ.
+            assert_eq!(ceil_in_film(x), x.ceil(), "ceil {x}");
+            assert_eq!(floor_in_film(x), x.floor(), "floor {x}");
+        }
     }
 
     #[test]
