@@ -15,8 +15,9 @@ use super::PixelSum;
 use super::filter::Filter;
 use glam::{DVec3, Vec4};
 
-/// Samples of the filter's profile on [0, radius].
-const TABLE: usize = 64;
+/// Sub-pixel phases tabulated: a sample's weights along an axis depend
+/// only on where it falls between two pixel centres.
+const PHASES: usize = 64;
 
 /// Most pixels one sample touches along an axis.
 pub const MAX_TAPS: usize = 16;
@@ -25,12 +26,14 @@ pub const MAX_TAPS: usize = 16;
 #[derive(Clone, Debug)]
 pub struct Splat {
     radius: f32,
-    /// Table steps per pixel: (TABLE − 1) / radius.
-    scale: f32,
     /// Pixels a tile's buffer extends beyond the tile on each side.
     pub margin: u32,
-    /// The 1D profile at |x| = i·radius/(TABLE − 1), divided by its integral.
-    table: [f32; TABLE],
+    /// Row `j` holds the weights of the pixel centres at x = −radius +
+    /// j/PHASES + k (k = 0, 1, …) from a sample, the filter's profile
+    /// divided by its integral (zero beyond the radius). A sample's
+    /// weights are interpolated between two rows: a few vector
+    /// multiply-adds, where a lookup per tap cost about 25 instructions.
+    rows: Box<[[f32; MAX_TAPS]; PHASES + 1]>,
 }
 
 impl Splat {
@@ -43,49 +46,59 @@ impl Splat {
         }
         // Normalise the profile so that a sample's weights sum to about 1:
         // a pixel's total weight is then about its number of samples.
-        let steps = 4096;
-        let integral: f64 = (0..steps)
-            .map(|i| {
-                let x = -radius + (2.0 * radius) * (i as f32 + 0.5) / steps as f32;
-                filter.eval_1d(x) as f64
-            })
-            .sum::<f64>()
-            * (2.0 * radius as f64 / steps as f64);
-        let table =
-            std::array::from_fn(|i| (filter.eval_1d(radius * i as f32 / (TABLE - 1) as f32) as f64 / integral) as f32);
+        let integral = profile_integral(filter);
+        let mut rows = Box::new([[0.0; MAX_TAPS]; PHASES + 1]);
+        for (j, row) in rows.iter_mut().enumerate() {
+            for (k, w) in row.iter_mut().enumerate() {
+                let x = -radius + j as f32 / PHASES as f32 + k as f32;
+                *w = (filter.eval_1d(x) as f64 / integral) as f32;
+            }
+        }
         Some(Splat {
             radius,
-            scale: (TABLE - 1) as f32 / radius,
             margin: (radius - 0.5).ceil().max(0.0) as u32,
-            table,
+            rows,
         })
-    }
-
-    /// The weight of a sample at distance `x` (pixels, |x| ≤ radius) from
-    /// a pixel centre. The index is clamped rather than tested, so that a
-    /// row of taps is computed without a branch.
-    #[inline(always)]
-    fn weight(&self, x: f32) -> f32 {
-        let t = (x.abs() * self.scale).min((TABLE - 1) as f32);
-        let i = (t as u32).min(TABLE as u32 - 2) as usize;
-        let f = t - i as f32;
-        self.table[i] + (self.table[i + 1] - self.table[i]) * f
     }
 
     /// The pixels in `[lo, hi)` whose centres lie within the radius of
     /// position `p` along one axis, which are consecutive: writes their
-    /// weights to `weights` and returns the first pixel and how many.
+    /// weights to `weights` and returns the first pixel and the weights.
     #[inline]
-    pub fn taps(&self, p: f32, lo: u32, hi: u32, weights: &mut [f32; MAX_TAPS]) -> (u32, usize) {
-        let first = ceil_in_film(p - self.radius - 0.5).max(lo as f32);
-        let last = floor_in_film(p + self.radius - 0.5).min(hi as f32 - 1.0);
-        let n = ((last - first + 1.0).max(0.0) as usize).min(MAX_TAPS);
-        let x0 = first + 0.5 - p;
-        for (k, w) in weights[..n].iter_mut().enumerate() {
-            *w = self.weight(x0 + k as f32);
+    pub fn taps<'w>(&self, p: f32, lo: u32, hi: u32, weights: &'w mut [f32; MAX_TAPS]) -> (u32, &'w [f32]) {
+        // The first and last centres within the radius, before clipping.
+        let first = ceil_in_film(p - self.radius - 0.5);
+        let last = floor_in_film(p + self.radius - 0.5);
+        // The first centre lies at x = −radius + s from p, s in [0, 1).
+        let phase = ((first + 0.5 - p + self.radius) * PHASES as f32).clamp(0.0, PHASES as f32);
+        let j = (phase as usize).min(PHASES - 1);
+        let f = phase - j as f32;
+        let (a, b) = (&self.rows[j], &self.rows[j + 1]);
+        for k in 0..MAX_TAPS {
+            weights[k] = a[k] + (b[k] - a[k]) * f;
         }
-        (first as u32, n)
+        let (first, last) = (first as i32, last as i32);
+        let start = (lo as i32 - first).max(0);
+        let end = ((last.min(hi as i32 - 1) - first + 1).max(start)).min(MAX_TAPS as i32);
+        let start = start.min(end);
+        (
+            (first + start).max(lo as i32) as u32,
+            &weights[start as usize..end as usize],
+        )
     }
+}
+
+/// ∫ of the filter's 1D profile over [−radius, radius] (midpoint rule).
+fn profile_integral(filter: &Filter) -> f64 {
+    let radius = filter.radius();
+    let steps = 4096;
+    (0..steps)
+        .map(|i| {
+            let x = -radius + (2.0 * radius) * (i as f32 + 0.5) / steps as f32;
+            filter.eval_1d(x) as f64
+        })
+        .sum::<f64>()
+        * (2.0 * radius as f64 / steps as f64)
 }
 
 /// `x.ceil()` for |x| < 2³¹ (film coordinates are far smaller) by a
@@ -189,30 +202,47 @@ mod tests {
         };
         let s = Splat::new(&g).unwrap();
         assert_eq!(s.margin, 2);
+        let integral = profile_integral(&g) as f32;
         let mut weights = [0.0; MAX_TAPS];
-        for p in [10.0f32, 10.25, 10.5, 10.9] {
-            let (first, n) = s.taps(p, 0, 100, &mut weights);
-            assert!((4..=5).contains(&n), "{p}: {n}");
-            let sum: f32 = weights[..n].iter().sum();
+        let mut rng = crate::sampling::rng::Pcg32::new(1, 2);
+        let positions = [10.0f32, 10.25, 10.5, 10.9, 10.5 + 1e-6, 11.0 - 1e-6];
+        for p in positions
+            .into_iter()
+            .chain((0..2000).map(|_| 10.0 + 5.0 * rng.next_f32()))
+        {
+            let (first, w) = s.taps(p, 0, 100, &mut weights);
+            assert!((4..=5).contains(&w.len()), "{p}: {}", w.len());
+            let sum: f32 = w.iter().sum();
             assert!((sum - 1.0).abs() < 0.02, "{p}: {sum}");
-            for (k, &w) in weights[..n].iter().enumerate() {
+            for (k, &w) in w.iter().enumerate() {
                 let x = (first + k as u32) as f32 + 0.5 - p;
                 assert!(x.abs() <= 2.0);
-                let expect = g.eval_1d(x) / g.eval_1d(0.0) * s.table[0];
-                assert!((w - expect).abs() < 2e-3 * s.table[0], "{p} {x}: {w} vs {expect}");
+                // Linear interpolation over 1/64 of a pixel: the error is
+                // at most h²/8 · max|g''| ≈ 1.3e-4 of the peak.
+                let expect = g.eval_1d(x) / integral;
+                assert!((w - expect).abs() < 3e-4 / integral, "{p} {x}: {w} vs {expect}");
             }
         }
         // At the image's edge only pixels inside are touched.
-        assert_eq!(s.taps(0.3, 0, 100, &mut weights), (0, 2));
-        assert_eq!(s.taps(99.9, 0, 100, &mut weights), (98, 2));
+        let (first, w) = s.taps(0.3, 0, 100, &mut weights);
+        assert_eq!((first, w.len()), (0, 2));
+        let (first, w) = s.taps(99.9, 0, 100, &mut weights);
+        assert_eq!((first, w.len()), (98, 2));
+        // A one-pixel image, and a position outside every pixel's reach.
+        assert_eq!(s.taps(0.5, 0, 1, &mut weights).1.len(), 1);
+        assert!(s.taps(150.0, 0, 100, &mut weights).1.is_empty());
         // The one-pixel box is left to filter importance sampling.
         assert!(Splat::new(&Filter::Box { radius: 0.5 }).is_none());
         let tent = Splat::new(&Filter::Tent { radius: 1.0 }).unwrap();
         assert_eq!(tent.margin, 1);
-        let (first, n) = tent.taps(5.5, 0, 10, &mut weights);
+        let (first, w) = tent.taps(5.5, 0, 10, &mut weights);
         // The unit tent's taps at a pixel centre: that pixel (weight 1) and
         // its neighbours at the tent's edge (weight 0).
-        assert_eq!((first, n), (4, 3));
-        assert_eq!(weights[..3], [0.0, 1.0, 0.0]);
+        assert_eq!((first, w), (4, &[0.0, 1.0, 0.0][..]));
+        // The widest filter: sixteen taps.
+        let wide = Splat::new(&Filter::Box { radius: 8.0 }).unwrap();
+        let (_, w) = wide.taps(50.3, 0, 100, &mut weights);
+        assert_eq!(w.len(), 16);
+        assert!(w.iter().all(|&w| (w - 1.0 / 16.0).abs() < 1e-6), "{w:?}");
     }
 }

@@ -408,17 +408,17 @@ fn render_passes<I: Integrator>(
                                     Some(sp) => {
                                         let y_l = crate::color::luminance(l);
                                         let (rgb_one, y_sq) = (l.extend(1.0), y_l * y_l);
-                                        let (x0, nx) =
+                                        let (x0, wxs) =
                                             sp.taps(position.x, splat_rect.x0, splat_rect.x1, &mut weights_x);
-                                        let (y0, ny) =
+                                        let (y0, wys) =
                                             sp.taps(position.y, splat_rect.y0, splat_rect.y1, &mut weights_y);
                                         // A sample's pixels are a block: one row slice at a time.
                                         let mut start =
                                             ((y0 - splat_rect.y0) * splat_width + x0 - splat_rect.x0) as usize;
-                                        for &wy in &weights_y[..ny] {
+                                        for &wy in wys {
                                             let (row_rgb, row_y_sq) = (rgb_one * wy, y_sq * wy);
-                                            let row = &mut splats[start..start + nx];
-                                            for (s, &wx) in row.iter_mut().zip(&weights_x[..nx]) {
+                                            let row = &mut splats[start..start + wxs.len()];
+                                            for (s, &wx) in row.iter_mut().zip(wxs) {
                                                 s.add(row_rgb, row_y_sq, wx);
                                             }
                                             start += splat_width as usize;
