@@ -887,9 +887,17 @@ fn finish_surface(t: f32, ls: LocalSurface, ns: Option<Vec3>, material: u32, lig
         Some(n) => n,
         None => ng,
     };
-    let tangent = (ls.dpdu - ns * ns.dot(ls.dpdu))
-        .try_normalize()
-        .unwrap_or_else(|| crate::sampling::warp::orthonormal_basis(ns).0);
+    // Gram–Schmidt. Where dp/du lies nearly along the normal, rounding in
+    // the projection would leave a tangent visibly off the perpendicular,
+    // and shading frames are built from it as it is
+    // (`Frame::from_orthonormal`): take an arbitrary tangent then.
+    let along = ls.dpdu - ns * ns.dot(ls.dpdu);
+    let len2 = along.length_squared();
+    let tangent = if len2 > 1e-6 * ls.dpdu.length_squared() {
+        along * (1.0 / len2.sqrt())
+    } else {
+        crate::sampling::warp::orthonormal_basis(ns).0
+    };
     SurfaceHit {
         t,
         p: ls.p,
@@ -907,6 +915,39 @@ fn finish_surface(t: f32, ls: LocalSurface, ns: Option<Vec3>, material: u32, lig
 mod tests {
     use super::*;
     use crate::geometry::shape::{Cuboid, Sphere};
+
+    /// Surface records carry a unit tangent perpendicular to the shading
+    /// normal, which shading frames use as it is: also for dp/du nearly
+    /// along the normal, zero, or huge.
+    #[test]
+    fn surface_tangents_are_unit_and_perpendicular() {
+        let mut rng = crate::sampling::rng::Pcg32::new(4, 4);
+        let mut unit = || {
+            let u = Vec2::new(rng.next_f32(), rng.next_f32());
+            crate::sampling::warp::sample_sphere_uniform(u)
+        };
+        for i in 0..20_000 {
+            let (n, other) = (unit(), unit());
+            let dpdu = match i % 5 {
+                0 => other * 3.0,
+                1 => n + other * 1e-4,
+                2 => n * 7.0 + other * 1e-7,
+                3 => Vec3::ZERO,
+                _ => other * 1e30,
+            };
+            let ls = LocalSurface {
+                p: Vec3::ZERO,
+                p_error: Vec3::ZERO,
+                n,
+                uv: Vec2::ZERO,
+                dpdu,
+            };
+            let hit = finish_surface(1.0, ls, None, 0, None);
+            let t = hit.tangent;
+            assert!((t.length() - 1.0).abs() < 1e-5, "{dpdu} at {n}: |t| = {}", t.length());
+            assert!(t.dot(hit.ns).abs() < 1e-3, "{dpdu} at {n}: t·n = {}", t.dot(hit.ns));
+        }
+    }
 
     fn one_shape(shape: Shape, transform: Transform) -> Aggregate {
         Aggregate::build(

@@ -87,7 +87,7 @@ pub fn camera_aov(scene: &Scene, camera_ray: &Ray) -> AovSample {
             return out;
         }
         // Follow the most likely specular lobe, deterministically.
-        let frame = Frame::new(hit.ns, hit.tangent);
+        let frame = Frame::from_orthonormal(hit.ns, hit.tangent);
         let wo = frame.to_local(wo_world);
         let Some(s) = bsdf.sample_delta(wo, 0.5, TransportMode::Radiance) else {
             out.normal = facing;

@@ -154,7 +154,7 @@ impl Integrator for PathTracer {
 
             let tc = TexCoord { uv: hit.uv, p: hit.p };
             let bsdf = m.bsdf(&scene.images, &tc);
-            let frame = Frame::new(hit.ns, hit.tangent);
+            let frame = Frame::from_orthonormal(hit.ns, hit.tangent);
             let wo = frame.to_local(wo_world);
             if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
                 break; // the back of a one-sided surface is black

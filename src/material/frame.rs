@@ -26,6 +26,19 @@ impl Frame {
         Frame { s, t: n.cross(s), n }
     }
 
+    /// The frame of unit normal `n` and a unit tangent `s` already
+    /// perpendicular to it, such as a surface hit's `ns` and `tangent`:
+    /// [`Frame::new`] would project and normalise `s` again, a square root
+    /// and a division at every bounce for nothing.
+    #[inline]
+    pub fn from_orthonormal(n: Vec3, s: Vec3) -> Frame {
+        debug_assert!(
+            (s.length() - 1.0).abs() < 1e-3 && s.dot(n).abs() < 1e-3,
+            "not a unit tangent perpendicular to the normal: {s} against {n}"
+        );
+        Frame { s, t: n.cross(s), n }
+    }
+
     /// A frame around unit normal `n` with arbitrary tangents.
     pub fn from_normal(n: Vec3) -> Frame {
         let (s, t) = orthonormal_basis(n);
@@ -57,5 +70,16 @@ mod tests {
         assert!((f.to_local(f.n) - Vec3::Z).length() < 1e-6);
         assert!((f.s - Vec3::X).length() < 1e-6);
         assert!((f.s.cross(f.t) - f.n).length() < 1e-6);
+        // An orthonormal pair gives the same frame without the projection.
+        let g = Frame::from_orthonormal(f.n, f.s);
+        assert_eq!(
+            g,
+            Frame {
+                s: f.s,
+                t: f.n.cross(f.s),
+                n: f.n
+            }
+        );
+        assert!((g.t - f.t).length() < 1e-6);
     }
 }

@@ -215,7 +215,7 @@ impl<'a> ShadingPoint<'a> {
         if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
             return None;
         }
-        let frame = Frame::new(hit.ns, hit.tangent);
+        let frame = Frame::from_orthonormal(hit.ns, hit.tangent);
         Some(ShadingPoint {
             bsdf,
             frame,

@@ -178,7 +178,7 @@ fn trace_one(
         if depth + 1 == max_depth {
             return;
         }
-        let frame = Frame::new(hit.ns, hit.tangent);
+        let frame = Frame::from_orthonormal(hit.ns, hit.tangent);
         let wo = frame.to_local(wo_world);
         let (u_lobe, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
         let Some(bs) = bsdf.sample(wo, u_lobe, u, TransportMode::Importance) else {
