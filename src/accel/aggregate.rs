@@ -600,6 +600,9 @@ impl Aggregate {
     /// The full surface record of a hit found on `ray`.
     pub fn surface(&self, ray: &Ray, hit: &Hit) -> SurfaceHit {
         let (material, light) = self.material_and_light(&hit.prim);
+        // A tangent known in advance (a rectangle's, in world space) spares
+        // a square root and a division at the hit.
+        let mut tangent = None;
         let (mut ls, mut ns) = match hit.prim {
             HitPrim::Triangle { object, tri, b } => {
                 let mesh = &self.meshes[self.mesh_objects[object as usize].mesh as usize];
@@ -608,7 +611,10 @@ impl Aggregate {
             HitPrim::Shape(i) => {
                 let s = &self.shapes[i as usize];
                 match &s.transform {
-                    None => (s.shape.surface(ray.at(hit.t)), None),
+                    None => {
+                        tangent = s.shape.constant_tangent();
+                        (s.shape.surface(ray.at(hit.t)), None)
+                    }
                     Some(t) => {
                         let obj_ray = t.inv_ray(ray);
                         (transform_surface(t, s.shape.surface(obj_ray.at(hit.t))), None)
@@ -635,7 +641,7 @@ impl Aggregate {
             ls.n = -ls.n;
             ns = ns.map(|n| -n);
         }
-        finish_surface(hit.t, ls, ns, material, light)
+        finish_surface(hit.t, ls, ns, tangent, material, light)
     }
 
     /// The density, per unit world area, with which [`Aggregate::sample_emitter`]
@@ -879,24 +885,26 @@ fn transform_surface(t: &Transform, ls: LocalSurface) -> LocalSurface {
 }
 
 /// Completes a surface record: orients the shading normal into the
-/// geometric normal's hemisphere and builds a tangent perpendicular to it.
-fn finish_surface(t: f32, ls: LocalSurface, ns: Option<Vec3>, material: u32, light: Option<u32>) -> SurfaceHit {
+/// geometric normal's hemisphere and builds a tangent perpendicular to it,
+/// unless the shape gave its `tangent` and there is no shading normal.
+fn finish_surface(
+    t: f32,
+    ls: LocalSurface,
+    ns: Option<Vec3>,
+    tangent: Option<Vec3>,
+    material: u32,
+    light: Option<u32>,
+) -> SurfaceHit {
     let ng = ls.n;
+    let shading_normal = ns.is_some();
     let ns = match ns {
         Some(n) if n.dot(ng) < 0.0 => -n,
         Some(n) => n,
         None => ng,
     };
-    // Gram–Schmidt. Where dp/du lies nearly along the normal, rounding in
-    // the projection would leave a tangent visibly off the perpendicular,
-    // and shading frames are built from it as it is
-    // (`Frame::from_orthonormal`): take an arbitrary tangent then.
-    let along = ls.dpdu - ns * ns.dot(ls.dpdu);
-    let len2 = along.length_squared();
-    let tangent = if len2 > 1e-6 * ls.dpdu.length_squared() {
-        along * (1.0 / len2.sqrt())
-    } else {
-        crate::sampling::warp::orthonormal_basis(ns).0
+    let tangent = match (tangent, shading_normal) {
+        (Some(t), false) => t,
+        _ => crate::geometry::interaction::unit_tangent(ls.dpdu, ns),
     };
     SurfaceHit {
         t,
@@ -942,7 +950,7 @@ mod tests {
                 uv: Vec2::ZERO,
                 dpdu,
             };
-            let hit = finish_surface(1.0, ls, None, 0, None);
+            let hit = finish_surface(1.0, ls, None, None, 0, None);
             let t = hit.tangent;
             assert!((t.length() - 1.0).abs() < 1e-5, "{dpdu} at {n}: |t| = {}", t.length());
             assert!(t.dot(hit.ns).abs() < 1e-3, "{dpdu} at {n}: t·n = {}", t.dot(hit.ns));

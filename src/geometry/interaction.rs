@@ -52,6 +52,22 @@ impl SurfaceHit {
     }
 }
 
+/// The unit tangent along `dpdu` perpendicular to unit normal `n`
+/// (Gram–Schmidt), or an arbitrary one where `dpdu` lies nearly along the
+/// normal: rounding in the projection would leave that one visibly off
+/// the perpendicular, and shading frames take the tangent as it is
+/// (`Frame::from_orthonormal`).
+#[inline]
+pub fn unit_tangent(dpdu: Vec3, n: Vec3) -> Vec3 {
+    let along = dpdu - n * n.dot(dpdu);
+    let len2 = along.length_squared();
+    if len2 > 1e-6 * dpdu.length_squared() {
+        along * (1.0 / len2.sqrt())
+    } else {
+        crate::sampling::warp::orthonormal_basis(n).0
+    }
+}
+
 /// Shadow rays toward a point end at `1 − SHADOW_EPSILON` of the way
 /// (pbrt-v4 uses the same constant) so they do not hit the light itself.
 pub const SHADOW_EPSILON: f32 = 1.0 - 1e-4;

@@ -46,6 +46,9 @@ pub struct Rectangle {
     normal: Vec3,
     dual_u: Vec3,
     dual_v: Vec3,
+    /// The unit tangent along edge_u, perpendicular to the normal: what
+    /// a surface record would compute from dp/du at every hit.
+    tangent: Vec3,
 }
 
 /// A disk with centre, unit normal (front side) and radius.
@@ -230,6 +233,16 @@ impl Shape {
         }
     }
 
+    /// The surface's unit tangent where it is the same at every point
+    /// (rectangles), so that surface records need not compute it.
+    #[inline]
+    pub fn constant_tangent(&self) -> Option<Vec3> {
+        match self {
+            Shape::Rectangle(r) => Some(r.tangent),
+            _ => None,
+        }
+    }
+
     /// A point uniformly distributed over the surface by area (density
     /// 1/area); `None` for the plane, which has no finite area.
     pub fn sample_area(&self, u: Vec2) -> Option<AreaSample> {
@@ -400,14 +413,22 @@ impl Rectangle {
         let len2 = n.length_squared();
         // (edge_v × n)·edge_u = (n × edge_u)·edge_v = |n|², and each is
         // orthogonal to the other edge.
+        let normal = n / len2.sqrt();
         Rectangle {
             corner,
             edge_u,
             edge_v,
-            normal: n / len2.sqrt(),
+            normal,
             dual_u: edge_v.cross(n) / len2,
             dual_v: n.cross(edge_u) / len2,
+            tangent: crate::geometry::interaction::unit_tangent(edge_u, normal),
         }
+    }
+
+    /// The unit tangent along edge_u, perpendicular to the normal (as
+    /// [`crate::geometry::interaction::unit_tangent`] makes it).
+    pub fn tangent(&self) -> Vec3 {
+        self.tangent
     }
 
     /// The corner at (u, v) = (0, 0).
@@ -724,6 +745,25 @@ mod tests {
         assert!(p.intersect(&Ray::new(Vec3::new(0.0, 1.0, 0.0), Vec3::X)).is_none());
         assert!(p.intersect(&Ray::new(Vec3::new(0.0, 1.0, 0.0), Vec3::Y)).is_none());
         assert!(p.bounds().is_none());
+    }
+
+    #[test]
+    fn rectangle_tangent_is_its_surface_tangent() {
+        // Sheared and skewed parallelograms too: the tangent follows edge_u,
+        // is unit length and perpendicular to the normal, and is what a
+        // surface record would compute from dp/du.
+        let mut rng = Pcg32::new(8, 8);
+        let mut v = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 4.0 - 2.0;
+        for _ in 0..1000 {
+            let r = Rectangle::new(v(), v(), v());
+            let t = r.tangent();
+            assert!((t.length() - 1.0).abs() < 1e-6);
+            assert!(t.dot(r.normal()).abs() < 1e-5);
+            assert!(t.dot(r.edge_u().normalize()) > 0.0);
+            let dpdu = Shape::Rectangle(r).surface(r.corner() + 0.5 * r.edge_u()).dpdu;
+            assert_eq!(t, crate::geometry::interaction::unit_tangent(dpdu, r.normal()));
+            assert_eq!(Shape::Rectangle(r).constant_tangent(), Some(t));
+        }
     }
 
     #[test]
