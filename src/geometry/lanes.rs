@@ -11,6 +11,11 @@
 //! Comparisons follow Rust's scalar ones: ordered (false for NaN) except
 //! `ne`, which is true for NaN, so a lane computes what the one-primitive
 //! test computes.
+//!
+//! The module also holds the other place where trazo calls intrinsics:
+//! `step_away_sse2`, the last step of a robust ray origin, on SSE2, which
+//! every x86-64 processor has (the compiler did not vectorise it from
+//! plain code).
 #![allow(unsafe_code)]
 
 use std::arch::x86_64::*;
