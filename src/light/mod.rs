@@ -192,6 +192,50 @@ fn sphere_uv(n: Vec3) -> Vec2 {
     Vec2::new(phi / (2.0 * PI), 0.5 + n.y.clamp(-1.0, 1.0).asin() / PI)
 }
 
+/// The light from point `lp` (unit normal `ln`, coordinates `uv`) of an
+/// area light with emitted `radiance` arriving at `p`, for a point chosen
+/// with density `pdf_solid_angle` per steradian, or else `pdf_area` per
+/// unit area.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn area_light_sample(
+    scene: &Scene,
+    p: Vec3,
+    lp: Vec3,
+    ln: Vec3,
+    uv: Vec2,
+    pdf_solid_angle: Option<f32>,
+    pdf_area: f32,
+    radiance: &Texture,
+) -> Option<LightSample> {
+    let d = lp - p;
+    let dist2 = d.length_squared();
+    if dist2 == 0.0 {
+        return None;
+    }
+    let wi = d / dist2.sqrt();
+    // Emission leaves the front side only.
+    let cos_light = ln.dot(-wi);
+    if cos_light <= 0.0 {
+        return None;
+    }
+    // Area density to solid-angle density: p_ω = p_A · d² / cos θ_l.
+    let pdf = match pdf_solid_angle {
+        Some(pdf) => pdf,
+        None => pdf_area * dist2 / cos_light,
+    };
+    if !pdf.is_finite() || pdf <= 0.0 {
+        return None;
+    }
+    Some(LightSample {
+        wi,
+        li: radiance.eval(&scene.images, &TexCoord { uv, p: lp }),
+        pdf,
+        is_delta: false,
+        target: ShadowTarget::Point(lp),
+    })
+}
+
 /// Density per steradian of [`sample_sphere_cone`] (0 if `p` is inside).
 fn sphere_cone_pdf(center: Vec3, radius: f32, p: Vec3) -> f32 {
     let dc2 = (center - p).length_squared();
@@ -212,7 +256,26 @@ impl Light {
     /// numbers (the first picks a triangle of a mesh emitter). Returns
     /// `None` when no light can arrive (behind a spot, on the back of an
     /// emitter, or at the emitter itself).
+    #[inline]
     pub fn sample_li(&self, scene: &Scene, p: Vec3, u_pick: f32, u: Vec2) -> Option<LightSample> {
+        // A rectangle light, a room's usual light, is sampled in the
+        // caller's code; the other kinds behind a call. (Inlining the
+        // whole match into the path loop made renders 5–8% slower.)
+        if let Light::Area {
+            radiance,
+            parallelogram: Some(r),
+            ..
+        } = self
+        {
+            let lp = r.corner + u.x * r.edge_u + u.y * r.edge_v;
+            return area_light_sample(scene, p, lp, r.normal, u, None, r.pdf_area, radiance);
+        }
+        self.sample_li_other(scene, p, u_pick, u)
+    }
+
+    /// [`Light::sample_li`] for every light but a rectangle.
+    #[inline(never)]
+    fn sample_li_other(&self, scene: &Scene, p: Vec3, u_pick: f32, u: Vec2) -> Option<LightSample> {
         match self {
             Light::Point {
                 position,
@@ -303,32 +366,7 @@ impl Light {
                         }
                     }
                 };
-                let d = lp - p;
-                let dist2 = d.length_squared();
-                if dist2 == 0.0 {
-                    return None;
-                }
-                let wi = d / dist2.sqrt();
-                // Emission leaves the front side only.
-                let cos_light = ln.dot(-wi);
-                if cos_light <= 0.0 {
-                    return None;
-                }
-                // Area density to solid-angle density: p_ω = p_A · d² / cos θ_l.
-                let pdf = match pdf_solid_angle {
-                    Some(pdf) => pdf,
-                    None => pdf_area * dist2 / cos_light,
-                };
-                if !pdf.is_finite() || pdf <= 0.0 {
-                    return None;
-                }
-                Some(LightSample {
-                    wi,
-                    li: radiance.eval(&scene.images, &TexCoord { uv, p: lp }),
-                    pdf,
-                    is_delta: false,
-                    target: ShadowTarget::Point(lp),
-                })
+                area_light_sample(scene, p, lp, ln, uv, pdf_solid_angle, pdf_area, radiance)
             }
             Light::Environment => {
                 let (wi, pdf) = scene.background.sample(u)?;
