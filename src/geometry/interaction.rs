@@ -83,7 +83,7 @@ pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
     let offset = n * d;
     let po = p + offset;
     // Which way each coordinate moves is as good as random from ray to
-    // ray, so the step is taken on the bits with selects instead of the
+    // ray, so the step is taken on the bits with masks instead of the
     // branches of next_float_up/down (which it equals, as a test checks).
     step_away_3(po, offset)
 }
