@@ -11,9 +11,9 @@
 //! triangles this way where the processor has AVX and the primitives are
 //! large for the space they fill ([`flat_pays`]), and through
 //! its tree otherwise. `cargo bench --bench kernels -- "small scene"` measures both
-//! (BENCHMARKS.md): below about 20 primitives a tree of one or two leaves
-//! of scalar tests is faster; from 48 to 128 primitives in a cluttered
-//! room, the blocks are 2–3× faster. Up to eight blocks take one
+//! (BENCHMARKS.md): below about 20 primitives of a clutter a tree of one or
+//! two leaves of scalar tests is faster; from 48 to 128 primitives in a
+//! cluttered room, the blocks are 2–3× faster. Up to eight blocks take one
 //! eight-lane test of their boxes, up to sixteen two.
 //!
 //! A block's lanes compute what the one-primitive tests compute: the
@@ -27,8 +27,11 @@ use crate::geometry::{Ray, Rectangle};
 use glam::Vec3;
 
 /// Scenes of at least this many rectangles and triangles (and at most
-/// [`FLAT_MAX_PRIMITIVES`]) are traced without a tree.
-pub const FLAT_MIN_PRIMITIVES: usize = 20;
+/// [`FLAT_MAX_PRIMITIVES`]) are traced without a tree: two blocks. The
+/// Mitsuba Cornell box, 18 rectangles (walls, light, two cubes' faces),
+/// takes 13% fewer instructions per sample in three blocks than through
+/// its tree (BENCHMARKS.md); smaller clutters fail [`flat_pays`] anyway.
+pub const FLAT_MIN_PRIMITIVES: usize = 16;
 
 /// Scenes of at most this many rectangles and triangles (sixteen blocks of
 /// eight) are traced without a tree.
@@ -38,7 +41,8 @@ pub const FLAT_MAX_PRIMITIVES: usize = 128;
 /// times [`expected_hits`] (how many of the primitives' boxes a ray through
 /// the scene's box meets on average) is below this: the tree skips nearly
 /// every primitive there, and the blocks cannot. A room's walls span the
-/// room: 30 primitives × 3.0 on the Cornell box.
+/// room: 30 primitives × 3.0 on the Cornell box with its cubes as
+/// triangles.
 ///
 /// Fitted to `cargo bench --bench kernels -- "small"` (BENCHMARKS.md):
 /// clutters of 24 to 128 small primitives in cubes of side 1 to 8, flat
