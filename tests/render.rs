@@ -594,6 +594,11 @@ fn small_scenes_without_a_tree_agree_with_brute_force_and_the_tree() {
             assert_eq!(flat.occluded(&ray), expect.is_some(), "ray {ray:?}");
         }
         assert!(hits > 500, "the test must exercise hits ({hits})");
+        // A zero direction meets nothing, in blocks as in the tree.
+        let still = Ray::with_interval(Vec3::new(0.1, 0.2, 0.3), Vec3::ZERO, 0.0, f32::INFINITY);
+        for aggregate in [&flat, &tree] {
+            assert!(aggregate.intersect(&still).is_none() && !aggregate.occluded(&still));
+        }
     }
 }
 

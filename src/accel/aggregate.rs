@@ -390,21 +390,10 @@ impl Aggregate {
             return found;
         }
         if let Some(flat) = &self.flat {
-            let hit = match flat.intersect(ray, any_hit) {
-                None => return found,
-                Some(FlatHit::Rectangle { id, t }) => Hit {
-                    t,
-                    prim: HitPrim::Shape(id),
-                },
-                Some(FlatHit::Triangle { id, t, b }) => match self.prims[id as usize] {
-                    PrimRef::Triangle { object, tri, .. } => Hit {
-                        t,
-                        prim: HitPrim::Triangle { object, tri, b },
-                    },
-                    _ => unreachable!("flat triangles are numbered by their top-level primitive"),
-                },
+            return match self.flat_hit(flat, ray, any_hit) {
+                None => found,
+                Some(hit) => on_hit(hit, ray) | found,
             };
-            return on_hit(hit, ray) | found;
         }
         // The triangle test's per-ray set-up, made when the first triangle
         // is met: many rays in a room meet only walls. (`Some(None)`: made,
@@ -417,6 +406,24 @@ impl Aggregate {
             |k, ray| self.test_primitive(k, ray, &mut pre, any_hit, &mut on_hit),
         );
         found
+    }
+
+    /// The hit a flat scene finds, as a [`Hit`].
+    #[inline(always)]
+    fn flat_hit(&self, flat: &FlatScene, ray: &Ray, any_hit: bool) -> Option<Hit> {
+        Some(match flat.intersect(ray, any_hit)? {
+            FlatHit::Rectangle { id, t } => Hit {
+                t,
+                prim: HitPrim::Shape(id),
+            },
+            FlatHit::Triangle { id, t, b } => match self.prims[id as usize] {
+                PrimRef::Triangle { object, tri, .. } => Hit {
+                    t,
+                    prim: HitPrim::Triangle { object, tri, b },
+                },
+                _ => unreachable!("flat triangles are numbered by their top-level primitive"),
+            },
+        })
     }
 
     /// Tests top-level primitive `k`. Single triangles and shapes, what a
@@ -562,6 +569,15 @@ impl Aggregate {
 
     /// The nearest intersection within the ray's interval.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        // A room traced without its tree, the common small scene, skips
+        // the general traversal's set-up.
+        if let (Some(flat), true) = (&self.flat, self.unbounded.is_empty()) {
+            return if ray.dir == Vec3::ZERO {
+                None
+            } else {
+                self.flat_hit(flat, ray, false)
+            };
+        }
         let mut r = *ray;
         let mut best = None;
         self.traverse(&mut r, false, |hit, r| {
@@ -574,6 +590,9 @@ impl Aggregate {
 
     /// Whether anything lies on the ray within its interval.
     pub fn occluded(&self, ray: &Ray) -> bool {
+        if let (Some(flat), true) = (&self.flat, self.unbounded.is_empty()) {
+            return ray.dir != Vec3::ZERO && flat.intersect(ray, true).is_some();
+        }
         let mut r = *ray;
         self.traverse(&mut r, true, |_, _| true)
     }
