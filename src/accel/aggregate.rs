@@ -629,12 +629,18 @@ impl Aggregate {
             }
             HitPrim::Shape(i) => {
                 let s = &self.shapes[i as usize];
-                match &s.transform {
-                    None => {
+                match (&s.shape, &s.transform) {
+                    // A room's walls: the rectangle's record inline, not
+                    // behind the call and match of every shape.
+                    (Shape::Rectangle(r), None) => {
+                        tangent = Some(r.tangent());
+                        (r.surface(ray.at(hit.t)), None)
+                    }
+                    (_, None) => {
                         tangent = s.shape.constant_tangent();
                         (s.shape.surface(ray.at(hit.t)), None)
                     }
-                    Some(t) => {
+                    (_, Some(t)) => {
                         let obj_ray = t.inv_ray(ray);
                         (transform_surface(t, s.shape.surface(obj_ray.at(hit.t))), None)
                     }

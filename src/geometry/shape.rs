@@ -191,16 +191,7 @@ impl Shape {
                     dpdu: pl.u_axis,
                 }
             }
-            Shape::Rectangle(r) => {
-                let p = project_to_plane(p, r.corner, r.normal);
-                LocalSurface {
-                    p,
-                    p_error: planar_error(p, r.corner),
-                    n: r.normal,
-                    uv: r.coordinates(p),
-                    dpdu: r.edge_u,
-                }
-            }
+            Shape::Rectangle(r) => r.surface(p),
             Shape::Disk(d) => {
                 let p = project_to_plane(p, d.center, d.normal);
                 let (s, t) = orthonormal_basis(d.normal);
@@ -468,6 +459,19 @@ impl Rectangle {
             Some(t)
         } else {
             None
+        }
+    }
+
+    /// The surface at a point found by [`Rectangle::intersect`].
+    #[inline]
+    pub fn surface(&self, p: Vec3) -> LocalSurface {
+        let p = project_to_plane(p, self.corner, self.normal);
+        LocalSurface {
+            p,
+            p_error: planar_error(p, self.corner),
+            n: self.normal,
+            uv: self.coordinates(p),
+            dpdu: self.edge_u,
         }
     }
 
