@@ -568,9 +568,10 @@ impl Aggregate {
     }
 
     /// The nearest intersection within the ray's interval.
+    #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         // A room traced without its tree, the common small scene, skips
-        // the general traversal's set-up.
+        // the general traversal, and its stack frame of kilobytes.
         if let (Some(flat), true) = (&self.flat, self.unbounded.is_empty()) {
             return if ray.dir == Vec3::ZERO {
                 None
@@ -578,6 +579,12 @@ impl Aggregate {
                 self.flat_hit(flat, ray, false)
             };
         }
+        self.intersect_traversed(ray)
+    }
+
+    /// [`Aggregate::intersect`] through the general traversal.
+    #[inline(never)]
+    fn intersect_traversed(&self, ray: &Ray) -> Option<Hit> {
         let mut r = *ray;
         let mut best = None;
         self.traverse(&mut r, false, |hit, r| {
@@ -589,10 +596,17 @@ impl Aggregate {
     }
 
     /// Whether anything lies on the ray within its interval.
+    #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
         if let (Some(flat), true) = (&self.flat, self.unbounded.is_empty()) {
             return ray.dir != Vec3::ZERO && flat.intersect(ray, true).is_some();
         }
+        self.occluded_traversed(ray)
+    }
+
+    /// [`Aggregate::occluded`] through the general traversal.
+    #[inline(never)]
+    fn occluded_traversed(&self, ray: &Ray) -> bool {
         let mut r = *ray;
         self.traverse(&mut r, true, |_, _| true)
     }
