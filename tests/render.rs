@@ -879,12 +879,15 @@ fn spawned_rays_never_hit_the_surface_they_leave_at_any_scale() {
                         );
                     }
                     if closed && away.dot(leaving) > 0.2 {
-                        // Into the shape: the way out, not the point it left (near an
-                        // edge of a box that may be close, but never within the
-                        // rounding error of the start).
+                        // Into the shape: the way out, not the point it left.
+                        // Near an edge of a box the way out may be another face
+                        // within the rounding error of the start (its faces are
+                        // rectangles, whose error bounds are looser than the
+                        // box's own were); the surface the ray started on is
+                        // never met again.
                         if let Some(inside) = scene.intersect(&hit.spawn_ray(-away)) {
                             assert!(
-                                (inside.p - hit.p).length() > 4.0 * hit.p_error.length(),
+                                (inside.p - hit.p).length() > 4.0 * hit.p_error.length() || inside.ng.dot(hit.ng) < 0.9,
                                 "{kind:?} at scale {scale}, offset {offset}: the ray into the shape hit its start (t = {})",
                                 inside.t
                             );

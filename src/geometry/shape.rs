@@ -416,6 +416,12 @@ impl Rectangle {
         }
     }
 
+    /// Whether the normal and the dual basis are finite: false where the
+    /// edges' cross product underflows or overflows.
+    pub fn is_regular(&self) -> bool {
+        self.normal.is_finite() && self.dual_u.is_finite() && self.dual_v.is_finite()
+    }
+
     /// The unit tangent along edge_u, perpendicular to the normal (as
     /// [`crate::geometry::interaction::unit_tangent`] makes it).
     pub fn tangent(&self) -> Vec3 {
@@ -548,6 +554,27 @@ impl Cuboid {
             uv: Vec2::new((q[j] - self.min[j]) / e[j], (q[k] - self.min[k]) / e[k]),
             dpdu,
         }
+    }
+
+    /// The six faces as rectangles with the box's surface coordinates
+    /// (face on axis a: u along axis a+1, v along axis a+2, both in
+    /// [0, 1]), each with whether the rectangle's front (edge_u × edge_v)
+    /// is the box's outside: true for the faces at `max`, false at `min`.
+    pub fn faces(&self) -> [(Rectangle, bool); 6] {
+        let e = self.max - self.min;
+        std::array::from_fn(|f| {
+            let (axis, high) = (f / 2, f % 2 == 1);
+            let (j, k) = ((axis + 1) % 3, (axis + 2) % 3);
+            let mut corner = self.min;
+            if high {
+                corner[axis] = self.max[axis];
+            }
+            let (mut edge_u, mut edge_v) = (Vec3::ZERO, Vec3::ZERO);
+            edge_u[j] = e[j];
+            edge_v[k] = e[k];
+            // x̂_j × x̂_k = x̂_axis for the cyclic order.
+            (Rectangle::new(corner, edge_u, edge_v), high)
+        })
     }
 }
 
@@ -834,6 +861,52 @@ mod tests {
         assert_eq!(c.surface(Vec3::new(0.0, 2.0, 0.0)).n, Vec3::Y);
         assert!(c.intersect(&Ray::new(Vec3::new(0.0, 5.0, -5.0), Vec3::Z)).is_none());
         assert!(near(c.area(), 2.0 * (2.0 * 3.0 + 3.0 * 2.0 + 2.0 * 2.0), 1e-6));
+    }
+
+    /// A box's faces as rectangles meet every ray the box meets, at the
+    /// same distance, with the box's surface there: point, (u, v), dp/du,
+    /// and the outward normal (the rectangle's front, or its back where
+    /// `faces` says so).
+    #[test]
+    fn cuboid_faces_are_the_cuboid() {
+        let cuboid = Cuboid {
+            min: Vec3::new(-1.0, -0.5, 0.25),
+            max: Vec3::new(1.5, 2.0, 1.0),
+        };
+        let faces = cuboid.faces();
+        let c = Shape::Cuboid(cuboid);
+        let mut rng = crate::sampling::Pcg32::new(17, 3);
+        let mut hits = 0;
+        for _ in 0..2000 {
+            let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0 - 4.0;
+            let target = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 3.0 - 1.0;
+            let ray = Ray::new(o, target - o);
+            let nearest = faces
+                .iter()
+                .filter_map(|(r, outward)| r.intersect(&ray).map(|t| (t, r, *outward)))
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            match (c.intersect(&ray), nearest) {
+                (None, None) => {}
+                (Some(t), Some((t_face, r, outward))) => {
+                    assert!(near(t, t_face, 1e-5 * t.max(1.0)), "{ray:?}: {t} vs {t_face}");
+                    let p = ray.at(t);
+                    // Away from edges, where the box picks its face by
+                    // distance and either is right.
+                    let (box_s, face_s) = (c.surface(p), r.surface(ray.at(t_face)));
+                    let margin = (box_s.uv.min_element()).min(1.0 - box_s.uv.max_element());
+                    if margin > 1e-3 {
+                        assert!((box_s.p - face_s.p).length() < 1e-5, "{ray:?}");
+                        assert!((box_s.uv - face_s.uv).length() < 1e-5, "{ray:?}");
+                        assert!((box_s.dpdu - face_s.dpdu).length() < 1e-5, "{ray:?}");
+                        let n = if outward { face_s.n } else { -face_s.n };
+                        assert!((box_s.n - n).length() < 1e-6, "{ray:?}: {} vs {n}", box_s.n);
+                        hits += 1;
+                    }
+                }
+                (a, b) => panic!("{ray:?}: box {a:?}, faces {:?}", b.map(|b| b.0)),
+            }
+        }
+        assert!(hits > 500, "the test must exercise hits ({hits})");
     }
 
     #[test]

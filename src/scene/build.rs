@@ -154,6 +154,9 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
 
     let mut meshes: Vec<TriangleMesh> = Vec::new();
     let mut shapes = Vec::new();
+    // The description's shape each analytic shape comes from (a box gives
+    // six), for messages.
+    let mut shape_desc_index = Vec::new();
     let mut mesh_objects = Vec::new();
     let mut instances = Vec::new();
     let mut instanced_mesh_index: HashMap<&str, u32> = HashMap::new();
@@ -200,9 +203,31 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 ),
                 _ => (shape, transform),
             };
+            let transform = (!transform.is_identity()).then_some(transform);
+            // A box that does not emit is its six faces: rectangles, which
+            // a room of walls and boxes traces in blocks without a tree
+            // (an emitting box stays one light).
+            let faces = match shape {
+                Shape::Cuboid(c) if !materials[material as usize].is_emissive() => Some(c.faces()),
+                _ => None,
+            };
+            if let Some(faces) = faces.filter(|f| f.iter().all(|(r, _)| r.is_regular())) {
+                for (face, outward_is_front) in faces {
+                    shape_desc_index.push(i);
+                    shapes.push(ShapeInstance {
+                        shape: Shape::Rectangle(face),
+                        transform,
+                        material,
+                        light: None,
+                        flip_normals: s.flip_normals ^ !outward_is_front,
+                    });
+                }
+                continue;
+            }
+            shape_desc_index.push(i);
             shapes.push(ShapeInstance {
                 shape,
-                transform: (!transform.is_identity()).then_some(transform),
+                transform,
                 material,
                 light: None,
                 flip_normals: s.flip_normals,
@@ -266,7 +291,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             if s.shape.bounds().is_none() {
                 warnings.push(format!(
                     "shape[{}]: an emissive infinite plane is visible but lights nothing directly (it has no finite area to sample)",
-                    desc_index_of_shape(desc, i)
+                    shape_desc_index[i]
                 ));
                 continue;
             }
@@ -289,7 +314,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             warnings.push(format!(
                 "{}: an emissive surface has zero area and emits no light",
                 match emitter {
-                    EmitterRef::Shape(i) => format!("shape[{}]", desc_index_of_shape(desc, i as usize)),
+                    EmitterRef::Shape(i) => format!("shape[{}]", shape_desc_index[i as usize]),
                     EmitterRef::MeshObject(i) => format!("emissive mesh {i}"),
                     EmitterRef::Instance(i) => format!("emissive mesh instance {i}"),
                 }
@@ -505,17 +530,6 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
     mat.emission = color(&m.emission);
     mat.two_sided = m.two_sided;
     mat
-}
-
-/// Analytic shapes keep their order in the description, so shape index
-/// `i` among analytic shapes maps back to the i-th analytic shape there.
-fn desc_index_of_shape(desc: &SceneDesc, analytic_index: usize) -> usize {
-    desc.shapes
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| !matches!(s.kind, ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_)))
-        .nth(analytic_index)
-        .map_or(analytic_index, |(i, _)| i)
 }
 
 /// The message of an error without the file name it already carries.
