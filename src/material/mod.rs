@@ -160,7 +160,8 @@ fn diffuse_bsdf<'a>(reflectance: &Texture, images: &[ImageTexture], tc: &TexCoor
 }
 
 impl Material {
-    /// A classical material.
+    /// A classical material; a [`MaterialKind::Diffuse`] one where only
+    /// the diffuse colour is not zero.
     pub fn new_classic(
         diffuse: Texture,
         specular: Texture,
@@ -169,6 +170,20 @@ impl Material {
         transmission: Rgb,
         ior: f32,
     ) -> Material {
+        // With only its diffuse lobe a classical material is Lambertian,
+        // and the same BSDF to the bit (the lobe choice has probability
+        // 1): built as `Diffuse`, it skips the lobe selection and the
+        // Phong terms at every bounce. The built-in default scene is all
+        // such materials. A black one stays classical, which has no lobe
+        // to sample (no light sampling at a black lamp, say).
+        let zero = Texture::Constant(Rgb::ZERO);
+        if diffuse != zero && specular == zero && reflectivity == Rgb::ZERO && transmission == Rgb::ZERO {
+            return Material {
+                kind: MaterialKind::Diffuse { reflectance: diffuse },
+                emission: Texture::Constant(Rgb::ZERO),
+                two_sided: true,
+            };
+        }
         Material {
             kind: MaterialKind::Classic {
                 diffuse,
@@ -383,6 +398,88 @@ impl Material {
                 smooth_internal_reflectance: *smooth_internal_reflectance,
                 tables: tables.as_deref(),
             }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::rng::Pcg32;
+    use crate::sampling::warp::sample_sphere_uniform;
+    use glam::{Vec2, Vec3};
+
+    fn classic(diffuse: Rgb, specular: Rgb, reflectivity: Rgb, transmission: Rgb) -> Material {
+        Material::new_classic(
+            Texture::Constant(diffuse),
+            Texture::Constant(specular),
+            20.0,
+            reflectivity,
+            transmission,
+            1.5,
+        )
+    }
+
+    #[test]
+    fn only_a_diffuse_classical_material_becomes_lambertian() {
+        let (kd, some) = (Rgb::new(0.8, 0.5, 0.2), Rgb::splat(0.3));
+        let z = Rgb::ZERO;
+        assert!(matches!(classic(kd, z, z, z).kind, MaterialKind::Diffuse { .. }));
+        assert!(matches!(Material::diffuse(kd).kind, MaterialKind::Diffuse { .. }));
+        for m in [
+            classic(kd, some, z, z),
+            classic(kd, z, some, z),
+            classic(kd, z, z, some),
+            classic(z, z, z, z),
+        ] {
+            assert!(matches!(m.kind, MaterialKind::Classic { .. }), "{:?}", m.kind);
+        }
+    }
+
+    /// The claim that lets a diffuse-only classical material be built as
+    /// `Diffuse`: its classical BSDF gives the same bits in every query.
+    #[test]
+    fn diffuse_only_classical_bsdf_equals_lambert_bit_for_bit() {
+        let mut rng = Pcg32::new(7, 3);
+        let tc = TexCoord {
+            uv: Vec2::ZERO,
+            p: Vec3::ZERO,
+        };
+        for kd in [Rgb::new(0.8, 0.5, 0.2), Rgb::new(0.05, 0.9, 1.0), Rgb::splat(1e-3)] {
+            let material = Material::diffuse(kd);
+            let lambert = material.bsdf(&[], &tc);
+            let classical = Bsdf::Classic(ClassicBsdf::new(kd, Rgb::ZERO, 20.0, Rgb::ZERO, Rgb::ZERO, 1.5));
+            assert!(matches!(lambert, Bsdf::Lambert(_)));
+            assert_eq!(lambert.has_smooth(), classical.has_smooth());
+            assert_eq!(lambert.transmits(), classical.transmits());
+            assert_eq!(lambert.albedo(), classical.albedo());
+            for _ in 0..2000 {
+                let wo = sample_sphere_uniform(Vec2::new(rng.next_f32(), rng.next_f32()));
+                let wi = sample_sphere_uniform(Vec2::new(rng.next_f32(), rng.next_f32()));
+                let mode = TransportMode::Radiance;
+                assert_eq!(lambert.eval(wo, wi, mode), classical.eval(wo, wi, mode));
+                assert_eq!(lambert.pdf(wo, wi).to_bits(), classical.pdf(wo, wi).to_bits());
+                assert_eq!(lambert.delta_probability(wo), classical.delta_probability(wo));
+                let (u_lobe, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
+                for strategy in [
+                    DirectionSampling::Uniform,
+                    DirectionSampling::Cosine,
+                    DirectionSampling::Bsdf,
+                ] {
+                    let a = lambert.sample_with(strategy, wo, u_lobe, u, mode);
+                    let b = classical.sample_with(strategy, wo, u_lobe, u, mode);
+                    match (a, b) {
+                        (None, None) => {}
+                        (Some(a), Some(b)) => {
+                            assert_eq!(a.wi, b.wi);
+                            assert_eq!(a.f, b.f);
+                            assert_eq!(a.pdf.to_bits(), b.pdf.to_bits());
+                            assert_eq!((a.delta, a.eta), (b.delta, b.eta));
+                        }
+                        _ => panic!("one sampled and the other did not: wo {wo}, u {u}"),
+                    }
+                }
+            }
         }
     }
 }
