@@ -18,6 +18,7 @@
 //! ```
 
 use crate::geometry::{Ray, Transform};
+use crate::sampling::Sampler;
 use crate::sampling::warp::sample_disk_concentric;
 use glam::{Mat4, Vec2, Vec3, Vec4};
 
@@ -140,6 +141,19 @@ impl Camera {
         self
     }
 
+    /// The lens position of a camera sample: drawn from `sampler` for a
+    /// camera with a lens, passed over (and zero, which
+    /// [`Camera::generate_ray`] then ignores) for a pinhole.
+    #[inline]
+    pub fn draw_lens(&self, sampler: &mut Sampler) -> Vec2 {
+        if self.lens_radius > 0.0 {
+            sampler.next_2d()
+        } else {
+            sampler.skip_2d();
+            Vec2::ZERO
+        }
+    }
+
     /// The ray through raster position `film` (pixels, continuous), using
     /// `lens` ∈ [0,1)² to pick a point on the lens. Directions are unit length.
     pub fn generate_ray(&self, film: Vec2, lens: Vec2) -> Ray {
@@ -231,6 +245,27 @@ mod tests {
         assert!(close(tl.origin, Vec3::new(-4.0, 2.0, 5.0)) && close(tl.dir, -Vec3::Z));
         let br = c.generate_ray(Vec2::new(100.0, 50.0), Vec2::ZERO);
         assert!(close(br.origin, Vec3::new(4.0, -2.0, 5.0)));
+    }
+
+    /// A pinhole camera passes over the lens sample, and its rays do not
+    /// depend on it; a thin lens draws it.
+    #[test]
+    fn only_a_lens_draws_the_lens_sample() {
+        use crate::sampling::SamplerKind;
+        let pinhole = persp(45.0, 64, 48);
+        let lens = persp(45.0, 64, 48).with_thin_lens(0.5, 5.0);
+        let film = Vec2::new(10.3, 20.7);
+        let a = pinhole.generate_ray(film, Vec2::new(0.1, 0.9));
+        let b = pinhole.generate_ray(film, Vec2::new(0.8, 0.2));
+        assert_eq!((a.origin, a.dir), (b.origin, b.dir));
+        let mut s = Sampler::new(SamplerKind::Independent, 4, 1);
+        s.start_pixel_sample(0, 0, 0);
+        assert_eq!(pinhole.draw_lens(&mut s), Vec2::ZERO);
+        let mut t = Sampler::new(SamplerKind::Independent, 4, 1);
+        t.start_pixel_sample(0, 0, 0);
+        let drawn = t.next_2d();
+        s.start_pixel_sample(0, 0, 0);
+        assert_eq!(lens.draw_lens(&mut s), drawn);
     }
 
     #[test]

@@ -75,3 +75,17 @@ pub trait Integrator: Sync {
     /// An estimate of the radiance arriving at the camera along `ray`.
     fn radiance(&self, scene: &Scene, ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb;
 }
+
+/// Chooses one of the scene's lights (there must be one) by its light
+/// distribution: the light's index and the probability of choosing it.
+/// The choice is drawn from `sampler`, or passed over where the scene has
+/// a single light, which leaves the numbers after it unchanged.
+#[inline(always)]
+pub(crate) fn choose_light(scene: &Scene, sampler: &mut Sampler) -> (usize, f32) {
+    if scene.light_distribution.len() == 1 {
+        sampler.skip_1d();
+        return (0, 1.0);
+    }
+    let (index, pmf, _) = scene.light_distribution.sample(sampler.next_1d());
+    (index, pmf)
+}

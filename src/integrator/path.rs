@@ -28,7 +28,7 @@
 //! radiance scaling of refraction so that paths inside glass are not
 //! killed for it).
 
-use super::{Integrator, RayStats};
+use super::{Integrator, RayStats, choose_light};
 use crate::color::Rgb;
 use crate::geometry::Ray;
 use crate::light::ShadowTarget;
@@ -163,10 +163,9 @@ impl Integrator for PathTracer {
 
             // Next-event estimation.
             if nee && bsdf.has_smooth() && !scene.lights.is_empty() {
-                let (light_index, pmf, _) = scene.light_distribution.sample(sampler.next_1d());
+                let (light_index, pmf) = choose_light(scene, sampler);
                 let light = &scene.lights[light_index];
-                let (u_pick, u) = (sampler.next_1d(), sampler.next_2d());
-                if let Some(ls) = light.sample_li(scene, hit.p, u_pick, u) {
+                if let Some(ls) = light.sample_li_drawing(scene, hit.p, sampler) {
                     let wi = frame.to_local(ls.wi);
                     let f = bsdf.eval(wo, wi, mode);
                     // The geometric normal decides reflection or transmission.
@@ -192,7 +191,14 @@ impl Integrator for PathTracer {
             }
 
             // Continue the path.
-            let Some(bs) = bsdf.sample_with(strategy, wo, sampler.next_1d(), sampler.next_2d(), mode) else {
+            // The lobe choice, passed over where there is one lobe.
+            let u_lobe = if bsdf.reads_lobe_choice() {
+                sampler.next_1d()
+            } else {
+                sampler.skip_1d();
+                0.0
+            };
+            let Some(bs) = bsdf.sample_with(strategy, wo, u_lobe, sampler.next_2d(), mode) else {
                 break;
             };
             if bs.pdf <= 0.0 || bs.f == Rgb::ZERO || bs.wi.z == 0.0 {

@@ -86,8 +86,7 @@ impl Whitted {
                 if matches!(light, Light::Environment) {
                     continue;
                 }
-                let (u_pick, u) = (sampler.next_1d(), sampler.next_2d());
-                let Some(ls) = light.sample_li(scene, hit.p, u_pick, u) else {
+                let Some(ls) = light.sample_li_drawing(scene, hit.p, sampler) else {
                     continue;
                 };
                 let cos = n.dot(ls.wi);

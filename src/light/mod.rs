@@ -27,6 +27,7 @@ use crate::color::{Rgb, luminance};
 use crate::geometry::SurfaceHit;
 use crate::geometry::shape::Shape;
 use crate::material::Frame;
+use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
@@ -273,6 +274,35 @@ impl Light {
             return area_light_sample(scene, p, lp, r.normal, u, None, r.pdf_area, radiance);
         }
         self.sample_li_other(scene, p, u_pick, u)
+    }
+
+    /// [`Light::sample_li`] with its numbers drawn from `sampler`: first
+    /// `u_pick` (passed over where this light does not read it), then
+    /// `u`.
+    #[inline(always)]
+    pub fn sample_li_drawing(&self, scene: &Scene, p: Vec3, sampler: &mut Sampler) -> Option<LightSample> {
+        let u_pick = if self.reads_pick() {
+            sampler.next_1d()
+        } else {
+            sampler.skip_1d();
+            0.0
+        };
+        let u = sampler.next_2d();
+        self.sample_li(scene, p, u_pick, u)
+    }
+
+    /// Whether [`Light::sample_li`] reads its `u_pick`: only an area
+    /// light that is not a parallelogram can sample its emitter's parts
+    /// (a mesh's triangles; a sphere when the point is inside it).
+    #[inline]
+    pub fn reads_pick(&self) -> bool {
+        matches!(
+            self,
+            Light::Area {
+                parallelogram: None,
+                ..
+            }
+        )
     }
 
     /// [`Light::sample_li`] for every light but a rectangle.
@@ -564,6 +594,91 @@ transform = [{ scale = [2, 3, 1] }, { rotate = { axis = [1, 1, 0], angle = 30 } 
             }
             assert!(hits > 500, "{hits} samples reached the light");
         }
+    }
+
+    /// Lights that say they do not read `u_pick` give the same sample
+    /// whatever it is, so integrators may pass over drawing it; a mesh
+    /// emitter reads it to pick a triangle. (A sphere or a box emitter
+    /// says it reads it, which only costs the number.)
+    #[test]
+    fn only_lights_that_read_the_pick_number_depend_on_it() {
+        let text = r#"
+[world]
+background = [0.2, 0.3, 0.4]
+
+[[material]]
+name = "lamp"
+emission = [3, 2, 1]
+
+[[light]]
+type = "point"
+position = [0, 3, 0]
+
+[[light]]
+type = "spot"
+position = [0, 3, 0]
+to = [0, 0, 0]
+
+[[light]]
+type = "directional"
+direction = [0, -1, 0.2]
+
+[[shape]]
+type = "rectangle"
+corner = [-0.5, 2, -0.5]
+edge_u = [1, 0, 0]
+edge_v = [0, 0, 1]
+material = "lamp"
+
+[[shape]]
+type = "sphere"
+center = [2, 2, 0]
+radius = 0.5
+material = "lamp"
+
+[[shape]]
+type = "box"
+min = [-3, 1, -1]
+max = [-2, 2, 0]
+material = "lamp"
+
+[[shape]]
+type = "mesh"
+positions = [[0, 4, 0], [1, 4, 0], [1, 4, 1], [0, 4, 1], [3, 5, 3]]
+indices = [[0, 1, 2], [0, 2, 3], [1, 4, 2]]
+material = "lamp"
+"#;
+        let desc = crate::scene::native::parse(text, std::path::Path::new("lights.toml")).unwrap();
+        let scene = crate::scene::build(&desc).unwrap();
+        let kinds = |f: fn(&Light) -> bool| scene.lights.iter().filter(|l| f(l)).count();
+        assert_eq!(kinds(|l| matches!(l, Light::Point { .. } | Light::Spot { .. })), 2);
+        assert_eq!(
+            kinds(|l| matches!(l, Light::Directional { .. } | Light::Environment)),
+            2
+        );
+        assert_eq!(kinds(|l| matches!(l, Light::Area { .. })), 4);
+        let mut rng = Pcg32::new(3, 9);
+        let mut pick_changed_a_sample = false;
+        for light in &scene.lights {
+            for _ in 0..500 {
+                let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::new(1.0, 1.0, 1.0);
+                let u = Vec2::new(rng.next_f32(), rng.next_f32());
+                let (a, b) = (light.sample_li(&scene, p, 0.05, u), light.sample_li(&scene, p, 0.95, u));
+                let same = match (&a, &b) {
+                    (Some(a), Some(b)) => (a.wi, a.li, a.pdf, a.target) == (b.wi, b.li, b.pdf, b.target),
+                    (None, None) => true,
+                    _ => false,
+                };
+                if !light.reads_pick() {
+                    assert!(same, "{light:?} at {p}: the sample depends on u_pick");
+                }
+                pick_changed_a_sample |= !same;
+            }
+        }
+        assert!(
+            pick_changed_a_sample,
+            "the mesh emitter picks its triangles with u_pick"
+        );
     }
 
     #[test]

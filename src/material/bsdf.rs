@@ -133,6 +133,13 @@ impl Bsdf<'_> {
         dispatch!(self, b => b.has_smooth())
     }
 
+    /// Whether [`Bsdf::sample`] and [`Bsdf::sample_with`] read their lobe
+    /// choice `u_lobe`: all but Lambert's single lobe do.
+    #[inline]
+    pub fn reads_lobe_choice(&self) -> bool {
+        !matches!(self, Bsdf::Lambert(_))
+    }
+
     /// Whether a non-delta lobe transmits (glossy or diffuse transmission).
     #[inline]
     pub fn has_smooth_transmission(&self) -> bool {

@@ -436,6 +436,36 @@ mod tests {
         }
     }
 
+    /// Lambert's sampling ignores the lobe choice, which integrators then
+    /// pass over drawing; the other BSDFs say they read it.
+    #[test]
+    fn only_lambert_ignores_the_lobe_choice() {
+        let tc = TexCoord {
+            uv: Vec2::ZERO,
+            p: Vec3::ZERO,
+        };
+        let lambert = Material::diffuse(Rgb::new(0.5, 0.6, 0.7));
+        let lambert = lambert.bsdf(&[], &tc);
+        assert!(!lambert.reads_lobe_choice());
+        let mut rng = Pcg32::new(1, 2);
+        for _ in 0..1000 {
+            let wo = sample_sphere_uniform(Vec2::new(rng.next_f32(), rng.next_f32()));
+            let u = Vec2::new(rng.next_f32(), rng.next_f32());
+            for strategy in [
+                DirectionSampling::Uniform,
+                DirectionSampling::Cosine,
+                DirectionSampling::Bsdf,
+            ] {
+                let mode = TransportMode::Radiance;
+                let a = lambert.sample_with(strategy, wo, 0.0, u, mode);
+                let b = lambert.sample_with(strategy, wo, 0.999, u, mode);
+                assert_eq!(a.map(|s| (s.wi, s.f, s.pdf)), b.map(|s| (s.wi, s.f, s.pdf)));
+            }
+        }
+        let classic = classic(Rgb::splat(0.4), Rgb::splat(0.3), Rgb::ZERO, Rgb::ZERO);
+        assert!(classic.bsdf(&[], &tc).reads_lobe_choice());
+    }
+
     /// The claim that lets a diffuse-only classical material be built as
     /// `Diffuse`: its classical BSDF gives the same bits in every query.
     #[test]

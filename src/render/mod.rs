@@ -399,7 +399,7 @@ fn render_passes<I: Integrator>(
                                 Some(_) => Vec2::new(x as f32, y as f32) + u,
                                 None => Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + s.filter.sample(u),
                             };
-                            let lens = sampler.next_2d();
+                            let lens = scene.camera.draw_lens(&mut sampler);
                             let ray = scene.camera.generate_ray(position, lens);
                             let l = integrator.radiance(scene, &ray, &mut sampler, &mut rays);
                             if l.is_finite() {

@@ -37,6 +37,13 @@ impl Pcg32 {
         xorshifted.rotate_right(rot)
     }
 
+    /// Steps past one output without computing it: the generator is then
+    /// where [`Pcg32::next_u32`] would have left it.
+    #[inline]
+    pub fn skip(&mut self) {
+        self.state = self.state.wrapping_mul(PCG_MULT).wrapping_add(self.inc);
+    }
+
     /// A uniform float in [0, 1).
     #[inline]
     pub fn next_f32(&mut self) -> f32 {

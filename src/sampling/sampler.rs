@@ -137,6 +137,33 @@ impl Sampler {
         Vec2::new(x, y)
     }
 
+    /// Passes over the number [`Sampler::next_1d`] would return, without
+    /// computing it: every later number is the one it would have been.
+    /// Estimators draw their numbers in a fixed order and pass over those
+    /// a case does not use (the choice among lights where there is one
+    /// light, say), which costs an increment or one generator step instead
+    /// of a scrambled Sobol point.
+    #[inline]
+    pub fn skip_1d(&mut self) {
+        if self.kind == SamplerKind::Sobol {
+            self.dimension = self.dimension.wrapping_add(1);
+        } else {
+            self.rng.skip();
+        }
+    }
+
+    /// Passes over the point [`Sampler::next_2d`] would return; see
+    /// [`Sampler::skip_1d`].
+    #[inline]
+    pub fn skip_2d(&mut self) {
+        if self.kind == SamplerKind::Sobol {
+            self.dimension = self.dimension.wrapping_add(1);
+        } else {
+            self.rng.skip();
+            self.rng.skip();
+        }
+    }
+
     /// The seeds of the next padded Sobol dimension pair.
     #[inline]
     fn next_pair_seeds(&mut self) -> PairSeeds {
@@ -211,6 +238,43 @@ pub fn permutation_element(mut i: u32, n: u32, seed: u32) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Passing over a number leaves every later one as it was.
+    #[test]
+    fn skipped_numbers_leave_the_later_ones_unchanged() {
+        for kind in [
+            SamplerKind::Independent,
+            SamplerKind::Stratified,
+            SamplerKind::Sobol,
+            SamplerKind::Center,
+        ] {
+            for index in [0u32, 1, 5, 63] {
+                let (mut taken, mut skipped) = (Sampler::new(kind, 64, 3), Sampler::new(kind, 64, 3));
+                taken.start_pixel_sample(7, 2, index);
+                skipped.start_pixel_sample(7, 2, index);
+                assert_eq!(taken.pixel_2d(), skipped.pixel_2d());
+                for step in 0..12 {
+                    if step % 3 == 0 {
+                        taken.next_2d();
+                        skipped.skip_2d();
+                    } else {
+                        taken.next_1d();
+                        skipped.skip_1d();
+                    }
+                    assert_eq!(
+                        taken.next_1d(),
+                        skipped.next_1d(),
+                        "{kind:?} sample {index} step {step}"
+                    );
+                    assert_eq!(
+                        taken.next_2d(),
+                        skipped.next_2d(),
+                        "{kind:?} sample {index} step {step}"
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn permutation_is_a_bijection() {

@@ -276,9 +276,8 @@ impl<'a> ShadingPoint<'a> {
         if scene.lights.is_empty() {
             return Rgb::ZERO;
         }
-        let (light_index, pmf, _) = scene.light_distribution.sample(sampler.next_1d());
-        let (u_pick, u) = (sampler.next_1d(), sampler.next_2d());
-        let Some(ls) = scene.lights[light_index].sample_li(scene, hit.p, u_pick, u) else {
+        let (light_index, pmf) = crate::integrator::choose_light(scene, sampler);
+        let Some(ls) = scene.lights[light_index].sample_li_drawing(scene, hit.p, sampler) else {
             return Rgb::ZERO;
         };
         if ls.li == Rgb::ZERO || pmf <= 0.0 {

@@ -211,7 +211,7 @@ fn camera_sample(
     let s = &scene.settings;
     sampler.start_pixel_sample(x, y, iteration);
     let offset = s.filter.sample(sampler.pixel_2d());
-    let lens = sampler.next_2d();
+    let lens = scene.camera.draw_lens(sampler);
     let camera_ray = scene
         .camera
         .generate_ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset, lens);
