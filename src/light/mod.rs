@@ -537,12 +537,8 @@ mod tests {
         assert!((pdf - sphere_cone_pdf(Vec3::new(0.0, 1e4, 0.0), 1.0, p)).abs() < 1e-3 * pdf);
     }
 
-    /// A rectangle light sampled on its own gives what sampling it through
-    /// the aggregate gives, bit for bit: plain, transformed (baked) and
-    /// with its normal flipped.
-    #[test]
-    fn rectangle_lights_sample_as_the_aggregate_does() {
-        let text = r#"
+    /// An emissive material and a rectangle light made of it.
+    const LAMP_AND_RECTANGLE: &str = r#"
 [[material]]
 name = "lamp"
 emission = [3, 2, 1]
@@ -553,7 +549,15 @@ corner = [-0.5, 2, -0.5]
 edge_u = [1, 0, 0]
 edge_v = [0, 0, 1]
 material = "lamp"
+"#;
 
+    /// A rectangle light sampled on its own gives what sampling it through
+    /// the aggregate gives, bit for bit: plain, transformed (baked) and
+    /// with its normal flipped.
+    #[test]
+    fn rectangle_lights_sample_as_the_aggregate_does() {
+        let text = LAMP_AND_RECTANGLE.to_string()
+            + r#"
 [[shape]]
 type = "rectangle"
 corner = [0, 0, 0]
@@ -563,7 +567,7 @@ material = "lamp"
 flip_normals = true
 transform = [{ scale = [2, 3, 1] }, { rotate = { axis = [1, 1, 0], angle = 30 } }, { translate = [0.5, 1, -3] }]
 "#;
-        let desc = crate::scene::native::parse(text, std::path::Path::new("lights.toml")).unwrap();
+        let desc = crate::scene::native::parse(&text, std::path::Path::new("lights.toml")).unwrap();
         let scene = crate::scene::build(&desc).unwrap();
         assert_eq!(scene.lights.len(), 2);
         let mut rng = Pcg32::new(11, 3);
@@ -602,13 +606,10 @@ transform = [{ scale = [2, 3, 1] }, { rotate = { axis = [1, 1, 0], angle = 30 } 
     /// says it reads it, which only costs the number.)
     #[test]
     fn only_lights_that_read_the_pick_number_depend_on_it() {
-        let text = r#"
+        let text = LAMP_AND_RECTANGLE.to_string()
+            + r#"
 [world]
 background = [0.2, 0.3, 0.4]
-
-[[material]]
-name = "lamp"
-emission = [3, 2, 1]
 
 [[light]]
 type = "point"
@@ -622,13 +623,6 @@ to = [0, 0, 0]
 [[light]]
 type = "directional"
 direction = [0, -1, 0.2]
-
-[[shape]]
-type = "rectangle"
-corner = [-0.5, 2, -0.5]
-edge_u = [1, 0, 0]
-edge_v = [0, 0, 1]
-material = "lamp"
 
 [[shape]]
 type = "sphere"
@@ -648,7 +642,7 @@ positions = [[0, 4, 0], [1, 4, 0], [1, 4, 1], [0, 4, 1], [3, 5, 3]]
 indices = [[0, 1, 2], [0, 2, 3], [1, 4, 2]]
 material = "lamp"
 "#;
-        let desc = crate::scene::native::parse(text, std::path::Path::new("lights.toml")).unwrap();
+        let desc = crate::scene::native::parse(&text, std::path::Path::new("lights.toml")).unwrap();
         let scene = crate::scene::build(&desc).unwrap();
         let kinds = |f: fn(&Light) -> bool| scene.lights.iter().filter(|l| f(l)).count();
         assert_eq!(kinds(|l| matches!(l, Light::Point { .. } | Light::Spot { .. })), 2);
