@@ -264,6 +264,9 @@ mod tests {
         let mut t = Sampler::new(SamplerKind::Independent, 4, 1);
         t.start_pixel_sample(0, 0, 0);
         let drawn = t.next_2d();
+        // The pinhole passed over the point: the sampler is where drawing
+        // it would have left it.
+        assert_eq!(s.next_1d(), t.next_1d());
         s.start_pixel_sample(0, 0, 0);
         assert_eq!(lens.draw_lens(&mut s), drawn);
     }

@@ -673,6 +673,23 @@ material = "lamp"
             pick_changed_a_sample,
             "the mesh emitter picks its triangles with u_pick"
         );
+        // Drawing through the sampler takes the pick number (or passes
+        // over it) and the point, and leaves the sampler where taking both
+        // would have.
+        use crate::sampling::{Sampler, SamplerKind};
+        for kind in [SamplerKind::Independent, SamplerKind::Sobol] {
+            for light in &scene.lights {
+                let (mut drawing, mut plain) = (Sampler::new(kind, 16, 5), Sampler::new(kind, 16, 5));
+                drawing.start_pixel_sample(3, 4, 2);
+                plain.start_pixel_sample(3, 4, 2);
+                let p = Vec3::new(0.1, 0.2, 0.3);
+                let a = light.sample_li_drawing(&scene, p, &mut drawing);
+                let (u_pick, u) = (plain.next_1d(), plain.next_2d());
+                let b = light.sample_li(&scene, p, u_pick, u);
+                assert_eq!(a.map(|s| (s.wi, s.pdf)), b.map(|s| (s.wi, s.pdf)), "{light:?}");
+                assert_eq!(drawing.next_1d(), plain.next_1d(), "{light:?}");
+            }
+        }
     }
 
     #[test]
