@@ -108,7 +108,7 @@ impl TriangleBvh {
         any_hit: bool,
         mut on_hit: impl FnMut(u32, f32, [f32; 3], &mut Ray) -> bool,
     ) -> bool {
-        self.bvh.traverse(ray, any_hit, |k, r| {
+        self.bvh.traverse_leaves(&self.blocks, ray, any_hit, |k, r| {
             let block = &self.blocks[k as usize];
             match block.intersect_barycentric(r, pre) {
                 Some((lane, t, b)) => on_hit(block.ids[lane], t, b, r),
@@ -145,15 +145,16 @@ impl TriangleBvh {
         };
         let mut r = *ray;
         let mut best = MISS;
-        self.bvh
-            .traverse(&mut r, false, |k, r| match self.blocks[k as usize].intersect(r, &pre) {
+        self.bvh.traverse_leaves(&self.blocks, &mut r, false, |k, r| {
+            match self.blocks[k as usize].intersect(r, &pre) {
                 Some((lane, t)) => {
                     r.t_max = t;
                     best = self.blocks[k as usize].ids[lane];
                     true
                 }
                 None => false,
-            });
+            }
+        });
         if best == MISS {
             QueryHit::NONE
         } else {
@@ -168,7 +169,7 @@ impl TriangleBvh {
             return false;
         };
         let mut r = *ray;
-        self.bvh.traverse(&mut r, true, |k, r| {
+        self.bvh.traverse_leaves(&self.blocks, &mut r, true, |k, r| {
             self.blocks[k as usize].intersect(r, &pre).is_some()
         })
     }

@@ -12,10 +12,10 @@
 //! `ne`, which is true for NaN, so a lane computes what the one-primitive
 //! test computes.
 //!
-//! The module also holds the other place where trazo calls intrinsics:
-//! `step_away_sse2`, the last step of a robust ray origin, on SSE2, which
-//! every x86-64 processor has (the compiler did not vectorise it from
-//! plain code).
+//! The module also holds the other places where trazo calls intrinsics,
+//! both on SSE or SSE2, which every x86-64 processor has: `step_away_sse2`,
+//! the last step of a robust ray origin (the compiler did not vectorise it
+//! from plain code), and `prefetch`, a cache hint for tree traversal.
 #![allow(unsafe_code)]
 
 use std::arch::x86_64::*;
@@ -203,4 +203,21 @@ fn select_bits(mask: __m128i, a: __m128i, b: __m128i) -> __m128i {
 /// Whether this processor runs AVX instructions.
 pub fn avx_available() -> bool {
     std::arch::is_x86_feature_detected!("avx")
+}
+
+/// Asks the processor to start loading the cache lines that `value`
+/// spans, at most `lines` of them from its start, into the first-level
+/// cache: a hint, which never faults and changes no result.
+#[inline(always)]
+pub fn prefetch<T>(value: &T, lines: usize) {
+    let start = value as *const T as usize;
+    let first_line = start & !63;
+    let last_line = (start + std::mem::size_of::<T>().max(1) - 1) & !63;
+    let n = ((last_line - first_line) / 64 + 1).min(lines);
+    let p = value as *const T as *const i8;
+    for line in 0..n {
+        // SAFETY: a prefetch reads nothing architecturally and cannot
+        // fault, whatever the address; SSE is part of every x86-64 target.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(first_line + 64 * line - start)) };
+    }
 }
