@@ -168,10 +168,10 @@ impl<const W: usize> WideBvh<W> {
         self.traverse_impl::<false, false, (), F>(&[], ray, any_hit, test)
     }
 
-    /// [`WideBvh::traverse`] for a large tree whose leaf children name
-    /// items of `leaves` (a leaf's first item at its first position): the
-    /// nodes and leaf items a ray will visit after the nearest child are
-    /// prefetched as soon as they are pushed.
+    /// [`WideBvh::traverse`] for a large tree whose primitive positions
+    /// index `leaves` (the blocks of a mesh tree, say): when a node pushes
+    /// the children a ray enters, the node or first leaf item of each
+    /// child visited after the nearest is prefetched.
     #[inline]
     pub fn traverse_leaves<L, F: FnMut(u32, &mut Ray) -> bool>(
         &self,

@@ -214,10 +214,10 @@ pub fn prefetch<T>(value: &T, lines: usize) {
     let first_line = start & !63;
     let last_line = (start + std::mem::size_of::<T>().max(1) - 1) & !63;
     let n = ((last_line - first_line) / 64 + 1).min(lines);
-    let p = value as *const T as *const i8;
     for line in 0..n {
+        let address = (first_line + 64 * line) as *const i8;
         // SAFETY: a prefetch reads nothing architecturally and cannot
         // fault, whatever the address; SSE is part of every x86-64 target.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(first_line + 64 * line - start)) };
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(address) };
     }
 }
