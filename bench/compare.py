@@ -189,18 +189,27 @@ def ray_section(args, work):
         hits = os.path.join(work, f"{name}.hits")
         write_rays(rays, o, d)
         build, t_closest, t_any = trazo_rays(args.trazo, mesh, rays, hits)
+        pgo = trazo_rays(args.trazo_pgo, mesh, rays, hits + ".pgo") if args.trazo_pgo else None
         e_closest = embree(verts, tris, o, d, False, os.cpu_count())
         e_any = embree(verts, tris, o, d, True, os.cpu_count())
         agree = agreement(scene, o, d, hits)
-        rows.append((name, t_closest, e_closest, t_any, e_any, agree, build))
+        rows.append((name, t_closest, e_closest, t_any, e_any, agree, build, pgo))
     print()
-    print("| rays | query | trazo rays/s | Embree rays/s | trazo / Embree |")
-    print("|---|---|---|---|---|")
-    for name, tc, ec, ta, ea, _, _ in rows:
-        print(f"| {name} | closest hit | {tc / 1e6:.2f} M | {ec / 1e6:.2f} M | {tc / ec:.2f} |")
-        print(f"| {name} | any hit | {ta / 1e6:.2f} M | {ea / 1e6:.2f} M | {ta / ea:.2f} |")
+    if args.trazo_pgo:
+        print("| rays | query | trazo rays/s | trazo PGO rays/s | Embree rays/s | trazo / Embree | trazo PGO / Embree |")
+        print("|---|---|---|---|---|---|---|")
+    else:
+        print("| rays | query | trazo rays/s | Embree rays/s | trazo / Embree |")
+        print("|---|---|---|---|---|")
+    for name, tc, ec, ta, ea, _, _, pgo in rows:
+        for query, t, e, p in [("closest hit", tc, ec, pgo and pgo[1]), ("any hit", ta, ea, pgo and pgo[2])]:
+            if p:
+                print(f"| {name} | {query} | {t / 1e6:.2f} M | {p / 1e6:.2f} M | {e / 1e6:.2f} M | {t / e:.2f} | {p / e:.2f} |")
+            else:
+                print(f"| {name} | {query} | {t / 1e6:.2f} M | {e / 1e6:.2f} M | {t / e:.2f} |")
     print()
-    print(f"BVH build, {len(tris)} triangles: trazo {rows[0][6]:.3f} s, Embree {build_embree:.3f} s (one process)")
+    pgo_build = f", trazo PGO {rows[0][7][0]:.3f} s" if args.trazo_pgo else ""
+    print(f"BVH build, {len(tris)} triangles: trazo {rows[0][6]:.3f} s{pgo_build}, Embree {build_embree:.3f} s (one process)")
     print("closest hits agreeing with Embree's (first 100k rays): " + ", ".join(f"{r[0]} {100 * r[5]:.3f}%" for r in rows))
     rays = os.path.join(work, "coherent.bin")
     rss = peak_rss_kb([args.trazo, "bench", "rays", "--mesh", mesh, "--rays", rays])
@@ -305,15 +314,18 @@ def render_section(args, work):
     print(f"Cornell box ({os.path.relpath(scene, args.root)}), {args.res}×{args.res}, {args.spp} spp, max depth 8, {os.cpu_count()} cores")
     out = os.path.join(work, "trazo.exr")
 
-    def trazo_time():
-        r = subprocess.run([args.trazo, "render", scene, "-o", out, "--spp", str(args.spp), "--width", str(args.res),
+    def trazo_time(binary, image):
+        r = subprocess.run([binary, "render", scene, "-o", image, "--spp", str(args.spp), "--width", str(args.res),
                             "--height", str(args.res), "--max-depth", "8"], capture_output=True, text=True, check=True)
         return float(re.search(r" in ([0-9.]+) s", r.stderr).group(1)), None
 
     # Each renderer's best of REPEAT runs, the renderers taking turns
     # round by round, so that a slow spell of the shared machine does not
     # decide a ratio; every run renders the same image (fixed seeds).
-    runners = [("trazo", "trazo (path:mis)", trazo_time, out)]
+    runners = [("trazo", "trazo (path:mis)", lambda: trazo_time(args.trazo, out), out)]
+    if args.trazo_pgo:
+        pgo_out = os.path.join(work, "trazo-pgo.exr")
+        runners.append(("trazo_pgo", "trazo, PGO build (path:mis)", lambda: trazo_time(args.trazo_pgo, pgo_out), pgo_out))
     for variant in ["llvm_ad_rgb", "scalar_rgb"]:
         image = os.path.join(work, f"{variant}.exr")
         runners.append((variant, f"Mitsuba 3 {variant}",
@@ -334,6 +346,7 @@ def render_section(args, work):
     t_trazo = rows[0][1]
     if t_trazo is None:
         raise SystemExit(f"trazo failed: {failed['trazo']}")
+    t_pgo = rows[1][1] if args.trazo_pgo else None
     cycles = None
     if args.cycles:
         image = os.path.join(work, "cycles.exr")
@@ -345,15 +358,17 @@ def render_section(args, work):
     if reference:
         print(f"error: relative MSE against {args.reference_spp} spp of Mitsuba ({os.path.relpath(reference, args.root)})")
         print()
-    print("| renderer | render time | samples/s | trazo time / peer time | relative MSE |")
-    print("|---|---|---|---|---|")
+    pgo_head, pgo_rule = (" trazo PGO time / peer time |", "---|") if t_pgo else ("", "")
+    print(f"| renderer | render time | samples/s | trazo time / peer time |{pgo_head} relative MSE |")
+    print(f"|---|---|---|---|{pgo_rule}---|")
     for name, t, why, image in rows:
         if t is None:
-            print(f"| {name} | unavailable: {why} | | | |")
+            print(f"| {name} | unavailable: {why} | | |{' |' if t_pgo else ''} |")
         else:
             err = relmse(args.trazo, image, reference) if reference else None
             err = f"{err:.2e}" if err is not None else "–"
-            print(f"| {name} | {t:.2f} s | {samples / t / 1e6:.2f} M | {t_trazo / t:.2f} | {err} |")
+            pgo = f" {t_pgo / t:.2f} |" if t_pgo else ""
+            print(f"| {name} | {t:.2f} s | {samples / t / 1e6:.2f} M | {t_trazo / t:.2f} |{pgo} {err} |")
     print()
     print("render times, each the best of its runs: " + "; ".join(
         f"{key} {', '.join(f'{t:.2f}' for t in times)} s" for key, times in runs.items() if times))
@@ -385,6 +400,7 @@ def main():
         return
     ap = argparse.ArgumentParser()
     ap.add_argument("--trazo", required=True)
+    ap.add_argument("--trazo-pgo", help="a PGO build of trazo (tools/pgo/build) to measure beside --trazo")
     ap.add_argument("--root", required=True)
     ap.add_argument("--rays-only", action="store_true")
     ap.add_argument("--render-only", action="store_true")
