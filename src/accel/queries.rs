@@ -176,9 +176,9 @@ impl TriangleBvh {
 
     /// Closest hits of a batch of rays, on all cores, in ray order. The
     /// iterator is indexed, so rayon's workers write each hit straight to
-    /// its place in the result; a `flat_map_iter` over chunks, as before,
-    /// built a vector per chunk and then joined them: 133 instructions a
-    /// ray more on coherent rays (BENCHMARKS.md).
+    /// its place in the result (a `flat_map_iter` over chunks builds a
+    /// vector per chunk and then joins them: 133 instructions a ray more
+    /// on coherent rays, BENCHMARKS.md).
     pub fn closest_hits(&self, rays: &[Ray]) -> Vec<QueryHit> {
         rays.par_iter()
             .with_min_len(CHUNK)

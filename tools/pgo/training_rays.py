@@ -1,6 +1,8 @@
 """Training inputs for `trazo bench rays` in tools/pgo/build: a bumpy sphere
 of about TRIANGLES triangles as binary PLY, and coherent (camera) and incoherent
-(random) rays. Standard library only.
+(random) rays, like those of bench/compare.py. Standard library only: that
+script makes its inputs with numpy, in a virtualenv this build should not
+need.
 
 Usage: training_rays.py DIR TRIANGLES SIDE (SIDE² rays of each kind)
 """
