@@ -4,6 +4,7 @@
 
 pub mod aov;
 pub mod path;
+pub mod path_lanes;
 pub mod photon;
 pub mod whitted;
 
@@ -74,6 +75,11 @@ impl std::ops::AddAssign for RayStats {
 pub trait Integrator: Sync {
     /// An estimate of the radiance arriving at the camera along `ray`.
     fn radiance(&self, scene: &Scene, ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb;
+    /// This integrator as the path tracer, which the renderer may run on
+    /// eight paths at once ([`path_lanes`]); `None` for the others.
+    fn as_path_tracer(&self) -> Option<&PathTracer> {
+        None
+    }
 }
 
 /// Chooses one of the scene's lights (there must be one) by its light

@@ -99,6 +99,10 @@ pub struct PathTracer {
 }
 
 impl Integrator for PathTracer {
+    fn as_path_tracer(&self) -> Option<&PathTracer> {
+        Some(self)
+    }
+
     fn radiance(&self, scene: &Scene, camera_ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb {
         let strategy = match self.sampling {
             PathSampling::Uniform => DirectionSampling::Uniform,

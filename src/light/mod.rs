@@ -96,13 +96,13 @@ pub enum Light {
 /// and density are those [`crate::accel::Aggregate::sample_emitter`] gives.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Parallelogram {
-    corner: Vec3,
-    edge_u: Vec3,
-    edge_v: Vec3,
+    pub(crate) corner: Vec3,
+    pub(crate) edge_u: Vec3,
+    pub(crate) edge_v: Vec3,
     /// The front side's unit normal.
-    normal: Vec3,
+    pub(crate) normal: Vec3,
     /// Density per unit area: one over the area.
-    pdf_area: f32,
+    pub(crate) pdf_area: f32,
 }
 
 impl Parallelogram {

@@ -19,14 +19,17 @@
 pub mod checkpoint;
 pub mod compare;
 
+use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::film::splat::{MAX_TAPS, Splat, SplatSum};
 use crate::film::{AovSum, Film, Image, PixelSum};
+use crate::geometry::Ray;
 use crate::integrator::aov::camera_aov;
+use crate::integrator::path_lanes::{LANES, LockstepScene, radiance_lanes};
 use crate::integrator::{Integrator, IntegratorKind, PathTracer, RayStats, Whitted};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::io::IsTerminal;
@@ -288,6 +291,54 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
     passes
 }
 
+/// The samples of a tile whose radiance was not finite: how many, and the
+/// first few.
+#[derive(Default)]
+struct InvalidSamples {
+    count: u64,
+    examples: Vec<InvalidSample>,
+}
+
+impl InvalidSamples {
+    fn record(&mut self, sample: InvalidSample) {
+        self.count += 1;
+        if self.examples.len() < MAX_INVALID_EXAMPLES {
+            self.examples.push(sample);
+        }
+    }
+}
+
+/// A tile's splats in this pass: the sums over its pixels and margin, and
+/// room for one sample's filter weights.
+struct SplatBuffer {
+    rect: Tile,
+    sums: Vec<SplatSum>,
+    weights_x: [f32; MAX_TAPS],
+    weights_y: [f32; MAX_TAPS],
+}
+
+/// Adds radiance `l`, sampled at film position `position`, to the pixels
+/// of `buffer` that the filter of `splat` covers there.
+#[inline(always)]
+fn splat_sample(splat: &Splat, buffer: &mut SplatBuffer, position: Vec2, l: Rgb) {
+    let rect = buffer.rect;
+    let width = (rect.x1 - rect.x0) as usize;
+    let y_l = crate::color::luminance(l);
+    let (rgb_one, y_sq) = (l.extend(1.0), y_l * y_l);
+    let (x0, wxs) = splat.taps(position.x, rect.x0, rect.x1, &mut buffer.weights_x);
+    let (y0, wys) = splat.taps(position.y, rect.y0, rect.y1, &mut buffer.weights_y);
+    // A sample's pixels are a block: one row slice at a time.
+    let mut start = (y0 - rect.y0) as usize * width + (x0 - rect.x0) as usize;
+    for &wy in wys {
+        let (row_rgb, row_y_sq) = (rgb_one * wy, y_sq * wy);
+        let row = &mut buffer.sums[start..start + wxs.len()];
+        for (s, &wx) in row.iter_mut().zip(wxs) {
+            s.add(row_rgb, row_y_sq, wx);
+        }
+        start += width;
+    }
+}
+
 /// What one tile of one pass produced.
 struct TileResult {
     tile: Tile,
@@ -327,6 +378,13 @@ fn render_passes<I: Integrator>(
     let earlier_seconds = stats.seconds;
     let tiles = tiles(w, h, options.tile_size);
     let splat = Splat::new(&s.filter);
+    // Diffuse scenes lit by one rectangle trace eight paths at a time
+    // (`integrator::path_lanes`); the auxiliary images are made one path
+    // at a time.
+    let lockstep = integrator
+        .as_path_tracer()
+        .filter(|_| !options.aovs)
+        .and_then(|pt| Some((pt, LockstepScene::new(pt, scene)?)));
     let bar = match options.time_limit {
         Some(limit) => progress_bar(options.progress, limit.as_millis().max(1) as u64),
         None => progress_bar(options.progress, w as u64 * h as u64 * s.spp as u64),
@@ -362,8 +420,7 @@ fn render_passes<I: Integrator>(
             .map(|&tile| {
                 let mut sampler = Sampler::new(s.sampler, s.spp, s.seed);
                 let mut rays = RayStats::default();
-                let mut invalid = 0u64;
-                let mut invalid_examples = Vec::new();
+                let mut invalid = InvalidSamples::default();
                 let n = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
                 let mut sums = Vec::with_capacity(if splat.is_some() { 0 } else { n });
                 let splat_rect = match &splat {
@@ -376,73 +433,116 @@ fn render_passes<I: Integrator>(
                     None => tile,
                 };
                 let splat_width = splat_rect.x1 - splat_rect.x0;
-                let mut splats = match &splat {
+                let splats = match &splat {
                     Some(_) => vec![SplatSum::default(); (splat_width * (splat_rect.y1 - splat_rect.y0)) as usize],
                     None => Vec::new(),
                 };
-                let (mut weights_x, mut weights_y) = ([0f32; MAX_TAPS], [0f32; MAX_TAPS]);
+                let mut splat_buffer = SplatBuffer {
+                    rect: splat_rect,
+                    sums: splats,
+                    weights_x: [0.0; MAX_TAPS],
+                    weights_y: [0.0; MAX_TAPS],
+                };
                 let mut aovs = Vec::with_capacity(if options.aovs { n } else { 0 });
-                for y in tile.y0..tile.y1 {
-                    // Checked once a row, so that an interrupt is obeyed
-                    // within a row of a tile.
-                    if stop_now().is_some() {
-                        return None;
+                if let Some((path_tracer, lit)) = &lockstep {
+                    // Eight samples at a time, taken in the order of the
+                    // loop below, splatted in that order.
+                    let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| sampler.clone());
+                    let mut batch_rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+                    // Each lane's pixel, sample index and film position.
+                    let mut batch = [(0u32, 0u32, 0u32, Vec2::ZERO); LANES];
+                    let mut count = 0;
+                    if splat.is_none() {
+                        sums.extend(
+                            (tile.y0..tile.y1)
+                                .flat_map(|y| (tile.x0..tile.x1).map(move |x| (y * w + x) as usize))
+                                .map(|i| film_ref.pixels[i]),
+                        );
                     }
-                    for x in tile.x0..tile.x1 {
-                        let i = (y * w + x) as usize;
-                        let mut sum = film_ref.pixels[i];
-                        let mut aov = film_ref.aovs.as_ref().map(|a| a[i]).unwrap_or_default();
-                        for index in first..end {
-                            sampler.start_pixel_sample(x, y, index);
-                            let u = sampler.pixel_2d();
-                            let position = match &splat {
-                                Some(_) => Vec2::new(x as f32, y as f32) + u,
-                                None => Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + s.filter.sample(u),
-                            };
-                            let lens = scene.camera.draw_lens(&mut sampler);
-                            let ray = scene.camera.generate_ray(position, lens);
-                            let l = integrator.radiance(scene, &ray, &mut sampler, &mut rays);
-                            if l.is_finite() {
-                                match &splat {
-                                    None => sum.add(l, 1.0),
-                                    Some(sp) => {
-                                        let y_l = crate::color::luminance(l);
-                                        let (rgb_one, y_sq) = (l.extend(1.0), y_l * y_l);
-                                        let (x0, wxs) =
-                                            sp.taps(position.x, splat_rect.x0, splat_rect.x1, &mut weights_x);
-                                        let (y0, wys) =
-                                            sp.taps(position.y, splat_rect.y0, splat_rect.y1, &mut weights_y);
-                                        // A sample's pixels are a block: one row slice at a time.
-                                        let mut start =
-                                            ((y0 - splat_rect.y0) * splat_width + x0 - splat_rect.x0) as usize;
-                                        for &wy in wys {
-                                            let (row_rgb, row_y_sq) = (rgb_one * wy, y_sq * wy);
-                                            let row = &mut splats[start..start + wxs.len()];
-                                            for (s, &wx) in row.iter_mut().zip(wxs) {
-                                                s.add(row_rgb, row_y_sq, wx);
-                                            }
-                                            start += splat_width as usize;
-                                        }
+                    let mut trace_batch = |count: usize,
+                                           batch_rays: &[Ray; LANES],
+                                           batch: &[(u32, u32, u32, Vec2); LANES],
+                                           samplers: &mut [Sampler; LANES]| {
+                        let ls = radiance_lanes(path_tracer, scene, lit, batch_rays, count, samplers, &mut rays);
+                        for (&l, &(x, y, index, position)) in ls.iter().zip(batch).take(count) {
+                            if !l.is_finite() {
+                                invalid.record(InvalidSample { x, y, index, value: l });
+                                continue;
+                            }
+                            match &splat {
+                                None => sums[((y - tile.y0) * (tile.x1 - tile.x0) + x - tile.x0) as usize].add(l, 1.0),
+                                Some(sp) => splat_sample(sp, &mut splat_buffer, position, l),
+                            }
+                        }
+                    };
+                    for y in tile.y0..tile.y1 {
+                        // Checked once a row, as below.
+                        if stop_now().is_some() {
+                            return None;
+                        }
+                        for x in tile.x0..tile.x1 {
+                            for index in first..end {
+                                let sampler = &mut samplers[count];
+                                sampler.start_pixel_sample(x, y, index);
+                                let u = sampler.pixel_2d();
+                                let position = match &splat {
+                                    Some(_) => Vec2::new(x as f32, y as f32) + u,
+                                    None => Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + s.filter.sample(u),
+                                };
+                                let lens = scene.camera.draw_lens(sampler);
+                                batch_rays[count] = scene.camera.generate_ray(position, lens);
+                                batch[count] = (x, y, index, position);
+                                count += 1;
+                                if count == LANES {
+                                    trace_batch(count, &batch_rays, &batch, &mut samplers);
+                                    count = 0;
+                                }
+                            }
+                        }
+                    }
+                    trace_batch(count, &batch_rays, &batch, &mut samplers);
+                } else {
+                    for y in tile.y0..tile.y1 {
+                        // Checked once a row, so that an interrupt is obeyed
+                        // within a row of a tile.
+                        if stop_now().is_some() {
+                            return None;
+                        }
+                        for x in tile.x0..tile.x1 {
+                            let i = (y * w + x) as usize;
+                            let mut sum = film_ref.pixels[i];
+                            let mut aov = film_ref.aovs.as_ref().map(|a| a[i]).unwrap_or_default();
+                            for index in first..end {
+                                sampler.start_pixel_sample(x, y, index);
+                                let u = sampler.pixel_2d();
+                                let position = match &splat {
+                                    Some(_) => Vec2::new(x as f32, y as f32) + u,
+                                    None => Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + s.filter.sample(u),
+                                };
+                                let lens = scene.camera.draw_lens(&mut sampler);
+                                let ray = scene.camera.generate_ray(position, lens);
+                                let l = integrator.radiance(scene, &ray, &mut sampler, &mut rays);
+                                if l.is_finite() {
+                                    match &splat {
+                                        None => sum.add(l, 1.0),
+                                        Some(sp) => splat_sample(sp, &mut splat_buffer, position, l),
+                                    }
+                                } else {
+                                    invalid.record(InvalidSample { x, y, index, value: l });
+                                }
+                                if options.aovs {
+                                    let a = camera_aov(scene, &ray);
+                                    if a.albedo.is_finite() && a.normal.is_finite() && a.depth.is_finite() {
+                                        aov.add(&a);
                                     }
                                 }
-                            } else {
-                                invalid += 1;
-                                if invalid_examples.len() < MAX_INVALID_EXAMPLES {
-                                    invalid_examples.push(InvalidSample { x, y, index, value: l });
-                                }
+                            }
+                            if splat.is_none() {
+                                sums.push(sum);
                             }
                             if options.aovs {
-                                let a = camera_aov(scene, &ray);
-                                if a.albedo.is_finite() && a.normal.is_finite() && a.depth.is_finite() {
-                                    aov.add(&a);
-                                }
+                                aovs.push(aov);
                             }
-                        }
-                        if splat.is_none() {
-                            sums.push(sum);
-                        }
-                        if options.aovs {
-                            aovs.push(aov);
                         }
                     }
                 }
@@ -455,12 +555,12 @@ fn render_passes<I: Integrator>(
                 Some(TileResult {
                     tile,
                     sums,
-                    splats,
+                    splats: splat_buffer.sums,
                     splat_rect,
                     aovs,
                     rays,
-                    invalid,
-                    invalid_examples,
+                    invalid: invalid.count,
+                    invalid_examples: invalid.examples,
                 })
             })
             .collect();

@@ -36,7 +36,7 @@ pub fn sample_disk_concentric(u: Vec2) -> Vec2 {
 /// whose remainders there are below 2·10⁻⁹ and 3·10⁻⁸: within an f32
 /// rounding or two of the library functions, and much cheaper.
 #[inline]
-fn sin_cos_quarter_pi(x: f32) -> (f32, f32) {
+pub(crate) fn sin_cos_quarter_pi(x: f32) -> (f32, f32) {
     let x2 = x * x;
     let sin = x * (1.0 + x2 * (-1.0 / 6.0 + x2 * (1.0 / 120.0 + x2 * (-1.0 / 5040.0 + x2 * (1.0 / 362_880.0)))));
     let cos = 1.0 + x2 * (-0.5 + x2 * (1.0 / 24.0 + x2 * (-1.0 / 720.0 + x2 * (1.0 / 40320.0))));
