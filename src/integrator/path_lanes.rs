@@ -37,14 +37,14 @@ use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
 pub const LANES: usize = 8;
 
 /// One `f32` per lane.
-type Lanes = [f32; LANES];
+type F32Lanes = [f32; LANES];
 
 /// A vector per lane, as three arrays of coordinates.
 #[derive(Clone, Copy, Default)]
 struct Vec3Lanes {
-    x: Lanes,
-    y: Lanes,
-    z: Lanes,
+    x: F32Lanes,
+    y: F32Lanes,
+    z: F32Lanes,
 }
 
 impl Vec3Lanes {
