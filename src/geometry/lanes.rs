@@ -12,6 +12,10 @@
 //! `ne`, which is true for NaN, so a lane computes what the one-primitive
 //! test computes.
 //!
+//! Besides `FlatScene`'s entry, one other function enters AVX code, the
+//! same way: `integrator::path_lanes::radiance_lanes`, whose loops over
+//! eight paths are built for AVX where the processor has it.
+//!
 //! The module also holds the other places where trazo calls intrinsics,
 //! both on SSE or SSE2, which every x86-64 processor has: `step_away_sse2`,
 //! the last step of a robust ray origin (the compiler did not vectorise it
