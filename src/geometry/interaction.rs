@@ -39,11 +39,47 @@ impl SurfaceHit {
     /// the rounding error of `p` so that it cannot re-hit this surface.
     #[inline]
     pub fn spawn_ray(&self, dir: Vec3) -> Ray {
-        Ray::new(offset_ray_origin(self.p, self.p_error, self.ng, dir), dir)
+        self.spawn_point().spawn_ray(dir)
     }
 
     /// A shadow ray from this surface toward `target`, ending just short of it.
     /// The direction is `target − origin`, so t ∈ (0, 1) spans the segment.
+    #[inline]
+    pub fn spawn_ray_to(&self, target: Vec3) -> Ray {
+        self.spawn_point().spawn_ray_to(target)
+    }
+
+    /// What spawning rays from this hit needs of it.
+    #[inline]
+    pub fn spawn_point(&self) -> SpawnPoint {
+        SpawnPoint {
+            p: self.p,
+            p_error: self.p_error,
+            ng: self.ng,
+        }
+    }
+}
+
+/// A surface point from which rays leave: the point, the bound on its
+/// rounding error, and the geometric normal.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SpawnPoint {
+    /// World-space point.
+    pub p: Vec3,
+    /// Conservative per-axis bound on the rounding error in `p`.
+    pub p_error: Vec3,
+    /// Geometric normal (unit length).
+    pub ng: Vec3,
+}
+
+impl SpawnPoint {
+    /// See [`SurfaceHit::spawn_ray`].
+    #[inline]
+    pub fn spawn_ray(&self, dir: Vec3) -> Ray {
+        Ray::new(offset_ray_origin(self.p, self.p_error, self.ng, dir), dir)
+    }
+
+    /// See [`SurfaceHit::spawn_ray_to`].
     #[inline]
     pub fn spawn_ray_to(&self, target: Vec3) -> Ray {
         let o = offset_ray_origin(self.p, self.p_error, self.ng, target - self.p);

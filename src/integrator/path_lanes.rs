@@ -23,7 +23,7 @@ use super::RayStats;
 use super::path::{PathSampling, PathTracer, power_heuristic};
 use crate::color::Rgb;
 use crate::geometry::Ray;
-use crate::geometry::interaction::SurfaceHit;
+use crate::geometry::interaction::SpawnPoint;
 use crate::light::{Light, Parallelogram};
 use crate::material::MaterialKind;
 use crate::material::bsdf::Bsdf;
@@ -175,16 +175,18 @@ fn trace_lanes(
     for (i, r) in rays.iter().enumerate() {
         prev_p.set(i, r.origin);
     }
-    let mut hits: [Option<SurfaceHit>; LANES] = [None; LANES];
+    // Each lane's hit: where its rays leave from, and its surface in
+    // lanes. What lanes that are no longer alive hold is never read.
+    let mut spawn = [SpawnPoint::default(); LANES];
+    let mut albedo = Vec3Lanes::default();
+    let mut p = Vec3Lanes::default();
+    let mut ng = Vec3Lanes::default();
+    let mut ns = Vec3Lanes::default();
+    let mut tangent = Vec3Lanes::default();
+    let mut wo = Vec3Lanes::default();
     let mut depth = 1u32;
     while depth <= integrator.max_depth {
         // The segments' queries and surface records, and emission found.
-        let mut albedo = Vec3Lanes::default();
-        let mut p = Vec3Lanes::default();
-        let mut ng = Vec3Lanes::default();
-        let mut ns = Vec3Lanes::default();
-        let mut tangent = Vec3Lanes::default();
-        let mut wo = Vec3Lanes::default();
         let mut any_alive = false;
         for i in 0..LANES {
             if !alive[i] {
@@ -224,7 +226,7 @@ fn trace_lanes(
             ns.set(i, hit.ns);
             tangent.set(i, hit.tangent);
             wo.set(i, wo_world);
-            hits[i] = Some(hit);
+            spawn[i] = hit.spawn_point();
             any_alive = true;
         }
         if !any_alive {
@@ -303,8 +305,7 @@ fn trace_lanes(
         for i in 0..LANES {
             if cast_shadow[i] && !black_light {
                 stats.rays += 1;
-                let hit = hits[i].as_ref().expect("a live lane has a hit");
-                if !scene.occluded(&hit.spawn_ray_to(light_point.get(i))) {
+                if !scene.occluded(&spawn[i].spawn_ray_to(light_point.get(i))) {
                     l.set(i, l.get(i) + unoccluded.get(i));
                 }
             }
@@ -348,8 +349,7 @@ fn trace_lanes(
             if !alive[i] {
                 continue;
             }
-            let hit = hits[i].as_ref().expect("a live lane has a hit");
-            ray[i] = hit.spawn_ray(wi_world.get(i));
+            ray[i] = spawn[i].spawn_ray(wi_world.get(i));
             if depth > integrator.rr_depth {
                 let q = beta.get(i).max_element().min(0.95);
                 if samplers[i].next_1d() >= q {
