@@ -7,17 +7,19 @@
 //! rays. The shading between them (the light sample's geometry, the
 //! diffuse BSDF, the MIS weights, the cosine-weighted direction, the
 //! throughput and Russian roulette) is written over arrays of eight lanes,
-//! structure of arrays, which the compiler turns into vector instructions;
-//! and eight independent queries in a row keep the processor busier than
-//! one path's chain of dependent work. This is how Mitsuba's LLVM variants
-//! and other wavefront renderers use SIMD across paths, here in its
-//! smallest form: the lanes of one tile, in the tile's own order.
+//! structure of arrays, which the compiler turns into vector instructions
+//! (eight-wide where the processor has AVX); and eight independent
+//! queries in a row keep the processor busier than one path's chain of
+//! dependent work. This is how Mitsuba's LLVM variants and other wavefront
+//! renderers use SIMD across paths, here in its smallest form: the lanes
+//! of one tile, in the tile's own order.
 //!
 //! Each lane is the path [`PathTracer::radiance`] traces with the same
-//! sampler: the same numbers drawn in the same order and the same
-//! decisions, so the estimator is the same and the two agree to rounding
-//! (a test compares them). Scenes with other materials or lights, or
-//! options this loop does not cover, are traced one path at a time.
+//! sampler: the same numbers drawn in the same order, the same decisions
+//! and the same arithmetic in the same order, so the two give the same
+//! bits (a test compares whole films). Scenes with other materials or
+//! lights, or options this loop does not cover, are traced one path at a
+//! time.
 
 use super::RayStats;
 use super::path::{PathSampling, PathTracer, power_heuristic};
