@@ -13,8 +13,8 @@
 //! test computes.
 //!
 //! Besides `FlatScene`'s entry, one other function enters AVX code, the
-//! same way: `integrator::path_lanes::radiance_lanes`, whose loops over
-//! eight paths are built for AVX where the processor has it.
+//! same way: `integrator::path_lanes::LockstepScene::radiance`, whose
+//! loops over eight paths are built for AVX where the processor has it.
 //!
 //! The module also holds the other places where trazo calls intrinsics,
 //! both on SSE or SSE2, which every x86-64 processor has: `step_away_sse2`,

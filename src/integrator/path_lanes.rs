@@ -38,6 +38,15 @@ use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
 /// Paths traced together.
 pub const LANES: usize = 8;
 
+/// One ray per lane.
+pub type Rays = [Ray; LANES];
+
+/// One sampler per lane.
+pub type Samplers = [Sampler; LANES];
+
+/// One colour per lane.
+pub type Radiances = [Rgb; LANES];
+
 /// One `f32` per lane.
 type F32Lanes = [f32; LANES];
 
@@ -63,9 +72,12 @@ impl Vec3Lanes {
     }
 }
 
-/// What the lockstep loop needs of a scene it can trace: its one light.
+/// The path tracer on a scene the lockstep loop can trace, with what the
+/// loop needs of the scene: its one light.
 #[derive(Clone, Copy, Debug)]
 pub struct LockstepScene<'a> {
+    integrator: &'a PathTracer,
+    scene: &'a Scene,
     light: &'a Parallelogram,
     radiance: Rgb,
     /// Whether the processor runs AVX instructions.
@@ -73,11 +85,10 @@ pub struct LockstepScene<'a> {
 }
 
 impl<'a> LockstepScene<'a> {
-    /// The scene's light where `integrator` on `scene` is what the
-    /// lockstep loop traces: the MIS path tracer, every material diffuse,
-    /// one light, a parallelogram of constant radiance, and no
-    /// environment.
-    pub fn new(integrator: &PathTracer, scene: &'a Scene) -> Option<LockstepScene<'a>> {
+    /// `integrator` on `scene` where that is what the lockstep loop
+    /// traces: the MIS path tracer, every material diffuse, one light, a
+    /// parallelogram of constant radiance, and no environment.
+    pub fn new(integrator: &'a PathTracer, scene: &'a Scene) -> Option<LockstepScene<'a>> {
         if integrator.sampling != PathSampling::Mis
             || scene.lights.len() != 1
             || scene.light_distribution.len() != 1
@@ -103,268 +114,249 @@ impl<'a> LockstepScene<'a> {
         #[cfg(not(target_arch = "x86_64"))]
         let avx = false;
         diffuse.then_some(LockstepScene {
+            integrator,
+            scene,
             light,
             radiance: *radiance,
             avx,
         })
     }
-}
 
-/// The radiance along the first `count` of `rays`, lane `i` drawing its
-/// numbers from `samplers[i]` as [`PathTracer::radiance`] would; lanes
-/// from `count` on are not traced and return zero.
-pub fn radiance_lanes(
-    integrator: &PathTracer,
-    scene: &Scene,
-    lit: &LockstepScene,
-    rays: &[Ray; LANES],
-    count: usize,
-    samplers: &mut [Sampler; LANES],
-    stats: &mut RayStats,
-) -> [Rgb; LANES] {
+    /// The radiance along the first `count` of `rays`, lane `i` drawing
+    /// its numbers from `samplers[i]` as [`PathTracer::radiance`] would;
+    /// lanes from `count` on are not traced and return zero.
+    pub fn radiance(&self, rays: &Rays, count: usize, samplers: &mut Samplers, stats: &mut RayStats) -> Radiances {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx {
+            // SAFETY: `avx` is set only where the processor has AVX.
+            #[allow(unsafe_code)]
+            return unsafe { self.radiance_avx(rays, count, samplers, stats) };
+        }
+        self.trace(rays, count, samplers, stats)
+    }
+
+    /// [`LockstepScene::radiance`] built for AVX: the lane loops become
+    /// eight-wide vector code instead of two halves of four (SSE), and the
+    /// flat scene's AVX query inlines into the loop (9.5% fewer
+    /// instructions per sample, 3–4% less time on the Cornell box, the
+    /// same bits; BENCHMARKS.md).
     #[cfg(target_arch = "x86_64")]
-    if lit.avx {
-        // SAFETY: `avx` is set only where the processor has AVX.
-        #[allow(unsafe_code)]
-        return unsafe { radiance_lanes_avx(integrator, scene, lit, rays, count, samplers, stats) };
+    #[target_feature(enable = "avx")]
+    fn radiance_avx(&self, rays: &Rays, count: usize, samplers: &mut Samplers, stats: &mut RayStats) -> Radiances {
+        self.trace(rays, count, samplers, stats)
     }
-    trace_lanes(integrator, scene, lit, rays, count, samplers, stats)
-}
 
-/// [`radiance_lanes`] built for AVX: the lane loops become eight-wide
-/// vector code instead of two halves of four (SSE), and the flat scene's
-/// AVX query inlines into the loop (9.5% fewer instructions per sample,
-/// 3–4% less time on the Cornell box, the same bits; BENCHMARKS.md).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-fn radiance_lanes_avx(
-    integrator: &PathTracer,
-    scene: &Scene,
-    lit: &LockstepScene,
-    rays: &[Ray; LANES],
-    count: usize,
-    samplers: &mut [Sampler; LANES],
-    stats: &mut RayStats,
-) -> [Rgb; LANES] {
-    trace_lanes(integrator, scene, lit, rays, count, samplers, stats)
-}
-
-/// The body of [`radiance_lanes`], inlined into each build of it.
-#[inline(always)]
-fn trace_lanes(
-    integrator: &PathTracer,
-    scene: &Scene,
-    lit: &LockstepScene,
-    rays: &[Ray; LANES],
-    count: usize,
-    samplers: &mut [Sampler; LANES],
-    stats: &mut RayStats,
-) -> [Rgb; LANES] {
-    let light = lit.light;
-    let mut l = Vec3Lanes::default();
-    let mut beta = Vec3Lanes {
-        x: [1.0; LANES],
-        y: [1.0; LANES],
-        z: [1.0; LANES],
-    };
-    let mut ray = *rays;
-    let mut alive: [bool; LANES] = std::array::from_fn(|i| i < count);
-    // The previous bounce, for weighting emission found by it. Diffuse
-    // bounces are never delta: only the camera ray's end is unweighted.
-    let mut first_segment = true;
-    let mut prev_pdf = [0.0f32; LANES];
-    let mut prev_p = Vec3Lanes::default();
-    for (i, r) in rays.iter().enumerate() {
-        prev_p.set(i, r.origin);
-    }
-    // Each lane's hit: where its rays leave from, and its surface in
-    // lanes. What lanes that are no longer alive hold is never read.
-    let mut spawn = [SpawnPoint::default(); LANES];
-    let mut albedo = Vec3Lanes::default();
-    let mut p = Vec3Lanes::default();
-    let mut ng = Vec3Lanes::default();
-    let mut ns = Vec3Lanes::default();
-    let mut tangent = Vec3Lanes::default();
-    let mut wo = Vec3Lanes::default();
-    let mut depth = 1u32;
-    while depth <= integrator.max_depth {
-        // The segments' queries and surface records, and emission found.
-        let mut any_alive = false;
-        for i in 0..LANES {
-            if !alive[i] {
-                continue;
-            }
-            stats.rays += 1;
-            let Some(hit) = scene.intersect(&ray[i]) else {
-                alive[i] = false;
-                continue;
-            };
-            let m = &scene.materials[hit.material as usize];
-            let wo_world = -ray[i].dir.normalize();
-            if m.is_emissive() && hit.is_front(wo_world) {
-                let w = match hit.light {
-                    Some(li) if !first_segment => {
-                        let pdf_light = scene.light_distribution.pmf(li as usize)
-                            * scene.lights[li as usize].pdf_li(scene, prev_p.get(i), &hit);
-                        power_heuristic(prev_pdf[i], pdf_light)
-                    }
-                    _ => 1.0,
-                };
-                let le = m.emission_at(&scene.images, &TexCoord { uv: hit.uv, p: hit.p });
-                l.set(i, l.get(i) + beta.get(i) * le * w);
-            }
-            if depth == integrator.max_depth || !m.two_sided && !hit.is_front(wo_world) {
-                // The end of the path, or the black back of a one-sided
-                // surface.
-                alive[i] = false;
-                continue;
-            }
-            let Bsdf::Lambert(lambert) = m.bsdf(&scene.images, &TexCoord { uv: hit.uv, p: hit.p }) else {
-                unreachable!("LockstepScene::new admits diffuse materials only")
-            };
-            albedo.set(i, lambert.albedo());
-            p.set(i, hit.p);
-            ng.set(i, hit.ng);
-            ns.set(i, hit.ns);
-            tangent.set(i, hit.tangent);
-            wo.set(i, wo_world);
-            spawn[i] = hit.spawn_point();
-            any_alive = true;
+    /// The body of [`LockstepScene::radiance`], inlined into each build of
+    /// it.
+    #[inline(always)]
+    fn trace(&self, rays: &Rays, count: usize, samplers: &mut Samplers, stats: &mut RayStats) -> Radiances {
+        let (integrator, scene) = (self.integrator, self.scene);
+        let light = self.light;
+        let mut l = Vec3Lanes::default();
+        let mut beta = Vec3Lanes {
+            x: [1.0; LANES],
+            y: [1.0; LANES],
+            z: [1.0; LANES],
+        };
+        let mut ray = *rays;
+        let mut alive: [bool; LANES] = std::array::from_fn(|i| i < count);
+        // The previous bounce, for weighting emission found by it. Diffuse
+        // bounces are never delta: only the camera ray's end is unweighted.
+        let mut first_segment = true;
+        let mut prev_pdf = [0.0f32; LANES];
+        let mut prev_p = Vec3Lanes::default();
+        for (i, r) in rays.iter().enumerate() {
+            prev_p.set(i, r.origin);
         }
-        if !any_alive {
-            break;
-        }
-
-        // The numbers of the bounce, in the path tracer's order: the light
-        // choice and the pick within the light (both passed over: one
-        // light, a parallelogram), the point on the light, the lobe choice
-        // (passed over: one lobe), the direction.
-        let mut u_light = [[0.0f32; LANES]; 2];
-        let mut u_bsdf = [[0.0f32; LANES]; 2];
-        for i in 0..LANES {
-            if !alive[i] {
-                continue;
-            }
-            let s = &mut samplers[i];
-            s.skip_1d();
-            s.skip_1d();
-            let u = s.next_2d();
-            (u_light[0][i], u_light[1][i]) = (u.x, u.y);
-            s.skip_1d();
-            let u = s.next_2d();
-            (u_bsdf[0][i], u_bsdf[1][i]) = (u.x, u.y);
-        }
-
-        // Next-event estimation (`Light::sample_li` for a parallelogram,
-        // the diffuse BSDF's value and density, the power heuristic), in
-        // lanes.
-        let mut cast_shadow = [false; LANES];
-        let mut unoccluded = Vec3Lanes::default();
-        let mut light_point = Vec3Lanes::default();
-        let mut wo_z = [0.0f32; LANES];
-        let mut front_o = [false; LANES];
-        let (corner, edge_u, edge_v, ln) = (light.corner, light.edge_u, light.edge_v, light.normal);
-        let le = lit.radiance;
-        for i in 0..LANES {
-            let (nx, ny, nz) = (ns.x[i], ns.y[i], ns.z[i]);
-            wo_z[i] = wo.x[i] * nx + wo.y[i] * ny + wo.z[i] * nz;
-            front_o[i] = ng.x[i] * wo.x[i] + ng.y[i] * wo.y[i] + ng.z[i] * wo.z[i] > 0.0;
-            let (ua, ub) = (u_light[0][i], u_light[1][i]);
-            let lx = corner.x + ua * edge_u.x + ub * edge_v.x;
-            let ly = corner.y + ua * edge_u.y + ub * edge_v.y;
-            let lz = corner.z + ua * edge_u.z + ub * edge_v.z;
-            (light_point.x[i], light_point.y[i], light_point.z[i]) = (lx, ly, lz);
-            let (dx, dy, dz) = (lx - p.x[i], ly - p.y[i], lz - p.z[i]);
-            let dist2 = dx * dx + dy * dy + dz * dz;
-            let dist = dist2.sqrt();
-            let (wx, wy, wz) = (dx / dist, dy / dist, dz / dist);
-            // Emission leaves the light's front only.
-            let cos_light = -(ln.x * wx + ln.y * wy + ln.z * wz);
-            let pdf_light = light.pdf_area * dist2 / cos_light;
-            let wi_z = wx * nx + wy * ny + wz * nz;
-            let same_side = wi_z * wo_z[i] > 0.0;
-            // The geometric normal decides reflection or transmission.
-            let front_i = ng.x[i] * wx + ng.y[i] * wy + ng.z[i] * wz > 0.0;
-            let consistent = (front_i == front_o[i]) == same_side;
-            let pdf_bsdf = wi_z.abs() * FRAC_1_PI;
-            let w = power_heuristic(pdf_light, pdf_bsdf);
-            // f·Li·|cos θ|·w / p with f = albedo/π.
-            let k = wi_z.abs() * w / pdf_light;
-            unoccluded.x[i] = beta.x[i] * (albedo.x[i] * FRAC_1_PI) * le.x * k;
-            unoccluded.y[i] = beta.y[i] * (albedo.y[i] * FRAC_1_PI) * le.y * k;
-            unoccluded.z[i] = beta.z[i] * (albedo.z[i] * FRAC_1_PI) * le.z * k;
-            let black = albedo.x[i] == 0.0 && albedo.y[i] == 0.0 && albedo.z[i] == 0.0;
-            cast_shadow[i] = alive[i]
-                && dist2 != 0.0
-                && cos_light > 0.0
-                && pdf_light.is_finite()
-                && pdf_light > 0.0
-                && same_side
-                && consistent
-                && !black;
-        }
-        let black_light = le == Rgb::ZERO;
-        for i in 0..LANES {
-            if cast_shadow[i] && !black_light {
-                stats.rays += 1;
-                if !scene.occluded(&spawn[i].spawn_ray_to(light_point.get(i))) {
-                    l.set(i, l.get(i) + unoccluded.get(i));
+        // Each lane's hit: where its rays leave from, and its surface in
+        // lanes. What lanes that are no longer alive hold is never read.
+        let mut spawn = [SpawnPoint::default(); LANES];
+        let mut albedo = Vec3Lanes::default();
+        let mut p = Vec3Lanes::default();
+        let mut ng = Vec3Lanes::default();
+        let mut ns = Vec3Lanes::default();
+        let mut tangent = Vec3Lanes::default();
+        let mut wo = Vec3Lanes::default();
+        let mut depth = 1u32;
+        while depth <= integrator.max_depth {
+            // The segments' queries and surface records, and emission found.
+            let mut any_alive = false;
+            for i in 0..LANES {
+                if !alive[i] {
+                    continue;
                 }
-            }
-        }
-
-        // The diffuse BSDF's sample (`sample_hemisphere_cosine` on the side
-        // of `wo`), the throughput and the next direction, in lanes.
-        let mut wi_world = Vec3Lanes::default();
-        let mut continues = [false; LANES];
-        for i in 0..LANES {
-            let (x, y, z) = sample_hemisphere_cosine_lane(u_bsdf[0][i], u_bsdf[1][i]);
-            let z = if wo_z[i] < 0.0 { -z } else { z };
-            let pdf = if z * wo_z[i] > 0.0 { z.abs() * FRAC_1_PI } else { 0.0 };
-            let (nx, ny, nz) = (ns.x[i], ns.y[i], ns.z[i]);
-            let (sx, sy, sz) = (tangent.x[i], tangent.y[i], tangent.z[i]);
-            // The frame's second axis, n × s (`Frame::from_orthonormal`).
-            let (tx, ty, tz) = (ny * sz - nz * sy, nz * sx - nx * sz, nx * sy - ny * sx);
-            let wx = sx * x + tx * y + nx * z;
-            let wy = sy * x + ty * y + ny * z;
-            let wz = sz * x + tz * y + nz * z;
-            (wi_world.x[i], wi_world.y[i], wi_world.z[i]) = (wx, wy, wz);
-            let reflection = z * wo_z[i] > 0.0;
-            // A shading normal that sends the path through the surface
-            // ends it.
-            let side_agrees = (ng.x[i] * wx + ng.y[i] * wy + ng.z[i] * wz > 0.0) == (front_o[i] == reflection);
-            let black = albedo.x[i] == 0.0 && albedo.y[i] == 0.0 && albedo.z[i] == 0.0;
-            continues[i] = alive[i] && pdf > 0.0 && z != 0.0 && side_agrees && !black;
-            let k = z.abs() / pdf;
-            beta.x[i] *= (albedo.x[i] * FRAC_1_PI) * k;
-            beta.y[i] *= (albedo.y[i] * FRAC_1_PI) * k;
-            beta.z[i] *= (albedo.z[i] * FRAC_1_PI) * k;
-            prev_pdf[i] = pdf;
-            (prev_p.x[i], prev_p.y[i], prev_p.z[i]) = (p.x[i], p.y[i], p.z[i]);
-        }
-        first_segment = false;
-        depth += 1;
-
-        // The next rays, and Russian roulette, per lane.
-        for i in 0..LANES {
-            alive[i] = continues[i];
-            if !alive[i] {
-                continue;
-            }
-            ray[i] = spawn[i].spawn_ray(wi_world.get(i));
-            if depth > integrator.rr_depth {
-                let q = beta.get(i).max_element().min(0.95);
-                if samplers[i].next_1d() >= q {
+                stats.rays += 1;
+                let Some(hit) = scene.intersect(&ray[i]) else {
+                    alive[i] = false;
+                    continue;
+                };
+                let m = &scene.materials[hit.material as usize];
+                let wo_world = -ray[i].dir.normalize();
+                if m.is_emissive() && hit.is_front(wo_world) {
+                    let w = match hit.light {
+                        Some(li) if !first_segment => {
+                            let pdf_light = scene.light_distribution.pmf(li as usize)
+                                * scene.lights[li as usize].pdf_li(scene, prev_p.get(i), &hit);
+                            power_heuristic(prev_pdf[i], pdf_light)
+                        }
+                        _ => 1.0,
+                    };
+                    let le = m.emission_at(&scene.images, &TexCoord { uv: hit.uv, p: hit.p });
+                    l.set(i, l.get(i) + beta.get(i) * le * w);
+                }
+                if depth == integrator.max_depth || !m.two_sided && !hit.is_front(wo_world) {
+                    // The end of the path, or the black back of a one-sided
+                    // surface.
                     alive[i] = false;
                     continue;
                 }
-                beta.x[i] /= q;
-                beta.y[i] /= q;
-                beta.z[i] /= q;
+                let Bsdf::Lambert(lambert) = m.bsdf(&scene.images, &TexCoord { uv: hit.uv, p: hit.p }) else {
+                    unreachable!("LockstepScene::new admits diffuse materials only")
+                };
+                albedo.set(i, lambert.albedo());
+                p.set(i, hit.p);
+                ng.set(i, hit.ng);
+                ns.set(i, hit.ns);
+                tangent.set(i, hit.tangent);
+                wo.set(i, wo_world);
+                spawn[i] = hit.spawn_point();
+                any_alive = true;
+            }
+            if !any_alive {
+                break;
+            }
+
+            // The numbers of the bounce, in the path tracer's order: the light
+            // choice and the pick within the light (both passed over: one
+            // light, a parallelogram), the point on the light, the lobe choice
+            // (passed over: one lobe), the direction.
+            let mut u_light = [[0.0f32; LANES]; 2];
+            let mut u_bsdf = [[0.0f32; LANES]; 2];
+            for i in 0..LANES {
+                if !alive[i] {
+                    continue;
+                }
+                let s = &mut samplers[i];
+                s.skip_1d();
+                s.skip_1d();
+                let u = s.next_2d();
+                (u_light[0][i], u_light[1][i]) = (u.x, u.y);
+                s.skip_1d();
+                let u = s.next_2d();
+                (u_bsdf[0][i], u_bsdf[1][i]) = (u.x, u.y);
+            }
+
+            // Next-event estimation (`Light::sample_li` for a parallelogram,
+            // the diffuse BSDF's value and density, the power heuristic), in
+            // lanes.
+            let mut cast_shadow = [false; LANES];
+            let mut unoccluded = Vec3Lanes::default();
+            let mut light_point = Vec3Lanes::default();
+            let mut wo_z = [0.0f32; LANES];
+            let mut front_o = [false; LANES];
+            let (corner, edge_u, edge_v, ln) = (light.corner, light.edge_u, light.edge_v, light.normal);
+            let le = self.radiance;
+            for i in 0..LANES {
+                let (nx, ny, nz) = (ns.x[i], ns.y[i], ns.z[i]);
+                wo_z[i] = wo.x[i] * nx + wo.y[i] * ny + wo.z[i] * nz;
+                front_o[i] = ng.x[i] * wo.x[i] + ng.y[i] * wo.y[i] + ng.z[i] * wo.z[i] > 0.0;
+                let (ua, ub) = (u_light[0][i], u_light[1][i]);
+                let lx = corner.x + ua * edge_u.x + ub * edge_v.x;
+                let ly = corner.y + ua * edge_u.y + ub * edge_v.y;
+                let lz = corner.z + ua * edge_u.z + ub * edge_v.z;
+                (light_point.x[i], light_point.y[i], light_point.z[i]) = (lx, ly, lz);
+                let (dx, dy, dz) = (lx - p.x[i], ly - p.y[i], lz - p.z[i]);
+                let dist2 = dx * dx + dy * dy + dz * dz;
+                let dist = dist2.sqrt();
+                let (wx, wy, wz) = (dx / dist, dy / dist, dz / dist);
+                // Emission leaves the light's front only.
+                let cos_light = -(ln.x * wx + ln.y * wy + ln.z * wz);
+                let pdf_light = light.pdf_area * dist2 / cos_light;
+                let wi_z = wx * nx + wy * ny + wz * nz;
+                let same_side = wi_z * wo_z[i] > 0.0;
+                // The geometric normal decides reflection or transmission.
+                let front_i = ng.x[i] * wx + ng.y[i] * wy + ng.z[i] * wz > 0.0;
+                let consistent = (front_i == front_o[i]) == same_side;
+                let pdf_bsdf = wi_z.abs() * FRAC_1_PI;
+                let w = power_heuristic(pdf_light, pdf_bsdf);
+                // f·Li·|cos θ|·w / p with f = albedo/π.
+                let k = wi_z.abs() * w / pdf_light;
+                unoccluded.x[i] = beta.x[i] * (albedo.x[i] * FRAC_1_PI) * le.x * k;
+                unoccluded.y[i] = beta.y[i] * (albedo.y[i] * FRAC_1_PI) * le.y * k;
+                unoccluded.z[i] = beta.z[i] * (albedo.z[i] * FRAC_1_PI) * le.z * k;
+                let black = albedo.x[i] == 0.0 && albedo.y[i] == 0.0 && albedo.z[i] == 0.0;
+                cast_shadow[i] = alive[i]
+                    && dist2 != 0.0
+                    && cos_light > 0.0
+                    && pdf_light.is_finite()
+                    && pdf_light > 0.0
+                    && same_side
+                    && consistent
+                    && !black;
+            }
+            let black_light = le == Rgb::ZERO;
+            for i in 0..LANES {
+                if cast_shadow[i] && !black_light {
+                    stats.rays += 1;
+                    if !scene.occluded(&spawn[i].spawn_ray_to(light_point.get(i))) {
+                        l.set(i, l.get(i) + unoccluded.get(i));
+                    }
+                }
+            }
+
+            // The diffuse BSDF's sample (`sample_hemisphere_cosine` on the side
+            // of `wo`), the throughput and the next direction, in lanes.
+            let mut wi_world = Vec3Lanes::default();
+            let mut continues = [false; LANES];
+            for i in 0..LANES {
+                let (x, y, z) = sample_hemisphere_cosine_lane(u_bsdf[0][i], u_bsdf[1][i]);
+                let z = if wo_z[i] < 0.0 { -z } else { z };
+                let pdf = if z * wo_z[i] > 0.0 { z.abs() * FRAC_1_PI } else { 0.0 };
+                let (nx, ny, nz) = (ns.x[i], ns.y[i], ns.z[i]);
+                let (sx, sy, sz) = (tangent.x[i], tangent.y[i], tangent.z[i]);
+                // The frame's second axis, n × s (`Frame::from_orthonormal`).
+                let (tx, ty, tz) = (ny * sz - nz * sy, nz * sx - nx * sz, nx * sy - ny * sx);
+                let wx = sx * x + tx * y + nx * z;
+                let wy = sy * x + ty * y + ny * z;
+                let wz = sz * x + tz * y + nz * z;
+                (wi_world.x[i], wi_world.y[i], wi_world.z[i]) = (wx, wy, wz);
+                let reflection = z * wo_z[i] > 0.0;
+                // A shading normal that sends the path through the surface
+                // ends it.
+                let side_agrees = (ng.x[i] * wx + ng.y[i] * wy + ng.z[i] * wz > 0.0) == (front_o[i] == reflection);
+                let black = albedo.x[i] == 0.0 && albedo.y[i] == 0.0 && albedo.z[i] == 0.0;
+                continues[i] = alive[i] && pdf > 0.0 && z != 0.0 && side_agrees && !black;
+                let k = z.abs() / pdf;
+                beta.x[i] *= (albedo.x[i] * FRAC_1_PI) * k;
+                beta.y[i] *= (albedo.y[i] * FRAC_1_PI) * k;
+                beta.z[i] *= (albedo.z[i] * FRAC_1_PI) * k;
+                prev_pdf[i] = pdf;
+                (prev_p.x[i], prev_p.y[i], prev_p.z[i]) = (p.x[i], p.y[i], p.z[i]);
+            }
+            first_segment = false;
+            depth += 1;
+
+            // The next rays, and Russian roulette, per lane.
+            for i in 0..LANES {
+                alive[i] = continues[i];
+                if !alive[i] {
+                    continue;
+                }
+                ray[i] = spawn[i].spawn_ray(wi_world.get(i));
+                if depth > integrator.rr_depth {
+                    let q = beta.get(i).max_element().min(0.95);
+                    if samplers[i].next_1d() >= q {
+                        alive[i] = false;
+                        continue;
+                    }
+                    beta.x[i] /= q;
+                    beta.y[i] /= q;
+                    beta.z[i] /= q;
+                }
             }
         }
+        std::array::from_fn(|i| l.get(i))
     }
-    std::array::from_fn(|i| l.get(i))
 }
 
 /// [`crate::sampling::warp::sample_hemisphere_cosine`] as (x, y, z), its

@@ -25,7 +25,7 @@ use crate::film::splat::{MAX_TAPS, Splat, SplatSum};
 use crate::film::{AovSum, Film, Image, PixelSum};
 use crate::geometry::Ray;
 use crate::integrator::aov::camera_aov;
-use crate::integrator::path_lanes::{LANES, LockstepScene, radiance_lanes};
+use crate::integrator::path_lanes::{LANES, LockstepScene};
 use crate::integrator::{Integrator, IntegratorKind, PathTracer, RayStats, Whitted};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
@@ -384,7 +384,7 @@ fn render_passes<I: Integrator>(
     let lockstep = integrator
         .as_path_tracer()
         .filter(|_| !options.aovs)
-        .and_then(|pt| Some((pt, LockstepScene::new(pt, scene)?)));
+        .and_then(|pt| LockstepScene::new(pt, scene));
     let bar = match options.time_limit {
         Some(limit) => progress_bar(options.progress, limit.as_millis().max(1) as u64),
         None => progress_bar(options.progress, w as u64 * h as u64 * s.spp as u64),
@@ -444,7 +444,7 @@ fn render_passes<I: Integrator>(
                     weights_y: [0.0; MAX_TAPS],
                 };
                 let mut aovs = Vec::with_capacity(if options.aovs { n } else { 0 });
-                if let Some((path_tracer, lit)) = &lockstep {
+                if let Some(lit) = &lockstep {
                     // Eight samples at a time, taken in the order of the
                     // loop below, splatted in that order.
                     let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| sampler.clone());
@@ -463,7 +463,7 @@ fn render_passes<I: Integrator>(
                                            batch_rays: &[Ray; LANES],
                                            batch: &[(u32, u32, u32, Vec2); LANES],
                                            samplers: &mut [Sampler; LANES]| {
-                        let ls = radiance_lanes(path_tracer, scene, lit, batch_rays, count, samplers, &mut rays);
+                        let ls = lit.radiance(batch_rays, count, samplers, &mut rays);
                         for (&l, &(x, y, index, position)) in ls.iter().zip(batch).take(count) {
                             if !l.is_finite() {
                                 invalid.record(InvalidSample { x, y, index, value: l });
