@@ -275,11 +275,14 @@ mod avx {
             let u = dot(load3(&self.v[2]), r);
             let v = dot(load3(&self.v[3]), r);
             let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
-            let valid = denom
-                .ne(zero)
-                .and(t.gt(F8::splat(ray.t_min)))
-                .and(t.le(F8::splat(t_max)))
-                .and(t.abs().lt(F8::splat(f32::INFINITY)))
+            // The one-rectangle test's conditions, denominator not zero and
+            // t finite, in two comparisons: t is ±∞ or NaN where the
+            // denominator is zero, `t > t_min` is false for −∞ and NaN,
+            // and `t <= t_max` with t_max at most the largest float is
+            // false for +∞.
+            let valid = t
+                .gt(F8::splat(ray.t_min))
+                .and(t.le(F8::splat(t_max.min(f32::MAX))))
                 .and(u.ge(zero))
                 .and(u.le(one))
                 .and(v.ge(zero))
@@ -809,6 +812,40 @@ mod tests {
             hits > 2000 && triangle_hits > 500 && every_block_hits > 100,
             "{hits} hits, {triangle_hits} on triangles, {every_block_hits} in scenes without the slab test"
         );
+    }
+
+    /// Rays parallel to a rectangle (a zero denominator: t is ±∞ or NaN)
+    /// miss it, in its plane or beside it, with an unbounded interval or
+    /// not, as the one-rectangle test has them; and a ray across hits.
+    #[test]
+    fn rays_parallel_to_a_rectangle_miss_it() {
+        if !avx_available() {
+            return;
+        }
+        let floor = Rectangle::new(Vec3::ZERO, Vec3::X, Vec3::Z);
+        let wall = Rectangle::new(Vec3::new(0.0, 0.0, 2.0), Vec3::X, Vec3::Y);
+        let rectangles = [(floor, 0), (wall, 1)];
+        let scene = FlatScene::new(&rectangles, &[]).unwrap();
+        assert!(scene.test_every_block);
+        for t_max in [f32::INFINITY, 10.0] {
+            for origin in [
+                Vec3::new(-1.0, 0.0, 0.5),
+                Vec3::new(-1.0, 0.25, 0.5),
+                Vec3::new(-1.0, 0.5, 2.0),
+            ] {
+                // Along +x, parallel to both: in the floor's plane across
+                // it, above it, in the wall's plane across it.
+                let ray = Ray::with_interval(origin, Vec3::X, 1e-4, t_max);
+                assert!(scene.intersect(&ray, false).is_none(), "{origin} {t_max}");
+                assert!(floor.intersect(&ray).is_none() && wall.intersect(&ray).is_none());
+            }
+            // Along +z from above the floor: parallel to it, into the wall.
+            let ray = Ray::with_interval(Vec3::new(0.5, 0.25, -1.0), Vec3::Z, 1e-4, t_max);
+            match scene.intersect(&ray, false) {
+                Some(FlatHit::Rectangle { id: 1, t }) => assert_eq!(t, 3.0),
+                other => panic!("{other:?}"),
+            }
+        }
     }
 
     /// A hit triangle's barycentrics put the hit point where the ray is.
