@@ -28,7 +28,6 @@ use crate::geometry::Ray;
 use crate::geometry::interaction::SpawnPoint;
 use crate::light::{Light, Parallelogram};
 use crate::material::MaterialKind;
-use crate::material::bsdf::Bsdf;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::texture::{TexCoord, Texture};
@@ -210,10 +209,12 @@ impl<'a> LockstepScene<'a> {
                     alive[i] = false;
                     continue;
                 }
-                let Bsdf::Lambert(lambert) = m.bsdf(&scene.images, &TexCoord { uv: hit.uv, p: hit.p }) else {
+                // The diffuse BSDF's albedo (`Material::bsdf`'s, read
+                // without building the BSDF).
+                let MaterialKind::Diffuse { reflectance } = &m.kind else {
                     unreachable!("LockstepScene::new admits diffuse materials only")
                 };
-                albedo.set(i, lambert.albedo());
+                albedo.set(i, reflectance.eval(&scene.images, &TexCoord { uv: hit.uv, p: hit.p }));
                 p.set(i, hit.p);
                 ng.set(i, hit.ng);
                 ns.set(i, hit.ns);
