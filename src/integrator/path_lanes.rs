@@ -251,6 +251,9 @@ impl<'a> LockstepScene<'a> {
             // the diffuse BSDF's value and density, the power heuristic), in
             // lanes.
             let mut cast_shadow = [false; LANES];
+            // Black lanes cast no shadow ray and end here, as in the path
+            // tracer (its BSDF value is zero).
+            let mut black = [false; LANES];
             let mut unoccluded = Vec3Lanes::default();
             let mut light_point = Vec3Lanes::default();
             let mut wo_z = [0.0f32; LANES];
@@ -285,7 +288,7 @@ impl<'a> LockstepScene<'a> {
                 unoccluded.x[i] = beta.x[i] * (albedo.x[i] * FRAC_1_PI) * le.x * k;
                 unoccluded.y[i] = beta.y[i] * (albedo.y[i] * FRAC_1_PI) * le.y * k;
                 unoccluded.z[i] = beta.z[i] * (albedo.z[i] * FRAC_1_PI) * le.z * k;
-                let black = albedo.x[i] == 0.0 && albedo.y[i] == 0.0 && albedo.z[i] == 0.0;
+                black[i] = albedo.x[i] == 0.0 && albedo.y[i] == 0.0 && albedo.z[i] == 0.0;
                 cast_shadow[i] = alive[i]
                     && dist2 != 0.0
                     && cos_light > 0.0
@@ -293,7 +296,7 @@ impl<'a> LockstepScene<'a> {
                     && pdf_light > 0.0
                     && same_side
                     && consistent
-                    && !black;
+                    && !black[i];
             }
             let black_light = le == Rgb::ZERO;
             for i in 0..LANES {
@@ -325,8 +328,7 @@ impl<'a> LockstepScene<'a> {
                 // A shading normal that sends the path through the surface
                 // ends it.
                 let side_agrees = (ng.x[i] * wx + ng.y[i] * wy + ng.z[i] * wz > 0.0) == (front_o[i] == reflection);
-                let black = albedo.x[i] == 0.0 && albedo.y[i] == 0.0 && albedo.z[i] == 0.0;
-                continues[i] = alive[i] && pdf > 0.0 && z != 0.0 && side_agrees && !black;
+                continues[i] = alive[i] && pdf > 0.0 && z != 0.0 && side_agrees && !black[i];
                 let k = z.abs() / pdf;
                 beta.x[i] *= (albedo.x[i] * FRAC_1_PI) * k;
                 beta.y[i] *= (albedo.y[i] * FRAC_1_PI) * k;

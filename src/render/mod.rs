@@ -25,7 +25,7 @@ use crate::film::splat::{MAX_TAPS, Splat, SplatSum};
 use crate::film::{AovSum, Film, Image, PixelSum};
 use crate::geometry::Ray;
 use crate::integrator::aov::camera_aov;
-use crate::integrator::path_lanes::{LANES, LockstepScene};
+use crate::integrator::path_lanes::{LANES, LockstepScene, Rays, Samplers};
 use crate::integrator::{Integrator, IntegratorKind, PathTracer, RayStats, Whitted};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
@@ -308,6 +308,22 @@ impl InvalidSamples {
     }
 }
 
+/// Starts sample `index` of pixel `(x, y)` in `sampler` and draws its
+/// camera ray: the film position (anywhere in the pixel when splatting,
+/// else by the filter's importance) and the ray through it.
+#[inline(always)]
+fn camera_sample(scene: &Scene, splatting: bool, sampler: &mut Sampler, (x, y, index): (u32, u32, u32)) -> (Vec2, Ray) {
+    sampler.start_pixel_sample(x, y, index);
+    let u = sampler.pixel_2d();
+    let position = if splatting {
+        Vec2::new(x as f32, y as f32) + u
+    } else {
+        Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + scene.settings.filter.sample(u)
+    };
+    let lens = scene.camera.draw_lens(sampler);
+    (position, scene.camera.generate_ray(position, lens))
+}
+
 /// A tile's splats in this pass: the sums over its pixels and margin, and
 /// room for one sample's filter weights.
 struct SplatBuffer {
@@ -447,8 +463,8 @@ fn render_passes<I: Integrator>(
                 if let Some(lit) = &lockstep {
                     // Eight samples at a time, taken in the order of the
                     // loop below, splatted in that order.
-                    let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| sampler.clone());
-                    let mut batch_rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+                    let mut samplers: Samplers = std::array::from_fn(|_| sampler.clone());
+                    let mut batch_rays: Rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
                     // Each lane's pixel, sample index and film position.
                     let mut batch = [(0u32, 0u32, 0u32, Vec2::ZERO); LANES];
                     let mut count = 0;
@@ -460,9 +476,9 @@ fn render_passes<I: Integrator>(
                         );
                     }
                     let mut trace_batch = |count: usize,
-                                           batch_rays: &[Ray; LANES],
+                                           batch_rays: &Rays,
                                            batch: &[(u32, u32, u32, Vec2); LANES],
-                                           samplers: &mut [Sampler; LANES]| {
+                                           samplers: &mut Samplers| {
                         let ls = lit.radiance(batch_rays, count, samplers, &mut rays);
                         for (&l, &(x, y, index, position)) in ls.iter().zip(batch).take(count) {
                             if !l.is_finite() {
@@ -482,15 +498,9 @@ fn render_passes<I: Integrator>(
                         }
                         for x in tile.x0..tile.x1 {
                             for index in first..end {
-                                let sampler = &mut samplers[count];
-                                sampler.start_pixel_sample(x, y, index);
-                                let u = sampler.pixel_2d();
-                                let position = match &splat {
-                                    Some(_) => Vec2::new(x as f32, y as f32) + u,
-                                    None => Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + s.filter.sample(u),
-                                };
-                                let lens = scene.camera.draw_lens(sampler);
-                                batch_rays[count] = scene.camera.generate_ray(position, lens);
+                                let (position, ray) =
+                                    camera_sample(scene, splat.is_some(), &mut samplers[count], (x, y, index));
+                                batch_rays[count] = ray;
                                 batch[count] = (x, y, index, position);
                                 count += 1;
                                 if count == LANES {
@@ -513,14 +523,8 @@ fn render_passes<I: Integrator>(
                             let mut sum = film_ref.pixels[i];
                             let mut aov = film_ref.aovs.as_ref().map(|a| a[i]).unwrap_or_default();
                             for index in first..end {
-                                sampler.start_pixel_sample(x, y, index);
-                                let u = sampler.pixel_2d();
-                                let position = match &splat {
-                                    Some(_) => Vec2::new(x as f32, y as f32) + u,
-                                    None => Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + s.filter.sample(u),
-                                };
-                                let lens = scene.camera.draw_lens(&mut sampler);
-                                let ray = scene.camera.generate_ray(position, lens);
+                                let (position, ray) =
+                                    camera_sample(scene, splat.is_some(), &mut sampler, (x, y, index));
                                 let l = integrator.radiance(scene, &ray, &mut sampler, &mut rays);
                                 if l.is_finite() {
                                     match &splat {
