@@ -130,6 +130,20 @@ impl F8 {
 }
 
 impl M8 {
+    /// All lanes false.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn none() -> M8 {
+        M8(_mm256_setzero_ps())
+    }
+
+    /// Lane-wise `if self { a } else { b }`.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn select(self, a: F8, b: F8) -> F8 {
+        F8(_mm256_blendv_ps(b.0, a.0, self.0))
+    }
+
     /// Lanes true in both.
     #[inline]
     #[target_feature(enable = "avx")]

@@ -2,17 +2,19 @@
 //! one rectangle light (a Cornell box, a lit room).
 //!
 //! The eight paths advance in lockstep, one bounce of all of them at a
-//! time. What differs from path to path in control flow stays per path:
-//! the ray queries, the surface records, the sampler's draws, the shadow
-//! rays. The shading between them (the light sample's geometry, the
-//! diffuse BSDF, the MIS weights, the cosine-weighted direction, the
-//! throughput and Russian roulette) is written over arrays of eight lanes,
-//! structure of arrays, which the compiler turns into vector instructions
-//! (eight-wide where the processor has AVX); and eight independent
-//! queries in a row keep the processor busier than one path's chain of
-//! dependent work. This is how Mitsuba's LLVM variants and other wavefront
-//! renderers use SIMD across paths, here in its smallest form: the lanes
-//! of one tile, in the tile's own order.
+//! time. Their rays go to the scene eight at a time
+//! ([`Aggregate::intersect_rays`](crate::accel::Aggregate::intersect_rays)),
+//! which in a room of rectangles tests them together, one rectangle
+//! against eight rays, and elsewhere one by one. What differs from path
+//! to path in control flow stays per path: the surface records and the
+//! sampler's draws. The shading between them (the light sample's
+//! geometry, the diffuse BSDF, the MIS weights, the cosine-weighted
+//! direction, the throughput and Russian roulette) is written over arrays
+//! of eight lanes, structure of arrays, which the compiler turns into
+//! vector instructions (eight-wide where the processor has AVX). This is
+//! how Mitsuba's LLVM variants and other wavefront renderers use SIMD
+//! across paths, here in its smallest form: the lanes of one tile, in the
+//! tile's own order.
 //!
 //! Each lane is the path [`PathTracer::radiance`] traces with the same
 //! sampler: the same numbers drawn in the same order, the same decisions
@@ -180,15 +182,17 @@ impl<'a> LockstepScene<'a> {
         while depth <= integrator.max_depth {
             // The segments' queries and surface records, and emission found.
             let mut any_alive = false;
+            let hits = scene.geometry.intersect_rays(&ray, lane_bits(&alive));
             for i in 0..LANES {
                 if !alive[i] {
                     continue;
                 }
                 stats.rays += 1;
-                let Some(hit) = scene.intersect(&ray[i]) else {
+                let Some(hit) = &hits[i] else {
                     alive[i] = false;
                     continue;
                 };
+                let hit = scene.geometry.surface(&ray[i], hit);
                 let m = &scene.materials[hit.material as usize];
                 let wo_world = -ray[i].dir.normalize();
                 if m.is_emissive() && hit.is_front(wo_world) {
@@ -298,11 +302,18 @@ impl<'a> LockstepScene<'a> {
                     && consistent
                     && !black[i];
             }
-            let black_light = le == Rgb::ZERO;
-            for i in 0..LANES {
-                if cast_shadow[i] && !black_light {
-                    stats.rays += 1;
-                    if !scene.occluded(&spawn[i].spawn_ray_to(light_point.get(i))) {
+            if le != Rgb::ZERO {
+                let mut shadow_rays = ray;
+                for i in 0..LANES {
+                    if cast_shadow[i] {
+                        stats.rays += 1;
+                        shadow_rays[i] = spawn[i].spawn_ray_to(light_point.get(i));
+                    }
+                }
+                let shadow_bits = lane_bits(&cast_shadow);
+                let occluded = scene.geometry.occluded_rays(&shadow_rays, shadow_bits);
+                for i in 0..LANES {
+                    if shadow_bits & !occluded & (1 << i) != 0 {
                         l.set(i, l.get(i) + unoccluded.get(i));
                     }
                 }
@@ -360,6 +371,12 @@ impl<'a> LockstepScene<'a> {
         }
         std::array::from_fn(|i| l.get(i))
     }
+}
+
+/// A bit per lane that is set.
+#[inline(always)]
+fn lane_bits(lanes: &[bool; LANES]) -> u32 {
+    (0..LANES).filter(|&i| lanes[i]).fold(0, |bits, i| bits | 1 << i)
 }
 
 /// [`crate::sampling::warp::sample_hemisphere_cosine`] as (x, y, z), its
