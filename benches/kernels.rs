@@ -167,6 +167,71 @@ fn small_scenes(c: &mut Criterion) {
     }
 }
 
+/// The Mitsuba Cornell box's room (18 rectangles, traced without a tree)
+/// queried one ray at a time and eight rays at a time, as the lockstep
+/// path tracer asks: segments from points inside the room in uniform
+/// directions, and shadow rays from the same points to points on the
+/// ceiling.
+fn rectangle_room(c: &mut Criterion) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/crosscheck/scenes/cornell-box.xml");
+    let scene = trazo::scene::build(&trazo::scene::load(&path, &[]).unwrap()).unwrap();
+    let room = &scene.geometry;
+    let bounds = room.bounds();
+    let mut r = Pcg32::new(17, 3);
+    let mut inside = || {
+        bounds.min
+            + (bounds.max - bounds.min) * Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 0.98
+            + (bounds.max - bounds.min) * 0.01
+    };
+    let points: Vec<Vec3> = (0..4096).map(|_| inside()).collect();
+    let segments: Vec<Ray> = points
+        .iter()
+        .zip(random_rays(4096, 5))
+        .map(|(&p, ray)| Ray::new(p, ray.dir))
+        .collect();
+    let shadows: Vec<Ray> = points
+        .iter()
+        .map(|&p| {
+            let target = Vec3::new(p.x * 0.3, bounds.max.y * 0.999, p.z * 0.3);
+            Ray::with_interval(p, target - p, 1e-4, 1.0 - 1e-3)
+        })
+        .collect();
+    let sets = |rays: &[Ray]| -> Vec<[Ray; 8]> { rays.chunks_exact(8).map(|c| c.try_into().unwrap()).collect() };
+    let (segment_sets, shadow_sets) = (sets(&segments), sets(&shadows));
+    let mut g = c.benchmark_group(format!(
+        "rectangle room ({} flat blocks) x4096",
+        room.stats().flat_blocks
+    ));
+    g.bench_function("closest hit, one ray at a time", |b| {
+        b.iter(|| {
+            segments
+                .iter()
+                .filter(|r| room.intersect(black_box(r)).is_some())
+                .count()
+        })
+    });
+    g.bench_function("closest hit, eight rays at a time", |b| {
+        b.iter(|| {
+            segment_sets
+                .iter()
+                .map(|set| room.intersect_rays(black_box(set), 0xff).iter().flatten().count())
+                .sum::<usize>()
+        })
+    });
+    g.bench_function("any hit, one ray at a time", |b| {
+        b.iter(|| shadows.iter().filter(|r| room.occluded(black_box(r))).count())
+    });
+    g.bench_function("any hit, eight rays at a time", |b| {
+        b.iter(|| {
+            shadow_sets
+                .iter()
+                .map(|set| room.occluded_rays(black_box(set), 0xff).count_ones())
+                .sum::<u32>()
+        })
+    });
+    g.finish();
+}
+
 fn bsdf_sampling(c: &mut Criterion) {
     let mut r = Pcg32::new(5, 0);
     let inputs: Vec<(Vec3, f32, Vec2)> = (0..1024)
@@ -249,6 +314,7 @@ criterion_group!(
     intersection,
     traversal,
     small_scenes,
+    rectangle_room,
     bsdf_sampling,
     path_sample,
     whole_render
