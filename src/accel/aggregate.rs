@@ -14,6 +14,8 @@ use super::bvh::Bvh;
 use super::flat::{FLAT_MAX_PRIMITIVES, FLAT_MIN_PRIMITIVES, FlatHit, FlatScene, expected_hits, flat_pays};
 use super::queries::TriangleBvh;
 use super::wide::Bvh4;
+use crate::geometry::bounds::gamma;
+use crate::geometry::interaction::SurfaceLanes;
 use crate::geometry::mesh::TriangleMesh;
 use crate::geometry::shape::{LocalSurface, Shape};
 use crate::geometry::triangle::{TriangleRay, intersect_triangle_with};
@@ -640,6 +642,89 @@ impl Aggregate {
             .fold(0, |bits, i| bits | 1 << i)
     }
 
+    /// The surface records of `hits`, found on `rays` by
+    /// [`Aggregate::intersect_rays`], into the lanes of `out` (what lanes
+    /// without a hit hold is not to be read): [`Aggregate::surface`] on
+    /// each. In a room of rectangles the records are computed in lanes,
+    /// each quantity an array over the eight hits ([`Rectangle::surface`]
+    /// with the same operations in the same order: the same bits), which
+    /// the compiler turns into vector code; elsewhere one by one.
+    #[inline(always)]
+    pub fn surfaces(&self, rays: &[Ray; 8], hits: &[Option<Hit>; 8], out: &mut SurfaceLanes) {
+        if self.rectangle_room().is_none() {
+            for (i, hit) in hits.iter().enumerate() {
+                if let Some(hit) = hit {
+                    out.set(i, &self.surface(&rays[i], hit));
+                }
+            }
+            return;
+        }
+        // Each lane's rectangle (an empty lane's zeros are computed with
+        // and not read).
+        let mut frame = [[[0.0f32; 8]; 3]; 5];
+        let mut t = [0.0f32; 8];
+        let mut flip = [false; 8];
+        for (i, hit) in hits.iter().enumerate() {
+            let Some(Hit {
+                t: hit_t,
+                prim: HitPrim::Shape(id),
+            }) = *hit
+            else {
+                continue;
+            };
+            let s = &self.shapes[id as usize];
+            let Shape::Rectangle(r) = &s.shape else {
+                unreachable!("a room traced in lanes holds rectangles only")
+            };
+            let [corner, normal, dual_u, dual_v] = r.test_frame();
+            for (k, v) in [corner, normal, dual_u, dual_v, r.tangent()].into_iter().enumerate() {
+                (frame[k][0][i], frame[k][1][i], frame[k][2][i]) = (v.x, v.y, v.z);
+            }
+            t[i] = hit_t;
+            flip[i] = s.flip_normals;
+            out.material[i] = s.material;
+            out.light[i] = s.light;
+        }
+        let [corner, n, dual_u, dual_v, tangent] = &frame;
+        let mut o = [[0.0f32; 8]; 3];
+        let mut d = [[0.0f32; 8]; 3];
+        for (i, ray) in rays.iter().enumerate() {
+            (o[0][i], o[1][i], o[2][i]) = (ray.origin.x, ray.origin.y, ray.origin.z);
+            (d[0][i], d[1][i], d[2][i]) = (ray.dir.x, ray.dir.y, ray.dir.z);
+        }
+        let gamma_7 = gamma(7);
+        let mut p = [[0.0f32; 8]; 3];
+        for i in 0..8 {
+            // `ray.at(t)`, then `project_to_plane`: p0 − n (n · (p0 − c)).
+            let (x0, y0, z0) = (
+                o[0][i] + d[0][i] * t[i],
+                o[1][i] + d[1][i] * t[i],
+                o[2][i] + d[2][i] * t[i],
+            );
+            let k = (n[0][i] * (x0 - corner[0][i])) + (n[1][i] * (y0 - corner[1][i])) + (n[2][i] * (z0 - corner[2][i]));
+            let (x, y, z) = (x0 - n[0][i] * k, y0 - n[1][i] * k, z0 - n[2][i] * k);
+            (p[0][i], p[1][i], p[2][i]) = (x, y, z);
+            // `Rectangle::coordinates`.
+            let (qx, qy, qz) = (x - corner[0][i], y - corner[1][i], z - corner[2][i]);
+            out.uv[0][i] = (dual_u[0][i] * qx) + (dual_u[1][i] * qy) + (dual_u[2][i] * qz);
+            out.uv[1][i] = (dual_v[0][i] * qx) + (dual_v[1][i] * qy) + (dual_v[2][i] * qz);
+            // `planar_error`.
+            out.p_error[0][i] = gamma_7 * (x.abs() + corner[0][i].abs());
+            out.p_error[1][i] = gamma_7 * (y.abs() + corner[1][i].abs());
+            out.p_error[2][i] = gamma_7 * (z.abs() + corner[2][i].abs());
+        }
+        // The normal of the side called front.
+        for (ng, n) in out.ng.iter_mut().zip(n) {
+            for i in 0..8 {
+                ng[i] = if flip[i] { -n[i] } else { n[i] };
+            }
+        }
+        out.ns = out.ng;
+        out.tangent = *tangent;
+        out.p = p;
+        out.t = t;
+    }
+
     /// The flat scene, where it holds rectangles only and nothing lies
     /// outside it.
     #[inline]
@@ -1221,6 +1306,87 @@ mod tests {
             assert!((area.total - world_area).abs() < 1e-5 * world_area);
             let s = g.sample_emitter(e, &area, 0.5, Vec2::new(0.3, 0.6)).unwrap();
             assert!(close(s.n, n_expected) && (s.pdf_area * world_area - 1.0).abs() < 1e-5);
+        }
+    }
+
+    /// The eight-ray queries and the surface records in lanes give what
+    /// one ray at a time gives, to the bit: in a room of rectangles (the
+    /// lane code) with walls whose normals are flipped, and in a scene
+    /// with a sphere (one at a time behind the same calls).
+    #[test]
+    fn eight_rays_and_their_surfaces_equal_one_at_a_time() {
+        let mut rng = crate::sampling::rng::Pcg32::new(8, 1);
+        let mut point = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+        for with_sphere in [false, true] {
+            let mut shapes: Vec<ShapeInstance> = (0..20)
+                .map(|k| ShapeInstance {
+                    shape: Shape::Rectangle(crate::geometry::shape::Rectangle::new(
+                        point() * 0.5,
+                        point() * 1.5,
+                        point() * 1.5,
+                    )),
+                    transform: None,
+                    material: k,
+                    light: (k % 7 == 0).then_some(k),
+                    flip_normals: k % 3 == 0,
+                })
+                .collect();
+            if with_sphere {
+                shapes.push(ShapeInstance {
+                    shape: Shape::Sphere(Sphere {
+                        center: Vec3::ZERO,
+                        radius: 0.3,
+                    }),
+                    transform: None,
+                    material: 99,
+                    light: None,
+                    flip_normals: false,
+                });
+            }
+            let g = Aggregate::build(vec![], shapes, vec![], vec![]);
+            if with_sphere {
+                assert!(g.rectangle_room().is_none());
+            } else {
+                #[cfg(target_arch = "x86_64")]
+                assert_eq!(g.rectangle_room().is_some(), crate::geometry::lanes::avx_available());
+            }
+            let mut hits_seen = 0;
+            for k in 0..400 {
+                let rays: [Ray; 8] = std::array::from_fn(|_| Ray::new(point(), point()));
+                // Full sets, and sets too small to be tested together.
+                let active = if k % 2 == 0 { 0xff } else { 0b1001_0001 };
+                let hits = g.intersect_rays(&rays, active);
+                let mut surfaces = SurfaceLanes::default();
+                g.surfaces(&rays, &hits, &mut surfaces);
+                let blocked = g.occluded_rays(&rays, active);
+                for (i, ray) in rays.iter().enumerate() {
+                    let expected = if active & (1 << i) != 0 { g.intersect(ray) } else { None };
+                    assert_eq!(blocked & (1 << i) != 0, expected.is_some(), "ray {k}, lane {i}");
+                    match (hits[i], expected) {
+                        (None, None) => {}
+                        (Some(got), Some(expected)) => {
+                            hits_seen += 1;
+                            assert_eq!(got.t.to_bits(), expected.t.to_bits());
+                            let (a, b) = (surfaces.get(i), g.surface(ray, &expected));
+                            let bits = |h: &SurfaceHit| {
+                                let v = [h.p, h.p_error, h.ng, h.ns, h.tangent];
+                                let f: Vec<u32> = v.iter().flat_map(|v| v.to_array()).map(f32::to_bits).collect();
+                                (
+                                    f,
+                                    h.t.to_bits(),
+                                    h.uv.x.to_bits(),
+                                    h.uv.y.to_bits(),
+                                    h.material,
+                                    h.light,
+                                )
+                            };
+                            assert_eq!(bits(&a), bits(&b), "ray {k}, lane {i}");
+                        }
+                        (got, expected) => panic!("ray {k}, lane {i}: {got:?} vs {expected:?}"),
+                    }
+                }
+            }
+            assert!(hits_seen > 1000, "{hits_seen} hits");
         }
     }
 }

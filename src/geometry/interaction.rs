@@ -60,6 +60,78 @@ impl SurfaceHit {
     }
 }
 
+/// The surface records of up to eight hits, structure of arrays: what
+/// [`SurfaceHit`] holds, a lane per hit, so that code over eight paths
+/// can read each quantity as one array.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SurfaceLanes {
+    /// `SurfaceHit::t` per lane.
+    pub t: [f32; 8],
+    /// `SurfaceHit::p`: `[x, y, z]` of the lanes.
+    pub p: [[f32; 8]; 3],
+    /// `SurfaceHit::p_error`.
+    pub p_error: [[f32; 8]; 3],
+    /// `SurfaceHit::ng`.
+    pub ng: [[f32; 8]; 3],
+    /// `SurfaceHit::ns`.
+    pub ns: [[f32; 8]; 3],
+    /// `SurfaceHit::tangent`.
+    pub tangent: [[f32; 8]; 3],
+    /// `SurfaceHit::uv`: `[u, v]` of the lanes.
+    pub uv: [[f32; 8]; 2],
+    /// `SurfaceHit::material`.
+    pub material: [u32; 8],
+    /// `SurfaceHit::light`.
+    pub light: [Option<u32>; 8],
+}
+
+impl SurfaceLanes {
+    /// Lane `i` becomes `hit`.
+    #[inline(always)]
+    pub fn set(&mut self, i: usize, hit: &SurfaceHit) {
+        let set3 = |lanes: &mut [[f32; 8]; 3], v: Vec3| {
+            (lanes[0][i], lanes[1][i], lanes[2][i]) = (v.x, v.y, v.z);
+        };
+        self.t[i] = hit.t;
+        set3(&mut self.p, hit.p);
+        set3(&mut self.p_error, hit.p_error);
+        set3(&mut self.ng, hit.ng);
+        set3(&mut self.ns, hit.ns);
+        set3(&mut self.tangent, hit.tangent);
+        (self.uv[0][i], self.uv[1][i]) = (hit.uv.x, hit.uv.y);
+        self.material[i] = hit.material;
+        self.light[i] = hit.light;
+    }
+
+    /// Lane `i` as a [`SurfaceHit`].
+    #[inline(always)]
+    pub fn get(&self, i: usize) -> SurfaceHit {
+        let get3 = |lanes: &[[f32; 8]; 3]| Vec3::new(lanes[0][i], lanes[1][i], lanes[2][i]);
+        SurfaceHit {
+            t: self.t[i],
+            p: get3(&self.p),
+            p_error: get3(&self.p_error),
+            ng: get3(&self.ng),
+            ns: get3(&self.ns),
+            uv: Vec2::new(self.uv[0][i], self.uv[1][i]),
+            tangent: get3(&self.tangent),
+            material: self.material[i],
+            light: self.light[i],
+        }
+    }
+
+    /// Lane `i`'s [`SurfaceHit::spawn_point`].
+    #[inline(always)]
+    pub fn spawn_point(&self, i: usize) -> SpawnPoint {
+        let get3 = |lanes: &[[f32; 8]; 3]| Vec3::new(lanes[0][i], lanes[1][i], lanes[2][i]);
+        SpawnPoint {
+            p: get3(&self.p),
+            p_error: get3(&self.p_error),
+            ng: get3(&self.ng),
+        }
+    }
+}
+
 /// A surface point from which rays leave: the point, the bound on its
 /// rounding error, and the geometric normal.
 #[derive(Clone, Copy, Debug, Default)]

@@ -5,8 +5,10 @@
 //! time. Their rays go to the scene eight at a time
 //! ([`Aggregate::intersect_rays`](crate::accel::Aggregate::intersect_rays)),
 //! which in a room of rectangles tests them together, one rectangle
-//! against eight rays, and elsewhere one by one. What differs from path
-//! to path in control flow stays per path: the surface records and the
+//! against eight rays, and elsewhere one by one; the surface records come
+//! back in lanes too ([`Aggregate::surfaces`](crate::accel::Aggregate::surfaces),
+//! computed in lanes in a room of rectangles). What differs from path to
+//! path in control flow stays per path: the materials' lookups and the
 //! sampler's draws. The shading between them (the light sample's
 //! geometry, the diffuse BSDF, the MIS weights, the cosine-weighted
 //! direction, the throughput and Russian roulette) is written over arrays
@@ -27,13 +29,13 @@ use super::RayStats;
 use super::path::{PathSampling, PathTracer, power_heuristic};
 use crate::color::Rgb;
 use crate::geometry::Ray;
-use crate::geometry::interaction::SpawnPoint;
+use crate::geometry::interaction::SurfaceLanes;
 use crate::light::{Light, Parallelogram};
 use crate::material::MaterialKind;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::texture::{TexCoord, Texture};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
 
 /// Paths traced together.
@@ -57,6 +59,13 @@ struct Vec3Lanes {
     x: F32Lanes,
     y: F32Lanes,
     z: F32Lanes,
+}
+
+impl From<[[f32; LANES]; 3]> for Vec3Lanes {
+    #[inline(always)]
+    fn from([x, y, z]: [[f32; LANES]; 3]) -> Vec3Lanes {
+        Vec3Lanes { x, y, z }
+    }
 }
 
 impl Vec3Lanes {
@@ -169,45 +178,53 @@ impl<'a> LockstepScene<'a> {
         for (i, r) in rays.iter().enumerate() {
             prev_p.set(i, r.origin);
         }
-        // Each lane's hit: where its rays leave from, and its surface in
-        // lanes. What lanes that are no longer alive hold is never read.
-        let mut spawn = [SpawnPoint::default(); LANES];
+        // Each lane's hit: its surface record, in lanes. What lanes that
+        // are no longer alive hold is never read.
+        let mut surfaces = SurfaceLanes::default();
         let mut albedo = Vec3Lanes::default();
-        let mut p = Vec3Lanes::default();
-        let mut ng = Vec3Lanes::default();
-        let mut ns = Vec3Lanes::default();
-        let mut tangent = Vec3Lanes::default();
         let mut wo = Vec3Lanes::default();
         let mut depth = 1u32;
         while depth <= integrator.max_depth {
             // The segments' queries and surface records, and emission found.
             let mut any_alive = false;
             let hits = scene.geometry.intersect_rays(&ray, lane_bits(&alive));
+            scene.geometry.surfaces(&ray, &hits, &mut surfaces);
+            let (p, ng) = (Vec3Lanes::from(surfaces.p), Vec3Lanes::from(surfaces.ng));
+            // `-dir.normalize()` and `SurfaceHit::is_front` in lanes.
+            let mut front = [false; LANES];
+            for i in 0..LANES {
+                let d = ray[i].dir;
+                let recip = 1.0 / ((d.x * d.x) + (d.y * d.y) + (d.z * d.z)).sqrt();
+                (wo.x[i], wo.y[i], wo.z[i]) = (-(d.x * recip), -(d.y * recip), -(d.z * recip));
+                front[i] = (ng.x[i] * wo.x[i]) + (ng.y[i] * wo.y[i]) + (ng.z[i] * wo.z[i]) > 0.0;
+            }
             for i in 0..LANES {
                 if !alive[i] {
                     continue;
                 }
                 stats.rays += 1;
-                let Some(hit) = &hits[i] else {
+                if hits[i].is_none() {
                     alive[i] = false;
                     continue;
+                }
+                let m = &scene.materials[surfaces.material[i] as usize];
+                let tex = TexCoord {
+                    uv: Vec2::new(surfaces.uv[0][i], surfaces.uv[1][i]),
+                    p: p.get(i),
                 };
-                let hit = scene.geometry.surface(&ray[i], hit);
-                let m = &scene.materials[hit.material as usize];
-                let wo_world = -ray[i].dir.normalize();
-                if m.is_emissive() && hit.is_front(wo_world) {
-                    let w = match hit.light {
+                if m.is_emissive() && front[i] {
+                    let w = match surfaces.light[i] {
                         Some(li) if !first_segment => {
                             let pdf_light = scene.light_distribution.pmf(li as usize)
-                                * scene.lights[li as usize].pdf_li(scene, prev_p.get(i), &hit);
+                                * scene.lights[li as usize].pdf_li(scene, prev_p.get(i), &surfaces.get(i));
                             power_heuristic(prev_pdf[i], pdf_light)
                         }
                         _ => 1.0,
                     };
-                    let le = m.emission_at(&scene.images, &TexCoord { uv: hit.uv, p: hit.p });
+                    let le = m.emission_at(&scene.images, &tex);
                     l.set(i, l.get(i) + beta.get(i) * le * w);
                 }
-                if depth == integrator.max_depth || !m.two_sided && !hit.is_front(wo_world) {
+                if depth == integrator.max_depth || !m.two_sided && !front[i] {
                     // The end of the path, or the black back of a one-sided
                     // surface.
                     alive[i] = false;
@@ -218,18 +235,13 @@ impl<'a> LockstepScene<'a> {
                 let MaterialKind::Diffuse { reflectance } = &m.kind else {
                     unreachable!("LockstepScene::new admits diffuse materials only")
                 };
-                albedo.set(i, reflectance.eval(&scene.images, &TexCoord { uv: hit.uv, p: hit.p }));
-                p.set(i, hit.p);
-                ng.set(i, hit.ng);
-                ns.set(i, hit.ns);
-                tangent.set(i, hit.tangent);
-                wo.set(i, wo_world);
-                spawn[i] = hit.spawn_point();
+                albedo.set(i, reflectance.eval(&scene.images, &tex));
                 any_alive = true;
             }
             if !any_alive {
                 break;
             }
+            let (ns, tangent) = (Vec3Lanes::from(surfaces.ns), Vec3Lanes::from(surfaces.tangent));
 
             // The numbers of the bounce, in the path tracer's order: the light
             // choice and the pick within the light (both passed over: one
@@ -307,7 +319,7 @@ impl<'a> LockstepScene<'a> {
                 for i in 0..LANES {
                     if cast_shadow[i] {
                         stats.rays += 1;
-                        shadow_rays[i] = spawn[i].spawn_ray_to(light_point.get(i));
+                        shadow_rays[i] = surfaces.spawn_point(i).spawn_ray_to(light_point.get(i));
                     }
                 }
                 let shadow_bits = lane_bits(&cast_shadow);
@@ -356,7 +368,7 @@ impl<'a> LockstepScene<'a> {
                 if !alive[i] {
                     continue;
                 }
-                ray[i] = spawn[i].spawn_ray(wi_world.get(i));
+                ray[i] = surfaces.spawn_point(i).spawn_ray(wi_world.get(i));
                 if depth > integrator.rr_depth {
                     let q = beta.get(i).max_element().min(0.95);
                     if samplers[i].next_1d() >= q {
