@@ -111,7 +111,7 @@ mod avx {
     /// under rounding (pbrt-v4, section 6.8.2), as in the trees.
     const SLAB_ROUNDING: f32 = 1.0 + 2.0 * gamma(3);
     use crate::accel::bvh::{Bvh, BvhNode};
-    use crate::geometry::lanes::{F8, LANES, Lanes, M8, avx_available};
+    use crate::geometry::lanes::{F8, LANES, Lanes, M8, avx_available, transpose_rays};
     use crate::geometry::triangle::TriangleRay;
     use crate::geometry::{Aabb, Ray, Rectangle};
     use glam::Vec3;
@@ -621,33 +621,17 @@ mod avx {
             // that every comparison rejects. `t <= t_max` with t_max at most
             // the largest float rejects +∞ (see `Rectangle8::intersect`);
             // once a lane has a hit, its distance, finite, is the bound.
-            let mut lanes = [Lanes([0.0; LANES]); 8];
-            let mut tested_bits = 0;
-            for (i, ray) in rays.iter().enumerate() {
-                let tested = active & (1 << i) != 0 && ray.dir != Vec3::ZERO;
-                tested_bits |= (tested as u32) << i;
-                let t_min = if tested { ray.t_min } else { f32::NAN };
-                let values = [
-                    ray.origin.x,
-                    ray.origin.y,
-                    ray.origin.z,
-                    ray.dir.x,
-                    ray.dir.y,
-                    ray.dir.z,
-                    t_min,
-                    ray.t_max.min(f32::MAX),
-                ];
-                for (row, value) in lanes.iter_mut().zip(values) {
-                    row.0[i] = value;
-                }
-            }
-            let o = [F8::load(&lanes[0]), F8::load(&lanes[1]), F8::load(&lanes[2])];
-            let d = [F8::load(&lanes[3]), F8::load(&lanes[4]), F8::load(&lanes[5])];
-            let t_min = F8::load(&lanes[6]);
-            let mut t_max = F8::load(&lanes[7]);
+            let [ox, oy, oz, dx, dy, dz, t_min, t_max] = transpose_rays(rays);
+            let (o, d) = ([ox, oy, oz], [dx, dy, dz]);
+            let zero = F8::splat(0.0);
+            let zero_dir = dx.eq(zero).and(dy.eq(zero)).and(dz.eq(zero));
+            let tested = M8::from_bits(active).and_not(zero_dir);
+            let tested_bits = tested.bits();
+            let t_min = tested.select(t_min, F8::splat(f32::NAN));
+            let mut t_max = t_max.min(F8::splat(f32::MAX));
             let mut found = M8::none();
             let mut index = F8::splat(0.0);
-            let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
+            let one = F8::splat(1.0);
             for (k, (frame, _)) in self.rectangle_list.iter().enumerate() {
                 let f = |j: usize| F8::splat(frame[j]);
                 let corner = [f(0), f(1), f(2)];
