@@ -265,39 +265,51 @@ mod avx {
         #[target_feature(enable = "avx")]
         fn intersect(&self, ray: &Ray, t_max: f32) -> (u32, F8) {
             let corner = load3(&self.v[0]);
-            let n = load3(&self.v[1]);
+            let frame = [corner, load3(&self.v[1]), load3(&self.v[2]), load3(&self.v[3])];
             let o = [
                 F8::splat(ray.origin.x),
                 F8::splat(ray.origin.y),
                 F8::splat(ray.origin.z),
             ];
             let d = [F8::splat(ray.dir.x), F8::splat(ray.dir.y), F8::splat(ray.dir.z)];
-            let denom = dot(n, d);
-            let q = [corner[0].sub(o[0]), corner[1].sub(o[1]), corner[2].sub(o[2])];
-            let t = dot(n, q).div(denom);
-            // The point `o + d·t` relative to the corner.
-            let r = [
-                o[0].add(d[0].mul(t)).sub(corner[0]),
-                o[1].add(d[1].mul(t)).sub(corner[1]),
-                o[2].add(d[2].mul(t)).sub(corner[2]),
-            ];
-            let u = dot(load3(&self.v[2]), r);
-            let v = dot(load3(&self.v[3]), r);
-            let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
-            // The one-rectangle test's conditions, denominator not zero and
-            // t finite, in two comparisons: t is ±∞ or NaN where the
-            // denominator is zero, `t > t_min` is false for −∞ and NaN,
-            // and `t <= t_max` with t_max at most the largest float is
-            // false for +∞.
-            let valid = t
-                .gt(F8::splat(ray.t_min))
-                .and(t.le(F8::splat(t_max.min(f32::MAX))))
-                .and(u.ge(zero))
-                .and(u.le(one))
-                .and(v.ge(zero))
-                .and(v.le(one));
+            let (valid, t) = rectangle_lanes(frame, o, d, F8::splat(ray.t_min), F8::splat(t_max.min(f32::MAX)));
             (valid.bits(), t)
         }
+    }
+
+    /// [`Rectangle::intersect`] on eight lanes, rectangles
+    /// `[corner, normal, dual_u, dual_v]` against rays `o + t·d`: whether
+    /// each lane's hit lies within `(t_min, t_max]`, and its distance.
+    /// Either the rectangles or the rays may be the same in every lane.
+    /// The one-rectangle test's conditions, denominator not zero and t
+    /// finite, take two comparisons: t is ±∞ or NaN where the denominator
+    /// is zero, `t > t_min` is false for −∞ and NaN, and `t <= t_max` with
+    /// t_max at most the largest float (the callers' part) is false for
+    /// +∞.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn rectangle_lanes(frame: [[F8; 3]; 4], o: [F8; 3], d: [F8; 3], t_min: F8, t_max: F8) -> (M8, F8) {
+        let [corner, n, dual_u, dual_v] = frame;
+        let denom = dot(n, d);
+        let q = [corner[0].sub(o[0]), corner[1].sub(o[1]), corner[2].sub(o[2])];
+        let t = dot(n, q).div(denom);
+        // The point `o + d·t` relative to the corner.
+        let r = [
+            o[0].add(d[0].mul(t)).sub(corner[0]),
+            o[1].add(d[1].mul(t)).sub(corner[1]),
+            o[2].add(d[2].mul(t)).sub(corner[2]),
+        ];
+        let u = dot(dual_u, r);
+        let v = dot(dual_v, r);
+        let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
+        let valid = t
+            .gt(t_min)
+            .and(t.le(t_max))
+            .and(u.ge(zero))
+            .and(u.le(one))
+            .and(v.ge(zero))
+            .and(v.le(one));
+        (valid, t)
     }
 
     /// The edge functions and their sum per lane, from which a hit lane's
@@ -631,28 +643,15 @@ mod avx {
             let mut t_max = t_max.min(F8::splat(f32::MAX));
             let mut found = M8::none();
             let mut index = F8::splat(0.0);
-            let one = F8::splat(1.0);
             for (k, (frame, _)) in self.rectangle_list.iter().enumerate() {
-                let f = |j: usize| F8::splat(frame[j]);
-                let corner = [f(0), f(1), f(2)];
-                let n = [f(3), f(4), f(5)];
-                let denom = dot(n, d);
-                let q = [corner[0].sub(o[0]), corner[1].sub(o[1]), corner[2].sub(o[2])];
-                let t = dot(n, q).div(denom);
-                let r = [
-                    o[0].add(d[0].mul(t)).sub(corner[0]),
-                    o[1].add(d[1].mul(t)).sub(corner[1]),
-                    o[2].add(d[2].mul(t)).sub(corner[2]),
-                ];
-                let u = dot([f(6), f(7), f(8)], r);
-                let v = dot([f(9), f(10), f(11)], r);
-                let valid = t
-                    .gt(t_min)
-                    .and(t.le(t_max))
-                    .and(u.ge(zero))
-                    .and(u.le(one))
-                    .and(v.ge(zero))
-                    .and(v.le(one));
+                let f = |j: usize| {
+                    [
+                        F8::splat(frame[3 * j]),
+                        F8::splat(frame[3 * j + 1]),
+                        F8::splat(frame[3 * j + 2]),
+                    ]
+                };
+                let (valid, t) = rectangle_lanes([f(0), f(1), f(2), f(3)], o, d, t_min, t_max);
                 found = found.or(valid);
                 if any_hit {
                     // Every ray blocked: the rest cannot change the answer.
