@@ -4,7 +4,9 @@
 //! Every operation is a function built for AVX: it may only run where the
 //! processor has AVX, which the compiler enforces by letting only other
 //! AVX functions call it. `FlatScene` checks for AVX once and enters the
-//! lane code through one such function. (Plain loops over `[f32; 8]` were
+//! lane code through such functions: `intersect` (one ray against blocks
+//! of eight primitives) and `intersect_rays` (eight rays, loaded by
+//! [`transpose_rays`], against one rectangle at a time). (Plain loops over `[f32; 8]` were
 //! tried first: the compiler vectorised them across the wrong dimension and
 //! the test took more instructions than the tree it replaced.)
 //!
@@ -12,7 +14,7 @@
 //! `ne`, which is true for NaN, so a lane computes what the one-primitive
 //! test computes.
 //!
-//! Besides `FlatScene`'s entry, one other function enters AVX code, the
+//! Besides `FlatScene`'s entries, one other function enters AVX code, the
 //! same way: `integrator::path_lanes::LockstepScene::radiance`, whose
 //! loops over eight paths are built for AVX where the processor has it.
 //!
