@@ -14,10 +14,9 @@ use super::bvh::Bvh;
 use super::flat::{FLAT_MAX_PRIMITIVES, FLAT_MIN_PRIMITIVES, FlatHit, FlatScene, expected_hits, flat_pays};
 use super::queries::TriangleBvh;
 use super::wide::Bvh4;
-use crate::geometry::bounds::gamma;
 use crate::geometry::interaction::SurfaceLanes;
 use crate::geometry::mesh::TriangleMesh;
-use crate::geometry::shape::{LocalSurface, Shape};
+use crate::geometry::shape::{LocalSurface, Rectangle, Shape};
 use crate::geometry::triangle::{TriangleRay, intersect_triangle_with};
 use crate::geometry::{Aabb, Ray, SurfaceHit, Transform};
 use crate::sampling::Distribution1D;
@@ -646,9 +645,9 @@ impl Aggregate {
     /// [`Aggregate::intersect_rays`], into the lanes of `out` (what lanes
     /// without a hit hold is not to be read): [`Aggregate::surface`] on
     /// each. In a room of rectangles the records are computed in lanes,
-    /// each quantity an array over the eight hits ([`Rectangle::surface`]
-    /// with the same operations in the same order: the same bits), which
-    /// the compiler turns into vector code; elsewhere one by one.
+    /// each quantity an array over the eight hits
+    /// ([`Rectangle::surfaces_in_lanes`]: the same bits), which the
+    /// compiler turns into vector code; elsewhere one by one.
     #[inline(always)]
     pub fn surfaces(&self, rays: &[Ray; 8], hits: &[Option<Hit>; 8], out: &mut SurfaceLanes) {
         if self.rectangle_room().is_none() {
@@ -686,33 +685,7 @@ impl Aggregate {
             out.light[i] = s.light;
         }
         let [corner, n, dual_u, dual_v, tangent] = &frame;
-        let mut o = [[0.0f32; 8]; 3];
-        let mut d = [[0.0f32; 8]; 3];
-        for (i, ray) in rays.iter().enumerate() {
-            (o[0][i], o[1][i], o[2][i]) = (ray.origin.x, ray.origin.y, ray.origin.z);
-            (d[0][i], d[1][i], d[2][i]) = (ray.dir.x, ray.dir.y, ray.dir.z);
-        }
-        let gamma_7 = gamma(7);
-        let mut p = [[0.0f32; 8]; 3];
-        for i in 0..8 {
-            // `ray.at(t)`, then `project_to_plane`: p0 − n (n · (p0 − c)).
-            let (x0, y0, z0) = (
-                o[0][i] + d[0][i] * t[i],
-                o[1][i] + d[1][i] * t[i],
-                o[2][i] + d[2][i] * t[i],
-            );
-            let k = (n[0][i] * (x0 - corner[0][i])) + (n[1][i] * (y0 - corner[1][i])) + (n[2][i] * (z0 - corner[2][i]));
-            let (x, y, z) = (x0 - n[0][i] * k, y0 - n[1][i] * k, z0 - n[2][i] * k);
-            (p[0][i], p[1][i], p[2][i]) = (x, y, z);
-            // `Rectangle::coordinates`.
-            let (qx, qy, qz) = (x - corner[0][i], y - corner[1][i], z - corner[2][i]);
-            out.uv[0][i] = (dual_u[0][i] * qx) + (dual_u[1][i] * qy) + (dual_u[2][i] * qz);
-            out.uv[1][i] = (dual_v[0][i] * qx) + (dual_v[1][i] * qy) + (dual_v[2][i] * qz);
-            // `planar_error`.
-            out.p_error[0][i] = gamma_7 * (x.abs() + corner[0][i].abs());
-            out.p_error[1][i] = gamma_7 * (y.abs() + corner[1][i].abs());
-            out.p_error[2][i] = gamma_7 * (z.abs() + corner[2][i].abs());
-        }
+        let p = Rectangle::surfaces_in_lanes(rays, &t, [corner, n, dual_u, dual_v], &mut out.p_error, &mut out.uv);
         // The normal of the side called front.
         for (ng, n) in out.ng.iter_mut().zip(n) {
             for i in 0..8 {
