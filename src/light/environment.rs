@@ -9,14 +9,17 @@
 //! row of the image is straight up (+y), the left edge (u = 0) looks down
 //! −z, a quarter of the way across looks down +x and the centre column +z.
 //! It is evaluated with bilinear interpolation between pixel centres (as
-//! Mitsuba does) and sampled in proportion to each pixel's luminance × sin θ.
-//! The two shapes differ slightly inside pixels; that costs a little
-//! variance, not bias, because the density is positive wherever a pixel or
-//! its neighbours are bright, and BSDF sampling covers the rest under MIS.
+//! Mitsuba does) and sampled with a density proportional to the bilinear
+//! interpolation of luminance × sin θ between the same pixel centres
+//! ([`BilinearDistribution2D`]), so the density follows the radiance a
+//! lookup returns, inside pixels too: a sun of one or two pixels is sampled
+//! where its light is, with no margin of dim density around it (a step
+//! density over pixels would leave one there, half a pixel wide, and every
+//! sample that lands in it is a firefly).
 
 use crate::color::{Rgb, luminance};
 use crate::geometry::Transform;
-use crate::sampling::Distribution2D;
+use crate::sampling::BilinearDistribution2D;
 use crate::sampling::warp::{pdf_sphere_uniform, sample_sphere_uniform};
 use crate::texture::ImageTexture;
 use glam::{Vec2, Vec3};
@@ -31,7 +34,7 @@ pub struct EnvironmentMap {
     pub scale: f32,
     /// Map-to-world rotation.
     pub to_world: Transform,
-    distribution: Distribution2D,
+    distribution: BilinearDistribution2D,
     average: Rgb,
 }
 
@@ -44,11 +47,21 @@ impl EnvironmentMap {
             image,
             scale,
             to_world,
-            distribution: Distribution2D::default(),
+            distribution: BilinearDistribution2D::default(),
         };
-        // The sampling density is piecewise constant over a W×H grid of
-        // (u, v) cells, each weighted by the radiance at its centre × sin θ.
-        let mut weights = Vec::with_capacity(w * h);
+        // The density's nodes are the lookup's: pixel centres, columns at
+        // u = (i + ½)/W (one more column, the first again, closes the
+        // wrap-around) and rows at v = j/(H − 1) (an image of one row is
+        // read as two equal rows). Each node holds luminance × sin θ.
+        let rows = h.max(2);
+        let mut nodes = Vec::with_capacity((w + 1) * rows);
+        for j in 0..rows {
+            let sin_theta = (PI * j as f32 / (rows - 1) as f32).sin();
+            let row = &map.image.pixels[j.min(h - 1) * w..(j.min(h - 1) + 1) * w];
+            nodes.extend(row.iter().map(|&c| luminance(c * map.scale).max(0.0) * sin_theta));
+            nodes.push(luminance(row[0] * map.scale).max(0.0) * sin_theta);
+        }
+        map.distribution = BilinearDistribution2D::new(&nodes, w + 1, rows);
         let mut sum = glam::DVec3::ZERO;
         let mut solid_angle = 0.0f64;
         for y in 0..h {
@@ -56,14 +69,26 @@ impl EnvironmentMap {
             let sin_theta = (PI * v).sin();
             for x in 0..w {
                 let c = map.eval_uv(Vec2::new((x as f32 + 0.5) / w as f32, v));
-                weights.push(luminance(c).max(0.0) * sin_theta);
                 sum += c.as_dvec3() * sin_theta as f64;
                 solid_angle += sin_theta as f64;
             }
         }
-        map.distribution = Distribution2D::new(&weights, w, h);
         map.average = (sum / solid_angle.max(1e-12)).as_vec3();
         map
+    }
+
+    /// The point of the sampling density's domain (the unit square spanned
+    /// by its nodes) that map coordinates `uv` fall on, and back: the
+    /// density's columns start half a pixel to the right of u = 0.
+    fn density_point(&self, uv: Vec2) -> Vec2 {
+        let w = self.image.width as f32;
+        let x = uv.x - 0.5 / w;
+        Vec2::new(x - x.floor(), uv.y)
+    }
+
+    fn map_point(&self, p: Vec2) -> Vec2 {
+        let x = p.x + 0.5 / self.image.width as f32;
+        Vec2::new(x - x.floor(), p.y)
     }
 
     fn uv_of(&self, dir_world: Vec3) -> Vec2 {
@@ -108,8 +133,8 @@ impl EnvironmentMap {
     /// A direction drawn in proportion to the map's brightness, and its
     /// density per steradian.
     pub fn sample(&self, u: Vec2) -> Option<(Vec3, f32)> {
-        let (uv, pdf_uv) = self.distribution.sample(u);
-        let (d, sin_theta) = self.dir_of(uv);
+        let (p, pdf_uv) = self.distribution.sample(u);
+        let (d, sin_theta) = self.dir_of(self.map_point(p));
         if sin_theta <= 0.0 || pdf_uv <= 0.0 {
             return None;
         }
@@ -124,7 +149,7 @@ impl EnvironmentMap {
         if sin_theta <= 0.0 {
             return 0.0;
         }
-        self.distribution.pdf(uv) / (2.0 * PI * PI * sin_theta)
+        self.distribution.pdf(self.density_point(uv)) / (2.0 * PI * PI * sin_theta)
     }
 }
 
@@ -295,5 +320,73 @@ mod tests {
         assert!((a - b).abs() < 4.0 * (var_a + var_b).sqrt(), "{a} vs {b}");
         // Importance sampling must pay: lower variance than uniform sampling.
         assert!(var_a * (n as f64) < var_b * (m as f64), "no variance reduction");
+    }
+
+    /// A map of random grey pixels whose brightness spans two orders of
+    /// magnitude, with one-pixel suns.
+    fn contrasty_map(w: u32, h: u32) -> EnvironmentMap {
+        let mut r = Pcg32::new(21, 3);
+        let mut pixels: Vec<Rgb> = (0..w * h).map(|_| Rgb::splat(0.1 + 10.0 * r.next_f32())).collect();
+        for (x, y) in [(3, 5), (w - 1, h / 2), (w / 2, 1)] {
+            if x < w && y < h {
+                pixels[(y * w + x) as usize] = Rgb::splat(5000.0);
+            }
+        }
+        EnvironmentMap::new(
+            ImageTexture {
+                width: w,
+                height: h,
+                pixels,
+            },
+            1.0,
+            Transform::rotate(Vec3::new(0.3, 1.0, 0.2), 40.0).unwrap(),
+        )
+    }
+
+    #[test]
+    fn sampled_directions_follow_the_density() {
+        use crate::sampling::chi2::Chi2Test;
+        for map in [
+            test_map(),
+            contrasty_map(16, 8),
+            contrasty_map(1, 1),
+            contrasty_map(5, 1),
+        ] {
+            let mut r = Pcg32::new(9, 4);
+            let result = Chi2Test::default().run(
+                |_| map.sample(Vec2::new(r.next_f32(), r.next_f32())).map(|(d, _)| d),
+                |d| map.pdf(d) as f64,
+            );
+            assert!(result.p_value > 0.001, "{result:?}");
+        }
+    }
+
+    #[test]
+    fn grey_maps_are_sampled_nearly_in_proportion_to_their_radiance() {
+        // The density follows the bilinear lookup, so L/pdf varies only
+        // where luminance × sin θ between rows is not luminance between
+        // rows × sin θ: most near the poles, whose nodes are 0 however
+        // bright their pixels (as in Mitsuba's envmap). Beside one-pixel
+        // suns 500 times the sky its relative spread stays small; a density
+        // constant over each pixel leaves a dim margin around each sun,
+        // where L/pdf is hundreds of times its mean.
+        let map = contrasty_map(64, 32);
+        let mut r = Pcg32::new(10, 5);
+        let n = 100_000;
+        let (mut sum, mut sum_sq, mut max) = (0.0f64, 0.0f64, 0.0f64);
+        for _ in 0..n {
+            let (d, pdf) = map.sample(Vec2::new(r.next_f32(), r.next_f32())).unwrap();
+            let v = (map.eval(d).x / pdf) as f64;
+            sum += v;
+            sum_sq += v * v;
+            max = max.max(v);
+        }
+        let mean = sum / n as f64;
+        let cv = (sum_sq / n as f64 - mean * mean).max(0.0).sqrt() / mean;
+        assert!(
+            cv < 0.15 && max < 5.0 * mean,
+            "relative spread {cv}, largest {} × the mean",
+            max / mean
+        );
     }
 }

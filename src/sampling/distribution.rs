@@ -207,3 +207,207 @@ mod tests_2d {
         assert!(chi2 < 20.5, "chi2 {chi2}"); // 4 d.o.f., p = 0.0004
     }
 }
+
+/// Draws x ∈ [0, 1) with density proportional to the linear function
+/// that is `a` at 0 and `b` at 1 (both ≥ 0, not both 0), by inverting its
+/// cumulative distribution in the form that stays accurate when one end is
+/// near 0 (pbrt-v4 `SampleLinear`).
+#[inline]
+pub fn sample_linear(u: f32, a: f32, b: f32) -> f32 {
+    if u == 0.0 && a == 0.0 {
+        return 0.0;
+    }
+    let x = u * (a + b) / (a + ((1.0 - u) * a * a + u * b * b).sqrt());
+    x.min(1.0 - f32::EPSILON / 2.0)
+}
+
+/// A density over [0, 1]² proportional to the bilinear interpolation of
+/// non-negative values at the nodes of a regular grid (`nodes_x` × `nodes_y`
+/// nodes, so one fewer cells each way). A cell is chosen in proportion to
+/// the integral of its bilinear patch (the mean of its four corners), then
+/// the point inside it by the patch's marginal and conditional densities,
+/// both linear (pbrt-v4 `SampleBilinear`): the density is exactly the
+/// interpolant, not a step function beside it, so an image lookup that
+/// interpolates bilinearly is sampled without the variance a piecewise
+/// constant density leaves at the edges of bright pixels.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BilinearDistribution2D {
+    nodes_x: usize,
+    nodes_y: usize,
+    nodes: Vec<f32>,
+    cells: Distribution2D,
+    /// Cells divided by the sum of the cell weights: turns an interpolated
+    /// value into a density over [0, 1]².
+    norm: f32,
+}
+
+impl BilinearDistribution2D {
+    /// A distribution from row-major node values (negative or non-finite
+    /// ones count as 0); needs at least two nodes each way.
+    pub fn new(nodes: &[f32], nodes_x: usize, nodes_y: usize) -> Self {
+        assert!(nodes_x >= 2 && nodes_y >= 2 && nodes.len() == nodes_x * nodes_y);
+        let nodes: Vec<f32> = nodes
+            .iter()
+            .map(|&v| if v.is_finite() && v > 0.0 { v } else { 0.0 })
+            .collect();
+        let (cx, cy) = (nodes_x - 1, nodes_y - 1);
+        let mut weights = Vec::with_capacity(cx * cy);
+        let mut sum = 0.0f64;
+        for y in 0..cy {
+            for x in 0..cx {
+                let n = |dx: usize, dy: usize| nodes[(y + dy) * nodes_x + x + dx] as f64;
+                let w = 0.25 * (n(0, 0) + n(1, 0) + n(0, 1) + n(1, 1));
+                weights.push(w as f32);
+                sum += w;
+            }
+        }
+        let norm = if sum > 0.0 {
+            ((cx * cy) as f64 / sum) as f32
+        } else {
+            0.0
+        };
+        BilinearDistribution2D {
+            nodes_x,
+            nodes_y,
+            nodes,
+            cells: Distribution2D::new(&weights, cx, cy),
+            norm,
+        }
+    }
+
+    /// The four corner values of cell (x, y): (x0 y0, x1 y0, x0 y1, x1 y1).
+    #[inline]
+    fn corners(&self, x: usize, y: usize) -> [f32; 4] {
+        let i = y * self.nodes_x + x;
+        let j = i + self.nodes_x;
+        [self.nodes[i], self.nodes[i + 1], self.nodes[j], self.nodes[j + 1]]
+    }
+
+    #[inline]
+    fn cell_of(&self, t: f32, cells: usize) -> (usize, f32) {
+        let s = t.clamp(0.0, 1.0) * cells as f32;
+        let i = (s as usize).min(cells - 1);
+        (i, s - i as f32)
+    }
+
+    /// A point of [0, 1]² and its density there (0 where every node is 0).
+    #[inline]
+    pub fn sample(&self, u: glam::Vec2) -> (glam::Vec2, f32) {
+        let (cx, cy) = (self.nodes_x - 1, self.nodes_y - 1);
+        // The cell, then the two numbers rescaled to within it.
+        let (y, _, ry) = self.cells.marginal.sample(u.y);
+        let (x, _, rx) = self.cells.rows[y].sample(u.x);
+        let [a, b, c, d] = self.corners(x, y);
+        let fy = sample_linear(ry, a + b, c + d);
+        let fx = sample_linear(rx, a + (c - a) * fy, b + (d - b) * fy);
+        let value = bilerp([a, b, c, d], fx, fy);
+        let p = glam::Vec2::new((x as f32 + fx) / cx as f32, (y as f32 + fy) / cy as f32);
+        (p, value * self.norm)
+    }
+
+    /// The density at a point of [0, 1]².
+    #[inline]
+    pub fn pdf(&self, p: glam::Vec2) -> f32 {
+        let (x, fx) = self.cell_of(p.x, self.nodes_x - 1);
+        let (y, fy) = self.cell_of(p.y, self.nodes_y - 1);
+        bilerp(self.corners(x, y), fx, fy) * self.norm
+    }
+}
+
+/// The bilinear interpolation of corners (x0 y0, x1 y0, x0 y1, x1 y1).
+#[inline]
+fn bilerp([a, b, c, d]: [f32; 4], fx: f32, fy: f32) -> f32 {
+    (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy
+}
+
+#[cfg(test)]
+mod tests_bilinear {
+    use super::*;
+    use crate::sampling::rng::Pcg32;
+
+    #[test]
+    fn linear_samples_follow_the_line() {
+        // The empirical distribution against the exact CDF of density ∝ a + (b − a)x.
+        let mut r = Pcg32::new(3, 1);
+        for (a, b) in [(1.0f32, 1.0f32), (0.0, 2.0), (3.0, 0.0), (1e-6, 5.0)] {
+            let n = 20_000;
+            let mut xs: Vec<f32> = (0..n).map(|_| sample_linear(r.next_f32(), a, b)).collect();
+            xs.sort_by(f32::total_cmp);
+            let cdf = |x: f32| (a * x + 0.5 * (b - a) * x * x) / (0.5 * (a + b));
+            let ks = xs
+                .iter()
+                .enumerate()
+                .map(|(i, &x)| ((i as f32 + 0.5) / n as f32 - cdf(x)).abs())
+                .fold(0.0f32, f32::max);
+            // Kolmogorov–Smirnov at α = 0.001: 1.95/√n.
+            assert!(ks < 1.95 / (n as f32).sqrt(), "a {a} b {b}: KS {ks}");
+            assert!(xs.iter().all(|x| (0.0..1.0).contains(x)));
+        }
+        assert_eq!(sample_linear(0.0, 0.0, 1.0), 0.0);
+    }
+
+    #[test]
+    fn bilinear_density_matches_samples_and_integrates_to_one() {
+        // 4 × 3 nodes with zeros, a spike and a flat part.
+        #[rustfmt::skip]
+        let nodes = [
+            0.0, 0.0, 1.0, 1.0,
+            0.0, 9.0, 1.0, 1.0,
+            0.0, 0.0, 1.0, 0.5,
+        ];
+        let d = BilinearDistribution2D::new(&nodes, 4, 3);
+        // ∫ pdf = 1 by the midpoint rule on a fine grid.
+        let m = 600;
+        let mut integral = 0.0f64;
+        for j in 0..m {
+            for i in 0..m {
+                let p = glam::Vec2::new((i as f32 + 0.5) / m as f32, (j as f32 + 0.5) / m as f32);
+                integral += d.pdf(p) as f64;
+            }
+        }
+        integral /= (m * m) as f64;
+        assert!((integral - 1.0).abs() < 1e-3, "∫ pdf = {integral}");
+        // Chi-square of samples over an 12 × 12 grid against the pdf integrated per cell.
+        let g = 12;
+        let mut counts = vec![0f64; g * g];
+        let mut r = Pcg32::new(5, 2);
+        let n = 200_000;
+        let mut on_zero_edges = 0;
+        for _ in 0..n {
+            let (p, pdf) = d.sample(glam::Vec2::new(r.next_f32(), r.next_f32()));
+            assert!((pdf - d.pdf(p)).abs() <= 1e-3 * pdf, "{p} {pdf} {}", d.pdf(p));
+            if pdf == 0.0 {
+                // A draw of exactly 0 lands on a corner whose value is 0:
+                // callers drop such a sample.
+                on_zero_edges += 1;
+            }
+            let cell = ((p.y * g as f32) as usize).min(g - 1) * g + ((p.x * g as f32) as usize).min(g - 1);
+            counts[cell] += 1.0;
+        }
+        let (mut chi2, mut dof) = (0.0, 0);
+        for cell in 0..g * g {
+            let (cx, cy) = (cell % g, cell / g);
+            let k = 20;
+            let mut expected = 0.0f64;
+            for j in 0..k {
+                for i in 0..k {
+                    let p = glam::Vec2::new(
+                        (cx as f32 + (i as f32 + 0.5) / k as f32) / g as f32,
+                        (cy as f32 + (j as f32 + 0.5) / k as f32) / g as f32,
+                    );
+                    expected += d.pdf(p) as f64;
+                }
+            }
+            expected *= n as f64 / (k * k * g * g) as f64;
+            if expected < 1e-9 {
+                assert_eq!(counts[cell], 0.0, "a sample where the density is 0");
+            } else if expected > 5.0 {
+                chi2 += (counts[cell] - expected).powi(2) / expected;
+                dof += 1;
+            }
+        }
+        assert!(on_zero_edges < 10, "{on_zero_edges} samples of density 0");
+        let p_value = crate::sampling::chi2::chi2_survival(chi2, (dof - 1) as f64);
+        assert!(p_value > 0.001, "χ² {chi2} over {dof} cells: p = {p_value}");
+    }
+}

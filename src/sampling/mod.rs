@@ -8,6 +8,6 @@ pub mod sampler;
 pub mod sobol;
 pub mod warp;
 
-pub use distribution::{Distribution1D, Distribution2D};
+pub use distribution::{BilinearDistribution2D, Distribution1D, Distribution2D};
 pub use rng::Pcg32;
 pub use sampler::{Sampler, SamplerKind};
