@@ -432,8 +432,7 @@ impl Aggregate {
     /// mesh or an instance is a traversal of its own and stays a call, so
     /// that its stack does not weigh on every leaf (as one closure with all
     /// four cases, the test was a call with a 6 KiB frame, and the triangle
-    /// and shape tests inside it calls again: 4% of a Cornell box sample's
-    /// instructions).
+    /// and shape tests inside it calls again).
     #[inline(always)]
     fn test_primitive<F: FnMut(Hit, &mut Ray) -> bool>(
         &self,
@@ -599,10 +598,9 @@ impl Aggregate {
     /// Fewest rays of eight that [`Aggregate::intersect_rays`] and
     /// [`Aggregate::occluded_rays`] trace together. A test of eight rays
     /// costs the same however few of its lanes are in use, about as much
-    /// as four or five rays tested one at a time. Side by side on the
-    /// Cornell box (BENCHMARKS.md, "Eight rays at once"), thresholds of 4,
-    /// 5 and 6 measured the same, 11% faster than one ray at a time, and
-    /// testing every set of rays together was 13% slower than 5.
+    /// as four or five rays tested one at a time, so smaller sets (most
+    /// shadow-ray sets late in the paths) go one ray at a time (side by
+    /// side on the Cornell box, commit 79cd0dc).
     const PACKET_MIN_RAYS: u32 = 5;
 
     /// [`Aggregate::intersect`] on eight rays, those whose bit is set in

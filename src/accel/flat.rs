@@ -2,19 +2,18 @@
 //!
 //! A room like the Cornell box is a few dozen planar primitives whose walls
 //! span the whole scene, so a BVH over them saves few tests and costs a
-//! stack, box tests and a branch per node: about 780 instructions per ray
-//! query on the Mitsuba Cornell box. Packed eight to a block in
-//! structure-of-arrays form (Embree's "triangle8" layout), the same
-//! primitives are each tested by a few AVX instructions, with no branch
-//! that depends on the ray. [`Aggregate`](super::Aggregate) traces scenes
+//! stack, box tests and a branch per node on every query. Packed eight to
+//! a block in structure-of-arrays form (Embree's "triangle8" layout), the
+//! same primitives are each tested by a few AVX instructions, with no
+//! branch that depends on the ray. [`Aggregate`](super::Aggregate) traces scenes
 //! of [`FLAT_MIN_PRIMITIVES`] to [`FLAT_MAX_PRIMITIVES`] rectangles and
 //! triangles this way where the processor has AVX and the primitives are
 //! large for the space they fill ([`flat_pays`]), and through
 //! its tree otherwise. `cargo bench --bench kernels -- "small scene"` measures both
-//! (BENCHMARKS.md): below about 20 primitives of a clutter a tree of one or
-//! two leaves of scalar tests is faster; from 48 to 128 primitives in a
-//! cluttered room, the blocks are 2–3× faster. Up to eight blocks take one
-//! eight-lane test of their boxes, up to sixteen two.
+//! (commits 6de6629, c8ebadd): on the smallest clutters a tree of one or two
+//! leaves of scalar tests is faster, on larger cluttered rooms the blocks.
+//! Up to eight blocks take one eight-lane test of their boxes, up to sixteen
+//! two.
 //!
 //! The lockstep path tracer (`integrator::path_lanes`) also asks for
 //! eight rays at a time: in a scene of rectangles only those are tested
@@ -32,10 +31,10 @@ use crate::geometry::{Ray, Rectangle};
 use glam::Vec3;
 
 /// Scenes of at least this many rectangles and triangles (and at most
-/// [`FLAT_MAX_PRIMITIVES`]) are traced without a tree: two blocks. The
-/// Mitsuba Cornell box, 18 rectangles (walls, light, two cubes' faces),
-/// takes 13% fewer instructions per sample in three blocks than through
-/// its tree (BENCHMARKS.md); smaller clutters fail [`flat_pays`] anyway.
+/// [`FLAT_MAX_PRIMITIVES`]) are traced without a tree: two blocks, so that
+/// the Mitsuba Cornell box, 18 rectangles (walls, light, two cubes' faces),
+/// is traced in three blocks, which take fewer instructions than its tree
+/// (commit 69b9d1a); smaller clutters fail [`flat_pays`] anyway.
 pub const FLAT_MIN_PRIMITIVES: usize = 16;
 
 /// Scenes of at most this many rectangles and triangles (sixteen blocks of
@@ -49,12 +48,12 @@ pub const FLAT_MAX_PRIMITIVES: usize = 128;
 /// room: 30 primitives × 3.0 on the Cornell box with its cubes as
 /// triangles.
 ///
-/// Fitted to `cargo bench --bench kernels -- "small"` (BENCHMARKS.md):
+/// Fitted to `cargo bench --bench kernels -- "small"` (commit 1d2dd18):
 /// clutters of 24 to 128 small primitives in cubes of side 1 to 8, flat
-/// against tree. Where the product is at most 15.7 the tree was faster (up
-/// to 2.2×), from 16.4 the blocks were as fast or faster (up to 3×); a
-/// threshold on the expected hits alone misplaced three of the 26
-/// scenes, as fewer primitives need more overlap before the blocks pay.
+/// against tree. The threshold lies between the largest product where the
+/// tree was faster and the smallest where the blocks were as fast or
+/// faster; the expected hits alone did not separate them, as fewer
+/// primitives need more overlap before the blocks pay.
 pub const FLAT_MIN_HITS_TIMES_PRIMITIVES: f32 = 16.0;
 
 /// Whether `primitives` whose boxes a ray through the scene's box meets
@@ -122,12 +121,10 @@ mod avx {
     /// Scenes of rectangles alone in at most this many blocks (a room: its
     /// walls and what stands in it) test every block on every ray and skip
     /// the boxes' slab test. In a room most rays start inside and enter
-    /// most blocks: on the Cornell box (three blocks, 1.8 entered per
-    /// query) the slab test and the branches on its result cost more than
-    /// the block tests they skip (5.6% fewer instructions, 1–2% less time
-    /// without them). Clutters of four and five blocks with triangles were
-    /// 18–23% slower tested that way, so they keep the slab test
-    /// (BENCHMARKS.md).
+    /// most blocks, so the slab test and the branches on its result cost
+    /// more than the block tests they skip. Clutters of four and five
+    /// blocks with triangles were slower tested that way, so they keep the
+    /// slab test (commit 834b673).
     const TEST_EVERY_BLOCK_UP_TO: usize = 3;
 
     /// The primitives of a flat scene, in blocks of eight, and the blocks'

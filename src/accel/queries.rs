@@ -30,10 +30,10 @@ pub const MISS: u32 = u32::MAX;
 /// ray tests at once; a leaf of the tree names its blocks.
 #[derive(Clone, Debug)]
 pub struct TriangleBvh {
-    /// Eight-wide, as Embree's default on AVX machines: against four-wide
-    /// nodes, incoherent rays on one to four million triangles ran 10–35%
-    /// faster and coherent ones the same; on a mesh that fits in the cache
-    /// it can be up to a tenth slower (BENCHMARKS.md).
+    /// Eight-wide, as Embree's default on AVX machines: half the depth of
+    /// dependent node loads an incoherent ray waits on in a tree larger than
+    /// the cache, where ray throughput matters most; on a mesh that fits in
+    /// the cache four-wide nodes can be as fast (commits d9b72c9, cd23ee6).
     bvh: Bvh8,
     /// Each leaf's triangles, four to a block.
     blocks: Vec<Triangle4>,
@@ -177,8 +177,7 @@ impl TriangleBvh {
     /// Closest hits of a batch of rays, on all cores, in ray order. The
     /// iterator is indexed, so rayon's workers write each hit straight to
     /// its place in the result (a `flat_map_iter` over chunks builds a
-    /// vector per chunk and then joins them: 133 instructions a ray more
-    /// on coherent rays, BENCHMARKS.md).
+    /// vector per chunk and then joins them; commit eba9c13).
     pub fn closest_hits(&self, rays: &[Ray]) -> Vec<QueryHit> {
         rays.par_iter()
             .with_min_len(CHUNK)

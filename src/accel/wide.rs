@@ -186,11 +186,10 @@ impl<const W: usize> WideBvh<W> {
     /// [`WideBvh::traverse`] with the root's children tested before the
     /// loop instead of the root being pushed and popped. In a small tree
     /// (a scene's top level, of which a ray visits three or four nodes)
-    /// the root is a good part of the visits: on the Cornell box 0.6% fewer
-    /// instructions and 12% fewer mispredicted branches per sample
-    /// (callgrind). In a large mesh's tree, where one visit in twenty is
-    /// the root's, the same code measured 2–8% fewer rays per second
-    /// (BENCHMARKS.md), so those keep the plain loop.
+    /// the root is a good part of the visits, and skipping its push and
+    /// pop saves instructions and mispredicted branches. In a large mesh's
+    /// tree, where one visit in twenty is the root's, the same code traced
+    /// fewer rays per second, so those keep the plain loop (commit e8dc360).
     #[inline]
     pub fn traverse_small<F: FnMut(u32, &mut Ray) -> bool>(&self, ray: &mut Ray, any_hit: bool, test: F) -> bool {
         self.traverse_impl::<true, false, (), F>(&[], ray, any_hit, test)
@@ -294,9 +293,8 @@ impl<const W: usize> WideBvh<W> {
                     // Start loading the children visited later (all but
                     // the nearest, which is read next anyway): in a large
                     // tree they are rarely in the cache, and their loads
-                    // then overlap the nearest child's subtree. Incoherent
-                    // rays on a million triangles ran 9–13% faster; trees
-                    // that stay in the cache are left without (BENCHMARKS.md).
+                    // then overlap the nearest child's subtree. Trees that
+                    // stay in the cache are left without (commit 76dd728).
                     if PREFETCH {
                         for e in &stack[base..stack.len() - 1] {
                             if e.count == 0 {

@@ -5,11 +5,11 @@
 //! Filter importance sampling (see [`super::filter`]) reaches the same
 //! expected image with each sample in one pixel; splatting averages about
 //! `(2r)²·(filter's efficiency)` samples into each pixel instead, which
-//! lowers the per-pixel error at equal samples (three times, measured on the
-//! Cornell box with Mitsuba's Gaussian, σ = 0.5, r = 2) at the price of
-//! noise correlated between neighbours. Tiles splat into a buffer with a
-//! margin of the filter's radius, merged into the film in tile order, so
-//! renders stay deterministic on any number of threads.
+//! lowers the per-pixel error at equal samples (measured on the Cornell box
+//! in commit 95701ba) at the price of noise correlated between neighbours.
+//! Tiles splat into a buffer with a margin of the filter's radius, merged
+//! into the film in tile order, so renders stay deterministic on any number
+//! of threads.
 
 use super::PixelSum;
 use super::filter::Filter;
@@ -32,7 +32,7 @@ pub struct Splat {
     /// j/PHASES + k (k = 0, 1, …) from a sample, the filter's profile
     /// divided by its integral (zero beyond the radius). A sample's
     /// weights are interpolated between two rows: a few vector
-    /// multiply-adds, where a lookup per tap cost about 25 instructions.
+    /// multiply-adds instead of a profile lookup per tap.
     rows: Box<[[f32; MAX_TAPS]; PHASES + 1]>,
 }
 
@@ -64,8 +64,8 @@ impl Splat {
     /// The pixels in `[lo, hi)` whose centres lie within the radius of
     /// position `p` along one axis, which are consecutive: writes their
     /// weights to `weights` and returns the first pixel and the weights.
-    /// Always inlined: as a call (a plain `inline` was not taken) it cost
-    /// 1.5% of the Cornell box's time (BENCHMARKS.md).
+    /// Always inlined: a plain `inline` was not taken, which left two calls
+    /// a sample in the tile loop (commit fa0cc16).
     #[inline(always)]
     pub fn taps<'w>(&self, p: f32, lo: u32, hi: u32, weights: &'w mut [f32; MAX_TAPS]) -> (u32, &'w [f32]) {
         // The first and last centres within the radius, before clipping.
@@ -105,9 +105,9 @@ fn profile_integral(filter: &Filter) -> f64 {
 /// `x` rounded to the nearest integer (ties to even) for |x| < 2²², by
 /// adding 1.5·2²³, which leaves the integer in the low bits of the sum.
 /// Baseline x86-64 has no rounding instruction (SSE4.1): `f32::ceil` and
-/// `floor` are calls into libm, and `as i32` checks for NaN and overflow
-/// (five instructions a conversion). Film coordinates are far inside the
-/// range (images are at most 65 536 pixels a side).
+/// `floor` are calls into libm, and `as i32` checks every conversion for
+/// NaN and overflow. Film coordinates are far inside the range (images are
+/// at most 65 536 pixels a side).
 #[inline(always)]
 fn round_in_film(x: f32) -> i32 {
     const MAGIC: f32 = 12_582_912.0;

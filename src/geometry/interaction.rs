@@ -200,8 +200,8 @@ pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
 /// direction of the sign of `o`'s (unchanged where `o` is zero or `x`
 /// infinite), on the bits with masks and no branch. On x86-64 the three
 /// are one SSE2 register: a ray is spawned at every bounce and toward
-/// every light sample, and three scalar steps took about 45 instructions a
-/// spawn (and the compiler did not vectorise the loop below).
+/// every light sample, where three scalar steps cost more (and the
+/// compiler did not vectorise the loop below).
 #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
 #[inline]
 fn step_away_3(x: Vec3, o: Vec3) -> Vec3 {

@@ -195,8 +195,7 @@ impl M8 {
 /// Eight rays' fields in lanes: origin x, y, z, direction x, y, z, t_min
 /// and t_max, each across the eight rays. A ray is those eight `f32` in
 /// that order (`Ray` is `repr(C)`), so this is the transpose of an 8×8
-/// matrix: eight loads and 24 shuffles, where filling the lanes one value
-/// at a time took about 130 instructions.
+/// matrix: eight loads and 24 shuffles instead of 64 single stores.
 #[inline]
 #[target_feature(enable = "avx")]
 pub fn transpose_rays(rays: &[crate::geometry::Ray; LANES]) -> [F8; 8] {
