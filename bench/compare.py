@@ -411,15 +411,32 @@ def main():
     ap.add_argument("--root", required=True)
     ap.add_argument("--rays-only", action="store_true")
     ap.add_argument("--render-only", action="store_true")
-    ap.add_argument("--spp", type=int, default=256)
-    ap.add_argument("--res", type=int, default=512)
+    ap.add_argument("--spp", type=int, help="samples per pixel (default 256)")
+    ap.add_argument("--res", type=int, help="image width and height (default 512; --suite: 128)")
     ap.add_argument("--triangles", type=int, default=1_000_000)
     ap.add_argument("--rays", type=int, default=1_000_000)
     ap.add_argument("--cycles", action="store_true",
                     help="also render the Cornell box in Blender Cycles (bpy, installed by bench/compare --cycles)")
-    ap.add_argument("--reference-spp", type=int, default=2048,
-                    help="samples of the cached Mitsuba reference image the errors are measured against (0: none)")
+    ap.add_argument("--reference-spp", type=int,
+                    help="samples of the cached Mitsuba reference image the errors are measured against "
+                         "(default 2048, 0: none; --suite: default 16384)")
+    ap.add_argument("--suite", action="store_true",
+                    help="the benchmark suite instead: trazo against Mitsuba on every scene of bench/suite/ (bench/suite.py)")
+    ap.add_argument("--references-only", action="store_true",
+                    help="--suite: only render (and cache) the converged references, untimed; no table")
+    ap.add_argument("--scenes", help="--suite: only these scenes, comma-separated (names of bench/suite/*.xml)")
+    ap.add_argument("--repeat", type=int, help="each time the best of this many runs (default 3; --suite: 1)")
     args = ap.parse_args()
+    if args.suite:
+        import suite
+
+        suite.main(args)
+        return
+    global REPEAT
+    REPEAT = args.repeat or REPEAT
+    args.spp = args.spp or 256
+    args.res = args.res or 512
+    args.reference_spp = 2048 if args.reference_spp is None else args.reference_spp
     print(f"date: {time.strftime('%Y-%m-%d')}, cores: {os.cpu_count()}")
     with tempfile.TemporaryDirectory() as work:
         if not args.render_only:
