@@ -82,16 +82,27 @@ pub trait Integrator: Sync {
     }
 }
 
-/// Chooses one of the scene's lights (there must be one) by its light
-/// distribution: the light's index and the probability of choosing it.
-/// The choice is drawn from `sampler`, or passed over where the scene has
-/// a single light, which leaves the numbers after it unchanged.
+/// Chooses one of the scene's lights for the point `p` with surface
+/// normal `n` (zero for a point in no surface) by the light tree
+/// ([`crate::light::LightSampler`]): the light's index and the probability
+/// of choosing it, or `None` where no light can reach the point. The
+/// choice is drawn from `sampler`, or passed over where the scene has a
+/// single light, which leaves the numbers after it unchanged.
 #[inline(always)]
-pub(crate) fn choose_light(scene: &Scene, sampler: &mut Sampler) -> (usize, f32) {
-    if scene.light_distribution.len() == 1 {
+pub(crate) fn choose_light(scene: &Scene, p: glam::Vec3, n: glam::Vec3, sampler: &mut Sampler) -> Option<(usize, f32)> {
+    if scene.lights.len() == 1 {
         sampler.skip_1d();
-        return (0, 1.0);
+        return Some((0, 1.0));
     }
-    let (index, pmf, _) = scene.light_distribution.sample(sampler.next_1d());
-    (index, pmf)
+    scene.light_sampler.sample(p, n, sampler.next_1d())
+}
+
+/// The probability with which [`choose_light`] at (`p`, `n`) chooses
+/// light `light`.
+#[inline]
+pub(crate) fn light_choice_pmf(scene: &Scene, p: glam::Vec3, n: glam::Vec3, light: usize) -> f32 {
+    if scene.lights.len() == 1 {
+        return 1.0;
+    }
+    scene.light_sampler.pmf(p, n, light)
 }

@@ -28,7 +28,7 @@
 //! radiance scaling of refraction so that paths inside glass are not
 //! killed for it).
 
-use super::{Integrator, RayStats, choose_light};
+use super::{Integrator, RayStats, choose_light, light_choice_pmf};
 use crate::color::Rgb;
 use crate::geometry::Ray;
 use crate::light::ShadowTarget;
@@ -119,6 +119,8 @@ impl Integrator for PathTracer {
         let mut prev_delta = true;
         let mut prev_pdf = 0.0f32;
         let mut prev_p = ray.origin;
+        // The normal the light choice used there (zero: none).
+        let mut prev_n = glam::Vec3::ZERO;
         let mut eta_scale = 1.0f32;
         let mut depth = 1u32; // segments in the path once `ray` is traced
 
@@ -129,7 +131,8 @@ impl Integrator for PathTracer {
                     let dir = ray.dir.normalize();
                     let le = scene.background.eval(dir);
                     let w = if nee && !prev_delta {
-                        let pdf_light = scene.light_distribution.pmf(env as usize) * scene.background.pdf(dir);
+                        let pdf_light =
+                            light_choice_pmf(scene, prev_p, prev_n, env as usize) * scene.background.pdf(dir);
                         power_heuristic(prev_pdf, pdf_light)
                     } else {
                         1.0
@@ -144,7 +147,7 @@ impl Integrator for PathTracer {
             if m.is_emissive() && hit.is_front(wo_world) {
                 let w = match hit.light {
                     Some(li) if nee && !prev_delta => {
-                        let pdf_light = scene.light_distribution.pmf(li as usize)
+                        let pdf_light = light_choice_pmf(scene, prev_p, prev_n, li as usize)
                             * scene.lights[li as usize].pdf_li(scene, prev_p, &hit);
                         power_heuristic(prev_pdf, pdf_light)
                     }
@@ -167,9 +170,18 @@ impl Integrator for PathTracer {
 
             // Next-event estimation.
             if nee && bsdf.has_smooth() && !scene.lights.is_empty() {
-                let (light_index, pmf) = choose_light(scene, sampler);
-                let light = &scene.lights[light_index];
-                if let Some(ls) = light.sample_li_drawing(scene, hit.p, sampler) {
+                let chosen = choose_light(scene, hit.p, hit.ns, sampler);
+                let sample = match chosen {
+                    Some((light_index, _)) => scene.lights[light_index].sample_li_drawing(scene, hit.p, sampler),
+                    None => {
+                        // No light reaches the point: its numbers are passed over.
+                        sampler.skip_1d();
+                        sampler.skip_2d();
+                        None
+                    }
+                };
+                let pmf = chosen.map_or(0.0, |(_, pmf)| pmf);
+                if let Some(ls) = sample {
                     let wi = frame.to_local(ls.wi);
                     let f = bsdf.eval(wo, wi, mode);
                     // The geometric normal decides reflection or transmission.
@@ -220,6 +232,7 @@ impl Integrator for PathTracer {
             prev_delta = bs.delta;
             prev_pdf = bs.pdf;
             prev_p = hit.p;
+            prev_n = hit.ns;
             ray = hit.spawn_ray(wi_world);
             depth += 1;
 

@@ -18,9 +18,11 @@
 
 pub mod emission;
 pub mod environment;
+pub mod sampler;
 
 pub use emission::{EmissionSample, scene_bounding_sphere};
 pub use environment::{Background, EnvironmentMap};
+pub use sampler::{LightBounds, LightSampler};
 
 use crate::accel::aggregate::{EmitterArea, EmitterRef};
 use crate::color::{Rgb, luminance};
@@ -491,6 +493,64 @@ impl Light {
                 PI * world_area * luminance(radiance.average(&scene.images))
             }
             Light::Environment => disk * luminance(scene.background.average()) * 4.0,
+        }
+    }
+}
+
+impl Light {
+    /// Where the light's points lie, its power and the cone it emits into,
+    /// for the light tree ([`LightSampler`]); `None` for lights without
+    /// bounds (directional, environment, an emissive infinite plane).
+    /// `power` is [`Light::power`].
+    pub fn bounds(&self, scene: &Scene, power: f32) -> Option<LightBounds> {
+        match self {
+            Light::Point { position, .. } => Some(LightBounds::point(*position, power)),
+            Light::Spot {
+                position,
+                direction,
+                cos_inner,
+                cos_outer,
+                ..
+            } => {
+                // Full intensity inside θ_inner; none beyond θ_outer.
+                let spread = (cos_outer.clamp(-1.0, 1.0).acos() - cos_inner.clamp(-1.0, 1.0).acos()).max(0.0);
+                Some(LightBounds {
+                    w: *direction,
+                    cos_theta_o: *cos_inner,
+                    cos_theta_e: spread.cos(),
+                    ..LightBounds::point(*position, power)
+                })
+            }
+            Light::Area { emitter, .. } => {
+                let g = &scene.geometry;
+                let bounds = match *emitter {
+                    EmitterRef::Shape(i) => {
+                        let s = &g.shapes[i as usize];
+                        let b = s.shape.bounds()?;
+                        s.transform.as_ref().map_or(b, |t| t.aabb(&b))
+                    }
+                    EmitterRef::MeshObject(o) => g.meshes[g.mesh_objects[o as usize].mesh as usize].bounds(),
+                    EmitterRef::Instance(i) => {
+                        let inst = &g.instances[i as usize];
+                        inst.transform.aabb(&g.meshes[inst.mesh as usize].bounds())
+                    }
+                };
+                // A rectangle emits into the half-space its front faces;
+                // other emitters are bounded by the whole sphere of normals.
+                let (w, cos_theta_o) = match g.emitter_parallelogram(*emitter) {
+                    Some((_, n)) => (n, 1.0),
+                    None => (Vec3::Z, -1.0),
+                };
+                Some(LightBounds {
+                    bounds,
+                    phi: power,
+                    w,
+                    cos_theta_o,
+                    cos_theta_e: 0.0,
+                    two_sided: false,
+                })
+            }
+            Light::Directional { .. } | Light::Environment => None,
         }
     }
 }

@@ -405,6 +405,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         settings: desc.settings.clone(),
         warnings,
         light_distribution: Distribution1D::default(),
+        light_sampler: Default::default(),
         environment_light,
     };
     // Lights are chosen in proportion to their power.
@@ -418,6 +419,14 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     };
     let powers: Vec<f32> = scene.lights.iter().map(|l| l.power(&scene, radius)).collect();
     scene.light_distribution = Distribution1D::new(&powers);
+    // For a shading point, by the light tree.
+    let bounds: Vec<_> = scene
+        .lights
+        .iter()
+        .zip(&powers)
+        .map(|(l, &power)| (l.bounds(&scene, power), power))
+        .collect();
+    scene.light_sampler = crate::light::LightSampler::new(&bounds);
     Ok(scene)
 }
 

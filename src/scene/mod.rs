@@ -53,8 +53,10 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// Whether any material is transmissive (cached for shadow rays).
     pub any_transmissive: bool,
-    /// Chooses lights in proportion to their power.
+    /// Chooses lights in proportion to their power (for emitting photons).
     pub light_distribution: Distribution1D,
+    /// Chooses a light for a shading point (next-event estimation).
+    pub light_sampler: crate::light::LightSampler,
     /// Index of the environment light (a background that is not black).
     pub environment_light: Option<u32>,
 }

@@ -276,7 +276,12 @@ impl<'a> ShadingPoint<'a> {
         if scene.lights.is_empty() {
             return Rgb::ZERO;
         }
-        let (light_index, pmf) = crate::integrator::choose_light(scene, sampler);
+        let Some((light_index, pmf)) = crate::integrator::choose_light(scene, hit.p, hit.ns, sampler) else {
+            // No light reaches the point: its numbers are passed over.
+            sampler.skip_1d();
+            sampler.skip_2d();
+            return Rgb::ZERO;
+        };
         let Some(ls) = scene.lights[light_index].sample_li_drawing(scene, hit.p, sampler) else {
             return Rgb::ZERO;
         };
