@@ -512,3 +512,61 @@ fn lockstep_is_only_for_diffuse_rooms_with_one_rectangle_light() {
     }));
     assert!(!lockstep(&two_lights, &mis));
 }
+
+/// The Cornell box with its light replaced by a 6 × 6 grid of small lights
+/// of different colours and powers just below the ceiling, and a dim sky
+/// seen through nothing (it lights only the camera's misses; it makes the
+/// light choice split between the tree and the unbounded lights).
+fn many_lights_cornell(sampling: PathSampling, spp: u32) -> Film {
+    let mut d = cornell_box();
+    d.settings.width = 16;
+    d.settings.height = 16;
+    d.settings.spp = spp;
+    d.settings.integrator = IntegratorKind::Path;
+    d.settings.sampling = sampling;
+    d.shapes.retain(|s| s.material.as_deref() != Some("light"));
+    for k in 0..36 {
+        let (i, j) = ((k % 6) as f32, (k / 6) as f32);
+        let name = format!("lamp{k}");
+        let mut m = diffuse(0.0);
+        m.name = name.clone();
+        let power = 20.0 + 60.0 * ((k * 7) % 5) as f32;
+        m.emission = ColorSource::Rgb(Rgb::new(power, power * (0.5 + 0.1 * (k % 5) as f32), power * 0.6));
+        d.materials.push(m);
+        d.shapes.push(ShapeDesc::new(
+            ShapeKind::Rectangle {
+                corner: Vec3::new(-0.85 + 0.3 * i, 0.99, -0.85 + 0.3 * j),
+                edge_u: Vec3::new(0.08, 0.0, 0.0),
+                edge_v: Vec3::new(0.0, 0.0, 0.08),
+            },
+            Some(&name),
+        ));
+    }
+    d.background = BackgroundDesc::Constant(Rgb::splat(0.05));
+    render_film(&d)
+}
+
+/// Next-event estimation through the light tree converges to what BSDF
+/// sampling alone (which never consults the tree) converges to, so the
+/// tree's choice probabilities and the MIS weights built from them are
+/// right; and it has far lower variance.
+#[test]
+fn many_lights_nee_through_the_light_tree_agrees_with_bsdf_sampling() {
+    let mis = many_lights_cornell(PathSampling::Mis, 256);
+    let bsdf = many_lights_cornell(PathSampling::Bsdf, 2048);
+    let (m0, e0) = mean_and_error(&mis);
+    let (m1, e1) = mean_and_error(&bsdf);
+    let tol = 4.0 * (e0 * e0 + e1 * e1).sqrt();
+    assert!((m0 - m1).abs() <= tol, "mis {m0} ± {e0} vs bsdf {m1} ± {e1}");
+    // Over the pixels that see walls, not lamps: a camera ray's chance of
+    // hitting a lamp is the same noise for both estimators.
+    let wall_variance = |f: &Film| {
+        let walls: Vec<_> = f.pixels.iter().filter(|p| luminance(p.value()) < 2.0).collect();
+        walls.iter().map(|p| p.variance_of_mean() * p.weight).sum::<f64>() / walls.len() as f64
+    };
+    let (v0, v1) = (wall_variance(&mis), wall_variance(&bsdf));
+    assert!(
+        v0 * 10.0 < v1,
+        "per-sample variance on the walls: mis {v0} vs bsdf {v1}"
+    );
+}

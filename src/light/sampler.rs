@@ -247,6 +247,11 @@ enum Child {
 struct Node {
     bounds: BoundsLanes,
     children: [Child; WIDTH],
+    /// Slots in use. A node of one child (the root of a tree of one light)
+    /// passes to it without computing its importance: its share is 1
+    /// wherever it can light the point, and choosing it where it cannot
+    /// costs a light sample that finds nothing, not bias.
+    count: u8,
     /// The parent node and this node's slot there (the root's is its own).
     parent: (u32, u8),
 }
@@ -362,6 +367,7 @@ impl LightSampler {
         self.nodes.push(Node {
             bounds: BoundsLanes::default(),
             children: [Child::Empty; WIDTH],
+            count: open.len() as u8,
             parent,
         });
         for (slot, child) in open.into_iter().enumerate() {
@@ -398,6 +404,16 @@ impl LightSampler {
         let mut pmf = 1.0 - self.p_unbounded;
         let mut node = &self.nodes[0];
         loop {
+            if node.count == 1 {
+                match node.children[0] {
+                    Child::Light(light) => return Some((light as usize, pmf)),
+                    Child::Node(i) => {
+                        node = &self.nodes[i as usize];
+                        continue;
+                    }
+                    Child::Empty => return None,
+                }
+            }
             let importance = node.bounds.importance(p, n);
             let total: f32 = importance.iter().sum();
             if total <= 0.0 {
@@ -444,12 +460,14 @@ impl LightSampler {
         let mut pmf = 1.0 - self.p_unbounded;
         loop {
             let nd = &self.nodes[node as usize];
-            let importance = nd.bounds.importance(p, n);
-            let total: f32 = importance.iter().sum();
-            if total <= 0.0 {
-                return 0.0;
+            if nd.count > 1 {
+                let importance = nd.bounds.importance(p, n);
+                let total: f32 = importance.iter().sum();
+                if total <= 0.0 {
+                    return 0.0;
+                }
+                pmf *= importance[slot as usize] / total;
             }
-            pmf *= importance[slot as usize] / total;
             if node == 0 {
                 return pmf;
             }
