@@ -251,6 +251,9 @@ import sys, time, numpy as np, mitsuba as mi
 variant, scene_path, res, spp, out = sys.argv[1:6]
 mi.set_variant(variant)
 scene = mi.load_file(scene_path, res=res, spp=spp)
+# A warm-up render of the same size first: the LLVM variant compiles its
+# kernels on the first render, which is not what is being compared.
+np.array(mi.render(scene, spp=int(spp), seed=1))
 start = time.perf_counter()
 img = np.array(mi.render(scene, spp=int(spp), seed=0))
 print(f"{time.perf_counter() - start:.3f}")
