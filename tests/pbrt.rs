@@ -373,3 +373,50 @@ fn the_extension_picks_the_reader_and_defines_warn() {
     let e = trazo::scene::load(&other, &[]).unwrap_err().to_string();
     assert!(e.contains(".pbrt"), "{e}");
 }
+
+/// pbrt-v4's environment maps are equal-area octahedral squares: a map
+/// whose pixels hold max(0, d) of their own central direction d, seen by
+/// cameras looking down +x, +y and +z, shows each camera its own axis.
+#[test]
+fn environment_maps_are_equal_area_octahedral_as_in_pbrt() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 32usize;
+    // PFM: a header, then rows of little-endian RGB floats, bottom row first.
+    let mut pfm = format!("PF\n{n} {n}\n-1.0\n").into_bytes();
+    for row in (0..n).rev() {
+        for col in 0..n {
+            let uv = Vec2::new((col as f32 + 0.5) / n as f32, (row as f32 + 0.5) / n as f32);
+            let d = trazo::light::environment::equal_area_square_to_sphere(uv);
+            for c in [d.x, d.y, d.z] {
+                pfm.extend_from_slice(&c.max(0.0).to_le_bytes());
+            }
+        }
+    }
+    fs::write(dir.path().join("sky.pfm"), pfm).unwrap();
+    for (look, up, axis) in [("1 0 0", "0 1 0", 0), ("0 1 0", "0 0 1", 1), ("0 0 1", "0 1 0", 2)] {
+        let text = format!(
+            "LookAt 0 0 0  {look}  {up}\nCamera \"perspective\" \"float fov\" 4\n\
+             Film \"rgb\" \"integer xresolution\" 4 \"integer yresolution\" 4\n\
+             Sampler \"independent\" \"integer pixelsamples\" 4\n\
+             WorldBegin\nLightSource \"infinite\" \"string filename\" \"sky.pfm\"\n"
+        );
+        let path = dir.path().join("env.pbrt");
+        fs::write(&path, text).unwrap();
+        let desc = trazo::scene::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+        assert!(
+            desc.warnings.iter().all(|w| !w.contains("approximated")),
+            "{:?}",
+            desc.warnings
+        );
+        let film = render_desc(&desc);
+        let m = region_mean(&film, (0, 4), (0, 4));
+        let c = [m.x, m.y, m.z];
+        for (k, v) in c.into_iter().enumerate() {
+            if k == axis {
+                assert!(v > 0.9, "looking down axis {axis}: {m}");
+            } else {
+                assert!(v < 0.2, "looking down axis {axis}: {m}");
+            }
+        }
+    }
+}

@@ -19,13 +19,14 @@
 
 use crate::color::{Rgb, luminance};
 use crate::geometry::Transform;
-use crate::sampling::BilinearDistribution2D;
 use crate::sampling::warp::{pdf_sphere_uniform, sample_sphere_uniform};
+use crate::sampling::{BilinearDistribution2D, Distribution2D};
+pub use crate::scene::desc::EnvironmentLayout;
 use crate::texture::ImageTexture;
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
-/// An equirectangular environment map ready for lookup and sampling.
+/// An environment map ready for lookup and sampling.
 #[derive(Clone, Debug)]
 pub struct EnvironmentMap {
     /// Linear radiance.
@@ -34,20 +35,36 @@ pub struct EnvironmentMap {
     pub scale: f32,
     /// Map-to-world rotation.
     pub to_world: Transform,
+    /// How pixels map to directions.
+    pub layout: EnvironmentLayout,
     distribution: BilinearDistribution2D,
+    /// The equal-area layout's density: constant over each pixel, like its
+    /// nearest-pixel lookup.
+    pixel_distribution: Distribution2D,
     average: Rgb,
 }
 
 impl EnvironmentMap {
-    /// Prepares an image for lookup and importance sampling.
+    /// Prepares a latitude–longitude image for lookup and importance sampling.
     pub fn new(image: ImageTexture, scale: f32, to_world: Transform) -> Self {
+        Self::with_layout(image, scale, to_world, EnvironmentLayout::LatLong)
+    }
+
+    /// Prepares an image of either layout (an equal-area one must be
+    /// square) for lookup and importance sampling.
+    pub fn with_layout(image: ImageTexture, scale: f32, to_world: Transform, layout: EnvironmentLayout) -> Self {
+        if layout == EnvironmentLayout::EqualAreaOctahedral {
+            return Self::equal_area(image, scale, to_world);
+        }
         let (w, h) = (image.width as usize, image.height as usize);
         let mut map = EnvironmentMap {
             average: Rgb::ZERO,
             image,
             scale,
             to_world,
+            layout,
             distribution: BilinearDistribution2D::default(),
+            pixel_distribution: Distribution2D::default(),
         };
         // The density's nodes are the lookup's: pixel centres, columns at
         // u = (i + ½)/W (one more column, the first again, closes the
@@ -75,6 +92,24 @@ impl EnvironmentMap {
         }
         map.average = (sum / solid_angle.max(1e-12)).as_vec3();
         map
+    }
+
+    /// An equal-area octahedral map: every pixel subtends 4π/N steradians,
+    /// so the density is each pixel's luminance over their sum, and the
+    /// average radiance the mean of the pixels.
+    fn equal_area(image: ImageTexture, scale: f32, to_world: Transform) -> Self {
+        let (w, h) = (image.width as usize, image.height as usize);
+        let weights: Vec<f32> = image.pixels.iter().map(|&c| luminance(c).max(0.0)).collect();
+        let sum: glam::DVec3 = image.pixels.iter().map(|c| c.as_dvec3()).sum();
+        EnvironmentMap {
+            average: (sum * scale as f64 / (w * h).max(1) as f64).as_vec3(),
+            pixel_distribution: Distribution2D::new(&weights, w, h),
+            distribution: BilinearDistribution2D::default(),
+            image,
+            scale,
+            to_world,
+            layout: EnvironmentLayout::EqualAreaOctahedral,
+        }
     }
 
     /// The point of the sampling density's domain (the unit square spanned
@@ -106,11 +141,26 @@ impl EnvironmentMap {
         (self.to_world.vector(d).normalize(), st)
     }
 
-    /// Radiance arriving from direction `dir`: bilinear between pixels,
-    /// wrapping around in longitude; rows run from pole to pole.
+    /// Radiance arriving from direction `dir`: for a latitude–longitude
+    /// map bilinear between pixels, wrapping around in longitude, rows
+    /// running from pole to pole; for an equal-area map the nearest pixel.
     #[inline]
     pub fn eval(&self, dir: Vec3) -> Rgb {
-        self.eval_uv(self.uv_of(dir))
+        match self.layout {
+            EnvironmentLayout::LatLong => self.eval_uv(self.uv_of(dir)),
+            EnvironmentLayout::EqualAreaOctahedral => {
+                let d = self.to_world.inv_vector(dir).normalize_or_zero();
+                self.nearest(equal_area_sphere_to_square(d))
+            }
+        }
+    }
+
+    /// The pixel that holds point `uv` of the image (row 0 at v = 0).
+    fn nearest(&self, uv: Vec2) -> Rgb {
+        let (w, h) = (self.image.width as usize, self.image.height as usize);
+        let x = ((uv.x * w as f32) as usize).min(w - 1);
+        let y = ((uv.y * h as f32) as usize).min(h - 1);
+        self.image.pixels[y * w + x] * self.scale
     }
 
     fn eval_uv(&self, uv: Vec2) -> Rgb {
@@ -133,6 +183,15 @@ impl EnvironmentMap {
     /// A direction drawn in proportion to the map's brightness, and its
     /// density per steradian.
     pub fn sample(&self, u: Vec2) -> Option<(Vec3, f32)> {
+        if self.layout == EnvironmentLayout::EqualAreaOctahedral {
+            let (uv, pdf_uv) = self.pixel_distribution.sample(u);
+            if pdf_uv <= 0.0 {
+                return None;
+            }
+            // The map is equal-area: dω = 4π du dv.
+            let d = self.to_world.vector(equal_area_square_to_sphere(uv)).normalize();
+            return Some((d, pdf_uv / (4.0 * PI)));
+        }
         let (p, pdf_uv) = self.distribution.sample(u);
         let (d, sin_theta) = self.dir_of(self.map_point(p));
         if sin_theta <= 0.0 || pdf_uv <= 0.0 {
@@ -144,6 +203,10 @@ impl EnvironmentMap {
 
     /// Density of [`EnvironmentMap::sample`] for direction `dir`.
     pub fn pdf(&self, dir: Vec3) -> f32 {
+        if self.layout == EnvironmentLayout::EqualAreaOctahedral {
+            let d = self.to_world.inv_vector(dir).normalize_or_zero();
+            return self.pixel_distribution.pdf(equal_area_sphere_to_square(d)) / (4.0 * PI);
+        }
         let uv = self.uv_of(dir);
         let sin_theta = (PI * uv.y).sin();
         if sin_theta <= 0.0 {
@@ -151,6 +214,42 @@ impl EnvironmentMap {
         }
         self.distribution.pdf(self.density_point(uv)) / (2.0 * PI * PI * sin_theta)
     }
+}
+
+/// The point of the unit square that Clarberg's equal-area octahedral
+/// mapping (pbrt-v4 `EqualAreaSphereToSquare`, §3.8.3) takes unit direction
+/// `d` to: +z at the centre, −z at the corners, the four quadrants of the
+/// square the signs of x and y.
+pub fn equal_area_sphere_to_square(d: Vec3) -> Vec2 {
+    let (x, y, z) = (d.x.abs(), d.y.abs(), d.z.abs());
+    let r = (1.0 - z).max(0.0).sqrt();
+    let (a, b) = (x.max(y), x.min(y));
+    let b = if a == 0.0 { 0.0 } else { b / a };
+    // φ/(π/2) within the octant.
+    let mut phi = b.atan() * (2.0 / PI);
+    if x < y {
+        phi = 1.0 - phi;
+    }
+    let mut v = phi * r;
+    let mut u = r - v;
+    if d.z < 0.0 {
+        (u, v) = (1.0 - v, 1.0 - u);
+    }
+    Vec2::new(0.5 * (u.copysign(d.x) + 1.0), 0.5 * (v.copysign(d.y) + 1.0))
+}
+
+/// The unit direction at point `p` of the unit square: the inverse of
+/// [`equal_area_sphere_to_square`] (pbrt-v4 `EqualAreaSquareToSphere`).
+pub fn equal_area_square_to_sphere(p: Vec2) -> Vec3 {
+    let (u, v) = (2.0 * p.x - 1.0, 2.0 * p.y - 1.0);
+    let (up, vp) = (u.abs(), v.abs());
+    // Signed distance from the diagonal |u| + |v| = 1: its sign is z's.
+    let signed = 1.0 - (up + vp);
+    let r = 1.0 - signed.abs();
+    let phi = if r == 0.0 { 1.0 } else { (vp - up) / r + 1.0 } * (PI / 4.0);
+    let z = (1.0 - r * r).copysign(signed);
+    let s = r * (2.0 - r * r).max(0.0).sqrt();
+    Vec3::new(phi.cos().copysign(u) * s, phi.sin().copysign(v) * s, z)
 }
 
 /// What rays that leave the scene see.
@@ -388,5 +487,82 @@ mod tests {
             "relative spread {cv}, largest {} × the mean",
             max / mean
         );
+    }
+
+    #[test]
+    fn equal_area_mapping_round_trips_and_keeps_area() {
+        let mut r = Pcg32::new(12, 6);
+        for _ in 0..10_000 {
+            let d = sample_sphere_uniform(Vec2::new(r.next_f32(), r.next_f32()));
+            let p = equal_area_sphere_to_square(d);
+            assert!((0.0..=1.0).contains(&p.x) && (0.0..=1.0).contains(&p.y), "{p}");
+            let back = equal_area_square_to_sphere(p);
+            assert!((back - d).length() < 2e-4, "{d} → {p} → {back}");
+        }
+        // pbrt-v4's conventions: +z at the centre, −z at the corners, +x right, +y down the rows.
+        assert!((equal_area_square_to_sphere(Vec2::splat(0.5)) - Vec3::Z).length() < 1e-6);
+        assert!((equal_area_square_to_sphere(Vec2::ZERO) + Vec3::Z).length() < 1e-6);
+        assert!((equal_area_square_to_sphere(Vec2::new(1.0, 0.5)) - Vec3::X).length() < 1e-6);
+        assert!((equal_area_square_to_sphere(Vec2::new(0.5, 1.0)) - Vec3::Y).length() < 1e-6);
+        // Equal area: uniform points of the square are uniform on the
+        // sphere, so each of 8 octants gets an eighth and the mean of z² is ⅓.
+        let n = 200_000;
+        let (mut octants, mut z2) = ([0u32; 8], 0.0f64);
+        for _ in 0..n {
+            let d = equal_area_square_to_sphere(Vec2::new(r.next_f32(), r.next_f32()));
+            octants[(d.x > 0.0) as usize | ((d.y > 0.0) as usize) << 1 | ((d.z > 0.0) as usize) << 2] += 1;
+            z2 += (d.z * d.z) as f64;
+        }
+        for c in octants {
+            // 5 standard deviations of a binomial count.
+            assert!(
+                (c as f64 - n as f64 / 8.0).abs() < 5.0 * (n as f64 * 7.0 / 64.0).sqrt(),
+                "{octants:?}"
+            );
+        }
+        // Var(z²) = 4/45 for uniform directions.
+        assert!((z2 / n as f64 - 1.0 / 3.0).abs() < 5.0 * (4.0 / 45.0 / n as f64).sqrt());
+    }
+
+    fn equal_area_map(w: u32) -> EnvironmentMap {
+        let mut r = Pcg32::new(4, 4);
+        let mut pixels: Vec<Rgb> = (0..w * w).map(|_| Rgb::splat(0.1 + r.next_f32())).collect();
+        pixels[(w * w / 3) as usize] = Rgb::new(400.0, 300.0, 200.0);
+        EnvironmentMap::with_layout(
+            ImageTexture {
+                width: w,
+                height: w,
+                pixels,
+            },
+            1.5,
+            Transform::rotate(Vec3::new(1.0, 0.2, 0.0), -90.0).unwrap(),
+            EnvironmentLayout::EqualAreaOctahedral,
+        )
+    }
+
+    #[test]
+    fn equal_area_maps_are_sampled_by_their_density_and_in_proportion_to_radiance() {
+        use crate::sampling::chi2::Chi2Test;
+        let map = equal_area_map(16);
+        let mut r = Pcg32::new(13, 1);
+        let result = Chi2Test::default().run(
+            |_| map.sample(Vec2::new(r.next_f32(), r.next_f32())).map(|(d, _)| d),
+            |d| map.pdf(d) as f64,
+        );
+        assert!(result.p_value > 0.001, "{result:?}");
+        // Nearest-pixel lookup and a density constant over each pixel: L/pdf
+        // is the same for every sample of a grey map (up to samples on a
+        // pixel's edge, which the round trip may put in the neighbour).
+        let (mut off, n) = (0, 20_000);
+        let expected = 4.0 * PI * luminance(map.average);
+        for _ in 0..n {
+            let (d, pdf) = map.sample(Vec2::new(r.next_f32(), r.next_f32())).unwrap();
+            let l = map.eval(d);
+            let grey = l.x == l.y && l.y == l.z;
+            if grey && (luminance(l) / pdf / expected - 1.0).abs() > 1e-3 {
+                off += 1;
+            }
+        }
+        assert!(off < n / 200, "{off} of {n} grey samples with L/pdf away from ∫L dω");
     }
 }

@@ -361,7 +361,12 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             top: *top,
             bottom: *bottom,
         },
-        BackgroundDesc::Image { path, scale, transform } => {
+        BackgroundDesc::Image {
+            path,
+            scale,
+            transform,
+            layout,
+        } => {
             let full = base_dir.join(path);
             let mut image = ImageTexture::load(&full, None)
                 .map_err(|e| Error::scene(desc.world_locs.key("background"), "world.background", reason_of(e)))?;
@@ -379,7 +384,19 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             }
             let to_world = compose(transform)
                 .map_err(|e| Error::scene(desc.world_locs.key("background"), "world.background", e))?;
-            Background::Image(Box::new(EnvironmentMap::new(image, *scale, to_world)))
+            if *layout == EnvironmentLayout::EqualAreaOctahedral && image.width != image.height {
+                return Err(Error::scene(
+                    desc.world_locs.key("background"),
+                    "world.background",
+                    format!(
+                        "{}: an equal-area octahedral environment map must be square; this image is {}×{}",
+                        path.display(),
+                        image.width,
+                        image.height
+                    ),
+                ));
+            }
+            Background::Image(Box::new(EnvironmentMap::with_layout(image, *scale, to_world, *layout)))
         }
     };
     // In the path tracer a background that is not black lights the scene.

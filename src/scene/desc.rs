@@ -613,7 +613,7 @@ pub enum BackgroundDesc {
         /// Looking down.
         bottom: Rgb,
     },
-    /// An equirectangular (latitude–longitude) image.
+    /// An environment image.
     Image {
         /// Path, relative to the scene file.
         path: PathBuf,
@@ -621,7 +621,22 @@ pub enum BackgroundDesc {
         scale: f32,
         /// Rotation of the map (steps applied to directions).
         transform: Vec<TransformOp>,
+        /// How the image's pixels map to directions.
+        layout: EnvironmentLayout,
     },
+}
+
+/// How an environment image's pixels map to directions.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum EnvironmentLayout {
+    /// Latitude–longitude (equirectangular), Mitsuba's convention: +y up,
+    /// bilinear between pixel centres.
+    #[default]
+    LatLong,
+    /// pbrt-v4's equal-area octahedral square (Clarberg 2008): +z at the
+    /// centre, −z at the corners, every pixel the same solid angle, each
+    /// looked up as the nearest pixel (as pbrt-v4's `ImageInfiniteLight`).
+    EqualAreaOctahedral,
 }
 
 /// A complete scene description.

@@ -1023,6 +1023,7 @@ impl Loader {
                         path,
                         scale,
                         transform: vec![TransformOp::Matrix(to_world)],
+                        layout: EnvironmentLayout::LatLong,
                     },
                 );
             }

@@ -180,6 +180,7 @@ pub fn parse(text: &str, path: &Path) -> Result<SceneDesc> {
                             path,
                             scale: g.number_or("scale", 1.0)?,
                             transform,
+                            layout: EnvironmentLayout::LatLong,
                         }
                     } else {
                         BackgroundDesc::Gradient {

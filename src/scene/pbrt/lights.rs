@@ -11,7 +11,7 @@ use super::{Emission, Parser};
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::scene::desc::*;
-use glam::{Mat4, Vec3, Vec4};
+use glam::Vec3;
 use std::f32::consts::PI;
 use std::path::Path;
 
@@ -159,19 +159,15 @@ impl Parser {
                         "the image is scaled by \"scale\" only",
                     );
                 }
-                self.approximated(
-                    &at,
-                    format!("environment map \"{name}\""),
-                    "pbrt-v4 stores it in an equal-area octahedral layout, but trazo reads it as a latitude–longitude image, oriented as pbrt-v3 read those (+z up in light space)",
-                );
-                // trazo's map directions (+y up, u = 0 looking down −z,
-                // u = ¼ down +x) → pbrt-v3's (+z up, φ from +x towards +y).
-                let axes = Mat4::from_cols(Vec4::Y, Vec4::Z, -Vec4::X, Vec4::W);
+                // pbrt-v4 stores environment maps in its equal-area
+                // octahedral layout, +z at the centre of the square in the
+                // light's space (which the CTM places in the world).
                 (
                     BackgroundDesc::Image {
                         path: self.resolve(dir_rel, &name),
                         scale,
-                        transform: vec![TransformOp::Matrix(axes), TransformOp::Matrix(self.gs.ctm)],
+                        transform: vec![TransformOp::Matrix(self.gs.ctm)],
+                        layout: EnvironmentLayout::EqualAreaOctahedral,
                     },
                     at,
                 )
