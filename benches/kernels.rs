@@ -12,7 +12,7 @@ use trazo::geometry::Aabb;
 use trazo::geometry::shape::{Rectangle, Shape, Sphere};
 use trazo::geometry::triangle::intersect_triangle;
 use trazo::geometry::{Ray, TriangleMesh};
-use trazo::integrator::{Integrator, PathSampling, PathTracer, RayStats};
+use trazo::integrator::{Integrator, PathTracer, RayStats};
 use trazo::material::bsdf::{Bsdf, TransportMode};
 use trazo::material::conductor::{ConductorBsdf, ConductorFresnel};
 use trazo::material::lambert::LambertBsdf;
@@ -21,6 +21,7 @@ use trazo::render::{RenderOptions, render};
 use trazo::sampling::Pcg32;
 use trazo::sampling::{Sampler, SamplerKind};
 use trazo::scene::builtin::cornell_box;
+use trazo::settings::PathSampling;
 use trazo::{Rgb, Vec2};
 
 fn random_rays(n: usize, seed: u64) -> Vec<Ray> {
@@ -299,7 +300,7 @@ fn whole_render(c: &mut Criterion) {
     d.settings.width = 128;
     d.settings.height = 128;
     d.settings.spp = 4;
-    d.settings.integrator = trazo::integrator::IntegratorKind::Path;
+    d.settings.integrator = trazo::settings::IntegratorKind::Path;
     let scene = trazo::scene::build(&d).unwrap();
     let mut g = c.benchmark_group("render");
     g.sample_size(10);

@@ -3,8 +3,8 @@
 //!
 //! Run with: `cargo run --release --example render_in_code -- out.png`
 
-use trazo::film::Tonemap;
 use trazo::scene::desc::*;
+use trazo::settings::Tonemap;
 use trazo::{Rgb, Vec3};
 
 fn main() -> Result<(), trazo::Error> {

@@ -51,6 +51,7 @@ pub mod material;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod settings;
 pub mod texture;
 
 pub use color::Rgb;

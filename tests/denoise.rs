@@ -110,7 +110,7 @@ fn denoising_keeps_a_sharp_albedo_edge() {
             Some(name),
         ));
     }
-    d.settings.sampling = trazo::integrator::PathSampling::Uniform;
+    d.settings.sampling = trazo::settings::PathSampling::Uniform;
     let film = render_with_aovs(&d);
     let noisy = film.to_image();
     // The render is noisy (uniform sampling of the sky), or the test would

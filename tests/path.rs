@@ -6,10 +6,10 @@
 use trazo::Vec3;
 use trazo::color::{Rgb, luminance};
 use trazo::film::Film;
-use trazo::integrator::{IntegratorKind, PathSampling};
 use trazo::render::{RenderOptions, render};
 use trazo::scene::builtin::cornell_box;
 use trazo::scene::desc::*;
+use trazo::settings::{IntegratorKind, PathSampling};
 
 fn render_film(d: &SceneDesc) -> Film {
     let scene = trazo::scene::build(d).unwrap();
@@ -419,10 +419,10 @@ impl trazo::integrator::Integrator for OnePathAtATime {
 /// sample counts that leave batches part full.
 #[test]
 fn eight_paths_in_lockstep_equal_one_path_at_a_time() {
-    use trazo::film::filter::Filter;
     use trazo::integrator::PathTracer;
     use trazo::integrator::path_lanes::LockstepScene;
     use trazo::render::render_with;
+    use trazo::settings::Filter;
 
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let mitsuba = trazo::scene::load(&root.join("tools/crosscheck/scenes/cornell-box.xml"), &[]).unwrap();

@@ -12,11 +12,11 @@ use trazo::color::{Rgb, luminance};
 use trazo::film::Image;
 use trazo::film::io::read_exr;
 use trazo::film::metrics::relative_mse;
-use trazo::integrator::{IntegratorKind, PhotonKernel};
 use trazo::render::{RenderOptions, RenderOutput, render};
 use trazo::sampling::SamplerKind;
 use trazo::scene::builtin::cornell_box;
 use trazo::scene::desc::*;
+use trazo::settings::{IntegratorKind, PhotonKernel};
 
 fn reference(name: &str) -> Image {
     read_exr(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name)).unwrap()

@@ -4,12 +4,12 @@
 use trazo::accel::aggregate::{Aggregate, HitPrim, MeshInstance, MeshObject, ShapeInstance};
 use trazo::geometry::shape::{Cuboid, Disk, Rectangle, Shape, Sphere};
 use trazo::geometry::{Ray, Transform, TriangleMesh};
-use trazo::integrator::IntegratorKind;
 use trazo::material::optics::{fresnel_dielectric, refract};
 use trazo::render::{RenderOptions, render};
 use trazo::sampling::{Pcg32, SamplerKind};
 use trazo::scene::builtin::cornell_box;
 use trazo::scene::desc::*;
+use trazo::settings::IntegratorKind;
 use trazo::{Rgb, Vec3};
 
 fn point_light(position: Vec3, intensity: f32) -> LightDesc {
@@ -903,10 +903,10 @@ fn spawned_rays_never_hit_the_surface_they_leave_at_any_scale() {
 }
 
 fn small_box(spp: u32) -> trazo::scene::Scene {
-    small_box_filtered(spp, trazo::film::filter::Filter::default())
+    small_box_filtered(spp, trazo::settings::Filter::default())
 }
 
-fn small_box_filtered(spp: u32, filter: trazo::film::filter::Filter) -> trazo::scene::Scene {
+fn small_box_filtered(spp: u32, filter: trazo::settings::Filter) -> trazo::scene::Scene {
     let mut d = cornell_box();
     d.settings.width = 24;
     d.settings.height = 20;
@@ -921,8 +921,8 @@ fn small_box_filtered(spp: u32, filter: trazo::film::filter::Filter) -> trazo::s
 /// image that filter importance sampling gives (the same expectation).
 #[test]
 fn splatted_filters_stay_deterministic_and_agree_with_importance_sampling() {
-    use trazo::film::filter::Filter;
     use trazo::render::{Control, render_controlled};
+    use trazo::settings::Filter;
     let gaussian = Filter::Gaussian {
         stddev: 0.5,
         radius: 2.0,

@@ -5,19 +5,17 @@ mod bench;
 mod job;
 
 use crate::error::{Error, Result};
-use crate::film::Film;
-use crate::film::Tonemap;
 use crate::film::denoise::{DenoiserKind, denoise_film};
 use crate::film::io::{ImageFormat, read_image, write_image};
-use crate::integrator::aov::Aov;
-use crate::integrator::photon::{MAX_GATHER, MAX_PHOTONS};
-use crate::integrator::{IntegratorKind, PathSampling, PhotonKernel};
+use crate::film::{Aov, Film};
 use crate::render::checkpoint::checkpoint_path;
 use crate::render::compare::{Budget, Contestant, compare, side_by_side, table};
 use crate::render::{Control, RenderOptions, RenderStats, Stop, render_controlled};
 use crate::sampling::SamplerKind;
-use crate::scene::desc::{MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP};
 use crate::scene::{self, SceneDesc, builtin};
+use crate::settings::{
+    IntegratorKind, MAX_DEPTH, MAX_GATHER, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, PathSampling, PhotonKernel, Tonemap,
+};
 use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;

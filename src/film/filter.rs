@@ -5,61 +5,10 @@
 //! are splatted with filter weights, and because no sample touches another
 //! pixel, tiles stay independent and renders deterministic.
 
+use crate::settings::Filter;
 use glam::Vec2;
 
-/// A separable reconstruction filter, centred on the pixel centre.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Filter {
-    /// Uniform weight within `radius` pixels (0.5: exactly the pixel).
-    Box {
-        /// Half-width in pixels.
-        radius: f32,
-    },
-    /// Weight falling linearly to 0 at `radius`.
-    Tent {
-        /// Half-width in pixels.
-        radius: f32,
-    },
-    /// A Gaussian of standard deviation `stddev`, cut off at `radius`.
-    Gaussian {
-        /// Standard deviation in pixels.
-        stddev: f32,
-        /// Cut-off in pixels.
-        radius: f32,
-    },
-}
-
-impl Default for Filter {
-    fn default() -> Self {
-        Filter::Box { radius: 0.5 }
-    }
-}
-
 impl Filter {
-    /// The names accepted in scene files.
-    pub const NAMES: [&'static str; 3] = ["box", "tent", "gaussian"];
-
-    /// The filter called `name` with its default size (box 0.5, tent 1,
-    /// Gaussian σ = 0.5 cut off at 4σ, as Mitsuba's).
-    pub fn from_name(name: &str) -> Option<Filter> {
-        match name {
-            "box" => Some(Filter::Box { radius: 0.5 }),
-            "tent" => Some(Filter::Tent { radius: 1.0 }),
-            "gaussian" => Some(Filter::Gaussian {
-                stddev: 0.5,
-                radius: 2.0,
-            }),
-            _ => None,
-        }
-    }
-
-    /// Half-width in pixels.
-    pub fn radius(&self) -> f32 {
-        match *self {
-            Filter::Box { radius } | Filter::Tent { radius } | Filter::Gaussian { radius, .. } => radius,
-        }
-    }
-
     /// The filter's (unnormalised) 1D profile at offset `x` in pixels;
     /// [`Filter::sample`] draws offsets with this density.
     pub fn eval_1d(&self, x: f32) -> f32 {

@@ -5,9 +5,10 @@
 //! folder, which is flushed to disk and then renamed over the target. A
 //! render killed at any moment leaves either the old file or the new one.
 
-use super::{Image, Tonemap};
+use super::Image;
 use crate::color::{Rgb, linear_to_srgb};
 use crate::error::{Error, Result};
+use crate::settings::Tonemap;
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};

@@ -14,11 +14,8 @@ pub mod splat;
 pub mod text;
 pub mod tonemap;
 
-pub use filter::Filter;
-pub use tonemap::Tonemap;
-
 use crate::color::{Rgb, luminance};
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 
 /// A linear RGB image in memory.
 #[derive(Clone, Debug, PartialEq)]
@@ -116,7 +113,54 @@ impl PixelSum {
     }
 }
 
-/// Accumulated auxiliary values of one pixel (see [`crate::integrator::aov`]).
+/// The auxiliary channels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Aov {
+    /// Surface colour (reflectance) at the first non-specular hit.
+    Albedo,
+    /// World-space shading normal at the first non-specular hit, facing the
+    /// camera; components in [−1, 1].
+    Normal,
+    /// Distance along the camera ray to the first hit (0 where nothing is hit).
+    Depth,
+}
+
+impl Aov {
+    /// The names accepted on the command line.
+    pub const NAMES: [&'static str; 3] = ["albedo", "normal", "depth"];
+
+    /// Parses one of [`Aov::NAMES`].
+    pub fn from_name(s: &str) -> Option<Aov> {
+        match s {
+            "albedo" => Some(Aov::Albedo),
+            "normal" => Some(Aov::Normal),
+            "depth" => Some(Aov::Depth),
+            _ => None,
+        }
+    }
+
+    /// This channel's name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Aov::Albedo => "albedo",
+            Aov::Normal => "normal",
+            Aov::Depth => "depth",
+        }
+    }
+}
+
+/// The auxiliary values of one camera sample.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AovSample {
+    /// Albedo.
+    pub albedo: Rgb,
+    /// Normal.
+    pub normal: Vec3,
+    /// Depth.
+    pub depth: f32,
+}
+
+/// Accumulated auxiliary values of one pixel (computed by [`crate::integrator::aov`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct AovSum {
     /// Σ albedo.
@@ -132,7 +176,7 @@ pub struct AovSum {
 impl AovSum {
     /// Adds one sample.
     #[inline]
-    pub fn add(&mut self, s: &crate::integrator::aov::AovSample) {
+    pub fn add(&mut self, s: &AovSample) {
         self.albedo += s.albedo.as_dvec3();
         self.normal += s.normal.as_dvec3();
         self.depth += s.depth as f64;
@@ -166,8 +210,7 @@ impl Film {
 
     /// The image of one auxiliary channel, if they were recorded. Normals
     /// are averaged (not renormalised), so edge pixels show the mix.
-    pub fn aov_image(&self, aov: crate::integrator::aov::Aov) -> Option<Image> {
-        use crate::integrator::aov::Aov;
+    pub fn aov_image(&self, aov: Aov) -> Option<Image> {
         let sums = self.aovs.as_ref()?;
         let pixels = sums
             .iter()
@@ -217,5 +260,14 @@ mod tests {
         // Sample variance of {1, 3} is 2; of the mean, 1.
         assert!((p.variance_of_mean() - 1.0).abs() < 1e-9);
         assert_eq!(PixelSum::default().value(), Rgb::ZERO);
+    }
+
+    /// The memory estimate (`scene::memory`) counts this size per pixel.
+    #[test]
+    fn pixel_sums_are_the_size_the_memory_estimate_counts() {
+        assert_eq!(
+            std::mem::size_of::<PixelSum>() as u64,
+            crate::scene::memory::PIXEL_SUM_BYTES
+        );
     }
 }

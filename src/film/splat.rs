@@ -12,7 +12,7 @@
 //! of threads.
 
 use super::PixelSum;
-use super::filter::Filter;
+use crate::settings::Filter;
 use glam::{DVec3, Vec4};
 
 /// Sub-pixel phases tabulated: a sample's weights along an axis depend
@@ -40,10 +40,8 @@ impl Splat {
     /// Splatting for `filter`, or `None` for the one-pixel box, for which
     /// filter importance sampling is the same estimator.
     pub fn new(filter: &Filter) -> Option<Splat> {
+        let margin = filter.splat_margin()?;
         let radius = filter.radius();
-        if matches!(filter, Filter::Box { .. }) && radius <= 0.5 || !(radius > 0.0 && radius <= 8.0) {
-            return None;
-        }
         // Normalise the profile so that a sample's weights sum to about 1:
         // a pixel's total weight is then about its number of samples.
         let integral = profile_integral(filter);
@@ -54,11 +52,7 @@ impl Splat {
                 *w = (filter.eval_1d(x) as f64 / integral) as f32;
             }
         }
-        Some(Splat {
-            radius,
-            margin: (radius - 0.5).ceil().max(0.0) as u32,
-            rows,
-        })
+        Some(Splat { radius, margin, rows })
     }
 
     /// The pixels in `[lo, hi)` whose centres lie within the radius of

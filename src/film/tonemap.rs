@@ -2,42 +2,9 @@
 //! only when writing 8-bit images.
 
 use crate::color::Rgb;
-
-/// A tone-mapping operator.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Tonemap {
-    /// Clip each channel to [0, 1].
-    #[default]
-    Clamp,
-    /// Reinhard et al. 2002 on luminance: L/(1 + L), keeping hue.
-    Reinhard,
-    /// Narkowicz's 2015 fit of the ACES filmic curve, per channel.
-    Aces,
-}
+use crate::settings::Tonemap;
 
 impl Tonemap {
-    /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 3] = ["clamp", "reinhard", "aces"];
-
-    /// Parses one of [`Tonemap::NAMES`].
-    pub fn from_name(s: &str) -> Option<Tonemap> {
-        match s {
-            "clamp" => Some(Tonemap::Clamp),
-            "reinhard" => Some(Tonemap::Reinhard),
-            "aces" => Some(Tonemap::Aces),
-            _ => None,
-        }
-    }
-
-    /// This operator's name.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Tonemap::Clamp => "clamp",
-            Tonemap::Reinhard => "reinhard",
-            Tonemap::Aces => "aces",
-        }
-    }
-
     /// Maps a linear colour to [0, 1]³.
     #[inline]
     pub fn apply(&self, c: Rgb) -> Rgb {

@@ -5,58 +5,11 @@
 //! as Intel Open Image Denoise expect.
 
 use crate::color::Rgb;
+use crate::film::AovSample;
 use crate::geometry::Ray;
 use crate::material::{Frame, TransportMode};
 use crate::scene::Scene;
 use crate::texture::TexCoord;
-use glam::Vec3;
-
-/// The auxiliary channels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Aov {
-    /// Surface colour (reflectance) at the first non-specular hit.
-    Albedo,
-    /// World-space shading normal at the first non-specular hit, facing the
-    /// camera; components in [−1, 1].
-    Normal,
-    /// Distance along the camera ray to the first hit (0 where nothing is hit).
-    Depth,
-}
-
-impl Aov {
-    /// The names accepted on the command line.
-    pub const NAMES: [&'static str; 3] = ["albedo", "normal", "depth"];
-
-    /// Parses one of [`Aov::NAMES`].
-    pub fn from_name(s: &str) -> Option<Aov> {
-        match s {
-            "albedo" => Some(Aov::Albedo),
-            "normal" => Some(Aov::Normal),
-            "depth" => Some(Aov::Depth),
-            _ => None,
-        }
-    }
-
-    /// This channel's name.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Aov::Albedo => "albedo",
-            Aov::Normal => "normal",
-            Aov::Depth => "depth",
-        }
-    }
-}
-
-/// The auxiliary values of one camera sample.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct AovSample {
-    /// Albedo.
-    pub albedo: Rgb,
-    /// Normal.
-    pub normal: Vec3,
-    /// Depth.
-    pub depth: f32,
-}
 
 /// Most specular bounces followed before giving up.
 const MAX_SPECULAR_CHAIN: u32 = 8;

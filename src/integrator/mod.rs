@@ -8,54 +8,14 @@ pub mod path_lanes;
 pub mod photon;
 pub mod whitted;
 
-pub use path::{PathSampling, PathTracer};
-pub use photon::{PhotonKernel, PhotonMapper, PhotonSettings};
+pub use path::PathTracer;
+pub use photon::PhotonMapper;
 pub use whitted::Whitted;
 
 use crate::color::Rgb;
 use crate::geometry::Ray;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
-
-/// The rendering algorithms.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum IntegratorKind {
-    /// Whitted's recursive ray tracer.
-    Whitted,
-    /// Kajiya's path tracer.
-    #[default]
-    Path,
-    /// Jensen's two-pass photon mapping.
-    Photon,
-    /// Stochastic progressive photon mapping.
-    Sppm,
-}
-
-impl IntegratorKind {
-    /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 4] = ["whitted", "path", "photon", "sppm"];
-
-    /// Parses one of [`IntegratorKind::NAMES`].
-    pub fn from_name(s: &str) -> Option<IntegratorKind> {
-        match s {
-            "whitted" => Some(IntegratorKind::Whitted),
-            "path" => Some(IntegratorKind::Path),
-            "photon" => Some(IntegratorKind::Photon),
-            "sppm" => Some(IntegratorKind::Sppm),
-            _ => None,
-        }
-    }
-
-    /// This integrator's name.
-    pub fn name(&self) -> &'static str {
-        match self {
-            IntegratorKind::Whitted => "whitted",
-            IntegratorKind::Path => "path",
-            IntegratorKind::Photon => "photon",
-            IntegratorKind::Sppm => "sppm",
-        }
-    }
-}
 
 /// Counters that an integrator updates while it works; each thread owns
 /// one, and they are summed at the end.

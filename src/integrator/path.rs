@@ -37,45 +37,7 @@ use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::texture::TexCoord;
 
-/// How the path tracer chooses directions and gathers light.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum PathSampling {
-    /// Uniform hemisphere sampling, emission collected on hits only.
-    Uniform,
-    /// Cosine-weighted hemisphere sampling, emission on hits only.
-    Cosine,
-    /// BSDF importance sampling, emission on hits only.
-    Bsdf,
-    /// Next-event estimation and BSDF sampling combined by MIS.
-    #[default]
-    Mis,
-}
-
-impl PathSampling {
-    /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 4] = ["uniform", "cosine", "bsdf", "mis"];
-
-    /// Parses one of [`PathSampling::NAMES`].
-    pub fn from_name(s: &str) -> Option<PathSampling> {
-        match s {
-            "uniform" => Some(PathSampling::Uniform),
-            "cosine" => Some(PathSampling::Cosine),
-            "bsdf" => Some(PathSampling::Bsdf),
-            "mis" => Some(PathSampling::Mis),
-            _ => None,
-        }
-    }
-
-    /// This estimator's name.
-    pub fn name(&self) -> &'static str {
-        match self {
-            PathSampling::Uniform => "uniform",
-            PathSampling::Cosine => "cosine",
-            PathSampling::Bsdf => "bsdf",
-            PathSampling::Mis => "mis",
-        }
-    }
-}
+pub use crate::settings::PathSampling;
 
 /// The power heuristic with β = 2 (Veach 1997, eq. 9.13).
 #[inline]

@@ -29,7 +29,7 @@
 use super::RenderStats;
 use crate::error::{Error, Result};
 use crate::film::{AovSum, Film, PixelSum};
-use crate::scene::desc::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_SPP};
+use crate::settings::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_SPP};
 use glam::DVec3;
 use std::io::Write;
 use std::path::{Path, PathBuf};

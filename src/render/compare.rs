@@ -9,8 +9,8 @@ use crate::film::Image;
 use crate::film::denoise::{DenoiserKind, denoise_film};
 use crate::film::metrics::relative_mse;
 use crate::film::text::{GLYPH_H, draw_text, text_width};
-use crate::integrator::{IntegratorKind, PathSampling};
 use crate::scene::SceneDesc;
+use crate::settings::{IntegratorKind, PathSampling};
 use std::time::{Duration, Instant};
 
 /// One contestant: an integrator, for the path tracer its estimator, and

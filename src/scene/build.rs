@@ -16,6 +16,7 @@ use crate::light::{Background, EnvironmentMap, Light};
 use crate::material::conductor::ConductorFresnel;
 use crate::material::{Material, MaterialKind};
 use crate::sampling::Distribution1D;
+use crate::settings::IntegratorKind;
 use crate::texture::{ImageTexture, Texture};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -43,13 +44,13 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
 /// and before the BVH is built.
 pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     desc.validate()?;
-    let margin = crate::film::splat::Splat::new(&desc.settings.filter).map_or(0, |s| s.margin);
+    let margin = desc.settings.filter.splat_margin().unwrap_or(0);
     let mut memory = MemoryEstimate::for_filtered_film(desc.settings.width, desc.settings.height, limits.aovs, margin);
     memory.geometry = described_mesh_bytes(desc);
     let (st, ph) = (&desc.settings, &desc.settings.photon);
     memory.photons = match st.integrator {
-        crate::integrator::IntegratorKind::Photon => photon_bytes(ph.photons as u64 + ph.caustic_photons as u64),
-        crate::integrator::IntegratorKind::Sppm => photon_bytes(match ph.sppm_photons {
+        IntegratorKind::Photon => photon_bytes(ph.photons as u64 + ph.caustic_photons as u64),
+        IntegratorKind::Sppm => photon_bytes(match ph.sppm_photons {
             0 => st.width as u64 * st.height as u64,
             n => n as u64,
         }),

@@ -8,11 +8,10 @@
 
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
-use crate::film::{Filter, Tonemap};
 use crate::geometry::{Transform, TriangleMesh};
-use crate::integrator::photon::{MAX_GATHER, MAX_PHOTONS};
-use crate::integrator::{IntegratorKind, PathSampling, PhotonSettings};
-use crate::sampling::SamplerKind;
+use crate::settings::{
+    Filter, MAX_DEPTH, MAX_GATHER, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, RenderSettings,
+};
 use glam::{Mat4, Vec2, Vec3};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -41,68 +40,6 @@ impl Locs {
             .or_else(|| self.item.clone())
     }
 }
-
-/// Render settings that a scene file may give and the command line may
-/// override.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RenderSettings {
-    /// Image width in pixels.
-    pub width: u32,
-    /// Image height in pixels.
-    pub height: u32,
-    /// Samples per pixel.
-    pub spp: u32,
-    /// Longest light path, in segments from the camera (1: emitters seen
-    /// directly; 2: direct light; each more: one more bounce).
-    pub max_depth: u32,
-    /// The rendering algorithm.
-    pub integrator: IntegratorKind,
-    /// The path tracer's estimator.
-    pub sampling: PathSampling,
-    /// Path segments after which Russian roulette starts.
-    pub rr_depth: u32,
-    /// Seed of all random numbers.
-    pub seed: u64,
-    /// Placement of samples within pixels.
-    pub sampler: SamplerKind,
-    /// Pixel reconstruction filter.
-    pub filter: Filter,
-    /// Tone mapping for 8-bit output.
-    pub tonemap: Tonemap,
-    /// Exposure compensation in stops, applied before tone mapping.
-    pub exposure: f32,
-    /// Photon mapping and SPPM parameters.
-    pub photon: PhotonSettings,
-}
-
-impl Default for RenderSettings {
-    fn default() -> Self {
-        RenderSettings {
-            width: 512,
-            height: 512,
-            spp: 16,
-            max_depth: 8,
-            integrator: IntegratorKind::default(),
-            sampling: PathSampling::default(),
-            rr_depth: 5,
-            seed: 0,
-            sampler: SamplerKind::default(),
-            filter: Filter::default(),
-            tonemap: Tonemap::default(),
-            exposure: 0.0,
-            photon: PhotonSettings::default(),
-        }
-    }
-}
-
-/// Largest accepted image side, in pixels.
-pub const MAX_IMAGE_SIDE: u32 = 65_536;
-/// Largest accepted image, in pixels (about 268 megapixels).
-pub const MAX_IMAGE_PIXELS: u64 = 1 << 28;
-/// Largest accepted samples per pixel.
-pub const MAX_SPP: u32 = 1 << 24;
-/// Largest accepted recursion depth.
-pub const MAX_DEPTH: u32 = 1024;
 
 /// Camera projection as described.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -16,6 +16,7 @@ use super::native::{MAX_SCENE_BYTES, io_reason};
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::geometry::{Aabb, Transform, TriangleMesh};
+use crate::settings::MAX_IMAGE_SIDE;
 use crate::texture::ImageTexture;
 use ::gltf::json;
 use ::gltf::json::accessor::{ComponentType, Type as AccessorType};

@@ -219,7 +219,6 @@ mod tests {
     /// (margin 2) holds 20² / 16² of the image in a pass's copy.
     #[test]
     fn splat_margins_add_to_the_film() {
-        assert_eq!(std::mem::size_of::<crate::film::PixelSum>() as u64, PIXEL_SUM_BYTES);
         let plain = MemoryEstimate::for_film(100, 100, false).film;
         let splat = MemoryEstimate::for_filtered_film(100, 100, false, 2).film;
         assert_eq!(splat - plain, 100 * 100 * (PIXEL_SUM_BYTES * (400 - 256) / 256));

@@ -17,7 +17,7 @@ pub mod pbrt;
 pub mod ply;
 
 pub use build::{BuildLimits, build, build_limited};
-pub use desc::{RenderSettings, SceneDesc};
+pub use desc::SceneDesc;
 
 use crate::accel::Aggregate;
 use crate::camera::Camera;
@@ -27,6 +27,7 @@ use crate::geometry::{Ray, SurfaceHit};
 use crate::light::{Background, Light};
 use crate::material::Material;
 use crate::sampling::Distribution1D;
+use crate::settings::RenderSettings;
 use crate::texture::ImageTexture;
 use std::path::Path;
 

@@ -8,10 +8,9 @@
 use super::desc::*;
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
-use crate::film::{Filter, Tonemap};
 use crate::geometry::TriangleMesh;
-use crate::integrator::{IntegratorKind, PathSampling, PhotonKernel};
 use crate::sampling::SamplerKind;
+use crate::settings::{Filter, IntegratorKind, PathSampling, PhotonKernel, RenderSettings, Tonemap};
 use glam::{Mat4, Vec2, Vec3, Vec4};
 use serde_spanned::Spanned;
 use std::cell::RefCell;

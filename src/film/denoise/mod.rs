@@ -16,9 +16,8 @@
 pub mod atrous;
 pub mod oidn;
 
-use super::{Film, Image};
+use super::{Aov, Film, Image};
 use crate::error::{Error, Result};
-use crate::integrator::aov::Aov;
 
 /// Which denoiser to use.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

@@ -38,46 +38,11 @@ use crate::light::ShadowTarget;
 use crate::material::{Bsdf, Frame, TransportMode};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
+use crate::settings::{PhotonKernel, PhotonSettings};
 use glam::Vec3;
 use std::f32::consts::PI;
 
-/// The weighting of photons by distance in a density estimate.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum PhotonKernel {
-    /// Constant over the disk (the plain nearest-neighbour estimate).
-    Box,
-    /// Jensen's cone filter, w = 1 − d/r (Jensen 2001, eq. 7.8 with k = 1),
-    /// normalised by 1 − 2/3.
-    #[default]
-    Cone,
-    /// Epanechnikov's kernel, w = 1 − d²/r², normalised by 1/2 (Silverman
-    /// 1986: the kernel of least mean integrated squared error).
-    Epanechnikov,
-}
-
 impl PhotonKernel {
-    /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 3] = ["box", "cone", "epanechnikov"];
-
-    /// Parses one of [`PhotonKernel::NAMES`].
-    pub fn from_name(s: &str) -> Option<PhotonKernel> {
-        match s {
-            "box" => Some(PhotonKernel::Box),
-            "cone" => Some(PhotonKernel::Cone),
-            "epanechnikov" => Some(PhotonKernel::Epanechnikov),
-            _ => None,
-        }
-    }
-
-    /// This kernel's name.
-    pub fn name(&self) -> &'static str {
-        match self {
-            PhotonKernel::Box => "box",
-            PhotonKernel::Cone => "cone",
-            PhotonKernel::Epanechnikov => "epanechnikov",
-        }
-    }
-
     /// Weight of a photon at squared distance `d2` in a disk of squared
     /// radius `r2`, divided by the kernel's integral over the disk: the
     /// weights of photons sum to a density estimate per unit area.
@@ -91,59 +56,7 @@ impl PhotonKernel {
     }
 }
 
-/// The photon mappers' parameters (the `[render]` keys above).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PhotonSettings {
-    /// Photons emitted for the global map.
-    pub photons: u32,
-    /// Photons emitted for the caustic map.
-    pub caustic_photons: u32,
-    /// Photons in a radiance estimate (k nearest).
-    pub gather: u32,
-    /// Largest search radius (SPPM: the initial radius); 0 chooses one from
-    /// the scene's size.
-    pub radius: f32,
-    /// Final-gather rays per camera sample; 0 reads the global map at the
-    /// first diffuse surface.
-    pub final_gather: u32,
-    /// Density estimation kernel.
-    pub kernel: PhotonKernel,
-    /// Photons per SPPM iteration; 0: as many as pixels (pbrt's default).
-    pub sppm_photons: u32,
-    /// SPPM's α: the share of new photons kept at each iteration.
-    pub alpha: f32,
-}
-
-impl Default for PhotonSettings {
-    fn default() -> Self {
-        PhotonSettings {
-            photons: 200_000,
-            caustic_photons: 200_000,
-            gather: 64,
-            radius: 0.0,
-            final_gather: 16,
-            kernel: PhotonKernel::default(),
-            sppm_photons: 0,
-            alpha: 2.0 / 3.0,
-        }
-    }
-}
-
-/// Most photons one map may hold (32 bytes each).
-pub const MAX_PHOTONS: u32 = 100_000_000;
-/// Most photons in one radiance estimate, and most final-gather rays.
-pub const MAX_GATHER: u32 = 16_384;
-
 impl PhotonSettings {
-    /// Photons per SPPM iteration for an image of `pixels` pixels.
-    pub fn sppm_photons_for(&self, pixels: u64) -> u32 {
-        if self.sppm_photons > 0 {
-            self.sppm_photons
-        } else {
-            pixels.clamp(1, MAX_PHOTONS as u64) as u32
-        }
-    }
-
     /// The search radius: the one given, or a fraction of the scene's
     /// bounding radius (`fraction`: 0.1 for Jensen's maximum search radius,
     /// 0.02 for SPPM's initial radius).

@@ -6,10 +6,9 @@
 use super::params::ParamList;
 use super::{Parser, invert};
 use crate::error::{Error, Result, SourceLoc};
-use crate::film::Filter;
-use crate::integrator::{IntegratorKind, PathSampling};
 use crate::sampling::SamplerKind;
 use crate::scene::desc::*;
+use crate::settings::{Filter, IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP, PathSampling};
 
 impl Parser {
     pub(super) fn film(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {

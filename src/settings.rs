@@ -1,0 +1,398 @@
+//! Render settings: how a scene is to be rendered — the image, the
+//! algorithm and its parameters, the reconstruction filter, the tone map —
+//! as plain data.
+//!
+//! This is a bottom layer. Scene descriptions (`scene`) read and validate
+//! these values, the command line overrides them, and the algorithms
+//! (`integrator`), the film (`film`) and the renderer (`render`) act on
+//! them; none of those is imported here, so descriptions need not know the
+//! algorithms, and the algorithms need not know the descriptions. What a
+//! setting does lives with the code that does it: the filter's sampling in
+//! `film::filter`, the tone curves in `film::tonemap`, the photon kernels'
+//! weights in `integrator::photon`.
+
+use crate::sampling::SamplerKind;
+
+/// Render settings that a scene file may give and the command line may
+/// override.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Longest light path, in segments from the camera (1: emitters seen
+    /// directly; 2: direct light; each more: one more bounce).
+    pub max_depth: u32,
+    /// The rendering algorithm.
+    pub integrator: IntegratorKind,
+    /// The path tracer's estimator.
+    pub sampling: PathSampling,
+    /// Path segments after which Russian roulette starts.
+    pub rr_depth: u32,
+    /// Seed of all random numbers.
+    pub seed: u64,
+    /// Placement of samples within pixels.
+    pub sampler: SamplerKind,
+    /// Pixel reconstruction filter.
+    pub filter: Filter,
+    /// Tone mapping for 8-bit output.
+    pub tonemap: Tonemap,
+    /// Exposure compensation in stops, applied before tone mapping.
+    pub exposure: f32,
+    /// Photon mapping and SPPM parameters.
+    pub photon: PhotonSettings,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            width: 512,
+            height: 512,
+            spp: 16,
+            max_depth: 8,
+            integrator: IntegratorKind::default(),
+            sampling: PathSampling::default(),
+            rr_depth: 5,
+            seed: 0,
+            sampler: SamplerKind::default(),
+            filter: Filter::default(),
+            tonemap: Tonemap::default(),
+            exposure: 0.0,
+            photon: PhotonSettings::default(),
+        }
+    }
+}
+
+/// Largest accepted image side, in pixels.
+pub const MAX_IMAGE_SIDE: u32 = 65_536;
+/// Largest accepted image, in pixels (about 268 megapixels).
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 28;
+/// Largest accepted samples per pixel.
+pub const MAX_SPP: u32 = 1 << 24;
+/// Largest accepted recursion depth.
+pub const MAX_DEPTH: u32 = 1024;
+
+/// The rendering algorithms.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum IntegratorKind {
+    /// Whitted's recursive ray tracer.
+    Whitted,
+    /// Kajiya's path tracer.
+    #[default]
+    Path,
+    /// Jensen's two-pass photon mapping.
+    Photon,
+    /// Stochastic progressive photon mapping.
+    Sppm,
+}
+
+impl IntegratorKind {
+    /// The names accepted on the command line and in scene files.
+    pub const NAMES: [&'static str; 4] = ["whitted", "path", "photon", "sppm"];
+
+    /// Parses one of [`IntegratorKind::NAMES`].
+    pub fn from_name(s: &str) -> Option<IntegratorKind> {
+        match s {
+            "whitted" => Some(IntegratorKind::Whitted),
+            "path" => Some(IntegratorKind::Path),
+            "photon" => Some(IntegratorKind::Photon),
+            "sppm" => Some(IntegratorKind::Sppm),
+            _ => None,
+        }
+    }
+
+    /// This integrator's name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            IntegratorKind::Whitted => "whitted",
+            IntegratorKind::Path => "path",
+            IntegratorKind::Photon => "photon",
+            IntegratorKind::Sppm => "sppm",
+        }
+    }
+}
+
+/// How the path tracer chooses directions and gathers light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum PathSampling {
+    /// Uniform hemisphere sampling, emission collected on hits only.
+    Uniform,
+    /// Cosine-weighted hemisphere sampling, emission on hits only.
+    Cosine,
+    /// BSDF importance sampling, emission on hits only.
+    Bsdf,
+    /// Next-event estimation and BSDF sampling combined by MIS.
+    #[default]
+    Mis,
+}
+
+impl PathSampling {
+    /// The names accepted on the command line and in scene files.
+    pub const NAMES: [&'static str; 4] = ["uniform", "cosine", "bsdf", "mis"];
+
+    /// Parses one of [`PathSampling::NAMES`].
+    pub fn from_name(s: &str) -> Option<PathSampling> {
+        match s {
+            "uniform" => Some(PathSampling::Uniform),
+            "cosine" => Some(PathSampling::Cosine),
+            "bsdf" => Some(PathSampling::Bsdf),
+            "mis" => Some(PathSampling::Mis),
+            _ => None,
+        }
+    }
+
+    /// This estimator's name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            PathSampling::Uniform => "uniform",
+            PathSampling::Cosine => "cosine",
+            PathSampling::Bsdf => "bsdf",
+            PathSampling::Mis => "mis",
+        }
+    }
+}
+
+/// The weighting of photons by distance in a density estimate (the
+/// weights themselves are computed in `integrator::photon`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum PhotonKernel {
+    /// Constant over the disk (the plain nearest-neighbour estimate).
+    Box,
+    /// Jensen's cone filter, w = 1 − d/r (Jensen 2001, eq. 7.8 with k = 1),
+    /// normalised by 1 − 2/3.
+    #[default]
+    Cone,
+    /// Epanechnikov's kernel, w = 1 − d²/r², normalised by 1/2 (Silverman
+    /// 1986: the kernel of least mean integrated squared error).
+    Epanechnikov,
+}
+
+impl PhotonKernel {
+    /// The names accepted on the command line and in scene files.
+    pub const NAMES: [&'static str; 3] = ["box", "cone", "epanechnikov"];
+
+    /// Parses one of [`PhotonKernel::NAMES`].
+    pub fn from_name(s: &str) -> Option<PhotonKernel> {
+        match s {
+            "box" => Some(PhotonKernel::Box),
+            "cone" => Some(PhotonKernel::Cone),
+            "epanechnikov" => Some(PhotonKernel::Epanechnikov),
+            _ => None,
+        }
+    }
+
+    /// This kernel's name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            PhotonKernel::Box => "box",
+            PhotonKernel::Cone => "cone",
+            PhotonKernel::Epanechnikov => "epanechnikov",
+        }
+    }
+}
+
+/// The photon mappers' parameters (the `[render]` keys of
+/// `integrator::photon`'s documentation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhotonSettings {
+    /// Photons emitted for the global map.
+    pub photons: u32,
+    /// Photons emitted for the caustic map.
+    pub caustic_photons: u32,
+    /// Photons in a radiance estimate (k nearest).
+    pub gather: u32,
+    /// Largest search radius (SPPM: the initial radius); 0 chooses one from
+    /// the scene's size.
+    pub radius: f32,
+    /// Final-gather rays per camera sample; 0 reads the global map at the
+    /// first diffuse surface.
+    pub final_gather: u32,
+    /// Density estimation kernel.
+    pub kernel: PhotonKernel,
+    /// Photons per SPPM iteration; 0: as many as pixels (pbrt's default).
+    pub sppm_photons: u32,
+    /// SPPM's α: the share of new photons kept at each iteration.
+    pub alpha: f32,
+}
+
+impl Default for PhotonSettings {
+    fn default() -> Self {
+        PhotonSettings {
+            photons: 200_000,
+            caustic_photons: 200_000,
+            gather: 64,
+            radius: 0.0,
+            final_gather: 16,
+            kernel: PhotonKernel::default(),
+            sppm_photons: 0,
+            alpha: 2.0 / 3.0,
+        }
+    }
+}
+
+/// Most photons one map may hold (32 bytes each).
+pub const MAX_PHOTONS: u32 = 100_000_000;
+/// Most photons in one radiance estimate, and most final-gather rays.
+pub const MAX_GATHER: u32 = 16_384;
+
+impl PhotonSettings {
+    /// Photons per SPPM iteration for an image of `pixels` pixels.
+    pub fn sppm_photons_for(&self, pixels: u64) -> u32 {
+        if self.sppm_photons > 0 {
+            self.sppm_photons
+        } else {
+            pixels.clamp(1, MAX_PHOTONS as u64) as u32
+        }
+    }
+}
+
+/// A separable pixel reconstruction filter, centred on the pixel centre
+/// (how it is sampled and splatted: `film::filter`, `film::splat`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Filter {
+    /// Uniform weight within `radius` pixels (0.5: exactly the pixel).
+    Box {
+        /// Half-width in pixels.
+        radius: f32,
+    },
+    /// Weight falling linearly to 0 at `radius`.
+    Tent {
+        /// Half-width in pixels.
+        radius: f32,
+    },
+    /// A Gaussian of standard deviation `stddev`, cut off at `radius`.
+    Gaussian {
+        /// Standard deviation in pixels.
+        stddev: f32,
+        /// Cut-off in pixels.
+        radius: f32,
+    },
+}
+
+impl Default for Filter {
+    fn default() -> Self {
+        Filter::Box { radius: 0.5 }
+    }
+}
+
+impl Filter {
+    /// The names accepted in scene files.
+    pub const NAMES: [&'static str; 3] = ["box", "tent", "gaussian"];
+
+    /// The filter called `name` with its default size (box 0.5, tent 1,
+    /// Gaussian σ = 0.5 cut off at 4σ, as Mitsuba's).
+    pub fn from_name(name: &str) -> Option<Filter> {
+        match name {
+            "box" => Some(Filter::Box { radius: 0.5 }),
+            "tent" => Some(Filter::Tent { radius: 1.0 }),
+            "gaussian" => Some(Filter::Gaussian {
+                stddev: 0.5,
+                radius: 2.0,
+            }),
+            _ => None,
+        }
+    }
+
+    /// Half-width in pixels.
+    pub fn radius(&self) -> f32 {
+        match *self {
+            Filter::Box { radius } | Filter::Tent { radius } | Filter::Gaussian { radius, .. } => radius,
+        }
+    }
+
+    /// Whether samples are splatted into every pixel the filter covers,
+    /// and if so how many pixels a tile's buffer reaches beyond the tile on
+    /// each side. `None` for the one-pixel box, for which filter importance
+    /// sampling is the same estimator, and for radii outside (0, 8] pixels.
+    pub fn splat_margin(&self) -> Option<u32> {
+        let radius = self.radius();
+        if matches!(self, Filter::Box { .. }) && radius <= 0.5 || !(radius > 0.0 && radius <= 8.0) {
+            return None;
+        }
+        Some((radius - 0.5).ceil().max(0.0) as u32)
+    }
+}
+
+/// A tone-mapping operator (the curves: `film::tonemap`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Tonemap {
+    /// Clip each channel to [0, 1].
+    #[default]
+    Clamp,
+    /// Reinhard et al. 2002 on luminance: L/(1 + L), keeping hue.
+    Reinhard,
+    /// Narkowicz's 2015 fit of the ACES filmic curve, per channel.
+    Aces,
+}
+
+impl Tonemap {
+    /// The names accepted on the command line and in scene files.
+    pub const NAMES: [&'static str; 3] = ["clamp", "reinhard", "aces"];
+
+    /// Parses one of [`Tonemap::NAMES`].
+    pub fn from_name(s: &str) -> Option<Tonemap> {
+        match s {
+            "clamp" => Some(Tonemap::Clamp),
+            "reinhard" => Some(Tonemap::Reinhard),
+            "aces" => Some(Tonemap::Aces),
+            _ => None,
+        }
+    }
+
+    /// This operator's name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Tonemap::Clamp => "clamp",
+            Tonemap::Reinhard => "reinhard",
+            Tonemap::Aces => "aces",
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_name_reads_back() {
+        for n in IntegratorKind::NAMES {
+            assert_eq!(IntegratorKind::from_name(n).unwrap().name(), n);
+        }
+        for n in PathSampling::NAMES {
+            assert_eq!(PathSampling::from_name(n).unwrap().name(), n);
+        }
+        for n in PhotonKernel::NAMES {
+            assert_eq!(PhotonKernel::from_name(n).unwrap().name(), n);
+        }
+        for n in Tonemap::NAMES {
+            assert_eq!(Tonemap::from_name(n).unwrap().name(), n);
+        }
+        for n in Filter::NAMES {
+            assert!(Filter::from_name(n).is_some(), "{n}");
+        }
+        assert_eq!(IntegratorKind::from_name("bidir"), None);
+    }
+
+    /// Only filters wider than a pixel splat; Mitsuba's Gaussian reaches
+    /// two pixels beyond a tile.
+    #[test]
+    fn splat_margins() {
+        assert_eq!(Filter::default().splat_margin(), None);
+        assert_eq!(Filter::Box { radius: 1.5 }.splat_margin(), Some(1));
+        assert_eq!(Filter::from_name("tent").unwrap().splat_margin(), Some(1));
+        assert_eq!(Filter::from_name("gaussian").unwrap().splat_margin(), Some(2));
+        assert_eq!(Filter::Tent { radius: 9.0 }.splat_margin(), None);
+    }
+
+    #[test]
+    fn sppm_photons_default_to_one_per_pixel() {
+        let mut p = PhotonSettings::default();
+        assert_eq!(p.sppm_photons_for(640 * 480), 640 * 480);
+        assert_eq!(p.sppm_photons_for(0), 1);
+        p.sppm_photons = 1000;
+        assert_eq!(p.sppm_photons_for(640 * 480), 1000);
+    }
+}
