@@ -42,6 +42,7 @@ pub mod camera;
 pub mod cli;
 pub mod color;
 pub mod error;
+pub mod files;
 pub mod film;
 pub mod fuzz;
 pub mod geometry;

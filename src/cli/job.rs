@@ -4,10 +4,10 @@
 
 use super::{Cli, Command, RenderArgs};
 use crate::error::{Error, Result};
+use crate::files::FileRead;
 use crate::film::Film;
 use crate::render::RenderStats;
 use crate::render::checkpoint::{Checkpoint, fnv1a};
-use crate::scene::native::FileRead;
 use crate::scene::{Scene, SceneDesc};
 use clap::Parser;
 use std::path::{Path, PathBuf};
@@ -51,7 +51,7 @@ fn absolute(p: &Path) -> PathBuf {
 /// A hash of the scene file's bytes, to notice a scene edited between an
 /// interruption and its resumption.
 fn scene_hash(path: &Path) -> Result<String> {
-    let bytes = crate::scene::native::read_limited(path, crate::scene::native::MAX_SCENE_BYTES << 2)
+    let bytes = crate::files::read_limited(path, crate::files::MAX_SCENE_BYTES << 2)
         .map_err(|e| Error::file(path, format!("cannot read scene: {e}")))?;
     Ok(format!("{:016x}", fnv1a(&bytes)))
 }

@@ -504,7 +504,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     let load_start = Instant::now();
     // Every file read while loading goes into the checkpoint, so that a
     // resume notices an edited mesh or texture, not only the scene file.
-    let (desc, mut files) = scene::native::record_file_reads(|| args.scene.load());
+    let (desc, mut files) = crate::files::record_file_reads(|| args.scene.load());
     let mut desc = desc?;
     match (args.spp, args.time_limit) {
         (Some(v), _) => desc.settings.spp = v,
@@ -527,7 +527,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         max_memory: Some(args.max_memory.unwrap_or_else(scene::memory::default_limit)),
         aovs: !aovs.is_empty(),
     };
-    let (scene, built_from) = scene::native::record_file_reads(|| scene::build_limited(&desc, &limits));
+    let (scene, built_from) = crate::files::record_file_reads(|| scene::build_limited(&desc, &limits));
     let scene = scene?;
     files.extend(built_from);
     files.sort();

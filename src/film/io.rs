@@ -8,6 +8,7 @@
 use super::Image;
 use crate::color::{Rgb, linear_to_srgb};
 use crate::error::{Error, Result};
+use crate::files::{MAX_IMAGE_FILE_BYTES, read_limited};
 use crate::settings::Tonemap;
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
@@ -186,9 +187,6 @@ pub fn write_atomic_path(path: &Path, write: impl FnOnce(&Path) -> Result<(), St
     Ok(())
 }
 
-/// Largest image file read, in bytes.
-pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 32;
-
 /// The first four bytes of every OpenEXR file.
 pub const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 
@@ -202,8 +200,7 @@ const MAX_EXR_PIXELS_PER_BYTE: u64 = 4096;
 /// decoded from sRGB).
 pub fn read_image(path: &Path) -> Result<Image> {
     let format = ImageFormat::from_path(path)?;
-    let bytes = crate::scene::native::read_limited(path, MAX_IMAGE_FILE_BYTES)
-        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    let bytes = read_limited(path, MAX_IMAGE_FILE_BYTES).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
     decode_image(&bytes, format).map_err(|e| Error::file(path, e))
 }
 
@@ -227,8 +224,7 @@ pub fn decode_image(bytes: &[u8], format: ImageFormat) -> Result<Image, String> 
 
 /// Reads the first RGB(A) layer of an OpenEXR file.
 pub fn read_exr(path: &Path) -> Result<Image> {
-    let bytes = crate::scene::native::read_limited(path, MAX_IMAGE_FILE_BYTES)
-        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    let bytes = read_limited(path, MAX_IMAGE_FILE_BYTES).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
     decode_exr(&bytes).map_err(|e| Error::file(path, e))
 }
 
@@ -279,8 +275,7 @@ pub fn decode_exr(bytes: &[u8]) -> Result<Image, String> {
 
 /// Reads a PFM file (colour "PF" or greyscale "Pf", either byte order).
 pub fn read_pfm(path: &Path) -> Result<Image> {
-    let bytes = crate::scene::native::read_limited(path, MAX_IMAGE_FILE_BYTES)
-        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    let bytes = read_limited(path, MAX_IMAGE_FILE_BYTES).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
     parse_pfm(&bytes).map_err(|m| Error::file(path, format!("not a valid PFM file: {m}")))
 }
 

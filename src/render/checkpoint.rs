@@ -257,7 +257,7 @@ impl Checkpoint {
     pub fn read(path: &Path) -> Result<Checkpoint> {
         // The largest checkpoint: the largest image with AOVs.
         let limit = MAX_IMAGE_PIXELS * (PIXEL_BYTES + AOV_BYTES) as u64 + (4 << 20);
-        let bytes = crate::scene::native::read_limited(path, limit)
+        let bytes = crate::files::read_limited(path, limit)
             .map_err(|e| Error::file(path, format!("cannot read checkpoint: {e}")))?;
         Checkpoint::from_bytes(&bytes).map_err(|e| Error::file(path, format!("invalid checkpoint: {e}")))
     }

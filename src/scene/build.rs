@@ -5,11 +5,11 @@
 use super::Scene;
 use super::desc::*;
 use super::memory::{BYTES_PER_TEXEL, MemoryEstimate, mesh_bytes, photon_bytes, top_level_bytes};
-use super::native::io_reason;
 use crate::accel::aggregate::{Aggregate, EmitterRef, MeshInstance, MeshObject, ShapeInstance};
 use crate::camera::{Camera, Projection};
 use crate::color::Rgb;
 use crate::error::{Error, Result};
+use crate::files::io_reason;
 use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere};
 use crate::geometry::{Transform, TriangleMesh};
 use crate::light::{Background, EnvironmentMap, Light};

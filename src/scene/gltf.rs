@@ -12,9 +12,9 @@
 
 use super::builtin;
 use super::desc::*;
-use super::native::{MAX_SCENE_BYTES, io_reason};
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
+use crate::files::{MAX_BUFFER_BYTES, MAX_SCENE_BYTES, io_reason, read_limited};
 use crate::geometry::{Aabb, Transform, TriangleMesh};
 use crate::settings::MAX_IMAGE_SIDE;
 use crate::texture::ImageTexture;
@@ -42,10 +42,6 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
 /// Film width used for glTF scenes (glTF has no render settings); the
 /// height follows the camera's aspect ratio, 4:3 when it has none.
 pub const FILM_WIDTH: u32 = 640;
-
-/// Largest external buffer file read, in bytes (a GLB's own length field
-/// cannot describe more).
-const MAX_BUFFER_BYTES: u64 = 1 << 32;
 
 /// Largest element count of an accessor that has no buffer view (its data
 /// are zeros plus sparse substitutions, so no buffer bounds its count).
@@ -196,7 +192,7 @@ fn read_file(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
             ),
         ));
     }
-    super::native::read_limited(path, limit).map_err(|e| Error::file(path, format!("cannot read {what}: {e}")))
+    read_limited(path, limit).map_err(|e| Error::file(path, format!("cannot read {what}: {e}")))
 }
 
 /// Splits a GLB file into its JSON chunk and optional BIN chunk (glTF 2.0

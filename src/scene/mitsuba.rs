@@ -17,9 +17,9 @@
 //! documented in docs/formats.md.
 
 use super::desc::*;
-use super::native::io_reason;
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
+use crate::files::{MAX_XML_BYTES, io_reason, read_limited};
 use crate::sampling::SamplerKind;
 use crate::settings::{Filter, IntegratorKind, MAX_DEPTH, MAX_SPP, PathSampling};
 use glam::{Mat4, Vec2, Vec3};
@@ -28,8 +28,6 @@ use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-/// Largest XML file read, in bytes.
-const MAX_XML_BYTES: u64 = 256 << 20;
 /// Deepest chain of `<include>`s.
 const MAX_INCLUDE_DEPTH: usize = 32;
 
@@ -224,8 +222,7 @@ impl Loader {
         if meta.len() > MAX_XML_BYTES {
             return Err(Error::file(path, "scene file is larger than 256 MiB"));
         }
-        let bytes = super::native::read_limited(path, MAX_XML_BYTES)
-            .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+        let bytes = read_limited(path, MAX_XML_BYTES).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
         let text = String::from_utf8(bytes)
             .map_err(|e| Error::file(path, format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to())))?;
         self.include_stack.push(canonical);

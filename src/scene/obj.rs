@@ -64,7 +64,7 @@ pub fn load_obj_scene(path: &Path) -> Result<ObjScene> {
     let warnings = RefCell::new(Vec::new());
     let mut scene = parse_obj_scene_with(&bytes, path, |mtl| {
         let full = dir.join(mtl);
-        let text = super::native::read_limited(&full, super::native::MAX_SCENE_BYTES)
+        let text = crate::files::read_limited(&full, crate::files::MAX_SCENE_BYTES)
             .map_err(|_| tobj::LoadError::OpenFileFailed)?;
         read_mtl(&text, &full, &mut warnings.borrow_mut())
     })?;
@@ -127,7 +127,7 @@ fn read_obj(path: &Path) -> Result<Vec<u8>> {
     if !meta.is_file() {
         return Err(Error::file(path, "mesh file not found"));
     }
-    super::native::read_limited(path, super::native::MAX_SCENE_BYTES)
+    crate::files::read_limited(path, crate::files::MAX_SCENE_BYTES)
         .map_err(|e| Error::file(path, format!("cannot read OBJ: {e}")))
 }
 

@@ -12,6 +12,7 @@
 //! `file:line:column`; errors in binary data name the byte offset.
 
 use crate::error::{Error, Result, SourceLoc};
+use crate::files::{MAX_PLY_BYTES, read_limited};
 use crate::geometry::TriangleMesh;
 use glam::{Vec2, Vec3};
 use std::fmt;
@@ -32,14 +33,10 @@ pub struct PlyMesh {
     pub warnings: Vec<String>,
 }
 
-/// Largest PLY file read, in bytes.
-pub const MAX_PLY_BYTES: u64 = 1 << 34;
-
 /// Reads a PLY file: see [`parse_ply`]. A missing or unreadable file is an
 /// [`Error::File`] naming the path.
 pub fn read_ply(path: &Path) -> Result<PlyMesh> {
-    let bytes = super::native::read_limited(path, MAX_PLY_BYTES)
-        .map_err(|e| Error::file(path, format!("cannot read PLY: {e}")))?;
+    let bytes = read_limited(path, MAX_PLY_BYTES).map_err(|e| Error::file(path, format!("cannot read PLY: {e}")))?;
     parse_ply(&bytes, path)
 }
 

@@ -25,7 +25,7 @@ impl ImageTexture {
     /// decoded from sRGB unless `srgb` is `Some(false)`; float images are
     /// taken as linear unless `srgb` is `Some(true)`.
     pub fn load(path: &Path, srgb: Option<bool>) -> Result<ImageTexture> {
-        let bytes = crate::scene::native::read_limited(path, crate::film::io::MAX_IMAGE_FILE_BYTES)
+        let bytes = crate::files::read_limited(path, crate::files::MAX_IMAGE_FILE_BYTES)
             .map_err(|e| Error::file(path, format!("cannot open image: {e}")))?;
         Self::decode(&bytes, srgb).map_err(|e| Error::file(path, e))
     }

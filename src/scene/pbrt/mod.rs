@@ -30,9 +30,9 @@ pub use spectrum::blackbody_rgb;
 use self::lexer::{Lexer, Tok};
 use self::params::{Param, ParamList, parse_number, parse_params};
 use super::desc::*;
-use super::native::{MAX_SCENE_BYTES, io_reason};
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
+use crate::files::{MAX_SCENE_BYTES, io_reason, read_limited};
 use crate::sampling::SamplerKind;
 use crate::settings::{Filter, IntegratorKind, PathSampling};
 use glam::{Mat3, Mat4, Vec3};
@@ -132,8 +132,7 @@ fn read_text(path: &Path, included_from: Option<&SourceLoc>) -> Result<String> {
     if meta.len() > MAX_SCENE_BYTES {
         return Err(fail("scene file is larger than 1 GiB".into()));
     }
-    let bytes =
-        super::native::read_limited(path, MAX_SCENE_BYTES).map_err(|e| fail(format!("cannot read scene: {e}")))?;
+    let bytes = read_limited(path, MAX_SCENE_BYTES).map_err(|e| fail(format!("cannot read scene: {e}")))?;
     String::from_utf8(bytes).map_err(|e| {
         let lossy = String::from_utf8_lossy(e.as_bytes()).into_owned();
         let lx = Lexer::new(Arc::from(path), &lossy);
