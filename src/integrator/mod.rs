@@ -1,6 +1,16 @@
 //! Integrators: the algorithms that estimate the radiance arriving along a
 //! camera ray. This is the only place that knows the algorithm; scheduling,
 //! films and files are elsewhere.
+//!
+//! The renderer runs every algorithm through one interface, [`drive`]: the
+//! algorithm the scene's settings name is prepared here (photon mapping
+//! traces its maps) and handed to a [`Driver`] (the renderer's scheduling)
+//! in one of two shapes: a per-sample estimator ([`Integrator`]) for the
+//! driver's camera passes, or an algorithm of whole-image iterations
+//! ([`Progressive`], SPPM) for the driver to iterate. Nothing here calls
+//! back into the renderer: cancellation arrives as a plain flag, and the
+//! driver chooses the threads (whatever runs inside its rayon pool uses
+//! it), the passes, the deadline, checkpoints and progress.
 
 pub mod aov;
 pub mod path;
@@ -13,9 +23,12 @@ pub use photon::PhotonMapper;
 pub use whitted::Whitted;
 
 use crate::color::Rgb;
+use crate::film::Film;
 use crate::geometry::Ray;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
+use crate::settings::IntegratorKind;
+use std::sync::atomic::AtomicBool;
 
 /// Counters that an integrator updates while it works; each thread owns
 /// one, and they are summed at the end.
@@ -40,6 +53,80 @@ pub trait Integrator: Sync {
     fn as_path_tracer(&self) -> Option<&PathTracer> {
         None
     }
+}
+
+/// Work an algorithm did besides the camera samples' own paths (photon
+/// passes), which the driver adds to the render's statistics.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Work {
+    /// Rays traced (photon mapping: by photons; SPPM: by the iteration's
+    /// photons and camera paths).
+    pub rays: u64,
+    /// Photons emitted.
+    pub photons_emitted: u64,
+    /// Seconds spent tracing photons and building photon maps.
+    pub photon_seconds: f64,
+}
+
+/// An algorithm that renders in iterations over the whole image, whose
+/// state is not a film of samples (SPPM: every pixel's radius, photon count
+/// and flux). The driver decides when to iterate and when to stop.
+pub trait Progressive {
+    /// Why this algorithm's renders cannot be checkpointed or resumed.
+    const NOT_RESUMABLE: &'static str;
+
+    /// Runs one more iteration. `None` when `cancel` was set during it: the
+    /// iteration is dropped and the state is that of the iterations before.
+    fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work>;
+
+    /// The image of the iterations so far (with the auxiliary sums, when
+    /// they are recorded).
+    fn film(&self) -> Film;
+}
+
+/// What runs an algorithm: the renderer's scheduling, which [`drive`] hands
+/// the prepared algorithm in one of its two shapes.
+pub trait Driver {
+    /// What driving produces.
+    type Output;
+
+    /// Camera passes over the image with a per-sample estimator, after
+    /// `prepared`, the work that made it (photon maps; nothing for the
+    /// others).
+    fn camera_passes<I: Integrator>(self, integrator: &I, prepared: Work) -> Self::Output;
+
+    /// Iterations of a progressive algorithm.
+    fn iterations<P: Progressive>(self, algorithm: P) -> Self::Output;
+}
+
+/// Prepares the algorithm that the scene's settings name and runs it with
+/// `driver`; `aovs` asks for the auxiliary sums. Call it on the threads
+/// that should do the work (inside a rayon pool, that pool's). `None` when
+/// `cancel` was set while preparing (photon mapping gives up its photon
+/// pass within a chunk of photons): nothing was rendered.
+pub fn drive<D: Driver>(scene: &Scene, aovs: bool, cancel: Option<&AtomicBool>, driver: D) -> Option<D::Output> {
+    let s = &scene.settings;
+    Some(match s.integrator {
+        IntegratorKind::Whitted => driver.camera_passes(&Whitted { max_depth: s.max_depth }, Work::default()),
+        IntegratorKind::Path => driver.camera_passes(
+            &PathTracer {
+                max_depth: s.max_depth,
+                rr_depth: s.rr_depth,
+                sampling: s.sampling,
+            },
+            Work::default(),
+        ),
+        IntegratorKind::Photon => {
+            let mapper = PhotonMapper::build_until(scene, cancel)?;
+            let prepared = Work {
+                rays: mapper.stats.rays,
+                photons_emitted: mapper.stats.emitted,
+                photon_seconds: mapper.stats.seconds,
+            };
+            driver.camera_passes(&mapper, prepared)
+        }
+        IntegratorKind::Sppm => driver.iterations(photon::sppm::Sppm::new(scene, aovs)),
+    })
 }
 
 /// Chooses one of the scene's lights for the point `p` with surface

@@ -1,7 +1,11 @@
 //! Scheduling: splits the image into tiles, renders them on all cores in
 //! progressive passes, shows progress and gathers statistics. It knows
-//! nothing about the algorithm, which it reaches through
-//! [`crate::integrator::Integrator`].
+//! nothing about the algorithm: [`crate::integrator::drive`] prepares the
+//! one the scene's settings name and hands it back either as a per-sample
+//! estimator ([`crate::integrator::Integrator`]) for the camera passes here
+//! or as whole-image iterations ([`crate::integrator::Progressive`], SPPM)
+//! that this module runs, stops and times. Threads, passes, interrupts,
+//! deadlines, time limits, checkpoints and progress are decided here alone.
 //!
 //! A pass adds a few samples to every pixel; passes grow (1, 1, 2, 4, …
 //! samples) so that the first image is quick. Each sample's random
@@ -26,10 +30,9 @@ use crate::film::{AovSum, Film, Image, PixelSum};
 use crate::geometry::Ray;
 use crate::integrator::aov::camera_aov;
 use crate::integrator::path_lanes::{LANES, LockstepScene, Rays, Samplers};
-use crate::integrator::{Integrator, PathTracer, RayStats, Whitted};
+use crate::integrator::{Integrator, Progressive, RayStats, Work};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
-use crate::settings::IntegratorKind;
 use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
@@ -177,24 +180,27 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
 }
 
 /// Renders `scene` with its settings under `control` (resume, cancel,
-/// deadline, checkpoints).
+/// deadline, checkpoints): in a pool of `options.threads` threads, the
+/// algorithm the settings name is prepared and handed back to this
+/// module's camera passes or progressive iterations
+/// ([`crate::integrator::drive`]).
 pub fn render_controlled(scene: &Scene, options: &RenderOptions, control: &mut Control) -> Result<RenderOutput> {
-    let s = &scene.settings;
-    match s.integrator {
-        IntegratorKind::Whitted => render_with_control(scene, &Whitted { max_depth: s.max_depth }, options, control),
-        IntegratorKind::Path => render_with_control(
+    let cancel = control.cancel;
+    in_thread_pool(options, || {
+        let driver = RenderDriver {
             scene,
-            &PathTracer {
-                max_depth: s.max_depth,
-                rr_depth: s.rr_depth,
-                sampling: s.sampling,
-            },
             options,
             control,
-        ),
-        IntegratorKind::Photon => crate::integrator::photon::jensen::render(scene, options, control),
-        IntegratorKind::Sppm => crate::integrator::photon::sppm::render(scene, options, control),
-    }
+        };
+        crate::integrator::drive(scene, options.aovs, cancel, driver).unwrap_or_else(|| {
+            // Interrupted while preparing (tracing photons): no image.
+            Ok(RenderOutput {
+                film: Film::new(scene.settings.width, scene.settings.height),
+                stats: RenderStats::default(),
+                stopped: Some(Stop::Interrupted),
+            })
+        })
+    })?
 }
 
 /// Renders `scene` with a given integrator.
@@ -209,6 +215,12 @@ pub fn render_with_control<I: Integrator>(
     options: &RenderOptions,
     control: &mut Control,
 ) -> Result<RenderOutput> {
+    check_resume(scene, options, control)?;
+    in_thread_pool(options, || render_passes(scene, integrator, options, control))
+}
+
+/// Refuses to resume from a film that is not a state of this render.
+fn check_resume(scene: &Scene, options: &RenderOptions, control: &Control) -> Result<()> {
     let s = &scene.settings;
     if let Some((film, stats)) = &control.resume {
         if (film.width, film.height) != (s.width, s.height) {
@@ -229,7 +241,49 @@ pub fn render_with_control<I: Integrator>(
             )));
         }
     }
-    in_thread_pool(options, || render_passes(scene, integrator, options, control))
+    Ok(())
+}
+
+/// The renderer's side of [`crate::integrator::drive`]: runs what the
+/// integrator module prepared, on the threads of the pool it is called in.
+struct RenderDriver<'r, 'c> {
+    scene: &'r Scene,
+    options: &'r RenderOptions,
+    control: &'r mut Control<'c>,
+}
+
+impl crate::integrator::Driver for RenderDriver<'_, '_> {
+    type Output = Result<RenderOutput>;
+
+    /// The camera passes; the preparation's time counts against a time
+    /// limit and in the statistics.
+    fn camera_passes<I: Integrator>(self, integrator: &I, prepared: Work) -> Result<RenderOutput> {
+        check_resume(self.scene, self.options, self.control)?;
+        let mut options = self.options.clone();
+        if let Some(limit) = options.time_limit {
+            options.time_limit = Some(limit.saturating_sub(Duration::from_secs_f64(prepared.photon_seconds)));
+        }
+        let mut out = render_passes(self.scene, integrator, &options, self.control);
+        out.stats.seconds += prepared.photon_seconds;
+        out.stats.rays += prepared.rays;
+        out.stats.photons_emitted += prepared.photons_emitted;
+        out.stats.photon_seconds += prepared.photon_seconds;
+        Ok(out)
+    }
+
+    /// The iterations, which cannot be checkpointed or resumed.
+    fn iterations<P: Progressive>(self, algorithm: P) -> Result<RenderOutput> {
+        if self.control.resume.is_some() || self.control.checkpoint_every.is_some() {
+            return Err(Error::Invalid(P::NOT_RESUMABLE.into()));
+        }
+        Ok(render_iterations(
+            self.scene,
+            algorithm,
+            self.options,
+            self.control.cancel,
+            self.control.deadline,
+        ))
+    }
 }
 
 /// Runs `work` on `options.threads` threads (every core when `None`):
@@ -629,6 +683,56 @@ fn render_passes<I: Integrator>(
         b.finish_and_clear();
     }
     stats.seconds = earlier_seconds + start.elapsed().as_secs_f64();
+    RenderOutput { film, stats, stopped }
+}
+
+/// Runs `algorithm`'s iterations: the scene's `spp` of them, or as many as
+/// the time limit or `deadline` allow, at most `spp`. `cancel` and
+/// `deadline` are obeyed between iterations (an iteration cut short by
+/// `cancel` is dropped), so the image is always that of whole iterations;
+/// the deadline never stops the first.
+fn render_iterations<P: Progressive>(
+    scene: &Scene,
+    mut algorithm: P,
+    options: &RenderOptions,
+    cancel: Option<&AtomicBool>,
+    deadline: Option<Instant>,
+) -> RenderOutput {
+    let s = &scene.settings;
+    let start = Instant::now();
+    let mut stats = RenderStats {
+        threads: rayon::current_num_threads(),
+        ..RenderStats::default()
+    };
+    let mut iterations = 0u32;
+    let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
+    let mut stopped = None;
+    while iterations < s.spp {
+        if cancelled() {
+            stopped = Some(Stop::Interrupted);
+            break;
+        }
+        // The deadline never stops the first iteration: there is always an image.
+        if iterations > 0 && deadline.is_some_and(|d| Instant::now() >= d) {
+            stopped = Some(Stop::TimeLimit);
+            break;
+        }
+        let Some(work) = algorithm.iterate(scene, cancel) else {
+            stopped = Some(Stop::Interrupted);
+            break;
+        };
+        stats.rays += work.rays;
+        stats.photons_emitted += work.photons_emitted;
+        stats.photon_seconds += work.photon_seconds;
+        iterations += 1;
+        if options.time_limit.is_some_and(|limit| start.elapsed() >= limit) {
+            break;
+        }
+    }
+    let film = algorithm.film();
+    stats.samples = s.width as u64 * s.height as u64 * iterations as u64;
+    stats.spp = iterations;
+    stats.seconds = start.elapsed().as_secs_f64();
     RenderOutput { film, stats, stopped }
 }
 

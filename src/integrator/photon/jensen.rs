@@ -32,11 +32,9 @@
 use super::trace::{PhotonStore, trace_photons_until};
 use super::{Nearest, PhotonMap, PhotonSettings, ShadingPoint, camera_segment};
 use crate::color::Rgb;
-use crate::error::Result;
 use crate::geometry::{Ray, SurfaceHit};
 use crate::integrator::{Integrator, RayStats};
 use crate::material::TransportMode;
-use crate::render::{Control, RenderOptions, RenderOutput};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use std::cell::RefCell;
@@ -91,7 +89,13 @@ impl PhotonMapper {
     }
 
     /// [`PhotonMapper::build`], giving up (`None`) soon after `cancel` is
-    /// set.
+    /// set (within a chunk of photons). This is photon mapping's
+    /// preparation: [`crate::integrator::drive`] hands the mapper to the
+    /// renderer's camera passes, which obey interrupts, time limits and
+    /// checkpoints as the path tracer's do. The maps depend only on the
+    /// scene's settings and seed, so a render resumed from a checkpoint (a
+    /// film of whole camera passes) traces the same maps again and ends
+    /// with the same image as one that never stopped.
     pub fn build_until(scene: &Scene, cancel: Option<&AtomicBool>) -> Option<PhotonMapper> {
         let start = Instant::now();
         let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
@@ -333,38 +337,4 @@ fn scene_has_specular(scene: &Scene) -> bool {
         let b = m.bsdf(&scene.images, &tc);
         b.delta_probability(glam::Vec3::Z) > 0.0 || !b.has_smooth()
     })
-}
-
-/// Renders `scene` with photon mapping: the photon pass, then the camera
-/// passes of [`crate::render::render_with_control`], which obey `control`
-/// as the path tracer's do. The photon pass's time counts against a time
-/// limit and in the statistics.
-///
-/// The photon maps depend only on the scene's settings and seed, so a
-/// render resumed from a checkpoint (a film of whole camera passes) traces
-/// the same maps again and ends with the same image as one that never
-/// stopped. A cancellation during the photon pass ends it within a chunk
-/// of photons and leaves no image.
-pub fn render(scene: &Scene, options: &RenderOptions, control: &mut Control) -> Result<RenderOutput> {
-    crate::render::in_thread_pool(options, || {
-        let Some(mapper) = PhotonMapper::build_until(scene, control.cancel) else {
-            // Interrupted before any camera pass: no image.
-            return Ok(RenderOutput {
-                film: crate::film::Film::new(scene.settings.width, scene.settings.height),
-                stats: crate::render::RenderStats::default(),
-                stopped: Some(crate::render::Stop::Interrupted),
-            });
-        };
-        let mut opts = options.clone();
-        opts.threads = None; // already in the pool
-        if let Some(limit) = opts.time_limit {
-            opts.time_limit = Some(limit.saturating_sub(std::time::Duration::from_secs_f64(mapper.stats.seconds)));
-        }
-        let mut out = crate::render::render_with_control(scene, &mapper, &opts, control)?;
-        out.stats.seconds += mapper.stats.seconds;
-        out.stats.rays += mapper.stats.rays;
-        out.stats.photons_emitted += mapper.stats.emitted;
-        out.stats.photon_seconds += mapper.stats.seconds;
-        Ok(out)
-    })?
 }

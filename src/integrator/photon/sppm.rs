@@ -42,10 +42,9 @@ use super::jensen::specular_bounce;
 use super::trace::{PhotonStore, trace_photons_until};
 use super::{PhotonMap, camera_segment, same_surface};
 use crate::color::Rgb;
-use crate::error::{Error, Result};
 use crate::film::{AovSum, Film, PixelSum};
 use crate::integrator::aov::camera_aov;
-use crate::render::{Control, RenderOptions, RenderOutput, RenderStats, Stop};
+use crate::integrator::{Progressive, Work};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use glam::{DVec3, Vec2};
@@ -69,83 +68,80 @@ struct PixelState {
     aov: AovSum,
 }
 
-/// Renders `scene` with SPPM: `spp` iterations (or as many as the time
-/// limit or `control`'s deadline allow, at most `spp`), each of one camera
-/// sample per pixel and `sppm_photons` photons.
-///
-/// `control`'s cancellation flag and deadline are obeyed between
-/// iterations: the image is always that of whole iterations, and the
-/// deadline never stops the first. SPPM cannot be checkpointed or resumed
-/// (its state is every pixel's radius, photon count and flux, not a film
-/// of samples), so a `control` that asks for either is an error.
-pub fn render(scene: &Scene, options: &RenderOptions, control: &mut Control) -> Result<RenderOutput> {
-    if control.resume.is_some() || control.checkpoint_every.is_some() {
-        return Err(Error::Invalid(NOT_RESUMABLE.into()));
-    }
-    let (cancel, deadline) = (control.cancel, control.deadline);
-    crate::render::in_thread_pool(options, || iterate(scene, options, cancel, deadline))
-}
-
 /// Why SPPM refuses checkpoints.
 pub const NOT_RESUMABLE: &str = "SPPM renders cannot be checkpointed or resumed (its state is per-pixel radii and photon statistics, not a film): drop --checkpoint-every/--resume, or use --integrator photon or path";
 
-fn iterate(
-    scene: &Scene,
-    options: &RenderOptions,
-    cancel: Option<&AtomicBool>,
-    deadline: Option<Instant>,
-) -> RenderOutput {
-    let s = &scene.settings;
-    let p = s.photon;
-    let (w, h) = (s.width as usize, s.height as usize);
-    let r0 = p.radius_or(scene, 0.02);
-    let photons = p.sppm_photons_for((w * h) as u64);
-    let mut pixels = vec![
-        PixelState {
-            r2: r0 * r0,
-            ..PixelState::default()
-        };
-        w * h
-    ];
-    let start = Instant::now();
-    let mut stats = RenderStats {
-        threads: rayon::current_num_threads(),
-        ..RenderStats::default()
-    };
-    let mut iterations = 0u32;
-    let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
-    let mut stopped = None;
-    while iterations < s.spp {
-        if cancelled() {
-            stopped = Some(Stop::Interrupted);
-            break;
+/// SPPM's state between iterations: every pixel's statistics. The
+/// renderer runs `spp` iterations (or as many as its time limit or
+/// deadline allow, at most `spp`), each of one camera sample per pixel and
+/// `sppm_photons` photons; the image is always that of whole iterations.
+pub struct Sppm {
+    width: u32,
+    height: u32,
+    /// Row by row from the top.
+    pixels: Vec<PixelState>,
+    /// Photons per iteration.
+    photons: u32,
+    /// Iterations done.
+    iterations: u32,
+    /// Whether the auxiliary sums are recorded.
+    aovs: bool,
+}
+
+impl Sppm {
+    /// The state before the first iteration: every pixel's radius the
+    /// initial one, nothing gathered.
+    pub fn new(scene: &Scene, aovs: bool) -> Sppm {
+        let s = &scene.settings;
+        let p = s.photon;
+        let (w, h) = (s.width as usize, s.height as usize);
+        let r0 = p.radius_or(scene, 0.02);
+        Sppm {
+            width: s.width,
+            height: s.height,
+            pixels: vec![
+                PixelState {
+                    r2: r0 * r0,
+                    ..PixelState::default()
+                };
+                w * h
+            ],
+            photons: p.sppm_photons_for((w * h) as u64),
+            iterations: 0,
+            aovs,
         }
-        // The deadline never stops the first iteration: there is always an image.
-        if iterations > 0 && deadline.is_some_and(|d| Instant::now() >= d) {
-            stopped = Some(Stop::TimeLimit);
-            break;
-        }
+    }
+}
+
+impl Progressive for Sppm {
+    const NOT_RESUMABLE: &'static str = NOT_RESUMABLE;
+
+    /// One iteration: the photon pass (given up soon after `cancel` is
+    /// set, and then the whole iteration), then every pixel's camera sample
+    /// and update.
+    fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work> {
+        let s = &scene.settings;
+        let w = s.width as usize;
         let photon_start = Instant::now();
         let pass = trace_photons_until(
             scene,
-            photons,
+            self.photons,
             s.seed,
-            2 + iterations as u64,
+            2 + self.iterations as u64,
             s.max_depth,
             PhotonStore::Indirect,
             cancel,
         );
-        if cancelled() {
+        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
             // The photon pass may be incomplete; the iteration is dropped.
-            stopped = Some(Stop::Interrupted);
-            break;
+            return None;
         }
-        stats.rays += pass.rays;
-        stats.photons_emitted += pass.emitted;
         let map = PhotonMap::build(pass.photons);
-        stats.photon_seconds += photon_start.elapsed().as_secs_f64();
+        let photon_seconds = photon_start.elapsed().as_secs_f64();
 
-        let rays: u64 = pixels
+        let (iteration, aovs) = (self.iterations, self.aovs);
+        let rays: u64 = self
+            .pixels
             .par_chunks_mut(w)
             .enumerate()
             .map(|(y, row)| {
@@ -154,11 +150,11 @@ fn iterate(
                 for (x, px) in row.iter_mut().enumerate() {
                     camera_sample(
                         scene,
-                        options,
+                        aovs,
                         &map,
                         x as u32,
                         y as u32,
-                        iterations,
+                        iteration,
                         px,
                         &mut sampler,
                         &mut rays,
@@ -167,31 +163,32 @@ fn iterate(
                 rays
             })
             .sum();
-        stats.rays += rays;
-        iterations += 1;
-        if options.time_limit.is_some_and(|limit| start.elapsed() >= limit) {
-            break;
-        }
+        self.iterations += 1;
+        Some(Work {
+            rays: pass.rays + rays,
+            photons_emitted: pass.emitted,
+            photon_seconds,
+        })
     }
 
-    let mut film = Film::new(s.width, s.height);
-    let k = iterations.max(1) as f64;
-    for (sum, px) in film.pixels.iter_mut().zip(&pixels) {
-        let indirect = px.tau / (k * PI * px.r2 as f64);
-        let l = px.direct / k + indirect;
-        *sum = PixelSum {
-            rgb: l,
-            weight: 1.0,
-            lum_sq: crate::color::luminance(l.as_vec3()) as f64 * crate::color::luminance(l.as_vec3()) as f64,
-        };
+    /// Each pixel is `direct/k + τ/(k·π·R²)` after k iterations.
+    fn film(&self) -> Film {
+        let mut film = Film::new(self.width, self.height);
+        let k = self.iterations.max(1) as f64;
+        for (sum, px) in film.pixels.iter_mut().zip(&self.pixels) {
+            let indirect = px.tau / (k * PI * px.r2 as f64);
+            let l = px.direct / k + indirect;
+            *sum = PixelSum {
+                rgb: l,
+                weight: 1.0,
+                lum_sq: crate::color::luminance(l.as_vec3()) as f64 * crate::color::luminance(l.as_vec3()) as f64,
+            };
+        }
+        if self.aovs {
+            film.aovs = Some(self.pixels.iter().map(|px| px.aov).collect());
+        }
+        film
     }
-    if options.aovs {
-        film.aovs = Some(pixels.iter().map(|px| px.aov).collect());
-    }
-    stats.samples = (w * h) as u64 * iterations as u64;
-    stats.spp = iterations;
-    stats.seconds = start.elapsed().as_secs_f64();
-    RenderOutput { film, stats, stopped }
 }
 
 /// One iteration's camera sample of pixel (x, y): its direct light, its
@@ -199,7 +196,7 @@ fn iterate(
 #[allow(clippy::too_many_arguments)]
 fn camera_sample(
     scene: &Scene,
-    options: &RenderOptions,
+    aovs: bool,
     map: &PhotonMap,
     x: u32,
     y: u32,
@@ -215,7 +212,7 @@ fn camera_sample(
     let camera_ray = scene
         .camera
         .generate_ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset, lens);
-    if options.aovs {
+    if aovs {
         px.aov.add(&camera_aov(scene, &camera_ray));
     }
     let mut l = Rgb::ZERO;
