@@ -261,8 +261,9 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             });
         } else {
             let ShapeKind::Mesh(name) = &s.kind else { unreachable!() };
+            // Moved, not copied: a mesh placed many times is held once.
             let mesh = *instanced_mesh_index.entry(name.as_str()).or_insert_with(|| {
-                meshes.push(named_meshes[name.as_str()].clone());
+                meshes.push(named_meshes.remove(name.as_str()).expect("loaded"));
                 meshes.len() as u32 - 1
             });
             instances.push(MeshInstance {

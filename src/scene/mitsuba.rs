@@ -12,9 +12,11 @@
 //! `fov_axis` (default `x`); bitmap textures have v = 0 at the top of the
 //! image; OBJ texture coordinates are flipped on load (`flip_tex_coords`,
 //! default true); BSDFs are one-sided unless wrapped in `twosided`; area
-//! emitters belong to the shape they are attached to. What trazo does not
-//! support is reported as a warning naming the element and its line, and
-//! documented in docs/formats.md.
+//! emitters belong to the shape they are attached to; an `instance` places
+//! every shape of its `shapegroup` with its to_world after the shape's own,
+//! the group's meshes named so that the build step stores each once and
+//! instances it. What trazo does not support is reported as a warning
+//! naming the element and its line, and documented in docs/formats.md.
 
 use super::desc::*;
 use crate::color::Rgb;
@@ -116,7 +118,51 @@ struct Loader {
     default_material: Option<String>,
     saw_sensor: bool,
     saw_integrator: bool,
+    /// Shape groups by id.
+    groups: HashMap<String, GroupDef>,
+    /// Instances in the order read, placed by `finish` (Mitsuba resolves
+    /// references after reading the whole file, so an instance may come
+    /// before its group).
+    instances: Vec<InstanceUse>,
+    /// The meshes of groups, each file read once: by (type, path,
+    /// face_normals, flip_tex_coords), the name of its [`MeshDesc`].
+    group_mesh_names: HashMap<(String, PathBuf, bool, bool), String>,
+    /// Those meshes; `finish` keeps the ones a placed shape uses.
+    group_meshes: Vec<MeshDesc>,
 }
+
+/// A `<shape type="shapegroup" id="..">`: its shapes, each with its own
+/// transform and material, and meshes named, not inline, so that every
+/// placement shares one copy of the triangles.
+struct GroupDef {
+    loc: SourceLoc,
+    shapes: Vec<ShapeDesc>,
+    placed: bool,
+}
+
+/// A `<shape type="instance">`.
+struct InstanceUse {
+    /// The group's id and where the `<ref>` naming it was written.
+    id: String,
+    ref_loc: SourceLoc,
+    loc: SourceLoc,
+    to_world: Mat4,
+    /// How many shapes were read before it: its group's shapes go there.
+    position: usize,
+}
+
+/// Children of a plugin that are values, not nested plugins.
+const PROPERTY_TAGS: [&str; 9] = [
+    "float",
+    "integer",
+    "boolean",
+    "string",
+    "point",
+    "vector",
+    "rgb",
+    "spectrum",
+    "transform",
+];
 
 /// Parsed value of a colour-like property.
 enum ColorProp {
@@ -148,10 +194,15 @@ impl Loader {
             default_material: None,
             saw_sensor: false,
             saw_integrator: false,
+            groups: HashMap::new(),
+            instances: Vec::new(),
+            group_mesh_names: HashMap::new(),
+            group_meshes: Vec::new(),
         }
     }
 
     fn finish(mut self) -> Result<SceneDesc> {
+        self.place_instances()?;
         for name in &self.from_cli {
             if !self.used_cli.contains(name) {
                 self.desc.warnings.push(format!(
@@ -1423,7 +1474,244 @@ impl Loader {
     }
 
     fn shape(&mut self, f: &FileCtx, node: Node) -> Result<()> {
+        match self.required_attr(f, node, "type")?.as_str() {
+            "shapegroup" => self.shapegroup(f, node),
+            "instance" => self.instance(f, node),
+            _ => {
+                let shapes = self.shape_descs(f, node, false)?;
+                self.desc.shapes.extend(shapes);
+                Ok(())
+            }
+        }
+    }
+
+    /// A `<shape type="shapegroup">`: its shapes are read (materials made,
+    /// meshes named) but placed only by instances.
+    fn shapegroup(&mut self, f: &FileCtx, node: Node) -> Result<()> {
+        let id = self.attr(f, node, "id")?;
+        if let Some(id) = &id {
+            let earlier = match (self.groups.get(id), self.bsdfs.get(id)) {
+                (Some(g), _) => Some(format!("the shapegroup at {}", g.loc)),
+                (None, Some(b)) => Some(format!("the BSDF at {}", b.loc)),
+                (None, None) => self.textures.contains_key(id).then(|| "a texture".to_string()),
+            };
+            if let Some(earlier) = earlier {
+                return Err(self.err(f, node, format!("duplicate id \"{id}\": {earlier} has it")));
+            }
+        }
+        // Mitsuba reads a group's own to_world and never applies it.
+        let props: Vec<Node> = Self::props(node)
+            .into_iter()
+            .filter(|p| p.tag_name().name() != "shape")
+            .collect();
+        let mut used = Vec::new();
+        if self.transform(f, &props, "to_world", &mut used)?.is_some() {
+            self.warn(
+                f,
+                node,
+                "a shapegroup's to_world is ignored (as by Mitsuba); transform its shapes or its instances",
+            );
+        }
+        let mut shapes = Vec::new();
+        for c in node.children().filter(Node::is_element) {
+            let tag = c.tag_name().name();
+            if tag == "shape" {
+                match self.required_attr(f, c, "type")?.as_str() {
+                    "shapegroup" => {
+                        return Err(self.err(
+                            f,
+                            c,
+                            "a shapegroup cannot hold another shapegroup (Mitsuba: \"Nested ShapeGroup is not permitted\")",
+                        ));
+                    }
+                    "instance" => {
+                        return Err(self.err(
+                            f,
+                            c,
+                            "a shapegroup cannot hold an instance (Mitsuba: \"Nested instancing is not permitted\")",
+                        ));
+                    }
+                    _ => shapes.extend(self.shape_descs(f, c, true)?),
+                }
+            } else if !PROPERTY_TAGS.contains(&tag) {
+                return Err(self.err(
+                    f,
+                    c,
+                    format!("a shapegroup holds only shapes, not <{tag}> (Mitsuba rejects it too); give the BSDF to each shape"),
+                ));
+            }
+        }
+        self.unused(f, node, &props, &used);
+        if shapes.is_empty() {
+            self.warn(f, node, "the shapegroup holds no shapes");
+        }
+        match id {
+            Some(id) => {
+                self.groups.insert(
+                    id,
+                    GroupDef {
+                        loc: f.loc_of(node),
+                        shapes,
+                        placed: false,
+                    },
+                );
+            }
+            None => self.warn(
+                f,
+                node,
+                "a shapegroup without an id cannot be placed by an instance; nothing of it is rendered",
+            ),
+        }
+        Ok(())
+    }
+
+    /// A `<shape type="instance">`: a `<ref>` to a shapegroup and a
+    /// `to_world`, placed by `place_instances` once the whole file is read.
+    fn instance(&mut self, f: &FileCtx, node: Node) -> Result<()> {
+        let mut group: Option<(String, SourceLoc)> = None;
+        for c in node.children().filter(Node::is_element) {
+            let tag = c.tag_name().name();
+            if tag == "ref" {
+                if group.is_some() {
+                    return Err(self.err(
+                        f,
+                        c,
+                        "an instance places one shapegroup (Mitsuba: \"Only a single shapegroup can be specified per instance\")",
+                    ));
+                }
+                group = Some((self.required_attr(f, c, "id")?, f.loc_of(c)));
+            } else if tag == "shape" && c.attribute("type") == Some("shapegroup") {
+                return Err(self.err(
+                    f,
+                    c,
+                    "a shapegroup cannot be written inside an instance (nor in Mitsuba); give it an id and place it with <ref id=\"..\"/>",
+                ));
+            } else if !PROPERTY_TAGS.contains(&tag) {
+                return Err(self.err(
+                    f,
+                    c,
+                    format!(
+                        "an instance takes a <ref> to a shapegroup and a to_world, not <{tag}> (Mitsuba: \"Only a shapegroup can be specified in an instance\"); the group's shapes keep their own BSDFs"
+                    ),
+                ));
+            }
+        }
+        let Some((id, ref_loc)) = group else {
+            return Err(self.err(f, node, "an instance needs a <ref id=\"..\"/> to a shapegroup"));
+        };
+        let props: Vec<Node> = Self::props(node)
+            .into_iter()
+            .filter(|p| p.tag_name().name() != "ref")
+            .collect();
+        let mut used = Vec::new();
+        let to_world = self
+            .transform(f, &props, "to_world", &mut used)?
+            .unwrap_or(Mat4::IDENTITY);
+        if let Err(e) = TransformOp::Matrix(to_world).to_transform() {
+            return Err(self.err(f, node, format!("to_world: {e}")));
+        }
+        self.unused(f, node, &props, &used);
+        self.instances.push(InstanceUse {
+            id,
+            ref_loc,
+            loc: f.loc_of(node),
+            to_world,
+            position: self.desc.shapes.len(),
+        });
+        Ok(())
+    }
+
+    /// Places every instance's group, in the order the instances were read,
+    /// and keeps the group meshes that are placed.
+    fn place_instances(&mut self) -> Result<()> {
+        let uses = std::mem::take(&mut self.instances);
+        let read = std::mem::take(&mut self.desc.shapes);
+        let mut shapes = Vec::with_capacity(read.len());
+        let mut read = read.into_iter();
+        let mut taken = 0;
+        for u in uses {
+            let Some(group) = self.groups.get_mut(&u.id) else {
+                let id = &u.id;
+                let hint = if self.bsdfs.contains_key(id) {
+                    " (a BSDF has that id; an instance places a shapegroup)".to_string()
+                } else if self.textures.contains_key(id) {
+                    " (a texture has that id; an instance places a shapegroup)".to_string()
+                } else {
+                    suggest(id, self.groups.keys().map(String::as_str))
+                };
+                return Err(Error::Scene {
+                    loc: Some(u.ref_loc),
+                    key: None,
+                    message: format!("<ref>: no shapegroup with id \"{id}\"{hint}"),
+                });
+            };
+            group.placed = true;
+            shapes.extend(read.by_ref().take(u.position - taken));
+            taken = u.position;
+            for s in &group.shapes {
+                // The instance's to_world after the shape's own: Mitsuba
+                // carries rays into the group's space, where each shape
+                // lies by its own to_world.
+                let mut s = s.clone();
+                if u.to_world != Mat4::IDENTITY {
+                    s.transform.push(TransformOp::Matrix(u.to_world));
+                    if !s.locs.keys.iter().any(|(k, _)| k == "transform") {
+                        s.locs.keys.push(("transform".into(), u.loc.clone()));
+                    }
+                }
+                shapes.push(s);
+            }
+        }
+        shapes.extend(read);
+        self.desc.shapes = shapes;
+
+        let mut unplaced: Vec<(&String, &GroupDef)> = self.groups.iter().filter(|(_, g)| !g.placed).collect();
+        unplaced.sort_by_key(|(_, g)| (g.loc.file.clone(), g.loc.line, g.loc.column));
+        for (id, g) in unplaced {
+            self.desc.warnings.push(format!(
+                "{}: shapegroup \"{id}\" is never placed by an instance; nothing of it is rendered",
+                g.loc
+            ));
+        }
+        let placed: HashSet<&str> = self
+            .desc
+            .shapes
+            .iter()
+            .filter_map(|s| match &s.kind {
+                ShapeKind::Mesh(name) => Some(name.as_str()),
+                _ => None,
+            })
+            .collect();
+        let meshes: Vec<MeshDesc> = std::mem::take(&mut self.group_meshes)
+            .into_iter()
+            .filter(|m| placed.contains(m.name.as_str()))
+            .collect();
+        self.desc.meshes.extend(meshes);
+        Ok(())
+    }
+
+    /// The shapes one `<shape>` element makes (a cube makes six
+    /// rectangles; an unsupported shape none). In a group (`in_group`), a
+    /// mesh is named rather than inline, one name per file, and an emitter
+    /// is an error, as in Mitsuba.
+    fn shape_descs(&mut self, f: &FileCtx, node: Node, in_group: bool) -> Result<Vec<ShapeDesc>> {
         let ty = self.required_attr(f, node, "type")?;
+        if in_group {
+            for c in node.children().filter(Node::is_element) {
+                let what = match c.tag_name().name() {
+                    "emitter" => "emitters",
+                    "sensor" => "sensors",
+                    _ => continue,
+                };
+                return Err(self.err(
+                    f,
+                    c,
+                    format!(
+                        "{what} cannot be instanced: Mitsuba rejects a shape with one in a shapegroup (\"Instancing of {what} is not supported\"); place that shape on its own, outside the group"
+                    ),
+                ));
+            }
+        }
         let props = Self::props(node);
         let mut used = Vec::new();
         let to_world = self.transform(f, &props, "to_world", &mut used)?;
@@ -1473,35 +1761,51 @@ impl Loader {
                 let flip_tex = self
                     .boolean(f, &props, "flip_tex_coords", &mut used)?
                     .unwrap_or(ty == "obj");
-                if ty == "obj" {
-                    let mut mesh = super::obj::load_obj_mesh(&path).map_err(|e| self.err(f, node, e.to_string()))?;
-                    if face_normals {
-                        mesh.normals.clear();
-                    }
-                    if flip_tex {
-                        for uv in &mut mesh.uvs {
-                            uv.y = 1.0 - uv.y;
+                if ty != "obj" && (face_normals || flip_tex) {
+                    self.warn(
+                        f,
+                        node,
+                        "face_normals and flip_tex_coords are unsupported for PLY files; ignored",
+                    );
+                }
+                // A file that groups use again is read once and named.
+                let key = in_group.then(|| {
+                    let canonical = path.canonicalize().unwrap_or_else(|_| path.clone());
+                    let obj = ty == "obj";
+                    (ty.clone(), canonical, obj && face_normals, obj && flip_tex)
+                });
+                match key.as_ref().and_then(|k| self.group_mesh_names.get(k)) {
+                    Some(name) => ShapeKind::Mesh(name.clone()),
+                    None => {
+                        let source = if ty == "obj" {
+                            let mut mesh =
+                                super::obj::load_obj_mesh(&path).map_err(|e| self.err(f, node, e.to_string()))?;
+                            if face_normals {
+                                mesh.normals.clear();
+                            }
+                            if flip_tex {
+                                for uv in &mut mesh.uvs {
+                                    uv.y = 1.0 - uv.y;
+                                }
+                            }
+                            MeshSource::Inline(mesh)
+                        } else {
+                            MeshSource::File(path)
+                        };
+                        match key {
+                            Some(key) => {
+                                let name = self.group_mesh(f, node, source);
+                                self.group_mesh_names.insert(key, name.clone());
+                                ShapeKind::Mesh(name)
+                            }
+                            None => ShapeKind::InlineMesh(source),
                         }
                     }
-                    ShapeKind::InlineMesh(MeshSource::Inline(mesh))
-                } else {
-                    if face_normals || flip_tex {
-                        self.warn(
-                            f,
-                            node,
-                            "face_normals and flip_tex_coords are unsupported for PLY files; ignored",
-                        );
-                    }
-                    ShapeKind::InlineMesh(MeshSource::File(path))
                 }
-            }
-            "instance" | "shapegroup" | "serialized" | "heightfield" | "bsplinecurve" | "linearcurve" | "sdfgrid" => {
-                self.warn(f, node, format!("shape \"{ty}\" is unsupported; ignored"));
-                return Ok(());
             }
             other => {
                 self.warn(f, node, format!("shape \"{other}\" is unsupported; ignored"));
-                return Ok(());
+                return Ok(Vec::new());
             }
         };
 
@@ -1568,18 +1872,36 @@ impl Loader {
         }
         shape.locs = locs;
         if cube_faces {
-            for [corner, edge_u, edge_v] in mitsuba_cube_faces() {
-                let mut face = shape.clone();
-                face.kind = ShapeKind::Rectangle { corner, edge_u, edge_v };
-                // The faces' (u, v) run clockwise seen from outside, so
-                // edge_u × edge_v, a rectangle's front, points in.
-                face.flip_normals = !flip_normals;
-                self.desc.shapes.push(face);
-            }
-            return Ok(());
+            return Ok(mitsuba_cube_faces()
+                .into_iter()
+                .map(|[corner, edge_u, edge_v]| {
+                    let mut face = shape.clone();
+                    face.kind = ShapeKind::Rectangle { corner, edge_u, edge_v };
+                    // The faces' (u, v) run clockwise seen from outside, so
+                    // edge_u × edge_v, a rectangle's front, points in.
+                    face.flip_normals = !flip_normals;
+                    face
+                })
+                .collect());
         }
-        self.desc.shapes.push(shape);
-        Ok(())
+        if in_group {
+            if let ShapeKind::InlineMesh(source) = &shape.kind {
+                let name = self.group_mesh(f, node, source.clone());
+                shape.kind = ShapeKind::Mesh(name);
+            }
+        }
+        Ok(vec![shape])
+    }
+
+    /// Names a mesh of a group; `finish` keeps it if a placed shape uses it.
+    fn group_mesh(&mut self, f: &FileCtx, node: Node, source: MeshSource) -> String {
+        let name = self.fresh_name("mitsuba-mesh");
+        self.group_meshes.push(MeshDesc {
+            name: name.clone(),
+            source,
+            locs: Locs::at(Some(f.loc_of(node))),
+        });
+        name
     }
 }
 
@@ -1978,6 +2300,243 @@ mod tests {
         assert!(d.shapes[6..12].iter().all(|s| !s.flip_normals));
         assert!(d.shapes[..12].iter().all(|s| s.material == d.shapes[0].material));
         assert_eq!(d.shapes[0].transform.len(), 1);
+    }
+
+    /// A group of a mesh (OBJ), a sphere and a cube, each with its own
+    /// to_world and BSDF; a second group with the same OBJ file.
+    fn instancing_scene(dir: &Path) -> String {
+        std::fs::write(
+            dir.join("quad.obj"),
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n",
+        )
+        .unwrap();
+        r#"<scene version="3.0.0">
+    <bsdf type="diffuse" id="red"><rgb name="reflectance" value="0.8, 0.1, 0.1"/></bsdf>
+    <shape type="instance">
+        <ref id="g"/>
+        <transform name="to_world"><rotate y="1" angle="90"/><translate x="10"/></transform>
+    </shape>
+    <shape type="shapegroup" id="g">
+        <shape type="obj">
+            <string name="filename" value="quad.obj"/>
+            <transform name="to_world"><scale value="2"/></transform>
+            <ref id="red"/>
+        </shape>
+        <shape type="sphere">
+            <point name="center" x="0" y="3" z="0"/>
+            <float name="radius" value="0.5"/>
+            <bsdf type="roughconductor"><string name="distribution" value="ggx"/></bsdf>
+        </shape>
+        <shape type="cube"><transform name="to_world"><translate z="-4"/></transform></shape>
+    </shape>
+    <shape type="shapegroup" id="h">
+        <shape type="obj"><string name="filename" value="quad.obj"/></shape>
+    </shape>
+    <shape type="sphere"><float name="radius" value="7"/></shape>
+    <shape type="instance"><ref id="g"/></shape>
+    <shape type="instance">
+        <ref id="h"/>
+        <transform name="to_world"><translate y="-5"/></transform>
+    </shape>
+</scene>"#
+            .to_string()
+    }
+
+    fn matrix_of(s: &ShapeDesc) -> Mat4 {
+        super::super::build::compose(&s.transform).unwrap().m
+    }
+
+    #[test]
+    fn instances_place_their_groups_shapes_with_composed_transforms() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("scene.xml");
+        let d = parse(&instancing_scene(dir.path()), &path, &[]).unwrap();
+        assert!(
+            d.warnings.iter().all(|w| !w.contains("unsupported")),
+            "{:?}",
+            d.warnings
+        );
+        // Group g is a mesh, a sphere and six cube faces; placed twice, with
+        // the big sphere (read between) in its place, then group h once.
+        let kinds: Vec<&str> = d
+            .shapes
+            .iter()
+            .map(|s| match &s.kind {
+                ShapeKind::Mesh(_) => "mesh",
+                ShapeKind::Sphere { radius, .. } if *radius == 7.0 => "big sphere",
+                ShapeKind::Sphere { .. } => "sphere",
+                ShapeKind::Rectangle { .. } => "face",
+                _ => "other",
+            })
+            .collect();
+        let g = [["mesh", "sphere"].as_slice(), &["face"; 6]].concat();
+        assert_eq!(kinds, [g.as_slice(), &["big sphere"], &g, &["mesh"]].concat());
+
+        // The instance's to_world applies after the shape's own.
+        let inst = Mat4::from_translation(Vec3::new(10.0, 0.0, 0.0)) * Mat4::from_rotation_y(90f32.to_radians());
+        let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
+        let p = Vec3::new(1.0, 1.0, 0.0);
+        // The quad scaled by 2, then rotated and moved: (2,2,0) → (10,2,−2).
+        assert!(close(
+            matrix_of(&d.shapes[0]).transform_point3(p),
+            Vec3::new(10.0, 2.0, -2.0)
+        ));
+        assert!(close(
+            matrix_of(&d.shapes[0]).transform_point3(p),
+            inst.transform_point3(2.0 * p)
+        ));
+        // The sphere has no to_world of its own: the instance's alone.
+        let ShapeKind::Sphere { center, radius } = d.shapes[1].kind else {
+            panic!()
+        };
+        assert_eq!((center, radius), (Vec3::new(0.0, 3.0, 0.0), 0.5));
+        assert!(close(
+            matrix_of(&d.shapes[1]).transform_point3(center),
+            Vec3::new(10.0, 3.0, 0.0)
+        ));
+        // A cube face: translated by z = −4, then the instance.
+        let q = Vec3::new(0.0, 0.0, 1.0);
+        assert!(close(
+            matrix_of(&d.shapes[2]).transform_point3(q),
+            Vec3::new(7.0, 0.0, 0.0)
+        ));
+        // The second placement of g has no to_world: the shapes' own.
+        assert_eq!(d.shapes[9].transform, d.shapes[0].transform[..1].to_vec());
+        assert!(close(matrix_of(&d.shapes[9]).transform_point3(p), 2.0 * p));
+        assert!(close(
+            matrix_of(&d.shapes[17]).transform_point3(p),
+            Vec3::new(1.0, -4.0, 0.0)
+        ));
+
+        // Each shape keeps its own BSDF in every placement.
+        let material = |i: usize| {
+            let name = d.shapes[i].material.as_ref().unwrap();
+            &d.materials.iter().find(|m| &m.name == name).unwrap().kind
+        };
+        for base in [0, 9] {
+            assert!(
+                matches!(material(base), MaterialKindDesc::Diffuse { reflectance: ColorSource::Rgb(c) } if *c == Rgb::new(0.8, 0.1, 0.1))
+            );
+            assert!(matches!(material(base + 1), MaterialKindDesc::Conductor { .. }));
+            assert!(
+                matches!(material(base + 2), MaterialKindDesc::Diffuse { reflectance: ColorSource::Rgb(c) } if *c == Rgb::splat(0.5))
+            );
+        }
+        assert_eq!(d.shapes[0].material, d.shapes[9].material);
+    }
+
+    #[test]
+    fn a_mesh_file_in_groups_is_one_mesh_stored_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = parse(&instancing_scene(dir.path()), &dir.path().join("scene.xml"), &[]).unwrap();
+        // Both groups name the same file: one named mesh, placed three times.
+        assert_eq!(d.meshes.len(), 1, "{:?}", d.meshes);
+        let name = &d.meshes[0].name;
+        let uses = d
+            .shapes
+            .iter()
+            .filter(|s| s.kind == ShapeKind::Mesh(name.clone()))
+            .count();
+        assert_eq!(uses, 3);
+        let scene = crate::scene::build(&d).unwrap();
+        assert_eq!(scene.geometry.meshes.len(), 1, "the triangles are held once");
+        assert_eq!(scene.geometry.instances.len(), 3);
+        assert!(scene.geometry.mesh_objects.is_empty());
+    }
+
+    #[test]
+    fn instance_and_shapegroup_errors_name_the_place() {
+        let group = "<shape type=\"shapegroup\" id=\"g\"><shape type=\"sphere\"/></shape>";
+        let err = |body: &str| {
+            parse_str(&format!("<scene version=\"3.0.0\">\n{body}\n</scene>"))
+                .unwrap_err()
+                .to_string()
+        };
+        // An unknown id: the <ref>'s line and column, and a close name.
+        let e = err(&format!(
+            "{group}\n<shape type=\"instance\">\n  <ref id=\"gg\"/></shape>"
+        ));
+        assert!(e.starts_with("test.xml:4:3:"), "{e}");
+        assert!(e.contains("no shapegroup with id \"gg\"") && e.contains("\"g\""), "{e}");
+        let e = err("<bsdf type=\"diffuse\" id=\"red\"/>\n<shape type=\"instance\"><ref id=\"red\"/></shape>");
+        assert!(
+            e.contains("no shapegroup with id \"red\"") && e.contains("a BSDF has that id"),
+            "{e}"
+        );
+        // What Mitsuba rejects.
+        for (body, line, what) in [
+            (
+                "<shape type=\"shapegroup\" id=\"a\">\n<shape type=\"shapegroup\" id=\"b\"/></shape>",
+                "test.xml:3:",
+                "Nested ShapeGroup",
+            ),
+            (
+                &format!(
+                    "{group}\n<shape type=\"shapegroup\" id=\"b\">\n<shape type=\"instance\"><ref id=\"g\"/></shape></shape>"
+                ),
+                "test.xml:4:",
+                "Nested instancing",
+            ),
+            (
+                "<shape type=\"shapegroup\" id=\"a\"><shape type=\"sphere\">\n<emitter type=\"area\"/></shape></shape>",
+                "test.xml:3:",
+                "Instancing of emitters",
+            ),
+            ("<shape type=\"instance\"/>", "test.xml:2:", "needs a <ref"),
+            (
+                &format!("{group}\n<shape type=\"instance\"><ref id=\"g\"/>\n<ref id=\"g\"/></shape>"),
+                "test.xml:4:",
+                "one shapegroup",
+            ),
+            (
+                &format!("{group}\n<shape type=\"instance\"><ref id=\"g\"/>\n<bsdf type=\"diffuse\"/></shape>"),
+                "test.xml:4:",
+                "keep their own BSDFs",
+            ),
+            (
+                "<shape type=\"shapegroup\" id=\"a\">\n<bsdf type=\"diffuse\"/></shape>",
+                "test.xml:3:",
+                "holds only shapes",
+            ),
+            (&format!("{group}\n{group}"), "test.xml:3:", "duplicate id \"g\""),
+            (
+                "<shape type=\"instance\"><ref id=\"g\"/>\n<transform name=\"to_world\"><scale value=\"0\"/></transform></shape>",
+                "test.xml:2:",
+                "to_world",
+            ),
+        ] {
+            let e = err(body);
+            assert!(e.starts_with(line) && e.contains(what), "{body}: {e}");
+        }
+    }
+
+    #[test]
+    fn shapegroups_warn_only_where_nothing_is_placed() {
+        let d = parse_str(
+            "<scene version=\"3.0.0\">
+            <shape type=\"shapegroup\" id=\"used\"><shape type=\"disk\"/><shape type=\"rectangle\"/></shape>
+            <shape type=\"shapegroup\" id=\"unused\"><shape type=\"sphere\"/></shape>
+            <shape type=\"shapegroup\" id=\"moved\">
+                <transform name=\"to_world\"><translate x=\"1\"/></transform><shape type=\"sphere\"/>
+            </shape>
+            <shape type=\"instance\"><ref id=\"used\"/></shape>
+            <shape type=\"instance\"><ref name=\"group\" id=\"moved\"/></shape>
+            </scene>",
+        )
+        .unwrap();
+        assert_eq!(d.shapes.len(), 3);
+        // Read first, then placed: the group's to_world, then the unplaced group.
+        let warnings: Vec<&String> = d.warnings.iter().filter(|w| !w.contains("the scene has no")).collect();
+        let [a, b] = warnings.as_slice() else {
+            panic!("{:?}", d.warnings)
+        };
+        assert!(a.starts_with("test.xml:4:") && a.contains("to_world is ignored"), "{a}");
+        assert!(
+            b.starts_with("test.xml:3:") && b.contains("\"unused\" is never placed"),
+            "{b}"
+        );
+        // As in Mitsuba, the group's own to_world does not move its shapes.
+        assert!(d.shapes[2].transform.is_empty());
     }
 
     #[test]
