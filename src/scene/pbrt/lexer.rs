@@ -3,35 +3,87 @@
 //! strings, `[` and `]`, `#` comments to the end of the line, and bare words
 //! (directive names, numbers, `true`/`false`) that end at white space, a
 //! quote or a bracket.
+//!
+//! `Include` is token-level, as in pbrt-v4's parser: the lexer reads a
+//! stack of files, and the tokens of an included file are followed by those
+//! after the `Include` in the file that names it, so a directive may begin
+//! in one file and end in another (pbrt-v4-scenes' smoke-plume lists a
+//! medium's grid in an included file and its other parameters after the
+//! `Include`). Every file read gets its own range of offsets, so a token's
+//! offset says which file, line and column it came from.
 
 use crate::error::{Error, Result, SourceLoc};
+use arrayvec::ArrayString;
 use std::borrow::Cow;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
+
+/// A bare word, kept inline when short (numbers nearly always are), so that
+/// a mesh of a million numbers is read without a million allocations.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) enum Word {
+    /// At most 32 bytes.
+    Short(ArrayString<32>),
+    /// Longer.
+    Long(Box<str>),
+}
+
+impl Word {
+    fn new(s: &str) -> Word {
+        ArrayString::from(s).map_or_else(|_| Word::Long(s.into()), Word::Short)
+    }
+}
+
+impl std::ops::Deref for Word {
+    type Target = str;
+    fn deref(&self) -> &str {
+        match self {
+            Word::Short(s) => s,
+            Word::Long(s) => s,
+        }
+    }
+}
+
+impl std::fmt::Display for Word {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self)
+    }
+}
 
 /// What a token is.
 #[derive(Clone, Debug, PartialEq)]
-pub(crate) enum Tok<'t> {
+pub(crate) enum Tok {
     /// A bare word: a directive name, a number, `true` or `false`.
-    Word(&'t str),
+    Word(Word),
     /// A quoted string, without its quotes and with escapes decoded.
-    Str(Cow<'t, str>),
+    Str(String),
     /// `[`
     Open,
     /// `]`
     Close,
 }
 
-/// A token and the byte offset where it starts.
+impl Tok {
+    /// The text of a bare word.
+    pub fn word(&self) -> Option<&str> {
+        match self {
+            Tok::Word(w) => Some(w),
+            _ => None,
+        }
+    }
+}
+
+/// A token and the offset where it starts (in the lexer's numbering of
+/// the bytes of all the files it read: see [`Lexer::loc`]).
 #[derive(Clone, Debug, PartialEq)]
-pub(crate) struct Token<'t> {
+pub(crate) struct Token {
     /// The token.
-    pub tok: Tok<'t>,
-    /// Byte offset of its first character.
+    pub tok: Tok,
+    /// Offset of its first character.
     pub offset: usize,
 }
 
-impl Token<'_> {
+impl Token {
     /// How the token reads in messages.
     pub fn describe(&self) -> String {
         match &self.tok {
@@ -43,34 +95,57 @@ impl Token<'_> {
     }
 }
 
-/// Splits one file's text into tokens and turns offsets into positions.
-pub(crate) struct Lexer<'t> {
+/// One file that the lexer reads or has read.
+struct Source<'t> {
     file: Arc<Path>,
-    text: &'t str,
-    pos: usize,
-    /// Byte offset of the start of each line, for offset → line lookups by
-    /// binary search (files can have millions of lines).
+    /// Its folder, relative to the main file's folder (for the names it
+    /// gives).
+    dir: Arc<Path>,
+    /// Its canonical path, for included files (to find include loops).
+    canonical: Option<PathBuf>,
+    /// The offset of its first byte.
+    base: usize,
+    len: usize,
+    /// Emptied by [`Lexer::release`] once the file is done.
+    text: Cow<'t, str>,
+    /// Byte offset (within the file) of the start of each line, for
+    /// offset → line lookups by binary search (files can have millions of
+    /// lines).
     line_starts: Vec<usize>,
-    peeked: Option<Token<'t>>,
+    /// Where scanning is, within the file.
+    pos: usize,
+    released: bool,
 }
 
-impl<'t> Lexer<'t> {
-    /// A lexer over `text`, which was read from `file`.
-    pub fn new(file: Arc<Path>, text: &'t str) -> Lexer<'t> {
+impl<'t> Source<'t> {
+    fn new(file: Arc<Path>, text: Cow<'t, str>, dir: Arc<Path>, canonical: Option<PathBuf>, base: usize) -> Self {
         let mut line_starts = vec![0];
         line_starts.extend(text.match_indices('\n').map(|(i, _)| i + 1));
-        Lexer {
+        Source {
             file,
+            dir,
+            canonical,
+            base,
+            len: text.len(),
             text,
-            pos: 0,
             line_starts,
-            peeked: None,
+            pos: 0,
+            released: false,
         }
     }
 
-    /// The position of byte `offset`.
-    pub fn loc(&self, offset: usize) -> SourceLoc {
-        let offset = offset.min(self.text.len());
+    /// The position of byte `local` of the file.
+    fn loc(&self, local: usize) -> SourceLoc {
+        if self.released {
+            // Positions are computed while the directive that holds them is
+            // read, before its files are released; this is only a fallback.
+            return SourceLoc {
+                file: self.file.clone(),
+                line: 0,
+                column: 0,
+            };
+        }
+        let offset = local.min(self.text.len());
         let line = self.line_starts.partition_point(|&s| s <= offset) - 1;
         let start = self.line_starts[line];
         let mut end = offset;
@@ -83,14 +158,94 @@ impl<'t> Lexer<'t> {
             column: self.text[start..end].chars().count() as u32 + 1,
         }
     }
+}
 
-    /// The position just past the last character (for "unexpected end of
-    /// file").
-    pub fn end_loc(&self) -> SourceLoc {
-        self.loc(self.text.len())
+/// Splits the text of a file, and of the files it includes, into tokens,
+/// and turns offsets into positions.
+pub(crate) struct Lexer<'t> {
+    /// Every file read, in the order they were opened (so with increasing
+    /// `base`); the first is the one the lexer was made for.
+    sources: Vec<Source<'t>>,
+    /// Indices into `sources` of the files being read, outermost first.
+    stack: Vec<usize>,
+    /// Included files read to the end whose text is still held.
+    finished: Vec<usize>,
+    peeked: Option<Token>,
+}
+
+impl<'t> Lexer<'t> {
+    /// A lexer over `text`, which was read from `file`; `dir` is the
+    /// file's folder relative to the main scene file's.
+    pub fn new(file: Arc<Path>, text: &'t str, dir: Arc<Path>) -> Lexer<'t> {
+        Lexer {
+            sources: vec![Source::new(file, Cow::Borrowed(text), dir, None, 0)],
+            stack: vec![0],
+            finished: Vec::new(),
+            peeked: None,
+        }
     }
 
-    /// A syntax error at byte `offset`.
+    /// Continues with the tokens of `text` (an included file, read from
+    /// `file`, whose canonical path is `canonical`), then with those that
+    /// follow in the files already open.
+    pub fn include(&mut self, file: Arc<Path>, text: String, dir: Arc<Path>, canonical: PathBuf) {
+        let last = self.sources.last().expect("a lexer has its main file");
+        let base = last.base + last.len + 1;
+        self.sources
+            .push(Source::new(file, Cow::Owned(text), dir, Some(canonical), base));
+        // A token already looked at comes after the included ones: the
+        // file it came from (the innermost one) is read again from there.
+        if let Some(t) = self.peeked.take() {
+            if let Some(&top) = self.stack.last() {
+                let s = &mut self.sources[top];
+                s.pos = t.offset - s.base;
+            }
+        }
+        self.stack.push(self.sources.len() - 1);
+    }
+
+    /// The canonical paths of the included files still being read,
+    /// outermost first.
+    pub fn open_includes(&self) -> impl Iterator<Item = &PathBuf> {
+        self.stack.iter().filter_map(|&i| self.sources[i].canonical.as_ref())
+    }
+
+    /// Frees the text of included files that have been read to the end.
+    /// Positions in them cannot be computed afterwards, so the parser calls
+    /// this between directives.
+    pub fn release(&mut self) {
+        for i in self.finished.drain(..) {
+            let s = &mut self.sources[i];
+            s.released = true;
+            s.text = Cow::Owned(String::new());
+            s.line_starts = Vec::new();
+        }
+    }
+
+    fn source_of(&self, offset: usize) -> &Source<'t> {
+        let i = self.sources.partition_point(|s| s.base <= offset).max(1) - 1;
+        &self.sources[i]
+    }
+
+    /// The position of `offset`.
+    pub fn loc(&self, offset: usize) -> SourceLoc {
+        let s = self.source_of(offset);
+        s.loc(offset - s.base)
+    }
+
+    /// The folder (relative to the main file's) of the file that holds
+    /// `offset`.
+    pub fn dir_of(&self, offset: usize) -> Arc<Path> {
+        self.source_of(offset).dir.clone()
+    }
+
+    /// The position just past the last character of the lexer's first file
+    /// (for "unexpected end of file").
+    pub fn end_loc(&self) -> SourceLoc {
+        self.sources[0].loc(self.sources[0].len)
+    }
+
+    /// A syntax error at `offset`.
     pub fn error(&self, offset: usize, message: impl Into<String>) -> Error {
         Error::Scene {
             loc: Some(self.loc(offset)),
@@ -100,117 +255,138 @@ impl<'t> Lexer<'t> {
     }
 
     /// The next token without consuming it.
-    pub fn peek(&mut self) -> Result<Option<&Token<'t>>> {
+    pub fn peek(&mut self) -> Result<Option<&Token>> {
         if self.peeked.is_none() {
             self.peeked = self.scan()?;
         }
         Ok(self.peeked.as_ref())
     }
 
-    /// The next token, or `None` at the end of the file.
+    /// The next token, or `None` at the end of the first file.
     #[allow(clippy::should_implement_trait)]
-    pub fn next(&mut self) -> Result<Option<Token<'t>>> {
+    pub fn next(&mut self) -> Result<Option<Token>> {
         match self.peeked.take() {
             Some(t) => Ok(Some(t)),
             None => self.scan(),
         }
     }
 
-    fn scan(&mut self) -> Result<Option<Token<'t>>> {
-        let bytes = self.text.as_bytes();
-        loop {
-            let Some(&c) = bytes.get(self.pos) else {
-                return Ok(None);
-            };
-            let start = self.pos;
-            match c {
-                b' ' | b'\t' | b'\n' | b'\r' | 0x0b | 0x0c => self.pos += 1,
-                b'#' => {
-                    while self.pos < bytes.len() && bytes[self.pos] != b'\n' && bytes[self.pos] != b'\r' {
-                        self.pos += 1;
-                    }
-                }
-                b'[' | b']' => {
-                    self.pos += 1;
-                    let tok = if c == b'[' { Tok::Open } else { Tok::Close };
-                    return Ok(Some(Token { tok, offset: start }));
-                }
-                b'"' => return self.string(start).map(Some),
-                _ => {
-                    while self.pos < bytes.len()
-                        && !matches!(
-                            bytes[self.pos],
-                            b' ' | b'\t' | b'\n' | b'\r' | 0x0b | 0x0c | b'"' | b'[' | b']'
-                        )
-                    {
-                        self.pos += 1;
-                    }
+    /// The next token of the innermost open file; at its end, that file is
+    /// closed and the one that included it continues.
+    fn scan(&mut self) -> Result<Option<Token>> {
+        while let Some(&i) = self.stack.last() {
+            let s = &mut self.sources[i];
+            let base = s.base;
+            let Source { text, pos, .. } = s;
+            match scan_one(text, pos) {
+                Ok(Some((tok, start))) => {
                     return Ok(Some(Token {
-                        tok: Tok::Word(&self.text[start..self.pos]),
-                        offset: start,
+                        tok,
+                        offset: base + start,
                     }));
                 }
+                Ok(None) => {
+                    self.stack.pop();
+                    // The lexer's own file is borrowed: nothing to free.
+                    if i > 0 {
+                        self.finished.push(i);
+                    }
+                }
+                Err((at, message)) => return Err(self.error(base + at, message)),
+            }
+        }
+        Ok(None)
+    }
+}
+
+/// The next token of `text` from `*pos`, and its offset in `text`; errors
+/// are an offset in `text` and a message.
+fn scan_one(text: &str, pos: &mut usize) -> std::result::Result<Option<(Tok, usize)>, (usize, String)> {
+    let bytes = text.as_bytes();
+    loop {
+        let Some(&c) = bytes.get(*pos) else {
+            return Ok(None);
+        };
+        let start = *pos;
+        match c {
+            b' ' | b'\t' | b'\n' | b'\r' | 0x0b | 0x0c => *pos += 1,
+            b'#' => {
+                while *pos < bytes.len() && bytes[*pos] != b'\n' && bytes[*pos] != b'\r' {
+                    *pos += 1;
+                }
+            }
+            b'[' | b']' => {
+                *pos += 1;
+                let tok = if c == b'[' { Tok::Open } else { Tok::Close };
+                return Ok(Some((tok, start)));
+            }
+            b'"' => return string(text, pos, start).map(|t| Some((t, start))),
+            _ => {
+                while *pos < bytes.len()
+                    && !matches!(
+                        bytes[*pos],
+                        b' ' | b'\t' | b'\n' | b'\r' | 0x0b | 0x0c | b'"' | b'[' | b']'
+                    )
+                {
+                    *pos += 1;
+                }
+                return Ok(Some((Tok::Word(Word::new(&text[start..*pos])), start)));
             }
         }
     }
+}
 
-    /// A quoted string starting at `start`. Strings end on the same line;
-    /// the escapes are those of pbrt-v4's `decodeEscaped`.
-    fn string(&mut self, start: usize) -> Result<Token<'t>> {
-        let bytes = self.text.as_bytes();
-        self.pos = start + 1;
-        let mut decoded: Option<String> = None;
-        let mut run_start = self.pos;
-        loop {
-            let Some(&c) = bytes.get(self.pos) else {
-                return Err(self.error(start, "unterminated string: the file ends before its closing quote"));
-            };
-            match c {
-                b'"' => {
-                    let tok = match decoded {
-                        None => Tok::Str(Cow::Borrowed(&self.text[start + 1..self.pos])),
-                        Some(mut s) => {
-                            s.push_str(&self.text[run_start..self.pos]);
-                            Tok::Str(Cow::Owned(s))
-                        }
-                    };
-                    self.pos += 1;
-                    return Ok(Token { tok, offset: start });
-                }
-                b'\n' | b'\r' => {
-                    return Err(self.error(start, "unterminated string: the line ends before its closing quote"));
-                }
-                b'\\' => {
-                    let s = decoded.get_or_insert_with(String::new);
-                    s.push_str(&self.text[run_start..self.pos]);
-                    let escaped = match bytes.get(self.pos + 1) {
-                        Some(b'b') => '\u{8}',
-                        Some(b'f') => '\u{c}',
-                        Some(b'n') => '\n',
-                        Some(b'r') => '\r',
-                        Some(b't') => '\t',
-                        Some(b'\\') => '\\',
-                        Some(b'\'') => '\'',
-                        Some(b'"') => '"',
-                        None => {
-                            return Err(self.error(start, "unterminated string: the file ends after `\\`"));
-                        }
-                        Some(_) => {
-                            let ch = self.text[self.pos + 1..].chars().next().unwrap_or('?');
-                            return Err(self.error(
-                                self.pos,
-                                format!(
-                                    "unknown escape `\\{ch}` in a string (known: \\b \\f \\n \\r \\t \\\\ \\' \\\")"
-                                ),
-                            ));
-                        }
-                    };
-                    s.push(escaped);
-                    self.pos += 2;
-                    run_start = self.pos;
-                }
-                _ => self.pos += 1,
+/// A quoted string starting at byte `start` of `text`. Strings end on the
+/// same line; the escapes are those of pbrt-v4's `decodeEscaped`.
+fn string(text: &str, pos: &mut usize, start: usize) -> std::result::Result<Tok, (usize, String)> {
+    let bytes = text.as_bytes();
+    *pos = start + 1;
+    let mut decoded = String::new();
+    let mut run_start = *pos;
+    loop {
+        let Some(&c) = bytes.get(*pos) else {
+            return Err((
+                start,
+                "unterminated string: the file ends before its closing quote".into(),
+            ));
+        };
+        match c {
+            b'"' => {
+                decoded.push_str(&text[run_start..*pos]);
+                *pos += 1;
+                return Ok(Tok::Str(decoded));
             }
+            b'\n' | b'\r' => {
+                return Err((
+                    start,
+                    "unterminated string: the line ends before its closing quote".into(),
+                ));
+            }
+            b'\\' => {
+                decoded.push_str(&text[run_start..*pos]);
+                let escaped = match bytes.get(*pos + 1) {
+                    Some(b'b') => '\u{8}',
+                    Some(b'f') => '\u{c}',
+                    Some(b'n') => '\n',
+                    Some(b'r') => '\r',
+                    Some(b't') => '\t',
+                    Some(b'\\') => '\\',
+                    Some(b'\'') => '\'',
+                    Some(b'"') => '"',
+                    None => return Err((start, "unterminated string: the file ends after `\\`".into())),
+                    Some(_) => {
+                        let ch = text[*pos + 1..].chars().next().unwrap_or('?');
+                        return Err((
+                            *pos,
+                            format!("unknown escape `\\{ch}` in a string (known: \\b \\f \\n \\r \\t \\\\ \\' \\\")"),
+                        ));
+                    }
+                };
+                decoded.push(escaped);
+                *pos += 2;
+                run_start = *pos;
+            }
+            _ => *pos += 1,
         }
     }
 }
@@ -219,8 +395,16 @@ impl<'t> Lexer<'t> {
 mod tests {
     use super::*;
 
-    fn tokens(text: &str) -> Result<Vec<Tok<'_>>> {
-        let mut lx = Lexer::new(Arc::from(Path::new("t.pbrt")), text);
+    fn lexer(text: &str) -> Lexer<'_> {
+        Lexer::new(Arc::from(Path::new("t.pbrt")), text, Arc::from(Path::new("")))
+    }
+
+    fn word(w: &str) -> Tok {
+        Tok::Word(Word::new(w))
+    }
+
+    fn tokens(text: &str) -> Result<Vec<Tok>> {
+        let mut lx = lexer(text);
         let mut out = Vec::new();
         while let Some(t) = lx.next()? {
             out.push(t.tok);
@@ -234,13 +418,13 @@ mod tests {
         assert_eq!(
             t,
             vec![
-                Tok::Word("Shape"),
+                word("Shape"),
                 Tok::Str("sphere".into()),
                 Tok::Str("float radius".into()),
                 Tok::Open,
-                Tok::Word("2.5"),
+                word("2.5"),
                 Tok::Close,
-                Tok::Word("WorldBegin"),
+                word("WorldBegin"),
             ]
         );
     }
@@ -263,7 +447,7 @@ mod tests {
 
     #[test]
     fn positions_count_characters() {
-        let lx = Lexer::new(Arc::from(Path::new("t.pbrt")), "é x\n  y");
+        let lx = lexer("é x\n  y");
         let l = lx.loc(3);
         assert_eq!((l.line, l.column), (1, 3));
         let l = lx.loc(7);

@@ -112,8 +112,8 @@ pub fn parse(text: &str, path: &Path) -> Result<SceneDesc> {
     let mut p = Parser::new(file.clone());
     p.open_files
         .push(std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()));
-    let mut lx = Lexer::new(file, text);
-    p.parse_file(&mut lx, Path::new(""))?;
+    let mut lx = Lexer::new(file, text, Arc::from(Path::new("")));
+    p.parse_file(&mut lx)?;
     let end = lx.end_loc();
     p.finish(end)
 }
@@ -134,9 +134,16 @@ fn read_text(path: &Path, included_from: Option<&SourceLoc>) -> Result<String> {
     }
     let bytes = read_limited(path, MAX_SCENE_BYTES).map_err(|e| fail(format!("cannot read scene: {e}")))?;
     String::from_utf8(bytes).map_err(|e| {
-        let lossy = String::from_utf8_lossy(e.as_bytes()).into_owned();
-        let lx = Lexer::new(Arc::from(path), &lossy);
-        lx.error(e.utf8_error().valid_up_to(), "the file is not valid UTF-8 text")
+        let lossy = String::from_utf8_lossy(e.as_bytes());
+        Error::Scene {
+            loc: Some(SourceLoc::from_offset(
+                &Arc::from(path),
+                &lossy,
+                e.utf8_error().valid_up_to(),
+            )),
+            key: None,
+            message: "the file is not valid UTF-8 text".into(),
+        }
     })
 }
 
@@ -431,13 +438,19 @@ impl Parser {
         local
     }
 
-    /// Reads the directives of one file.
-    fn parse_file(&mut self, lx: &mut Lexer, dir_rel: &Path) -> Result<()> {
+    /// Reads the directives of one file and of the files it includes.
+    fn parse_file(&mut self, lx: &mut Lexer) -> Result<()> {
         while let Some(t) = lx.next()? {
-            let Tok::Word(name) = t.tok else {
+            // The directives before this one are done with: the included
+            // files they finished can go.
+            lx.release();
+            let Tok::Word(name) = &t.tok else {
                 return Err(lx.error(t.offset, format!("expected a directive, found {}", t.describe())));
             };
-            self.directive(lx, name, t.offset, dir_rel)?;
+            // Names are resolved from the folder of the file that holds the
+            // directive.
+            let dir_rel = lx.dir_of(t.offset);
+            self.directive(lx, name, t.offset, &dir_rel)?;
         }
         Ok(())
     }
@@ -572,9 +585,9 @@ impl Parser {
                         "needs All, StartTime or EndTime; the file ends",
                     ));
                 };
-                match t.tok {
-                    Tok::Word("All") | Tok::Word("StartTime") => self.gs.start_active = true,
-                    Tok::Word("EndTime") => {
+                match t.tok.word() {
+                    Some("All" | "StartTime") => self.gs.start_active = true,
+                    Some("EndTime") => {
                         self.gs.start_active = false;
                         self.warn_motion(&loc);
                     }
@@ -755,7 +768,7 @@ impl Parser {
                     self.in_world(lx, offset, name)?;
                 }
                 let floc = lx.loc(foff);
-                self.include(&file, &floc, dir_rel, name == "Import")?;
+                self.include(lx, &file, &floc, dir_rel, name == "Import")?;
             }
             "Shape" => {
                 self.in_world(lx, offset, name)?;
@@ -973,9 +986,11 @@ impl Parser {
         }
     }
 
-    /// `Include` (textual inclusion, pbrt-v4 parser.cpp) or `Import` (the
-    /// same, but the graphics state does not leak out of the file).
-    fn include(&mut self, name: &str, loc: &SourceLoc, dir_rel: &Path, import: bool) -> Result<()> {
+    /// `Include` (token-level inclusion, pbrt-v4 parser.cpp: the included
+    /// file's tokens take the place of the directive, so a statement may
+    /// continue after it) or `Import` (a file read on its own, whose
+    /// graphics state does not leak out of it).
+    fn include(&mut self, lx: &mut Lexer, name: &str, loc: &SourceLoc, dir_rel: &Path, import: bool) -> Result<()> {
         let what = if import { "Import" } else { "Include" };
         let rel = self.resolve(dir_rel, name);
         let full = self.top_dir.join(&rel);
@@ -986,8 +1001,11 @@ impl Parser {
                 format!("cannot read {}: {}", full.display(), io_reason(&e)),
             )
         })?;
-        if let Some(i) = self.open_files.iter().position(|f| *f == canon) {
-            let chain: Vec<String> = self.open_files[i..]
+        // The files being read: those of the imports around this lexer, then
+        // the files this lexer is inside.
+        let open: Vec<PathBuf> = self.open_files.iter().chain(lx.open_includes()).cloned().collect();
+        if let Some(i) = open.iter().position(|f| *f == canon) {
+            let chain: Vec<String> = open[i..]
                 .iter()
                 .chain(std::iter::once(&canon))
                 .map(|p| {
@@ -1001,7 +1019,7 @@ impl Parser {
                 format!("include loop: {}", chain.join(" → ")),
             ));
         }
-        if self.open_files.len() >= MAX_INCLUDE_DEPTH {
+        if open.len() >= MAX_INCLUDE_DEPTH {
             return Err(Error::scene(
                 Some(loc.clone()),
                 what,
@@ -1009,30 +1027,33 @@ impl Parser {
             ));
         }
         let text = read_text(&full, Some(loc))?;
+        let sub_dir: Arc<Path> = Arc::from(rel.parent().unwrap_or(Path::new("")));
+        let file: Arc<Path> = Arc::from(full.as_path());
+        if !import {
+            lx.include(file, text, sub_dir, canon);
+            return Ok(());
+        }
+        let outer_files = self.open_files.len();
+        self.open_files = open;
         self.open_files.push(canon);
-        let saved = import.then(|| (self.gs.clone(), self.pushed.len(), self.import_floor));
-        if import {
-            self.import_floor = self.pushed.len();
+        let (gs, depth, floor) = (self.gs.clone(), self.pushed.len(), self.import_floor);
+        self.import_floor = self.pushed.len();
+        let mut sub = Lexer::new(file, &text, sub_dir);
+        self.parse_file(&mut sub)?;
+        if let Some((_, block, open)) = self.pushed.get(depth) {
+            let what = match block {
+                Block::Attribute => "AttributeBegin",
+                Block::Object => "ObjectBegin",
+            };
+            return Err(Error::scene(
+                Some(open.clone()),
+                what,
+                "is not closed before the end of the imported file",
+            ));
         }
-        let mut lx = Lexer::new(Arc::from(full.as_path()), &text);
-        let sub_dir = rel.parent().map(Path::to_path_buf).unwrap_or_default();
-        self.parse_file(&mut lx, &sub_dir)?;
-        if let Some((gs, depth, floor)) = saved {
-            if let Some((_, block, open)) = self.pushed.get(depth) {
-                let what = match block {
-                    Block::Attribute => "AttributeBegin",
-                    Block::Object => "ObjectBegin",
-                };
-                return Err(Error::scene(
-                    Some(open.clone()),
-                    what,
-                    "is not closed before the end of the imported file",
-                ));
-            }
-            self.gs = gs;
-            self.import_floor = floor;
-        }
-        self.open_files.pop();
+        self.gs = gs;
+        self.import_floor = floor;
+        self.open_files.truncate(outer_files);
         Ok(())
     }
 
@@ -1371,7 +1392,7 @@ fn bracketed_16(lx: &mut Lexer, directive: &str, offset: usize) -> Result<[f32; 
 fn quoted(lx: &mut Lexer, directive: &str, offset: usize) -> Result<(String, usize)> {
     match lx.next()? {
         Some(t) => match t.tok {
-            Tok::Str(s) => Ok((s.into_owned(), t.offset)),
+            Tok::Str(s) => Ok((s, t.offset)),
             _ => Err(lx.error(
                 t.offset,
                 format!("{directive} needs a quoted string, found {}", t.describe()),

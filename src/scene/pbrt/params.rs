@@ -419,7 +419,7 @@ fn parse_values(lx: &mut Lexer, ty: &'static str, written: &str, decl_offset: us
                 ));
             }
             Tok::Word(w) => match ty {
-                "bool" => match *w {
+                "bool" => match &**w {
                     "true" => bools.push(true),
                     "false" => bools.push(false),
                     _ => return Err(lx.error(t.offset, format!("\"{written}\": expected true or false, found `{w}`"))),
@@ -518,7 +518,7 @@ mod tests {
     use std::sync::Arc;
 
     fn params(text: &str) -> Result<ParamList> {
-        let mut lx = Lexer::new(Arc::from(Path::new("p.pbrt")), text);
+        let mut lx = Lexer::new(Arc::from(Path::new("p.pbrt")), text, Arc::from(Path::new("")));
         parse_params(&mut lx)
     }
 

@@ -1124,3 +1124,96 @@ fn includes_resolve_relative_to_the_including_file_and_detect_loops() {
     let e = load(&root.join("c.pbrt"), &[]).unwrap_err().to_string();
     assert!(e.contains("bad.pbrt:2:3: `Bogus`: unknown directive"), "{e}");
 }
+
+/// pbrt-v4's `Include` is token-level: the included file's tokens are
+/// followed by those after the `Include`, so a statement begun in the
+/// included file goes on after it (pbrt-v4-scenes' smoke-plume/plume.pbrt).
+#[test]
+fn include_is_token_level_so_statements_continue_after_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    std::fs::create_dir_all(root.join("geometry")).unwrap();
+    let write = |name: &str, text: &str| std::fs::write(root.join(name), text).unwrap();
+
+    // As smoke-plume: the medium's grid in the included file, its other
+    // parameters after the Include, then more directives.
+    write(
+        "geometry/density.pbrt",
+        "MakeNamedMedium \"smoke\" \"string type\" \"uniformgrid\"\n  \"integer nx\" 2 \"integer ny\" 1 \"integer nz\" 1\n  \"float density\" [0 1]\n",
+    );
+    write(
+        "plume.pbrt",
+        "WorldBegin\nAttributeBegin\nInclude \"geometry/density.pbrt\"\n\t\"spectrum sigma_a\" [300 20 830 20]\n\t\"spectrum sigma_s\" [300 160 830 160]\n  MediumInterface \"smoke\" \"\"\n  Shape \"sphere\" \"float radius\" 3\nAttributeEnd\n",
+    );
+    let d = load(&root.join("plume.pbrt"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(d.shapes.len(), 1);
+    assert!(matches!(d.shapes[0].kind, ShapeKind::Sphere { radius, .. } if radius == 3.0));
+    assert!(
+        d.warnings
+            .iter()
+            .any(|w| w.contains("density.pbrt:1:1: MakeNamedMedium \"smoke\" is unsupported")),
+        "{:?}",
+        d.warnings
+    );
+
+    // On the same line as the Include, and after it, in the main file.
+    write("sphere.pbrt", "Shape \"sphere\"");
+    write(
+        "same-line.pbrt",
+        "WorldBegin\nInclude \"sphere.pbrt\" \"float radius\" 2.5\nShape \"disk\"\n",
+    );
+    let d = load(&root.join("same-line.pbrt"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(d.shapes.len(), 2);
+    assert!(matches!(d.shapes[0].kind, ShapeKind::Sphere { radius, .. } if radius == 2.5));
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+
+    // A list of values that the included file leaves open is closed after
+    // the Include; each shape keeps the position of its own directive.
+    write(
+        "geometry/open.pbrt",
+        "Shape \"trianglemesh\" \"point3 P\" [0 0 0  1 0 0\n",
+    );
+    write(
+        "open-list.pbrt",
+        "WorldBegin\nInclude \"geometry/open.pbrt\" 0 1 0 ] \"integer indices\" [0 1 2]\nShape \"sphere\"\n",
+    );
+    let d = load(&root.join("open-list.pbrt"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    let ShapeKind::InlineMesh(MeshSource::Inline(mesh)) = &d.shapes[0].kind else {
+        panic!("{:?}", d.shapes[0].kind)
+    };
+    assert_eq!(mesh.vertices(0), [Vec3::ZERO, Vec3::X, Vec3::Y]);
+    let loc = |i: usize| d.shapes[i].locs.item.as_ref().unwrap().to_string();
+    assert!(loc(0).ends_with("open.pbrt:1:1"), "{}", loc(0));
+    assert!(loc(1).ends_with("open-list.pbrt:3:1"), "{}", loc(1));
+
+    // Errors name the file each token came from, on both sides.
+    write("bad-kind.pbrt", "Shape \"sphear\"");
+    write(
+        "bad-kind-main.pbrt",
+        "WorldBegin\nInclude \"bad-kind.pbrt\" \"float radius\" 1\n",
+    );
+    let e = load(&root.join("bad-kind-main.pbrt"), &[]).unwrap_err().to_string();
+    assert!(e.contains("bad-kind.pbrt:1:7: unknown Shape type \"sphear\""), "{e}");
+    write(
+        "bad-value.pbrt",
+        "WorldBegin\nInclude \"sphere.pbrt\"\n  \"float radius\" \"big\"\n",
+    );
+    let e = load(&root.join("bad-value.pbrt"), &[]).unwrap_err().to_string();
+    assert!(
+        e.contains("bad-value.pbrt:3:18: \"float radius\": expected a number"),
+        "{e}"
+    );
+
+    // A file included twice in a row is no loop; the same file inside
+    // itself still is, reached through the continued statement or not.
+    write(
+        "twice.pbrt",
+        "WorldBegin\nInclude \"sphere.pbrt\"\nInclude \"sphere.pbrt\" \"float radius\" 2\n",
+    );
+    let d = load(&root.join("twice.pbrt"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(d.shapes.len(), 2);
+    write("self.pbrt", "Shape \"sphere\"\nInclude \"self.pbrt\"\n");
+    write("self-main.pbrt", "WorldBegin\nInclude \"self.pbrt\"\n");
+    let e = load(&root.join("self-main.pbrt"), &[]).unwrap_err().to_string();
+    assert!(e.contains("include loop: self.pbrt → self.pbrt"), "{e}");
+}
