@@ -35,7 +35,7 @@ use crate::error::{Error, Result, SourceLoc};
 use crate::files::{MAX_SCENE_BYTES, io_reason, read_limited};
 use crate::sampling::SamplerKind;
 use crate::settings::{Filter, IntegratorKind, PathSampling};
-use glam::{Mat3, Mat4, Vec3};
+use glam::{DMat3, DMat4, DVec3, Mat3, Mat4, Vec3, Vec4};
 use std::collections::{HashMap, HashSet};
 use std::fmt::Display;
 use std::path::{Path, PathBuf};
@@ -623,7 +623,7 @@ impl Parser {
                     &["perspective", "orthographic", "realistic", "spherical"],
                 )?;
                 // pbrt-v4 names the camera's space "camera" (scene.cpp).
-                if let Some(inv) = invert(&self.gs.ctm) {
+                if let Ok((inv, _)) = world_from_camera(&self.gs.ctm) {
                     self.named_coords.insert("camera".into(), inv);
                 }
                 self.camera = CameraDef {
@@ -1318,28 +1318,112 @@ fn unique_name(names: &mut HashSet<String>, base: String) -> String {
     name
 }
 
+/// The smallest sine of the angle between `LookAt`'s up vector and its
+/// viewing direction. pbrt-v4 refuses only an exactly parallel pair; but
+/// rounding in the numbers as written (single precision: a relative 6·10⁻⁸)
+/// can turn a parallel pair into one a hair apart, whose cross product —
+/// the image's horizontal axis — would then point anywhere. Below this
+/// angle (0.2 arc seconds, ten times the rounding) the pair is parallel.
+const LOOK_AT_MIN_SINE: f64 = 1e-6;
+
 /// pbrt-v4's `LookAt`: camera-from-world for an eye at `eye` looking at
 /// `target`, with camera +x = up × direction (so world +x is on the left
-/// of an image looking down −z with +y up).
+/// of an image looking down −z with +y up). It is computed in double
+/// precision as the inverse of a rigid motion (the transposed rotation and
+/// the rotated, negated eye), so its bottom row is exactly 0 0 0 1 and it
+/// stays affine.
 fn look_at(eye: Vec3, target: Vec3, up: Vec3) -> std::result::Result<Mat4, String> {
-    let Some(dir) = (target - eye).try_normalize() else {
-        return Err("the eye and the point looked at are the same point".into());
+    let (e, t, u) = (eye.as_dvec3(), target.as_dvec3(), up.as_dvec3());
+    let Some(dir) = (t - e).try_normalize() else {
+        return Err(format!(
+            "the eye and the point looked at are the same point ({} {} {}), so there is no viewing direction",
+            eye.x, eye.y, eye.z
+        ));
     };
-    let Some(up) = up.try_normalize() else {
+    let Some(u) = u.try_normalize() else {
         return Err("the up vector must not be the zero vector".into());
     };
-    let Some(right) = up.cross(dir).try_normalize() else {
-        return Err("the up vector is parallel to the viewing direction".into());
-    };
+    let cross = u.cross(dir);
+    // (Numbers read are finite, so the length is.)
+    if cross.length() < LOOK_AT_MIN_SINE {
+        let d = (target - eye).normalize();
+        return Err(format!(
+            "the up vector ({} {} {}) is parallel to the viewing direction ({} {} {}), so the image has no horizontal axis",
+            up.x, up.y, up.z, d.x, d.y, d.z
+        ));
+    }
+    let right = cross.normalize();
     let new_up = dir.cross(right);
-    let world_from_camera = Mat4::from_cols(right.extend(0.0), new_up.extend(0.0), dir.extend(0.0), eye.extend(1.0));
-    Ok(world_from_camera.inverse())
+    let rotation = DMat3::from_cols(right, new_up, dir).transpose();
+    let translation = -(rotation * e);
+    Ok(affine(rotation, translation).as_mat4())
 }
 
-/// The inverse of an affine matrix, if it has one.
-fn invert(m: &Mat4) -> Option<Mat4> {
-    let t = crate::geometry::Transform::from_matrix(*m).ok()?;
-    Some(t.inv)
+/// The matrix of `linear` followed by a translation by `translation`.
+fn affine(linear: DMat3, translation: DVec3) -> DMat4 {
+    DMat4::from_cols(
+        linear.x_axis.extend(0.0),
+        linear.y_axis.extend(0.0),
+        linear.z_axis.extend(0.0),
+        translation.extend(1.0),
+    )
+}
+
+/// The inverse of an affine matrix (bottom row exactly 0 0 0 1, as every
+/// transform directive but a `Transform` or `ConcatTransform` with a
+/// projective row makes), inverted as affine: the 3×3 part's inverse and
+/// the translation, in double precision, so that the inverse is exactly
+/// affine as well (a general 4×4 inverse leaves rounding errors in its
+/// bottom row). The error says why there is none.
+fn invert(m: &Mat4) -> std::result::Result<Mat4, &'static str> {
+    if !m.is_finite() {
+        return Err("has numbers that are not finite");
+    }
+    if m.row(3) != Vec4::W {
+        return Err("is projective (its bottom row is not 0 0 0 1)");
+    }
+    let m = m.as_dmat4();
+    let linear = DMat3::from_mat4(m);
+    // The relative test of `Transform::from_matrix`: singular if the
+    // determinant is tiny next to the product of the column lengths.
+    let det = linear.determinant();
+    let scale = linear.x_axis.length() * linear.y_axis.length() * linear.z_axis.length();
+    if det.abs() <= 1e-12 * scale || !det.is_finite() {
+        return Err("is singular");
+    }
+    let inv = linear.inverse();
+    let out = affine(inv, -(inv * m.w_axis.truncate())).as_mat4();
+    if !out.is_finite() {
+        return Err("is singular");
+    }
+    Ok(out)
+}
+
+/// The world-from-camera matrix of a camera whose CTM (camera-from-world)
+/// is `ctm`, and whether the CTM was projective. An affine CTM is inverted
+/// as affine. A projective one is used as pbrt-v4 uses it: it inverts the
+/// 4×4 matrix and moves camera rays by the inverse, the eye (the origin) as
+/// a point, with the division by w, and directions by its upper-left 3×3
+/// part; the affine matrix of that 3×3 part and that eye moves a pinhole
+/// camera's rays the same way.
+fn world_from_camera(ctm: &Mat4) -> std::result::Result<(Mat4, bool), &'static str> {
+    if !ctm.is_finite() || ctm.row(3) == Vec4::W {
+        return invert(ctm).map(|m| (m, false));
+    }
+    let inv = ctm.as_dmat4().inverse();
+    let w = inv.w_axis.w;
+    if !inv.is_finite() || ctm.as_dmat4().determinant() == 0.0 {
+        return Err("is singular");
+    }
+    if w == 0.0 {
+        return Err("is projective and puts the eye at infinity (the inverse's w of the origin is 0)");
+    }
+    let eye = inv.w_axis.truncate() / w;
+    let linear = DMat3::from_mat4(inv);
+    let m = affine(linear, eye).as_mat4();
+    // The affine result passes the same test as any other.
+    invert(&m)?;
+    Ok((m, true))
 }
 
 /// `N` numbers after a directive.

@@ -4,7 +4,7 @@
 //! converted at `WorldBegin` when the film's size is known.
 
 use super::params::ParamList;
-use super::{Parser, invert};
+use super::{Parser, world_from_camera};
 use crate::error::{Error, Result, SourceLoc};
 use crate::sampling::SamplerKind;
 use crate::scene::desc::*;
@@ -238,13 +238,13 @@ impl Parser {
         let mut locs = Locs::at(at.clone());
         locs.keys
             .push(("to_world".into(), at.clone().unwrap_or_else(|| self.desc_loc())));
-        let world_from_camera = match invert(&cam.ctm) {
-            Some(m) => m,
-            None => {
+        let (world_from_camera, projective) = match world_from_camera(&cam.ctm) {
+            Ok(m) => m,
+            Err(why) => {
                 return Err(Error::scene(
                     at,
                     "Camera",
-                    "the current transform is singular, so the camera has no view",
+                    format!("the current transform {why}, so the camera has no view"),
                 ));
             }
         };
@@ -346,6 +346,14 @@ impl Parser {
         let ratio = (close - open) * self.film_iso / 100.0;
         if ratio != 1.0 {
             self.desc.settings.exposure = ratio.log2();
+        }
+        if projective && (cam.kind == "orthographic" || aperture_radius > 0.0) {
+            let l = at.clone().unwrap_or_else(|| self.desc_loc());
+            self.approximated(
+                &l,
+                "a projective camera transform (a bottom row other than 0 0 0 1)",
+                "rays from the eye follow it as in pbrt-v4, but rays from other points of the lens or of an orthographic camera's film are moved by its affine part only",
+            );
         }
         self.desc.camera = CameraDesc {
             projection,
