@@ -11,7 +11,7 @@ use super::{Emission, Parser};
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::scene::desc::*;
-use glam::Vec3;
+use glam::{DMat3, DVec3, Mat4, Vec3, Vec4};
 use std::f32::consts::PI;
 use std::path::Path;
 
@@ -54,6 +54,7 @@ impl Parser {
                 }
                 let from = p.point3("from", Vec3::ZERO)?;
                 add_key(&mut locs, "position", p.find("from"));
+                let position = place(&ctm, from).ok_or_else(|| at_infinity(loc))?;
                 if kind == "goniometric" {
                     Self::use_all(p);
                     self.approximated(
@@ -63,7 +64,7 @@ impl Parser {
                     );
                 }
                 LightKind::Point {
-                    position: ctm.transform_point3(from),
+                    position,
                     intensity: i * scale,
                     falloff: true,
                 }
@@ -91,9 +92,24 @@ impl Parser {
                 let to = p.point3("to", Vec3::Z)?;
                 add_key(&mut locs, "position", p.find("from"));
                 add_key(&mut locs, "to", p.find("to"));
+                let position = place(&ctm, from).ok_or_else(|| at_infinity(loc))?;
+                let (axis, angles_kept) = spot_axis(&ctm, from, to).ok_or_else(|| {
+                    Error::scene(
+                        Some(loc.clone()),
+                        "LightSource",
+                        "the current transform is singular, or \"from\" and \"to\" are the same point, so the spotlight has no direction",
+                    )
+                })?;
+                if !angles_kept {
+                    self.approximated(
+                        loc,
+                        "a spotlight under a transform that stretches directions unevenly",
+                        "pbrt-v4's cone is distorted by it (its angles change, or it becomes elliptical); trazo's keeps the written angles, around the axis pbrt-v4's has",
+                    );
+                }
                 LightKind::Spot {
-                    position: ctm.transform_point3(from),
-                    to: ctm.transform_point3(to),
+                    position,
+                    to: position + axis,
                     intensity: i * scale,
                     // cos(−x) = cos(x): a delta larger than the cone gives
                     // pbrt a hard edge at |cone − delta|, capped by the cone.
@@ -117,7 +133,10 @@ impl Parser {
                 let to = p.point3("to", Vec3::Z)?;
                 add_key(&mut locs, "direction", p.find("to").or(p.find("from")));
                 LightKind::Directional {
-                    // Light travels from `from` towards `to`.
+                    // Light travels from `from` towards `to`. pbrt-v4 turns
+                    // the direction by the upper-left 3×3 part of the CTM
+                    // (`DistantLight::SampleLi`), ignoring a projective row,
+                    // as this does.
                     direction: ctm.transform_vector3(to - from),
                     irradiance: l * scale,
                 }
@@ -162,11 +181,12 @@ impl Parser {
                 // pbrt-v4 stores environment maps in its equal-area
                 // octahedral layout, +z at the centre of the square in the
                 // light's space (which the CTM places in the world).
+                let to_world = self.environment_transform(loc)?;
                 (
                     BackgroundDesc::Image {
                         path: self.resolve(dir_rel, &name),
                         scale,
-                        transform: vec![TransformOp::Matrix(self.gs.ctm)],
+                        transform: vec![TransformOp::Matrix(to_world)],
                         layout: EnvironmentLayout::EqualAreaOctahedral,
                     },
                     at,
@@ -202,6 +222,51 @@ impl Parser {
         self.desc.world_locs.item = Some(loc.clone());
         self.desc.world_locs.keys.push(("background".into(), at));
         Ok(())
+    }
+
+    /// The map-to-world matrix of an environment image under the CTM.
+    /// pbrt-v4 looks an infinite light up in the direction that the
+    /// upper-left 3×3 part of the inverse of the CTM gives (`Le`:
+    /// `renderFromLight.ApplyInverse(ray.d)`), normalised; for an affine
+    /// CTM that is the inverse of the CTM's own 3×3 part, for a projective
+    /// one (a bottom row other than 0 0 0 1: pbrt-v4-scenes' sssdragon) it
+    /// need not be, and the affine matrix of its inverse is the one that
+    /// looks the map up the same way.
+    fn environment_transform(&mut self, loc: &SourceLoc) -> Result<Mat4> {
+        let ctm = self.gs.ctm;
+        if ctm.row(3) == Vec4::W || !ctm.is_finite() {
+            return Ok(ctm);
+        }
+        let singular = || {
+            Error::scene(
+                Some(loc.clone()),
+                "LightSource",
+                "the current transform is singular, so the environment map has no orientation",
+            )
+        };
+        let m = ctm.as_dmat4();
+        if m.determinant() == 0.0 {
+            return Err(singular());
+        }
+        let lookup = DMat3::from_mat4(m.inverse());
+        if lookup.determinant() == 0.0 || !lookup.is_finite() {
+            return Err(singular());
+        }
+        let linear = lookup.inverse();
+        // pbrt-v4 samples the light through the CTM's own 3×3 part; where
+        // that differs from the lookup's, its two strategies disagree.
+        let own = DMat3::from_mat4(m);
+        let scale = |a: &DMat3| a.x_axis.length() + a.y_axis.length() + a.z_axis.length();
+        let (a, b) = (own * (1.0 / scale(&own)), linear * (1.0 / scale(&linear)));
+        let differ = (a.x_axis - b.x_axis).length() + (a.y_axis - b.y_axis).length() + (a.z_axis - b.z_axis).length();
+        if differ > 1e-4 {
+            self.approximated(
+                loc,
+                "an environment map under a projective transform that also translates",
+                "pbrt-v4 looks the map up through the inverse's 3×3 part but samples it through the matrix's own, which differ here; trazo uses the lookup's for both",
+            );
+        }
+        Ok(super::affine(linear, DVec3::ZERO).as_mat4())
     }
 
     /// `AreaLightSource "diffuse"`: shapes that follow in the block emit.
@@ -246,6 +311,60 @@ impl Parser {
         });
         Ok(())
     }
+}
+
+/// A point moved by `m` as pbrt-v4 moves points: with the division by w
+/// of a projective matrix. `None` if it goes to infinity.
+fn place(m: &Mat4, p: Vec3) -> Option<Vec3> {
+    let h = m.as_dmat4() * p.as_dvec3().extend(1.0);
+    if h.w == 0.0 {
+        return None;
+    }
+    Some((h.truncate() / h.w).as_vec3()).filter(|v| v.is_finite())
+}
+
+fn at_infinity(loc: &SourceLoc) -> Error {
+    Error::scene(
+        Some(loc.clone()),
+        "LightSource",
+        "the current transform is projective and puts the light at infinity (its w is 0)",
+    )
+}
+
+/// The world direction of a spotlight's axis from `from` towards `to`
+/// under the CTM `m`, and whether the cone keeps its angles. pbrt-v4 finds
+/// a direction v's angle to the axis from the light-space direction that
+/// the upper-left 3×3 part K of the inverse of m · Translate(from) gives
+/// (`SpotLight::SampleLi`: `renderFromLight.ApplyInverse(-wi)`): the angle
+/// between K·v and the written axis. The world axis is then K⁻¹ applied to
+/// the written one; unless K is a rotation times a scale, the angles of the
+/// world cone differ from the written ones (and it may be elliptical). For
+/// an affine m, K is the inverse of m's 3×3 part.
+fn spot_axis(m: &Mat4, from: Vec3, to: Vec3) -> Option<(Vec3, bool)> {
+    let written = (to - from).as_dvec3().try_normalize()?;
+    let inv = m.as_dmat4().inverse();
+    if !inv.is_finite() || m.as_dmat4().determinant() == 0.0 {
+        return None;
+    }
+    // The inverse of Translate(from) subtracts `from` times the bottom row
+    // of m⁻¹ from its 3×3 part.
+    let f = from.as_dvec3();
+    let b = DMat3::from_mat4(inv);
+    let k = DMat3::from_cols(
+        b.x_axis - f * inv.x_axis.w,
+        b.y_axis - f * inv.y_axis.w,
+        b.z_axis - f * inv.z_axis.w,
+    );
+    if k.determinant() == 0.0 {
+        return None;
+    }
+    let axis = (k.inverse() * written).try_normalize()?.as_vec3();
+    // Kᵀ·K is a multiple of the identity for a rotation times a scale.
+    let g = k.transpose() * k;
+    let s2 = (g.x_axis.x + g.y_axis.y + g.z_axis.z) / 3.0;
+    let off = (g - DMat3::from_diagonal(DVec3::splat(s2))).to_cols_array();
+    let conformal = off.iter().all(|x| x.abs() <= 1e-4 * s2);
+    Some((axis, conformal))
 }
 
 /// Records where the value of `key` was written.

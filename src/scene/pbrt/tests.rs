@@ -857,6 +857,105 @@ fn environment_maps_are_read_as_equal_area_octahedral() {
     assert!(e.contains("give either \"L\" or \"filename\""), "{e}");
 }
 
+/// A light's `ConcatTransform` may have a projective bottom row (the
+/// environment of pbrt-v4-scenes' sssdragon does); pbrt-v4 uses the matrix
+/// as it is: points divided by w, directions through 3×3 parts.
+#[test]
+fn projective_light_transforms_are_used_as_pbrt_uses_them() {
+    // sssdragon's environment: the first matrix's bottom row is 0 0 8.87 1.
+    let d = world(
+        "AttributeBegin\n  ConcatTransform [ -0.224951 0 -0.97437 0 -0.97437 0 0.224951 0 0 1 0 8.87 0 0 0 1  ]\n  ConcatTransform [ 0 0 -1 0 1 0 0 0 0 1 0 0 0 0 0 1  ]\n  LightSource \"infinite\" \"float scale\" .3 \"string filename\" \"textures/envmap.exr\"\nAttributeEnd",
+    );
+    let BackgroundDesc::Image { transform, .. } = &d.background else {
+        panic!("{:?}", d.background)
+    };
+    let [TransformOp::Matrix(map)] = transform[..] else {
+        panic!("{transform:?}")
+    };
+    assert_eq!(map.row(3), Vec4::W);
+    // pbrt-v4 looks the map up in the direction normalize(3×3 of CTM⁻¹ · d).
+    let ctm = Mat4::from_cols_array(&[
+        -0.224951, 0.0, -0.97437, 0.0, -0.97437, 0.0, 0.224951, 0.0, 0.0, 1.0, 0.0, 8.87, 0.0, 0.0, 0.0, 1.0,
+    ]) * Mat4::from_cols_array(&[
+        0.0, 0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+    ]);
+    let pbrt_lookup = Mat3::from_mat4(ctm.inverse());
+    let trazo_lookup = Mat3::from_mat4(map.inverse());
+    for d in [Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.3, -0.5, 0.8).normalize()] {
+        assert!(
+            close((pbrt_lookup * d).normalize(), (trazo_lookup * d).normalize()),
+            "{d}"
+        );
+    }
+    assert!(d.warnings.iter().all(|w| !w.contains("projective")), "{:?}", d.warnings);
+
+    // Point lights are placed with the division by w: the bottom row
+    // 0 0 0.5 1 sends (0 0 2) to (0 0 2)/2.
+    let projective = "ConcatTransform [1 0 0 0  0 1 0 0  0 0 1 0.5  0 0 0 1]";
+    let d = world(&format!(
+        "{projective}\nLightSource \"point\" \"point3 from\" [0 0 2]\nLightSource \"spot\" \"point3 from\" [0 0 2] \"point3 to\" [0 0 3]\nLightSource \"distant\" \"point3 from\" [0 0 0] \"point3 to\" [1 0 0]"
+    ));
+    assert!(matches!(d.lights[0].kind, LightKind::Point { position, .. } if close(position, Vec3::new(0.0, 0.0, 1.0))));
+    // The spotlight: pbrt-v4 measures angles to its axis through the 3×3
+    // part of (CTM · Translate(from))⁻¹, here diag(1, 1, 2). The written
+    // axis +z stays +z, but the cone's angles widen (tan θ doubles), which
+    // trazo's spotlight cannot do: it says it approximates.
+    let LightKind::Spot { position, to, .. } = d.lights[1].kind else {
+        panic!("{:?}", d.lights[1].kind)
+    };
+    assert!(close(position, Vec3::new(0.0, 0.0, 1.0)));
+    assert!(close((to - position).normalize(), Vec3::Z));
+    assert!(
+        d.warnings[0].starts_with(
+            "test.pbrt:4:1: a spotlight under a transform that stretches directions unevenly is approximated"
+        ),
+        "{:?}",
+        d.warnings
+    );
+    // Distant lights turn by the 3×3 part, which the row does not touch.
+    assert!(
+        matches!(d.lights[2].kind, LightKind::Directional { direction, .. } if close(direction.normalize(), Vec3::X))
+    );
+
+    // A homogeneous multiple of a matrix is the same transform.
+    let plain =
+        world("Translate 1 2 3\nRotate 30 0 1 0\nLightSource \"spot\" \"point3 from\" [1 0 0] \"point3 to\" [0 -1 0]");
+    let doubled = world(
+        "ConcatTransform [2 0 0 0  0 2 0 0  0 0 2 0  0 0 0 2]\nTranslate 1 2 3\nRotate 30 0 1 0\nLightSource \"spot\" \"point3 from\" [1 0 0] \"point3 to\" [0 -1 0]",
+    );
+    let (
+        LightKind::Spot {
+            position: p0, to: t0, ..
+        },
+        LightKind::Spot {
+            position: p1, to: t1, ..
+        },
+    ) = (&plain.lights[0].kind, &doubled.lights[0].kind)
+    else {
+        panic!()
+    };
+    assert!(close(*p0, *p1));
+    assert!(close((*t0 - *p0).normalize(), (*t1 - *p1).normalize()));
+    assert!(doubled.warnings.is_empty(), "{:?}", doubled.warnings);
+
+    // Shapes do not take projective transforms (pbrt-v4's projective
+    // geometry is not reproduced): an error naming the shape.
+    let e = error_of("WorldBegin\nConcatTransform [1 0 0 0  0 1 0 0  0 0 1 0.5  0 0 0 1]\nShape \"sphere\"");
+    assert!(
+        e.contains("test.pbrt:3:1: `shape[0].transform`: matrix: the bottom row must be 0 0 0 1"),
+        "{e}"
+    );
+
+    // A light sent to infinity is an error at its directive.
+    let e = error_of(
+        "WorldBegin\nConcatTransform [1 0 0 0  0 1 0 0  0 0 1 -1  0 0 0 1]\nLightSource \"point\" \"point3 from\" [0 0 1]",
+    );
+    assert!(
+        e.contains("test.pbrt:3:1: `LightSource`: the current transform is projective and puts the light at infinity"),
+        "{e}"
+    );
+}
+
 #[test]
 fn area_lights_make_emissive_materials_per_combination() {
     let d = world(
