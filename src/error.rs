@@ -69,6 +69,16 @@ pub enum Error {
     /// An option or argument has an unusable value.
     #[error("{0}")]
     Invalid(String),
+    /// An error that stopped a load, with the warnings given before it,
+    /// so that one run can report every problem it found (the command line
+    /// prints them, then the error). Its message is the error's.
+    #[error("{error}")]
+    WithWarnings {
+        /// The error.
+        error: Box<Error>,
+        /// The warnings given before it, in order.
+        warnings: Vec<String>,
+    },
 }
 
 fn format_scene_error(loc: &Option<SourceLoc>, key: &Option<String>, message: &str) -> String {
@@ -100,6 +110,36 @@ impl Error {
             message: message.to_string(),
         }
     }
+
+    /// This error with `earlier` — warnings given before it — ahead of any
+    /// it already carries.
+    pub fn with_warnings(self, mut earlier: Vec<String>) -> Error {
+        if earlier.is_empty() {
+            return self;
+        }
+        let (error, later) = self.into_parts();
+        earlier.extend(later);
+        Error::WithWarnings {
+            error: Box::new(error),
+            warnings: earlier,
+        }
+    }
+
+    /// The warnings given before this error (none for most errors).
+    pub fn warnings(&self) -> &[String] {
+        match self {
+            Error::WithWarnings { warnings, .. } => warnings,
+            _ => &[],
+        }
+    }
+
+    /// The error itself and the warnings given before it.
+    pub fn into_parts(self) -> (Error, Vec<String>) {
+        match self {
+            Error::WithWarnings { error, warnings } => (*error, warnings),
+            error => (error, Vec::new()),
+        }
+    }
 }
 
 /// `Result` with the library's error.
@@ -118,6 +158,20 @@ mod tests {
         let l = SourceLoc::from_offset(&f, text, text.find('2').unwrap());
         assert_eq!((l.line, l.column), (2, 6));
         assert_eq!(l.to_string(), "a.toml:2:6");
+    }
+
+    #[test]
+    fn warnings_travel_with_an_error_in_order_without_changing_its_message() {
+        let e = Error::Invalid("bad".into());
+        assert!(matches!(e.with_warnings(Vec::new()), Error::Invalid(_)));
+        let e = Error::Invalid("bad".into())
+            .with_warnings(vec!["second".into()])
+            .with_warnings(vec!["first".into()]);
+        assert_eq!(e.to_string(), "bad");
+        assert_eq!(e.warnings(), ["first", "second"]);
+        let (inner, warnings) = e.into_parts();
+        assert!(matches!(inner, Error::Invalid(_)));
+        assert_eq!(warnings.len(), 2);
     }
 
     #[test]

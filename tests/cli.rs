@@ -742,3 +742,59 @@ fn compare_accepts_photon_sppm_and_denoised_contestants() {
     assert!(out.is_file());
     assert!(fails(&["compare", "--integrators", "path+blur"]).contains("+blur"));
 }
+
+/// On a fatal error, the warnings given before it are printed first (each
+/// `warning: …`, then `error: …`), so one run tells of every problem; the
+/// exit status stays 2. Both when the reader stops and when the scene it
+/// read fails to build.
+#[test]
+fn warnings_before_a_fatal_error_are_printed_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.png");
+    let run = |scene: &Path| {
+        let o = trazo().arg("render").arg("-o").arg(&out).arg(scene).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!out.exists(), "no image is written for a bad scene");
+        err.lines()
+            .filter(|l| !l.trim().is_empty())
+            .map(str::to_string)
+            .collect::<Vec<_>>()
+    };
+
+    // The reader stops at an unknown directive after an unsupported shape.
+    let scene = write_scene(
+        dir.path(),
+        "bad.pbrt",
+        "WorldBegin\nShape \"curve\" \"point3 P\" [0 0 0 1 0 0 2 0 0 3 0 0]\nBogus 1 2 3\n",
+    );
+    let lines = run(&scene);
+    assert_eq!(lines.len(), 2, "{lines:?}");
+    assert!(
+        lines[0].starts_with("warning: ") && lines[0].contains("bad.pbrt:2:1: Shape \"curve\" is unsupported"),
+        "{lines:?}"
+    );
+    assert!(
+        lines[1].starts_with("error: ") && lines[1].contains("bad.pbrt:3:1: `Bogus`: unknown directive"),
+        "{lines:?}"
+    );
+
+    // The scene reads, with a warning, but fails to build: its mesh is missing.
+    let scene = write_scene(
+        dir.path(),
+        "no-mesh.pbrt",
+        "Accelerator \"kdtree\"\nWorldBegin\nShape \"plymesh\" \"string filename\" \"missing.ply\"\n",
+    );
+    let lines = run(&scene);
+    assert_eq!(lines.len(), 2, "{lines:?}");
+    assert!(
+        lines[0].starts_with("warning: ")
+            && lines[0].contains("no-mesh.pbrt:1:1: Accelerator \"kdtree\" is unsupported"),
+        "{lines:?}"
+    );
+    assert!(
+        lines[1].starts_with("error: ") && lines[1].contains("missing.ply") && lines[1].contains("file not found"),
+        "{lines:?}"
+    );
+}

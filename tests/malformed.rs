@@ -1,5 +1,6 @@
 //! The malformed-input corpus (tests/malformed/FORMAT/*): every broken file
-//! gives either a clear one-line error with exit status 2, or a documented
+//! gives either a clear one-line error with exit status 2 (after the
+//! warnings given before it, if any), or a documented
 //! fallback with a warning — never a panic. Truncations of valid files at
 //! every length never panic either, and never allocate by a count the file
 //! cannot back (a counting allocator watches the largest request).
@@ -39,7 +40,8 @@ fn corpus(rel: &str) -> PathBuf {
 
 /// What a corpus file must give.
 enum Expect {
-    /// Exit status 2 and one line containing all of these.
+    /// Exit status 2 and one error line containing all of these (after the
+    /// warnings given before the error, if any).
     Error(&'static [&'static str]),
     /// A rendered image and a warning containing this.
     Warning(&'static str),
@@ -306,13 +308,16 @@ fn every_malformed_scene_gives_a_clear_error_or_a_warned_fallback() {
         let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
         match expect {
             Error(parts) => {
+                // One error line, last; the warnings given before the
+                // error, if any, come first.
+                let (error, before) = lines.split_last().unwrap_or((&"", &[]));
                 let ok = code == Some(2)
-                    && lines.len() == 1
-                    && lines[0].starts_with("error: ")
-                    && parts.iter().all(|p| lines[0].contains(p));
+                    && error.starts_with("error: ")
+                    && parts.iter().all(|p| error.contains(p))
+                    && before.iter().all(|l| l.starts_with("warning: "));
                 if !ok {
                     failures.push(format!(
-                        "{rel}: expected exit 2 and one error line with {parts:?}, got {code:?}: {err}"
+                        "{rel}: expected exit 2 and one error line with {parts:?} (after any warnings), got {code:?}: {err}"
                     ));
                 }
             }

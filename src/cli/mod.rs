@@ -305,9 +305,29 @@ pub fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e}");
+            print_error(&e);
             ExitCode::from(EXIT_USAGE)
         }
+    }
+}
+
+/// Prints an error on stderr, after the warnings given before it: a run
+/// that fails still reports every problem it found.
+fn print_error(e: &Error) {
+    for w in e.warnings() {
+        eprintln!("warning: {w}");
+    }
+    eprintln!("error: {e}");
+}
+
+/// `e` with the warnings of the scene description loaded before it, unless
+/// it carries warnings already (a stage that gives its own includes the
+/// description's).
+fn after_loading(e: Error, desc: &SceneDesc) -> Error {
+    if e.warnings().is_empty() {
+        e.with_warnings(desc.warnings.clone())
+    } else {
+        e
     }
 }
 
@@ -521,14 +541,15 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     // SPPM's state is not a film of samples: it has no checkpoints.
     let resumable = desc.settings.integrator != IntegratorKind::Sppm;
     if !resumable && (args.checkpoint_every.is_some() || resume.is_some()) {
-        return Err(Error::Invalid(crate::integrator::photon::sppm::NOT_RESUMABLE.into()));
+        let e = Error::Invalid(crate::integrator::photon::sppm::NOT_RESUMABLE.into());
+        return Err(after_loading(e, &desc));
     }
     let limits = scene::BuildLimits {
         max_memory: Some(args.max_memory.unwrap_or_else(scene::memory::default_limit)),
         aovs: !aovs.is_empty(),
     };
     let (scene, built_from) = crate::files::record_file_reads(|| scene::build_limited(&desc, &limits));
-    let scene = scene?;
+    let scene = scene.map_err(|e| after_loading(e, &desc))?;
     files.extend(built_from);
     files.sort();
     files.dedup();
@@ -690,7 +711,7 @@ fn run_diff(args: DiffArgs) -> ExitCode {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::from(EXIT_DIFFERENT),
         Err(e) => {
-            eprintln!("error: {e}");
+            print_error(&e);
             ExitCode::from(EXIT_USAGE)
         }
     }
@@ -775,16 +796,23 @@ fn run_compare(args: CompareArgs) -> Result<()> {
         None => Budget::Spp(args.spp.unwrap_or(16)),
     };
     let desc = args.scene.load()?;
-    let reference = args.reference.as_deref().map(read_image).transpose()?;
+    let reference = args
+        .reference
+        .as_deref()
+        .map(read_image)
+        .transpose()
+        .map_err(|e| after_loading(e, &desc))?;
     if let Some(r) = &reference {
         if (r.width, r.height) != (desc.settings.width, desc.settings.height) {
-            return Err(Error::Invalid(format!(
+            let e = Error::Invalid(format!(
                 "the reference is {}×{} but the render is {}×{} (set --width and --height)",
                 r.width, r.height, desc.settings.width, desc.settings.height
-            )));
+            ));
+            return Err(after_loading(e, &desc));
         }
     }
-    let rows = compare(&desc, &contestants, budget, reference.as_ref(), &args.scene.options())?;
+    let rows = compare(&desc, &contestants, budget, reference.as_ref(), &args.scene.options())
+        .map_err(|e| after_loading(e, &desc))?;
     write_image(
         &args.output,
         &side_by_side(&rows),

@@ -95,27 +95,40 @@ const DIRECTIVES: [&str; 41] = [
 /// Reads a pbrt-v4 scene file and the files it includes. pbrt scenes have
 /// no parameters, so each `-D` definition only adds a warning.
 pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
-    let text = read_text(path, None)?;
-    let mut desc = parse(&text, path)?;
-    for (name, _) in defines {
-        desc.warnings.push(format!(
-            "-D {name}: pbrt scenes have no parameters; the definition is not used"
-        ));
+    let unused = defines
+        .iter()
+        .map(|(name, _)| format!("-D {name}: pbrt scenes have no parameters; the definition is not used"));
+    let text = read_text(path, None).map_err(|e| e.with_warnings(unused.clone().collect()))?;
+    match parse(&text, path) {
+        Ok(mut desc) => {
+            desc.warnings.extend(unused);
+            Ok(desc)
+        }
+        Err(e) => {
+            let (e, mut warnings) = e.into_parts();
+            warnings.extend(unused);
+            Err(e.with_warnings(warnings))
+        }
     }
-    Ok(desc)
 }
 
 /// Parses pbrt scene text that was read from `path` (used for messages and
-/// to resolve `Include`d and referenced files).
+/// to resolve `Include`d and referenced files). An error carries the
+/// warnings given before it ([`Error::warnings`]).
 pub fn parse(text: &str, path: &Path) -> Result<SceneDesc> {
     let file: Arc<Path> = Arc::from(path);
     let mut p = Parser::new(file.clone());
     p.open_files
         .push(std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()));
     let mut lx = Lexer::new(file, text, Arc::from(Path::new("")));
-    p.parse_file(&mut lx)?;
-    let end = lx.end_loc();
-    p.finish(end)
+    let read = p.parse_file(&mut lx).and_then(|()| p.finish(lx.end_loc()));
+    match read {
+        Ok(()) => Ok(p.desc),
+        Err(e) => {
+            p.summarise_repeats();
+            Err(e.with_warnings(std::mem::take(&mut p.desc.warnings)))
+        }
+    }
 }
 
 /// Reads a scene file as UTF-8 text. `included_from` is the `Include`
@@ -1086,7 +1099,7 @@ impl Parser {
     }
 
     /// Resolves names, places instances and validates.
-    fn finish(mut self, end: SourceLoc) -> Result<SceneDesc> {
+    fn finish(&mut self, end: SourceLoc) -> Result<()> {
         if self.world.is_none() {
             return Err(Error::scene(
                 Some(end),
@@ -1248,20 +1261,25 @@ impl Parser {
             desc.flip_normals = s.reverse ^ (s.analytic && det3(&total) < 0.0);
             self.desc.shapes.push(desc);
         }
-        let mut repeated: Vec<(&String, &(usize, SourceLoc))> = self
-            .warning_counts
-            .iter()
+        self.summarise_repeats();
+        self.desc.validate()
+    }
+
+    /// Adds one line for each warning given more than [`MAX_SAME_WARNING`]
+    /// times, counting the repeats not listed (once: the counts are then
+    /// cleared).
+    fn summarise_repeats(&mut self) {
+        let mut repeated: Vec<(String, (usize, SourceLoc))> = std::mem::take(&mut self.warning_counts)
+            .into_iter()
             .filter(|(_, (n, _))| *n > MAX_SAME_WARNING)
             .collect();
-        repeated.sort_by_key(|(m, _)| m.as_str());
+        repeated.sort_by(|a, b| a.0.cmp(&b.0));
         for (message, (n, first)) in repeated {
             self.desc.warnings.push(format!(
                 "{first}: {message} ({} more times, not listed)",
                 n - MAX_SAME_WARNING
             ));
         }
-        self.desc.validate()?;
-        Ok(self.desc)
     }
 
     /// Follows `mix` materials to the one chosen.
