@@ -1,6 +1,7 @@
 //! Reading files: every file a render reads (scenes, includes, meshes,
-//! buffers, textures, checkpoints) goes through [`read_limited`], which
-//! never reads more than a limit, notes what it read inside
+//! buffers, textures, checkpoints) goes through [`read_limited`] (or
+//! [`read_limited_gz`], which also decompresses `.gz` files within the same
+//! limit), which never reads more than a limit, notes what it read inside
 //! [`record_file_reads`] (a checkpoint lists those files so that a resume
 //! notices an edited one), and words I/O errors briefly ([`io_reason`]).
 //! The size limits of each kind of file are here, together.
@@ -49,6 +50,53 @@ pub fn read_limited(path: &Path, limit: u64) -> std::result::Result<Vec<u8>, Str
         }
     });
     Ok(bytes)
+}
+
+/// Reads a file as [`read_limited`] does and, if its name ends in `.gz`,
+/// decompresses it (every gzip member, as `gunzip` does): `limit` bounds
+/// the decompressed bytes too, so a small file that inflates to far more
+/// (a "gzip bomb") is an error when the limit is reached, not an
+/// allocation without bound.
+pub fn read_limited_gz(path: &Path, limit: u64) -> std::result::Result<Vec<u8>, String> {
+    let bytes = read_limited(path, limit)?;
+    if !is_gzip_name(path) {
+        return Ok(bytes);
+    }
+    gunzip_limited(&bytes, limit)
+}
+
+/// Whether a file name ends in `.gz` (in any case): a gzip-compressed file.
+pub fn is_gzip_name(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gz"))
+}
+
+/// Decompresses gzip data, refusing to produce more than `limit` bytes; an
+/// allocation that fails on the way is an error too, not an abort.
+pub fn gunzip_limited(bytes: &[u8], limit: u64) -> std::result::Result<Vec<u8>, String> {
+    use std::io::Read;
+    let mut decoder = flate2::read::MultiGzDecoder::new(bytes);
+    let mut out: Vec<u8> = Vec::new();
+    let mut chunk = vec![0u8; 1 << 16];
+    loop {
+        let n = match decoder.read(&mut chunk) {
+            Ok(0) => return Ok(out),
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(format!("the file is not valid gzip data ({e})")),
+        };
+        if (out.len() + n) as u64 > limit {
+            return Err(format!(
+                "the file decompresses to more than the limit of {limit} bytes (a gzip bomb, or a file too large to read)"
+            ));
+        }
+        out.try_reserve(n).map_err(|_| {
+            format!(
+                "there is not enough memory to decompress the file (after {} bytes)",
+                out.len()
+            )
+        })?;
+        out.extend_from_slice(&chunk[..n]);
+    }
 }
 
 /// A file that loading a scene read: its path (canonical where possible)
@@ -119,6 +167,66 @@ pub fn io_reason(e: &std::io::Error) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn gzip(data: &[u8]) -> Vec<u8> {
+        use std::io::Write;
+        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        e.write_all(data).unwrap();
+        e.finish().unwrap()
+    }
+
+    #[test]
+    fn gzip_files_decompress_within_the_limit_and_bombs_stop_at_it() {
+        // Every member of a file is read, as `cat a.gz b.gz` makes one.
+        let mut two = gzip(b"hello, ");
+        two.extend(gzip(b"world"));
+        assert_eq!(gunzip_limited(&two, 12).unwrap(), b"hello, world");
+        let e = gunzip_limited(&two, 11).unwrap_err();
+        assert!(e.contains("decompresses to more than the limit of 11 bytes"), "{e}");
+        assert!(
+            gunzip_limited(b"plain text", 100)
+                .unwrap_err()
+                .contains("not valid gzip data")
+        );
+        let mut cut = gzip(b"a longer text, cut short before its end");
+        cut.truncate(cut.len() - 6);
+        assert!(gunzip_limited(&cut, 100).unwrap_err().contains("not valid gzip data"));
+
+        // Bombs: one member of 8 MiB of zeros (8 KiB of gzip), and 1024
+        // members of 1 MiB each (a GiB from 1 MiB): both stop at the limit.
+        let single = {
+            use std::io::Write;
+            let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+            for _ in 0..128 {
+                e.write_all(&[0u8; 1 << 16]).unwrap();
+            }
+            e.finish().unwrap()
+        };
+        let member = gzip(&vec![0u8; 1 << 20]);
+        let many: Vec<u8> = member.iter().copied().cycle().take(member.len() * 1024).collect();
+        for bomb in [&single, &many] {
+            assert!(bomb.len() < 2 << 20);
+            let e = gunzip_limited(bomb, 1 << 20).unwrap_err();
+            assert!(
+                e.contains("decompresses to more than the limit of 1048576 bytes"),
+                "{e}"
+            );
+        }
+
+        // By name: only `.gz` files are decompressed, and the limit holds for
+        // the file too.
+        let dir = tempfile::tempdir().unwrap();
+        let (plain, packed) = (dir.path().join("a.txt"), dir.path().join("a.txt.GZ"));
+        std::fs::write(&plain, gzip(b"x")).unwrap();
+        std::fs::write(&packed, gzip(b"x")).unwrap();
+        assert_eq!(read_limited_gz(&plain, 100).unwrap(), gzip(b"x"));
+        assert_eq!(read_limited_gz(&packed, 100).unwrap(), b"x");
+        assert!(
+            read_limited_gz(&packed, 4)
+                .unwrap_err()
+                .contains("larger than the limit of 4 bytes")
+        );
+    }
 
     #[test]
     fn file_reads_are_recorded_once_each_with_their_content() {

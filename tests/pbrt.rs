@@ -420,3 +420,64 @@ fn environment_maps_are_equal_area_octahedral_as_in_pbrt() {
         }
     }
 }
+
+fn write_gzip(path: &Path, text: &str) {
+    use std::io::Write;
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    e.write_all(text.as_bytes()).unwrap();
+    fs::write(path, e.finish().unwrap()).unwrap();
+}
+
+/// A scene compressed with gzip — the main file, an included file and a
+/// PLY mesh, as pbrt-v4-scenes ships them — renders from the command line
+/// exactly as its plain copy, and the default output drops `.pbrt.gz`.
+#[test]
+fn gzip_compressed_scenes_render_as_their_plain_copies() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let main = r#"LookAt 0 1 4  0 0.3 0  0 1 0
+Camera "perspective" "float fov" 40
+Film "rgb" "integer xresolution" 24 "integer yresolution" 16
+Sampler "independent" "integer pixelsamples" 4
+WorldBegin
+LightSource "point" "point3 from" [1 3 3] "rgb I" [20 20 20]
+Include "geometry.pbrt{ext}" "float radius" 0.5
+Material "diffuse" "rgb reflectance" [0.2 0.6 0.3]
+Shape "plymesh" "string filename" "floor.ply{ext}"
+"#;
+    let geometry =
+        "Material \"diffuse\" \"rgb reflectance\" [0.7 0.2 0.2]\nAttributeBegin\nTranslate 0 0.5 0\nShape \"sphere\"";
+    let floor = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n-3 0 -3\n3 0 -3\n3 0 3\n-3 0 3\n4 3 2 1 0\n";
+    // The AttributeBegin of the included file is closed after it.
+    let main = main.replace(
+        "Material \"diffuse\" \"rgb reflectance\" [0.2",
+        "AttributeEnd\nMaterial \"diffuse\" \"rgb reflectance\" [0.2",
+    );
+    fs::write(root.join("plain.pbrt"), main.replace("{ext}", "")).unwrap();
+    fs::write(root.join("geometry.pbrt"), geometry).unwrap();
+    fs::write(root.join("floor.ply"), floor).unwrap();
+    write_gzip(&root.join("packed.pbrt.gz"), &main.replace("{ext}", ".gz"));
+    write_gzip(&root.join("geometry.pbrt.gz"), geometry);
+    write_gzip(&root.join("floor.ply.gz"), floor);
+
+    let render = |scene: &str, out: Option<&str>| {
+        let mut cmd = trazo();
+        cmd.current_dir(root).args(["render", "-q", "--threads", "1"]);
+        if let Some(out) = out {
+            cmd.args(["-o", out]);
+        }
+        let o = cmd.arg(scene).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{scene}: {err}");
+        assert!(!err.contains("warning"), "{scene}: {err}");
+    };
+    render("plain.pbrt", Some("plain.exr"));
+    render("packed.pbrt.gz", Some("packed.exr"));
+    let a = trazo::film::io::read_image(&root.join("plain.exr")).unwrap();
+    let b = trazo::film::io::read_image(&root.join("packed.exr")).unwrap();
+    assert_eq!((a.width, a.height), (24, 16));
+    assert_eq!(a.pixels, b.pixels);
+    assert!(a.pixels.iter().any(|p| p.x > 0.0), "the image is lit");
+    render("packed.pbrt.gz", None);
+    assert!(root.join("packed.png").is_file());
+}

@@ -399,8 +399,17 @@ impl SceneArgs {
 }
 
 fn default_output(scene: Option<&Path>) -> PathBuf {
+    // `scene.pbrt.gz` → `scene.png`.
     let stem = scene
-        .and_then(|p| p.file_stem())
+        .map(|p| {
+            if crate::files::is_gzip_name(p) {
+                p.with_extension("")
+            } else {
+                p.to_path_buf()
+            }
+        })
+        .as_deref()
+        .and_then(Path::file_stem)
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "cornell-box".into());
     PathBuf::from(format!("{stem}.png"))

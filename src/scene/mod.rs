@@ -99,6 +99,13 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
         "obj" | "ply" => builtin::framed_model(path)?,
         // These readers warn about -D definitions themselves.
         "pbrt" => return pbrt::load(path, defines),
+        // pbrt-v4 reads gzip-compressed scenes.
+        "gz" if path
+            .file_stem()
+            .is_some_and(|s| Path::new(s).extension().is_some_and(|e| e.eq_ignore_ascii_case("pbrt"))) =>
+        {
+            return pbrt::load(path, defines);
+        }
         "gltf" | "glb" => return gltf::load(path, defines),
         _ => {
             return Err(Error::file(

@@ -32,7 +32,7 @@ use self::params::{Param, ParamList, parse_number, parse_params};
 use super::desc::*;
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
-use crate::files::{MAX_SCENE_BYTES, io_reason, read_limited};
+use crate::files::{MAX_SCENE_BYTES, io_reason};
 use crate::sampling::SamplerKind;
 use crate::settings::{Filter, IntegratorKind, PathSampling};
 use glam::{DMat3, DMat4, DVec3, Mat3, Mat4, Vec3, Vec4};
@@ -131,9 +131,17 @@ pub fn parse(text: &str, path: &Path) -> Result<SceneDesc> {
     }
 }
 
-/// Reads a scene file as UTF-8 text. `included_from` is the `Include`
-/// directive that names it, which errors then point at.
+/// Reads a scene file as UTF-8 text, decompressing it if its name ends in
+/// `.gz` (as pbrt-v4 does for the main file, `Include` and `Import`).
+/// `included_from` is the `Include` directive that names it, which errors
+/// then point at.
 fn read_text(path: &Path, included_from: Option<&SourceLoc>) -> Result<String> {
+    read_text_limited(path, included_from, MAX_SCENE_BYTES)
+}
+
+/// [`read_text`] with a limit on the bytes read (before and after
+/// decompression).
+fn read_text_limited(path: &Path, included_from: Option<&SourceLoc>, limit: u64) -> Result<String> {
     let fail = |message: String| match included_from {
         Some(loc) => Error::scene(Some(loc.clone()), "Include", format!("{}: {message}", path.display())),
         None => Error::file(path, message),
@@ -142,10 +150,10 @@ fn read_text(path: &Path, included_from: Option<&SourceLoc>) -> Result<String> {
     if meta.is_dir() {
         return Err(fail("cannot read scene: this is a folder".into()));
     }
-    if meta.len() > MAX_SCENE_BYTES {
-        return Err(fail("scene file is larger than 1 GiB".into()));
+    if meta.len() > limit {
+        return Err(fail(format!("scene file is larger than the limit of {limit} bytes")));
     }
-    let bytes = read_limited(path, MAX_SCENE_BYTES).map_err(|e| fail(format!("cannot read scene: {e}")))?;
+    let bytes = crate::files::read_limited_gz(path, limit).map_err(|e| fail(format!("cannot read scene: {e}")))?;
     String::from_utf8(bytes).map_err(|e| {
         let lossy = String::from_utf8_lossy(e.as_bytes());
         Error::Scene {

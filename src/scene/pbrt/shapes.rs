@@ -112,10 +112,17 @@ impl Parser {
                     ));
                 };
                 locs.keys.push(("file".into(), prm.loc.clone()));
-                (
-                    ShapeKind::InlineMesh(MeshSource::File(self.resolve(dir_rel, &file))),
-                    false,
-                )
+                let path = self.resolve(dir_rel, &file);
+                if crate::files::is_gzip_name(&path) {
+                    // pbrt-v4 reads gzip-compressed PLY files; trazo
+                    // decompresses and reads them now, the others when the
+                    // scene is built.
+                    let at = prm.loc.clone();
+                    let mesh = self.gzip_ply(&self.top_dir.join(&path), &at, crate::files::MAX_PLY_BYTES)?;
+                    (ShapeKind::InlineMesh(MeshSource::Inline(mesh)), false)
+                } else {
+                    (ShapeKind::InlineMesh(MeshSource::File(path)), false)
+                }
             }
             _ => {
                 // loopsubdiv and curve.
@@ -148,6 +155,22 @@ impl Parser {
             emission,
         });
         Ok(())
+    }
+
+    /// The triangles of a gzip-compressed PLY file, decompressed through
+    /// the bounded read of every file: `limit` bounds the file and its
+    /// decompressed bytes. Its warnings join the scene's.
+    pub(super) fn gzip_ply(&mut self, full: &Path, at: &SourceLoc, limit: u64) -> Result<TriangleMesh> {
+        let fail = |reason: String| Error::scene(Some(at.clone()), "string filename", reason);
+        let bytes = crate::files::read_limited_gz(full, limit)
+            .map_err(|e| fail(format!("cannot read mesh {}: {e}", full.display())))?;
+        // Positions in the mesh are in its decompressed bytes.
+        let ply = crate::scene::ply::parse_ply(&bytes, full).map_err(|e| match e {
+            Error::File { path, message } => fail(format!("{}: {message}", path.display())),
+            other => fail(other.to_string()),
+        })?;
+        self.desc.warnings.extend(ply.warnings);
+        Ok(ply.mesh)
     }
 
     /// A `trianglemesh` (`corners` = 3) or a `bilinearmesh` (`corners` = 4,

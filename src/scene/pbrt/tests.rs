@@ -1446,3 +1446,133 @@ fn include_is_token_level_so_statements_continue_after_it() {
     let e = load(&root.join("self-main.pbrt"), &[]).unwrap_err().to_string();
     assert!(e.contains("include loop: self.pbrt → self.pbrt"), "{e}");
 }
+
+fn write_gzip(path: &Path, text: &str) {
+    use std::io::Write;
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    e.write_all(text.as_bytes()).unwrap();
+    std::fs::write(path, e.finish().unwrap()).unwrap();
+}
+
+const TRIANGLE_PLY: &str = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+
+/// pbrt-v4 reads gzip-compressed files wherever it reads scene text (the
+/// main file, `Include`, `Import`) and PLY meshes; so does trazo, by name
+/// (`.gz`), through the same limits as other files.
+#[test]
+fn gzip_compressed_scenes_includes_imports_and_meshes_are_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    std::fs::create_dir_all(root.join("parts")).unwrap();
+    write_gzip(
+        &root.join("scene.pbrt.gz"),
+        "WorldBegin\nInclude \"parts/sphere.pbrt.gz\" \"float radius\" 2\nImport \"parts/lights.pbrt.gz\"\nShape \"plymesh\" \"string filename\" \"parts/mesh.ply.gz\"\n",
+    );
+    write_gzip(&root.join("parts/sphere.pbrt.gz"), "Translate 0 1 0\nShape \"sphere\"");
+    write_gzip(
+        &root.join("parts/lights.pbrt.gz"),
+        "LightSource \"point\" \"point3 from\" [0 5 0]\n",
+    );
+    write_gzip(&root.join("parts/mesh.ply.gz"), TRIANGLE_PLY);
+    let d = crate::scene::load(&root.join("scene.pbrt.gz"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    assert!(matches!(d.shapes[0].kind, ShapeKind::Sphere { radius, .. } if radius == 2.0));
+    let sphere_at = d.shapes[0].locs.item.as_ref().unwrap().to_string();
+    assert!(sphere_at.ends_with("sphere.pbrt.gz:2:1"), "{sphere_at}");
+    assert_eq!(d.lights.len(), 1);
+    let ShapeKind::InlineMesh(MeshSource::Inline(mesh)) = &d.shapes[1].kind else {
+        panic!("{:?}", d.shapes[1].kind)
+    };
+    assert_eq!(mesh.vertices(0), [Vec3::ZERO, Vec3::X, Vec3::Y]);
+    // The Include's Translate holds for the mesh too.
+    assert!(close(matrix(&d, 1).transform_point3(Vec3::ZERO), Vec3::Y));
+
+    // A damaged file is an error naming the file and the directive.
+    std::fs::write(root.join("parts/bad.pbrt.gz"), "not gzip").unwrap();
+    std::fs::write(root.join("bad.pbrt"), "WorldBegin\nInclude \"parts/bad.pbrt.gz\"\n").unwrap();
+    let e = load(&root.join("bad.pbrt"), &[]).unwrap_err().to_string();
+    assert!(
+        e.contains("bad.pbrt:2:9: `Include`: ")
+            && e.contains("bad.pbrt.gz: cannot read scene: the file is not valid gzip data"),
+        "{e}"
+    );
+    std::fs::write(root.join("parts/bad.ply.gz"), "not gzip either").unwrap();
+    std::fs::write(
+        root.join("bad-mesh.pbrt"),
+        "WorldBegin\nShape \"plymesh\" \"string filename\" \"parts/bad.ply.gz\"\n",
+    )
+    .unwrap();
+    let e = load(&root.join("bad-mesh.pbrt"), &[]).unwrap_err().to_string();
+    assert!(
+        e.contains("bad-mesh.pbrt:2:17: `string filename`: cannot read mesh")
+            && e.contains("bad.ply.gz: the file is not valid gzip data"),
+        "{e}"
+    );
+    // Errors inside a compressed mesh give positions in its text.
+    write_gzip(
+        &root.join("parts/broken.ply.gz"),
+        &TRIANGLE_PLY.replace("0 1 0\n", "0 x 0\n"),
+    );
+    std::fs::write(
+        root.join("broken-mesh.pbrt"),
+        "WorldBegin\nShape \"plymesh\" \"string filename\" \"parts/broken.ply.gz\"\n",
+    )
+    .unwrap();
+    let e = load(&root.join("broken-mesh.pbrt"), &[]).unwrap_err().to_string();
+    assert!(e.contains("broken.ply.gz:12:"), "{e}");
+    // Text that is not UTF-8 once decompressed names its place.
+    let mut raw = Vec::new();
+    {
+        use std::io::Write;
+        let mut e = flate2::write::GzEncoder::new(&mut raw, flate2::Compression::default());
+        e.write_all(b"WorldBegin\n# caf\xe9\n").unwrap();
+        e.finish().unwrap();
+    }
+    std::fs::write(root.join("latin1.pbrt.gz"), raw).unwrap();
+    let e = crate::scene::load(&root.join("latin1.pbrt.gz"), &[])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("latin1.pbrt.gz:2:6: the file is not valid UTF-8 text"),
+        "{e}"
+    );
+}
+
+/// A gzip bomb (a small file that inflates to far more than the limit)
+/// stops at the limit of the file it stands for, with an error, whether it
+/// is scene text or a mesh. (The limits are 1 GiB of text and 16 GiB of
+/// PLY; the test uses 1 MiB, as the functions take the limit.)
+#[test]
+fn gzip_bombs_stop_at_the_read_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let bomb = {
+        use std::io::Write;
+        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        for _ in 0..64 {
+            e.write_all(&[b' '; 1 << 16]).unwrap();
+        }
+        e.finish().unwrap()
+    };
+    assert!(bomb.len() < 64 << 10);
+    let scene = dir.path().join("bomb.pbrt.gz");
+    std::fs::write(&scene, &bomb).unwrap();
+    let e = read_text_limited(&scene, None, 1 << 20).unwrap_err().to_string();
+    assert!(
+        e.contains("bomb.pbrt.gz: cannot read scene: the file decompresses to more than the limit of 1048576 bytes"),
+        "{e}"
+    );
+    let mesh = dir.path().join("bomb.ply.gz");
+    std::fs::write(&mesh, &bomb).unwrap();
+    let mut p = Parser::new(Arc::from(Path::new("test.pbrt")));
+    let at = SourceLoc {
+        file: Arc::from(Path::new("test.pbrt")),
+        line: 2,
+        column: 16,
+    };
+    let e = p.gzip_ply(&mesh, &at, 1 << 20).unwrap_err().to_string();
+    assert!(
+        e.contains("test.pbrt:2:16: `string filename`: cannot read mesh")
+            && e.contains("the file decompresses to more than the limit of 1048576 bytes"),
+        "{e}"
+    );
+}
