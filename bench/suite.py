@@ -388,7 +388,17 @@ def main(args):
     print("\n".join(lines))
     out_dir = os.path.join(args.root, "bench", "results", date)
     os.makedirs(out_dir, exist_ok=True)
-    stem = os.path.join(out_dir, f"suite-{short}")
+    # A binary other than the work tree's own build is named in the file
+    # name (the commit is the work tree's, not necessarily the binary's),
+    # and a second run of the same day and commit does not overwrite the
+    # first.
+    own = os.path.realpath(os.path.join(args.root, "target", "release", "trazo"))
+    label = "" if os.path.realpath(args.trazo) == own else "-" + re.sub(r"[^A-Za-z0-9_.-]", "_", os.path.basename(args.trazo))
+    stem = os.path.join(out_dir, f"suite-{short}{label}")
+    run = 2
+    while os.path.exists(stem + ".json"):
+        stem = os.path.join(out_dir, f"suite-{short}{label}-run{run}")
+        run += 1
     with open(stem + ".json", "w") as f:
         json.dump(report, f, indent=1)
         f.write("\n")
