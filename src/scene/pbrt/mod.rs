@@ -221,6 +221,16 @@ enum Block {
     Object,
 }
 
+impl Block {
+    /// The directive that opens the block.
+    fn opener(&self) -> &'static str {
+        match self {
+            Block::Attribute => "AttributeBegin",
+            Block::Object => "ObjectBegin",
+        }
+    }
+}
+
 /// A material as read, before names are resolved.
 #[derive(Clone, Debug)]
 struct MatDef {
@@ -1062,10 +1072,7 @@ impl Parser {
         let mut sub = Lexer::new(file, &text, sub_dir);
         self.parse_file(&mut sub)?;
         if let Some((_, block, open)) = self.pushed.get(depth) {
-            let what = match block {
-                Block::Attribute => "AttributeBegin",
-                Block::Object => "ObjectBegin",
-            };
+            let what = block.opener();
             return Err(Error::scene(
                 Some(open.clone()),
                 what,
@@ -1116,10 +1123,7 @@ impl Parser {
             ));
         }
         if let Some((_, block, open)) = self.pushed.last() {
-            let what = match block {
-                Block::Attribute => "AttributeBegin",
-                Block::Object => "ObjectBegin",
-            };
+            let what = block.opener();
             return Err(Error::scene(
                 Some(open.clone()),
                 what,
