@@ -101,59 +101,30 @@ fn cli_reads_xml_with_defines_and_reports_errors() {
     assert_eq!(image::open(&out).unwrap().to_rgb8().dimensions(), (16, 16));
 
     let bad = dir.path().join("bad.xml");
-    std::fs::write(
-        &bad,
+    // Writes `text` to bad.xml, renders it, expects exit status 2 and
+    // returns what was printed.
+    let fails_with = |text: &str| {
+        std::fs::write(&bad, text).unwrap();
+        let o = trazo()
+            .args(["render", "-q", "-o"])
+            .arg(&out)
+            .arg(&bad)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let err = fails_with(
         "<scene>\n  <shape type=\"sphere\">\n    <float name=\"radius\" value=\"-2\"/>\n  </shape>\n</scene>\n",
-    )
-    .unwrap();
-    let o = trazo()
-        .args(["render", "-q", "-o"])
-        .arg(&out)
-        .arg(&bad)
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&o.stderr);
+    );
     assert!(err.contains("bad.xml:3:") && err.contains("radius"), "{err}");
-
-    std::fs::write(
-        &bad,
+    let err = fails_with(
         "<scene>\n  <shape type=\"obj\"><string name=\"filename\" value=\"missing.obj\"/></shape>\n</scene>\n",
-    )
-    .unwrap();
-    let o = trazo()
-        .args(["render", "-q", "-o"])
-        .arg(&out)
-        .arg(&bad)
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&o.stderr);
+    );
     assert!(err.contains("bad.xml:2:") && err.contains("missing.obj"), "{err}");
-
-    std::fs::write(&bad, "<scene><include filename=\"bad.xml\"/></scene>").unwrap();
-    let o = trazo()
-        .args(["render", "-q", "-o"])
-        .arg(&out)
-        .arg(&bad)
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("include loop"));
-
-    std::fs::write(
-        &bad,
-        "<scene>\n  <shape type=\"instance\">\n    <ref id=\"trees\"/>\n  </shape>\n</scene>\n",
-    )
-    .unwrap();
-    let o = trazo()
-        .args(["render", "-q", "-o"])
-        .arg(&out)
-        .arg(&bad)
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = fails_with("<scene><include filename=\"bad.xml\"/></scene>");
+    assert!(err.contains("include loop"), "{err}");
+    let err = fails_with("<scene>\n  <shape type=\"instance\">\n    <ref id=\"trees\"/>\n  </shape>\n</scene>\n");
     assert!(
         err.contains("bad.xml:3:5") && err.contains("no shapegroup with id \"trees\""),
         "{err}"
