@@ -44,11 +44,20 @@ const BINS: usize = 16;
 pub struct SahCosts {
     /// Cost of visiting a node.
     pub traversal: f32,
-    /// Primitives tested together in one leaf test: 1 when they are tested
-    /// one at a time, 4 for blocks of four triangles, whose test costs
-    /// about what one triangle's does.
+    /// Primitives of one kind tested together in one leaf test: 1 when
+    /// they are tested one at a time, 4 for blocks of four triangles, 8 for
+    /// the eight-lane blocks of a scene's top level, whose test costs about
+    /// what one primitive's does. Primitives of kind [`ALONE`] are always
+    /// tested one at a time.
     pub block: u32,
 }
+
+/// Kinds of primitive the build tells apart: a leaf test covers up to
+/// [`SahCosts::block`] primitives of one kind `1..KINDS` at once, and one
+/// of kind [`ALONE`] by itself.
+pub const KINDS: usize = 4;
+/// The kind of a primitive tested by itself (an instance, say).
+pub const ALONE: u8 = 0;
 
 impl SahCosts {
     /// Primitives tested one at a time, a node visit an eighth of a test.
@@ -65,12 +74,24 @@ impl SahCosts {
         block: 4,
     };
 
+    /// The price of a leaf holding `counts[k]` primitives of each kind.
     #[inline]
-    fn leaf(&self, n: usize) -> f32 {
-        n.div_ceil(self.block as usize) as f32
+    fn leaf(&self, counts: &[u32; KINDS]) -> f32 {
+        let blocks: u32 = counts[1..].iter().map(|&n| n.div_ceil(self.block)).sum();
+        (counts[ALONE as usize] + blocks) as f32
+    }
+
+    /// Whether a leaf may hold `counts[k]` primitives of each kind: at most
+    /// [`MAX_LEAF`] tested alone and, of each other kind, two blocks (or
+    /// [`MAX_LEAF`], whichever is more).
+    #[inline]
+    fn leaf_fits(&self, counts: &[u32; KINDS]) -> bool {
+        let per_kind = (MAX_LEAF as u32).max(2 * self.block);
+        counts[ALONE as usize] as usize <= MAX_LEAF && counts[1..].iter().all(|&n| n <= per_kind)
     }
 }
-/// Leaves never hold more primitives than this (unless they are identical).
+/// Leaves never hold more primitives tested alone than this (unless they
+/// are identical).
 const MAX_LEAF: usize = 8;
 /// Subtrees with more primitives than this are built on another thread.
 const PARALLEL_THRESHOLD: usize = 16 * 1024;
@@ -84,6 +105,7 @@ struct PrimInfo {
     bounds: Aabb,
     centroid: Vec3,
     index: u32,
+    kind: u8,
 }
 
 impl Bvh {
@@ -94,8 +116,16 @@ impl Bvh {
         Bvh::build_with(bounds, SahCosts::ONE_AT_A_TIME)
     }
 
-    /// [`Bvh::build`] with the given SAH prices.
+    /// [`Bvh::build`] with the given SAH prices, every primitive of one
+    /// kind tested in blocks of [`SahCosts::block`].
     pub fn build_with(bounds: &[Aabb], costs: SahCosts) -> (Bvh, Vec<u32>) {
+        Bvh::build_kinds(bounds, |_| 1, costs)
+    }
+
+    /// [`Bvh::build_with`] where primitive `i` is of kind `kind(i)` (below
+    /// [`KINDS`]; [`ALONE`]: tested by itself), and a leaf is priced by the
+    /// blocks of each kind it holds.
+    pub fn build_kinds(bounds: &[Aabb], kind: impl Fn(usize) -> u8, costs: SahCosts) -> (Bvh, Vec<u32>) {
         if bounds.is_empty() {
             return (Bvh::default(), Vec::new());
         }
@@ -106,6 +136,11 @@ impl Bvh {
                 bounds: *b,
                 centroid: b.centroid(),
                 index: i as u32,
+                kind: {
+                    let k = kind(i);
+                    assert!((k as usize) < KINDS, "primitive kind {k} out of range");
+                    k
+                },
             })
             .collect();
         let nodes = build_recursive(&mut prims, 0, 0, &costs);
@@ -225,7 +260,12 @@ fn build_into(nodes: &mut Vec<BvhNode>, prims: &mut [PrimInfo], base: usize, dep
     let deep = depth + (usize::BITS - n.leading_zeros()) as usize + 2 >= MAX_DEPTH;
     let (axis, mid) = match split {
         Some((axis, bin, cost)) if !deep => {
-            if n <= MAX_LEAF && costs.leaf(n) <= cost {
+            // (Counted only where a leaf could hold them all.)
+            let leaf = n <= MAX_LEAF * KINDS * 2 && {
+                let counts = kind_counts(prims.iter());
+                costs.leaf_fits(&counts) && costs.leaf(&counts) <= cost
+            };
+            if leaf {
                 make_leaf(nodes, bounds, base, n);
                 return;
             }
@@ -273,6 +313,15 @@ fn build_into(nodes: &mut Vec<BvhNode>, prims: &mut [PrimInfo], base: usize, dep
     }
 }
 
+/// How many of `prims` are of each kind.
+fn kind_counts<'a>(prims: impl Iterator<Item = &'a PrimInfo>) -> [u32; KINDS] {
+    let mut counts = [0u32; KINDS];
+    for p in prims {
+        counts[p.kind as usize] += 1;
+    }
+    counts
+}
+
 /// Orders `prims` around the median centroid on `axis`; returns n/2.
 fn median_split(prims: &mut [PrimInfo], axis: usize) -> usize {
     let mid = prims.len() / 2;
@@ -314,34 +363,35 @@ fn find_split(prims: &[PrimInfo], bounds: &Aabb, cb: &Aabb, costs: &SahCosts) ->
         }
         let (lo, scale) = bin_mapping(cb, axis);
         let mut bin_bounds = [Aabb::EMPTY; BINS];
-        let mut bin_count = [0u32; BINS];
+        let mut bin_count = [[0u32; KINDS]; BINS];
         for p in prims {
             let b = bin_of(p.centroid[axis], lo, scale);
             bin_bounds[b] = bin_bounds[b].union(&p.bounds);
-            bin_count[b] += 1;
+            bin_count[b][p.kind as usize] += 1;
         }
+        let add = |a: &mut [u32; KINDS], b: &[u32; KINDS]| a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
         // Sweep from the right to get the cost of every right side.
         let mut right_area = [0f32; BINS];
-        let mut right_count = [0u32; BINS];
+        let mut right_count = [[0u32; KINDS]; BINS];
         let mut acc = Aabb::EMPTY;
-        let mut cnt = 0;
+        let mut cnt = [0u32; KINDS];
         for i in (1..BINS).rev() {
             acc = acc.union(&bin_bounds[i]);
-            cnt += bin_count[i];
+            add(&mut cnt, &bin_count[i]);
             right_area[i] = acc.surface_area();
             right_count[i] = cnt;
         }
         let mut acc = Aabb::EMPTY;
-        let mut cnt = 0;
+        let mut cnt = [0u32; KINDS];
         for i in 0..BINS - 1 {
             acc = acc.union(&bin_bounds[i]);
-            cnt += bin_count[i];
-            let (nl, nr) = (cnt, right_count[i + 1]);
-            if nl == 0 || nr == 0 {
+            add(&mut cnt, &bin_count[i]);
+            let (nl, nr) = (&cnt, &right_count[i + 1]);
+            if nl.iter().sum::<u32>() == 0 || nr.iter().sum::<u32>() == 0 {
                 continue;
             }
-            let cost = costs.traversal
-                + (acc.surface_area() * costs.leaf(nl as usize) + right_area[i + 1] * costs.leaf(nr as usize)) / area;
+            let cost =
+                costs.traversal + (acc.surface_area() * costs.leaf(nl) + right_area[i + 1] * costs.leaf(nr)) / area;
             if best.is_none_or(|(_, _, c)| cost < c) {
                 best = Some((axis, i, cost));
             }

@@ -2,6 +2,7 @@
 //! aggregate that puts all geometry under it.
 
 pub mod aggregate;
+pub(crate) mod blocks;
 pub mod bvh;
 pub mod flat;
 pub mod queries;

@@ -7,6 +7,7 @@ pub mod interaction;
 pub(crate) mod lanes;
 pub mod mesh;
 pub mod ray;
+pub(crate) mod real;
 pub mod shape;
 pub mod transform;
 pub mod triangle;

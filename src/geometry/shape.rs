@@ -9,6 +9,7 @@
 
 use super::bounds::{Aabb, gamma};
 use super::ray::Ray;
+use super::real::Real;
 use crate::sampling::warp::{orthonormal_basis, sample_disk_concentric, sample_sphere_uniform};
 use glam::{DVec3, Vec2, Vec3};
 use std::f32::consts::PI;
@@ -325,44 +326,9 @@ impl Sphere {
     /// of 10⁵ seen from a metre away (smallpt's walls).
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<f32> {
-        let o = ray.origin.as_dvec3();
-        let d = ray.dir.as_dvec3();
-        let f = o - self.center.as_dvec3();
-        let r = self.radius as f64;
-        let a = d.length_squared();
-        if a == 0.0 {
-            return None;
-        }
-        let b_half = f.dot(d);
-        // b'² − a·c rewritten as a·(r² − |f − (b'/a)·d|²): no cancellation.
-        let l = f - d * (b_half / a);
-        let disc = a * (r * r - l.length_squared());
-        if disc < 0.0 {
-            return None;
-        }
-        let c = f.length_squared() - r * r;
-        let q = -b_half - disc.sqrt().copysign(b_half);
-        let (t0, t1) = if q == 0.0 {
-            (0.0, 0.0)
-        } else {
-            let (x, y) = (c / q, q / a);
-            (x.min(y), x.max(y))
-        };
-        // Hits must lie strictly after t_min: a ray that starts exactly on
-        // the surface (its origin offset by a zero error bound) must not
-        // find its own starting point.
-        let (tmin, tmax) = (ray.t_min as f64, ray.t_max as f64);
-        if t0 > tmax || t1 <= tmin {
-            return None;
-        }
-        let t = if t0 > tmin {
-            t0
-        } else if t1 <= tmax {
-            t1
-        } else {
-            return None;
-        };
-        Some(t as f32)
+        let c = self.center.as_dvec3();
+        let (t, hit) = sphere_distance(&SphereRay::new(ray)?, c.x, c.y, c.z, self.radius as f64);
+        hit.then_some(t as f32)
     }
 
     fn surface(&self, p: Vec3) -> LocalSurface {
@@ -384,6 +350,76 @@ impl Sphere {
             dpdu,
         }
     }
+}
+
+/// What the sphere test needs of a ray, in double precision (in every lane
+/// for `R` of several): its origin, direction, |d|² (not zero) and
+/// interval.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SphereRay<R> {
+    pub o: [R; 3],
+    pub d: [R; 3],
+    pub a: R,
+    pub t_min: R,
+    pub t_max: R,
+}
+
+impl SphereRay<f64> {
+    /// The ray, or `None` for a zero direction, which meets no sphere.
+    #[inline(always)]
+    pub fn new(ray: &Ray) -> Option<SphereRay<f64>> {
+        let d = ray.dir.as_dvec3();
+        let a = d.length_squared();
+        (a != 0.0).then(|| SphereRay {
+            o: ray.origin.as_dvec3().to_array(),
+            d: d.to_array(),
+            a,
+            t_min: ray.t_min as f64,
+            t_max: ray.t_max as f64,
+        })
+    }
+
+    /// The same ray in every lane of `R`, made from `like`.
+    #[inline(always)]
+    pub fn splat<R: Real>(&self, like: R) -> SphereRay<R> {
+        let s = |x: f64| like.like(x);
+        SphereRay {
+            o: self.o.map(s),
+            d: self.d.map(s),
+            a: s(self.a),
+            t_min: s(self.t_min),
+            t_max: s(self.t_max),
+        }
+    }
+}
+
+/// The refined quadratic of [`Sphere::intersect`] for the sphere of centre
+/// (cx, cy, cz) and radius r, on one sphere (`R = f64`) or on several in
+/// vector lanes (the sphere blocks of `accel::blocks`), which therefore
+/// compute the same bits: the nearest distance within the ray's interval
+/// and whether there is one.
+#[inline(always)]
+pub(crate) fn sphere_distance<R: Real>(ray: &SphereRay<R>, cx: R, cy: R, cz: R, r: R) -> (R, R::Mask) {
+    let [dx, dy, dz] = ray.d;
+    let (fx, fy, fz) = (ray.o[0] - cx, ray.o[1] - cy, ray.o[2] - cz);
+    let b_half = fx * dx + fy * dy + fz * dz;
+    // b'² − a·c rewritten as a·(r² − |f − (b'/a)·d|²): no cancellation.
+    let k = b_half / ray.a;
+    let (lx, ly, lz) = (fx - dx * k, fy - dy * k, fz - dz * k);
+    let disc = ray.a * (r * r - (lx * lx + ly * ly + lz * lz));
+    let c = (fx * fx + fy * fy + fz * fz) - r * r;
+    // A negative discriminant (a miss) makes q, and every distance, NaN,
+    // which the comparisons below reject.
+    let q = (b_half.like(0.0) - b_half) - disc.sqrt().copysign(b_half);
+    let (x, y) = (c / q, q / ray.a);
+    let zero = q.eq(q.like(0.0));
+    let t0 = R::select(zero, q.like(0.0), x.min(y));
+    let t1 = R::select(zero, q.like(0.0), x.max(y));
+    // Hits must lie strictly after t_min: a ray that starts exactly on the
+    // surface (its origin offset by a zero error bound) must not find its
+    // own starting point.
+    let t = R::select(t0.gt(ray.t_min), t0, t1);
+    (t, t.gt(ray.t_min) & t.le(ray.t_max))
 }
 
 impl Rectangle {

@@ -1,0 +1,531 @@
+//! Blocks of eight primitives of one kind, tested against a ray in eight
+//! vector lanes: what the leaves of a scene's top-level tree hold
+//! ([`Aggregate`](super::Aggregate)) and what a [`FlatScene`](super::flat::FlatScene)
+//! is made of. Each kind is laid out as structure of arrays (Embree's
+//! "triangle8" layout) and tested without a branch that depends on the
+//! primitive: spheres in double precision (the refined quadratic of
+//! [`Sphere::intersect`], the same bits), rectangles (the operations of
+//! [`Rectangle::intersect`] in the same order) and triangles (the
+//! watertight test of [`Triangle4`](crate::geometry::triangle::Triangle4)).
+//!
+//! The lane code is built for AVX. Blocks exist only where the processor
+//! has it ([`Blocks::new`] says so once); elsewhere the tree holds the
+//! same primitives one by one.
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) use avx::*;
+
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use crate::geometry::bounds::gamma;
+    use crate::geometry::lanes::{D4, F8, LANES, Lanes, M8, avx_available};
+    use crate::geometry::shape::{SphereRay, sphere_distance};
+    use crate::geometry::triangle::TriangleRay;
+    use crate::geometry::{Ray, Rectangle, Sphere};
+    use glam::Vec3;
+
+    /// Eight rectangles: `[corner, normal, dual_u, dual_v][axis]`, and the
+    /// caller's numbers. An empty lane holds NaN, which every comparison
+    /// rejects.
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Rectangle8 {
+        pub(crate) v: [[Lanes; 3]; 4],
+        pub(crate) ids: [u32; LANES],
+    }
+
+    /// Eight triangles: `v[vertex][axis]`, and the caller's numbers. An
+    /// empty lane holds NaN vertices.
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Triangle8 {
+        pub(crate) v: [[Lanes; 3]; 3],
+        pub(crate) ids: [u32; LANES],
+    }
+
+    /// Packs `points[k][axis]` of up to eight primitives into lanes.
+    pub(crate) fn pack<const K: usize>(items: &[[Vec3; K]]) -> [[Lanes; 3]; K] {
+        let mut v = [[Lanes([f32::NAN; LANES]); 3]; K];
+        for (lane, points) in items.iter().enumerate() {
+            for (k, p) in points.iter().enumerate() {
+                for axis in 0..3 {
+                    v[k][axis].0[lane] = p[axis];
+                }
+            }
+        }
+        v
+    }
+
+    pub(crate) fn pack_ids<T>(chunk: &[&(T, u32)]) -> [u32; LANES] {
+        let mut ids = [u32::MAX; LANES];
+        for (lane, (_, id)) in chunk.iter().enumerate() {
+            ids[lane] = *id;
+        }
+        ids
+    }
+
+    /// `[x, y, z]` loaded.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub(crate) fn load3(v: &[Lanes; 3]) -> [F8; 3] {
+        [F8::load(&v[0]), F8::load(&v[1]), F8::load(&v[2])]
+    }
+
+    /// `a · b` in the order of glam's `Vec3::dot`.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub(crate) fn dot(a: [F8; 3], b: [F8; 3]) -> F8 {
+        a[0].mul(b[0]).add(a[1].mul(b[1])).add(a[2].mul(b[2]))
+    }
+
+    impl Rectangle8 {
+        /// Bit per lane the ray meets within `(ray.t_min, t_max]`, and the
+        /// lanes' distances: [`Rectangle::intersect`] on eight lanes.
+        #[inline]
+        #[target_feature(enable = "avx")]
+        pub(crate) fn intersect(&self, ray: &Ray, t_max: f32) -> (u32, F8) {
+            let corner = load3(&self.v[0]);
+            let frame = [corner, load3(&self.v[1]), load3(&self.v[2]), load3(&self.v[3])];
+            let o = [
+                F8::splat(ray.origin.x),
+                F8::splat(ray.origin.y),
+                F8::splat(ray.origin.z),
+            ];
+            let d = [F8::splat(ray.dir.x), F8::splat(ray.dir.y), F8::splat(ray.dir.z)];
+            let (valid, t) = rectangle_lanes(frame, o, d, F8::splat(ray.t_min), F8::splat(t_max.min(f32::MAX)));
+            (valid.bits(), t)
+        }
+    }
+
+    /// [`Rectangle::intersect`] on eight lanes, rectangles
+    /// `[corner, normal, dual_u, dual_v]` against rays `o + t·d`: whether
+    /// each lane's hit lies within `(t_min, t_max]`, and its distance.
+    /// Either the rectangles or the rays may be the same in every lane.
+    /// The one-rectangle test's conditions, denominator not zero and t
+    /// finite, take two comparisons: t is ±∞ or NaN where the denominator
+    /// is zero, `t > t_min` is false for −∞ and NaN, and `t <= t_max` with
+    /// t_max at most the largest float (the callers' part) is false for
+    /// +∞.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub(crate) fn rectangle_lanes(frame: [[F8; 3]; 4], o: [F8; 3], d: [F8; 3], t_min: F8, t_max: F8) -> (M8, F8) {
+        let [corner, n, dual_u, dual_v] = frame;
+        let denom = dot(n, d);
+        let q = [corner[0].sub(o[0]), corner[1].sub(o[1]), corner[2].sub(o[2])];
+        let t = dot(n, q).div(denom);
+        // The point `o + d·t` relative to the corner.
+        let r = [
+            o[0].add(d[0].mul(t)).sub(corner[0]),
+            o[1].add(d[1].mul(t)).sub(corner[1]),
+            o[2].add(d[2].mul(t)).sub(corner[2]),
+        ];
+        let u = dot(dual_u, r);
+        let v = dot(dual_v, r);
+        let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
+        let valid = t
+            .gt(t_min)
+            .and(t.le(t_max))
+            .and(u.ge(zero))
+            .and(u.le(one))
+            .and(v.ge(zero))
+            .and(v.le(one));
+        (valid, t)
+    }
+
+    /// The edge functions and their sum per lane, from which a hit lane's
+    /// barycentrics follow.
+    pub(crate) struct Edges {
+        e: [F8; 3],
+        det: F8,
+    }
+
+    impl Edges {
+        #[inline]
+        #[target_feature(enable = "avx")]
+        pub(crate) fn barycentrics(&self, lane: usize) -> [f32; 3] {
+            let inv_det = 1.0 / self.det.to_array()[lane];
+            [
+                self.e[0].to_array()[lane] * inv_det,
+                self.e[1].to_array()[lane] * inv_det,
+                self.e[2].to_array()[lane] * inv_det,
+            ]
+        }
+    }
+
+    /// What the triangle test needs of a ray, in lanes, made once per ray:
+    /// the axis permutation and shear of [`TriangleRay`], the permuted
+    /// origin and the interval's start.
+    pub(crate) struct RayLanes {
+        axes: [usize; 3],
+        origin: [F8; 3],
+        shear: [F8; 3],
+        t_min: F8,
+    }
+
+    impl RayLanes {
+        #[inline]
+        #[target_feature(enable = "avx")]
+        pub(crate) fn new(ray: &Ray, pre: &TriangleRay) -> RayLanes {
+            let axes = [pre.kx, pre.ky, pre.kz];
+            RayLanes {
+                axes,
+                origin: [
+                    F8::splat(ray.origin[pre.kx]),
+                    F8::splat(ray.origin[pre.ky]),
+                    F8::splat(ray.origin[pre.kz]),
+                ],
+                shear: [F8::splat(pre.sx), F8::splat(pre.sy), F8::splat(pre.sz)],
+                t_min: F8::splat(ray.t_min),
+            }
+        }
+
+        /// A vertex's lanes translated to the ray origin, permuted and
+        /// sheared (z scaled for the distance).
+        #[inline]
+        #[target_feature(enable = "avx")]
+        pub(crate) fn vertex(&self, v: &[Lanes; 3]) -> (F8, F8, F8) {
+            let [kx, ky, kz] = self.axes;
+            let z = F8::load(&v[kz]).sub(self.origin[2]);
+            (
+                F8::load(&v[kx]).sub(self.origin[0]).add(self.shear[0].mul(z)),
+                F8::load(&v[ky]).sub(self.origin[1]).add(self.shear[1].mul(z)),
+                z.mul(self.shear[2]),
+            )
+        }
+    }
+
+    /// `a·b − c·d` in f32.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub(crate) fn difference_of_products(a: F8, b: F8, c: F8, d: F8) -> F8 {
+        a.mul(b).sub(c.mul(d))
+    }
+
+    /// The largest of three magnitudes.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub(crate) fn max_abs(a: F8, b: F8, c: F8) -> F8 {
+        a.abs().max(b.abs()).max(c.abs())
+    }
+
+    impl Triangle8 {
+        /// Bit per lane the ray meets within `(ray.t_min, t_max]`, the
+        /// lanes' distances and their edge functions: the watertight test
+        /// of `Triangle4` on eight lanes.
+        #[inline]
+        #[target_feature(enable = "avx")]
+        pub(crate) fn intersect(&self, ray: &RayLanes, t_max: F8) -> (u32, F8, Edges) {
+            // Translate to the origin, permute so that |d.z| is largest,
+            // shear the direction onto +z; z is scaled for the distance only.
+            let (x0, y0, z0) = ray.vertex(&self.v[0]);
+            let (x1, y1, z1) = ray.vertex(&self.v[1]);
+            let (x2, y2, z2) = ray.vertex(&self.v[2]);
+            let mut e = [
+                difference_of_products(x1, y2, y1, x2),
+                difference_of_products(x2, y0, y2, x0),
+                difference_of_products(x0, y1, y0, x1),
+            ];
+            let zero = F8::splat(0.0);
+            if e[0].eq(zero).or(e[1].eq(zero)).or(e[2].eq(zero)).bits() != 0 {
+                // An edge function that rounds to zero gets its exact sign
+                // in double precision (Woop et al. 2013, section 4).
+                let exact = |ax: F8, by: F8, ay: F8, bx: F8| {
+                    let (ax, by, ay, bx) = (ax.to_array(), by.to_array(), ay.to_array(), bx.to_array());
+                    F8::from_array(std::array::from_fn(|i| {
+                        (ax[i] as f64 * by[i] as f64 - ay[i] as f64 * bx[i] as f64) as f32
+                    }))
+                };
+                e = [exact(x1, y2, y1, x2), exact(x2, y0, y2, x0), exact(x0, y1, y0, x1)];
+            }
+            let [e0, e1, e2] = e;
+            let negative = e0.lt(zero).or(e1.lt(zero)).or(e2.lt(zero));
+            let positive = e0.gt(zero).or(e1.gt(zero)).or(e2.gt(zero));
+            let det = e0.add(e1).add(e2);
+            let inside = det.ne(zero).and_not(negative.and(positive));
+            let edges = Edges { e, det };
+            // Most blocks lie off the ray: stop before the distances.
+            if inside.bits() == 0 {
+                return (0, zero, edges);
+            }
+            let t = e0.mul(z0).add(e1.mul(z1)).add(e2.mul(z2)).div(det);
+            // Reject hits whose t is not certainly positive given rounding
+            // (pbrt-v4, section 6.8.4), as the one-triangle test does.
+            let max_zt = max_abs(z0, z1, z2);
+            let max_xt = max_abs(x0, x1, x2);
+            let max_yt = max_abs(y0, y1, y2);
+            let delta_z = F8::splat(gamma(3)).mul(max_zt);
+            let delta_x = F8::splat(gamma(5)).mul(max_xt.add(max_zt));
+            let delta_y = F8::splat(gamma(5)).mul(max_yt.add(max_zt));
+            let delta_e = F8::splat(2.0).mul(
+                F8::splat(gamma(2))
+                    .mul(max_xt)
+                    .mul(max_yt)
+                    .add(delta_y.mul(max_xt))
+                    .add(delta_x.mul(max_yt)),
+            );
+            let max_e = max_abs(e0, e1, e2);
+            let delta_t = F8::splat(3.0)
+                .mul(
+                    F8::splat(gamma(3))
+                        .mul(max_e)
+                        .mul(max_zt)
+                        .add(delta_e.mul(max_zt))
+                        .add(delta_z.mul(max_e)),
+                )
+                .div(det.abs());
+            let valid = inside.and(t.gt(ray.t_min)).and(t.le(t_max)).and(t.gt(delta_t));
+            (valid.bits(), t, edges)
+        }
+    }
+
+    /// The lane with the smallest distance among the set bits of `mask`
+    /// that is at most `*t_max`, which it then becomes.
+    #[inline]
+    pub(crate) fn nearest_lane(mut mask: u32, t: &[f32; LANES], t_max: &mut f32) -> Option<usize> {
+        let mut best = None;
+        while mask != 0 {
+            let lane = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            if t[lane] <= *t_max {
+                *t_max = t[lane];
+                best = Some(lane);
+            }
+        }
+        best
+    }
+
+    /// Eight spheres: centres `c[axis]` and radii in f64, four lanes a
+    /// register, and the caller's numbers. An empty lane has a NaN radius,
+    /// which no ray meets; a block of at most four tests one register.
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Sphere8 {
+        c: [[[f64; 4]; 3]; 2],
+        r: [[f64; 4]; 2],
+        /// Whether lanes 4 to 7 hold spheres.
+        full: bool,
+        pub(crate) ids: [u32; LANES],
+    }
+
+    impl Sphere8 {
+        /// Up to eight spheres with the caller's numbers.
+        pub(crate) fn new(members: &[(Sphere, u32)]) -> Sphere8 {
+            assert!(members.len() <= LANES, "a block holds at most eight spheres");
+            let mut block = Sphere8 {
+                c: [[[0.0; 4]; 3]; 2],
+                r: [[f64::NAN; 4]; 2],
+                full: members.len() > 4,
+                ids: [u32::MAX; LANES],
+            };
+            for (lane, (s, id)) in members.iter().enumerate() {
+                let (half, l) = (lane / 4, lane % 4);
+                for axis in 0..3 {
+                    block.c[half][axis][l] = s.center[axis] as f64;
+                }
+                block.r[half][l] = s.radius as f64;
+                block.ids[lane] = *id;
+            }
+            block
+        }
+
+        /// The lanes' distances and a bit per lane the ray meets within
+        /// its interval: [`Sphere::intersect`] on eight lanes.
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn intersect(&self, ray: &SphereRay<f64>) -> ([f64; LANES], u32) {
+            let lanes = ray.splat(D4::splat(0.0));
+            let mut t = [f64::INFINITY; LANES];
+            let mut bits = 0;
+            for half in 0..1 + self.full as usize {
+                let [cx, cy, cz] = &self.c[half];
+                let (cx, cy, cz) = (D4::load(*cx), D4::load(*cy), D4::load(*cz));
+                let (th, hit) = sphere_distance(&lanes, cx, cy, cz, D4::load(self.r[half]));
+                t[4 * half..4 * half + 4].copy_from_slice(&th.to_array());
+                bits |= hit.bits() << (4 * half);
+            }
+            (t, bits)
+        }
+    }
+
+    /// The blocks of one scene's tree, by kind. Built only where the
+    /// processor has AVX, which every test then relies on.
+    #[derive(Clone, Debug)]
+    pub(crate) struct Blocks {
+        spheres: Vec<Sphere8>,
+        rectangles: Vec<Rectangle8>,
+        triangles: Vec<Triangle8>,
+    }
+
+    /// The nearest (or, for shadow rays, some) primitive of a block that a
+    /// ray meets: its number, distance and (triangles) barycentrics.
+    pub(crate) type BlockHit = (u32, f32, [f32; 3]);
+
+    impl Blocks {
+        /// No blocks yet; `None` where the processor lacks AVX.
+        pub(crate) fn new() -> Option<Blocks> {
+            avx_available().then(|| Blocks {
+                spheres: Vec::new(),
+                rectangles: Vec::new(),
+                triangles: Vec::new(),
+            })
+        }
+
+        /// Adds a block of up to eight spheres; returns its number.
+        pub(crate) fn push_spheres(&mut self, members: &[(Sphere, u32)]) -> u32 {
+            self.spheres.push(Sphere8::new(members));
+            (self.spheres.len() - 1) as u32
+        }
+
+        /// Adds a block of up to eight rectangles; returns its number.
+        pub(crate) fn push_rectangles(&mut self, members: &[(Rectangle, u32)]) -> u32 {
+            assert!(members.len() <= LANES, "a block holds at most eight rectangles");
+            let frames: Vec<[Vec3; 4]> = members.iter().map(|(r, _)| r.test_frame()).collect();
+            let refs: Vec<&(Rectangle, u32)> = members.iter().collect();
+            self.rectangles.push(Rectangle8 {
+                v: pack(&frames),
+                ids: pack_ids(&refs),
+            });
+            (self.rectangles.len() - 1) as u32
+        }
+
+        /// Adds a block of up to eight triangles; returns its number.
+        pub(crate) fn push_triangles(&mut self, members: &[([Vec3; 3], u32)]) -> u32 {
+            assert!(members.len() <= LANES, "a block holds at most eight triangles");
+            let vertices: Vec<[Vec3; 3]> = members.iter().map(|(t, _)| *t).collect();
+            let refs: Vec<&([Vec3; 3], u32)> = members.iter().collect();
+            self.triangles.push(Triangle8 {
+                v: pack(&vertices),
+                ids: pack_ids(&refs),
+            });
+            (self.triangles.len() - 1) as u32
+        }
+
+        /// Number of blocks.
+        pub(crate) fn len(&self) -> usize {
+            self.spheres.len() + self.rectangles.len() + self.triangles.len()
+        }
+
+        /// Bytes held by the blocks.
+        pub(crate) fn memory_bytes(&self) -> usize {
+            self.spheres.len() * std::mem::size_of::<Sphere8>()
+                + self.rectangles.len() * std::mem::size_of::<Rectangle8>()
+                + self.triangles.len() * std::mem::size_of::<Triangle8>()
+        }
+
+        /// Sphere block `block` against `ray` (not of zero direction):
+        /// with `any_hit` the first lane hit, else the nearest.
+        #[inline]
+        #[allow(unsafe_code)]
+        pub(crate) fn spheres(&self, block: u32, ray: &Ray, any_hit: bool) -> Option<BlockHit> {
+            let b = &self.spheres[block as usize];
+            let ray = SphereRay::new(ray)?;
+            // SAFETY: blocks exist only where the processor has AVX.
+            let (t, mut mask) = unsafe { b.intersect(&ray) };
+            let mut best: Option<(usize, f64)> = None;
+            while mask != 0 {
+                let lane = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                if best.is_none_or(|(_, t_best)| t[lane] < t_best) {
+                    best = Some((lane, t[lane]));
+                    if any_hit {
+                        break;
+                    }
+                }
+            }
+            best.map(|(lane, t)| (b.ids[lane], t as f32, [0.0; 3]))
+        }
+
+        /// Rectangle block `block` against `ray`: with `any_hit` some lane
+        /// hit, else the nearest.
+        #[inline]
+        #[allow(unsafe_code)]
+        pub(crate) fn rectangles(&self, block: u32, ray: &Ray) -> Option<BlockHit> {
+            let b = &self.rectangles[block as usize];
+            // SAFETY: blocks exist only where the processor has AVX.
+            unsafe { b.nearest(ray) }
+        }
+
+        /// Triangle block `block` against `ray`, whose set-up for the
+        /// triangle test is `pre`: the nearest lane hit.
+        #[inline]
+        #[allow(unsafe_code)]
+        pub(crate) fn triangles(&self, block: u32, ray: &Ray, pre: &TriangleRay) -> Option<BlockHit> {
+            let b = &self.triangles[block as usize];
+            // SAFETY: blocks exist only where the processor has AVX.
+            unsafe { b.nearest(ray, pre) }
+        }
+    }
+
+    impl Rectangle8 {
+        /// The nearest lane `ray` meets within its interval, with its
+        /// number and distance.
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn nearest(&self, ray: &Ray) -> Option<BlockHit> {
+            let (mask, t) = self.intersect(ray, ray.t_max);
+            let mut t_max = ray.t_max;
+            let lane = nearest_lane(mask, &t.to_array(), &mut t_max)?;
+            Some((self.ids[lane], t_max, [0.0; 3]))
+        }
+    }
+
+    impl Triangle8 {
+        /// The nearest lane `ray` meets within its interval, with its
+        /// number, distance and barycentrics.
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn nearest(&self, ray: &Ray, pre: &TriangleRay) -> Option<BlockHit> {
+            let lanes = RayLanes::new(ray, pre);
+            let (mask, t, edges) = self.intersect(&lanes, F8::splat(ray.t_max));
+            let mut t_max = ray.t_max;
+            let lane = nearest_lane(mask, &t.to_array(), &mut t_max)?;
+            Some((self.ids[lane], t_max, edges.barycentrics(lane)))
+        }
+    }
+}
+
+/// Where the processor is not x86-64 there are no blocks: the lane code is
+/// written for AVX, and the tree holds every primitive by itself.
+#[cfg(not(target_arch = "x86_64"))]
+mod portable {
+    use crate::geometry::triangle::TriangleRay;
+    use crate::geometry::{Ray, Rectangle, Sphere};
+    use glam::Vec3;
+
+    /// Never built here.
+    #[derive(Clone, Debug)]
+    pub(crate) struct Blocks(std::convert::Infallible);
+
+    /// See the x86-64 definition.
+    pub(crate) type BlockHit = (u32, f32, [f32; 3]);
+
+    impl Blocks {
+        pub(crate) fn new() -> Option<Blocks> {
+            None
+        }
+        pub(crate) fn push_spheres(&mut self, _: &[(Sphere, u32)]) -> u32 {
+            match self.0 {}
+        }
+        pub(crate) fn push_rectangles(&mut self, _: &[(Rectangle, u32)]) -> u32 {
+            match self.0 {}
+        }
+        pub(crate) fn push_triangles(&mut self, _: &[([Vec3; 3], u32)]) -> u32 {
+            match self.0 {}
+        }
+        pub(crate) fn len(&self) -> usize {
+            match self.0 {}
+        }
+        pub(crate) fn memory_bytes(&self) -> usize {
+            match self.0 {}
+        }
+        pub(crate) fn spheres(&self, _: u32, _: &Ray, _: bool) -> Option<BlockHit> {
+            match self.0 {}
+        }
+        pub(crate) fn rectangles(&self, _: u32, _: &Ray) -> Option<BlockHit> {
+            match self.0 {}
+        }
+        pub(crate) fn triangles(&self, _: u32, _: &Ray, _: &TriangleRay) -> Option<BlockHit> {
+            match self.0 {}
+        }
+    }
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+pub(crate) use portable::*;
