@@ -478,6 +478,7 @@ impl Aggregate {
     /// as traversal finds them. `on_hit` returns `true` to accept the hit
     /// (it may then shrink `ray.t_max`). With `any_hit`, the first accepted
     /// hit ends the search.
+    #[inline(always)]
     fn traverse<F: FnMut(Hit, &mut Ray) -> bool>(&self, ray: &mut Ray, any_hit: bool, mut on_hit: F) -> bool {
         let mut found = false;
         for &i in &self.unbounded {
@@ -750,9 +751,30 @@ impl Aggregate {
         self.intersect_traversed(ray)
     }
 
-    /// [`Aggregate::intersect`] through the general traversal.
+    /// [`Aggregate::intersect`] through the general traversal: built for
+    /// AVX where there are blocks (which exist only where the processor
+    /// has it), so that the blocks' tests are inlined into it.
     #[inline(never)]
+    #[allow(unsafe_code)]
     fn intersect_traversed(&self, ray: &Ray) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if self.blocks.is_some() {
+            // SAFETY: blocks exist only where the processor has AVX.
+            return unsafe { self.intersect_avx(ray) };
+        }
+        self.nearest_hit(ray)
+    }
+
+    /// [`Aggregate::nearest_hit`] built for AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn intersect_avx(&self, ray: &Ray) -> Option<Hit> {
+        self.nearest_hit(ray)
+    }
+
+    /// The general traversal for the nearest hit.
+    #[inline(always)]
+    fn nearest_hit(&self, ray: &Ray) -> Option<Hit> {
         let mut r = *ray;
         let mut best = None;
         self.traverse(&mut r, false, |hit, r| {
@@ -882,9 +904,29 @@ impl Aggregate {
         self.occluded_traversed(ray)
     }
 
-    /// [`Aggregate::occluded`] through the general traversal.
+    /// [`Aggregate::occluded`] through the general traversal, built for
+    /// AVX where there are blocks, as [`Aggregate::intersect_traversed`].
     #[inline(never)]
+    #[allow(unsafe_code)]
     fn occluded_traversed(&self, ray: &Ray) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.blocks.is_some() {
+            // SAFETY: blocks exist only where the processor has AVX.
+            return unsafe { self.occluded_avx(ray) };
+        }
+        self.any_hit(ray)
+    }
+
+    /// [`Aggregate::any_hit`] built for AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn occluded_avx(&self, ray: &Ray) -> bool {
+        self.any_hit(ray)
+    }
+
+    /// The general traversal for any hit.
+    #[inline(always)]
+    fn any_hit(&self, ray: &Ray) -> bool {
         let mut r = *ray;
         self.traverse(&mut r, true, |_, _| true)
     }
