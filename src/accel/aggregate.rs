@@ -952,7 +952,16 @@ impl Aggregate {
 
     /// The full surface record of a hit found on `ray`.
     pub fn surface(&self, ray: &Ray, hit: &Hit) -> SurfaceHit {
+        self.surface_with(ray, hit, |_| true)
+    }
+
+    /// [`Aggregate::surface`], with surface coordinates only where
+    /// `reads_uv(material)` (elsewhere a sphere's are zero: they cost an
+    /// arc tangent and an arc sine).
+    #[inline]
+    pub fn surface_with(&self, ray: &Ray, hit: &Hit, reads_uv: impl Fn(u32) -> bool) -> SurfaceHit {
         let (material, light) = self.material_and_light(&hit.prim);
+        let uv = reads_uv(material);
         // A tangent known in advance (a rectangle's, in world space) spares
         // a square root and a division at the hit.
         let mut tangent = None;
@@ -972,11 +981,11 @@ impl Aggregate {
                     }
                     (_, None) => {
                         tangent = s.shape.constant_tangent();
-                        (s.shape.surface(ray.at(hit.t)), None)
+                        (s.shape.surface_with(ray.at(hit.t), uv), None)
                     }
                     (_, Some(t)) => {
                         let obj_ray = t.inv_ray(ray);
-                        (transform_surface(t, s.shape.surface(obj_ray.at(hit.t))), None)
+                        (transform_surface(t, s.shape.surface_with(obj_ray.at(hit.t), uv)), None)
                     }
                 }
             }

@@ -178,8 +178,15 @@ impl Shape {
 
     /// The surface at a point found by [`Shape::intersect`].
     pub fn surface(&self, p: Vec3) -> LocalSurface {
+        self.surface_with(p, true)
+    }
+
+    /// [`Shape::surface`], with surface coordinates only if `uv` (a
+    /// sphere's are then zero; the other shapes' cost little and are
+    /// always there).
+    pub fn surface_with(&self, p: Vec3, uv: bool) -> LocalSurface {
         match self {
-            Shape::Sphere(s) => s.surface(p),
+            Shape::Sphere(s) => s.surface(p, uv),
             Shape::Plane(pl) => {
                 let p = project_to_plane(p, pl.point, pl.normal);
                 let v_axis = pl.normal.cross(pl.u_axis);
@@ -331,7 +338,7 @@ impl Sphere {
         hit.then_some(t as f32)
     }
 
-    fn surface(&self, p: Vec3) -> LocalSurface {
+    fn surface(&self, p: Vec3, with_uv: bool) -> LocalSurface {
         // Reproject onto the sphere: the hit point then carries only the
         // error of this computation (pbrt-v4, section 6.8.5).
         let dir = (p.as_dvec3() - self.center.as_dvec3()).normalize_or(DVec3::Z);
@@ -339,14 +346,18 @@ impl Sphere {
         let n = dir.as_vec3();
         let p_error = gamma(5) * ((p - self.center).abs() + self.center.abs());
         // Longitude around +y, latitude from the south pole: v = 1 at the top.
-        let phi = n.z.atan2(n.x).rem_euclid(2.0 * PI);
-        let v = 0.5 + n.y.clamp(-1.0, 1.0).asin() / PI;
+        let uv = if with_uv {
+            let phi = n.z.atan2(n.x).rem_euclid(2.0 * PI);
+            Vec2::new(phi / (2.0 * PI), 0.5 + n.y.clamp(-1.0, 1.0).asin() / PI)
+        } else {
+            Vec2::ZERO
+        };
         let dpdu = Vec3::new(-n.z, 0.0, n.x) * (2.0 * PI * self.radius);
         LocalSurface {
             p,
             p_error,
             n,
-            uv: Vec2::new(phi / (2.0 * PI), v),
+            uv,
             dpdu,
         }
     }

@@ -256,6 +256,17 @@ impl Material {
         }
     }
 
+    /// Whether any of its textures reads surface coordinates (u, v).
+    pub fn reads_uv(&self) -> bool {
+        let textures: &[&Texture] = match &self.kind {
+            MaterialKind::Classic { diffuse, specular, .. } => &[diffuse, specular],
+            MaterialKind::Diffuse { reflectance } => &[reflectance],
+            MaterialKind::Plastic { diffuse, .. } => &[diffuse],
+            MaterialKind::Conductor { .. } | MaterialKind::Dielectric { .. } => &[],
+        };
+        self.emission.reads_uv() || textures.iter().any(|t| t.reads_uv())
+    }
+
     /// Whether the surface emits.
     #[inline]
     pub fn is_emissive(&self) -> bool {

@@ -412,8 +412,10 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         warnings.push("the scene has no lights, no emissive surfaces, no ambient light and a black background: the image will be black".into());
     }
     let any_transmissive = materials.iter().any(Material::is_transmissive);
+    let materials_reading_uv = materials.iter().map(Material::reads_uv).collect();
     let mut scene = Scene {
         any_transmissive,
+        materials_reading_uv,
         camera,
         geometry,
         materials,
@@ -677,5 +679,59 @@ fn to_light(kind: &LightKind) -> Light {
             direction: direction.normalize(),
             irradiance,
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Ray;
+    use glam::Vec3;
+
+    /// Surface records carry (u, v) where the material reads them, and a
+    /// sphere whose material reads none skips them (they are zero).
+    #[test]
+    fn surface_coordinates_where_the_material_reads_them() {
+        let text = r#"
+[[texture]]
+name = "checks"
+type = "checkerboard"
+
+[[material]]
+name = "checked"
+type = "diffuse"
+reflectance = "checks"
+
+[[material]]
+name = "plain"
+type = "diffuse"
+reflectance = 0.5
+
+[[shape]]
+type = "sphere"
+center = [-2, 0, 0]
+radius = 1
+material = "checked"
+
+[[shape]]
+type = "sphere"
+center = [2, 0, 0]
+radius = 1
+material = "plain"
+"#;
+        let desc = crate::scene::native::parse(text, std::path::Path::new("uv.toml")).unwrap();
+        let scene = build(&desc).unwrap();
+        // (The last material is the default one that the build adds.)
+        assert_eq!(scene.materials_reading_uv[..2], [true, false]);
+        let toward = |x: f32| scene.intersect(&Ray::new(Vec3::new(x, 0.3, 5.0), Vec3::new(0.0, 0.0, -1.0)));
+        let checked = toward(-2.0).unwrap();
+        let expected = crate::geometry::Shape::Sphere(crate::geometry::Sphere {
+            center: Vec3::new(-2.0, 0.0, 0.0),
+            radius: 1.0,
+        })
+        .surface(checked.p)
+        .uv;
+        assert!((checked.uv - expected).length() < 1e-6 && checked.uv != glam::Vec2::ZERO);
+        assert_eq!(toward(2.0).unwrap().uv, glam::Vec2::ZERO);
     }
 }

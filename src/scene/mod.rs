@@ -54,6 +54,10 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// Whether any material is transmissive (cached for shadow rays).
     pub any_transmissive: bool,
+    /// Per material, whether it reads surface coordinates
+    /// ([`Material::reads_uv`](crate::material::Material::reads_uv)):
+    /// surface records of the others are made without them.
+    pub materials_reading_uv: Vec<bool>,
     /// Chooses lights in proportion to their power (for emitting photons).
     pub light_distribution: Distribution1D,
     /// Chooses a light for a shading point (next-event estimation).
@@ -67,7 +71,9 @@ impl Scene {
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
         let hit = self.geometry.intersect(ray)?;
-        Some(self.geometry.surface(ray, &hit))
+        Some(self.geometry.surface_with(ray, &hit, |m| {
+            self.materials_reading_uv.get(m as usize).copied().unwrap_or(true)
+        }))
     }
 
     /// Whether any material lets light through (shadow rays then have to

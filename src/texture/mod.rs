@@ -63,6 +63,13 @@ pub enum Texture {
 }
 
 impl Texture {
+    /// Whether the texture reads surface coordinates (u, v): a surface
+    /// record needs them only where some texture does, and a sphere's
+    /// cost an arc tangent and an arc sine.
+    pub fn reads_uv(&self) -> bool {
+        matches!(self, Texture::Checkerboard { .. } | Texture::Image { .. })
+    }
+
     /// The colour at `tc`. A constant is read in place, without a call:
     /// most materials and emitters have constant colours, and their look-up
     /// sits in the path tracer's inner loop.
