@@ -1,5 +1,7 @@
-//! Eight `f32` lanes in one AVX register, for the eight-wide primitive
-//! tests of flat scenes (`accel::flat`).
+//! Eight `f32` lanes in one AVX register ([`F8`]), for the eight-wide
+//! rectangle and triangle tests of primitive blocks (`accel::blocks`), and
+//! four `f64` lanes ([`D4`]), for the sphere blocks, which run the one
+//! sphere test written over [`Real`](super::real::Real).
 //!
 //! Every operation is a function built for AVX: it may only run where the
 //! processor has AVX, which the compiler enforces by letting only other
