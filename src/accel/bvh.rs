@@ -74,22 +74,57 @@ impl SahCosts {
         block: 4,
     };
 
-    /// The price of a leaf holding `counts[k]` primitives of each kind.
-    #[inline]
-    fn leaf(&self, counts: &[u32; KINDS]) -> f32 {
-        let blocks: u32 = counts[1..].iter().map(|&n| n.div_ceil(self.block)).sum();
-        (counts[ALONE as usize] + blocks) as f32
+    /// The prices of a build where every primitive is of one kind.
+    fn uniform(&self) -> Prices<1> {
+        Prices {
+            traversal: self.traversal,
+            block: [self.block],
+        }
     }
 
-    /// Whether a leaf may hold `counts[k]` primitives of each kind: at most
-    /// [`MAX_LEAF`] tested alone and, of each other kind, two blocks (or
-    /// [`MAX_LEAF`], whichever is more).
-    #[inline]
-    fn leaf_fits(&self, counts: &[u32; KINDS]) -> bool {
-        let per_kind = (MAX_LEAF as u32).max(2 * self.block);
-        counts[ALONE as usize] as usize <= MAX_LEAF && counts[1..].iter().all(|&n| n <= per_kind)
+    /// The prices of a build over [`KINDS`] kinds, [`ALONE`] tested one at
+    /// a time and the others in blocks of [`SahCosts::block`].
+    fn kinded(&self) -> Prices<KINDS> {
+        let mut block = [self.block; KINDS];
+        block[ALONE as usize] = 1;
+        Prices {
+            traversal: self.traversal,
+            block,
+        }
     }
 }
+
+/// The prices the build works with: a node visit, and per kind of
+/// primitive how many one leaf test covers. A build over one kind (a mesh)
+/// is its own instance, so that it counts nothing per kind.
+#[derive(Clone, Copy)]
+struct Prices<const K: usize> {
+    traversal: f32,
+    block: [u32; K],
+}
+
+impl<const K: usize> Prices<K> {
+    /// The price of a leaf holding `counts[k]` primitives of each kind.
+    #[inline]
+    fn leaf(&self, counts: &[u32; K]) -> f32 {
+        counts
+            .iter()
+            .zip(&self.block)
+            .map(|(&n, &b)| n.div_ceil(b))
+            .sum::<u32>() as f32
+    }
+
+    /// Whether a leaf may hold `counts[k]` primitives of each kind: of each,
+    /// at most two blocks or [`MAX_LEAF`], whichever is more.
+    #[inline]
+    fn leaf_fits(&self, counts: &[u32; K]) -> bool {
+        counts
+            .iter()
+            .zip(&self.block)
+            .all(|(&n, &b)| n <= (MAX_LEAF as u32).max(2 * b))
+    }
+}
+
 /// Leaves never hold more primitives tested alone than this (unless they
 /// are identical).
 const MAX_LEAF: usize = 8;
@@ -104,8 +139,27 @@ const MAX_DEPTH: usize = 64;
 struct PrimInfo {
     bounds: Aabb,
     centroid: Vec3,
-    index: u32,
-    kind: u8,
+    /// The primitive's number, its kind in the top [`KIND_BITS`] bits (so
+    /// that the record stays 40 bytes: the build moves it around a lot).
+    index_and_kind: u32,
+}
+
+/// Bits of [`PrimInfo::index_and_kind`] that hold the kind.
+const KIND_BITS: u32 = 2;
+const _: () = assert!(KINDS <= 1 << KIND_BITS);
+/// More primitives than this cannot be numbered next to their kind.
+const MAX_PRIMITIVES: usize = 1 << (32 - KIND_BITS);
+
+impl PrimInfo {
+    #[inline]
+    fn index(&self) -> u32 {
+        self.index_and_kind & (u32::MAX >> KIND_BITS)
+    }
+
+    #[inline]
+    fn kind(&self) -> usize {
+        (self.index_and_kind >> (32 - KIND_BITS)) as usize
+    }
 }
 
 impl Bvh {
@@ -119,32 +173,43 @@ impl Bvh {
     /// [`Bvh::build`] with the given SAH prices, every primitive of one
     /// kind tested in blocks of [`SahCosts::block`].
     pub fn build_with(bounds: &[Aabb], costs: SahCosts) -> (Bvh, Vec<u32>) {
-        Bvh::build_kinds(bounds, |_| 1, costs)
+        Bvh::build_prices(bounds, |_| 0, &costs.uniform())
     }
 
     /// [`Bvh::build_with`] where primitive `i` is of kind `kind(i)` (below
     /// [`KINDS`]; [`ALONE`]: tested by itself), and a leaf is priced by the
     /// blocks of each kind it holds.
     pub fn build_kinds(bounds: &[Aabb], kind: impl Fn(usize) -> u8, costs: SahCosts) -> (Bvh, Vec<u32>) {
+        Bvh::build_prices(bounds, kind, &costs.kinded())
+    }
+
+    fn build_prices<const K: usize>(
+        bounds: &[Aabb],
+        kind: impl Fn(usize) -> u8,
+        prices: &Prices<K>,
+    ) -> (Bvh, Vec<u32>) {
         if bounds.is_empty() {
             return (Bvh::default(), Vec::new());
         }
+        assert!(
+            bounds.len() <= MAX_PRIMITIVES,
+            "a BVH holds at most {MAX_PRIMITIVES} primitives"
+        );
         let mut prims: Vec<PrimInfo> = bounds
             .iter()
             .enumerate()
-            .map(|(i, b)| PrimInfo {
-                bounds: *b,
-                centroid: b.centroid(),
-                index: i as u32,
-                kind: {
-                    let k = kind(i);
-                    assert!((k as usize) < KINDS, "primitive kind {k} out of range");
-                    k
-                },
+            .map(|(i, b)| {
+                let k = kind(i);
+                assert!((k as usize) < K, "primitive kind {k} out of range");
+                PrimInfo {
+                    bounds: *b,
+                    centroid: b.centroid(),
+                    index_and_kind: i as u32 | (k as u32) << (32 - KIND_BITS),
+                }
             })
             .collect();
-        let nodes = build_recursive(&mut prims, 0, 0, &costs);
-        let order = prims.iter().map(|p| p.index).collect();
+        let nodes = build_recursive(&mut prims, 0, 0, prices);
+        let order = prims.iter().map(PrimInfo::index).collect();
         (Bvh { nodes }, order)
     }
 
@@ -229,7 +294,12 @@ impl Bvh {
 /// Builds the subtree over `prims` (whose first element is at global
 /// position `base`) and returns its nodes with indices relative to the
 /// subtree's root at index 0.
-fn build_recursive(prims: &mut [PrimInfo], base: usize, depth: usize, costs: &SahCosts) -> Vec<BvhNode> {
+fn build_recursive<const K: usize>(
+    prims: &mut [PrimInfo],
+    base: usize,
+    depth: usize,
+    costs: &Prices<K>,
+) -> Vec<BvhNode> {
     let mut nodes = Vec::with_capacity(2 * prims.len());
     build_into(&mut nodes, prims, base, depth, costs);
     nodes
@@ -245,7 +315,13 @@ fn make_leaf(nodes: &mut Vec<BvhNode>, bounds: Aabb, base: usize, count: usize) 
     });
 }
 
-fn build_into(nodes: &mut Vec<BvhNode>, prims: &mut [PrimInfo], base: usize, depth: usize, costs: &SahCosts) {
+fn build_into<const K: usize>(
+    nodes: &mut Vec<BvhNode>,
+    prims: &mut [PrimInfo],
+    base: usize,
+    depth: usize,
+    costs: &Prices<K>,
+) {
     let n = prims.len();
     let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(&p.bounds));
     if n == 1 {
@@ -261,7 +337,7 @@ fn build_into(nodes: &mut Vec<BvhNode>, prims: &mut [PrimInfo], base: usize, dep
     let (axis, mid) = match split {
         Some((axis, bin, cost)) if !deep => {
             // (Counted only where a leaf could hold them all.)
-            let leaf = n <= MAX_LEAF * KINDS * 2 && {
+            let leaf = n <= 2 * MAX_LEAF * K && {
                 let counts = kind_counts(prims.iter());
                 costs.leaf_fits(&counts) && costs.leaf(&counts) <= cost
             };
@@ -314,10 +390,10 @@ fn build_into(nodes: &mut Vec<BvhNode>, prims: &mut [PrimInfo], base: usize, dep
 }
 
 /// How many of `prims` are of each kind.
-fn kind_counts<'a>(prims: impl Iterator<Item = &'a PrimInfo>) -> [u32; KINDS] {
-    let mut counts = [0u32; KINDS];
+fn kind_counts<'a, const K: usize>(prims: impl Iterator<Item = &'a PrimInfo>) -> [u32; K] {
+    let mut counts = [0u32; K];
     for p in prims {
-        counts[p.kind as usize] += 1;
+        counts[p.kind()] += 1;
     }
     counts
 }
@@ -353,7 +429,12 @@ fn bin_of(c: f32, lo: f32, scale: f32) -> usize {
 
 /// The best (axis, last bin of the left side, SAH cost relative to one leaf
 /// test) over all three axes, or `None` if all centroids coincide.
-fn find_split(prims: &[PrimInfo], bounds: &Aabb, cb: &Aabb, costs: &SahCosts) -> Option<(usize, usize, f32)> {
+fn find_split<const K: usize>(
+    prims: &[PrimInfo],
+    bounds: &Aabb,
+    cb: &Aabb,
+    costs: &Prices<K>,
+) -> Option<(usize, usize, f32)> {
     let area = bounds.surface_area().max(f32::MIN_POSITIVE);
     let mut best: Option<(usize, usize, f32)> = None;
     for axis in 0..3 {
@@ -363,18 +444,18 @@ fn find_split(prims: &[PrimInfo], bounds: &Aabb, cb: &Aabb, costs: &SahCosts) ->
         }
         let (lo, scale) = bin_mapping(cb, axis);
         let mut bin_bounds = [Aabb::EMPTY; BINS];
-        let mut bin_count = [[0u32; KINDS]; BINS];
+        let mut bin_count = [[0u32; K]; BINS];
         for p in prims {
             let b = bin_of(p.centroid[axis], lo, scale);
             bin_bounds[b] = bin_bounds[b].union(&p.bounds);
-            bin_count[b][p.kind as usize] += 1;
+            bin_count[b][p.kind()] += 1;
         }
-        let add = |a: &mut [u32; KINDS], b: &[u32; KINDS]| a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
+        let add = |a: &mut [u32; K], b: &[u32; K]| a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
         // Sweep from the right to get the cost of every right side.
         let mut right_area = [0f32; BINS];
-        let mut right_count = [[0u32; KINDS]; BINS];
+        let mut right_count = [[0u32; K]; BINS];
         let mut acc = Aabb::EMPTY;
-        let mut cnt = [0u32; KINDS];
+        let mut cnt = [0u32; K];
         for i in (1..BINS).rev() {
             acc = acc.union(&bin_bounds[i]);
             add(&mut cnt, &bin_count[i]);
@@ -382,7 +463,7 @@ fn find_split(prims: &[PrimInfo], bounds: &Aabb, cb: &Aabb, costs: &SahCosts) ->
             right_count[i] = cnt;
         }
         let mut acc = Aabb::EMPTY;
-        let mut cnt = [0u32; KINDS];
+        let mut cnt = [0u32; K];
         for i in 0..BINS - 1 {
             acc = acc.union(&bin_bounds[i]);
             add(&mut cnt, &bin_count[i]);
