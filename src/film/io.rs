@@ -6,7 +6,7 @@
 //! render killed at any moment leaves either the old file or the new one.
 
 use super::Image;
-use crate::color::{Rgb, linear_to_srgb};
+use crate::color::{Rgb, linear_to_srgb, srgb_to_linear};
 use crate::error::{Error, Result};
 use crate::files::{MAX_IMAGE_FILE_BYTES, read_limited};
 use crate::settings::Tonemap;
@@ -211,15 +211,71 @@ pub fn decode_image(bytes: &[u8], format: ImageFormat) -> Result<Image, String> 
     match format {
         ImageFormat::Exr => decode_exr(bytes),
         ImageFormat::Pfm => parse_pfm(bytes).map_err(|m| format!("not a valid PFM file: {m}")),
-        ImageFormat::Png | ImageFormat::Hdr => {
-            let t = crate::texture::ImageTexture::decode(bytes, None)?;
-            Ok(Image {
-                width: t.width,
-                height: t.height,
-                pixels: t.pixels,
-            })
+        ImageFormat::Png | ImageFormat::Hdr => decode_encoded(bytes, None),
+    }
+}
+
+/// Largest image read, in pixels (16k × 16k): textures, environment maps
+/// and images compared.
+pub const MAX_IMAGE_PIXELS: u64 = 16384 * 16384;
+
+/// Decodes a PNG, JPEG, Radiance HDR, OpenEXR or PFM image held in memory,
+/// told apart by their first bytes, as linear RGB: integer images from
+/// sRGB unless `srgb` is `Some(false)`, float images as they are unless
+/// `Some(true)`. Sizes in headers are checked before pixels are allocated.
+/// Errors are plain reasons.
+pub fn decode_any(bytes: &[u8], srgb: Option<bool>) -> Result<Image, String> {
+    let is_pfm = bytes.starts_with(b"PF") || bytes.starts_with(b"Pf");
+    if !bytes.starts_with(&EXR_MAGIC) && !is_pfm {
+        return decode_encoded(bytes, srgb);
+    }
+    let mut image = decode_image(bytes, if is_pfm { ImageFormat::Pfm } else { ImageFormat::Exr })?;
+    if srgb == Some(true) {
+        for p in &mut image.pixels {
+            *p = Rgb::new(srgb_to_linear(p.x), srgb_to_linear(p.y), srgb_to_linear(p.z));
         }
     }
+    Ok(image)
+}
+
+/// [`decode_any`] for the formats of the `image` crate (PNG, JPEG, HDR).
+fn decode_encoded(bytes: &[u8], srgb: Option<bool>) -> Result<Image, String> {
+    let reader = ::image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| format!("cannot read image: {e}"))?;
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| format!("not a readable image: {e}"))?;
+    // Checked before decoding, which allocates by the header's size.
+    if w as u64 * h as u64 > MAX_IMAGE_PIXELS {
+        return Err(format!(
+            "image of {w}×{h} pixels is larger than the limit of 16384×16384"
+        ));
+    }
+    let img = ::image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| format!("cannot read image: {e}"))?
+        .decode()
+        .map_err(|e| format!("cannot decode image: {e}"))?;
+    let is_float = matches!(img.color(), ::image::ColorType::Rgb32F | ::image::ColorType::Rgba32F);
+    let decode_srgb = srgb.unwrap_or(!is_float);
+    let rgb = img.to_rgb32f();
+    let pixels = rgb
+        .pixels()
+        .map(|p| {
+            let c = Rgb::new(p[0], p[1], p[2]);
+            if decode_srgb {
+                Rgb::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z))
+            } else {
+                c
+            }
+        })
+        .collect();
+    Ok(Image {
+        width: rgb.width(),
+        height: rgb.height(),
+        pixels,
+    })
 }
 
 /// Reads the first RGB(A) layer of an OpenEXR file.
@@ -238,7 +294,7 @@ pub fn decode_exr(bytes: &[u8]) -> Result<Image, String> {
     for header in &meta.headers {
         let size = header.layer_size;
         let pixels = size.width() as u64 * size.height() as u64;
-        if pixels > crate::texture::image::MAX_TEXTURE_PIXELS {
+        if pixels > MAX_IMAGE_PIXELS {
             return Err(format!(
                 "OpenEXR image of {}×{} pixels is larger than the limit of 16384×16384",
                 size.width(),

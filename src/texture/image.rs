@@ -1,7 +1,7 @@
-//! Image textures: decoding (8- and 16-bit images from sRGB, float images
-//! as linear) and filtered lookup.
+//! Image textures: images decoded by `film::io` (8- and 16-bit images from
+//! sRGB, float images as linear) and their filtered lookup.
 
-use crate::color::{Rgb, srgb_to_linear};
+use crate::color::Rgb;
 use crate::error::{Error, Result};
 use glam::Vec2;
 use std::path::Path;
@@ -18,7 +18,7 @@ pub struct ImageTexture {
 }
 
 /// Largest texture accepted, in pixels (a 16k × 16k image).
-pub const MAX_TEXTURE_PIXELS: u64 = 16384 * 16384;
+pub const MAX_TEXTURE_PIXELS: u64 = crate::film::io::MAX_IMAGE_PIXELS;
 
 impl ImageTexture {
     /// Reads a PNG, JPEG, Radiance HDR, OpenEXR or PFM file. Integer images are
@@ -46,44 +46,12 @@ impl ImageTexture {
     }
 
     fn decode_any_size(bytes: &[u8], srgb: Option<bool>) -> Result<ImageTexture, String> {
-        let is_pfm = bytes.starts_with(b"PF") || bytes.starts_with(b"Pf");
-        if bytes.starts_with(&crate::film::io::EXR_MAGIC) || is_pfm {
-            let format = if is_pfm {
-                crate::film::io::ImageFormat::Pfm
-            } else {
-                crate::film::io::ImageFormat::Exr
-            };
-            let image = crate::film::io::decode_image(bytes, format)?;
-            let mut t = ImageTexture {
-                width: image.width,
-                height: image.height,
-                pixels: image.pixels,
-            };
-            if srgb == Some(true) {
-                for p in &mut t.pixels {
-                    *p = Rgb::new(srgb_to_linear(p.x), srgb_to_linear(p.y), srgb_to_linear(p.z));
-                }
-            }
-            return Ok(t);
-        }
-        let reader = ::image::ImageReader::new(std::io::Cursor::new(bytes))
-            .with_guessed_format()
-            .map_err(|e| format!("cannot read image: {e}"))?;
-        let (w, h) = reader
-            .into_dimensions()
-            .map_err(|e| format!("not a readable image: {e}"))?;
-        // Checked before decoding, which allocates by the header's size.
-        if w as u64 * h as u64 > MAX_TEXTURE_PIXELS {
-            return Err(format!(
-                "image of {w}×{h} pixels is larger than the limit of 16384×16384"
-            ));
-        }
-        let img = ::image::ImageReader::new(std::io::Cursor::new(bytes))
-            .with_guessed_format()
-            .map_err(|e| format!("cannot read image: {e}"))?
-            .decode()
-            .map_err(|e| format!("cannot decode image: {e}"))?;
-        Ok(Self::from_decoded(img, srgb))
+        let image = crate::film::io::decode_any(bytes, srgb)?;
+        Ok(ImageTexture {
+            width: image.width,
+            height: image.height,
+            pixels: image.pixels,
+        })
     }
 
     /// Decodes a PNG or JPEG image held in memory (an image embedded in a
@@ -110,30 +78,6 @@ impl ImageTexture {
             }
         }
         replaced
-    }
-
-    /// Linear pixels of a decoded image: integer images from sRGB unless
-    /// `srgb` is `Some(false)`, float images as they are unless `Some(true)`.
-    fn from_decoded(img: ::image::DynamicImage, srgb: Option<bool>) -> ImageTexture {
-        let is_float = matches!(img.color(), ::image::ColorType::Rgb32F | ::image::ColorType::Rgba32F);
-        let decode_srgb = srgb.unwrap_or(!is_float);
-        let rgb = img.to_rgb32f();
-        let pixels = rgb
-            .pixels()
-            .map(|p| {
-                let c = Rgb::new(p[0], p[1], p[2]);
-                if decode_srgb {
-                    Rgb::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z))
-                } else {
-                    c
-                }
-            })
-            .collect();
-        ImageTexture {
-            width: rgb.width(),
-            height: rgb.height(),
-            pixels,
-        }
     }
 
     /// The texel at integer coordinates, wrapping around the edges.
@@ -171,6 +115,7 @@ impl ImageTexture {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::color::srgb_to_linear;
 
     #[test]
     fn bilinear_interpolates_and_wraps() {
