@@ -84,7 +84,6 @@ fn named_ior(name: &str) -> Option<f32> {
 struct FileCtx {
     path: Arc<Path>,
     text: String,
-    dir: PathBuf,
 }
 
 impl FileCtx {
@@ -129,6 +128,11 @@ struct Loader {
     group_mesh_names: HashMap<(String, PathBuf, bool, bool), String>,
     /// Those meshes; `finish` keeps the ones a placed shape uses.
     group_meshes: Vec<MeshDesc>,
+    /// Where relative file names are looked for, first first, as Mitsuba's
+    /// file resolver: the main scene's folder, with each `<path>` put in
+    /// front of it. Included files resolve names against these too, not
+    /// against their own folder.
+    search_paths: Vec<PathBuf>,
 }
 
 /// A `<shape type="shapegroup" id="..">`: its shapes, each with its own
@@ -198,6 +202,7 @@ impl Loader {
             instances: Vec::new(),
             group_mesh_names: HashMap::new(),
             group_meshes: Vec::new(),
+            search_paths: Vec::new(),
         }
     }
 
@@ -249,6 +254,25 @@ impl Loader {
         }
     }
 
+    /// A file name as Mitsuba's file resolver finds it: as it is if
+    /// absolute, else in the first search path that holds it, else in the
+    /// main scene's folder (where it is then reported missing).
+    fn resolve(&self, name: &str) -> PathBuf {
+        let name = Path::new(name);
+        if name.is_absolute() {
+            return name.to_path_buf();
+        }
+        self.search_paths
+            .iter()
+            .map(|dir| dir.join(name))
+            .find(|p| p.exists())
+            .unwrap_or_else(|| {
+                self.search_paths
+                    .last()
+                    .map_or_else(|| name.to_path_buf(), |d| d.join(name))
+            })
+    }
+
     fn load_file(&mut self, path: &Path, from: Option<(&FileCtx, Node)>) -> Result<()> {
         let canonical = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
         if self.include_stack.contains(&canonical) {
@@ -283,10 +307,13 @@ impl Loader {
     }
 
     fn process_text(&mut self, text: &str, path: &Path) -> Result<()> {
+        if self.search_paths.is_empty() {
+            self.search_paths
+                .push(path.parent().map(Path::to_path_buf).unwrap_or_default());
+        }
         let f = FileCtx {
             path: Arc::from(path),
             text: text.to_string(),
-            dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
         };
         let options = ParsingOptions {
             allow_dtd: false,
@@ -373,8 +400,16 @@ impl Loader {
             }
             "include" => {
                 let file = self.required_attr(f, node, "filename")?;
-                let path = f.dir.join(file);
+                let path = self.resolve(&file);
                 self.load_file(&path, Some((f, node)))?;
+            }
+            "path" => {
+                let value = self.required_attr(f, node, "value")?;
+                let dir = self.resolve(&value);
+                if !dir.is_dir() {
+                    return Err(self.err(f, node, format!("search path is not a folder: {}", dir.display())));
+                }
+                self.search_paths.insert(0, dir);
             }
             "integrator" => self.integrator(f, node)?,
             "sensor" => self.sensor(f, node)?,
@@ -1058,7 +1093,7 @@ impl Loader {
                     .string(f, &props, "filename", &mut used)?
                     .ok_or_else(|| self.err(f, node, "an envmap needs a \"filename\""))?;
                 let scale = self.float(f, &props, "scale", &mut used)?.unwrap_or(1.0);
-                let path = f.dir.join(&file);
+                let path = self.resolve(&file);
                 if !path.is_file() {
                     return Err(self.err(f, node, format!("environment image not found: {}", path.display())));
                 }
@@ -1114,7 +1149,7 @@ impl Loader {
                 let file = self
                     .string(f, &props, "filename", &mut used)?
                     .ok_or_else(|| self.err(f, node, "a bitmap needs a \"filename\""))?;
-                let path = f.dir.join(&file);
+                let path = self.resolve(&file);
                 if !path.is_file() {
                     return Err(self.err(f, node, format!("image not found: {}", path.display())));
                 }
@@ -1753,7 +1788,7 @@ impl Loader {
                 let file = self
                     .string(f, &props, "filename", &mut used)?
                     .ok_or_else(|| self.err(f, node, "a mesh needs a \"filename\""))?;
-                let path = f.dir.join(&file);
+                let path = self.resolve(&file);
                 if !path.is_file() {
                     return Err(self.err(f, node, format!("mesh file not found: {}", path.display())));
                 }
@@ -2304,6 +2339,63 @@ mod tests {
 
     /// A group of a mesh (OBJ), a sphere and a cube, each with its own
     /// to_world and BSDF; a second group with the same OBJ file.
+    /// File names resolve as in Mitsuba: against the main scene's folder
+    /// and the `<path>`s in front of it, also inside an included file,
+    /// whose own folder is not searched.
+    #[test]
+    fn file_names_resolve_against_search_paths_and_the_main_folder() {
+        let root = tempfile::tempdir().unwrap();
+        let scene_dir = root.path().join("scenes");
+        std::fs::create_dir_all(scene_dir.join("parts")).unwrap();
+        std::fs::create_dir_all(root.path().join("common/meshes")).unwrap();
+        std::fs::write(root.path().join("common/meshes/shared.ply"), "ply").unwrap();
+        std::fs::write(scene_dir.join("local.ply"), "ply").unwrap();
+        // A decoy beside the included file, which Mitsuba does not search.
+        std::fs::write(scene_dir.join("parts/local.ply"), "ply").unwrap();
+        std::fs::write(
+            scene_dir.join("parts/sub.xml"),
+            r#"<scene version="3.0.0">
+    <shape type="ply"><string name="filename" value="meshes/shared.ply"/></shape>
+    <shape type="ply"><string name="filename" value="local.ply"/></shape>
+</scene>"#,
+        )
+        .unwrap();
+        let main = scene_dir.join("main.xml");
+        let text = r#"<scene version="3.0.0">
+    <path value="../common"/>
+    <include filename="parts/sub.xml"/>
+</scene>"#;
+        std::fs::write(&main, text).unwrap();
+        let d = load(&main, &[]).unwrap();
+        let files: Vec<PathBuf> = d
+            .shapes
+            .iter()
+            .filter_map(|s| match &s.kind {
+                ShapeKind::InlineMesh(MeshSource::File(p)) => Some(p.clone()),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(
+            files,
+            vec![
+                scene_dir.join("../common").join("meshes/shared.ply"),
+                scene_dir.join("local.ply")
+            ]
+        );
+        // Without the search path the shared mesh is missing, reported in
+        // the main folder, where Mitsuba looks last.
+        std::fs::write(&main, text.replace("<path value=\"../common\"/>", "")).unwrap();
+        let e = load(&main, &[]).unwrap_err().to_string();
+        assert!(
+            e.contains("sub.xml:2:") && e.contains("scenes/meshes/shared.ply"),
+            "{e}"
+        );
+        // A search path that is not a folder is an error at its element.
+        std::fs::write(&main, text.replace("../common", "../nowhere")).unwrap();
+        let e = load(&main, &[]).unwrap_err().to_string();
+        assert!(e.contains("main.xml:2:") && e.contains("not a folder"), "{e}");
+    }
+
     fn instancing_scene(dir: &Path) -> String {
         std::fs::write(
             dir.join("quad.obj"),
