@@ -758,6 +758,23 @@ impl Loader {
     fn integrator(&mut self, f: &FileCtx, node: Node) -> Result<()> {
         self.saw_integrator = true;
         let ty = self.required_attr(f, node, "type")?;
+        if ty == "moment" {
+            // Mitsuba's moment integrator renders its nested integrator's
+            // image and adds the moments as extra channels.
+            let nested: Vec<Node> = node
+                .children()
+                .filter(|c| c.is_element() && c.tag_name().name() == "integrator")
+                .collect();
+            let [inner] = nested[..] else {
+                return Err(self.err(f, node, "a moment integrator needs exactly one nested integrator"));
+            };
+            self.warn(
+                f,
+                node,
+                "the moment channels are not written; the nested integrator renders the image",
+            );
+            return self.integrator(f, inner);
+        }
         let props = Self::props(node);
         let mut used = Vec::new();
         let s = &mut self.desc.settings;
@@ -2339,6 +2356,32 @@ mod tests {
 
     /// A group of a mesh (OBJ), a sphere and a cube, each with its own
     /// to_world and BSDF; a second group with the same OBJ file.
+    /// A moment integrator renders with its nested integrator's settings.
+    #[test]
+    fn moment_integrator_renders_its_nested_integrator() {
+        let text = r#"<scene version="3.0.0">
+    <integrator type="moment">
+        <integrator type="path"><integer name="max_depth" value="3"/><integer name="rr_depth" value="2"/></integrator>
+    </integrator>
+</scene>"#;
+        let d = parse(text, Path::new("m.xml"), &[]).unwrap();
+        assert_eq!((d.settings.max_depth, d.settings.rr_depth), (3, 2));
+        assert!(
+            d.warnings
+                .iter()
+                .any(|w| w.starts_with("m.xml:2:") && w.contains("moment channels"))
+        );
+        let direct = text.replace("type=\"path\"", "type=\"direct\"");
+        assert_eq!(parse(&direct, Path::new("m.xml"), &[]).unwrap().settings.max_depth, 2);
+        let e = parse(r#"<scene><integrator type="moment"/></scene>"#, Path::new("m.xml"), &[])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("m.xml:1:") && e.contains("exactly one nested integrator"),
+            "{e}"
+        );
+    }
+
     /// File names resolve as in Mitsuba: against the main scene's folder
     /// and the `<path>`s in front of it, also inside an included file,
     /// whose own folder is not searched.
