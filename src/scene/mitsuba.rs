@@ -854,7 +854,7 @@ impl Loader {
         cam.locs = Locs::at(Some(f.loc_of(node)));
         match ty.as_str() {
             "perspective" | "thinlens" => {
-                let fov_axis = self
+                let mut fov_axis = self
                     .string(f, &props, "fov_axis", &mut used)?
                     .unwrap_or_else(|| "x".into());
                 if !["x", "y", "diagonal", "smaller", "larger"].contains(&fov_axis.as_str()) {
@@ -863,6 +863,11 @@ impl Loader {
                 let fov = match self.float(f, &props, "fov", &mut used)? {
                     Some(v) => v,
                     None => {
+                        // As Mitsuba: a focal length (default 50 mm) on a
+                        // 36 × 24 mm film, measured along its diagonal
+                        // whatever fov_axis says (34.02° across a square
+                        // film at 50 mm).
+                        fov_axis = "diagonal".into();
                         let focal = self
                             .string(f, &props, "focal_length", &mut used)?
                             .unwrap_or_else(|| "50mm".into());
@@ -871,8 +876,7 @@ impl Loader {
                             .trim()
                             .parse()
                             .map_err(|_| self.err(f, node, format!("bad focal_length \"{focal}\"")))?;
-                        // A 35 mm film's 36 mm width along x.
-                        (2.0 * (18.0 / mm).atan()).to_degrees()
+                        (2.0 * (36.0f32.hypot(24.0) / (2.0 * mm)).atan()).to_degrees()
                     }
                 };
                 let fov_y = vertical_fov(fov, &fov_axis, w, h);
@@ -2356,6 +2360,36 @@ mod tests {
 
     /// A group of a mesh (OBJ), a sphere and a cube, each with its own
     /// to_world and BSDF; a second group with the same OBJ file.
+    /// Without `fov`, Mitsuba's field of view is a focal length (50 mm by
+    /// default) on a 36 × 24 mm film along its diagonal: 34.02° across a
+    /// square film.
+    #[test]
+    fn default_field_of_view_is_fifty_millimetres_along_the_diagonal() {
+        let fov_of = |sensor_props: &str, w: u32, h: u32| {
+            let text = format!(
+                r#"<scene version="3.0.0"><sensor type="perspective">{sensor_props}
+    <film type="hdrfilm"><integer name="width" value="{w}"/><integer name="height" value="{h}"/></film>
+</sensor></scene>"#
+            );
+            match parse(&text, Path::new("s.xml"), &[]).unwrap().camera.projection {
+                ProjectionDesc::Perspective { fov } => fov,
+                other => panic!("{other:?}"),
+            }
+        };
+        assert!((fov_of("", 48, 48) - 34.02).abs() < 0.01, "{}", fov_of("", 48, 48));
+        // fov_axis does not change how a focal length is measured.
+        assert_eq!(
+            fov_of(r#"<string name="fov_axis" value="y"/>"#, 48, 48),
+            fov_of("", 48, 48)
+        );
+        // 35 mm on a 3:2 film: the diagonal is the film's, so the vertical
+        // field of view is that of 24 mm at 35 mm, 37.85°.
+        let fov = fov_of(r#"<string name="focal_length" value="35mm"/>"#, 300, 200);
+        assert!((fov - 37.85).abs() < 0.01, "{fov}");
+        // An explicit fov keeps its axis.
+        assert!((fov_of(r#"<float name="fov" value="40"/>"#, 48, 48) - 40.0).abs() < 1e-4);
+    }
+
     /// A moment integrator renders with its nested integrator's settings.
     #[test]
     fn moment_integrator_renders_its_nested_integrator() {
