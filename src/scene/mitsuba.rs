@@ -20,6 +20,7 @@
 
 use super::desc::*;
 use crate::color::Rgb;
+use crate::color::spectrum::{SpectrumUse, sampled_to_rgb};
 use crate::error::{Error, Result, SourceLoc};
 use crate::files::{MAX_XML_BYTES, io_reason, read_limited};
 use crate::sampling::SamplerKind;
@@ -133,6 +134,9 @@ struct Loader {
     /// front of it. Included files resolve names against these too, not
     /// against their own folder.
     search_paths: Vec<PathBuf>,
+    /// Whether an emitter's properties are being read (its spectra
+    /// convert as emission).
+    in_emitter: bool,
 }
 
 /// A `<shape type="shapegroup" id="..">`: its shapes, each with its own
@@ -203,6 +207,7 @@ impl Loader {
             group_mesh_names: HashMap::new(),
             group_meshes: Vec::new(),
             search_paths: Vec::new(),
+            in_emitter: false,
         }
     }
 
@@ -598,7 +603,14 @@ impl Loader {
                     if n.len() != 1 {
                         return Err(self.err(f, p, "expected one number or wavelength:value pairs"));
                     }
-                    return Ok(Rgb::splat(n[0]));
+                    // In an emitter, Mitsuba's RGB variants read a flat
+                    // spectrum as that much of illuminant E, whose sRGB
+                    // colour is XYZ (1, 1, 1)'s.
+                    return Ok(if self.in_emitter {
+                        Rgb::new(1.204794, 0.948315, 0.908903) * n[0]
+                    } else {
+                        Rgb::splat(n[0])
+                    });
                 }
                 let mut pairs = Vec::new();
                 for item in v.split(',').map(str::trim).filter(|s| !s.is_empty()) {
@@ -615,12 +627,22 @@ impl Loader {
                         .map_err(|_| self.err(f, p, format!("bad value \"{x}\"")))?;
                     pairs.push((w, x));
                 }
-                self.warn(
-                    f,
-                    p,
-                    "a sampled spectrum is approximated in RGB by its mean over 600–700 nm, 500–600 nm and 400–500 nm",
-                );
-                Ok(spectrum_to_rgb(&pairs))
+                pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+                if pairs.len() < 2 {
+                    return Err(self.err(f, p, "a sampled spectrum needs at least two wavelength:value pairs"));
+                }
+                let usage = if self.in_emitter {
+                    SpectrumUse::Emission
+                } else if matches!(p.attribute("name"), Some("eta" | "k" | "int_ior" | "ext_ior")) {
+                    SpectrumUse::Unbounded
+                } else {
+                    SpectrumUse::Bounded
+                };
+                let (rgb, clamped) = sampled_to_rgb(&pairs, usage);
+                if clamped {
+                    self.warn(f, p, format!("the spectrum's colour is out of gamut; clamped to {rgb}"));
+                }
+                Ok(rgb)
             }
             other => Err(self.err(f, p, format!("expected a colour, found <{other}>"))),
         }
@@ -1037,6 +1059,13 @@ impl Loader {
     }
 
     fn emitter(&mut self, f: &FileCtx, node: Node) -> Result<()> {
+        self.in_emitter = true;
+        let result = self.emitter_properties(f, node);
+        self.in_emitter = false;
+        result
+    }
+
+    fn emitter_properties(&mut self, f: &FileCtx, node: Node) -> Result<()> {
         let ty = self.required_attr(f, node, "type")?;
         let props = Self::props(node);
         let mut used = Vec::new();
@@ -1899,9 +1928,10 @@ impl Loader {
                     }
                     let eprops = Self::props(c);
                     let mut eused = Vec::new();
-                    let radiance = self
-                        .color_source(f, &eprops, "radiance", &mut eused)?
-                        .unwrap_or(ColorSource::Rgb(Rgb::ONE));
+                    self.in_emitter = true;
+                    let radiance = self.color_source(f, &eprops, "radiance", &mut eused);
+                    self.in_emitter = false;
+                    let radiance = radiance?.unwrap_or(ColorSource::Rgb(Rgb::ONE));
                     self.unused(f, c, &eprops, &eused);
                     emission = Some((radiance, f.loc_of(c)));
                 }
@@ -2073,30 +2103,6 @@ pub fn vertical_fov(fov: f32, axis: &str, w: u32, h: u32) -> f32 {
         }
     };
     (2.0 * ty.atan()).to_degrees()
-}
-
-/// A sampled spectrum's mean value over three bands, as a crude RGB.
-fn spectrum_to_rgb(pairs: &[(f32, f32)]) -> Rgb {
-    let value_at = |lambda: f32| -> f32 {
-        let mut sorted = pairs.to_vec();
-        sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
-        match sorted.iter().position(|p| p.0 >= lambda) {
-            None => sorted.last().map_or(0.0, |p| p.1),
-            Some(0) => sorted[0].1,
-            Some(i) => {
-                let (a, b) = (sorted[i - 1], sorted[i]);
-                let t = (lambda - a.0) / (b.0 - a.0).max(1e-6);
-                a.1 + t * (b.1 - a.1)
-            }
-        }
-    };
-    let band = |lo: f32, hi: f32| -> f32 {
-        (0..20)
-            .map(|i| value_at(lo + (hi - lo) * (i as f32 + 0.5) / 20.0))
-            .sum::<f32>()
-            / 20.0
-    };
-    Rgb::new(band(600.0, 700.0), band(500.0, 600.0), band(400.0, 500.0))
 }
 
 #[cfg(test)]
@@ -2388,6 +2394,31 @@ mod tests {
         assert!((fov - 37.85).abs() < 0.01, "{fov}");
         // An explicit fov keeps its axis.
         assert!((fov_of(r#"<float name="fov" value="40"/>"#, 48, 48) - 40.0).abs() < 1e-4);
+    }
+
+    /// Sampled spectra convert as in Mitsuba's RGB variants: emission
+    /// without D65, reflectances with it; a flat emitted spectrum is
+    /// illuminant E.
+    #[test]
+    fn spectra_convert_as_in_mitsubas_rgb_variants() {
+        let d = parse_str(
+            r#"<scene version="3.0.0">
+    <emitter type="constant"><spectrum name="radiance" value="2"/></emitter>
+    <shape type="sphere">
+        <bsdf type="diffuse"><spectrum name="reflectance" value="400:0.1, 500:0.5, 600:0.9, 700:0.3"/></bsdf>
+        <emitter type="area"><spectrum name="radiance" value="400:0, 500:8, 600:15.6, 700:18.4"/></emitter>
+    </shape>
+</scene>"#,
+        )
+        .unwrap();
+        let text = format!("{d:?}");
+        for expected in ["2.409588", "20.71", "0.8547", "0.6875"] {
+            assert!(text.contains(expected), "{expected} not in {text}");
+        }
+        let e = parse_str(r#"<scene><shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" value="500:0.5"/></bsdf></shape></scene>"#)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("test.xml:1:") && e.contains("at least two"), "{e}");
     }
 
     /// A moment integrator renders with its nested integrator's settings.

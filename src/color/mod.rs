@@ -4,6 +4,8 @@
 //! convention as Mitsuba's `rgb` variants); colours in scene files are linear
 //! unless they come from an 8-bit image, which is decoded from sRGB.
 
+pub mod spectrum;
+
 /// A linear RGB triple. An alias of `glam::Vec3`, so that colour arithmetic
 /// is the vector arithmetic that glam already provides.
 pub type Rgb = glam::Vec3;
