@@ -219,7 +219,7 @@ pub fn decode_image(bytes: &[u8], format: ImageFormat) -> Result<Image, String> 
 /// and images compared.
 pub const MAX_IMAGE_PIXELS: u64 = 16384 * 16384;
 
-/// Decodes a PNG, JPEG, Radiance HDR, OpenEXR or PFM image held in memory,
+/// Decodes a PNG, JPEG, BMP, Radiance HDR, OpenEXR or PFM image held in memory,
 /// told apart by their first bytes, as linear RGB: integer images from
 /// sRGB unless `srgb` is `Some(false)`, float images as they are unless
 /// `Some(true)`. Sizes in headers are checked before pixels are allocated.
@@ -238,7 +238,7 @@ pub fn decode_any(bytes: &[u8], srgb: Option<bool>) -> Result<Image, String> {
     Ok(image)
 }
 
-/// [`decode_any`] for the formats of the `image` crate (PNG, JPEG, HDR).
+/// [`decode_any`] for the formats of the `image` crate (PNG, JPEG, BMP, HDR).
 fn decode_encoded(bytes: &[u8], srgb: Option<bool>) -> Result<Image, String> {
     let reader = ::image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()

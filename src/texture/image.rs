@@ -21,7 +21,7 @@ pub struct ImageTexture {
 pub const MAX_TEXTURE_PIXELS: u64 = crate::film::io::MAX_IMAGE_PIXELS;
 
 impl ImageTexture {
-    /// Reads a PNG, JPEG, Radiance HDR, OpenEXR or PFM file. Integer images are
+    /// Reads a PNG, JPEG, BMP, Radiance HDR, OpenEXR or PFM file. Integer images are
     /// decoded from sRGB unless `srgb` is `Some(false)`; float images are
     /// taken as linear unless `srgb` is `Some(true)`.
     pub fn load(path: &Path, srgb: Option<bool>) -> Result<ImageTexture> {
@@ -30,7 +30,7 @@ impl ImageTexture {
         Self::decode(&bytes, srgb).map_err(|e| Error::file(path, e))
     }
 
-    /// Decodes a PNG, JPEG, Radiance HDR, OpenEXR or PFM image held in
+    /// Decodes a PNG, JPEG, BMP, Radiance HDR, OpenEXR or PFM image held in
     /// memory (told apart by their first bytes), as [`ImageTexture::load`] does.
     /// The size in the header is checked before any pixel is allocated.
     /// Errors are plain reasons, for the caller to place.
@@ -146,6 +146,18 @@ mod tests {
         assert_eq!(t.pixels[0].y, 1.0);
         let lin = ImageTexture::load(&path, Some(false)).unwrap();
         assert!((lin.pixels[0].x - 128.0 / 255.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn bmp_is_decoded_from_srgb() {
+        let img = ::image::RgbImage::from_pixel(2, 3, ::image::Rgb([128, 255, 0]));
+        let mut bmp = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut bmp), ::image::ImageFormat::Bmp)
+            .unwrap();
+        let t = ImageTexture::decode(&bmp, None).unwrap();
+        assert_eq!((t.width, t.height), (2, 3));
+        assert!((t.pixels[0].x - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
+        assert_eq!((t.pixels[5].y, t.pixels[5].z), (1.0, 0.0));
     }
 
     #[test]
