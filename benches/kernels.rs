@@ -169,10 +169,9 @@ fn small_scenes(c: &mut Criterion) {
 }
 
 /// The Mitsuba Cornell box's room (18 rectangles, traced without a tree)
-/// queried one ray at a time and eight rays at a time, as the lockstep
-/// path tracer asks: segments from points inside the room in uniform
-/// directions, and shadow rays from the same points to points on the
-/// ceiling.
+/// queried as the path tracer asks: segments from points inside the room
+/// in uniform directions, and shadow rays from the same points to points
+/// on the ceiling.
 fn rectangle_room(c: &mut Criterion) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/crosscheck/scenes/cornell-box.xml");
     let scene = trazo::scene::build(&trazo::scene::load(&path, &[]).unwrap()).unwrap();
@@ -197,13 +196,11 @@ fn rectangle_room(c: &mut Criterion) {
             Ray::with_interval(p, target - p, 1e-4, 1.0 - 1e-3)
         })
         .collect();
-    let sets = |rays: &[Ray]| -> Vec<[Ray; 8]> { rays.chunks_exact(8).map(|c| c.try_into().unwrap()).collect() };
-    let (segment_sets, shadow_sets) = (sets(&segments), sets(&shadows));
     let mut g = c.benchmark_group(format!(
         "rectangle room ({} flat blocks) x4096",
         room.stats().flat_blocks
     ));
-    g.bench_function("closest hit, one ray at a time", |b| {
+    g.bench_function("closest hit", |b| {
         b.iter(|| {
             segments
                 .iter()
@@ -211,24 +208,8 @@ fn rectangle_room(c: &mut Criterion) {
                 .count()
         })
     });
-    g.bench_function("closest hit, eight rays at a time", |b| {
-        b.iter(|| {
-            segment_sets
-                .iter()
-                .map(|set| room.intersect_rays(black_box(set), 0xff).iter().flatten().count())
-                .sum::<usize>()
-        })
-    });
-    g.bench_function("any hit, one ray at a time", |b| {
+    g.bench_function("any hit", |b| {
         b.iter(|| shadows.iter().filter(|r| room.occluded(black_box(r))).count())
-    });
-    g.bench_function("any hit, eight rays at a time", |b| {
-        b.iter(|| {
-            shadow_sets
-                .iter()
-                .map(|set| room.occluded_rays(black_box(set), 0xff).count_ones())
-                .sum::<u32>()
-        })
     });
     g.finish();
 }

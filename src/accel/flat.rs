@@ -15,11 +15,6 @@
 //! Up to eight blocks take one eight-lane test of their boxes, up to sixteen
 //! two.
 //!
-//! The lockstep path tracer (`integrator::path_lanes`) also asks for
-//! eight rays at a time: in a scene of rectangles only those are tested
-//! the other way round, each rectangle against the eight rays in lanes
-//! ([`FlatScene::intersect_rays`]).
-//!
 //! A block's lanes compute what the one-primitive tests compute: the
 //! rectangle test's operations in the same order (the same distances), and
 //! the watertight triangle test of [`Triangle4`](crate::geometry::triangle::Triangle4).
@@ -109,9 +104,9 @@ mod avx {
     /// Widening of the slab test's far distance that makes it conservative
     /// under rounding (pbrt-v4, section 6.8.2), as in the trees.
     const SLAB_ROUNDING: f32 = 1.0 + 2.0 * gamma(3);
-    use crate::accel::blocks::{RayLanes, Rectangle8, Triangle8, nearest_lane, pack, pack_ids, rectangle_lanes};
+    use crate::accel::blocks::{RayLanes, Rectangle8, Triangle8, nearest_lane, pack, pack_ids};
     use crate::accel::bvh::{Bvh, BvhNode};
-    use crate::geometry::lanes::{F8, LANES, Lanes, M8, avx_available, transpose_rays};
+    use crate::geometry::lanes::{F8, LANES, Lanes, avx_available};
     use crate::geometry::triangle::TriangleRay;
     use crate::geometry::{Aabb, Ray, Rectangle};
     use glam::Vec3;
@@ -145,10 +140,6 @@ mod avx {
         pub(super) test_every_block: bool,
         rectangles: Vec<Rectangle8>,
         triangles: Vec<Triangle8>,
-        /// The rectangles one by one, in the blocks' order, for the tests
-        /// of eight rays at once: `[corner, normal, dual_u, dual_v]`
-        /// flattened, and the caller's number.
-        rectangle_list: Vec<([f32; 12], u32)>,
     }
 
     /// How primitives are grouped into blocks.
@@ -244,7 +235,6 @@ mod avx {
                 test_every_block: triangle_groups.is_empty() && blocks <= TEST_EVERY_BLOCK_UP_TO,
                 rectangles: Vec::new(),
                 triangles: Vec::new(),
-                rectangle_list: Vec::new(),
             };
             let mut set_bounds = |block: usize, boxes: &[Aabb], members: &[usize]| {
                 let b = members.iter().fold(Aabb::EMPTY, |b, &k| b.union(&boxes[k]));
@@ -270,15 +260,6 @@ mod avx {
                     }
                 })
                 .collect();
-            scene.rectangle_list = rectangle_groups
-                .iter()
-                .flatten()
-                .map(|&k| {
-                    let (r, id) = &rectangles[k];
-                    let frame: Vec<f32> = r.test_frame().iter().flat_map(|v| v.to_array()).collect();
-                    (frame.try_into().expect("four vectors of three"), *id)
-                })
-                .collect();
             scene.triangles = triangle_groups
                 .iter()
                 .map(|group| {
@@ -301,99 +282,7 @@ mod avx {
         pub fn memory_bytes(&self) -> usize {
             std::mem::size_of::<[[Lanes; 6]; 2]>()
                 + self.rectangles.len() * std::mem::size_of::<Rectangle8>()
-                + self.rectangle_list.len() * std::mem::size_of::<([f32; 12], u32)>()
                 + self.triangles.len() * std::mem::size_of::<Triangle8>()
-        }
-
-        /// Whether the scene holds rectangles only, which
-        /// [`FlatScene::intersect_rays`] requires.
-        pub fn rectangles_only(&self) -> bool {
-            self.triangles.is_empty()
-        }
-
-        /// The nearest hits of eight rays at once, in a scene of rectangles
-        /// only, for the lanes whose bit is set in `active` (the others
-        /// are not tested): a bit per lane that hit, and per lane the
-        /// distance and the rectangle's number. With `any_hit`, the bits
-        /// of the rays that hit something, the rest unspecified.
-        ///
-        /// The rays lie in lanes and the rectangles are taken one at a time,
-        /// the other way round from [`FlatScene::intersect`]: this is the
-        /// packet tracing of Wald et al. ("Interactive rendering with
-        /// coherent ray tracing", 2001) without the tree, on the eight
-        /// paths of `integrator::path_lanes`. No lane ends with a search
-        /// for the nearest of eight distances; each lane keeps its nearest
-        /// in a register. Each lane computes the one-rectangle test of
-        /// [`FlatScene::intersect`] in the same order and keeps the last
-        /// of equal distances in the blocks' order, as that does: the
-        /// same hits, to the bit.
-        #[inline(always)]
-        #[allow(unsafe_code)]
-        pub fn intersect_rays(
-            &self,
-            rays: &[Ray; LANES],
-            active: u32,
-            any_hit: bool,
-        ) -> (u32, [f32; LANES], [u32; LANES]) {
-            debug_assert!(self.rectangles_only());
-            // SAFETY: a `FlatScene` exists only where the processor has AVX.
-            let (hit, t, index) = unsafe { self.intersect_rays_avx(rays, active, any_hit) };
-            let ids = std::array::from_fn(|i| {
-                if hit & (1 << i) != 0 {
-                    self.rectangle_list[index[i] as usize].1
-                } else {
-                    u32::MAX
-                }
-            });
-            (hit, t, ids)
-        }
-
-        /// [`FlatScene::intersect_rays`] with each hit's place in
-        /// `rectangle_list` (as `f32`, which holds it exactly).
-        #[inline]
-        #[target_feature(enable = "avx")]
-        fn intersect_rays_avx(
-            &self,
-            rays: &[Ray; LANES],
-            active: u32,
-            any_hit: bool,
-        ) -> (u32, [f32; LANES], [f32; LANES]) {
-            // The rays in lanes. Lanes not tested, and zero directions
-            // (which meet nothing, as in `Aggregate`), get a NaN interval
-            // that every comparison rejects. `t <= t_max` with t_max at most
-            // the largest float rejects +∞ (see `Rectangle8::intersect`);
-            // once a lane has a hit, its distance, finite, is the bound.
-            let [ox, oy, oz, dx, dy, dz, t_min, t_max] = transpose_rays(rays);
-            let (o, d) = ([ox, oy, oz], [dx, dy, dz]);
-            let zero = F8::splat(0.0);
-            let zero_dir = dx.eq(zero).and(dy.eq(zero)).and(dz.eq(zero));
-            let tested = M8::from_bits(active).and_not(zero_dir);
-            let tested_bits = tested.bits();
-            let t_min = tested.select(t_min, F8::splat(f32::NAN));
-            let mut t_max = t_max.min(F8::splat(f32::MAX));
-            let mut found = M8::none();
-            let mut index = F8::splat(0.0);
-            for (k, (frame, _)) in self.rectangle_list.iter().enumerate() {
-                let f = |j: usize| {
-                    [
-                        F8::splat(frame[3 * j]),
-                        F8::splat(frame[3 * j + 1]),
-                        F8::splat(frame[3 * j + 2]),
-                    ]
-                };
-                let (valid, t) = rectangle_lanes([f(0), f(1), f(2), f(3)], o, d, t_min, t_max);
-                found = found.or(valid);
-                if any_hit {
-                    // Every ray blocked: the rest cannot change the answer.
-                    if found.bits() == tested_bits {
-                        break;
-                    }
-                    continue;
-                }
-                t_max = valid.select(t, t_max);
-                index = valid.select(F8::splat(k as f32), index);
-            }
-            (found.bits(), t_max.to_array(), index.to_array())
         }
 
         /// The nearest hit within the ray's interval; with `any_hit`, some
@@ -567,22 +456,12 @@ impl FlatScene {
     pub fn intersect(&self, _ray: &Ray, _any_hit: bool) -> Option<FlatHit> {
         match self.0 {}
     }
-
-    /// Whether the scene holds rectangles only.
-    pub fn rectangles_only(&self) -> bool {
-        match self.0 {}
-    }
-
-    /// The nearest hits of eight rays at once.
-    pub fn intersect_rays(&self, _rays: &[Ray; 8], _active: u32, _any_hit: bool) -> (u32, [f32; 8], [u32; 8]) {
-        match self.0 {}
-    }
 }
 
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;
-    use crate::geometry::lanes::{LANES, avx_available};
+    use crate::geometry::lanes::avx_available;
     use crate::geometry::triangle::intersect_triangle;
     use crate::geometry::triangle::tests::{DIAGONAL_QUAD, assert_diagonal_is_watertight};
     use crate::geometry::{Ray, Rectangle};
@@ -680,68 +559,6 @@ mod tests {
     /// Rays parallel to a rectangle (a zero denominator: t is ±∞ or NaN)
     /// miss it, in its plane or beside it, with an unbounded interval or
     /// not, as the one-rectangle test has them; and a ray across hits.
-    #[test]
-    fn eight_rays_at_once_agree_with_one_at_a_time() {
-        if !avx_available() {
-            return;
-        }
-        let mut rng = Pcg32::new(5, 11);
-        let (mut hits, mut ties) = (0, 0);
-        for case in 0..200 {
-            let mut rectangles: Vec<(Rectangle, u32)> = (0..1 + case % 40)
-                .map(|i| {
-                    let c = random_point(&mut rng);
-                    let (u, v) = (random_point(&mut rng) * 0.8, random_point(&mut rng) * 0.8);
-                    (Rectangle::new(c, u, v), i as u32)
-                })
-                .collect();
-            // A copy of a rectangle under another number: equal distances,
-            // where the last in the blocks' order must win in both.
-            if case % 3 == 0 {
-                rectangles.push((rectangles[0].0, 999));
-            }
-            let Some(scene) = FlatScene::new(&rectangles, &[]) else {
-                continue;
-            };
-            for k in 0..20 {
-                let rays: [Ray; LANES] = std::array::from_fn(|lane| {
-                    let origin = random_point(&mut rng) * 3.0;
-                    let target = random_point(&mut rng) * 0.8;
-                    let dir = if (k + lane) % 17 == 0 {
-                        Vec3::ZERO
-                    } else {
-                        target - origin
-                    };
-                    let t_max = if (k + lane) % 5 == 0 { 0.7 } else { f32::INFINITY };
-                    Ray::with_interval(origin, dir, 1e-4, t_max)
-                });
-                let active = if k % 4 == 0 { 0xff } else { rng.next_u32() & 0xff };
-                let (hit, t, ids) = scene.intersect_rays(&rays, active, false);
-                let blocked = scene.intersect_rays(&rays, active, true).0;
-                for (lane, ray) in rays.iter().enumerate() {
-                    let bit = 1 << lane;
-                    let expected = match scene.intersect(ray, false) {
-                        // Zero directions are the caller's to refuse.
-                        _ if active & bit == 0 || ray.dir == Vec3::ZERO => None,
-                        Some(FlatHit::Rectangle { id, t }) => Some((id, t.to_bits())),
-                        None => None,
-                        other => panic!("case {case}: {other:?}"),
-                    };
-                    let got = (hit & bit != 0).then(|| (ids[lane], t[lane].to_bits()));
-                    assert_eq!(got, expected, "case {case}, rays {k}, lane {lane}");
-                    assert_eq!(
-                        blocked & bit != 0,
-                        expected.is_some(),
-                        "case {case}, rays {k}, lane {lane}"
-                    );
-                    hits += got.is_some() as u32;
-                    ties += matches!(got, Some((999, _))) as u32;
-                }
-            }
-        }
-        assert!(hits > 5000 && ties > 50, "{hits} hits, {ties} on the copied rectangle");
-    }
-
     #[test]
     fn rays_parallel_to_a_rectangle_miss_it() {
         if !avx_available() {

@@ -5,20 +5,15 @@
 //!
 //! Every operation is a function built for AVX: it may only run where the
 //! processor has AVX, which the compiler enforces by letting only other
-//! AVX functions call it. `FlatScene` checks for AVX once and enters the
-//! lane code through such functions: `intersect` (one ray against blocks
-//! of eight primitives) and `intersect_rays` (eight rays, loaded by
-//! [`transpose_rays`], against one rectangle at a time). (Plain loops over `[f32; 8]` were
+//! AVX functions call it. `FlatScene` and the aggregate's traversal check
+//! for AVX once and enter the lane code through such functions (one ray
+//! against blocks of eight primitives). (Plain loops over `[f32; 8]` were
 //! tried first: the compiler vectorised them across the wrong dimension and
 //! the test took more instructions than the tree it replaced.)
 //!
 //! Comparisons follow Rust's scalar ones: ordered (false for NaN) except
 //! `ne`, which is true for NaN, so a lane computes what the one-primitive
 //! test computes.
-//!
-//! Besides `FlatScene`'s entries, one other function enters AVX code, the
-//! same way: `integrator::path_lanes::LockstepScene::radiance`, whose
-//! loops over eight paths are built for AVX where the processor has it.
 //!
 //! The module also holds the other places where trazo calls intrinsics,
 //! both on SSE or SSE2, which every x86-64 processor has: `step_away_sse2`,
@@ -134,37 +129,6 @@ impl F8 {
 }
 
 impl M8 {
-    /// All lanes false.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn none() -> M8 {
-        M8(_mm256_setzero_ps())
-    }
-
-    /// Lane `i` true where bit `i` of `bits` is set.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn from_bits(bits: u32) -> M8 {
-        let lane = |i: u32| -(((bits >> i) & 1) as i32);
-        M8(_mm256_castsi256_ps(_mm256_setr_epi32(
-            lane(0),
-            lane(1),
-            lane(2),
-            lane(3),
-            lane(4),
-            lane(5),
-            lane(6),
-            lane(7),
-        )))
-    }
-
-    /// Lane-wise `if self { a } else { b }`.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn select(self, a: F8, b: F8) -> F8 {
-        F8(_mm256_blendv_ps(b.0, a.0, self.0))
-    }
-
     /// Lanes true in both.
     #[inline]
     #[target_feature(enable = "avx")]
@@ -192,50 +156,6 @@ impl M8 {
     pub fn bits(self) -> u32 {
         _mm256_movemask_ps(self.0) as u32
     }
-}
-
-/// Eight rays' fields in lanes: origin x, y, z, direction x, y, z, t_min
-/// and t_max, each across the eight rays. A ray is those eight `f32` in
-/// that order (`Ray` is `repr(C)`), so this is the transpose of an 8×8
-/// matrix: eight loads and 24 shuffles instead of 64 single stores.
-#[inline]
-#[target_feature(enable = "avx")]
-pub fn transpose_rays(rays: &[crate::geometry::Ray; LANES]) -> [F8; 8] {
-    const _: () = assert!(std::mem::size_of::<crate::geometry::Ray>() == 32);
-    // SAFETY: each `Ray` is 32 bytes of eight `f32` (repr(C), checked
-    // above); the loads are unaligned.
-    let r: [__m256; 8] =
-        std::array::from_fn(|i| unsafe { _mm256_loadu_ps((&rays[i] as *const crate::geometry::Ray).cast()) });
-    let t = [
-        _mm256_unpacklo_ps(r[0], r[1]),
-        _mm256_unpackhi_ps(r[0], r[1]),
-        _mm256_unpacklo_ps(r[2], r[3]),
-        _mm256_unpackhi_ps(r[2], r[3]),
-        _mm256_unpacklo_ps(r[4], r[5]),
-        _mm256_unpackhi_ps(r[4], r[5]),
-        _mm256_unpacklo_ps(r[6], r[7]),
-        _mm256_unpackhi_ps(r[6], r[7]),
-    ];
-    let u = [
-        _mm256_shuffle_ps::<0x44>(t[0], t[2]),
-        _mm256_shuffle_ps::<0xEE>(t[0], t[2]),
-        _mm256_shuffle_ps::<0x44>(t[1], t[3]),
-        _mm256_shuffle_ps::<0xEE>(t[1], t[3]),
-        _mm256_shuffle_ps::<0x44>(t[4], t[6]),
-        _mm256_shuffle_ps::<0xEE>(t[4], t[6]),
-        _mm256_shuffle_ps::<0x44>(t[5], t[7]),
-        _mm256_shuffle_ps::<0xEE>(t[5], t[7]),
-    ];
-    [
-        F8(_mm256_permute2f128_ps::<0x20>(u[0], u[4])),
-        F8(_mm256_permute2f128_ps::<0x20>(u[1], u[5])),
-        F8(_mm256_permute2f128_ps::<0x20>(u[2], u[6])),
-        F8(_mm256_permute2f128_ps::<0x20>(u[3], u[7])),
-        F8(_mm256_permute2f128_ps::<0x31>(u[0], u[4])),
-        F8(_mm256_permute2f128_ps::<0x31>(u[1], u[5])),
-        F8(_mm256_permute2f128_ps::<0x31>(u[2], u[6])),
-        F8(_mm256_permute2f128_ps::<0x31>(u[3], u[7])),
-    ]
 }
 
 /// Each coordinate of `x` moved by one unit in the last place toward the

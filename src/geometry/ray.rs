@@ -7,11 +7,7 @@ use glam::Vec3;
 /// The direction is not required to be normalised: an affine transform of a
 /// ray keeps `t` meaning the same point, which lets shapes intersect in their
 /// object space and report world-space distances.
-///
-/// `repr(C)`: eight `f32` in this order, which the eight-ray tests load as
-/// one row each (`geometry::lanes::transpose_rays`).
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[repr(C)]
 pub struct Ray {
     /// Origin `o`.
     pub origin: Vec3,

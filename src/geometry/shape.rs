@@ -495,54 +495,6 @@ impl Rectangle {
         self.normal
     }
 
-    /// [`Rectangle::surface`] of eight hits at once: lane `i` is the hit at
-    /// distance `t[i]` along `rays[i]` on the rectangle whose
-    /// [`Rectangle::test_frame`] is lane `i` of `frame` (`[corner, normal,
-    /// dual_u, dual_v]`, each `[x, y, z]` over the lanes). Returns the
-    /// points and writes their error bounds and (u, v), each quantity an
-    /// array over the lanes, which the compiler turns into vector code.
-    /// The operations are the one-hit functions' in the same order
-    /// (`Ray::at`, `project_to_plane`, `planar_error`,
-    /// `Rectangle::coordinates`), so the results are the same bits.
-    #[inline(always)]
-    pub(crate) fn surfaces_in_lanes(
-        rays: &[Ray; 8],
-        t: &[f32; 8],
-        frame: [&[[f32; 8]; 3]; 4],
-        p_error: &mut [[f32; 8]; 3],
-        uv: &mut [[f32; 8]; 2],
-    ) -> [[f32; 8]; 3] {
-        let [corner, n, dual_u, dual_v] = frame;
-        let mut o = [[0.0f32; 8]; 3];
-        let mut d = [[0.0f32; 8]; 3];
-        for (i, ray) in rays.iter().enumerate() {
-            (o[0][i], o[1][i], o[2][i]) = (ray.origin.x, ray.origin.y, ray.origin.z);
-            (d[0][i], d[1][i], d[2][i]) = (ray.dir.x, ray.dir.y, ray.dir.z);
-        }
-        let gamma_7 = gamma(7);
-        let mut p = [[0.0f32; 8]; 3];
-        for i in 0..8 {
-            // `ray.at(t)`, then `project_to_plane`: p0 − n (n · (p0 − c)).
-            let (x0, y0, z0) = (
-                o[0][i] + d[0][i] * t[i],
-                o[1][i] + d[1][i] * t[i],
-                o[2][i] + d[2][i] * t[i],
-            );
-            let k = (n[0][i] * (x0 - corner[0][i])) + (n[1][i] * (y0 - corner[1][i])) + (n[2][i] * (z0 - corner[2][i]));
-            let (x, y, z) = (x0 - n[0][i] * k, y0 - n[1][i] * k, z0 - n[2][i] * k);
-            (p[0][i], p[1][i], p[2][i]) = (x, y, z);
-            // `Rectangle::coordinates`.
-            let (qx, qy, qz) = (x - corner[0][i], y - corner[1][i], z - corner[2][i]);
-            uv[0][i] = (dual_u[0][i] * qx) + (dual_u[1][i] * qy) + (dual_u[2][i] * qz);
-            uv[1][i] = (dual_v[0][i] * qx) + (dual_v[1][i] * qy) + (dual_v[2][i] * qz);
-            // `planar_error`.
-            p_error[0][i] = gamma_7 * (x.abs() + corner[0][i].abs());
-            p_error[1][i] = gamma_7 * (y.abs() + corner[1][i].abs());
-            p_error[2][i] = gamma_7 * (z.abs() + corner[2][i].abs());
-        }
-        p
-    }
-
     /// The corner, the unit normal and the dual basis of the edges, with
     /// which [`Rectangle::intersect`] tests a ray.
     pub(crate) fn test_frame(&self) -> [Vec3; 4] {

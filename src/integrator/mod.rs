@@ -14,7 +14,6 @@
 
 pub mod aov;
 pub mod path;
-pub mod path_lanes;
 pub mod photon;
 pub mod whitted;
 
@@ -48,11 +47,6 @@ impl std::ops::AddAssign for RayStats {
 pub trait Integrator: Sync {
     /// An estimate of the radiance arriving at the camera along `ray`.
     fn radiance(&self, scene: &Scene, ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb;
-    /// This integrator as the path tracer, which the renderer may run on
-    /// eight paths at once ([`path_lanes`]); `None` for the others.
-    fn as_path_tracer(&self) -> Option<&PathTracer> {
-        None
-    }
 }
 
 /// Work an algorithm did besides the camera samples' own paths (photon

@@ -29,11 +29,10 @@ use crate::film::splat::{MAX_TAPS, Splat, SplatSum};
 use crate::film::{AovSum, Film, Image, PixelSum};
 use crate::geometry::Ray;
 use crate::integrator::aov::camera_aov;
-use crate::integrator::path_lanes::{LANES, LockstepScene, Rays, Samplers};
 use crate::integrator::{Integrator, Progressive, RayStats, Work};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::io::IsTerminal;
@@ -449,13 +448,6 @@ fn render_passes<I: Integrator>(
     let earlier_seconds = stats.seconds;
     let tiles = tiles(w, h, options.tile_size);
     let splat = Splat::new(&s.filter);
-    // Diffuse scenes lit by one rectangle trace eight paths at a time
-    // (`integrator::path_lanes`); the auxiliary images are made one path
-    // at a time.
-    let lockstep = integrator
-        .as_path_tracer()
-        .filter(|_| !options.aovs)
-        .and_then(|pt| LockstepScene::new(pt, scene));
     let bar = match options.time_limit {
         Some(limit) => progress_bar(options.progress, limit.as_millis().max(1) as u64),
         None => progress_bar(options.progress, w as u64 * h as u64 * s.spp as u64),
@@ -515,93 +507,39 @@ fn render_passes<I: Integrator>(
                     weights_y: [0.0; MAX_TAPS],
                 };
                 let mut aovs = Vec::with_capacity(if options.aovs { n } else { 0 });
-                if let Some(lit) = &lockstep {
-                    // Eight samples at a time, taken in the order of the
-                    // loop below, splatted in that order.
-                    let mut samplers: Samplers = std::array::from_fn(|_| sampler.clone());
-                    let mut batch_rays: Rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
-                    // Each lane's pixel, sample index and film position.
-                    let mut batch = [(0u32, 0u32, 0u32, Vec2::ZERO); LANES];
-                    let mut count = 0;
-                    if splat.is_none() {
-                        sums.extend(
-                            (tile.y0..tile.y1)
-                                .flat_map(|y| (tile.x0..tile.x1).map(move |x| (y * w + x) as usize))
-                                .map(|i| film_ref.pixels[i]),
-                        );
+                for y in tile.y0..tile.y1 {
+                    // Checked once a row, so that an interrupt is obeyed
+                    // within a row of a tile.
+                    if stop_now().is_some() {
+                        return None;
                     }
-                    let mut trace_batch = |count: usize,
-                                           batch_rays: &Rays,
-                                           batch: &[(u32, u32, u32, Vec2); LANES],
-                                           samplers: &mut Samplers| {
-                        let ls = lit.radiance(batch_rays, count, samplers, &mut rays);
-                        for (&l, &(x, y, index, position)) in ls.iter().zip(batch).take(count) {
-                            if !l.is_finite() {
+                    for x in tile.x0..tile.x1 {
+                        let i = (y * w + x) as usize;
+                        let mut sum = film_ref.pixels[i];
+                        let mut aov = film_ref.aovs.as_ref().map(|a| a[i]).unwrap_or_default();
+                        for index in first..end {
+                            let (position, ray) = camera_sample(scene, splat.is_some(), &mut sampler, (x, y, index));
+                            let l = integrator.radiance(scene, &ray, &mut sampler, &mut rays);
+                            if l.is_finite() {
+                                match &splat {
+                                    None => sum.add(l, 1.0),
+                                    Some(sp) => splat_sample(sp, &mut splat_buffer, position, l),
+                                }
+                            } else {
                                 invalid.record(InvalidSample { x, y, index, value: l });
-                                continue;
-                            }
-                            match &splat {
-                                None => sums[((y - tile.y0) * (tile.x1 - tile.x0) + x - tile.x0) as usize].add(l, 1.0),
-                                Some(sp) => splat_sample(sp, &mut splat_buffer, position, l),
-                            }
-                        }
-                    };
-                    for y in tile.y0..tile.y1 {
-                        // Checked once a row, as below.
-                        if stop_now().is_some() {
-                            return None;
-                        }
-                        for x in tile.x0..tile.x1 {
-                            for index in first..end {
-                                let (position, ray) =
-                                    camera_sample(scene, splat.is_some(), &mut samplers[count], (x, y, index));
-                                batch_rays[count] = ray;
-                                batch[count] = (x, y, index, position);
-                                count += 1;
-                                if count == LANES {
-                                    trace_batch(count, &batch_rays, &batch, &mut samplers);
-                                    count = 0;
-                                }
-                            }
-                        }
-                    }
-                    trace_batch(count, &batch_rays, &batch, &mut samplers);
-                } else {
-                    for y in tile.y0..tile.y1 {
-                        // Checked once a row, so that an interrupt is obeyed
-                        // within a row of a tile.
-                        if stop_now().is_some() {
-                            return None;
-                        }
-                        for x in tile.x0..tile.x1 {
-                            let i = (y * w + x) as usize;
-                            let mut sum = film_ref.pixels[i];
-                            let mut aov = film_ref.aovs.as_ref().map(|a| a[i]).unwrap_or_default();
-                            for index in first..end {
-                                let (position, ray) =
-                                    camera_sample(scene, splat.is_some(), &mut sampler, (x, y, index));
-                                let l = integrator.radiance(scene, &ray, &mut sampler, &mut rays);
-                                if l.is_finite() {
-                                    match &splat {
-                                        None => sum.add(l, 1.0),
-                                        Some(sp) => splat_sample(sp, &mut splat_buffer, position, l),
-                                    }
-                                } else {
-                                    invalid.record(InvalidSample { x, y, index, value: l });
-                                }
-                                if options.aovs {
-                                    let a = camera_aov(scene, &ray);
-                                    if a.albedo.is_finite() && a.normal.is_finite() && a.depth.is_finite() {
-                                        aov.add(&a);
-                                    }
-                                }
-                            }
-                            if splat.is_none() {
-                                sums.push(sum);
                             }
                             if options.aovs {
-                                aovs.push(aov);
+                                let a = camera_aov(scene, &ray);
+                                if a.albedo.is_finite() && a.normal.is_finite() && a.depth.is_finite() {
+                                    aov.add(&a);
+                                }
                             }
+                        }
+                        if splat.is_none() {
+                            sums.push(sum);
+                        }
+                        if options.aovs {
+                            aovs.push(aov);
                         }
                     }
                 }
