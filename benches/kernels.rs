@@ -138,9 +138,7 @@ fn clutter(n: usize, seed: u64, extent: f32) -> Aggregate {
     Aggregate::build(vec![mesh], shapes, vec![object], vec![])
 }
 
-/// Small scenes traced without a tree (every primitive tested, eight at a
-/// time) against the same scenes through their tree: where the flat test
-/// stops paying. In a clutter (primitives overlapping in a unit cube, as
+/// Small scenes through their tree (leaves of blocks of eight): in a clutter (primitives overlapping in a unit cube, as
 /// the walls and boxes of a room overlap in extent), spread out (a cube of
 /// side 8, where a tree separates them well), and between.
 fn small_scenes(c: &mut Criterion) {
@@ -154,13 +152,8 @@ fn small_scenes(c: &mut Criterion) {
         let rays = random_rays_into(4096, 3, extent);
         let mut g = c.benchmark_group(format!("{name} closest-hit x4096"));
         for &n in sizes {
-            let flat = clutter(n, n as u64, extent);
-            let tree = clutter(n, n as u64, extent).without_flat();
-            g.bench_function(
-                format!("{n} primitives, as built ({} flat blocks)", flat.stats().flat_blocks),
-                |b| b.iter(|| rays.iter().filter(|r| flat.intersect(black_box(r)).is_some()).count()),
-            );
-            g.bench_function(format!("{n} primitives, tree"), |b| {
+            let tree = clutter(n, n as u64, extent);
+            g.bench_function(format!("{n} primitives ({} nodes)", tree.stats().nodes), |b| {
                 b.iter(|| rays.iter().filter(|r| tree.intersect(black_box(r)).is_some()).count())
             });
         }
@@ -168,7 +161,7 @@ fn small_scenes(c: &mut Criterion) {
     }
 }
 
-/// The Mitsuba Cornell box's room (18 rectangles, traced without a tree)
+/// The Mitsuba Cornell box's room (18 rectangles, a tree of one leaf)
 /// queried as the path tracer asks: segments from points inside the room
 /// in uniform directions, and shadow rays from the same points to points
 /// on the ceiling.
@@ -197,8 +190,9 @@ fn rectangle_room(c: &mut Criterion) {
         })
         .collect();
     let mut g = c.benchmark_group(format!(
-        "rectangle room ({} flat blocks) x4096",
-        room.stats().flat_blocks
+        "rectangle room ({} nodes, {} leaf blocks) x4096",
+        room.stats().nodes,
+        room.stats().leaf_blocks
     ));
     g.bench_function("closest hit", |b| {
         b.iter(|| {

@@ -1,7 +1,7 @@
 //! Whole-pipeline tests through the library: closed-form shading,
 //! refraction, BVH against brute force, determinism, robustness to scale.
 
-use trazo::accel::aggregate::{Aggregate, HitPrim, MeshInstance, MeshObject, ShapeInstance};
+use trazo::accel::aggregate::{Aggregate, MeshInstance, MeshObject, ShapeInstance};
 use trazo::geometry::shape::{Cuboid, Disk, Rectangle, Shape, Sphere};
 use trazo::geometry::{Ray, Transform, TriangleMesh};
 use trazo::material::optics::{fresnel_dielectric, refract};
@@ -476,7 +476,8 @@ fn bvh_agrees_with_brute_force_on_random_scenes() {
 
 /// A room-sized scene: ten rectangles (some transformed, which are baked
 /// into world space) and two small meshes of `triangles`, few enough to be
-/// traced without the tree where the processor allows.
+/// single triangles in the top-level tree's blocks where the processor
+/// allows.
 fn small_planar_aggregate(seed: u64, triangles: [usize; 2]) -> Aggregate {
     let mut r = Pcg32::new(seed, 3);
     let mut v = || r.next_f32();
@@ -522,25 +523,16 @@ fn small_planar_aggregate(seed: u64, triangles: [usize; 2]) -> Aggregate {
     Aggregate::build(meshes, shapes, objects, Vec::new())
 }
 
-/// Small scenes of rectangles and triangles are traced without the tree,
-/// every primitive tested eight at a time (on x86-64 with AVX): they find
-/// what testing every primitive one by one finds, and what the tree finds.
+/// Small scenes of rectangles and triangles, whose tree's leaves hold them
+/// in blocks of eight (on x86-64 with AVX), find what testing every
+/// primitive one by one finds.
 #[test]
-fn small_scenes_without_a_tree_agree_with_brute_force_and_the_tree() {
-    // 42 primitives (up to eight blocks, one eight-lane test of their
-    // boxes) and 118 (more than eight blocks, two such tests).
-    for (seed, triangles, min_blocks) in [(1, [12, 20], 1), (2, [12, 20], 1), (3, [12, 20], 1), (4, [48, 60], 9)] {
-        let flat = small_planar_aggregate(seed, triangles);
+fn small_scenes_agree_with_brute_force() {
+    for (seed, triangles) in [(1, [12, 20]), (2, [12, 20]), (3, [12, 20]), (4, [48, 60])] {
+        let g = small_planar_aggregate(seed, triangles);
         if cfg!(target_arch = "x86_64") && std::arch::is_x86_feature_detected!("avx") {
-            let blocks = flat.stats().flat_blocks;
-            assert!(
-                blocks >= min_blocks,
-                "{} rectangles and triangles are traced without a tree in at least {min_blocks} blocks ({blocks})",
-                10 + triangles[0] + triangles[1]
-            );
+            assert!(g.stats().leaf_blocks > 0, "the leaves hold blocks");
         }
-        let tree = small_planar_aggregate(seed, triangles).without_flat();
-        assert_eq!(tree.stats().flat_blocks, 0);
         let mut r = Pcg32::new(seed * 91, 5);
         let mut hits = 0;
         for i in 0..4000 {
@@ -549,13 +541,13 @@ fn small_scenes_without_a_tree_agree_with_brute_force_and_the_tree() {
             let d = target - o;
             let t_max = if i % 5 == 0 { 0.7 } else { f32::INFINITY };
             let ray = Ray::with_interval(o, d, 1e-4, t_max);
-            let expect = brute_force_t(&flat, &ray);
-            let got = flat.intersect(&ray);
+            let expect = brute_force_t(&g, &ray);
+            let got = g.intersect(&ray);
             // Blocks of triangles compute their edge functions without
-            // fused multiply-adds, as the tree's blocks do. Their rounding
-            // error is relative to the coordinates (about 1 here), not to
-            // the distance, which for a ray starting near a triangle is
-            // small.
+            // fused multiply-adds, as the mesh trees' blocks do. Their
+            // rounding error is relative to the coordinates (about 1 here),
+            // not to the distance, which for a ray starting near a
+            // triangle is small.
             match (got.map(|h| h.t), expect) {
                 (Some(a), Some(b)) => assert!(
                     (a - b).abs() <= 4.0 * f32::EPSILON * b.max(1.0),
@@ -563,27 +555,8 @@ fn small_scenes_without_a_tree_agree_with_brute_force_and_the_tree() {
                 ),
                 (a, b) => assert_eq!(a, b, "ray {ray:?}"),
             }
-            // The same primitive as through the tree (barycentrics equal
-            // but for the last bits).
-            match (got.map(|h| h.prim), tree.intersect(&ray).map(|h| h.prim)) {
-                (
-                    Some(HitPrim::Triangle { object, tri, b }),
-                    Some(HitPrim::Triangle {
-                        object: o2,
-                        tri: t2,
-                        b: b2,
-                    }),
-                ) => {
-                    assert_eq!((object, tri), (o2, t2), "ray {ray:?}");
-                    assert!(
-                        (0..3).all(|k| (b[k] - b2[k]).abs() <= 1e-5),
-                        "ray {ray:?}: {b:?} vs {b2:?}"
-                    );
-                }
-                (a, b) => assert_eq!(a, b, "ray {ray:?}: the same primitive as through the tree"),
-            }
             if let Some(h) = got {
-                let p = flat.surface(&ray, &h).p;
+                let p = g.surface(&ray, &h).p;
                 let at = ray.origin + ray.dir * h.t;
                 assert!(
                     (p - at).length() <= 1e-4 * (1.0 + at.length()),
@@ -591,22 +564,21 @@ fn small_scenes_without_a_tree_agree_with_brute_force_and_the_tree() {
                 );
                 hits += 1;
             }
-            assert_eq!(flat.occluded(&ray), expect.is_some(), "ray {ray:?}");
+            assert_eq!(g.occluded(&ray), expect.is_some(), "ray {ray:?}");
         }
         assert!(hits > 500, "the test must exercise hits ({hits})");
-        // A zero direction meets nothing, in blocks as in the tree.
+        // A zero direction meets nothing.
         let still = Ray::with_interval(Vec3::new(0.1, 0.2, 0.3), Vec3::ZERO, 0.0, f32::INFINITY);
-        for aggregate in [&flat, &tree] {
-            assert!(aggregate.intersect(&still).is_none() && !aggregate.occluded(&still));
-        }
+        assert!(g.intersect(&still).is_none() && !g.occluded(&still));
     }
 }
 
-/// Thirty rectangles as large as the space they fill (a room) are traced
-/// without the tree; the same thirty spread a hundred times farther apart
-/// keep their tree, which skips nearly all of them.
+/// The Cornell box's room (walls, light and two boxes' faces: eighteen
+/// rectangles) is a tree of one leaf of blocks, each of which a ray tests
+/// (with AVX, where a block test costs what a node visit does); thirty
+/// rectangles far apart get nodes, which skip nearly all of them.
 #[test]
-fn only_rooms_are_traced_without_a_tree() {
+fn a_room_is_a_tree_of_one_leaf() {
     let rectangles = |spacing: f32| {
         let shapes = (0..30)
             .map(|i| ShapeInstance {
@@ -624,9 +596,12 @@ fn only_rooms_are_traced_without_a_tree() {
         Aggregate::build(Vec::new(), shapes, Vec::new(), Vec::new())
     };
     if cfg!(target_arch = "x86_64") && std::arch::is_x86_feature_detected!("avx") {
-        assert!(rectangles(0.3).stats().flat_blocks > 0);
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/crosscheck/scenes/cornell-box.xml");
+        let room = trazo::scene::build(&trazo::scene::load(&path, &[]).unwrap()).unwrap();
+        let stats = room.geometry.stats();
+        assert_eq!((stats.primitives, stats.nodes, stats.leaf_blocks), (18, 0, 3));
     }
-    assert_eq!(rectangles(30.0).stats().flat_blocks, 0);
+    assert!(rectangles(30.0).stats().nodes > 0);
 }
 
 #[test]

@@ -6,13 +6,13 @@
 //! the top-level BVH one by one. Meshes placed several times are stored
 //! once, in object space, with a BVH of their own; each placement is one
 //! top-level primitive holding a transform (instancing). Infinite planes
-//! have no bounds and are tested outside the tree. A scene of a few dozen
-//! rectangles and triangles (a room) is traced without the tree: see
-//! [`FlatScene`](super::flat::FlatScene).
+//! have no bounds and are tested outside the tree. The tree's leaves hold
+//! blocks of up to eight spheres, rectangles or single triangles where the
+//! processor has AVX; a room of a few dozen rectangles is a tree of one
+//! leaf.
 
-use super::blocks::Blocks;
+use super::blocks::{BlockRange, Blocks};
 use super::bvh::{ALONE, Bvh, SahCosts};
-use super::flat::{FLAT_MAX_PRIMITIVES, FLAT_MIN_PRIMITIVES, FlatHit, FlatScene, expected_hits, flat_pays};
 use super::queries::TriangleBvh;
 use super::wide::Bvh4;
 use crate::geometry::mesh::TriangleMesh;
@@ -79,18 +79,19 @@ enum PrimRef {
     Instance(u32),
 }
 
-/// What a leaf of the top-level tree tests: a primitive by itself, or a
-/// block of up to eight spheres, rectangles or triangles at once.
+/// What a leaf of the top-level tree tests: a primitive by itself, or
+/// consecutive blocks of up to eight spheres, rectangles or triangles, each
+/// block at once.
 #[derive(Clone, Copy, Debug)]
 enum LeafItem {
     /// `prims[k]`.
     Prim(u32),
-    /// A block of world-space spheres, numbered by their shape.
-    Spheres(u32),
-    /// A block of world-space rectangles, numbered by their shape.
-    Rectangles(u32),
-    /// A block of single triangles, numbered by their place in `prims`.
-    Triangles(u32),
+    /// Blocks of world-space spheres, numbered by their shape.
+    Spheres(BlockRange),
+    /// Blocks of world-space rectangles, numbered by their shape.
+    Rectangles(BlockRange),
+    /// Blocks of single triangles, numbered by their place in `prims`.
+    Triangles(BlockRange),
 }
 
 /// The kinds of top-level primitive the tree packs into blocks.
@@ -98,12 +99,15 @@ const KIND_SPHERE: u8 = 1;
 const KIND_RECTANGLE: u8 = 2;
 const KIND_TRIANGLE: u8 = 3;
 
-/// The top level's SAH prices where its leaves hold blocks: a block test
-/// costs about one primitive test, and a node visit an eighth of one, as
-/// for primitives tested one at a time.
+/// The top level's SAH prices where its leaves hold blocks, as Embree
+/// prices its SAH builds: a node visit and a block test (or a primitive
+/// tested alone) cost one each. A leaf holds up to four blocks of a kind,
+/// so that a room (the Cornell box: three blocks of rectangles) is a tree
+/// of one leaf, all of whose blocks a ray tests, with no node to visit.
 const BLOCKS_OF_EIGHT: SahCosts = SahCosts {
-    traversal: SahCosts::ONE_AT_A_TIME.traversal,
+    traversal: 1.0,
     block: 8,
+    leaf_blocks: 4,
 };
 
 /// Meshes with at least this many triangles are traced through a tree over
@@ -162,9 +166,6 @@ pub struct BuildStats {
     pub bvh_bytes: usize,
     /// Bytes held by mesh data.
     pub mesh_bytes: usize,
-    /// Blocks of eight primitives where rays are traced without the tree,
-    /// every primitive tested (see [`FlatScene`]); 0 where the tree is used.
-    pub flat_blocks: usize,
     /// Blocks of up to eight spheres, rectangles or triangles in the
     /// leaves of the top-level tree (0 where the processor lacks AVX).
     pub leaf_blocks: usize,
@@ -221,9 +222,6 @@ pub struct Aggregate {
     triangle_vertices: Vec<[Vec3; 3]>,
     unbounded: Vec<u32>,
     bvh: Bvh4,
-    /// The bounded primitives without a tree, where they are few and all
-    /// rectangles or triangles; `bvh` is then not traversed.
-    flat: Option<FlatScene>,
     bounds: Aabb,
     stats: BuildStats,
 }
@@ -378,8 +376,9 @@ impl Aggregate {
                     _ => unreachable!("sphere kind"),
                 })
                 .collect();
-            for chunk in spheres.chunks(8) {
-                items.push(LeafItem::Spheres(blocks.push_spheres(chunk)));
+            let first = spheres.chunks(8).map(|chunk| blocks.push_spheres(chunk)).min();
+            if let Some(first) = first {
+                items.push(LeafItem::Spheres((first, spheres.len().div_ceil(8) as u32)));
             }
             let rectangles: Vec<(Rectangle, u32)> = of_kind(KIND_RECTANGLE)
                 .map(|p| match prims[p as usize] {
@@ -390,8 +389,9 @@ impl Aggregate {
                     _ => unreachable!("rectangle kind"),
                 })
                 .collect();
-            for chunk in rectangles.chunks(8) {
-                items.push(LeafItem::Rectangles(blocks.push_rectangles(chunk)));
+            let first = rectangles.chunks(8).map(|chunk| blocks.push_rectangles(chunk)).min();
+            if let Some(first) = first {
+                items.push(LeafItem::Rectangles((first, rectangles.len().div_ceil(8) as u32)));
             }
             let triangles: Vec<([Vec3; 3], u32)> = of_kind(KIND_TRIANGLE)
                 .map(|p| match prims[p as usize] {
@@ -399,13 +399,13 @@ impl Aggregate {
                     _ => unreachable!("triangle kind"),
                 })
                 .collect();
-            for chunk in triangles.chunks(8) {
-                items.push(LeafItem::Triangles(blocks.push_triangles(chunk)));
+            let first = triangles.chunks(8).map(|chunk| blocks.push_triangles(chunk)).min();
+            if let Some(first) = first {
+                items.push(LeafItem::Triangles((first, triangles.len().div_ceil(8) as u32)));
             }
             items.extend(of_kind(ALONE).map(LeafItem::Prim));
             (start, items.len() as u32 - start)
         });
-        let flat = flat_scene(&prims, &shapes, &triangle_vertices);
         let blas: Vec<Option<Bvh4>> = blas.iter().map(|b| b.as_ref().map(Bvh4::from_binary)).collect();
 
         let mut stats = BuildStats {
@@ -417,10 +417,8 @@ impl Aggregate {
                 + prims.len() * std::mem::size_of::<PrimRef>()
                 + triangle_vertices.len() * std::mem::size_of::<[Vec3; 3]>()
                 + items.len() * std::mem::size_of::<LeafItem>()
-                + blocks.as_ref().map_or(0, Blocks::memory_bytes)
-                + flat.as_ref().map_or(0, FlatScene::memory_bytes),
+                + blocks.as_ref().map_or(0, Blocks::memory_bytes),
             mesh_bytes: 0,
-            flat_blocks: flat.as_ref().map_or(0, FlatScene::blocks),
             leaf_blocks: blocks.as_ref().map_or(0, Blocks::len),
         };
         for b in blas.iter().flatten() {
@@ -449,18 +447,9 @@ impl Aggregate {
             triangle_vertices,
             unbounded,
             bvh,
-            flat,
             bounds: scene_bounds,
             stats,
         }
-    }
-
-    /// The same geometry traced through its tree even where it is small
-    /// enough to be traced without one (for tests and benchmarks).
-    pub fn without_flat(mut self) -> Aggregate {
-        self.flat = None;
-        self.stats.flat_blocks = 0;
-        self
     }
 
     /// Figures from the build.
@@ -499,12 +488,6 @@ impl Aggregate {
         // A zero direction meets nothing bounded.
         if ray.dir == Vec3::ZERO {
             return found;
-        }
-        if let Some(flat) = &self.flat {
-            return match self.flat_hit(flat, ray, any_hit) {
-                None => found,
-                Some(hit) => on_hit(hit, ray) | found,
-            };
         }
         // The triangle test's per-ray set-up, made when the first triangle
         // is met: many rays in a room meet only walls. (`Some(None)`: made,
@@ -546,7 +529,7 @@ impl Aggregate {
                 ),
                 None => false,
             },
-            LeafItem::Rectangles(b) => match blocks().rectangles(b, ray) {
+            LeafItem::Rectangles(b) => match blocks().rectangles(b, ray, any_hit) {
                 Some((i, t, _)) => on_hit(
                     Hit {
                         t,
@@ -560,7 +543,7 @@ impl Aggregate {
                 let Some(tri_ray) = *pre.get_or_insert_with(|| TriangleRay::new(ray)) else {
                     return false;
                 };
-                match blocks().triangles(b, ray, &tri_ray) {
+                match blocks().triangles(b, ray, &tri_ray, any_hit) {
                     Some((p, t, b)) => match self.prims[p as usize] {
                         PrimRef::Triangle { object, tri, .. } => on_hit(
                             Hit {
@@ -575,24 +558,6 @@ impl Aggregate {
                 }
             }
         }
-    }
-
-    /// The hit a flat scene finds, as a [`Hit`].
-    #[inline(always)]
-    fn flat_hit(&self, flat: &FlatScene, ray: &Ray, any_hit: bool) -> Option<Hit> {
-        Some(match flat.intersect(ray, any_hit)? {
-            FlatHit::Rectangle { id, t } => Hit {
-                t,
-                prim: HitPrim::Shape(id),
-            },
-            FlatHit::Triangle { id, t, b } => match self.prims[id as usize] {
-                PrimRef::Triangle { object, tri, .. } => Hit {
-                    t,
-                    prim: HitPrim::Triangle { object, tri, b },
-                },
-                _ => unreachable!("flat triangles are numbered by their top-level primitive"),
-            },
-        })
     }
 
     /// Tests top-level primitive `k`. Single triangles and shapes, what a
@@ -738,16 +703,56 @@ impl Aggregate {
     /// The nearest intersection within the ray's interval.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        // A room traced without its tree, the common small scene, skips
-        // the general traversal, and its stack frame of kilobytes.
-        if let (Some(flat), true) = (&self.flat, self.unbounded.is_empty()) {
-            return if ray.dir == Vec3::ZERO {
-                None
-            } else {
-                self.flat_hit(flat, ray, false)
-            };
+        // A tree of one leaf (a room) skips the general traversal, and its
+        // stack frame of kilobytes.
+        if let (Some(leaf), true) = (self.bvh.root_leaf(), self.unbounded.is_empty()) {
+            return self.leaf_hit(leaf, ray, false);
         }
         self.intersect_traversed(ray)
+    }
+
+    /// The nearest (with `any_hit`, some) hit of a tree that is one leaf
+    /// (a room: a few blocks of rectangles), without the traversal's stack
+    /// frame: what the traversal finds, in the same order.
+    #[inline]
+    #[allow(unsafe_code)]
+    fn leaf_hit(&self, leaf: (u32, u32), ray: &Ray, any_hit: bool) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if self.blocks.is_some() {
+            // SAFETY: blocks exist only where the processor has AVX.
+            return unsafe { self.leaf_hit_avx(leaf, ray, any_hit) };
+        }
+        self.leaf_items_hit(leaf, ray, any_hit)
+    }
+
+    /// [`Aggregate::leaf_hit`] built for AVX, so that the block tests are
+    /// inlined.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn leaf_hit_avx(&self, leaf: (u32, u32), ray: &Ray, any_hit: bool) -> Option<Hit> {
+        self.leaf_items_hit(leaf, ray, any_hit)
+    }
+
+    #[inline(always)]
+    fn leaf_items_hit(&self, (first, count): (u32, u32), ray: &Ray, any_hit: bool) -> Option<Hit> {
+        // A zero direction meets nothing bounded.
+        if ray.dir == Vec3::ZERO {
+            return None;
+        }
+        let mut r = *ray;
+        let mut best = None;
+        let mut pre = None;
+        let mut on_hit = |hit: Hit, r: &mut Ray| {
+            r.t_max = hit.t;
+            best = Some(hit);
+            true
+        };
+        for k in first..first + count {
+            if self.test_item(k, &mut r, &mut pre, any_hit, &mut on_hit) && any_hit {
+                break;
+            }
+        }
+        best
     }
 
     /// [`Aggregate::intersect`] through the general traversal: built for
@@ -787,8 +792,8 @@ impl Aggregate {
     /// Whether anything lies on the ray within its interval.
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
-        if let (Some(flat), true) = (&self.flat, self.unbounded.is_empty()) {
-            return ray.dir != Vec3::ZERO && flat.intersect(ray, true).is_some();
+        if let (Some(leaf), true) = (self.bvh.root_leaf(), self.unbounded.is_empty()) {
+            return self.leaf_hit(leaf, ray, true).is_some();
         }
         self.occluded_traversed(ray)
     }
@@ -1035,41 +1040,6 @@ impl Aggregate {
             }
         }
     }
-}
-
-/// The top-level primitives as a [`FlatScene`], if they are few (but not
-/// so few that a tree of one or two leaves is faster), all rectangles or
-/// triangles, and large for the space they fill (a room, not a few small
-/// objects far apart, where a tree skips nearly all of them). Triangles are
-/// numbered by their place in `prims` (tree order, so that a block holds
-/// neighbours), rectangles by their shape.
-fn flat_scene(prims: &[PrimRef], shapes: &[ShapeInstance], triangle_vertices: &[[Vec3; 3]]) -> Option<FlatScene> {
-    if !(FLAT_MIN_PRIMITIVES..=FLAT_MAX_PRIMITIVES).contains(&prims.len()) {
-        return None;
-    }
-    let mut rectangles = Vec::new();
-    let mut triangles = Vec::new();
-    for (k, p) in prims.iter().enumerate() {
-        match *p {
-            PrimRef::Triangle { vertices, .. } => triangles.push((triangle_vertices[vertices as usize], k as u32)),
-            PrimRef::Shape(i) => match &shapes[i as usize] {
-                ShapeInstance {
-                    shape: Shape::Rectangle(r),
-                    transform: None,
-                    ..
-                } => rectangles.push((*r, i)),
-                _ => return None,
-            },
-            PrimRef::Object(_) | PrimRef::Instance(_) => return None,
-        }
-    }
-    let boxes: Vec<Aabb> = (rectangles.iter().map(|(r, _)| r.bounds()))
-        .chain(triangles.iter().map(|(t, _)| Aabb::from_points(*t)))
-        .collect();
-    if !flat_pays(boxes.len(), expected_hits(&boxes)) {
-        return None;
-    }
-    FlatScene::new(&rectangles, &triangles)
 }
 
 /// The same shape with its transform applied, where the transformed shape
@@ -1340,6 +1310,73 @@ mod tests {
             }
             assert!(hits > 300, "scene {scene}: {hits} hits");
         }
+    }
+
+    /// Rays parallel to a rectangle of a block (a zero denominator: t is
+    /// ±∞ or NaN) miss it, in its plane or beside it, with an unbounded
+    /// interval or not, as the one-rectangle test has them; and a ray
+    /// across hits.
+    #[test]
+    fn rays_parallel_to_a_rectangle_miss_it() {
+        use crate::geometry::shape::Rectangle;
+        let floor = Rectangle::new(Vec3::ZERO, Vec3::X, Vec3::Z);
+        let wall = Rectangle::new(Vec3::new(0.0, 0.0, 2.0), Vec3::X, Vec3::Y);
+        let shapes = [floor, wall]
+            .into_iter()
+            .map(|r| ShapeInstance {
+                shape: Shape::Rectangle(r),
+                transform: None,
+                material: 0,
+                light: None,
+                flip_normals: false,
+            })
+            .collect();
+        let g = Aggregate::build(vec![], shapes, vec![], vec![]);
+        #[cfg(target_arch = "x86_64")]
+        if crate::geometry::lanes::avx_available() {
+            assert_eq!(g.stats().leaf_blocks, 1);
+        }
+        for t_max in [f32::INFINITY, 10.0] {
+            for origin in [
+                Vec3::new(-1.0, 0.0, 0.5),
+                Vec3::new(-1.0, 0.25, 0.5),
+                Vec3::new(-1.0, 0.5, 2.0),
+            ] {
+                // Along +x, parallel to both: in the floor's plane across
+                // it, above it, in the wall's plane across it.
+                let ray = Ray::with_interval(origin, Vec3::X, 1e-4, t_max);
+                assert!(g.intersect(&ray).is_none() && !g.occluded(&ray), "{origin} {t_max}");
+                assert!(floor.intersect(&ray).is_none() && wall.intersect(&ray).is_none());
+            }
+            // Along +z from above the floor: parallel to it, into the wall.
+            let ray = Ray::with_interval(Vec3::new(0.5, 0.25, -1.0), Vec3::Z, 1e-4, t_max);
+            let hit = g.intersect(&ray).expect("the wall is hit");
+            assert!(matches!(hit.prim, HitPrim::Shape(1)) && hit.t == 3.0, "{hit:?}");
+        }
+    }
+
+    /// Rays through the diagonal shared by two triangles of a block hit
+    /// one of them, as with the one-triangle test.
+    #[test]
+    fn triangle_blocks_are_watertight() {
+        use crate::geometry::triangle::tests::{DIAGONAL_QUAD, assert_diagonal_is_watertight};
+        let q = DIAGONAL_QUAD;
+        let mesh = TriangleMesh {
+            positions: q.to_vec(),
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            ..TriangleMesh::default()
+        };
+        let objects = vec![MeshObject {
+            mesh: 0,
+            material: 0,
+            light: None,
+        }];
+        let g = Aggregate::build(vec![mesh], vec![], objects, vec![]);
+        #[cfg(target_arch = "x86_64")]
+        if crate::geometry::lanes::avx_available() {
+            assert_eq!(g.stats().leaf_blocks, 1);
+        }
+        assert_diagonal_is_watertight(13, |r| g.intersect(r).is_some());
     }
 
     fn one_shape(shape: Shape, transform: Transform) -> Aggregate {

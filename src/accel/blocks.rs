@@ -1,7 +1,6 @@
 //! Blocks of eight primitives of one kind, tested against a ray in eight
 //! vector lanes: what the leaves of a scene's top-level tree hold
-//! ([`Aggregate`](super::Aggregate)) and what a [`FlatScene`](super::flat::FlatScene)
-//! is made of. Each kind is laid out as structure of arrays (Embree's
+//! ([`Aggregate`](super::Aggregate)). Each kind is laid out as structure of arrays (Embree's
 //! "triangle8" layout) and tested without a branch that depends on the
 //! primitive: spheres in double precision (the refined quadratic of
 //! [`Sphere::intersect`], the same bits), rectangles (the operations of
@@ -357,6 +356,9 @@ mod avx {
     /// ray meets: its number, distance and (triangles) barycentrics.
     pub(crate) type BlockHit = (u32, f32, [f32; 3]);
 
+    /// Consecutive blocks of one kind: the first's number and how many.
+    pub(crate) type BlockRange = (u32, u32);
+
     impl Blocks {
         /// No blocks yet; `None` where the processor lacks AVX.
         pub(crate) fn new() -> Option<Blocks> {
@@ -409,74 +411,110 @@ mod avx {
                 + self.triangles.len() * std::mem::size_of::<Triangle8>()
         }
 
-        /// Sphere block `block` against `ray` (not of zero direction):
+        /// The `count` sphere blocks from `first` against `ray`, in order
+        /// (each bounding the next by its nearest hit, as a traversal does):
         /// with `any_hit` the first lane hit, else the nearest.
         #[inline]
         #[allow(unsafe_code)]
-        pub(crate) fn spheres(&self, block: u32, ray: &Ray, any_hit: bool) -> Option<BlockHit> {
-            let b = &self.spheres[block as usize];
-            let ray = SphereRay::new(ray)?;
+        pub(crate) fn spheres(&self, (first, count): BlockRange, ray: &Ray, any_hit: bool) -> Option<BlockHit> {
+            let mut lanes = SphereRay::new(ray)?;
+            let mut found = None;
+            for b in &self.spheres[first as usize..(first + count) as usize] {
+                // SAFETY: blocks exist only where the processor has AVX.
+                let (t, mut mask) = unsafe { b.intersect(&lanes) };
+                let mut best: Option<(usize, f64)> = None;
+                while mask != 0 {
+                    let lane = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    if best.is_none_or(|(_, t_best)| t[lane] < t_best) {
+                        best = Some((lane, t[lane]));
+                        if any_hit {
+                            break;
+                        }
+                    }
+                }
+                if let Some((lane, t)) = best {
+                    let t = t as f32;
+                    found = Some((b.ids[lane], t, [0.0; 3]));
+                    if any_hit {
+                        break;
+                    }
+                    lanes.t_max = t as f64;
+                }
+            }
+            found
+        }
+
+        /// The `count` rectangle blocks from `first` against `ray`: with
+        /// `any_hit` some lane hit, else the nearest.
+        #[inline]
+        #[allow(unsafe_code)]
+        pub(crate) fn rectangles(&self, (first, count): BlockRange, ray: &Ray, any_hit: bool) -> Option<BlockHit> {
+            let blocks = &self.rectangles[first as usize..(first + count) as usize];
             // SAFETY: blocks exist only where the processor has AVX.
-            let (t, mut mask) = unsafe { b.intersect(&ray) };
-            let mut best: Option<(usize, f64)> = None;
-            while mask != 0 {
-                let lane = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                if best.is_none_or(|(_, t_best)| t[lane] < t_best) {
-                    best = Some((lane, t[lane]));
+            unsafe { Rectangle8::nearest(blocks, ray, any_hit) }
+        }
+
+        /// The `count` triangle blocks from `first` against `ray`, whose
+        /// set-up for the triangle test is `pre`: with `any_hit` some lane
+        /// hit, else the nearest.
+        #[inline]
+        #[allow(unsafe_code)]
+        pub(crate) fn triangles(
+            &self,
+            (first, count): BlockRange,
+            ray: &Ray,
+            pre: &TriangleRay,
+            any_hit: bool,
+        ) -> Option<BlockHit> {
+            let blocks = &self.triangles[first as usize..(first + count) as usize];
+            // SAFETY: blocks exist only where the processor has AVX.
+            unsafe { Triangle8::nearest(blocks, ray, pre, any_hit) }
+        }
+    }
+
+    impl Rectangle8 {
+        /// The nearest lane of `blocks` that `ray` meets within its
+        /// interval (with `any_hit`, the first block's nearest), with its
+        /// number and distance. The ray's lanes are made once.
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn nearest(blocks: &[Rectangle8], ray: &Ray, any_hit: bool) -> Option<BlockHit> {
+            let mut t_max = ray.t_max;
+            let mut found = None;
+            for b in blocks {
+                let (mask, t) = b.intersect(ray, t_max);
+                if let Some(lane) = nearest_lane(mask, &t.to_array(), &mut t_max) {
+                    found = Some((b.ids[lane], t_max, [0.0; 3]));
                     if any_hit {
                         break;
                     }
                 }
             }
-            best.map(|(lane, t)| (b.ids[lane], t as f32, [0.0; 3]))
-        }
-
-        /// Rectangle block `block` against `ray`: with `any_hit` some lane
-        /// hit, else the nearest.
-        #[inline]
-        #[allow(unsafe_code)]
-        pub(crate) fn rectangles(&self, block: u32, ray: &Ray) -> Option<BlockHit> {
-            let b = &self.rectangles[block as usize];
-            // SAFETY: blocks exist only where the processor has AVX.
-            unsafe { b.nearest(ray) }
-        }
-
-        /// Triangle block `block` against `ray`, whose set-up for the
-        /// triangle test is `pre`: the nearest lane hit.
-        #[inline]
-        #[allow(unsafe_code)]
-        pub(crate) fn triangles(&self, block: u32, ray: &Ray, pre: &TriangleRay) -> Option<BlockHit> {
-            let b = &self.triangles[block as usize];
-            // SAFETY: blocks exist only where the processor has AVX.
-            unsafe { b.nearest(ray, pre) }
-        }
-    }
-
-    impl Rectangle8 {
-        /// The nearest lane `ray` meets within its interval, with its
-        /// number and distance.
-        #[inline]
-        #[target_feature(enable = "avx")]
-        fn nearest(&self, ray: &Ray) -> Option<BlockHit> {
-            let (mask, t) = self.intersect(ray, ray.t_max);
-            let mut t_max = ray.t_max;
-            let lane = nearest_lane(mask, &t.to_array(), &mut t_max)?;
-            Some((self.ids[lane], t_max, [0.0; 3]))
+            found
         }
     }
 
     impl Triangle8 {
-        /// The nearest lane `ray` meets within its interval, with its
+        /// The nearest lane of `blocks` that `ray` meets within its
+        /// interval (with `any_hit`, the first block's nearest), with its
         /// number, distance and barycentrics.
         #[inline]
         #[target_feature(enable = "avx")]
-        fn nearest(&self, ray: &Ray, pre: &TriangleRay) -> Option<BlockHit> {
+        fn nearest(blocks: &[Triangle8], ray: &Ray, pre: &TriangleRay, any_hit: bool) -> Option<BlockHit> {
             let lanes = RayLanes::new(ray, pre);
-            let (mask, t, edges) = self.intersect(&lanes, F8::splat(ray.t_max));
             let mut t_max = ray.t_max;
-            let lane = nearest_lane(mask, &t.to_array(), &mut t_max)?;
-            Some((self.ids[lane], t_max, edges.barycentrics(lane)))
+            let mut found = None;
+            for b in blocks {
+                let (mask, t, edges) = b.intersect(&lanes, F8::splat(t_max));
+                if let Some(lane) = nearest_lane(mask, &t.to_array(), &mut t_max) {
+                    found = Some((b.ids[lane], t_max, edges.barycentrics(lane)));
+                    if any_hit {
+                        break;
+                    }
+                }
+            }
+            found
         }
     }
 }
@@ -495,6 +533,9 @@ mod portable {
 
     /// See the x86-64 definition.
     pub(crate) type BlockHit = (u32, f32, [f32; 3]);
+
+    /// See the x86-64 definition.
+    pub(crate) type BlockRange = (u32, u32);
 
     impl Blocks {
         pub(crate) fn new() -> Option<Blocks> {
@@ -515,13 +556,13 @@ mod portable {
         pub(crate) fn memory_bytes(&self) -> usize {
             match self.0 {}
         }
-        pub(crate) fn spheres(&self, _: u32, _: &Ray, _: bool) -> Option<BlockHit> {
+        pub(crate) fn spheres(&self, _: BlockRange, _: &Ray, _: bool) -> Option<BlockHit> {
             match self.0 {}
         }
-        pub(crate) fn rectangles(&self, _: u32, _: &Ray) -> Option<BlockHit> {
+        pub(crate) fn rectangles(&self, _: BlockRange, _: &Ray, _: bool) -> Option<BlockHit> {
             match self.0 {}
         }
-        pub(crate) fn triangles(&self, _: u32, _: &Ray, _: &TriangleRay) -> Option<BlockHit> {
+        pub(crate) fn triangles(&self, _: BlockRange, _: &Ray, _: &TriangleRay, _: bool) -> Option<BlockHit> {
             match self.0 {}
         }
     }

@@ -50,6 +50,9 @@ pub struct SahCosts {
     /// what one primitive's does. Primitives of kind [`ALONE`] are always
     /// tested one at a time.
     pub block: u32,
+    /// Blocks of one kind a leaf may hold (primitives tested alone: at most
+    /// [`MAX_LEAF`]).
+    pub leaf_blocks: u32,
 }
 
 /// Kinds of primitive the build tells apart: a leaf test covers up to
@@ -64,6 +67,7 @@ impl SahCosts {
     pub const ONE_AT_A_TIME: SahCosts = SahCosts {
         traversal: 0.125,
         block: 1,
+        leaf_blocks: 2,
     };
     /// Blocks of four triangles: a leaf of one to four triangles costs one
     /// block test, so leaves come out fuller (more rays per second and a
@@ -72,6 +76,7 @@ impl SahCosts {
     pub const BLOCKS_OF_FOUR: SahCosts = SahCosts {
         traversal: 0.5,
         block: 4,
+        leaf_blocks: 2,
     };
 
     /// The prices of a build where every primitive is of one kind.
@@ -79,6 +84,7 @@ impl SahCosts {
         Prices {
             traversal: self.traversal,
             block: [self.block],
+            leaf_blocks: self.leaf_blocks,
         }
     }
 
@@ -90,6 +96,7 @@ impl SahCosts {
         Prices {
             traversal: self.traversal,
             block,
+            leaf_blocks: self.leaf_blocks,
         }
     }
 }
@@ -101,6 +108,7 @@ impl SahCosts {
 struct Prices<const K: usize> {
     traversal: f32,
     block: [u32; K],
+    leaf_blocks: u32,
 }
 
 impl<const K: usize> Prices<K> {
@@ -115,13 +123,13 @@ impl<const K: usize> Prices<K> {
     }
 
     /// Whether a leaf may hold `counts[k]` primitives of each kind: of each,
-    /// at most two blocks or [`MAX_LEAF`], whichever is more.
+    /// at most `leaf_blocks` blocks or [`MAX_LEAF`], whichever is more.
     #[inline]
     fn leaf_fits(&self, counts: &[u32; K]) -> bool {
         counts
             .iter()
             .zip(&self.block)
-            .all(|(&n, &b)| n <= (MAX_LEAF as u32).max(2 * b))
+            .all(|(&n, &b)| n <= (MAX_LEAF as u32).max(self.leaf_blocks * b))
     }
 }
 
@@ -337,7 +345,7 @@ fn build_into<const K: usize>(
     let (axis, mid) = match split {
         Some((axis, bin, cost)) if !deep => {
             // (Counted only where a leaf could hold them all.)
-            let leaf = n <= 2 * MAX_LEAF * K && {
+            let leaf = n <= costs.leaf_blocks.max(2) as usize * MAX_LEAF * K && {
                 let counts = kind_counts(prims.iter());
                 costs.leaf_fits(&counts) && costs.leaf(&counts) <= cost
             };

@@ -4,12 +4,10 @@
 pub mod aggregate;
 pub(crate) mod blocks;
 pub mod bvh;
-pub mod flat;
 pub mod queries;
 pub mod wide;
 
 pub use aggregate::{Aggregate, BLOCK_TREE_MIN_TRIANGLES};
 pub use bvh::{Bvh, BvhNode};
-pub use flat::{FLAT_MAX_PRIMITIVES, FLAT_MIN_PRIMITIVES, FlatHit, FlatScene};
 pub use queries::{QueryHit, TriangleBvh};
 pub use wide::{Bvh4, Bvh8, WideBvh};

@@ -121,6 +121,13 @@ impl<const W: usize> WideBvh<W> {
         }
     }
 
+    /// The first item and the number of items of the tree's one leaf,
+    /// where the tree is a single leaf.
+    #[inline]
+    pub fn root_leaf(&self) -> Option<(u32, u32)> {
+        self.root_leaf
+    }
+
     /// Renumbers every leaf: `f(first, count)` gives the leaf's new first
     /// position and count, which [`WideBvh::traverse`] then hands to its test.
     /// Leaves are visited in the order of their primitives, so a caller can

@@ -481,20 +481,13 @@ fn print_scene_stats(scene: &scene::Scene, load_seconds: f64) {
         scene.materials.len() - 1,
     );
     eprintln!(
-        "bvh: {} top-level primitives, {} nodes, {:.1} MiB (meshes {:.1} MiB), built in {:.3} s{}",
+        "bvh: {} top-level primitives, {} nodes, {} leaf blocks, {:.1} MiB (meshes {:.1} MiB), built in {:.3} s",
         g.primitives,
         g.nodes,
+        g.leaf_blocks,
         g.bvh_bytes as f64 / (1 << 20) as f64,
         g.mesh_bytes as f64 / (1 << 20) as f64,
         g.seconds,
-        if g.flat_blocks > 0 {
-            format!(
-                "; traced without the tree: {} blocks of up to eight rectangles or triangles",
-                g.flat_blocks
-            )
-        } else {
-            String::new()
-        }
     );
     eprintln!("load and build: {load_seconds:.3} s");
 }

@@ -5,7 +5,7 @@
 //!
 //! Every operation is a function built for AVX: it may only run where the
 //! processor has AVX, which the compiler enforces by letting only other
-//! AVX functions call it. `FlatScene` and the aggregate's traversal check
+//! AVX functions call it. The aggregate's traversal checks
 //! for AVX once and enter the lane code through such functions (one ray
 //! against blocks of eight primitives). (Plain loops over `[f32; 8]` were
 //! tried first: the compiler vectorised them across the wrong dimension and
@@ -98,11 +98,6 @@ impl F8 {
     binary!(sub, _mm256_sub_ps, "Lane-wise difference.");
     binary!(mul, _mm256_mul_ps, "Lane-wise product.");
     binary!(div, _mm256_div_ps, "Lane-wise quotient.");
-    binary!(
-        min,
-        _mm256_min_ps,
-        "Lane-wise `if self < other { self } else { other }` (SSE's and glam's min)."
-    );
     binary!(
         max,
         _mm256_max_ps,

@@ -206,8 +206,8 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             };
             let transform = (!transform.is_identity()).then_some(transform);
             // A box that does not emit is its six faces: rectangles, which
-            // a room of walls and boxes traces in blocks without a tree
-            // (an emitting box stays one light).
+            // the tree's leaves test in blocks of eight (an emitting box
+            // stays one light).
             let faces = match shape {
                 Shape::Cuboid(c) if !materials[material as usize].is_emissive() => Some(c.faces()),
                 _ => None,
