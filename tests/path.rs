@@ -391,6 +391,8 @@ fn delta_lights_in_the_path_tracer() {
         intensity: Rgb::splat(8.0),
         inner_angle: 10.0,
         outer_angle: 20.0,
+        profile: trazo::light::SpotProfile::SmoothStepInCosine,
+        projection: None,
         falloff: true,
     });
     assert!((spot - 0.5 / pi * 8.0 / 4.0).abs() < 1e-4, "{spot}");

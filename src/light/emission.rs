@@ -87,13 +87,19 @@ impl Light {
                 intensity,
                 cos_inner,
                 cos_outer,
+                profile,
+                projection,
                 ..
             } => {
                 let local = sample_cone_uniform(u_dir, *cos_outer);
-                let cone = super::smoothstep(*cos_outer, *cos_inner, local.z);
+                let cone = profile.eval(*cos_inner, *cos_outer, local.z);
                 let dir = Frame::from_normal(*direction).to_world(local);
+                let intensity = match projection {
+                    Some(image) => *intensity * image.eval(&scene.images, dir),
+                    None => *intensity,
+                };
                 (
-                    *intensity * (cone / pdf_cone_uniform(*cos_outer)),
+                    intensity * (cone / pdf_cone_uniform(*cos_outer)),
                     Ray::new(*position, dir),
                 )
             }
@@ -227,6 +233,8 @@ mod tests {
             intensity: i_spot,
             inner_angle: inner,
             outer_angle: outer,
+            profile: crate::light::SpotProfile::SmoothStepInCosine,
+            projection: None,
             falloff: true,
         }));
         d.lights.push(LightDesc::new(LightKind::Directional {

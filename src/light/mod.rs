@@ -48,8 +48,8 @@ pub enum Light {
         /// `intensity` as irradiance at every distance.
         falloff: bool,
     },
-    /// A point light restricted to a cone, fading smoothly between an inner
-    /// and an outer angle.
+    /// A point light restricted to a cone, fading between an inner and an
+    /// outer angle, optionally projecting an image.
     Spot {
         /// Position.
         position: Vec3,
@@ -61,6 +61,10 @@ pub enum Light {
         cos_inner: f32,
         /// Cosine of the angle outside which there is no light.
         cos_outer: f32,
+        /// How the intensity falls between the two angles.
+        profile: SpotProfile,
+        /// An image the light projects, where it has one.
+        projection: Option<SpotProjection>,
         /// Inverse-square falloff.
         falloff: bool,
     },
@@ -145,6 +149,72 @@ pub struct LightSample {
     pub is_delta: bool,
     /// What the shadow ray must reach.
     pub target: ShadowTarget,
+}
+
+/// How a spot light's intensity falls between its inner angle (full) and
+/// its outer angle (none).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SpotProfile {
+    /// A smoothstep in the cosine of the angle, as pbrt-v4's `SpotLight`.
+    #[default]
+    SmoothStepInCosine,
+    /// Linear in the angle, as Mitsuba 3's `spot` (`falloff_curve`).
+    LinearInAngle,
+}
+
+impl SpotProfile {
+    /// The share of the axis's intensity at `cos_theta` from the axis, for
+    /// a cone whose full and zero intensity begin at the angles whose
+    /// cosines are `cos_inner` and `cos_outer`.
+    #[inline]
+    pub fn eval(self, cos_inner: f32, cos_outer: f32, cos_theta: f32) -> f32 {
+        match self {
+            SpotProfile::SmoothStepInCosine => smoothstep(cos_outer, cos_inner, cos_theta),
+            SpotProfile::LinearInAngle => {
+                if cos_theta <= cos_outer {
+                    0.0
+                } else if cos_theta >= cos_inner {
+                    1.0
+                } else {
+                    let (inner, outer) = (cos_inner.acos(), cos_outer.acos());
+                    (outer - cos_theta.acos()) / (outer - inner)
+                }
+            }
+        }
+    }
+}
+
+/// An image a spot light projects (Mitsuba 3's `spot` with a `texture`):
+/// a direction `d` from the light, taken into the light's own frame as
+/// `l = to_local · d`, reads the image at u = ½ + ½·l.x / (l.z·tan θ_outer),
+/// v = ½ + ½·l.y / (l.z·tan θ_outer), so that the image spans the outer
+/// cone's square.
+#[derive(Clone, Copy, Debug)]
+pub struct SpotProjection {
+    /// World to the light's frame (the inverse of its `to_world`'s linear
+    /// part: the axis is +z).
+    pub to_local: glam::Mat3,
+    /// tan of the outer angle.
+    pub tan_outer: f32,
+    /// The image.
+    pub texture: Texture,
+}
+
+impl SpotProjection {
+    /// Where world direction `d` from the light reads the image.
+    #[inline]
+    pub fn uv(&self, d: Vec3) -> Vec2 {
+        let l = self.to_local * d;
+        let k = 0.5 / (l.z * self.tan_outer);
+        Vec2::new(0.5 + l.x * k, 0.5 + l.y * k)
+    }
+
+    /// The image's colour in world direction `d` from the light.
+    #[inline]
+    pub fn eval(&self, images: &[crate::texture::ImageTexture], d: Vec3) -> Rgb {
+        let uv = self.uv(d);
+        self.texture.eval(images, &TexCoord { uv, p: Vec3::ZERO })
+    }
 }
 
 /// GLSL's smoothstep: 0 below `a`, 1 above `b`, a cubic ramp between.
@@ -336,6 +406,8 @@ impl Light {
                 intensity,
                 cos_inner,
                 cos_outer,
+                profile,
+                projection,
                 falloff,
             } => {
                 let d = *position - p;
@@ -344,14 +416,18 @@ impl Light {
                     return None;
                 }
                 let wi = d / dist2.sqrt();
-                let cone = smoothstep(*cos_outer, *cos_inner, direction.dot(-wi));
+                let cone = profile.eval(*cos_inner, *cos_outer, direction.dot(-wi));
                 if cone <= 0.0 {
                     return None;
                 }
                 let scale = if *falloff { 1.0 / dist2 } else { 1.0 };
+                let intensity = match projection {
+                    Some(image) => *intensity * image.eval(&scene.images, -wi),
+                    None => *intensity,
+                };
                 Some(LightSample {
                     wi,
-                    li: *intensity * (cone * scale),
+                    li: intensity * (cone * scale),
                     pdf: 1.0,
                     is_delta: true,
                     target: ShadowTarget::Point(*position),
@@ -758,5 +834,52 @@ material = "lamp"
         assert_eq!(smoothstep(0.5, 0.8, 0.9), 1.0);
         let mid = smoothstep(0.5, 0.8, 0.65);
         assert!((mid - 0.5).abs() < 1e-6);
+    }
+
+    /// Mitsuba's profile is linear in the angle: full inside the beam
+    /// width, none at and beyond the cutoff, half halfway between.
+    #[test]
+    fn mitsuba_spot_profile_is_linear_in_angle() {
+        let (inner, outer) = (15f32.to_radians(), 20f32.to_radians());
+        let eval = |deg: f32| SpotProfile::LinearInAngle.eval(inner.cos(), outer.cos(), deg.to_radians().cos());
+        assert_eq!(eval(0.0), 1.0);
+        assert_eq!(eval(14.0), 1.0);
+        assert_eq!(eval(20.0), 0.0);
+        assert_eq!(eval(25.0), 0.0);
+        for (deg, expected) in [(17.5, 0.5), (16.0, 0.8), (19.0, 0.2)] {
+            assert!((eval(deg) - expected).abs() < 1e-4, "{deg}°: {}", eval(deg));
+        }
+        // Equal angles: a hard edge.
+        let hard = |deg: f32| SpotProfile::LinearInAngle.eval(outer.cos(), outer.cos(), deg.to_radians().cos());
+        assert_eq!((hard(19.9), hard(20.1)), (1.0, 0.0));
+    }
+
+    /// A projected image spans the outer cone's square: the axis reads its
+    /// centre, the cone's edge along the light's x and y axes the middle of
+    /// its right and top edges, and the light's frame turns it.
+    #[test]
+    fn spot_projection_spans_the_outer_cone() {
+        let outer = 20f32.to_radians();
+        let uv_of = |to_world: glam::Mat3, d: Vec3| {
+            let p = SpotProjection {
+                to_local: to_world.inverse(),
+                tan_outer: outer.tan(),
+                texture: Texture::Constant(Rgb::ONE),
+            };
+            let uv = p.uv(d);
+            (uv.x, uv.y)
+        };
+        let close = |a: (f32, f32), b: (f32, f32)| (a.0 - b.0).abs() < 1e-5 && (a.1 - b.1).abs() < 1e-5;
+        let id = glam::Mat3::IDENTITY;
+        assert!(close(uv_of(id, Vec3::Z), (0.5, 0.5)));
+        let edge_x = Vec3::new(outer.sin(), 0.0, outer.cos());
+        assert!(close(uv_of(id, edge_x), (1.0, 0.5)));
+        assert!(close(uv_of(id, Vec3::new(0.0, outer.sin(), outer.cos())), (0.5, 1.0)));
+        // The light turned a quarter about its axis: its x axis is world y.
+        let turned = glam::Mat3::from_cols(Vec3::Y, -Vec3::X, Vec3::Z);
+        assert!(close(
+            uv_of(turned, Vec3::new(0.0, outer.sin(), outer.cos())),
+            (1.0, 0.5)
+        ));
     }
 }

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::files::io_reason;
 use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere};
 use crate::geometry::{Transform, TriangleMesh};
-use crate::light::{Background, EnvironmentMap, Light};
+use crate::light::{Background, EnvironmentMap, Light, SpotProjection};
 use crate::material::conductor::ConductorFresnel;
 use crate::material::{Material, MaterialKind};
 use crate::sampling::Distribution1D;
@@ -87,6 +87,8 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 offset,
                 srgb,
                 tint,
+                wrap,
+                filter,
             } => {
                 let mut img = match source {
                     ImageSource::File(path) => ImageTexture::load(&base_dir.join(path), *srgb)
@@ -108,6 +110,8 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                     scale: *scale,
                     offset: *offset,
                     tint: *tint,
+                    wrap: *wrap,
+                    filter: *filter,
                 }
             }
         };
@@ -285,7 +289,11 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     let mut geometry = Aggregate::build(meshes, shapes, mesh_objects, instances);
 
     // Lights: the explicit ones, then one per emissive surface.
-    let mut lights: Vec<Light> = desc.lights.iter().map(|l| to_light(&l.kind)).collect();
+    let mut lights: Vec<Light> = desc
+        .lights
+        .iter()
+        .map(|l| to_light(&l.kind, |name| textures[name]))
+        .collect();
     let emissive = |m: u32| materials[m as usize].is_emissive();
     let mut emitters: Vec<(EmitterRef, u32)> = Vec::new();
     for (i, s) in geometry.shapes.iter().enumerate() {
@@ -649,7 +657,7 @@ fn read_mesh_source(
     }
 }
 
-fn to_light(kind: &LightKind) -> Light {
+fn to_light(kind: &LightKind, texture: impl Fn(&str) -> Texture) -> Light {
     match *kind {
         LightKind::Point {
             position,
@@ -666,6 +674,8 @@ fn to_light(kind: &LightKind) -> Light {
             intensity,
             inner_angle,
             outer_angle,
+            profile,
+            ref projection,
             falloff,
         } => Light::Spot {
             position,
@@ -673,6 +683,12 @@ fn to_light(kind: &LightKind) -> Light {
             intensity,
             cos_inner: inner_angle.to_radians().cos(),
             cos_outer: outer_angle.to_radians().cos(),
+            profile,
+            projection: projection.as_ref().map(|p| SpotProjection {
+                to_local: p.to_world.inverse(),
+                tan_outer: outer_angle.to_radians().tan(),
+                texture: texture(&p.texture),
+            }),
             falloff,
         },
         LightKind::Directional { direction, irradiance } => Light::Directional {

@@ -9,9 +9,11 @@
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::geometry::{Transform, TriangleMesh};
+use crate::light::SpotProfile;
 use crate::settings::{
     Filter, MAX_DEPTH, MAX_GATHER, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, RenderSettings,
 };
+pub use crate::texture::{ImageFilter, WrapMode};
 use glam::{Mat4, Vec2, Vec3};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -144,6 +146,10 @@ pub enum TextureKind {
         srgb: Option<bool>,
         /// Colour multiplier.
         tint: Rgb,
+        /// How the image continues beyond [0, 1]².
+        wrap: WrapMode,
+        /// How it is read between texel centres.
+        filter: ImageFilter,
     },
 }
 
@@ -351,6 +357,10 @@ pub enum LightKind {
         inner_angle: f32,
         /// Half-angle beyond which there is no light, degrees.
         outer_angle: f32,
+        /// How the intensity falls between the two angles.
+        profile: SpotProfile,
+        /// An image the light projects (Mitsuba's `texture`).
+        projection: Option<SpotProjectionDesc>,
         /// Inverse-square falloff.
         falloff: bool,
     },
@@ -361,6 +371,17 @@ pub enum LightKind {
         /// Irradiance, W/m².
         irradiance: Rgb,
     },
+}
+
+/// An image a spot light projects, as Mitsuba 3 projects it (see
+/// [`crate::light::SpotProjection`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpotProjectionDesc {
+    /// The texture (a name in [`SceneDesc::textures`]).
+    pub texture: String,
+    /// The light's frame: the linear part of its `to_world` (the axis is
+    /// its +z).
+    pub to_world: glam::Mat3,
 }
 
 /// A light with its location.
@@ -900,6 +921,25 @@ impl SceneDesc {
                             "inner_angle",
                             format!("must not exceed outer_angle ({outer_angle}), got {inner_angle}"),
                         ));
+                    }
+                    if let LightKind::Spot {
+                        projection: Some(image),
+                        ..
+                    } = &l.kind
+                    {
+                        if *outer_angle >= 90.0 {
+                            return Err(c.err(
+                                "outer_angle",
+                                format!("must be below 90 degrees for a projected image, got {outer_angle}"),
+                            ));
+                        }
+                        let det = image.to_world.determinant();
+                        if !(det.is_finite() && det != 0.0) {
+                            return Err(c.err("texture", "the light's transform is singular"));
+                        }
+                        if !self.textures.iter().any(|t| t.name == image.texture) {
+                            return Err(c.err("texture", format!("no texture named \"{}\"", image.texture)));
+                        }
                     }
                 }
                 LightKind::Directional { direction, irradiance } => {

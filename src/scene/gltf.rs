@@ -1393,6 +1393,8 @@ impl<'a> Reader<'a> {
                 offset,
                 srgb: Some(true),
                 tint,
+                wrap: crate::texture::WrapMode::Repeat,
+                filter: crate::texture::ImageFilter::Bilinear,
             },
             locs: Locs {
                 item: Some(self.loc(at)),
@@ -1751,6 +1753,8 @@ impl<'a> Reader<'a> {
                         intensity: power,
                         inner_angle: inner.to_degrees(),
                         outer_angle: outer.to_degrees(),
+                        profile: crate::light::SpotProfile::SmoothStepInCosine,
+                        projection: None,
                         falloff: true,
                     }
                 }

@@ -23,6 +23,7 @@ use crate::color::Rgb;
 use crate::color::spectrum::{SpectrumUse, sampled_to_rgb};
 use crate::error::{Error, Result, SourceLoc};
 use crate::files::{MAX_XML_BYTES, io_reason, read_limited};
+use crate::light::SpotProfile;
 use crate::sampling::SamplerKind;
 use crate::settings::{Filter, IntegratorKind, MAX_DEPTH, MAX_SPP, PathSampling};
 use glam::{Mat4, Vec2, Vec3};
@@ -1099,14 +1100,20 @@ impl Loader {
                     .unwrap_or(Rgb::ONE);
                 let cutoff = self.float(f, &props, "cutoff_angle", &mut used)?.unwrap_or(20.0);
                 let beam = self.float(f, &props, "beam_width", &mut used)?.unwrap_or(cutoff * 0.75);
-                if Self::find(&props, "texture", &mut used).is_some() {
-                    self.warn(f, node, "projected spot textures are unsupported");
-                }
-                self.warn(
-                    f,
-                    node,
-                    "the spot light's falloff between beam_width and cutoff_angle is approximated (smooth in cosine, not linear in angle)",
-                );
+                let projection = match self.color_source(f, &props, "texture", &mut used)? {
+                    None => None,
+                    Some(ColorSource::Texture(texture)) => Some(SpotProjectionDesc {
+                        texture,
+                        to_world: glam::Mat3::from_mat4(to_world),
+                    }),
+                    Some(ColorSource::Rgb(_)) => {
+                        return Err(self.err(
+                            f,
+                            node,
+                            "the spot light's \"texture\" must vary over the image (a bitmap, say), as in Mitsuba",
+                        ));
+                    }
+                };
                 self.desc.lights.push(LightDesc {
                     kind: LightKind::Spot {
                         position,
@@ -1114,6 +1121,8 @@ impl Loader {
                         intensity,
                         inner_angle: beam.min(cutoff),
                         outer_angle: cutoff,
+                        profile: SpotProfile::LinearInAngle,
+                        projection,
                         falloff: true,
                     },
                     locs,
@@ -1204,20 +1213,29 @@ impl Loader {
                     return Err(self.err(f, node, format!("image not found: {}", path.display())));
                 }
                 let raw = self.boolean(f, &props, "raw", &mut used)?.unwrap_or(false);
-                if let Some(w) = self.string(f, &props, "wrap_mode", &mut used)? {
-                    if w != "repeat" {
-                        self.warn(f, node, format!("wrap_mode \"{w}\" is approximated by \"repeat\""));
-                    }
-                }
-                if let Some(filter) = self.string(f, &props, "filter_type", &mut used)? {
-                    if filter != "bilinear" {
-                        self.warn(
+                let wrap = match self.string(f, &props, "wrap_mode", &mut used)?.as_deref() {
+                    None | Some("repeat") => WrapMode::Repeat,
+                    Some("mirror") => WrapMode::Mirror,
+                    Some("clamp") => WrapMode::Clamp,
+                    Some(other) => {
+                        return Err(self.err(
                             f,
                             node,
-                            format!("filter_type \"{filter}\" is approximated by bilinear filtering"),
-                        );
+                            format!("unknown wrap_mode \"{other}\" (repeat, mirror or clamp)"),
+                        ));
                     }
-                }
+                };
+                let filter = match self.string(f, &props, "filter_type", &mut used)?.as_deref() {
+                    None | Some("bilinear") => ImageFilter::Bilinear,
+                    Some("nearest") => ImageFilter::Nearest,
+                    Some(other) => {
+                        return Err(self.err(
+                            f,
+                            node,
+                            format!("unknown filter_type \"{other}\" (bilinear or nearest)"),
+                        ));
+                    }
+                };
                 // Mitsuba looks images up with v = 0 at the top row, trazo
                 // at the bottom: flip v after Mitsuba's to_uv.
                 TextureKind::Image {
@@ -1226,6 +1244,8 @@ impl Loader {
                     offset: Vec2::new(offset.x, 1.0 - offset.y),
                     srgb: if raw { Some(false) } else { None },
                     tint: Rgb::ONE,
+                    wrap,
+                    filter,
                 }
             }
             "checkerboard" => {
@@ -2543,6 +2563,73 @@ mod tests {
 
     fn matrix_of(s: &ShapeDesc) -> Mat4 {
         super::super::build::compose(&s.transform).unwrap().m
+    }
+
+    /// A spot light keeps Mitsuba's falloff (linear in angle) and projects
+    /// its `texture` in its own frame; bitmaps keep their wrap mode and
+    /// filter; unknown modes and a constant spot texture are errors.
+    #[test]
+    fn spot_projections_and_bitmap_wrap_modes() {
+        let dir = tempfile::tempdir().unwrap();
+        ::image::RgbImage::from_pixel(4, 2, ::image::Rgb([200, 100, 50]))
+            .save(dir.path().join("t.png"))
+            .unwrap();
+        let path = dir.path().join("scene.xml");
+        let scene = |spot_texture: &str, wrap: &str| {
+            format!(
+                r#"<scene version="3.0.0">
+    <emitter type="spot">
+        <float name="cutoff_angle" value="30"/><float name="beam_width" value="10"/>
+        {spot_texture}
+        <transform name="to_world"><rotate z="1" angle="90"/><translate x="1"/></transform>
+    </emitter>
+    <shape type="rectangle"><bsdf type="diffuse">
+        <texture type="bitmap" name="reflectance"><string name="filename" value="t.png"/>
+            <string name="wrap_mode" value="{wrap}"/><string name="filter_type" value="nearest"/></texture>
+    </bsdf></shape>
+</scene>"#
+            )
+        };
+        let bitmap = r#"<texture type="bitmap" name="texture"><string name="filename" value="t.png"/></texture>"#;
+        let d = parse(&scene(bitmap, "mirror"), &path, &[]).unwrap();
+        assert!(
+            d.warnings.iter().all(|w| !w.contains("unsupported") && !w.contains("approximated")),
+            "{:?}",
+            d.warnings
+        );
+        let LightKind::Spot {
+            inner_angle,
+            outer_angle,
+            profile,
+            projection: Some(image),
+            position,
+            ..
+        } = &d.lights[0].kind
+        else {
+            panic!("{:?}", d.lights[0].kind)
+        };
+        assert_eq!((*inner_angle, *outer_angle, *profile), (10.0, 30.0, SpotProfile::LinearInAngle));
+        assert!((*position - Vec3::X).length() < 1e-6);
+        // The light's x axis, turned a quarter about z, is world y.
+        assert!((image.to_world * Vec3::X - Vec3::Y).length() < 1e-6);
+        let texture = |name: &str| d.textures.iter().find(|t| t.name == name).unwrap();
+        assert!(matches!(texture(&image.texture).kind, TextureKind::Image { .. }));
+        let wraps: Vec<(WrapMode, ImageFilter)> = d
+            .textures
+            .iter()
+            .filter_map(|t| match t.kind {
+                TextureKind::Image { wrap, filter, .. } => Some((wrap, filter)),
+                _ => None,
+            })
+            .collect();
+        assert!(wraps.contains(&(WrapMode::Mirror, ImageFilter::Nearest)), "{wraps:?}");
+        assert!(wraps.contains(&(WrapMode::Repeat, ImageFilter::Bilinear)), "{wraps:?}");
+        let e = parse(&scene("", "sideways"), &path, &[]).unwrap_err().to_string();
+        assert!(e.contains("scene.xml:8:") && e.contains("unknown wrap_mode \"sideways\""), "{e}");
+        let e = parse(&scene(r#"<rgb name="texture" value="0.5"/>"#, "clamp"), &path, &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("scene.xml:2:") && e.contains("must vary over the image"), "{e}");
     }
 
     #[test]

@@ -568,6 +568,8 @@ fn read_texture(t: &Table) -> Result<TextureDesc> {
                 offset: t.vec2("offset")?.unwrap_or(Vec2::ZERO),
                 srgb: t.boolean("srgb")?,
                 tint: t.color("tint")?.unwrap_or(Rgb::ONE),
+                wrap: crate::texture::WrapMode::Repeat,
+                filter: crate::texture::ImageFilter::Bilinear,
             }
         }
     };
@@ -679,6 +681,8 @@ fn read_light(t: &Table) -> Result<LightDesc> {
             intensity: t.color("intensity")?.unwrap_or(Rgb::ONE),
             inner_angle: t.number_or("inner_angle", 20.0)?,
             outer_angle: t.number_or("outer_angle", 30.0)?,
+            profile: crate::light::SpotProfile::SmoothStepInCosine,
+            projection: None,
             falloff: t.boolean("falloff")?.unwrap_or(true),
         },
         _ => LightKind::Directional {

@@ -204,6 +204,8 @@ fn mtl_material(
                     offset: Vec2::ZERO,
                     srgb: None,
                     tint: if m.diffuse.is_some() { kd } else { Rgb::ONE },
+                    wrap: crate::texture::WrapMode::Repeat,
+                    filter: crate::texture::ImageFilter::Bilinear,
                 },
                 locs: Default::default(),
             });

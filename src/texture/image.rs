@@ -80,11 +80,11 @@ impl ImageTexture {
         replaced
     }
 
-    /// The texel at integer coordinates, wrapping around the edges.
+    /// The texel at integer coordinates, brought into the image by `wrap`.
     #[inline]
-    fn texel(&self, x: i64, y: i64) -> Rgb {
-        let x = x.rem_euclid(self.width as i64) as usize;
-        let y = y.rem_euclid(self.height as i64) as usize;
+    fn texel(&self, x: i64, y: i64, wrap: WrapMode) -> Rgb {
+        let x = wrap.apply(x, self.width as i64) as usize;
+        let y = wrap.apply(y, self.height as i64) as usize;
         self.pixels[y * self.width as usize + x]
     }
 
@@ -92,17 +92,32 @@ impl ImageTexture {
     /// v = 0 is the bottom row of the image.
     #[inline]
     pub fn lookup_bilinear(&self, uv: Vec2) -> Rgb {
-        let x = uv.x * self.width as f32 - 0.5;
-        let y = (1.0 - uv.y) * self.height as f32 - 0.5;
+        self.lookup(uv, WrapMode::Repeat, ImageFilter::Bilinear)
+    }
+
+    /// The colour at `uv` (v = 0 is the bottom row of the image), filtered
+    /// by `filter`, the image extended beyond [0, 1]² by `wrap`. Texel
+    /// centres lie at half-integer pixel coordinates, as in Mitsuba's
+    /// `bitmap` and pbrt-v4's `Image`.
+    #[inline]
+    pub fn lookup(&self, uv: Vec2, wrap: WrapMode, filter: ImageFilter) -> Rgb {
+        let x = uv.x * self.width as f32;
+        let y = (1.0 - uv.y) * self.height as f32;
         if !x.is_finite() || !y.is_finite() {
             return self.pixels[0];
         }
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
-        let (xi, yi) = (x0 as i64, y0 as i64);
-        let top = self.texel(xi, yi) * (1.0 - fx) + self.texel(xi + 1, yi) * fx;
-        let bottom = self.texel(xi, yi + 1) * (1.0 - fx) + self.texel(xi + 1, yi + 1) * fx;
-        top * (1.0 - fy) + bottom * fy
+        match filter {
+            ImageFilter::Nearest => self.texel(x.floor() as i64, y.floor() as i64, wrap),
+            ImageFilter::Bilinear => {
+                let (x, y) = (x - 0.5, y - 0.5);
+                let (x0, y0) = (x.floor(), y.floor());
+                let (fx, fy) = (x - x0, y - y0);
+                let (xi, yi) = (x0 as i64, y0 as i64);
+                let top = self.texel(xi, yi, wrap) * (1.0 - fx) + self.texel(xi + 1, yi, wrap) * fx;
+                let bottom = self.texel(xi, yi + 1, wrap) * (1.0 - fx) + self.texel(xi + 1, yi + 1, wrap) * fx;
+                top * (1.0 - fy) + bottom * fy
+            }
+        }
     }
 
     /// Mean colour.
@@ -110,6 +125,43 @@ impl ImageTexture {
         let sum = self.pixels.iter().fold(glam::DVec3::ZERO, |a, p| a + p.as_dvec3());
         (sum / self.pixels.len().max(1) as f64).as_vec3()
     }
+}
+
+/// How an image continues beyond [0, 1]² of (u, v).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum WrapMode {
+    /// Tiled.
+    #[default]
+    Repeat,
+    /// Tiled, every other tile mirrored, so that the edges meet.
+    Mirror,
+    /// The edge texels extended.
+    Clamp,
+}
+
+impl WrapMode {
+    /// Texel coordinate `i` brought into `0..n` (Mitsuba's `bitmap` wrap).
+    #[inline]
+    fn apply(self, i: i64, n: i64) -> i64 {
+        match self {
+            WrapMode::Repeat => i.rem_euclid(n),
+            WrapMode::Clamp => i.clamp(0, n - 1),
+            WrapMode::Mirror => {
+                let k = i.rem_euclid(2 * n);
+                if k < n { k } else { 2 * n - 1 - k }
+            }
+        }
+    }
+}
+
+/// How an image is read between its texels' centres.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ImageFilter {
+    /// Bilinear interpolation of the four nearest texels.
+    #[default]
+    Bilinear,
+    /// The texel the point lies in.
+    Nearest,
 }
 
 #[cfg(test)]
@@ -132,6 +184,44 @@ mod tests {
         // Wrapping: u = 0 lies halfway between the last and first texel.
         assert!((t.lookup_bilinear(Vec2::new(0.0, 0.5)) - Rgb::splat(0.5)).length() < 1e-6);
         assert_eq!(t.lookup_bilinear(Vec2::new(1.25, 0.5)), Rgb::ZERO);
+    }
+
+    /// Beyond [0, 1]² an image repeats, mirrors (its edges meeting) or
+    /// extends its edge texels; nearest filtering reads the texel a point
+    /// lies in.
+    #[test]
+    fn wrap_modes_and_nearest_filtering() {
+        let t = ImageTexture {
+            width: 3,
+            height: 1,
+            pixels: vec![Rgb::splat(0.0), Rgb::splat(1.0), Rgb::splat(2.0)],
+        };
+        let at = |u: f32, wrap: WrapMode, filter: ImageFilter| t.lookup(Vec2::new(u, 0.5), wrap, filter).x;
+        let near = ImageFilter::Nearest;
+        // Texel k covers u in [k/3, (k+1)/3).
+        for (u, repeat, mirror, clamp) in [
+            (0.5, 1.0, 1.0, 1.0),
+            (1.1, 0.0, 2.0, 2.0),
+            (1.5, 1.0, 1.0, 2.0),
+            (1.9, 2.0, 0.0, 2.0),
+            (-0.1, 2.0, 0.0, 0.0),
+            (2.1, 0.0, 0.0, 2.0),
+        ] {
+            assert_eq!(at(u, WrapMode::Repeat, near), repeat, "repeat at {u}");
+            assert_eq!(at(u, WrapMode::Mirror, near), mirror, "mirror at {u}");
+            assert_eq!(at(u, WrapMode::Clamp, near), clamp, "clamp at {u}");
+        }
+        // Bilinear at the right edge (u = 1, between the last texel and
+        // the next): the first texel when repeating, the last itself when
+        // mirrored or clamped.
+        let bi = ImageFilter::Bilinear;
+        assert!((at(1.0, WrapMode::Repeat, bi) - 1.0).abs() < 1e-6);
+        assert!((at(1.0, WrapMode::Mirror, bi) - 2.0).abs() < 1e-6);
+        assert!((at(1.0, WrapMode::Clamp, bi) - 2.0).abs() < 1e-6);
+        assert_eq!(
+            t.lookup_bilinear(Vec2::new(0.3, 0.5)),
+            t.lookup(Vec2::new(0.3, 0.5), WrapMode::Repeat, bi)
+        );
     }
 
     #[test]

@@ -11,7 +11,7 @@
 
 pub mod image;
 
-pub use self::image::ImageTexture;
+pub use self::image::{ImageFilter, ImageTexture, WrapMode};
 
 use crate::color::Rgb;
 use glam::{Vec2, Vec3};
@@ -49,7 +49,7 @@ pub enum Texture {
         /// Cubes per unit length.
         scale: f32,
     },
-    /// An image mapped by (u, v), repeating, bilinearly filtered.
+    /// An image mapped by (u, v).
     Image {
         /// Index into the scene's images.
         image: u32,
@@ -59,6 +59,10 @@ pub enum Texture {
         offset: Vec2,
         /// Colour multiplier.
         tint: Rgb,
+        /// How the image continues beyond [0, 1]².
+        wrap: WrapMode,
+        /// How it is read between texel centres.
+        filter: ImageFilter,
     },
 }
 
@@ -106,7 +110,9 @@ impl Texture {
                 scale,
                 offset,
                 tint,
-            } => images[image as usize].lookup_bilinear(tc.uv * scale + offset) * tint,
+                wrap,
+                filter,
+            } => images[image as usize].lookup(tc.uv * scale + offset, wrap, filter) * tint,
         }
     }
 

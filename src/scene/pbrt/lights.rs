@@ -115,6 +115,8 @@ impl Parser {
                     // pbrt a hard edge at |cone − delta|, capped by the cone.
                     inner_angle: (cone - delta).abs().min(cone),
                     outer_angle: cone,
+                    profile: crate::light::SpotProfile::SmoothStepInCosine,
+                    projection: None,
                     falloff: true,
                 }
             }

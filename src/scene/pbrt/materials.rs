@@ -685,6 +685,8 @@ impl Parser {
                         offset,
                         srgb,
                         tint: Rgb::splat(tint),
+                        wrap: crate::texture::WrapMode::Repeat,
+                        filter: crate::texture::ImageFilter::Bilinear,
                     },
                     Rgb::splat(0.5 * tint),
                 )

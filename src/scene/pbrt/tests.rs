@@ -715,6 +715,8 @@ Shape "sphere""#,
             offset: Vec2::new(0.5, 0.0),
             srgb: Some(false),
             tint: Rgb::splat(0.8),
+            wrap: crate::texture::WrapMode::Repeat,
+            filter: crate::texture::ImageFilter::Bilinear,
         }
     );
     assert_eq!(
