@@ -243,3 +243,55 @@ fn shapegroup_instances_render_as_the_shapes_written_out() {
     // image's mean would not.
     assert_blocks_agree(&a, &b);
 }
+
+/// Mitsuba's clipping planes: a camera outside a wall sees through it where
+/// `near_clip` lies beyond the wall (as smallpt-style scenes place their
+/// camera), and sees nothing beyond `far_clip`.
+#[test]
+fn near_and_far_clip_cut_the_view_as_in_mitsuba() {
+    let scene = |clip: &str| {
+        format!(
+            r#"<scene version="3.0.0">
+    <integrator type="path"><integer name="max_depth" value="1"/></integrator>
+    <sensor type="perspective">
+        <float name="fov" value="30"/>{clip}
+        <transform name="to_world"><lookat origin="0, 0, 10" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="4"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/>
+            <rfilter type="box"/></film>
+    </sensor>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="20"/><translate z="5"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="20"/></transform>
+        <emitter type="area"><rgb name="radiance" value="2"/></emitter>
+    </shape>
+</scene>"#
+        )
+    };
+    let path = repo("scenes/clip-test.xml");
+    let mean = |clip: &str| {
+        let d = trazo::scene::mitsuba::parse(&scene(clip), &path, &[]).unwrap();
+        assert!(d.warnings.iter().all(|w| !w.contains("clip")), "{:?}", d.warnings);
+        let film = render(&trazo::scene::build(&d).unwrap(), &RenderOptions::default())
+            .unwrap()
+            .film;
+        film.pixels.iter().map(|p| luminance(p.value())).sum::<f32>() / film.pixels.len() as f32
+    };
+    // The black wall 5 in front of the camera hides the light behind it.
+    assert_eq!(mean(""), 0.0);
+    assert_eq!(mean(r#"<float name="near_clip" value="4"/>"#), 0.0);
+    // Past the wall: the light, everywhere in the image.
+    assert!((mean(r#"<float name="near_clip" value="6"/>"#) - 2.0).abs() < 1e-4);
+    // The far plane before the light: nothing (no background).
+    assert_eq!(
+        mean(r#"<float name="near_clip" value="6"/><float name="far_clip" value="9"/>"#),
+        0.0
+    );
+    let e = trazo::scene::mitsuba::parse(&scene(r#"<float name="far_clip" value="0.001"/>"#), &path, &[])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("clip-test.xml:3:") && e.contains("near_clip"), "{e}");
+}

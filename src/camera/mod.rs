@@ -54,6 +54,11 @@ pub struct Camera {
     /// one normalisation instead of a projective divide, two matrix
     /// products and two normalisations.
     pinhole: Option<([Vec3; 3], Vec3)>,
+    /// The clipping planes' distances along the viewing axis, near and
+    /// far, where there are any.
+    clip: Option<(f32, f32)>,
+    /// The viewing axis in world space (unit length).
+    forward: Vec3,
     /// Lens radius; 0 for a pinhole.
     pub lens_radius: f32,
     /// Distance to the plane in focus.
@@ -142,11 +147,14 @@ impl Camera {
                 let basis = [m.x_axis, m.y_axis, m.w_axis].map(|c| camera_to_world.vector(c.truncate()));
                 (basis, camera_to_world.point(Vec3::ZERO))
             });
+        let forward = camera_to_world.vector(Vec3::Z).normalize();
         Ok(Camera {
             projection,
             camera_to_world,
             raster_to_camera,
             pinhole,
+            clip: None,
+            forward,
             lens_radius: 0.0,
             focus_distance: 1.0,
             width,
@@ -159,6 +167,14 @@ impl Camera {
     pub fn with_thin_lens(mut self, lens_radius: f32, focus_distance: f32) -> Camera {
         self.lens_radius = lens_radius;
         self.focus_distance = focus_distance;
+        self
+    }
+
+    /// The same camera seeing only what lies between `near` and `far`
+    /// along its viewing axis, as Mitsuba's `near_clip` and `far_clip`: a
+    /// ray starts where it crosses the near plane and ends at the far one.
+    pub fn with_clipping(mut self, near: f32, far: f32) -> Camera {
+        self.clip = (near > 0.0 || far.is_finite()).then_some((near, far));
         self
     }
 
@@ -178,6 +194,20 @@ impl Camera {
     /// The ray through raster position `film` (pixels, continuous), using
     /// `lens` ∈ [0,1)² to pick a point on the lens. Directions are unit length.
     pub fn generate_ray(&self, film: Vec2, lens: Vec2) -> Ray {
+        let ray = self.unclipped_ray(film, lens);
+        match self.clip {
+            None => ray,
+            Some((near, far)) => {
+                // Distances along the ray to the planes (Mitsuba's
+                // `near_clip / d.z`, d.z the cosine to the viewing axis).
+                let cos = ray.dir.dot(self.forward);
+                let (t_near, t_far) = (near / cos, far / cos);
+                Ray::with_interval(ray.origin + ray.dir * t_near, ray.dir, 0.0, t_far - t_near)
+            }
+        }
+    }
+
+    fn unclipped_ray(&self, film: Vec2, lens: Vec2) -> Ray {
         if let (Some(([a, b, c], origin)), true) = (self.pinhole, self.lens_radius <= 0.0) {
             return Ray::new(origin, (a * film.x + b * film.y + c).normalize());
         }
@@ -225,6 +255,43 @@ mod tests {
             h,
         )
         .unwrap()
+    }
+
+    /// Clipped rays start on the near plane and end on the far one, both
+    /// measured along the viewing axis, for perspective and orthographic
+    /// cameras; unclipped cameras give the rays they gave.
+    #[test]
+    fn clipping_planes_bound_the_rays() {
+        let ortho = Camera::look_at(
+            Projection::Orthographic { height: 2.0 },
+            Vec3::new(0.0, 0.0, 5.0),
+            Vec3::ZERO,
+            Vec3::Y,
+            100,
+            100,
+        )
+        .unwrap();
+        for camera in [persp(90.0, 200, 100), ortho] {
+            let clipped = camera.clone().with_clipping(2.0, 4.0);
+            for film in [Vec2::new(100.0, 50.0), Vec2::new(3.0, 97.0), Vec2::new(180.0, 10.0)] {
+                let (r, c) = (
+                    camera.generate_ray(film, Vec2::ZERO),
+                    clipped.generate_ray(film, Vec2::ZERO),
+                );
+                assert!(close(r.dir, c.dir));
+                // Depths along the axis (−z here) of the clipped ray's ends.
+                let depth = |p: Vec3| 5.0 - p.z;
+                assert!((depth(c.origin) - 2.0).abs() < 1e-5, "{film}: {c:?}");
+                assert!((depth(c.at(c.t_max)) - 4.0).abs() < 1e-5, "{film}: {c:?}");
+                assert!(close(c.origin, r.at((c.origin - r.origin).length())));
+            }
+            let same = camera.clone().with_clipping(0.0, f32::INFINITY);
+            let film = Vec2::new(7.0, 9.0);
+            assert_eq!(
+                same.generate_ray(film, Vec2::ZERO),
+                camera.generate_ray(film, Vec2::ZERO)
+            );
+        }
     }
 
     #[test]

@@ -364,7 +364,8 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     .with_thin_lens(
         cam.aperture_radius,
         cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
-    );
+    )
+    .with_clipping(cam.near_clip, cam.far_clip);
     let background = match &desc.background {
         BackgroundDesc::Constant(c) => Background::Constant(*c),
         BackgroundDesc::Gradient { top, bottom } => Background::Gradient {

@@ -73,6 +73,12 @@ pub struct CameraDesc {
     pub aperture_radius: f32,
     /// Distance to the plane in focus; `None`: the distance from `from` to `to`.
     pub focus_distance: Option<f32>,
+    /// Distance along the viewing axis before which nothing is seen
+    /// (Mitsuba's `near_clip`; 0: none).
+    pub near_clip: f32,
+    /// Distance along the viewing axis beyond which nothing is seen
+    /// (Mitsuba's `far_clip`; infinite: none).
+    pub far_clip: f32,
     /// An explicit camera-to-world matrix (camera space: +x right in the
     /// image, +y up, +z forward); when given, `from`, `to` and `up` are
     /// ignored. Format readers use it for their cameras' transforms.
@@ -90,6 +96,8 @@ impl Default for CameraDesc {
             up: Vec3::Y,
             aperture_radius: 0.0,
             focus_distance: None,
+            near_clip: 0.0,
+            far_clip: f32::INFINITY,
             to_world: None,
             locs: Locs::default(),
         }
@@ -1118,6 +1126,13 @@ impl SceneDesc {
             ProjectionDesc::Orthographic { size } => c.positive("size", size)?,
         }
         c.non_negative("aperture_radius", cam.aperture_radius)?;
+        c.non_negative("near_clip", cam.near_clip)?;
+        if cam.far_clip.is_nan() || cam.far_clip <= cam.near_clip {
+            return Err(c.err(
+                "far_clip",
+                format!("must exceed near_clip ({}), got {}", cam.near_clip, cam.far_clip),
+            ));
+        }
         if let Some(m) = cam.to_world {
             crate::geometry::Transform::from_matrix(m).map_err(|e| c.err("to_world", format!("{e}")))?;
             return Ok(());

@@ -230,6 +230,7 @@ impl Loader {
             self.desc.camera.projection = ProjectionDesc::Perspective {
                 fov: vertical_fov(39.597_755, "x", self.desc.settings.width, self.desc.settings.height),
             };
+            (self.desc.camera.near_clip, self.desc.camera.far_clip) = (1e-2, 1e4);
         }
         if !self.saw_integrator {
             self.desc
@@ -928,11 +929,18 @@ impl Loader {
                 );
             }
         }
-        for clip in ["near_clip", "far_clip"] {
-            if self.float(f, &props, clip, &mut used)?.is_some() {
-                self.warn(f, node, format!("\"{clip}\" is ignored (trazo has no clipping planes)"));
-            }
+        // Mitsuba's defaults: 1e-2 and 1e4.
+        let near = self.float(f, &props, "near_clip", &mut used)?.unwrap_or(1e-2);
+        let far = self.float(f, &props, "far_clip", &mut used)?.unwrap_or(1e4);
+        if !(near >= 0.0 && far > near && near.is_finite()) {
+            return Err(self.err(
+                f,
+                node,
+                format!("near_clip ({near}) and far_clip ({far}) must satisfy 0 ≤ near_clip < far_clip"),
+            ));
         }
+        self.desc.camera.near_clip = near;
+        self.desc.camera.far_clip = far;
         for shutter in ["shutter_open", "shutter_close"] {
             if self.float(f, &props, shutter, &mut used)?.is_some() {
                 self.warn(f, node, format!("\"{shutter}\" is unsupported (no motion blur)"));
@@ -2593,7 +2601,9 @@ mod tests {
         let bitmap = r#"<texture type="bitmap" name="texture"><string name="filename" value="t.png"/></texture>"#;
         let d = parse(&scene(bitmap, "mirror"), &path, &[]).unwrap();
         assert!(
-            d.warnings.iter().all(|w| !w.contains("unsupported") && !w.contains("approximated")),
+            d.warnings
+                .iter()
+                .all(|w| !w.contains("unsupported") && !w.contains("approximated")),
             "{:?}",
             d.warnings
         );
@@ -2608,7 +2618,10 @@ mod tests {
         else {
             panic!("{:?}", d.lights[0].kind)
         };
-        assert_eq!((*inner_angle, *outer_angle, *profile), (10.0, 30.0, SpotProfile::LinearInAngle));
+        assert_eq!(
+            (*inner_angle, *outer_angle, *profile),
+            (10.0, 30.0, SpotProfile::LinearInAngle)
+        );
         assert!((*position - Vec3::X).length() < 1e-6);
         // The light's x axis, turned a quarter about z, is world y.
         assert!((image.to_world * Vec3::X - Vec3::Y).length() < 1e-6);
@@ -2625,11 +2638,17 @@ mod tests {
         assert!(wraps.contains(&(WrapMode::Mirror, ImageFilter::Nearest)), "{wraps:?}");
         assert!(wraps.contains(&(WrapMode::Repeat, ImageFilter::Bilinear)), "{wraps:?}");
         let e = parse(&scene("", "sideways"), &path, &[]).unwrap_err().to_string();
-        assert!(e.contains("scene.xml:8:") && e.contains("unknown wrap_mode \"sideways\""), "{e}");
+        assert!(
+            e.contains("scene.xml:8:") && e.contains("unknown wrap_mode \"sideways\""),
+            "{e}"
+        );
         let e = parse(&scene(r#"<rgb name="texture" value="0.5"/>"#, "clamp"), &path, &[])
             .unwrap_err()
             .to_string();
-        assert!(e.contains("scene.xml:2:") && e.contains("must vary over the image"), "{e}");
+        assert!(
+            e.contains("scene.xml:2:") && e.contains("must vary over the image"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -536,7 +536,7 @@ fn read_camera(t: &Table) -> Result<CameraDesc> {
         aperture_radius: t.number_or("aperture_radius", 0.0)?,
         focus_distance: t.number("focus_distance")?,
         to_world: None,
-        locs: Locs::default(),
+        ..d
     };
     Ok(CameraDesc {
         locs: t.finish()?,
