@@ -376,9 +376,13 @@ impl Aggregate {
                     _ => unreachable!("sphere kind"),
                 })
                 .collect();
-            let first = spheres.chunks(8).map(|chunk| blocks.push_spheres(chunk)).min();
-            if let Some(first) = first {
-                items.push(LeafItem::Spheres((first, spheres.len().div_ceil(8) as u32)));
+            let mut range: Option<BlockRange> = None;
+            for chunk in spheres.chunks(8) {
+                let b = blocks.push_spheres(chunk);
+                range = Some(range.map_or((b, 1), |(first, n)| (first, n + 1)));
+            }
+            if let Some(range) = range {
+                items.push(LeafItem::Spheres(range));
             }
             let rectangles: Vec<(Rectangle, u32)> = of_kind(KIND_RECTANGLE)
                 .map(|p| match prims[p as usize] {
@@ -389,9 +393,13 @@ impl Aggregate {
                     _ => unreachable!("rectangle kind"),
                 })
                 .collect();
-            let first = rectangles.chunks(8).map(|chunk| blocks.push_rectangles(chunk)).min();
-            if let Some(first) = first {
-                items.push(LeafItem::Rectangles((first, rectangles.len().div_ceil(8) as u32)));
+            let mut range: Option<BlockRange> = None;
+            for chunk in rectangles.chunks(8) {
+                let b = blocks.push_rectangles(chunk);
+                range = Some(range.map_or((b, 1), |(first, n)| (first, n + 1)));
+            }
+            if let Some(range) = range {
+                items.push(LeafItem::Rectangles(range));
             }
             let triangles: Vec<([Vec3; 3], u32)> = of_kind(KIND_TRIANGLE)
                 .map(|p| match prims[p as usize] {
@@ -399,9 +407,13 @@ impl Aggregate {
                     _ => unreachable!("triangle kind"),
                 })
                 .collect();
-            let first = triangles.chunks(8).map(|chunk| blocks.push_triangles(chunk)).min();
-            if let Some(first) = first {
-                items.push(LeafItem::Triangles((first, triangles.len().div_ceil(8) as u32)));
+            let mut range: Option<BlockRange> = None;
+            for chunk in triangles.chunks(8) {
+                let b = blocks.push_triangles(chunk);
+                range = Some(range.map_or((b, 1), |(first, n)| (first, n + 1)));
+            }
+            if let Some(range) = range {
+                items.push(LeafItem::Triangles(range));
             }
             items.extend(of_kind(ALONE).map(LeafItem::Prim));
             (start, items.len() as u32 - start)
