@@ -49,6 +49,7 @@ pub mod geometry;
 pub mod integrator;
 pub mod light;
 pub mod material;
+pub mod media;
 pub mod render;
 pub mod sampling;
 pub mod scene;

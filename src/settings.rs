@@ -87,11 +87,13 @@ pub enum IntegratorKind {
     Photon,
     /// Stochastic progressive photon mapping.
     Sppm,
+    /// The volumetric path tracer (participating media).
+    VolPath,
 }
 
 impl IntegratorKind {
     /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 4] = ["whitted", "path", "photon", "sppm"];
+    pub const NAMES: [&'static str; 5] = ["whitted", "path", "photon", "sppm", "volpath"];
 
     /// Parses one of [`IntegratorKind::NAMES`].
     pub fn from_name(s: &str) -> Option<IntegratorKind> {
@@ -100,6 +102,7 @@ impl IntegratorKind {
             "path" => Some(IntegratorKind::Path),
             "photon" => Some(IntegratorKind::Photon),
             "sppm" => Some(IntegratorKind::Sppm),
+            "volpath" => Some(IntegratorKind::VolPath),
             _ => None,
         }
     }
@@ -111,6 +114,7 @@ impl IntegratorKind {
             IntegratorKind::Path => "path",
             IntegratorKind::Photon => "photon",
             IntegratorKind::Sppm => "sppm",
+            IntegratorKind::VolPath => "volpath",
         }
     }
 }

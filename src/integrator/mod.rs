@@ -15,10 +15,12 @@
 pub mod aov;
 pub mod path;
 pub mod photon;
+pub mod volpath;
 pub mod whitted;
 
 pub use path::PathTracer;
 pub use photon::PhotonMapper;
+pub use volpath::VolPathTracer;
 pub use whitted::Whitted;
 
 use crate::color::Rgb;
@@ -120,6 +122,13 @@ pub fn drive<D: Driver>(scene: &Scene, aovs: bool, cancel: Option<&AtomicBool>, 
             driver.camera_passes(&mapper, prepared)
         }
         IntegratorKind::Sppm => driver.iterations(photon::sppm::Sppm::new(scene, aovs)),
+        IntegratorKind::VolPath => driver.camera_passes(
+            &VolPathTracer {
+                max_depth: s.max_depth,
+                rr_depth: s.rr_depth,
+            },
+            Work::default(),
+        ),
     })
 }
 

@@ -13,6 +13,7 @@ use super::conductor::ConductorBsdf;
 use super::dielectric::DielectricBsdf;
 use super::lambert::LambertBsdf;
 use super::plastic::PlasticBsdf;
+use super::thin::ThinBsdf;
 use crate::color::Rgb;
 use crate::sampling::warp::{
     pdf_hemisphere_cosine, pdf_hemisphere_uniform, pdf_sphere_uniform, sample_hemisphere_cosine,
@@ -81,6 +82,8 @@ pub enum Bsdf<'a> {
     Dielectric(DielectricBsdf),
     /// A diffuse base under a smooth or rough dielectric coat.
     Plastic(PlasticBsdf<'a>),
+    /// A thin dielectric sheet, or (of index 1) no surface at all.
+    Thin(ThinBsdf),
 }
 
 macro_rules! dispatch {
@@ -91,6 +94,7 @@ macro_rules! dispatch {
             Bsdf::Conductor($b) => $e,
             Bsdf::Dielectric($b) => $e,
             Bsdf::Plastic($b) => $e,
+            Bsdf::Thin($b) => $e,
         }
     };
 }
@@ -150,10 +154,29 @@ impl Bsdf<'_> {
     #[inline]
     pub fn transmits(&self) -> bool {
         match self {
-            Bsdf::Dielectric(_) => true,
+            Bsdf::Dielectric(_) | Bsdf::Thin(_) => true,
             Bsdf::Classic(c) => c.kt != Rgb::ZERO,
             _ => false,
         }
+    }
+
+    /// The weight of light that crosses the surface along `wo` without
+    /// changing direction (a thin sheet's transmission; the whole of it
+    /// for a surface that is not there); zero for every other BSDF.
+    /// Volumetric shadow rays go through such surfaces with this weight.
+    #[inline]
+    pub fn pass_through(&self, wo: Vec3) -> Rgb {
+        match self {
+            Bsdf::Thin(t) => t.pass_through(wo),
+            _ => Rgb::ZERO,
+        }
+    }
+
+    /// Whether `s`, sampled from this BSDF for `wo`, crossed the surface
+    /// without changing direction (see [`Bsdf::pass_through`]).
+    #[inline]
+    pub fn passed_through(&self, wo: Vec3, s: &BsdfSample) -> bool {
+        matches!(self, Bsdf::Thin(_)) && s.wi == -wo
     }
 
     /// An estimate of the surface's colour (its reflectance at normal

@@ -26,6 +26,7 @@ pub mod microfacet;
 pub mod optics;
 pub mod phong;
 pub mod plastic;
+pub mod thin;
 
 pub use bsdf::{Bsdf, BsdfSample, DirectionSampling, TransportMode};
 pub use frame::Frame;
@@ -38,6 +39,7 @@ use dielectric::DielectricBsdf;
 use lambert::LambertBsdf;
 use microfacet::Ggx;
 use plastic::{CoatTables, PlasticBsdf};
+use thin::ThinBsdf;
 
 /// The scattering model of a material.
 #[derive(Clone, Debug, PartialEq)]
@@ -100,6 +102,16 @@ pub enum MaterialKind {
         smooth_internal_reflectance: f32,
         /// Tables of the rough coat (`None` when smooth).
         tables: Option<Box<CoatTables>>,
+    },
+    /// A thin dielectric sheet (index 1: no surface, only the boundary of
+    /// a medium).
+    Thin {
+        /// Index of the sheet relative to its surroundings.
+        eta: f32,
+        /// Reflection multiplier.
+        reflect_tint: Rgb,
+        /// Transmission multiplier.
+        transmit_tint: Rgb,
     },
 }
 
@@ -251,7 +263,7 @@ impl Material {
     pub fn is_transmissive(&self) -> bool {
         match &self.kind {
             MaterialKind::Classic { transmission, .. } => *transmission != Rgb::ZERO,
-            MaterialKind::Dielectric { .. } => true,
+            MaterialKind::Dielectric { .. } | MaterialKind::Thin { .. } => true,
             _ => false,
         }
     }
@@ -262,7 +274,7 @@ impl Material {
             MaterialKind::Classic { diffuse, specular, .. } => &[diffuse, specular],
             MaterialKind::Diffuse { reflectance } => &[reflectance],
             MaterialKind::Plastic { diffuse, .. } => &[diffuse],
-            MaterialKind::Conductor { .. } | MaterialKind::Dielectric { .. } => &[],
+            MaterialKind::Conductor { .. } | MaterialKind::Dielectric { .. } | MaterialKind::Thin { .. } => &[],
         };
         self.emission.reads_uv() || textures.iter().any(|t| t.reads_uv())
     }
@@ -349,6 +361,26 @@ impl Material {
                     ..zero
                 }
             }
+            MaterialKind::Thin {
+                eta,
+                reflect_tint,
+                transmit_tint,
+            } => {
+                // Reflection and transmission at normal incidence; the
+                // sheet does not bend rays (index 1).
+                let t = ThinBsdf {
+                    eta: *eta,
+                    reflect_tint: Rgb::ONE,
+                    transmit_tint: Rgb::ONE,
+                }
+                .pass_through(glam::Vec3::Z);
+                ClassicParams {
+                    kr: *reflect_tint * (1.0 - t.x),
+                    kt: *transmit_tint * t,
+                    ior: 1.0,
+                    ..zero
+                }
+            }
         }
     }
 
@@ -408,6 +440,15 @@ impl Material {
                 specular_weight: *specular_weight,
                 smooth_internal_reflectance: *smooth_internal_reflectance,
                 tables: tables.as_deref(),
+            }),
+            MaterialKind::Thin {
+                eta,
+                reflect_tint,
+                transmit_tint,
+            } => Bsdf::Thin(ThinBsdf {
+                eta: *eta,
+                reflect_tint: *reflect_tint,
+                transmit_tint: *transmit_tint,
             }),
         }
     }

@@ -11,15 +11,18 @@ use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::files::io_reason;
 use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere};
-use crate::geometry::{Transform, TriangleMesh};
+use crate::geometry::{Aabb, Transform, TriangleMesh};
 use crate::light::{Background, EnvironmentMap, Light, SpotProjection};
 use crate::material::conductor::ConductorFresnel;
 use crate::material::{Material, MaterialKind};
+use crate::media::{Field, Medium, MediumInterface, Phase, VoxelGrid};
 use crate::sampling::Distribution1D;
 use crate::settings::IntegratorKind;
 use crate::texture::{ImageTexture, Texture};
+use glam::Vec3;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Limits checked while a scene is built.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -135,6 +138,22 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     let default_material = materials.len() as u32;
     materials.push(Material::default());
 
+    // Media; a shape that bounds media gets its own copy of its material,
+    // which carries the interface ([`Scene::material_media`]).
+    let mut media = Vec::with_capacity(desc.media.len());
+    for (i, m) in desc.media.iter().enumerate() {
+        media.push(to_medium(m, i, &base_dir, &mut memory, limits, &mut warnings)?);
+    }
+    let medium_index: HashMap<&str, u32> = desc
+        .media
+        .iter()
+        .enumerate()
+        .map(|(i, m)| (m.name.as_str(), i as u32))
+        .collect();
+    let medium_of = |name: &Option<String>| name.as_ref().map(|n| medium_index[n.as_str()]);
+    let mut material_media: Vec<Option<MediumInterface>> = vec![None; materials.len()];
+    let mut interfaced: HashMap<(u32, MediumInterface), u32> = HashMap::new();
+
     // Named meshes, loaded once; placed once → baked into world space,
     // placed more often → instanced.
     let mut uses: HashMap<&str, usize> = HashMap::new();
@@ -166,10 +185,21 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     let mut instances = Vec::new();
     let mut instanced_mesh_index: HashMap<&str, u32> = HashMap::new();
     for (i, s) in desc.shapes.iter().enumerate() {
-        let material = s
+        let mut material = s
             .material
             .as_ref()
             .map_or(default_material, |n| material_index[n.as_str()]);
+        if let Some(mi) = &s.media {
+            let interface = MediumInterface {
+                inside: medium_of(&mi.inside),
+                outside: medium_of(&mi.outside),
+            };
+            material = *interfaced.entry((material, interface)).or_insert_with(|| {
+                materials.push(materials[material as usize].clone());
+                material_media.push(Some(interface));
+                materials.len() as u32 - 1
+            });
+        }
         let transform = compose(&s.transform)
             .map_err(|e| Error::scene(s.locs.key("transform"), format!("shape[{i}].transform"), e))?;
         let analytic = match &s.kind {
@@ -422,7 +452,23 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     }
     let any_transmissive = materials.iter().any(Material::is_transmissive);
     let materials_reading_uv = materials.iter().map(Material::reads_uv).collect();
+    let camera_medium = medium_of(&desc.camera_medium);
+    if !desc.media.is_empty() && desc.settings.integrator != IntegratorKind::VolPath {
+        let first = desc.media[0]
+            .locs
+            .item
+            .as_ref()
+            .map(|l| format!("{l}: "))
+            .unwrap_or_default();
+        warnings.push(format!(
+            "{first}the scene has participating media, which only the \"volpath\" integrator renders; \"{}\" renders the surfaces as if the media were not there",
+            desc.settings.integrator.name()
+        ));
+    }
     let mut scene = Scene {
+        media,
+        material_media,
+        camera_medium,
         any_transmissive,
         materials_reading_uv,
         camera,
@@ -565,10 +611,94 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             *nonlinear,
             images,
         ),
+        MaterialKindDesc::Thin {
+            ior,
+            ext_ior,
+            reflect_tint,
+            transmit_tint,
+        } => Material {
+            kind: MaterialKind::Thin {
+                eta: ior / ext_ior,
+                reflect_tint: *reflect_tint,
+                transmit_tint: *transmit_tint,
+            },
+            emission: Texture::Constant(Rgb::ZERO),
+            two_sided: true,
+        },
     };
     mat.emission = color(&m.emission);
     mat.two_sided = m.two_sided;
     mat
+}
+
+/// The world box of the unit cube under `to_world`.
+fn unit_cube_in(to_world: &Transform) -> Aabb {
+    to_world.aabb(&Aabb::new(Vec3::ZERO, Vec3::ONE))
+}
+
+/// The render-time medium of a description: its grids read, and its
+/// bounds (the box of its σt grid) found.
+fn to_medium(
+    m: &MediumDesc,
+    i: usize,
+    base_dir: &Path,
+    memory: &mut MemoryEstimate,
+    limits: &BuildLimits,
+    warnings: &mut Vec<String>,
+) -> Result<Medium> {
+    let mut field = |key: &str, f: &FieldDesc| -> Result<(Field, Option<Aabb>)> {
+        let place = |ops: &[TransformOp]| {
+            compose(ops).map_err(|e| Error::scene(m.locs.key(key), format!("medium[{i}].{key}"), e))
+        };
+        Ok(match f {
+            FieldDesc::Constant(v) => (Field::Constant(*v), None),
+            FieldDesc::Boxed { value, to_world } => (Field::Constant(*value), Some(unit_cube_in(&place(to_world)?))),
+            FieldDesc::Grid {
+                source,
+                to_world,
+                use_file_bounds,
+            } => {
+                let mut grid = match source {
+                    GridSource::MitsubaVol(path) => VoxelGrid::load_mitsuba_vol(&base_dir.join(path))
+                        .map_err(|e| Error::scene(m.locs.key(key), format!("medium[{i}].{key}"), reason_of(e)))?,
+                    GridSource::Data(g) => (**g).clone(),
+                };
+                memory.textures += grid.data.len() as u64 * 4;
+                memory.check(limits.max_memory)?;
+                let bad = grid.sanitize();
+                if bad > 0 {
+                    warnings.push(format!(
+                        "{}medium[{i}].{key}: {bad} values are NaN, infinite or negative; they are read as 0",
+                        m.locs.key(key).map(|l| format!("{l}: ")).unwrap_or_default()
+                    ));
+                }
+                let mut unit_to_world = place(to_world)?;
+                if *use_file_bounds {
+                    let (lo, hi) = grid.file_bounds;
+                    let file_box = Transform::scale(hi - lo)
+                        .map_err(|e| Error::scene(m.locs.key(key), format!("medium[{i}].{key}"), e.to_string()))?
+                        .then(&Transform::translate(lo));
+                    unit_to_world = file_box.then(&unit_to_world);
+                }
+                let bounds = unit_cube_in(&unit_to_world);
+                (Field::Grid(Arc::new(grid), unit_to_world.inverse()), Some(bounds))
+            }
+        })
+    };
+    let (sigma_t, bounds) = field("sigma_t", &m.sigma_t)?;
+    let (albedo, _) = field("albedo", &m.albedo)?;
+    let emission = match &m.emission {
+        Some(e) => Some(field("emission", e)?.0),
+        None => None,
+    };
+    Ok(Medium::new(
+        bounds,
+        sigma_t,
+        albedo,
+        emission,
+        m.scale,
+        Phase::henyey_greenstein(m.g),
+    ))
 }
 
 /// The message of an error without the file name it already carries.

@@ -274,6 +274,29 @@ pub enum MaterialKindDesc {
         /// Colour saturation by internal scattering.
         nonlinear: bool,
     },
+    /// A thin dielectric sheet; with `ior` equal to `ext_ior`, no surface
+    /// at all (only the boundary of a medium).
+    Thin {
+        /// Index of refraction of the sheet.
+        ior: f32,
+        /// Index of refraction outside.
+        ext_ior: f32,
+        /// Reflection multiplier.
+        reflect_tint: Rgb,
+        /// Transmission multiplier.
+        transmit_tint: Rgb,
+    },
+}
+
+impl MaterialKindDesc {
+    /// The surface that is not there: it bounds a medium and does not
+    /// scatter (Mitsuba's `null` BSDF, pbrt-v4's `interface` material).
+    pub const NULL: MaterialKindDesc = MaterialKindDesc::Thin {
+        ior: 1.0,
+        ext_ior: 1.0,
+        reflect_tint: Rgb::ONE,
+        transmit_tint: Rgb::ONE,
+    };
 }
 
 /// A named material (see [`crate::material::Material`]).
@@ -543,6 +566,72 @@ pub struct ShapeDesc {
     /// Swap the front and back sides (Mitsuba's `flip_normals`, pbrt's
     /// `ReverseOrientation`).
     pub flip_normals: bool,
+    /// The media inside and outside the shape; `None`: the shape does not
+    /// bound a medium, and rays keep theirs when they cross it.
+    pub media: Option<MediumInterfaceDesc>,
+    /// Source locations.
+    pub locs: Locs,
+}
+
+/// The media on the two sides of a surface, by name; `None`: vacuum.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MediumInterfaceDesc {
+    /// The medium inside (behind the surface's front side).
+    pub inside: Option<String>,
+    /// The medium outside.
+    pub outside: Option<String>,
+}
+
+/// Where a grid's values come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum GridSource {
+    /// A Mitsuba `.vol` file, relative to the scene file.
+    MitsubaVol(PathBuf),
+    /// Values given in the scene.
+    Data(Arc<crate::media::VoxelGrid>),
+}
+
+/// A property of a medium (σt, albedo, emission).
+#[derive(Clone, Debug, PartialEq)]
+pub enum FieldDesc {
+    /// The same value everywhere.
+    Constant(Rgb),
+    /// One value inside the unit cube mapped by `to_world` (Mitsuba's
+    /// `constvolume`), which bounds the medium when it gives σt.
+    Boxed {
+        /// The value.
+        value: Rgb,
+        /// Transform steps from the unit cube to the world.
+        to_world: Vec<TransformOp>,
+    },
+    /// A voxel grid over the unit cube mapped by `to_world`.
+    Grid {
+        /// The values.
+        source: GridSource,
+        /// Transform steps from the unit cube to the world.
+        to_world: Vec<TransformOp>,
+        /// Whether the grid spans the box its file gives (inside the
+        /// unit cube's space) rather than the unit cube.
+        use_file_bounds: bool,
+    },
+}
+
+/// A named participating medium (see [`crate::media::Medium`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MediumDesc {
+    /// Name that shapes and the camera refer to.
+    pub name: String,
+    /// Extinction coefficient σt, per unit length; a grid or box here
+    /// confines the medium to its box.
+    pub sigma_t: FieldDesc,
+    /// Single-scattering albedo σs/σt, in [0, 1].
+    pub albedo: FieldDesc,
+    /// Emitted radiance, if any.
+    pub emission: Option<FieldDesc>,
+    /// Multiplier of σt.
+    pub scale: f32,
+    /// Henyey–Greenstein asymmetry g in (−1, 1); 0: isotropic.
+    pub g: f32,
     /// Source locations.
     pub locs: Locs,
 }
@@ -555,6 +644,7 @@ impl ShapeDesc {
             transform: Vec::new(),
             material: material.map(str::to_string),
             flip_normals: false,
+            media: None,
             locs: Locs::default(),
         }
     }
@@ -633,6 +723,10 @@ pub struct SceneDesc {
     pub lights: Vec<LightDesc>,
     /// Shapes.
     pub shapes: Vec<ShapeDesc>,
+    /// Participating media.
+    pub media: Vec<MediumDesc>,
+    /// The medium the camera is in; `None`: vacuum.
+    pub camera_medium: Option<String>,
     /// Problems the reader found that did not stop it (unsupported or
     /// approximated elements), each naming its place in the file.
     pub warnings: Vec<String>,
@@ -653,6 +747,8 @@ impl Default for SceneDesc {
             meshes: Vec::new(),
             lights: Vec::new(),
             shapes: Vec::new(),
+            media: Vec::new(),
+            camera_medium: None,
             warnings: Vec::new(),
         }
     }
@@ -877,6 +973,17 @@ impl SceneDesc {
                     roughness("roughness", *r)?;
                     c.color("specular_tint", *specular_tint)?;
                 }
+                MaterialKindDesc::Thin {
+                    ior: int,
+                    ext_ior,
+                    reflect_tint,
+                    transmit_tint,
+                } => {
+                    ior("ior", *int)?;
+                    ior("ext_ior", *ext_ior)?;
+                    c.color("reflect_tint", *reflect_tint)?;
+                    c.color("transmit_tint", *transmit_tint)?;
+                }
             }
             texture("emission", &m.emission)?;
         }
@@ -957,11 +1064,74 @@ impl SceneDesc {
             }
         }
 
+        let mut names = std::collections::HashSet::new();
+        for (i, m) in self.media.iter().enumerate() {
+            let c = Check {
+                locs: &m.locs,
+                prefix: format!("medium[{i}]."),
+            };
+            if !names.insert(m.name.as_str()) {
+                return Err(c.err("name", format!("a medium named \"{}\" is already defined", m.name)));
+            }
+            let field = |key: &str, f: &FieldDesc, at_most_one: bool| -> Result<()> {
+                let value = match f {
+                    FieldDesc::Constant(v) | FieldDesc::Boxed { value: v, .. } => Some(*v),
+                    FieldDesc::Grid { .. } => None,
+                };
+                if let Some(v) = value {
+                    c.color(key, v)?;
+                    if at_most_one && v.max_element() > 1.0 {
+                        return Err(c.err(key, "must lie in [0, 1]"));
+                    }
+                }
+                if let FieldDesc::Boxed { to_world, .. } | FieldDesc::Grid { to_world, .. } = f {
+                    for op in to_world {
+                        op.to_transform()
+                            .map_err(|e| c.err(key, format!("transform {}: {e}", op.name())))?;
+                    }
+                }
+                Ok(())
+            };
+            field("sigma_t", &m.sigma_t, false)?;
+            field("albedo", &m.albedo, true)?;
+            if let Some(e) = &m.emission {
+                field("emission", e, false)?;
+            }
+            c.non_negative("scale", m.scale)?;
+            if !(m.g > -1.0 && m.g < 1.0) {
+                return Err(c.err("g", format!("must lie strictly between -1 and 1, not {}", m.g)));
+            }
+        }
+        let medium_exists = |c: &Check, key: &str, name: &Option<String>| -> Result<()> {
+            match name {
+                Some(n) if !self.media.iter().any(|m| &m.name == n) => Err(c.err(
+                    key,
+                    format!(
+                        "no medium named \"{n}\"{}",
+                        suggest(n, self.media.iter().map(|m| m.name.as_str()))
+                    ),
+                )),
+                _ => Ok(()),
+            }
+        };
+        medium_exists(
+            &Check {
+                locs: &self.world_locs,
+                prefix: "camera.".into(),
+            },
+            "medium",
+            &self.camera_medium,
+        )?;
+
         for (i, s) in self.shapes.iter().enumerate() {
             let c = Check {
                 locs: &s.locs,
                 prefix: format!("shape[{i}]."),
             };
+            if let Some(mi) = &s.media {
+                medium_exists(&c, "inside", &mi.inside)?;
+                medium_exists(&c, "outside", &mi.outside)?;
+            }
             match &s.kind {
                 ShapeKind::Sphere { center, radius } => {
                     c.vec3("center", *center)?;

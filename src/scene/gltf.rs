@@ -854,6 +854,7 @@ impl<'a> Reader<'a> {
                     transform: transform.clone(),
                     material: Some(material.clone()),
                     flip_normals: false,
+                    media: None,
                     locs,
                 });
             }

@@ -64,6 +64,14 @@ pub struct Scene {
     pub light_sampler: crate::light::LightSampler,
     /// Index of the environment light (a background that is not black).
     pub environment_light: Option<u32>,
+    /// Participating media.
+    pub media: Vec<crate::media::Medium>,
+    /// Per material, the media on the two sides of the surfaces that have
+    /// it; `None`: the surfaces bound no medium (rays that cross them keep
+    /// theirs). Shapes that bound media get materials of their own.
+    pub material_media: Vec<Option<crate::media::MediumInterface>>,
+    /// The medium the camera is in.
+    pub camera_medium: Option<u32>,
 }
 
 impl Scene {

@@ -70,6 +70,7 @@ pub fn parse(text: &str, path: &Path) -> Result<SceneDesc> {
         desc.settings_locs = t.finish()?;
     }
     if let Some(t) = top.table("camera")? {
+        desc.camera_medium = t.string("medium")?;
         desc.camera = read_camera(&t)?;
     }
     if let Some(t) = top.table("world")? {
@@ -124,6 +125,9 @@ pub fn parse(text: &str, path: &Path) -> Result<SceneDesc> {
     }
     for t in top.tables("shape")? {
         desc.shapes.push(read_shape(&t)?);
+    }
+    for t in top.tables("medium")? {
+        desc.media.push(read_medium(&t)?);
     }
     top.finish()?;
     desc.validate()?;
@@ -581,7 +585,16 @@ fn read_texture(t: &Table) -> Result<TextureDesc> {
 }
 
 /// The material types of the native format.
-pub const MATERIAL_TYPES: [&str; 6] = ["classic", "diffuse", "mirror", "conductor", "dielectric", "plastic"];
+pub const MATERIAL_TYPES: [&str; 8] = [
+    "classic",
+    "diffuse",
+    "mirror",
+    "conductor",
+    "dielectric",
+    "plastic",
+    "thin",
+    "null",
+];
 
 fn read_material(t: &Table) -> Result<MaterialDesc> {
     let name = t.required_string("name")?;
@@ -651,6 +664,13 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
             reflect_tint: t.color("reflect_tint")?.unwrap_or(Rgb::ONE),
             transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
         },
+        "thin" => MaterialKindDesc::Thin {
+            ior: t.number_or("ior", 1.5)?,
+            ext_ior: t.number_or("ext_ior", 1.0)?,
+            reflect_tint: t.color("reflect_tint")?.unwrap_or(Rgb::ONE),
+            transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
+        },
+        "null" => MaterialKindDesc::NULL,
         _ => MaterialKindDesc::Plastic {
             diffuse: t.color_source("diffuse")?.unwrap_or(ColorSource::Rgb(Rgb::splat(0.5))),
             ior: t.number_or("ior", 1.49)?,
@@ -665,6 +685,40 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
     m.two_sided = t.boolean("two_sided")?.unwrap_or(true);
     m.locs = t.finish()?;
     Ok(m)
+}
+
+/// `[[medium]]`: `type = "homogeneous"` (σt and albedo everywhere the
+/// shapes that bound it say) or `"grid"` (σt from a Mitsuba `.vol` file
+/// over the unit cube placed by `transform`, empty outside it).
+fn read_medium(t: &Table) -> Result<MediumDesc> {
+    let name = t.required_string("name")?;
+    let kind = t
+        .choice("type", &["homogeneous", "grid"])?
+        .unwrap_or_else(|| "homogeneous".into());
+    let to_world = match t.value("transform") {
+        Some(v) => read_transform(t, v)?,
+        None => Vec::new(),
+    };
+    let sigma_t = if kind == "grid" {
+        // σt comes from the file (times `scale`); a `sigma_t` key is
+        // reported as unknown by `finish`.
+        FieldDesc::Grid {
+            source: GridSource::MitsubaVol(t.required("file", t.path("file")?)?),
+            to_world,
+            use_file_bounds: false,
+        }
+    } else {
+        FieldDesc::Constant(t.color("sigma_t")?.unwrap_or(Rgb::ONE))
+    };
+    Ok(MediumDesc {
+        name,
+        sigma_t,
+        albedo: FieldDesc::Constant(t.color("albedo")?.unwrap_or(Rgb::ONE)),
+        emission: t.color("emission")?.map(FieldDesc::Constant),
+        scale: t.number_or("scale", 1.0)?,
+        g: t.number_or("g", 0.0)?,
+        locs: t.finish()?,
+    })
 }
 
 fn read_light(t: &Table) -> Result<LightDesc> {
@@ -844,11 +898,15 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
     };
     let material = t.string("material")?;
     let flip_normals = t.boolean("flip_normals")?.unwrap_or(false);
+    let inside = t.string("inside")?;
+    let outside = t.string("outside")?;
+    let media = (inside.is_some() || outside.is_some()).then_some(MediumInterfaceDesc { inside, outside });
     Ok(ShapeDesc {
         kind,
         transform,
         material,
         flip_normals,
+        media,
         locs: t.finish()?,
     })
 }

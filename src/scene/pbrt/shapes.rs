@@ -145,6 +145,7 @@ impl Parser {
             transform: vec![TransformOp::Matrix(self.gs.ctm)],
             material: None,
             flip_normals: false,
+            media: None,
             locs,
         };
         self.add_shape(PendingShape {

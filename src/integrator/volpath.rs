@@ -1,0 +1,510 @@
+//! The volumetric path tracer: Kajiya's path tracer extended to the
+//! radiative transfer equation, for scenes with participating media
+//! ([`crate::media`]).
+//!
+//! Along each segment inside a medium, tentative collisions are sampled
+//! against the medium's majorant σ_maj, and each is an absorption (σa),
+//! a real scattering (σs) or a null collision (σn = σ_maj − σt) in
+//! proportion to those coefficients: delta tracking, unbiased in a
+//! heterogeneous medium. Shadow rays weigh light by the transmittance
+//! estimated by ratio tracking (the product of σn/σ_maj over their
+//! collisions), and pass through surfaces that are not there (a medium's
+//! boundary) or thin sheets, with the sheet's transmission.
+//!
+//! Distances are sampled in one channel, the path's hero channel, drawn
+//! at random; the other channels are weighed by the ratios of their
+//! densities to the hero's, averaged over channels as one-sample MIS
+//! (the null-scattering path integral of Miller, Georgiev and Jarosz
+//! 2019, as pbrt-v4's `VolPathIntegrator`, section 14.2.3). A chromatic
+//! medium (σt differing by channel) is then as quiet as a grey one. The
+//! rescaled path densities `r_u` (of the path as sampled) and `r_l` (of
+//! the same path with its last vertex found by light sampling) carry
+//! both that average and the balance heuristic between BSDF or phase
+//! sampling and next-event estimation.
+//!
+//! A null surface or a thin sheet's transmission does not count as a
+//! bounce (Mitsuba's `volpath` does the same): `max_depth` counts the
+//! segments between scattering events, as in [`super::path`].
+
+use super::{Integrator, RayStats, choose_light, light_choice_pmf};
+use crate::color::Rgb;
+use crate::geometry::interaction::SHADOW_EPSILON;
+use crate::geometry::{Ray, SurfaceHit};
+use crate::light::ShadowTarget;
+use crate::material::{Bsdf, Frame, MaterialKind, TransportMode};
+use crate::media::{Phase, sample_majorant};
+use crate::sampling::Sampler;
+use crate::sampling::rng::{Pcg32, hash_u64s};
+use crate::scene::Scene;
+use crate::texture::TexCoord;
+use glam::Vec3;
+
+/// The volumetric path tracer.
+#[derive(Clone, Copy, Debug)]
+pub struct VolPathTracer {
+    /// Longest path, in segments from the camera.
+    pub max_depth: u32,
+    /// Segments after which Russian roulette starts.
+    pub rr_depth: u32,
+}
+
+/// The mean of the three channels.
+#[inline]
+fn mean(c: Rgb) -> f32 {
+    (c.x + c.y + c.z) * (1.0 / 3.0)
+}
+
+/// Where a light is sampled from.
+enum Vertex<'a> {
+    /// A surface point with its BSDF.
+    Surface {
+        hit: &'a SurfaceHit,
+        frame: &'a Frame,
+        bsdf: &'a Bsdf<'a>,
+        /// Direction toward the previous vertex, local frame.
+        wo: Vec3,
+    },
+    /// A point in a medium with its phase function.
+    Medium {
+        p: Vec3,
+        /// Direction toward the previous vertex.
+        wo: Vec3,
+        phase: Phase,
+    },
+}
+
+/// The state of one path.
+struct PathState {
+    /// Radiance found so far.
+    l: Rgb,
+    /// Throughput.
+    beta: Rgb,
+    /// Rescaled density of the path as sampled, per channel.
+    r_u: Rgb,
+    /// Rescaled density of the path with its last vertex light-sampled.
+    r_l: Rgb,
+    /// Scattering events so far.
+    depth: u32,
+    /// Whether the last scattering was a delta lobe (or there was none).
+    specular: bool,
+    /// The last scattering point and the normal its light choice used.
+    prev_p: Vec3,
+    prev_n: Vec3,
+}
+
+impl VolPathTracer {
+    /// Radiance from the light sampled at `vertex` in medium `medium`
+    /// toward it, weighed by the transmittance on the way and by MIS
+    /// against the vertex's own sampling; `r_p` is the path's `r_u`.
+    #[allow(clippy::too_many_arguments)]
+    fn sample_light(
+        &self,
+        scene: &Scene,
+        vertex: &Vertex,
+        medium: Option<u32>,
+        beta: Rgb,
+        r_p: Rgb,
+        channel: usize,
+        sampler: &mut Sampler,
+        rng: &mut Pcg32,
+        stats: &mut RayStats,
+    ) -> Rgb {
+        let (p, n) = match vertex {
+            Vertex::Surface { hit, .. } => (hit.p, hit.ns),
+            Vertex::Medium { p, .. } => (*p, Vec3::ZERO),
+        };
+        let chosen = choose_light(scene, p, n, sampler);
+        let sample = match chosen {
+            Some((light, _)) => scene.lights[light].sample_li_drawing(scene, p, sampler),
+            None => {
+                sampler.skip_1d();
+                sampler.skip_2d();
+                None
+            }
+        };
+        let Some(ls) = sample else {
+            return Rgb::ZERO;
+        };
+        if ls.li == Rgb::ZERO || ls.pdf <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let pmf = chosen.map_or(0.0, |(_, pmf)| pmf);
+        let (f_hat, scatter_pdf, mut shadow, mut medium) = match vertex {
+            Vertex::Surface { hit, frame, bsdf, wo } => {
+                let wi = frame.to_local(ls.wi);
+                let front_o = hit.ng.dot(frame.to_world(*wo)) > 0.0;
+                let front_i = hit.ng.dot(ls.wi) > 0.0;
+                // The geometric normal decides reflection or transmission.
+                if (front_i == front_o) != (wi.z * wo.z > 0.0) {
+                    return Rgb::ZERO;
+                }
+                let f = bsdf.eval(*wo, wi, TransportMode::Radiance) * wi.z.abs();
+                let shadow = match ls.target {
+                    ShadowTarget::Point(q) => hit.spawn_ray_to(q),
+                    ShadowTarget::Infinity => hit.spawn_ray(ls.wi),
+                };
+                let medium = match scene.material_media[hit.material as usize] {
+                    Some(interface) => interface.toward(ls.wi, hit.ng),
+                    None => medium,
+                };
+                (f, bsdf.pdf(*wo, wi), shadow, medium)
+            }
+            Vertex::Medium { p, wo, phase } => {
+                let f = phase.eval(*wo, ls.wi);
+                let shadow = match ls.target {
+                    ShadowTarget::Point(q) => Ray::with_interval(*p, q - *p, 0.0, SHADOW_EPSILON),
+                    ShadowTarget::Infinity => Ray::new(*p, ls.wi),
+                };
+                (Rgb::splat(f), f, shadow, medium)
+            }
+        };
+        if f_hat == Rgb::ZERO {
+            return Rgb::ZERO;
+        }
+
+        // The transmittance to the light, by ratio tracking through media
+        // and past the surfaces light crosses unchanged.
+        let mut t_ray = Rgb::ONE;
+        let mut r_l = Rgb::ONE;
+        let mut r_u = Rgb::ONE;
+        loop {
+            stats.rays += 1;
+            let hit = scene.intersect(&shadow);
+            let len = shadow.dir.length();
+            let dir = shadow.dir / len;
+            if let Some(h) = &hit {
+                let m = &scene.materials[h.material as usize];
+                if !matches!(m.kind, MaterialKind::Thin { .. }) {
+                    return Rgb::ZERO;
+                }
+                let tc = TexCoord { uv: h.uv, p: h.p };
+                let frame = Frame::from_orthonormal(h.ns, h.tangent);
+                t_ray *= m.bsdf(&scene.images, &tc).pass_through(frame.to_local(-dir));
+            }
+            if let Some(mi) = medium {
+                let t_end = hit.as_ref().map_or(shadow.t_max, |h| h.t);
+                let origin = shadow.at(shadow.t_min);
+                let distance = (t_end - shadow.t_min) * len;
+                let u = rng.next_f32();
+                let t_maj = sample_majorant(
+                    &scene.media[mi as usize],
+                    &Ray::with_interval(origin, dir, 0.0, distance),
+                    channel,
+                    u,
+                    rng,
+                    |_, mp, sigma_maj, t_maj, rng| {
+                        let sigma_n = (sigma_maj - mp.sigma_a - mp.sigma_s).max(Rgb::ZERO);
+                        let pdf = t_maj[channel] * sigma_maj[channel];
+                        t_ray *= t_maj * sigma_n / pdf;
+                        r_l *= t_maj * sigma_maj / pdf;
+                        r_u *= t_maj * sigma_n / pdf;
+                        // Russian roulette on a faint estimate (pbrt-v4).
+                        let tr = t_ray / mean(r_l + r_u);
+                        if tr.max_element() < 0.05 {
+                            if rng.next_f32() < 0.75 {
+                                t_ray = Rgb::ZERO;
+                            } else {
+                                t_ray /= 0.25;
+                            }
+                        }
+                        t_ray != Rgb::ZERO && t_ray.is_finite()
+                    },
+                );
+                let hero = t_maj[channel];
+                if hero <= 0.0 {
+                    return Rgb::ZERO;
+                }
+                t_ray *= t_maj / hero;
+                r_l *= t_maj / hero;
+                r_u *= t_maj / hero;
+            }
+            if t_ray == Rgb::ZERO || !t_ray.is_finite() {
+                return Rgb::ZERO;
+            }
+            let Some(h) = hit else { break };
+            if let Some(interface) = scene.material_media[h.material as usize] {
+                medium = interface.toward(dir, h.ng);
+            }
+            shadow = match ls.target {
+                ShadowTarget::Point(q) => h.spawn_ray_to(q),
+                ShadowTarget::Infinity => h.spawn_ray(dir),
+            };
+        }
+        let r_l = r_l * r_p * (ls.pdf * pmf);
+        let r_u = r_u * r_p * scatter_pdf;
+        let denom = if ls.is_delta { mean(r_l) } else { mean(r_l + r_u) };
+        if denom <= 0.0 {
+            return Rgb::ZERO;
+        }
+        beta * f_hat * t_ray * ls.li / denom
+    }
+}
+
+impl Integrator for VolPathTracer {
+    fn radiance(&self, scene: &Scene, camera_ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb {
+        let channel = ((sampler.next_1d() * 3.0) as usize).min(2);
+        let seed = hash_u64s(&[
+            sampler.next_1d().to_bits() as u64,
+            sampler.next_1d().to_bits() as u64,
+            camera_ray.dir.x.to_bits() as u64 | (camera_ray.dir.y.to_bits() as u64) << 32,
+        ]);
+        let mut rng = Pcg32::new(seed, 0);
+        let mut s = PathState {
+            l: Rgb::ZERO,
+            beta: Rgb::ONE,
+            r_u: Rgb::ONE,
+            r_l: Rgb::ONE,
+            depth: 0,
+            specular: true,
+            prev_p: camera_ray.origin,
+            prev_n: Vec3::ZERO,
+        };
+        let mut eta_scale = 1.0f32;
+        let mut medium = scene.camera_medium;
+        let mut ray = *camera_ray;
+
+        loop {
+            stats.rays += 1;
+            let hit = scene.intersect(&ray);
+            let len = ray.dir.length();
+            let dir = ray.dir / len;
+
+            if let Some(mi) = medium {
+                let t_end = hit.as_ref().map_or(ray.t_max, |h| h.t);
+                let origin = ray.at(ray.t_min);
+                let distance = (t_end - ray.t_min) * len;
+                let mut scattered: Option<Ray> = None;
+                let mut terminated = false;
+                let u = sampler.next_1d();
+                let mut u_mode = sampler.next_1d();
+                let phase = scene.media[mi as usize].phase;
+                let t_maj = sample_majorant(
+                    &scene.media[mi as usize],
+                    &Ray::with_interval(origin, dir, 0.0, distance),
+                    channel,
+                    u,
+                    &mut rng,
+                    |p, mp, sigma_maj, t_maj, rng| {
+                        // Emission along the way.
+                        if s.depth < self.max_depth && mp.le != Rgb::ZERO {
+                            let pdf = sigma_maj[channel] * t_maj[channel];
+                            let r_e = s.r_u * sigma_maj * t_maj / pdf;
+                            if r_e != Rgb::ZERO {
+                                s.l += s.beta * t_maj / pdf * mp.sigma_a * mp.le / mean(r_e);
+                            }
+                        }
+                        // Scattering or a null collision, chosen in
+                        // proportion to the throughput they would carry
+                        // (averaged over channels, so the choice is the
+                        // same for every channel and cancels from their
+                        // density ratios). Absorption is not an event: the
+                        // scattering weight σs < σ_maj − σn accounts for it,
+                        // as in Mitsuba's volpath, which keeps paths
+                        // through dark or chromatic albedo from ending
+                        // at random.
+                        let sigma_n = (sigma_maj - mp.sigma_a - mp.sigma_s).max(Rgb::ZERO);
+                        let (w_scatter, w_null) = (mean(s.beta * mp.sigma_s), mean(s.beta * sigma_n));
+                        if w_scatter + w_null <= 0.0 {
+                            terminated = true;
+                            return false;
+                        }
+                        let p_scatter = w_scatter / (w_scatter + w_null);
+                        let choice = u_mode;
+                        u_mode = rng.next_f32();
+                        let hero = t_maj[channel] * sigma_maj[channel];
+                        let density_ratio = t_maj * sigma_maj / hero;
+                        if choice < p_scatter {
+                            // A real scattering event.
+                            s.depth += 1;
+                            if s.depth >= self.max_depth {
+                                terminated = true;
+                                return false;
+                            }
+                            s.beta *= t_maj * mp.sigma_s / (hero * p_scatter);
+                            s.r_u *= density_ratio;
+                            if s.beta == Rgb::ZERO || s.r_u == Rgb::ZERO {
+                                terminated = true;
+                                return false;
+                            }
+                            let wo = -dir;
+                            let vertex = Vertex::Medium { p, wo, phase };
+                            s.l +=
+                                self.sample_light(scene, &vertex, medium, s.beta, s.r_u, channel, sampler, rng, stats);
+                            let ps = phase.sample(wo, sampler.next_2d());
+                            if ps.pdf <= 0.0 {
+                                terminated = true;
+                                return false;
+                            }
+                            // The phase functions are sampled exactly: p/pdf = 1.
+                            s.r_l = s.r_u / ps.pdf;
+                            s.prev_p = p;
+                            s.prev_n = Vec3::ZERO;
+                            s.specular = false;
+                            scattered = Some(Ray::new(p, ps.wi));
+                            return false;
+                        }
+                        // A null collision: light sampling would have
+                        // crossed it by ratio tracking, with density
+                        // T_maj·σ_maj and no choice.
+                        let p_null = 1.0 - p_scatter;
+                        s.beta *= t_maj * sigma_n / (hero * p_null);
+                        s.r_u *= density_ratio;
+                        s.r_l *= density_ratio / p_null;
+                        s.beta != Rgb::ZERO && s.r_u != Rgb::ZERO
+                    },
+                );
+                if terminated || s.beta == Rgb::ZERO || s.r_u == Rgb::ZERO || !s.beta.is_finite() {
+                    return s.l;
+                }
+                if let Some(next) = scattered {
+                    ray = next;
+                    if !self.roulette(&mut s, eta_scale, sampler) {
+                        return s.l;
+                    }
+                    continue;
+                }
+                let hero = t_maj[channel];
+                if hero <= 0.0 {
+                    return s.l;
+                }
+                s.beta *= t_maj / hero;
+                s.r_u *= t_maj / hero;
+                s.r_l *= t_maj / hero;
+            }
+
+            let Some(hit) = hit else {
+                if let Some(env) = scene.environment_light {
+                    let le = scene.background.eval(dir);
+                    let (prev_p, prev_n) = (s.prev_p, s.prev_n);
+                    self.add_emission(&mut s, le, || {
+                        light_choice_pmf(scene, prev_p, prev_n, env as usize) * scene.background.pdf(dir)
+                    });
+                }
+                return s.l;
+            };
+            let m = &scene.materials[hit.material as usize];
+            let wo_world = -dir;
+            if m.is_emissive() && hit.is_front(wo_world) {
+                let le = m.emission_at(&scene.images, &TexCoord { uv: hit.uv, p: hit.p });
+                let (prev_p, prev_n) = (s.prev_p, s.prev_n);
+                self.add_emission(&mut s, le, || match hit.light {
+                    Some(li) => {
+                        light_choice_pmf(scene, prev_p, prev_n, li as usize)
+                            * scene.lights[li as usize].pdf_li(scene, prev_p, &hit)
+                    }
+                    None => 0.0,
+                });
+            }
+            let interface = scene.material_media[hit.material as usize];
+            let cross = |medium: Option<u32>, w: Vec3| match interface {
+                Some(i) => i.toward(w, hit.ng),
+                None => medium,
+            };
+            // A surface that is not there: the path goes on unchanged.
+            if let MaterialKind::Thin { eta, .. } = m.kind
+                && eta == 1.0
+            {
+                medium = cross(medium, dir);
+                ray = hit.spawn_ray(dir);
+                continue;
+            }
+
+            let tc = TexCoord { uv: hit.uv, p: hit.p };
+            let bsdf = m.bsdf(&scene.images, &tc);
+            let frame = Frame::from_orthonormal(hit.ns, hit.tangent);
+            let wo = frame.to_local(wo_world);
+            if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
+                return s.l; // the back of a one-sided surface is black
+            }
+            let front_o = hit.ng.dot(wo_world) > 0.0;
+            let u_lobe = sampler.next_1d();
+            let u_dir = sampler.next_2d();
+
+            // A thin sheet lets the path through without a bounce, or
+            // reflects it (a bounce).
+            if bsdf.pass_through(wo) != Rgb::ZERO {
+                let Some(bs) = bsdf.sample(wo, u_lobe, u_dir, TransportMode::Radiance) else {
+                    return s.l;
+                };
+                if bsdf.passed_through(wo, &bs) {
+                    s.beta *= bs.weight();
+                    medium = cross(medium, dir);
+                    ray = hit.spawn_ray(dir);
+                    continue;
+                }
+            }
+
+            s.depth += 1;
+            if s.depth >= self.max_depth {
+                return s.l;
+            }
+            if bsdf.has_smooth() && !scene.lights.is_empty() {
+                let vertex = Vertex::Surface {
+                    hit: &hit,
+                    frame: &frame,
+                    bsdf: &bsdf,
+                    wo,
+                };
+                s.l += self.sample_light(scene, &vertex, medium, s.beta, s.r_u, channel, sampler, &mut rng, stats);
+            }
+            let Some(bs) = bsdf.sample(wo, u_lobe, u_dir, TransportMode::Radiance) else {
+                return s.l;
+            };
+            if bs.pdf <= 0.0 || bs.f == Rgb::ZERO || bs.wi.z == 0.0 {
+                return s.l;
+            }
+            let wi_world = frame.to_world(bs.wi);
+            let reflection = bs.wi.z * wo.z > 0.0;
+            if (hit.ng.dot(wi_world) > 0.0) != (front_o == reflection) {
+                return s.l; // the shading normal sent the path through the surface
+            }
+            s.beta *= bs.weight();
+            s.r_l = s.r_u / bs.pdf;
+            s.specular = bs.delta;
+            if !reflection {
+                eta_scale *= bs.eta * bs.eta;
+            }
+            s.prev_p = hit.p;
+            s.prev_n = hit.ns;
+            medium = cross(medium, wi_world);
+            ray = hit.spawn_ray(wi_world);
+            if !self.roulette(&mut s, eta_scale, sampler) {
+                return s.l;
+            }
+        }
+    }
+}
+
+impl VolPathTracer {
+    /// Adds emitted radiance `le` found by the path, weighed against light
+    /// sampling (whose density for it `light_pdf` gives) unless the last
+    /// scattering was a delta lobe, which light sampling cannot find.
+    #[inline]
+    fn add_emission(&self, s: &mut PathState, le: Rgb, light_pdf: impl FnOnce() -> f32) {
+        if le == Rgb::ZERO {
+            return;
+        }
+        if s.specular {
+            s.l += s.beta * le / mean(s.r_u);
+        } else {
+            let r_l = s.r_l * light_pdf();
+            s.l += s.beta * le / mean(s.r_u + r_l);
+        }
+    }
+
+    /// Russian roulette after `rr_depth` segments: whether the path goes on
+    /// (its throughput then divided by the survival probability).
+    #[inline]
+    fn roulette(&self, s: &mut PathState, eta_scale: f32, sampler: &mut Sampler) -> bool {
+        let u = sampler.next_1d();
+        if s.depth < self.rr_depth {
+            return true;
+        }
+        let q = (s.beta * eta_scale / mean(s.r_u)).max_element().min(0.95);
+        if u >= q {
+            return false;
+        }
+        s.beta /= q;
+        true
+    }
+}

@@ -1,0 +1,187 @@
+//! The volumetric path tracer against answers known in advance: white
+//! furnaces of media (albedo 1 inside a uniform environment renders 1),
+//! Beer–Lambert transmittance through a slab, single scattering in a thin
+//! slab against its closed form. Tolerances come from the spread of the
+//! pixels, which are independent estimates of the same value.
+
+use trazo::Vec3;
+use trazo::color::Rgb;
+use trazo::media::VoxelGrid;
+use trazo::render::render_image;
+use trazo::scene::desc::*;
+use trazo::settings::IntegratorKind;
+
+/// Per channel: the mean of the pixels and the standard error of that mean.
+fn mean_and_error(pixels: &[Rgb]) -> (Rgb, Rgb) {
+    let n = pixels.len() as f32;
+    let mean = pixels.iter().copied().sum::<Rgb>() / n;
+    let var = pixels.iter().map(|p| (*p - mean) * (*p - mean)).sum::<Rgb>() / (n - 1.0);
+    (mean, (var / n).powf(0.5))
+}
+
+fn assert_mean(pixels: &[Rgb], expect: Rgb, what: &str) {
+    let (mean, err) = mean_and_error(pixels);
+    for c in 0..3 {
+        assert!(
+            (mean[c] - expect[c]).abs() <= 4.5 * err[c] + 2e-4,
+            "{what}: channel {c}: mean {} ± {}, expected {}",
+            mean[c],
+            err[c],
+            expect[c]
+        );
+    }
+}
+
+/// A camera looking at the origin from +z, a null-bounded shape filled
+/// with `medium`, and a uniform white environment.
+fn medium_scene(shape: ShapeKind, medium: MediumDesc) -> SceneDesc {
+    let mut d = SceneDesc::default();
+    d.settings.width = 12;
+    d.settings.height = 12;
+    d.settings.spp = 48;
+    d.settings.max_depth = 256;
+    d.settings.integrator = IntegratorKind::VolPath;
+    d.camera.from = Vec3::new(0.0, 0.0, 4.0);
+    d.camera.projection = ProjectionDesc::Perspective { fov: 25.0 };
+    d.background = BackgroundDesc::Constant(Rgb::ONE);
+    d.materials
+        .push(MaterialDesc::with_kind("boundary", MaterialKindDesc::NULL));
+    let mut s = ShapeDesc::new(shape, Some("boundary"));
+    s.media = Some(MediumInterfaceDesc {
+        inside: Some(medium.name.clone()),
+        outside: None,
+    });
+    d.shapes.push(s);
+    d.media.push(medium);
+    d
+}
+
+fn homogeneous(sigma_t: Rgb, albedo: Rgb, g: f32) -> MediumDesc {
+    MediumDesc {
+        name: "fog".into(),
+        sigma_t: FieldDesc::Constant(sigma_t),
+        albedo: FieldDesc::Constant(albedo),
+        emission: None,
+        scale: 1.0,
+        g,
+        locs: Locs::default(),
+    }
+}
+
+fn sphere() -> ShapeKind {
+    ShapeKind::Sphere {
+        center: Vec3::ZERO,
+        radius: 1.0,
+    }
+}
+
+#[test]
+fn white_furnace_of_a_scattering_medium_renders_one() {
+    for (sigma_t, g) in [
+        (Rgb::splat(2.0), 0.0),
+        (Rgb::splat(1.5), 0.6),
+        (Rgb::new(0.5, 2.0, 4.0), -0.3),
+    ] {
+        let d = medium_scene(sphere(), homogeneous(sigma_t, Rgb::ONE, g));
+        let image = render_image(&trazo::scene::build(&d).unwrap()).unwrap();
+        assert_mean(&image.pixels, Rgb::ONE, &format!("σt {sigma_t}, g {g}"));
+    }
+}
+
+#[test]
+fn white_furnace_of_a_grid_medium_renders_one() {
+    // A 4×4×4 grid of densities from 0 to 9: null collisions everywhere
+    // but at the densest voxel; chromatic through `scale`d channels.
+    let values: Vec<f32> = (0..64 * 3).map(|i| ((i * 7) % 10) as f32).collect();
+    let grid = VoxelGrid::new([4, 4, 4], 3, values).unwrap();
+    let to_world = vec![
+        TransformOp::Translate(Vec3::splat(-0.5)),
+        TransformOp::Scale(Vec3::splat(1.6)),
+    ];
+    let medium = MediumDesc {
+        name: "smoke".into(),
+        sigma_t: FieldDesc::Grid {
+            source: GridSource::Data(std::sync::Arc::new(grid)),
+            to_world,
+            use_file_bounds: false,
+        },
+        albedo: FieldDesc::Constant(Rgb::ONE),
+        emission: None,
+        scale: 0.5,
+        g: 0.0,
+        locs: Locs::default(),
+    };
+    let d = medium_scene(
+        ShapeKind::Cuboid {
+            min: Vec3::splat(-1.0),
+            max: Vec3::splat(1.0),
+        },
+        medium,
+    );
+    let image = render_image(&trazo::scene::build(&d).unwrap()).unwrap();
+    assert_mean(&image.pixels, Rgb::ONE, "grid furnace");
+}
+
+#[test]
+fn an_absorbing_slab_transmits_by_beer_lambert() {
+    // An orthographic camera looks through a slab 2 thick: exp(−2σt).
+    let sigma_t = Rgb::new(0.2, 0.7, 1.5);
+    let mut d = medium_scene(
+        ShapeKind::Cuboid {
+            min: Vec3::new(-5.0, -5.0, -1.0),
+            max: Vec3::new(5.0, 5.0, 1.0),
+        },
+        homogeneous(sigma_t, Rgb::ZERO, 0.0),
+    );
+    d.camera.projection = ProjectionDesc::Orthographic { size: 2.0 };
+    let image = render_image(&trazo::scene::build(&d).unwrap()).unwrap();
+    let expect = Rgb::new((-0.4f32).exp(), (-1.4f32).exp(), (-3.0f32).exp());
+    assert_mean(&image.pixels, expect, "Beer–Lambert");
+}
+
+#[test]
+fn a_thin_slab_scatters_once_as_its_closed_form() {
+    // Light of irradiance E falls straight down (−z) on a slab z ∈ [−d, 0];
+    // the camera looks straight down at it. Single scattering (max_depth
+    // 2) by an isotropic medium: L = σs·E/(4π)·(1 − e^(−2σt·d))/(2σt).
+    let (sigma_t, albedo, depth, e) = (1.2f32, 0.6f32, 0.5f32, 3.0f32);
+    let mut d = medium_scene(
+        ShapeKind::Cuboid {
+            min: Vec3::new(-5.0, -5.0, -depth),
+            max: Vec3::new(5.0, 5.0, 0.0),
+        },
+        homogeneous(Rgb::splat(sigma_t), Rgb::splat(albedo), 0.0),
+    );
+    d.background = BackgroundDesc::Constant(Rgb::ZERO);
+    d.settings.max_depth = 2;
+    d.camera.projection = ProjectionDesc::Orthographic { size: 2.0 };
+    d.lights.push(LightDesc {
+        kind: LightKind::Directional {
+            direction: -Vec3::Z,
+            irradiance: Rgb::splat(e),
+        },
+        locs: Locs::default(),
+    });
+    let image = render_image(&trazo::scene::build(&d).unwrap()).unwrap();
+    let sigma_s = sigma_t * albedo;
+    let expect = sigma_s * e / (4.0 * std::f32::consts::PI) * (1.0 - (-2.0 * sigma_t * depth).exp()) / (2.0 * sigma_t);
+    assert_mean(&image.pixels, Rgb::splat(expect), "single scattering");
+}
+
+#[test]
+fn a_null_surface_is_invisible_to_both_path_tracers() {
+    for integrator in [IntegratorKind::Path, IntegratorKind::VolPath] {
+        let mut d = medium_scene(sphere(), homogeneous(Rgb::ZERO, Rgb::ONE, 0.0));
+        d.shapes[0].media = None;
+        d.media.clear();
+        d.settings.integrator = integrator;
+        d.settings.spp = 4;
+        let image = render_image(&trazo::scene::build(&d).unwrap()).unwrap();
+        let worst = image
+            .pixels
+            .iter()
+            .map(|p| (*p - Rgb::ONE).abs().max_element())
+            .fold(0.0, f32::max);
+        assert!(worst < 1e-5, "{integrator:?}: {worst}");
+    }
+}
