@@ -62,7 +62,7 @@ fn homogeneous(sigma_t: Rgb, albedo: Rgb, g: f32) -> MediumDesc {
         sigma_t: FieldDesc::Constant(sigma_t),
         albedo: FieldDesc::Constant(albedo),
         emission: None,
-        scale: 1.0,
+        scale: Rgb::ONE,
         g,
         locs: Locs::default(),
     }
@@ -107,7 +107,7 @@ fn white_furnace_of_a_grid_medium_renders_one() {
         },
         albedo: FieldDesc::Constant(Rgb::ONE),
         emission: None,
-        scale: 0.5,
+        scale: Rgb::new(0.5, 0.25, 1.0),
         g: 0.0,
         locs: Locs::default(),
     };

@@ -2,8 +2,9 @@
 //!
 //! A grid holds `res.x × res.y × res.z` voxels of one or three channels,
 //! over the unit cube of its own space; it is read trilinearly between
-//! voxel centres ((i + ½)/res) and clamped at its edges, as Mitsuba's
-//! `gridvolume` filters it.
+//! voxel centres ((i + ½)/res). Past the outermost centres it either keeps
+//! the edge values (Mitsuba's `gridvolume`, clamped) or fades to zero, as
+//! if surrounded by empty voxels (pbrt-v4's `SampledGrid`).
 
 use crate::color::Rgb;
 use crate::error::{Error, Result};
@@ -13,6 +14,17 @@ use std::path::Path;
 /// The most voxels a grid file may declare (a 2048³ grid of one float is
 /// 32 GiB; this is 2 GiB): a larger header is refused before allocating.
 pub const MAX_VOXELS: u64 = 1 << 29;
+
+/// What a grid is read as past its outermost voxel centres.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GridEdge {
+    /// The edge voxels' values (Mitsuba).
+    #[default]
+    Clamp,
+    /// Zero outside the grid, so values fade over the last half voxel
+    /// (pbrt-v4).
+    Zero,
+}
 
 /// A voxel grid over the unit cube.
 #[derive(Clone, Debug, PartialEq)]
@@ -25,6 +37,8 @@ pub struct VoxelGrid {
     pub data: Vec<f32>,
     /// The box the file says the grid spans (Mitsuba's `use_grid_bbox`).
     pub file_bounds: (Vec3, Vec3),
+    /// How the grid is read past its outermost voxel centres.
+    pub edge: GridEdge,
 }
 
 impl VoxelGrid {
@@ -50,6 +64,7 @@ impl VoxelGrid {
             channels,
             data,
             file_bounds: (Vec3::ZERO, Vec3::ONE),
+            edge: GridEdge::Clamp,
         })
     }
 
@@ -137,28 +152,44 @@ impl VoxelGrid {
         }
     }
 
-    /// The trilinear value at `p` in the unit cube (clamped outside it).
+    /// The trilinear value at `p` in the unit cube (outside it: see
+    /// [`GridEdge`]).
     #[inline]
     pub fn lookup(&self, p: Vec3) -> Rgb {
-        let mut base = [0usize; 3];
-        let mut next = [0usize; 3];
+        let zero_edge = self.edge == GridEdge::Zero;
+        // Per axis: the two voxel indices either side of `p` (None: outside
+        // a zero-edged grid) and the weight of the second.
+        let mut index = [[None::<usize>; 2]; 3];
         let mut frac = [0f32; 3];
         for a in 0..3 {
-            let n = self.res[a];
-            let x = (p[a] * n as f32 - 0.5).clamp(0.0, (n - 1) as f32);
-            let i = (x.floor() as usize).min(n - 1);
-            base[a] = i;
-            next[a] = (i + 1).min(n - 1);
-            frac[a] = x - i as f32;
+            let n = self.res[a] as i64;
+            let x = p[a] * n as f32 - 0.5;
+            if zero_edge {
+                let x = x.clamp(-1.0, n as f32);
+                let i = x.floor() as i64;
+                frac[a] = x - i as f32;
+                for (k, slot) in index[a].iter_mut().enumerate() {
+                    let j = i + k as i64;
+                    *slot = (0..n).contains(&j).then_some(j as usize);
+                }
+            } else {
+                let x = x.clamp(0.0, (n - 1) as f32);
+                let i = (x.floor() as i64).min(n - 1);
+                frac[a] = x - i as f32;
+                index[a] = [Some(i as usize), Some((i + 1).min(n - 1) as usize)];
+            }
         }
+        let at = |x: Option<usize>, y: Option<usize>, z: Option<usize>| match (x, y, z) {
+            (Some(x), Some(y), Some(z)) => self.voxel(x, y, z),
+            _ => Rgb::ZERO,
+        };
         let lerp = |a: Rgb, b: Rgb, t: f32| a + (b - a) * t;
-        let [x0, y0, z0] = base;
-        let [x1, y1, z1] = next;
+        let [[x0, x1], [y0, y1], [z0, z1]] = index;
         let [fx, fy, fz] = frac;
-        let c00 = lerp(self.voxel(x0, y0, z0), self.voxel(x1, y0, z0), fx);
-        let c10 = lerp(self.voxel(x0, y1, z0), self.voxel(x1, y1, z0), fx);
-        let c01 = lerp(self.voxel(x0, y0, z1), self.voxel(x1, y0, z1), fx);
-        let c11 = lerp(self.voxel(x0, y1, z1), self.voxel(x1, y1, z1), fx);
+        let c00 = lerp(at(x0, y0, z0), at(x1, y0, z0), fx);
+        let c10 = lerp(at(x0, y1, z0), at(x1, y1, z0), fx);
+        let c01 = lerp(at(x0, y0, z1), at(x1, y0, z1), fx);
+        let c11 = lerp(at(x0, y1, z1), at(x1, y1, z1), fx);
         lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz)
     }
 
@@ -206,6 +237,16 @@ mod tests {
         assert_eq!(g.lookup(Vec3::new(0.0, 0.5, 0.5)).x, 0.0);
         assert_eq!(g.lookup(Vec3::new(7.0, -3.0, 0.5)).x, 4.0);
         assert_eq!(g.max(), Rgb::splat(4.0));
+        // Zero-edged (pbrt-v4): fades to 0 over the last half voxel.
+        let mut z = g.clone();
+        z.edge = GridEdge::Zero;
+        assert_eq!(z.lookup(Vec3::new(0.5, 0.5, 0.5)).x, 2.0);
+        assert_eq!(z.lookup(Vec3::new(0.875, 0.5, 0.5)).x, 3.0);
+        // At the cube's face, half way between the last centre and zero.
+        assert_eq!(z.lookup(Vec3::new(1.0, 0.5, 0.5)).x, 2.0);
+        assert_eq!(z.lookup(Vec3::new(1.5, 0.5, 0.5)).x, 0.0);
+        // A quarter voxel out of the one-voxel-thick y axis: ¾ of the value.
+        assert_eq!(z.lookup(Vec3::new(0.75, 0.25, 0.5)).x, 3.0);
         // Three channels.
         let g = VoxelGrid::parse_mitsuba_vol(&vol_bytes([1, 1, 1], 3, &[0.1, 0.2, 0.3])).unwrap();
         assert_eq!(g.lookup(Vec3::splat(0.5)), Rgb::new(0.1, 0.2, 0.3));

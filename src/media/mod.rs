@@ -24,7 +24,7 @@
 pub mod grid;
 pub mod phase;
 
-pub use grid::VoxelGrid;
+pub use grid::{GridEdge, VoxelGrid};
 pub use phase::{Phase, PhaseSample};
 
 use crate::color::Rgb;
@@ -85,8 +85,8 @@ pub struct Medium {
     /// Emitted radiance, if the medium emits (pbrt-v4's convention: the
     /// source term is σa·Le).
     pub emission: Option<Field>,
-    /// Multiplier of σt.
-    pub scale: f32,
+    /// Multiplier of σt, per channel.
+    pub scale: Rgb,
     /// Phase function.
     pub phase: Phase,
     /// σ_maj: a bound on σt everywhere, per channel.
@@ -101,7 +101,7 @@ impl Medium {
             Field::Constant(sigma_t),
             Field::Constant(albedo),
             None,
-            1.0,
+            Rgb::ONE,
             phase,
         )
     }
@@ -112,7 +112,7 @@ impl Medium {
         sigma_t: Field,
         albedo: Field,
         emission: Option<Field>,
-        scale: f32,
+        scale: Rgb,
         phase: Phase,
     ) -> Medium {
         let majorant = (sigma_t.max() * scale).max(Rgb::ZERO);
@@ -259,7 +259,7 @@ mod tests {
             Field::Grid(Arc::new(grid), to_world.inverse()),
             Field::Constant(Rgb::ZERO),
             None,
-            1.0,
+            Rgb::ONE,
             Phase::Isotropic,
         );
         // Optical depth: edges clamp to the first and last centres (at 0.5
@@ -326,7 +326,7 @@ mod tests {
             Field::Constant(Rgb::ONE),
             Field::Constant(Rgb::ONE),
             None,
-            1.0,
+            Rgb::ONE,
             Phase::Isotropic,
         );
         assert_eq!(m.segment(Vec3::new(-1.0, 0.5, 0.5), Vec3::X, 10.0), Some((1.0, 2.0)));

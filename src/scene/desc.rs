@@ -628,8 +628,8 @@ pub struct MediumDesc {
     pub albedo: FieldDesc,
     /// Emitted radiance, if any.
     pub emission: Option<FieldDesc>,
-    /// Multiplier of σt.
-    pub scale: f32,
+    /// Multiplier of σt, per channel.
+    pub scale: Rgb,
     /// Henyey–Greenstein asymmetry g in (−1, 1); 0: isotropic.
     pub g: f32,
     /// Source locations.
@@ -1097,7 +1097,7 @@ impl SceneDesc {
             if let Some(e) = &m.emission {
                 field("emission", e, false)?;
             }
-            c.non_negative("scale", m.scale)?;
+            c.color("scale", m.scale)?;
             if !(m.g > -1.0 && m.g < 1.0) {
                 return Err(c.err("g", format!("must lie strictly between -1 and 1, not {}", m.g)));
             }

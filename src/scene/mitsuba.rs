@@ -1655,7 +1655,7 @@ impl Loader {
             sigma_t: sigma_t.unwrap_or(FieldDesc::Constant(Rgb::ONE)),
             albedo: albedo.unwrap_or(FieldDesc::Constant(Rgb::splat(0.75))),
             emission: None,
-            scale,
+            scale: Rgb::splat(scale),
             g,
             locs,
         });
@@ -2526,7 +2526,7 @@ mod tests {
         assert_eq!(fog.name, "medium:fog");
         assert_eq!(fog.sigma_t, FieldDesc::Constant(Rgb::new(1.0, 2.0, 3.0)));
         assert_eq!(fog.albedo, FieldDesc::Constant(Rgb::splat(0.5)));
-        assert_eq!((fog.scale, fog.g), (2.0, 0.3));
+        assert_eq!((fog.scale, fog.g), (Rgb::splat(2.0), 0.3));
         assert!(matches!(&d.media[1].sigma_t, FieldDesc::Boxed { value, .. } if *value == Rgb::splat(4.0)));
         assert_eq!(d.camera_medium.as_deref(), Some("medium:fog"));
         let mi = d.shapes[0].media.as_ref().unwrap();

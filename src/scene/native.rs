@@ -715,7 +715,7 @@ fn read_medium(t: &Table) -> Result<MediumDesc> {
         sigma_t,
         albedo: FieldDesc::Constant(t.color("albedo")?.unwrap_or(Rgb::ONE)),
         emission: t.color("emission")?.map(FieldDesc::Constant),
-        scale: t.number_or("scale", 1.0)?,
+        scale: t.color("scale")?.unwrap_or(Rgb::ONE),
         g: t.number_or("g", 0.0)?,
         locs: t.finish()?,
     })

@@ -427,17 +427,16 @@ impl Parser {
                 );
                 m
             }
-            "dielectric" | "thindielectric" => {
+            "thindielectric" => MaterialKindDesc::Thin {
+                ior: self.eta(p, "eta", 1.5, &mut def)?,
+                ext_ior: 1.0,
+                reflect_tint: Rgb::ONE,
+                transmit_tint: Rgb::ONE,
+            },
+            "dielectric" => {
                 let ior = self.eta(p, "eta", 1.5, &mut def)?;
                 let r = self.roughness(p, "", &mut def)?;
                 let roughness = self.isotropic(r, loc, &what);
-                if kind == "thindielectric" {
-                    self.approximated(
-                        loc,
-                        &what,
-                        "rendered as a solid dielectric: rays refract at each surface instead of passing a thin sheet",
-                    );
-                }
                 MaterialKindDesc::Dielectric {
                     ior,
                     ext_ior: 1.0,
@@ -554,21 +553,8 @@ impl Parser {
                 };
                 return Ok(def);
             }
-            _ => {
-                // interface, none and "": the shape only bounds a medium.
-                self.approximated(
-                    loc,
-                    format!("material \"{kind}\""),
-                    "rendered as an invisible surface (a dielectric of index 1)",
-                );
-                MaterialKindDesc::Dielectric {
-                    ior: 1.0,
-                    ext_ior: 1.0,
-                    roughness: 0.0,
-                    reflect_tint: Rgb::ONE,
-                    transmit_tint: Rgb::ONE,
-                }
-            }
+            // interface, none and "": the shape only bounds a medium.
+            _ => MaterialKindDesc::NULL,
         };
         def.kind = MatKind::Desc(desc);
         Ok(def)

@@ -20,6 +20,7 @@
 mod lexer;
 mod lights;
 mod materials;
+mod media;
 mod options;
 mod params;
 mod shapes;
@@ -198,6 +199,9 @@ struct GraphicsState {
     reverse_orientation: bool,
     material: MatRef,
     area_light: Option<Emission>,
+    /// The media inside and outside the shapes now made (description
+    /// names; `None`: vacuum), from `MediumInterface`.
+    media: (Option<String>, Option<String>),
     /// Default parameters from `Attribute "shape"|"light"|"material"|"medium"|"texture"`.
     attributes: HashMap<&'static str, Vec<Param>>,
 }
@@ -210,6 +214,7 @@ impl Default for GraphicsState {
             reverse_orientation: false,
             material: MatRef::Default,
             area_light: None,
+            media: (None, None),
             attributes: HashMap::new(),
         }
     }
@@ -315,6 +320,13 @@ struct Parser {
     /// How often each warning text (without its position) was given, and
     /// where first.
     warning_counts: HashMap<String, (usize, SourceLoc)>,
+    /// Media by pbrt name: their descriptions' names.
+    media_names: HashMap<String, String>,
+    /// Media declared with a type trazo does not render.
+    unsupported_media: HashSet<String>,
+    /// Whether the integrator asked for is `volpath` (pbrt's default),
+    /// which renders media if the scene has any.
+    volpath: bool,
 }
 
 fn det3(m: &Mat4) -> f32 {
@@ -371,6 +383,9 @@ impl Parser {
             motion_warned: false,
             import_floor: 0,
             warning_counts: HashMap::new(),
+            media_names: HashMap::new(),
+            unsupported_media: HashSet::new(),
+            volpath: true,
         }
     }
 
@@ -663,6 +678,8 @@ impl Parser {
                     ctm: self.gs.ctm,
                     loc: Some(loc),
                 };
+                // pbrt-v4: the camera is in the outside medium current here.
+                self.desc.camera_medium = self.gs.media.1.clone();
             }
             "Film" => {
                 self.in_options(lx, offset, name)?;
@@ -921,23 +938,23 @@ impl Parser {
             "MakeNamedMedium" => {
                 let (mname, _) = quoted(lx, name, offset)?;
                 let params = parse_params(lx)?;
-                Self::use_all(&params);
-                self.unsupported(
-                    &loc,
-                    format!("MakeNamedMedium \"{mname}\""),
-                    "participating media are not rendered; the medium is ignored",
-                );
+                let params = self.with_attributes(params, "medium");
+                self.make_named_medium(&mname, &params, &loc)?;
+                self.report_unused(&params, &format!("MakeNamedMedium \"{mname}\""));
             }
             "MediumInterface" => {
+                // One name: the same medium on both sides.
                 let (inside, _) = quoted(lx, name, offset)?;
+                let mut outside = inside.clone();
                 if let Some(t) = lx.peek()? {
-                    if matches!(t.tok, Tok::Str(_)) {
+                    if let Tok::Str(s) = &t.tok {
+                        outside = s.to_string();
                         lx.next()?;
                     }
                 }
-                if !inside.is_empty() {
-                    self.unsupported(&loc, "MediumInterface", "participating media are not rendered; ignored");
-                }
+                let inside = self.medium_name(&inside, &loc)?;
+                let outside = self.medium_name(&outside, &loc)?;
+                self.gs.media = (inside, outside);
             }
             "ObjectBegin" => {
                 self.in_world(lx, offset, name)?;
@@ -1272,6 +1289,10 @@ impl Parser {
             // keep the side they face in object space.
             desc.flip_normals = s.reverse ^ (s.analytic && det3(&total) < 0.0);
             self.desc.shapes.push(desc);
+        }
+        // pbrt's volpath is its path tracer where there are no media.
+        if self.volpath && !self.desc.media.is_empty() {
+            self.desc.settings.integrator = IntegratorKind::VolPath;
         }
         self.summarise_repeats();
         self.desc.validate()

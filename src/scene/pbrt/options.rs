@@ -148,6 +148,8 @@ impl Parser {
         s.max_depth = depth + 1;
         s.integrator = IntegratorKind::Path;
         s.sampling = PathSampling::Mis;
+        // Media are known only once the world is read (`finish`).
+        self.volpath = kind == "volpath";
         if !matches!(kind, "path" | "volpath") {
             self.approximated(
                 loc,

@@ -145,7 +145,7 @@ impl Parser {
             transform: vec![TransformOp::Matrix(self.gs.ctm)],
             material: None,
             flip_normals: false,
-            media: None,
+            media: self.current_media(),
             locs,
         };
         self.add_shape(PendingShape {

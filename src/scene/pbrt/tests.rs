@@ -628,13 +628,11 @@ Shape "sphere""#,
 #[test]
 fn other_materials_are_approximated_with_warnings() {
     for (kind, expect) in [
-        ("thindielectric", "Dielectric"),
         ("diffusetransmission", "Diffuse"),
         ("coatedconductor", "Conductor"),
         ("measured", "Diffuse"),
         ("hair", "Diffuse"),
         ("subsurface", "Plastic"),
-        ("interface", "Dielectric"),
     ] {
         let d = world(&format!("Material \"{kind}\"\nShape \"sphere\""));
         let k = format!("{:?}", material(&d, 0).kind);
@@ -1225,8 +1223,6 @@ WorldEnd"#,
         "test.pbrt:1:40: parameter \"float diagonal\" of Film \"rgb\" is unsupported: ignored",
         "test.pbrt:2:1: Accelerator \"kdtree\" is unsupported",
         "test.pbrt:3:1: Option \"disablepixeljitter\" is unsupported",
-        "test.pbrt:5:1: MakeNamedMedium \"fog\" is unsupported",
-        "test.pbrt:6:1: MediumInterface is unsupported",
         "test.pbrt:7:16: parameter \"float alpha\" of Shape \"sphere\" is unsupported: ignored",
         "test.pbrt:8:1: WorldEnd (pbrt-v3 syntax) is unsupported",
     ] {
@@ -1379,12 +1375,16 @@ fn include_is_token_level_so_statements_continue_after_it() {
     let d = load(&root.join("plume.pbrt"), &[]).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(d.shapes.len(), 1);
     assert!(matches!(d.shapes[0].kind, ShapeKind::Sphere { radius, .. } if radius == 3.0));
-    assert!(
-        d.warnings
-            .iter()
-            .any(|w| w.contains("density.pbrt:1:1: MakeNamedMedium \"smoke\" is unsupported")),
-        "{:?}",
-        d.warnings
+    // The grid and the σ that follow the Include are one medium, filling the sphere.
+    assert_eq!(d.media.len(), 1, "{:?}", d.warnings);
+    let m = &d.media[0];
+    assert!(matches!(&m.sigma_t, FieldDesc::Grid { source: GridSource::Data(g), .. } if g.res == [2, 1, 1]));
+    assert_eq!(m.scale, Rgb::splat(180.0));
+    assert_eq!(m.albedo, FieldDesc::Constant(Rgb::splat(160.0 / 180.0)));
+    let mi = d.shapes[0].media.as_ref().unwrap();
+    assert_eq!(
+        (mi.inside.as_deref(), mi.outside.as_deref()),
+        (Some("medium:smoke"), None)
     );
 
     // On the same line as the Include, and after it, in the main file.
@@ -1577,4 +1577,73 @@ fn gzip_bombs_stop_at_the_read_limit() {
             && e.contains("the file decompresses to more than the limit of 1048576 bytes"),
         "{e}"
     );
+}
+
+#[test]
+fn media_fill_shapes_and_the_camera_and_select_volpath() {
+    let d = parse_str(
+        r#"MakeNamedMedium "fog" "string type" "homogeneous" "rgb sigma_a" [0.1 0.2 0.3] "rgb sigma_s" [0.9 0.8 0.7] "float scale" 2 "float g" 0.4
+MediumInterface "" "fog"
+LookAt 0 0 5  0 0 0  0 1 0
+Camera "perspective"
+WorldBegin
+MakeNamedMedium "cloud" "string type" "nanovdb" "string filename" "cloud.nvdb"
+AttributeBegin
+  MediumInterface "fog" ""
+  Material "interface"
+  Shape "sphere"
+AttributeEnd
+Material "thindielectric" "float eta" 1.33
+Shape "sphere" "float radius" 2
+MediumInterface "cloud" "fog"
+Shape "sphere" "float radius" 3"#,
+    )
+    .unwrap();
+    assert_eq!(d.settings.integrator, IntegratorKind::VolPath);
+    assert_eq!(d.camera_medium.as_deref(), Some("medium:fog"));
+    assert_eq!(d.media.len(), 1);
+    let fog = &d.media[0];
+    assert_eq!(fog.sigma_t, FieldDesc::Constant(Rgb::ONE));
+    assert_eq!(fog.scale, Rgb::splat(2.0));
+    assert_eq!(fog.g, 0.4);
+    let mi = d.shapes[0].media.as_ref().unwrap();
+    assert_eq!(
+        (mi.inside.as_deref(), mi.outside.as_deref()),
+        (Some("medium:fog"), None)
+    );
+    assert_eq!(material(&d, 0).kind, MaterialKindDesc::NULL);
+    // The glass sphere has the interface set before WorldBegin (pbrt-v4
+    // keeps it): vacuum inside, fog outside.
+    let mi = d.shapes[1].media.as_ref().unwrap();
+    assert_eq!(
+        (mi.inside.as_deref(), mi.outside.as_deref()),
+        (None, Some("medium:fog"))
+    );
+    assert!(matches!(material(&d, 1).kind, MaterialKindDesc::Thin { ior, .. } if ior == 1.33));
+    // The unsupported nanovdb medium is vacuum, with a warning.
+    let mi = d.shapes[2].media.as_ref().unwrap();
+    assert_eq!(
+        (mi.inside.as_deref(), mi.outside.as_deref()),
+        (None, Some("medium:fog"))
+    );
+    assert!(
+        d.warnings
+            .iter()
+            .any(|w| w.contains("test.pbrt:6:1: MakeNamedMedium \"cloud\" of type \"nanovdb\" is unsupported")),
+        "{:?}",
+        d.warnings
+    );
+    let e = parse_str("WorldBegin\nMediumInterface \"smoke\" \"\"\nShape \"sphere\"")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("test.pbrt:2:1") && e.contains("no medium named \"smoke\""),
+        "{e}"
+    );
+    // Without media, volpath is the path tracer.
+    let d = parse_str("WorldBegin\nShape \"sphere\"").unwrap();
+    assert_eq!(d.settings.integrator, IntegratorKind::Path);
+    // The same medium on both sides is no transition.
+    let d = parse_str("MakeNamedMedium \"fog\" \"string type\" \"homogeneous\"\nWorldBegin\nMediumInterface \"fog\"\nShape \"sphere\"").unwrap();
+    assert!(d.shapes[0].media.is_none());
 }
