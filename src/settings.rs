@@ -44,6 +44,10 @@ pub struct RenderSettings {
     pub exposure: f32,
     /// Photon mapping and SPPM parameters.
     pub photon: PhotonSettings,
+    /// The volumetric path tracer's estimator: `None`, delta and ratio
+    /// tracking (unbiased); `Some(step)`, fixed-step ray marching with
+    /// steps of this length in scene units (biased, for comparison).
+    pub march_step: Option<f32>,
 }
 
 impl Default for RenderSettings {
@@ -62,6 +66,7 @@ impl Default for RenderSettings {
             tonemap: Tonemap::default(),
             exposure: 0.0,
             photon: PhotonSettings::default(),
+            march_step: None,
         }
     }
 }

@@ -185,3 +185,68 @@ fn a_null_surface_is_invisible_to_both_path_tracers() {
         assert!(worst < 1e-5, "{integrator:?}: {worst}");
     }
 }
+
+/// Transmittance through a slab whose density zig-zags along the view:
+/// tracking is exact; ray marching is biased for long steps (the
+/// transmittance of a jittered sum of the optical depth is not the
+/// transmittance of the depth) and converges as the step shrinks.
+#[test]
+fn ray_marching_converges_to_the_tracked_transmittance() {
+    let grid = VoxelGrid::new([1, 1, 8], 1, vec![0.0, 3.0, 0.0, 3.0, 0.0, 3.0, 0.0, 3.0]).unwrap();
+    // Exact optical depth along z: the slab is 2 thick, the grid is read
+    // trilinearly (clamped) between voxel centres.
+    let n = 100_000;
+    let tau: f64 = (0..n)
+        .map(|i| grid.lookup(Vec3::new(0.5, 0.5, (i as f32 + 0.5) / n as f32)).x as f64)
+        .sum::<f64>()
+        * 2.0
+        / n as f64;
+    let exact = (-tau).exp() as f32;
+    let medium = MediumDesc {
+        name: "zigzag".into(),
+        sigma_t: FieldDesc::Grid {
+            source: GridSource::Data(std::sync::Arc::new(grid)),
+            to_world: vec![
+                TransformOp::Scale(Vec3::splat(2.0)),
+                TransformOp::Translate(Vec3::splat(-1.0)),
+            ],
+            use_file_bounds: false,
+        },
+        albedo: FieldDesc::Constant(Rgb::ZERO),
+        emission: None,
+        scale: Rgb::ONE,
+        g: 0.0,
+        locs: Locs::default(),
+    };
+    let mut d = medium_scene(
+        ShapeKind::Cuboid {
+            min: Vec3::splat(-1.0),
+            max: Vec3::splat(1.0),
+        },
+        medium,
+    );
+    d.camera.projection = ProjectionDesc::Orthographic { size: 1.0 };
+    d.settings.spp = 256;
+    let error = |step: Option<f32>| {
+        let mut d = d.clone();
+        d.settings.march_step = step;
+        let image = render_image(&trazo::scene::build(&d).unwrap()).unwrap();
+        let (mean, err) = mean_and_error(&image.pixels);
+        ((mean.x - exact).abs(), err.x)
+    };
+    let (tracked, se) = error(None);
+    assert!(
+        tracked <= 4.5 * se + 1e-4,
+        "tracking: off by {tracked} ± {se} from {exact}"
+    );
+    let (coarse, se_coarse) = error(Some(1.0));
+    let (fine, se_fine) = error(Some(0.01));
+    assert!(
+        coarse > 6.0 * se_coarse,
+        "a step of 1 is biased: off by {coarse} ± {se_coarse}"
+    );
+    assert!(
+        fine <= 4.5 * se_fine + 1e-4,
+        "a step of 0.01 converges: off by {fine} ± {se_fine}"
+    );
+}

@@ -99,6 +99,13 @@ struct SceneArgs {
     #[arg(long, value_name = "D", value_parser = clap::value_parser!(u32).range(0..=(MAX_DEPTH as i64)))]
     max_depth: Option<u32>,
 
+    /// Render media by fixed-step ray marching with steps of this length
+    /// in scene units (the taught estimator, biased where a medium varies
+    /// within a step) instead of delta and ratio tracking (volpath only;
+    /// overrides the scene).
+    #[arg(long, value_name = "LENGTH", value_parser = parse_length)]
+    march_step: Option<f32>,
+
     /// Seed of the random numbers; the same seed gives the same image.
     #[arg(long, value_name = "S")]
     seed: Option<u64>,
@@ -234,7 +241,7 @@ struct RenderArgs {
     /// --checkpoint-every, --max-memory, --quiet and --verbose may be given
     /// with it.
     #[arg(long, value_name = "CHECKPOINT", conflicts_with_all = [
-        "scene", "width", "height", "max_depth", "seed", "sampler", "tonemap", "exposure", "defines",
+        "scene", "width", "height", "max_depth", "march_step", "seed", "sampler", "tonemap", "exposure", "defines",
         "output", "spp", "integrator", "sampling", "aov", "denoise", "photons", "caustic_photons",
         "sppm_photons", "photon_gather", "photon_radius", "final_gather", "photon_kernel",
     ])]
@@ -246,6 +253,13 @@ struct RenderArgs {
     /// machine's memory.
     #[arg(long, value_name = "SIZE", value_parser = scene::memory::parse_size)]
     max_memory: Option<u64>,
+}
+
+fn parse_length(s: &str) -> std::result::Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("expected a length > 0, got \"{s}\"")),
+    }
 }
 
 fn parse_seconds(s: &str) -> std::result::Result<f64, String> {
@@ -344,6 +358,9 @@ impl SceneArgs {
         }
         if let Some(v) = self.height {
             s.height = v;
+        }
+        if let Some(v) = self.march_step {
+            s.march_step = Some(v);
         }
         if let Some(v) = self.max_depth {
             s.max_depth = v;

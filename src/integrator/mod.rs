@@ -126,6 +126,7 @@ pub fn drive<D: Driver>(scene: &Scene, aovs: bool, cancel: Option<&AtomicBool>, 
             &VolPathTracer {
                 max_depth: s.max_depth,
                 rr_depth: s.rr_depth,
+                march_step: s.march_step,
             },
             Work::default(),
         ),

@@ -46,6 +46,11 @@ pub struct VolPathTracer {
     pub max_depth: u32,
     /// Segments after which Russian roulette starts.
     pub rr_depth: u32,
+    /// `None`: free flights by delta tracking and transmittance by ratio
+    /// tracking (unbiased); `Some(step)`: both by fixed-step ray marching
+    /// with steps of this length (biased where a medium varies within a
+    /// step; converges as the step shrinks).
+    pub march_step: Option<f32>,
 }
 
 /// The mean of the three channels.
@@ -183,40 +188,11 @@ impl VolPathTracer {
             }
             if let Some(mi) = medium {
                 let t_end = hit.as_ref().map_or(shadow.t_max, |h| h.t);
-                let origin = shadow.at(shadow.t_min);
-                let distance = (t_end - shadow.t_min) * len;
-                let u = rng.next_f32();
-                let t_maj = sample_majorant(
-                    &scene.media[mi as usize],
-                    &Ray::with_interval(origin, dir, 0.0, distance),
-                    channel,
-                    u,
-                    rng,
-                    |_, mp, sigma_maj, t_maj, rng| {
-                        let sigma_n = (sigma_maj - mp.sigma_a - mp.sigma_s).max(Rgb::ZERO);
-                        let pdf = t_maj[channel] * sigma_maj[channel];
-                        t_ray *= t_maj * sigma_n / pdf;
-                        r_l *= t_maj * sigma_maj / pdf;
-                        r_u *= t_maj * sigma_n / pdf;
-                        // Russian roulette on a faint estimate (pbrt-v4).
-                        let tr = t_ray / mean(r_l + r_u);
-                        if tr.max_element() < 0.05 {
-                            if rng.next_f32() < 0.75 {
-                                t_ray = Rgb::ZERO;
-                            } else {
-                                t_ray /= 0.25;
-                            }
-                        }
-                        t_ray != Rgb::ZERO && t_ray.is_finite()
-                    },
-                );
-                let hero = t_maj[channel];
-                if hero <= 0.0 {
+                let segment = Ray::with_interval(shadow.at(shadow.t_min), dir, 0.0, (t_end - shadow.t_min) * len);
+                let medium = &scene.media[mi as usize];
+                if !self.shadow_transmittance(medium, &segment, channel, &mut t_ray, &mut r_l, &mut r_u, rng) {
                     return Rgb::ZERO;
                 }
-                t_ray *= t_maj / hero;
-                r_l *= t_maj / hero;
-                r_u *= t_maj / hero;
             }
             if t_ray == Rgb::ZERO || !t_ray.is_finite() {
                 return Rgb::ZERO;
@@ -271,105 +247,27 @@ impl Integrator for VolPathTracer {
 
             if let Some(mi) = medium {
                 let t_end = hit.as_ref().map_or(ray.t_max, |h| h.t);
-                let origin = ray.at(ray.t_min);
-                let distance = (t_end - ray.t_min) * len;
-                let mut scattered: Option<Ray> = None;
-                let mut terminated = false;
-                let u = sampler.next_1d();
-                let mut u_mode = sampler.next_1d();
-                let phase = scene.media[mi as usize].phase;
-                let t_maj = sample_majorant(
-                    &scene.media[mi as usize],
-                    &Ray::with_interval(origin, dir, 0.0, distance),
+                let segment = Ray::with_interval(ray.at(ray.t_min), dir, 0.0, (t_end - ray.t_min) * len);
+                let walk = Walk {
+                    scene,
+                    medium: mi,
                     channel,
-                    u,
-                    &mut rng,
-                    |p, mp, sigma_maj, t_maj, rng| {
-                        // Emission along the way.
-                        if s.depth < self.max_depth && mp.le != Rgb::ZERO {
-                            let pdf = sigma_maj[channel] * t_maj[channel];
-                            let r_e = s.r_u * sigma_maj * t_maj / pdf;
-                            if r_e != Rgb::ZERO {
-                                s.l += s.beta * t_maj / pdf * mp.sigma_a * mp.le / mean(r_e);
-                            }
+                };
+                let outcome = match self.march_step {
+                    None => self.track(&walk, &segment, &mut s, sampler, &mut rng, stats),
+                    Some(step) => self.march(&walk, &segment, step, &mut s, sampler, &mut rng, stats),
+                };
+                match outcome {
+                    Segment::Ended => return s.l,
+                    Segment::Scattered(next) => {
+                        ray = next;
+                        if !self.roulette(&mut s, eta_scale, sampler) {
+                            return s.l;
                         }
-                        // Scattering or a null collision, chosen in
-                        // proportion to the throughput they would carry
-                        // (averaged over channels, so the choice is the
-                        // same for every channel and cancels from their
-                        // density ratios). Absorption is not an event: the
-                        // scattering weight σs < σ_maj − σn accounts for it,
-                        // as in Mitsuba's volpath, which keeps paths
-                        // through dark or chromatic albedo from ending
-                        // at random.
-                        let sigma_n = (sigma_maj - mp.sigma_a - mp.sigma_s).max(Rgb::ZERO);
-                        let (w_scatter, w_null) = (mean(s.beta * mp.sigma_s), mean(s.beta * sigma_n));
-                        if w_scatter + w_null <= 0.0 {
-                            terminated = true;
-                            return false;
-                        }
-                        let p_scatter = w_scatter / (w_scatter + w_null);
-                        let choice = u_mode;
-                        u_mode = rng.next_f32();
-                        let hero = t_maj[channel] * sigma_maj[channel];
-                        let density_ratio = t_maj * sigma_maj / hero;
-                        if choice < p_scatter {
-                            // A real scattering event.
-                            s.depth += 1;
-                            if s.depth >= self.max_depth {
-                                terminated = true;
-                                return false;
-                            }
-                            s.beta *= t_maj * mp.sigma_s / (hero * p_scatter);
-                            s.r_u *= density_ratio;
-                            if s.beta == Rgb::ZERO || s.r_u == Rgb::ZERO {
-                                terminated = true;
-                                return false;
-                            }
-                            let wo = -dir;
-                            let vertex = Vertex::Medium { p, wo, phase };
-                            s.l +=
-                                self.sample_light(scene, &vertex, medium, s.beta, s.r_u, channel, sampler, rng, stats);
-                            let ps = phase.sample(wo, sampler.next_2d());
-                            if ps.pdf <= 0.0 {
-                                terminated = true;
-                                return false;
-                            }
-                            // The phase functions are sampled exactly: p/pdf = 1.
-                            s.r_l = s.r_u / ps.pdf;
-                            s.prev_p = p;
-                            s.prev_n = Vec3::ZERO;
-                            s.specular = false;
-                            scattered = Some(Ray::new(p, ps.wi));
-                            return false;
-                        }
-                        // A null collision: light sampling would have
-                        // crossed it by ratio tracking, with density
-                        // T_maj·σ_maj and no choice.
-                        let p_null = 1.0 - p_scatter;
-                        s.beta *= t_maj * sigma_n / (hero * p_null);
-                        s.r_u *= density_ratio;
-                        s.r_l *= density_ratio / p_null;
-                        s.beta != Rgb::ZERO && s.r_u != Rgb::ZERO
-                    },
-                );
-                if terminated || s.beta == Rgb::ZERO || s.r_u == Rgb::ZERO || !s.beta.is_finite() {
-                    return s.l;
-                }
-                if let Some(next) = scattered {
-                    ray = next;
-                    if !self.roulette(&mut s, eta_scale, sampler) {
-                        return s.l;
+                        continue;
                     }
-                    continue;
+                    Segment::Crossed => {}
                 }
-                let hero = t_maj[channel];
-                if hero <= 0.0 {
-                    return s.l;
-                }
-                s.beta *= t_maj / hero;
-                s.r_u *= t_maj / hero;
-                s.r_l *= t_maj / hero;
             }
 
             let Some(hit) = hit else {
@@ -475,7 +373,330 @@ impl Integrator for VolPathTracer {
     }
 }
 
+/// What a path segment through a medium ended in.
+enum Segment {
+    /// The path ended there (absorbed, too long, or nothing left to carry).
+    Ended,
+    /// It scattered: the next ray.
+    Scattered(Ray),
+    /// It crossed the medium to the segment's end (a surface or nowhere).
+    Crossed,
+}
+
+/// The medium a segment runs in, with what every collision needs.
+struct Walk<'a> {
+    scene: &'a Scene,
+    medium: u32,
+    channel: usize,
+}
+
+/// exp(−τ) per channel.
+#[inline]
+fn exp_neg(tau: Rgb) -> Rgb {
+    Rgb::new((-tau.x).exp(), (-tau.y).exp(), (-tau.z).exp())
+}
+
+/// The steps of fixed-step ray marching over `segment` (unit direction, t
+/// in [0, t_max]) inside `medium`: the first step jittered by `jitter`
+/// in [0, 1) so that the quadrature's error is noise, not a pattern. Each
+/// step [a, b] is passed to `visit` with the medium's coefficients at its
+/// middle; `visit` returns whether to go on.
+fn march_steps(
+    medium: &crate::media::Medium,
+    segment: &Ray,
+    step: f32,
+    jitter: f32,
+    mut visit: impl FnMut(f32, f32, &crate::media::MediumPoint) -> bool,
+) {
+    let Some((t0, t1)) = medium.segment(segment.origin, segment.dir, segment.t_max) else {
+        return;
+    };
+    if !(t1 - t0).is_finite() {
+        // An unbounded segment (the camera in fog, looking at the sky):
+        // marched until the transmittance is negligible, at most 2^20 steps.
+        let sigma = medium.majorant().max_element();
+        let reach = if sigma > 0.0 { 40.0 / sigma } else { 0.0 };
+        return march_steps(
+            medium,
+            &Ray::with_interval(segment.origin, segment.dir, 0.0, t0 + reach),
+            step,
+            jitter,
+            visit,
+        );
+    }
+    let step = step.max((t1 - t0) / (1 << 20) as f32);
+    let mut a = t0;
+    let mut b = (t0 + step * jitter.max(1e-3)).min(t1);
+    while a < t1 {
+        let mp = medium.point(segment.at(0.5 * (a + b)));
+        if !visit(a, b, &mp) {
+            return;
+        }
+        a = b;
+        b = (b + step).min(t1);
+    }
+}
+
 impl VolPathTracer {
+    /// A segment by delta tracking against the majorant (unbiased).
+    fn track(
+        &self,
+        walk: &Walk,
+        segment: &Ray,
+        s: &mut PathState,
+        sampler: &mut Sampler,
+        rng: &mut Pcg32,
+        stats: &mut RayStats,
+    ) -> Segment {
+        let channel = walk.channel;
+        let medium = &walk.scene.media[walk.medium as usize];
+        let mut outcome = Segment::Crossed;
+        let u = sampler.next_1d();
+        let mut u_mode = sampler.next_1d();
+        let t_maj = sample_majorant(medium, segment, channel, u, rng, |p, mp, sigma_maj, t_maj, rng| {
+            // Emission along the way.
+            if s.depth < self.max_depth && mp.le != Rgb::ZERO {
+                let pdf = sigma_maj[channel] * t_maj[channel];
+                let r_e = s.r_u * sigma_maj * t_maj / pdf;
+                if r_e != Rgb::ZERO {
+                    s.l += s.beta * t_maj / pdf * mp.sigma_a * mp.le / mean(r_e);
+                }
+            }
+            // Scattering or a null collision, chosen in proportion to the
+            // throughput they would carry (averaged over channels, so the
+            // choice is the same for every channel and cancels from their
+            // density ratios). Absorption is not an event: the scattering
+            // weight σs < σ_maj − σn accounts for it, as in Mitsuba's
+            // volpath, which keeps paths through dark or chromatic albedo
+            // from ending at random.
+            let sigma_n = (sigma_maj - mp.sigma_a - mp.sigma_s).max(Rgb::ZERO);
+            let (w_scatter, w_null) = (mean(s.beta * mp.sigma_s), mean(s.beta * sigma_n));
+            if w_scatter + w_null <= 0.0 {
+                outcome = Segment::Ended;
+                return false;
+            }
+            let p_scatter = w_scatter / (w_scatter + w_null);
+            let choice = u_mode;
+            u_mode = rng.next_f32();
+            let hero = t_maj[channel] * sigma_maj[channel];
+            let density_ratio = t_maj * sigma_maj / hero;
+            if choice < p_scatter {
+                outcome = self.scatter(
+                    walk,
+                    p,
+                    segment.dir,
+                    t_maj * mp.sigma_s / (hero * p_scatter),
+                    density_ratio,
+                    s,
+                    sampler,
+                    rng,
+                    stats,
+                );
+                return false;
+            }
+            // A null collision: light sampling would have crossed it by
+            // ratio tracking, with density T_maj·σ_maj and no choice.
+            let p_null = 1.0 - p_scatter;
+            s.beta *= t_maj * sigma_n / (hero * p_null);
+            s.r_u *= density_ratio;
+            s.r_l *= density_ratio / p_null;
+            s.beta != Rgb::ZERO && s.r_u != Rgb::ZERO
+        });
+        if s.beta == Rgb::ZERO || s.r_u == Rgb::ZERO || !s.beta.is_finite() {
+            return Segment::Ended;
+        }
+        if !matches!(outcome, Segment::Crossed) {
+            return outcome;
+        }
+        let hero = t_maj[channel];
+        if hero <= 0.0 {
+            return Segment::Ended;
+        }
+        s.beta *= t_maj / hero;
+        s.r_u *= t_maj / hero;
+        s.r_l *= t_maj / hero;
+        Segment::Crossed
+    }
+
+    /// A segment by fixed-step ray marching (the taught estimator, biased
+    /// where the medium varies within a step): the optical depth is summed
+    /// step by step, each step at the coefficients of its middle, and the
+    /// free-flight distance found where it reaches −ln(1 − u); volume
+    /// emission is summed along the way.
+    #[allow(clippy::too_many_arguments)]
+    fn march(
+        &self,
+        walk: &Walk,
+        segment: &Ray,
+        step: f32,
+        s: &mut PathState,
+        sampler: &mut Sampler,
+        rng: &mut Pcg32,
+        stats: &mut RayStats,
+    ) -> Segment {
+        let channel = walk.channel;
+        let medium = &walk.scene.media[walk.medium as usize];
+        let target = -(1.0 - sampler.next_1d()).ln();
+        let jitter = sampler.next_1d();
+        let mut tau = Rgb::ZERO;
+        let mut emitted = Rgb::ZERO;
+        let mut scatter_at: Option<(f32, crate::media::MediumPoint)> = None;
+        march_steps(medium, segment, step, jitter, |a, b, mp| {
+            let sigma_t = mp.sigma_a + mp.sigma_s;
+            if mp.le != Rgb::ZERO {
+                emitted += exp_neg(tau + sigma_t * (0.5 * (b - a))) * mp.sigma_a * mp.le * (b - a);
+            }
+            let reach = tau[channel] + sigma_t[channel] * (b - a);
+            if reach >= target && sigma_t[channel] > 0.0 {
+                let t = a + (target - tau[channel]) / sigma_t[channel];
+                tau += sigma_t * (t - a);
+                scatter_at = Some((t, *mp));
+                return false;
+            }
+            tau += sigma_t * (b - a);
+            true
+        });
+        if s.depth < self.max_depth && emitted != Rgb::ZERO {
+            s.l += s.beta * emitted / mean(s.r_u);
+        }
+        let transmitted = exp_neg(tau);
+        let hero = transmitted[channel];
+        match scatter_at {
+            Some((t, mp)) => {
+                // The density of stopping here in channel c: T̂c·σt,c.
+                let sigma_t = mp.sigma_a + mp.sigma_s;
+                let pdf_hero = hero * sigma_t[channel];
+                self.scatter(
+                    walk,
+                    segment.at(t),
+                    segment.dir,
+                    transmitted * mp.sigma_s / pdf_hero,
+                    transmitted * sigma_t / pdf_hero,
+                    s,
+                    sampler,
+                    rng,
+                    stats,
+                )
+            }
+            None if hero > 0.0 => {
+                s.beta *= transmitted / hero;
+                s.r_u *= transmitted / hero;
+                // Light sampling crosses the segment by the same sum, with
+                // no choice (density 1 in every channel).
+                s.r_l /= hero;
+                Segment::Crossed
+            }
+            None => Segment::Ended,
+        }
+    }
+
+    /// A real scattering event at `p` in the walk's medium, for a path
+    /// travelling along `dir`: the throughput is multiplied by `weight`
+    /// and the channels' density ratios by `density_ratio`; then the
+    /// light is sampled and the phase function chooses the next direction.
+    #[allow(clippy::too_many_arguments)]
+    fn scatter(
+        &self,
+        walk: &Walk,
+        p: Vec3,
+        dir: Vec3,
+        weight: Rgb,
+        density_ratio: Rgb,
+        s: &mut PathState,
+        sampler: &mut Sampler,
+        rng: &mut Pcg32,
+        stats: &mut RayStats,
+    ) -> Segment {
+        s.depth += 1;
+        if s.depth >= self.max_depth {
+            return Segment::Ended;
+        }
+        s.beta *= weight;
+        s.r_u *= density_ratio;
+        if s.beta == Rgb::ZERO || s.r_u == Rgb::ZERO {
+            return Segment::Ended;
+        }
+        let phase = walk.scene.media[walk.medium as usize].phase;
+        let wo = -dir;
+        let vertex = Vertex::Medium { p, wo, phase };
+        s.l += self.sample_light(
+            walk.scene,
+            &vertex,
+            Some(walk.medium),
+            s.beta,
+            s.r_u,
+            walk.channel,
+            sampler,
+            rng,
+            stats,
+        );
+        let ps = phase.sample(wo, sampler.next_2d());
+        if ps.pdf <= 0.0 {
+            return Segment::Ended;
+        }
+        // The phase functions are sampled exactly: p/pdf = 1.
+        s.r_l = s.r_u / ps.pdf;
+        s.prev_p = p;
+        s.prev_n = Vec3::ZERO;
+        s.specular = false;
+        Segment::Scattered(Ray::new(p, ps.wi))
+    }
+
+    /// The transmittance along a shadow `segment` (unit direction) in
+    /// `medium`, multiplied into `t_ray`, with the channels' density
+    /// ratios of the two strategies: by ratio tracking, or by marching.
+    /// Returns false where the estimate is zero.
+    #[allow(clippy::too_many_arguments)]
+    fn shadow_transmittance(
+        &self,
+        medium: &crate::media::Medium,
+        segment: &Ray,
+        channel: usize,
+        t_ray: &mut Rgb,
+        r_l: &mut Rgb,
+        r_u: &mut Rgb,
+        rng: &mut Pcg32,
+    ) -> bool {
+        if let Some(step) = self.march_step {
+            let mut tau = Rgb::ZERO;
+            march_steps(medium, segment, step, rng.next_f32(), |a, b, mp| {
+                tau += (mp.sigma_a + mp.sigma_s) * (b - a);
+                true
+            });
+            let t = exp_neg(tau);
+            *t_ray *= t;
+            // The path would have crossed with probability T̂c in channel c.
+            *r_u *= t;
+            return *t_ray != Rgb::ZERO;
+        }
+        let u = rng.next_f32();
+        let t_maj = sample_majorant(medium, segment, channel, u, rng, |_, mp, sigma_maj, t_maj, rng| {
+            let sigma_n = (sigma_maj - mp.sigma_a - mp.sigma_s).max(Rgb::ZERO);
+            let pdf = t_maj[channel] * sigma_maj[channel];
+            *t_ray *= t_maj * sigma_n / pdf;
+            *r_l *= t_maj * sigma_maj / pdf;
+            *r_u *= t_maj * sigma_n / pdf;
+            // Russian roulette on a faint estimate (pbrt-v4).
+            let tr = *t_ray / mean(*r_l + *r_u);
+            if tr.max_element() < 0.05 {
+                if rng.next_f32() < 0.75 {
+                    *t_ray = Rgb::ZERO;
+                } else {
+                    *t_ray /= 0.25;
+                }
+            }
+            *t_ray != Rgb::ZERO && t_ray.is_finite()
+        });
+        let hero = t_maj[channel];
+        if hero <= 0.0 {
+            return false;
+        }
+        *t_ray *= t_maj / hero;
+        *r_l *= t_maj / hero;
+        *r_u *= t_maj / hero;
+        true
+    }
+
     /// Adds emitted radiance `le` found by the path, weighed against light
     /// sampling (whose density for it `light_pdf` gives) unless the last
     /// scattering was a delta lobe, which light sampling cannot find.

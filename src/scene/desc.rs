@@ -1224,6 +1224,11 @@ impl SceneDesc {
         if s.spp == 0 || s.spp > MAX_SPP {
             return Err(c.err("spp", format!("must be between 1 and {MAX_SPP}, got {}", s.spp)));
         }
+        if let Some(step) = s.march_step {
+            if !(step.is_finite() && step > 0.0) {
+                return Err(c.err("march_step", format!("must be a positive length, got {step}")));
+            }
+        }
         if s.max_depth > MAX_DEPTH {
             return Err(c.err("max_depth", format!("must be at most {MAX_DEPTH}, got {}", s.max_depth)));
         }

@@ -450,6 +450,9 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     if let Some(k) = t.choice("sampling", &PathSampling::NAMES)? {
         s.sampling = PathSampling::from_name(&k).expect("checked");
     }
+    if let Some(step) = t.number("march_step")? {
+        s.march_step = Some(step);
+    }
     if let Some(d) = t.unsigned("rr_depth", u32::MAX as u64)? {
         s.rr_depth = d as u32;
     }
