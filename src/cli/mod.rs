@@ -275,7 +275,8 @@ struct CompareArgs {
     scene: SceneArgs,
 
     /// The contestants, comma-separated: whitted, path, path:uniform,
-    /// path:cosine, path:bsdf, path:mis, photon, sppm; a suffix +denoise,
+    /// path:cosine, path:bsdf, path:mis, photon, sppm, volpath (media by
+    /// tracking), volpath:march=STEP (by ray marching); a suffix +denoise,
     /// +atrous or +oidn denoises a contestant's image (e.g. path:mis+denoise).
     #[arg(long, value_name = "LIST", default_value = "whitted,path:uniform,path:mis")]
     integrators: String,

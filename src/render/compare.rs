@@ -23,13 +23,16 @@ pub struct Contestant {
     pub integrator: IntegratorKind,
     /// Estimator (path tracer only).
     pub sampling: PathSampling,
+    /// Fixed-step ray marching with this step (volumetric path tracer
+    /// only); `None`: tracking.
+    pub march_step: Option<f32>,
     /// Denoiser run on the result.
     pub denoise: Option<DenoiserKind>,
 }
 
 impl Contestant {
-    /// Parses `whitted`, `path`, `path:uniform|cosine|bsdf|mis`, `photon`
-    /// or `sppm`, optionally followed by `+denoise` (Open Image Denoise if
+    /// Parses `whitted`, `path`, `path:uniform|cosine|bsdf|mis`, `photon`,
+    /// `sppm`, `volpath` or `volpath:march=STEP`, optionally followed by `+denoise` (Open Image Denoise if
     /// available, else the built-in filter), `+atrous` or `+oidn`.
     pub fn parse(spec: &str) -> Result<Contestant> {
         let spec = spec.trim();
@@ -59,8 +62,22 @@ impl Contestant {
                 IntegratorKind::NAMES.join(", ")
             ))
         })?;
+        let mut march_step = None;
         let sampling = match (integrator, variant) {
             (_, None) => PathSampling::default(),
+            (IntegratorKind::VolPath, Some(v)) => {
+                let step = v
+                    .strip_prefix("march=")
+                    .and_then(|x| x.parse::<f32>().ok())
+                    .filter(|x| x.is_finite() && *x > 0.0)
+                    .ok_or_else(|| {
+                        Error::Invalid(format!(
+                            "unknown volpath variant \"{v}\" in --integrators (expected march=STEP, a positive length)"
+                        ))
+                    })?;
+                march_step = Some(step);
+                PathSampling::default()
+            }
             (IntegratorKind::Path, Some(v)) => PathSampling::from_name(v).ok_or_else(|| {
                 Error::Invalid(format!(
                     "unknown path sampling \"{v}\" in --integrators (expected one of {})",
@@ -73,8 +90,9 @@ impl Contestant {
                 )));
             }
         };
-        let mut label = match integrator {
-            IntegratorKind::Path => format!("path:{}", sampling.name()),
+        let mut label = match (integrator, march_step) {
+            (IntegratorKind::Path, _) => format!("path:{}", sampling.name()),
+            (IntegratorKind::VolPath, Some(step)) => format!("volpath:march={step}"),
             _ => name.to_string(),
         };
         if let Some((suffix, _)) = denoise {
@@ -84,6 +102,7 @@ impl Contestant {
             label,
             integrator,
             sampling,
+            march_step,
             denoise: denoise.map(|d| d.1),
         })
     }
@@ -138,6 +157,7 @@ pub fn compare(
         let mut d = desc.clone();
         d.settings.integrator = c.integrator;
         d.settings.sampling = c.sampling;
+        d.settings.march_step = c.march_step;
         let mut opts = options.clone();
         opts.aovs |= c.denoise.is_some();
         match budget {
@@ -262,5 +282,10 @@ mod tests {
         assert_eq!(Contestant::parse("sppm+oidn").unwrap().label, "sppm+oidn");
         assert!(Contestant::parse("path+auto").is_err());
         assert!(Contestant::parse("path+blur").is_err());
+        let m = Contestant::parse("volpath:march=0.05").unwrap();
+        assert_eq!((m.label.as_str(), m.march_step), ("volpath:march=0.05", Some(0.05)));
+        assert_eq!(Contestant::parse("volpath").unwrap().march_step, None);
+        assert!(Contestant::parse("volpath:march=-1").is_err());
+        assert!(Contestant::parse("volpath:fast").is_err());
     }
 }

@@ -1116,7 +1116,7 @@ impl SceneDesc {
         };
         medium_exists(
             &Check {
-                locs: &self.world_locs,
+                locs: &self.camera.locs,
                 prefix: "camera.".into(),
             },
             "medium",
