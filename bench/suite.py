@@ -54,7 +54,8 @@ MAX_PASS = 256
 # in alphabetical order.
 ORDER = [
     "cornell-box", "conductors", "dielectrics", "plastic", "textured", "sky-sun", "mesh-instances",
-    "many-lights", "smallpt-explicit", "caustic", "furnace-diffuse", "furnace-glass",
+    "many-lights", "smallpt-explicit", "caustic", "furnace-diffuse", "furnace-glass", "media-fog",
+    "media-smoke",
 ]
 
 # Seeds: the timed Mitsuba passes use 0, 1, ...; the warm-up and the

@@ -657,6 +657,25 @@ impl VolPathTracer {
         r_u: &mut Rgb,
         rng: &mut Pcg32,
     ) -> bool {
+        // Where σt is constant the transmittance is known exactly, and is
+        // what ratio tracking gives on average (it is 0 or T/T_hero, at
+        // random): the exact value, with the density ratios ratio tracking
+        // would have given when it passes (the ones the path's own free
+        // flights use, so that the MIS weights still sum to one).
+        if let (None, Some(sigma_t)) = (self.march_step, medium.constant_extinction()) {
+            let length = medium
+                .segment(segment.origin, segment.dir, segment.t_max)
+                .map_or(0.0, |(a, b)| b - a);
+            let t = crate::media::transmittance(length, sigma_t);
+            let hero = t[channel];
+            if hero <= 0.0 {
+                return false;
+            }
+            *t_ray *= t;
+            *r_l *= t / hero;
+            *r_u *= t / hero;
+            return *t_ray != Rgb::ZERO;
+        }
         if let Some(step) = self.march_step {
             let mut tau = Rgb::ZERO;
             march_steps(medium, segment, step, rng.next_f32(), |a, b, mp| {

@@ -140,6 +140,16 @@ impl Medium {
         m.x != m.y || m.y != m.z
     }
 
+    /// σt (with the scale) where it is the same everywhere the medium has
+    /// density: then the transmittance of a segment is exp(−σt·length).
+    #[inline]
+    pub fn constant_extinction(&self) -> Option<Rgb> {
+        match self.sigma_t {
+            Field::Constant(c) => Some((c * self.scale).max(Rgb::ZERO)),
+            Field::Grid(..) => None,
+        }
+    }
+
     /// The coefficients at world point `p`.
     #[inline]
     pub fn point(&self, p: Vec3) -> MediumPoint {

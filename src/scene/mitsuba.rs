@@ -2203,6 +2203,7 @@ impl Loader {
                         self.warn(f, c, "a shape's medium is its \"interior\" or \"exterior\"; ignored");
                         continue;
                     }
+                    used.push(side.to_string());
                     let name = self.medium_ref(f, c)?;
                     let mi = media.get_or_insert_with(MediumInterfaceDesc::default);
                     if side == "interior" {
