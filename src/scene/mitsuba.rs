@@ -1458,30 +1458,7 @@ impl Loader {
                 self.unused(f, node, &props, &used);
                 return Ok(def);
             }
-            "thindielectric" => {
-                let ior = self.ior(f, node, &props, "int_ior", 1.5046, &mut used)?;
-                let ext_ior = self.ior(f, node, &props, "ext_ior", 1.000277, &mut used)?;
-                let reflect_tint = self
-                    .constant_color(f, node, &props, "specular_reflectance", &mut used)?
-                    .unwrap_or(Rgb::ONE);
-                let transmit_tint = self
-                    .constant_color(f, node, &props, "specular_transmittance", &mut used)?
-                    .unwrap_or(Rgb::ONE);
-                let def = BsdfDef {
-                    kind: MaterialKindDesc::Thin {
-                        ior,
-                        ext_ior,
-                        reflect_tint,
-                        transmit_tint,
-                    },
-                    two_sided: true,
-                    material: None,
-                    loc,
-                };
-                self.unused(f, node, &props, &used);
-                return Ok(def);
-            }
-            "dielectric" | "roughdielectric" => {
+            "dielectric" | "roughdielectric" | "thindielectric" => {
                 let roughness = if ty == "roughdielectric" {
                     let (a, b) = self.alpha(f, node, &props, &mut used)?;
                     if a != b {
@@ -1499,6 +1476,20 @@ impl Loader {
                 let transmit_tint = self
                     .constant_color(f, node, &props, "specular_transmittance", &mut used)?
                     .unwrap_or(Rgb::ONE);
+                if ty == "thindielectric" {
+                    self.unused(f, node, &props, &used);
+                    return Ok(BsdfDef {
+                        kind: MaterialKindDesc::Thin {
+                            ior,
+                            ext_ior,
+                            reflect_tint,
+                            transmit_tint,
+                        },
+                        two_sided: true,
+                        material: None,
+                        loc,
+                    });
+                }
                 MaterialKindDesc::Dielectric {
                     ior,
                     ext_ior,
