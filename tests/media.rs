@@ -250,3 +250,35 @@ fn ray_marching_converges_to_the_tracked_transmittance() {
         "a step of 0.01 converges: off by {fine} ± {se_fine}"
     );
 }
+
+/// A black surface of opacity α in front of a white background shows
+/// 1 − α (a cut-out mask, Mitsuba's `mask` BSDF), in both path tracers;
+/// the volumetric one's shadow rays also pass it with weight 1 − α.
+#[test]
+fn a_mask_lets_through_what_it_cuts_out() {
+    let alpha = 0.3f32;
+    for integrator in [IntegratorKind::Path, IntegratorKind::VolPath] {
+        let mut d = medium_scene(sphere(), homogeneous(Rgb::ZERO, Rgb::ONE, 0.0));
+        d.shapes[0].media = None;
+        d.media.clear();
+        d.settings.integrator = integrator;
+        d.settings.spp = 64;
+        let mut m = MaterialDesc::with_kind(
+            "leaf",
+            MaterialKindDesc::Diffuse {
+                reflectance: ColorSource::Rgb(Rgb::ZERO),
+            },
+        );
+        m.opacity = Some(ColorSource::Rgb(Rgb::splat(alpha)));
+        d.materials.push(m);
+        d.shapes[0].material = Some("leaf".into());
+        let image = render_image(&trazo::scene::build(&d).unwrap()).unwrap();
+        // The camera's 25° view is filled by the sphere: two crossings.
+        let expect = (1.0 - alpha) * (1.0 - alpha);
+        let centre: Vec<Rgb> = (4..8)
+            .flat_map(|y| (4..8).map(move |x| (x, y)))
+            .map(|(x, y)| image.get(x, y))
+            .collect();
+        assert_mean(&centre, Rgb::splat(expect), &format!("{integrator:?}"));
+    }
+}

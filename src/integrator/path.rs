@@ -118,6 +118,16 @@ impl Integrator for PathTracer {
             }
 
             let tc = TexCoord { uv: hit.uv, p: hit.p };
+            // A mask's cut-out part, chosen with probability 1 − α: the path
+            // goes on unchanged (a bounce, as Mitsuba's path counts it).
+            // Shadow rays do not see through masks (nor do Mitsuba's), so
+            // only this way finds the light behind them: weight 1.
+            if m.opacity.is_some() && sampler.next_1d() >= m.opacity_at(&scene.images, &tc) {
+                prev_delta = true;
+                ray = hit.spawn_ray(ray.dir);
+                depth += 1;
+                continue;
+            }
             let bsdf = m.bsdf(&scene.images, &tc);
             let frame = Frame::from_orthonormal(hit.ns, hit.tangent);
             let wo = frame.to_local(wo_world);

@@ -179,12 +179,21 @@ impl VolPathTracer {
             let dir = shadow.dir / len;
             if let Some(h) = &hit {
                 let m = &scene.materials[h.material as usize];
-                if !matches!(m.kind, MaterialKind::Thin { .. }) {
+                let thin = matches!(m.kind, MaterialKind::Thin { .. });
+                if !thin && m.opacity.is_none() {
                     return Rgb::ZERO;
                 }
                 let tc = TexCoord { uv: h.uv, p: h.p };
-                let frame = Frame::from_orthonormal(h.ns, h.tangent);
-                t_ray *= m.bsdf(&scene.images, &tc).pass_through(frame.to_local(-dir));
+                // Light passes a mask's cut-out part (1 − α) and what the
+                // surface itself lets through unchanged.
+                let alpha = m.opacity_at(&scene.images, &tc);
+                let sheet = if thin {
+                    let frame = Frame::from_orthonormal(h.ns, h.tangent);
+                    m.bsdf(&scene.images, &tc).pass_through(frame.to_local(-dir))
+                } else {
+                    Rgb::ZERO
+                };
+                t_ray *= Rgb::splat(1.0 - alpha) + sheet * alpha;
             }
             if let Some(mi) = medium {
                 let t_end = hit.as_ref().map_or(shadow.t_max, |h| h.t);
@@ -298,10 +307,12 @@ impl Integrator for VolPathTracer {
                 Some(i) => i.toward(w, hit.ng),
                 None => medium,
             };
-            // A surface that is not there: the path goes on unchanged.
-            if let MaterialKind::Thin { eta, .. } = m.kind
-                && eta == 1.0
-            {
+            // A surface that is not there, or a mask's cut-out part
+            // (chosen with probability 1 − α): the path goes on unchanged,
+            // no bounce.
+            let cut_out = m.opacity.is_some()
+                && sampler.next_1d() >= m.opacity_at(&scene.images, &TexCoord { uv: hit.uv, p: hit.p });
+            if cut_out || matches!(m.kind, MaterialKind::Thin { eta, .. } if eta == 1.0) {
                 medium = cross(medium, dir);
                 ray = hit.spawn_ray(dir);
                 continue;

@@ -125,6 +125,9 @@ pub struct Material {
     /// Whether the back side scatters like the front (false: the back of
     /// an opaque surface is black, as Mitsuba's one-sided BSDFs).
     pub two_sided: bool,
+    /// A cut-out mask: the probability (first channel) that light meets
+    /// the surface rather than passing it unchanged; `None`: opaque.
+    pub opacity: Option<Texture>,
 }
 
 /// The classical parameters that the Whitted integrator reads.
@@ -194,6 +197,7 @@ impl Material {
                 kind: MaterialKind::Diffuse { reflectance: diffuse },
                 emission: Texture::Constant(Rgb::ZERO),
                 two_sided: true,
+                opacity: None,
             };
         }
         Material {
@@ -207,6 +211,7 @@ impl Material {
             },
             emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
+            opacity: None,
         }
     }
 
@@ -255,6 +260,7 @@ impl Material {
             },
             emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
+            opacity: None,
         }
     }
 
@@ -276,7 +282,17 @@ impl Material {
             MaterialKind::Plastic { diffuse, .. } => &[diffuse],
             MaterialKind::Conductor { .. } | MaterialKind::Dielectric { .. } | MaterialKind::Thin { .. } => &[],
         };
-        self.emission.reads_uv() || textures.iter().any(|t| t.reads_uv())
+        self.emission.reads_uv()
+            || self.opacity.as_ref().is_some_and(|o| o.reads_uv())
+            || textures.iter().any(|t| t.reads_uv())
+    }
+
+    /// The opacity at a point (1 where the material has no mask).
+    #[inline]
+    pub fn opacity_at(&self, images: &[ImageTexture], tc: &TexCoord) -> f32 {
+        self.opacity
+            .as_ref()
+            .map_or(1.0, |o| o.eval(images, tc).x.clamp(0.0, 1.0))
     }
 
     /// Whether the surface emits.

@@ -562,6 +562,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             },
             emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
+            opacity: None,
         },
         MaterialKindDesc::Conductor {
             fresnel,
@@ -579,6 +580,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             },
             emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
+            opacity: None,
         },
         MaterialKindDesc::Dielectric {
             ior,
@@ -595,6 +597,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             },
             emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
+            opacity: None,
         },
         MaterialKindDesc::Plastic {
             diffuse,
@@ -624,10 +627,12 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             },
             emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
+            opacity: None,
         },
     };
     mat.emission = color(&m.emission);
     mat.two_sided = m.two_sided;
+    mat.opacity = m.opacity.as_ref().map(color);
     mat
 }
 

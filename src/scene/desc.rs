@@ -310,6 +310,10 @@ pub struct MaterialDesc {
     pub emission: ColorSource,
     /// Whether the back side scatters like the front.
     pub two_sided: bool,
+    /// Opacity in [0, 1] (its first channel), a cut-out mask: where it is
+    /// below 1 light passes the surface unchanged with the rest (Mitsuba's
+    /// `mask` BSDF); `None`: opaque.
+    pub opacity: Option<ColorSource>,
     /// Source locations.
     pub locs: Locs,
 }
@@ -332,6 +336,7 @@ impl MaterialDesc {
             kind,
             emission: ColorSource::Rgb(Rgb::ZERO),
             two_sided: true,
+            opacity: None,
             locs: Locs::default(),
         }
     }
@@ -914,6 +919,9 @@ impl SceneDesc {
                 }
                 Ok(())
             };
+            if let Some(o) = &m.opacity {
+                texture("opacity", o)?;
+            }
             match &m.kind {
                 MaterialKindDesc::Classic(cl) => {
                     texture("diffuse", &cl.diffuse)?;

@@ -1665,6 +1665,7 @@ impl<'a> Reader<'a> {
             kind,
             emission,
             two_sided: mat.double_sided,
+            opacity: None,
             locs,
         })
     }

@@ -102,6 +102,8 @@ impl FileCtx {
 struct BsdfDef {
     kind: MaterialKindDesc,
     two_sided: bool,
+    /// A `mask`'s opacity.
+    opacity: Option<ColorSource>,
     /// The desc material already made for it (without emission).
     material: Option<String>,
     loc: SourceLoc,
@@ -1450,6 +1452,7 @@ impl Loader {
             }
             "null" => {
                 let def = BsdfDef {
+                    opacity: None,
                     kind: MaterialKindDesc::NULL,
                     two_sided: true,
                     material: None,
@@ -1479,6 +1482,7 @@ impl Loader {
                 if ty == "thindielectric" {
                     self.unused(f, node, &props, &used);
                     return Ok(BsdfDef {
+                        opacity: None,
                         kind: MaterialKindDesc::Thin {
                             ior,
                             ext_ior,
@@ -1517,7 +1521,21 @@ impl Loader {
                     nonlinear: self.boolean(f, &props, "nonlinear", &mut used)?.unwrap_or(false),
                 }
             }
-            "mask" | "bumpmap" | "normalmap" => {
+            "mask" => {
+                let inner = nested().ok_or_else(|| self.err(f, node, "mask needs a nested BSDF"))?;
+                let opacity = self
+                    .color_source(f, &props, "opacity", &mut used)?
+                    .unwrap_or(ColorSource::Rgb(Rgb::splat(0.5)));
+                self.unused(f, node, &props, &used);
+                let def = self.bsdf(f, inner)?;
+                return Ok(BsdfDef {
+                    loc,
+                    opacity: Some(opacity),
+                    material: None,
+                    ..def
+                });
+            }
+            "bumpmap" | "normalmap" => {
                 self.warn(
                     f,
                     node,
@@ -1546,6 +1564,7 @@ impl Loader {
         };
         self.unused(f, node, &props, &used);
         Ok(BsdfDef {
+            opacity: None,
             kind,
             two_sided: false,
             material: None,
@@ -1755,6 +1774,7 @@ impl Loader {
                 // Mitsuba's default: a one-sided diffuse BSDF of albedo 0.5.
                 (
                     BsdfDef {
+                        opacity: None,
                         kind: MaterialKindDesc::Diffuse {
                             reflectance: ColorSource::Rgb(Rgb::splat(0.5)),
                         },
@@ -1788,6 +1808,7 @@ impl Loader {
         });
         let mut m = MaterialDesc::with_kind(name.clone(), def.kind.clone());
         m.two_sided = def.two_sided;
+        m.opacity = def.opacity.clone();
         m.locs = Locs::at(if def.loc.line > 0 { Some(def.loc.clone()) } else { None });
         if let Some((e, loc)) = emission {
             m.emission = e;
