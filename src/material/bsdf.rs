@@ -48,6 +48,21 @@ pub struct BsdfSample {
 }
 
 impl BsdfSample {
+    /// The mirror reflection of `wo`, chosen with probability `p` (a
+    /// Fresnel reflectance) and carrying `tint`: a delta lobe of weight
+    /// `tint`.
+    #[inline]
+    pub(crate) fn mirror(wo: Vec3, p: f32, tint: crate::color::Rgb) -> BsdfSample {
+        let wi = reflect_local(wo);
+        BsdfSample {
+            wi,
+            f: tint * (p / wi.z.abs()),
+            pdf: p,
+            delta: true,
+            eta: 1.0,
+        }
+    }
+
     /// The Monte Carlo weight f·|cos θi|/pdf.
     #[inline]
     pub fn weight(&self) -> Rgb {

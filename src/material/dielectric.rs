@@ -12,7 +12,7 @@
 //! path is traced backwards from the camera); paths traced from the lights
 //! ([`TransportMode::Importance`]) are not scaled.
 
-use super::bsdf::{BsdfSample, TransportMode, reflect_local, same_hemisphere};
+use super::bsdf::{BsdfSample, TransportMode, same_hemisphere};
 use super::microfacet::Ggx;
 use super::optics::{fresnel_dielectric, reflect, refract};
 use crate::color::Rgb;
@@ -156,14 +156,7 @@ impl DielectricBsdf {
         }
         let r = fresnel_dielectric(wo.z, self.eta);
         if u < r {
-            let wi = reflect_local(wo);
-            return Some(BsdfSample {
-                wi,
-                f: self.reflect_tint * (r / wi.z.abs()),
-                pdf: r,
-                delta: true,
-                eta: 1.0,
-            });
+            return Some(BsdfSample::mirror(wo, r, self.reflect_tint));
         }
         let (wi, etap) = refract(wo, Vec3::Z, self.eta)?;
         let mut f = self.transmit_tint * ((1.0 - r) / wi.z.abs());

@@ -11,7 +11,7 @@
 //! does not count it as a bounce and lets shadow rays through it with the
 //! weight [`ThinBsdf::pass_through`].
 
-use super::bsdf::{BsdfSample, TransportMode, reflect_local};
+use super::bsdf::{BsdfSample, TransportMode};
 use super::optics::fresnel_dielectric;
 use crate::color::Rgb;
 use glam::{Vec2, Vec3};
@@ -77,14 +77,7 @@ impl ThinBsdf {
         }
         let r = self.reflectance(wo);
         if u < r {
-            let wi = reflect_local(wo);
-            return Some(BsdfSample {
-                wi,
-                f: self.reflect_tint * (r / wi.z.abs()),
-                pdf: r,
-                delta: true,
-                eta: 1.0,
-            });
+            return Some(BsdfSample::mirror(wo, r, self.reflect_tint));
         }
         // Negation is exact: the path goes on in its own direction, and
         // integrators can tell the crossing by `wi == −wo`.
@@ -110,6 +103,7 @@ impl ThinBsdf {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::bsdf::reflect_local;
 
     #[test]
     fn a_sheet_conserves_energy_and_the_null_sheet_lets_everything_through() {
