@@ -282,3 +282,29 @@ fn a_mask_lets_through_what_it_cuts_out() {
         assert_mean(&centre, Rgb::splat(expect), &format!("{integrator:?}"));
     }
 }
+
+#[test]
+fn integrators_without_masks_or_media_say_so() {
+    let mut d = medium_scene(sphere(), homogeneous(Rgb::ONE, Rgb::ONE, 0.0));
+    d.materials[0].opacity = Some(ColorSource::Rgb(Rgb::splat(0.5)));
+    d.settings.integrator = IntegratorKind::Whitted;
+    let scene = trazo::scene::build(&d).unwrap();
+    assert!(
+        scene.warnings.iter().any(|w| w.contains("opacity mask")),
+        "{:?}",
+        scene.warnings
+    );
+    assert!(
+        scene.warnings.iter().any(|w| w.contains("participating media")),
+        "{:?}",
+        scene.warnings
+    );
+    d.settings.integrator = IntegratorKind::VolPath;
+    let scene = trazo::scene::build(&d).unwrap();
+    assert!(
+        !scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("opacity mask") || w.contains("participating media"))
+    );
+}

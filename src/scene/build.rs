@@ -465,6 +465,17 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             desc.settings.integrator.name()
         ));
     }
+    let path_tracers = [IntegratorKind::Path, IntegratorKind::VolPath];
+    if let Some(m) = desc.materials.iter().find(|m| m.opacity.is_some())
+        && !path_tracers.contains(&desc.settings.integrator)
+    {
+        warnings.push(format!(
+            "{}material \"{}\" has an opacity mask, which only \"path\" and \"volpath\" render; \"{}\" renders it opaque",
+            m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default(),
+            m.name,
+            desc.settings.integrator.name()
+        ));
+    }
     let mut scene = Scene {
         media,
         material_media,
