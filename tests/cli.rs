@@ -685,7 +685,7 @@ fn photon_mapping_sppm_and_denoising_from_the_command_line() {
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("tools/oidn/setup") && err.contains("--denoise atrous"),
+        err.contains("tools/oidn/setup") && err.contains("--denoise=atrous"),
         "{err}"
     );
     assert!(!bad.exists(), "nothing is rendered when the denoiser is missing");

@@ -192,6 +192,122 @@ fn sigterm_stops_gracefully_and_a_second_signal_aborts() {
     let (code, err) = finish(child, Duration::from_secs(20));
     assert_eq!(code, Some(131), "{err}");
     assert!(!out2.exists(), "no image is written after a second signal");
+    assert_eq!(
+        temporary_files(dir.path()),
+        Vec::<String>::new(),
+        "nor is a temporary file left"
+    );
+}
+
+/// The hidden temporary files (`.NAME.PID.tmp.EXT`) in `dir`.
+fn temporary_files(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.starts_with('.') && n.contains(".tmp."))
+        .collect();
+    v.sort();
+    v
+}
+
+/// A new render to an output whose checkpoint holds an unfinished render
+/// refuses before it loads or writes anything (status 2, one line that
+/// says how to continue or restart), leaving checkpoint and image as they
+/// were; `--restart` renders afresh and removes the checkpoint.
+#[test]
+fn a_new_render_never_deletes_an_unfinished_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("w.pfm");
+    let checkpoint = dir.path().join("w.pfm.trazo-checkpoint");
+    let common = ["--width", "16", "--height", "16", "-o", s(&out), "-q"];
+    trazo()
+        .args(["render", "--spp", "64", "--time-limit", "0"])
+        .args(common)
+        .assert()
+        .success();
+    let (image, saved) = (std::fs::read(&out).unwrap(), std::fs::read(&checkpoint).unwrap());
+    let o = trazo().args(["render", "--spp", "4"]).args(common).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("holds an unfinished render") && err.contains("--resume") && err.contains("--restart"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), image);
+    assert_eq!(std::fs::read(&checkpoint).unwrap(), saved);
+
+    let o = trazo()
+        .args(["render", "--spp", "4", "--restart"])
+        .args(common)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!checkpoint.exists());
+    assert_ne!(std::fs::read(&out).unwrap(), image);
+    // --restart is a new render's flag, not a resume's.
+    let o = trazo()
+        .args(["render", "--resume", s(&checkpoint), "--restart"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+}
+
+/// A time-limited render without --spp resumes for the same time again and
+/// ends; with a scene file that states its samples per pixel, the time
+/// limit only caps them.
+#[test]
+fn time_limited_renders_resume_and_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("t.pfm");
+    let checkpoint = dir.path().join("t.pfm.trazo-checkpoint");
+    let o = trazo()
+        .args([
+            "render",
+            "--width",
+            "32",
+            "--height",
+            "32",
+            "--time-limit",
+            "0.5",
+            "-o",
+            s(&out),
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && err.contains("time limit reached"), "{err}");
+    let first = Checkpoint::read(&checkpoint).unwrap().stats.spp;
+    let start = Instant::now();
+    let o = trazo()
+        .args(["render", "--resume", s(&checkpoint)])
+        .timeout(Duration::from_secs(60))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && err.contains("time limit reached"), "{err}");
+    assert!(start.elapsed() < Duration::from_secs(30), "{:?}", start.elapsed());
+    assert!(Checkpoint::read(&checkpoint).unwrap().stats.spp > first);
+
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        "[render]\nwidth = 8\nheight = 8\nspp = 3\n\n[[shape]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n",
+    )
+    .unwrap();
+    let o = trazo()
+        .args([
+            "render",
+            s(&scene),
+            "--time-limit",
+            "600",
+            "-o",
+            s(&dir.path().join("s.pfm")),
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && err.contains("rendered 8×8 at 3 spp"), "{err}");
 }
 
 /// `--time-limit`: stops on time with the image of whole passes (as many
@@ -288,6 +404,8 @@ fn kill_9_during_writes_leaves_whole_files() {
         "100000",
         "--checkpoint-every",
         "0",
+        // Each run replaces the checkpoint the one before left.
+        "--restart",
         "-q",
     ];
     let mut kills = 0;
@@ -305,6 +423,24 @@ fn kill_9_during_writes_leaves_whole_files() {
     }
     assert_eq!(kills, 5);
     assert!(checkpoint.exists(), "some checkpoint was completed");
+    // The temporary files of the killed processes go with the next render.
+    trazo()
+        .args([
+            "render",
+            "-o",
+            s(&out),
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "1",
+            "--restart",
+            "-q",
+        ])
+        .assert()
+        .success();
+    assert_eq!(temporary_files(dir.path()), Vec::<String>::new());
 }
 
 /// Renders `scene` to `out` with a zero time limit (so only the first of

@@ -10,6 +10,7 @@ use crate::render::RenderStats;
 use crate::render::checkpoint::{Checkpoint, fnv1a};
 use crate::scene::{Scene, SceneDesc};
 use clap::Parser;
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -18,17 +19,35 @@ use std::sync::atomic::AtomicBool;
 const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 /// Makes Ctrl-C (SIGINT) and SIGTERM set the returned flag; a second one
-/// ends the process at once with [`super::EXIT_ABORTED`], writing nothing.
+/// ends the process at once with [`super::EXIT_ABORTED`], writing nothing
+/// and removing the temporary files of writes in flight.
 pub(super) fn install_interrupt_handler() -> Result<Arc<AtomicBool>> {
     use signal_hook::consts::{SIGINT, SIGTERM};
     let flag = Arc::new(AtomicBool::new(false));
+    let fail = |e: std::io::Error| Error::Invalid(format!("cannot install the interrupt handler: {e}"));
+    // The flag is set in the signal handler itself; the second signal is
+    // handled on a thread of its own, where removing files is safe.
     for signal in [SIGINT, SIGTERM] {
-        // Registered first, so it runs first: it ends the process only if
-        // the flag was already set by an earlier signal.
-        signal_hook::flag::register_conditional_shutdown(signal, super::EXIT_ABORTED as i32, Arc::clone(&flag))
-            .and_then(|_| signal_hook::flag::register(signal, Arc::clone(&flag)))
-            .map_err(|e| Error::Invalid(format!("cannot install the interrupt handler: {e}")))?;
+        signal_hook::flag::register(signal, Arc::clone(&flag)).map_err(fail)?;
     }
+    let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]).map_err(fail)?;
+    std::thread::Builder::new()
+        .name("trazo-signals".into())
+        .spawn(move || {
+            let mut seen = 0;
+            for _ in signals.forever() {
+                seen += 1;
+                if seen >= 2 {
+                    crate::film::io::remove_unfinished_temp_files();
+                    // End the progress bar's line, which nothing else will.
+                    if std::io::stderr().is_terminal() {
+                        eprintln!();
+                    }
+                    std::process::exit(super::EXIT_ABORTED as i32);
+                }
+            }
+        })
+        .map_err(fail)?;
     Ok(flag)
 }
 
@@ -85,6 +104,7 @@ impl Job {
             ("sampler", a.sampler.clone()),
             ("tonemap", a.tonemap.clone()),
             ("exposure", a.exposure.map(|v| v.to_string())),
+            ("march-step", a.march_step.map(|v| v.to_string())),
             ("integrator", args.integrator.clone()),
             ("sampling", args.sampling.clone()),
             ("aov", (!args.aov.is_empty()).then(|| args.aov.join(","))),
@@ -96,6 +116,15 @@ impl Job {
             ("photon-radius", a.photon_radius.map(|v| v.to_string())),
             ("final-gather", a.final_gather.map(|v| v.to_string())),
             ("photon-kernel", a.photon_kernel.clone()),
+            // A render that only time ends (no samples per pixel asked
+            // for) keeps its limit, so that its resumption ends too: it gets
+            // the same time again unless the resuming command gives its own.
+            (
+                "time-limit",
+                args.time_limit
+                    .filter(|_| desc.settings.spp == crate::settings::MAX_SPP)
+                    .map(|v| v.to_string()),
+            ),
         ];
         for (flag, value) in optional {
             if let Some(v) = value {
@@ -187,7 +216,9 @@ fn hash_and_path(entry: &str) -> Option<(&str, &str)> {
 
 /// The render arguments a checkpoint holds, with the run-control flags
 /// (threads, output verbosity, time limit, checkpoint interval, memory
-/// limit) of the command that resumes it; and the checkpoint.
+/// limit) of the command that resumes it (where it gives no time limit, a
+/// render that only its time limit ends gets that limit afresh); and the
+/// checkpoint.
 pub(super) fn resume_args(path: &Path, current: &RenderArgs) -> Result<(RenderArgs, Checkpoint)> {
     let checkpoint = Checkpoint::read(path)?;
     let stored: Vec<&str> = checkpoint.job_values("arg").collect();
@@ -222,7 +253,7 @@ pub(super) fn resume_args(path: &Path, current: &RenderArgs) -> Result<(RenderAr
     args.scene.threads = current.scene.threads;
     args.scene.quiet = current.scene.quiet;
     args.scene.verbose = current.scene.verbose;
-    args.time_limit = current.time_limit;
+    args.time_limit = current.time_limit.or(args.time_limit);
     args.checkpoint_every = current.checkpoint_every;
     args.max_memory = current.max_memory;
     Ok((args, checkpoint))

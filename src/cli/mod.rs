@@ -223,11 +223,19 @@ struct RenderArgs {
     aov: Vec<String>,
 
     /// Stop after this many seconds (from the start of the command) and
-    /// write the image of the passes completed; without --spp, render as
-    /// many samples as the time allows. A checkpoint is kept so that the
-    /// render can be continued with --resume.
+    /// write the image of the passes completed; without --spp, render the
+    /// scene file's samples per pixel if it states them, else as many as
+    /// the time allows. A checkpoint is kept so that the render can be
+    /// continued with --resume (a render without --spp continues for the
+    /// same time again, unless --time-limit is given with --resume).
     #[arg(long, value_name = "SECS", value_parser = parse_seconds)]
     time_limit: Option<f64>,
+
+    /// Start afresh where OUTPUT.trazo-checkpoint holds an unfinished
+    /// render, deleting it (without this, such a render is refused: continue
+    /// it with --resume).
+    #[arg(long)]
+    restart: bool,
 
     /// Write a checkpoint (OUTPUT.trazo-checkpoint) at the end of a pass
     /// whenever this many seconds have passed since the last one, so that a
@@ -243,7 +251,7 @@ struct RenderArgs {
     #[arg(long, value_name = "CHECKPOINT", conflicts_with_all = [
         "scene", "width", "height", "max_depth", "march_step", "seed", "sampler", "tonemap", "exposure", "defines",
         "output", "spp", "integrator", "sampling", "aov", "denoise", "photons", "caustic_photons",
-        "sppm_photons", "photon_gather", "photon_radius", "final_gather", "photon_kernel",
+        "sppm_photons", "photon_gather", "photon_radius", "final_gather", "photon_kernel", "restart",
     ])]
     resume: Option<PathBuf>,
 
@@ -529,12 +537,26 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     check_output(&output)?;
     let checkpoint_file = checkpoint_path(&output);
     if resume.is_none() && checkpoint_file.is_file() {
+        if !args.restart {
+            // Refused before anything is loaded or written: the checkpoint
+            // may hold hours of work.
+            return Err(Error::file(
+                &checkpoint_file,
+                format!(
+                    "holds an unfinished render of {}: continue it with `trazo render --resume {}`, or start afresh with --restart (which deletes it)",
+                    output.display(),
+                    checkpoint_file.display()
+                ),
+            ));
+        }
         eprintln!(
-            "warning: {} holds an unfinished render, which this render replaces (to continue that one instead: trazo render --resume {})",
-            checkpoint_file.display(),
+            "warning: --restart: the unfinished render in {} is replaced by this one",
             checkpoint_file.display()
         );
     }
+    // Temporary files of an earlier render to this output killed outright.
+    crate::film::io::remove_stale_temp_files(&output);
+    crate::film::io::remove_stale_temp_files(&checkpoint_file);
     let aovs: Vec<Aov> = args
         .aov
         .iter()
@@ -548,9 +570,10 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     let mut desc = desc?;
     match (args.spp, args.time_limit) {
         (Some(v), _) => desc.settings.spp = v,
-        // A time limit alone: as many samples as the time allows.
-        (None, Some(_)) => desc.settings.spp = MAX_SPP,
-        (None, None) => {}
+        // A time limit alone: as many samples as the time allows, or as the
+        // scene file asks for if it says (the built-in scene does not ask).
+        (None, Some(_)) if args.scene.scene.is_none() || !desc.sets_spp() => desc.settings.spp = MAX_SPP,
+        _ => {}
     }
     if let Some(v) = &args.integrator {
         desc.settings.integrator = IntegratorKind::from_name(v).expect("clap checked the value");

@@ -4,6 +4,10 @@
 //! Every write is atomic: the data goes to a temporary file in the target's
 //! folder, which is flushed to disk and then renamed over the target. A
 //! render killed at any moment leaves either the old file or the new one.
+//! No temporary file outlives its process: one being written is removed on
+//! an error, a panic ([`TempFile`]'s drop) and an abort by a second Ctrl-C
+//! ([`remove_unfinished_temp_files`]); one left by a process killed outright
+//! (`kill -9`) is removed by the next write to the same file.
 
 use super::Image;
 use crate::color::{Rgb, linear_to_srgb, srgb_to_linear};
@@ -130,8 +134,8 @@ fn write_pfm(w: &mut impl Write, image: &Image, scale: f32) -> std::io::Result<(
     Ok(())
 }
 
-/// A temporary path next to `path`, unique to this process.
-fn temp_path_for(path: &Path) -> PathBuf {
+/// The temporary name of `path` for the process `pid`: `.NAME.PID.tmp.EXT`.
+fn temp_name(path: &Path, pid: u32) -> String {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -141,7 +145,88 @@ fn temp_path_for(path: &Path) -> PathBuf {
         .map(|e| e.to_string_lossy().into_owned())
         .unwrap_or_default();
     // Keep the extension: some encoders pick the format from it.
-    path.with_file_name(format!(".{name}.{}.tmp.{ext}", std::process::id()))
+    format!(".{name}.{pid}.tmp.{ext}")
+}
+
+/// A temporary path next to `path`, unique to this process.
+fn temp_path_for(path: &Path) -> PathBuf {
+    path.with_file_name(temp_name(path, std::process::id()))
+}
+
+/// The temporary files this process is writing now.
+static UNFINISHED: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// A temporary file being written: listed in [`UNFINISHED`] while it
+/// lives, and removed from the disk when dropped unless it was renamed.
+struct TempFile(PathBuf);
+
+impl TempFile {
+    fn new(path: PathBuf) -> TempFile {
+        UNFINISHED.lock().unwrap_or_else(|e| e.into_inner()).push(path.clone());
+        TempFile(path)
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        let mut list = UNFINISHED.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(i) = list.iter().position(|p| *p == self.0) {
+            list.swap_remove(i);
+        }
+        // After a successful rename the file is gone and this fails.
+        let _ = fs::remove_file(&self.0);
+    }
+}
+
+/// Removes every temporary file this process is writing, for a process
+/// about to end without unwinding (a second Ctrl-C). Writes in flight then
+/// fail, which no longer matters.
+pub fn remove_unfinished_temp_files() {
+    let list = UNFINISHED.lock().unwrap_or_else(|e| e.into_inner());
+    for p in list.iter() {
+        let _ = fs::remove_file(p);
+    }
+}
+
+/// The folder a file is written in.
+fn folder_of(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// Removes temporary files of `path` left by processes that no longer run
+/// (killed outright while writing it). Only where the system says which
+/// processes run (Linux's /proc); a file of a running process is kept.
+pub fn remove_stale_temp_files(path: &Path) {
+    if !Path::new("/proc/self").is_dir() {
+        return;
+    }
+    let Ok(entries) = fs::read_dir(folder_of(path)) else {
+        return;
+    };
+    let own = std::process::id();
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        // `.NAME.PID.tmp.EXT` with the same NAME and EXT as ours.
+        let Some(pid) = stale_temp_pid(path, name) else {
+            continue;
+        };
+        if pid != own && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = fs::remove_file(entry.path());
+        }
+    }
+}
+
+/// The process number in `name` if it is a temporary name of `path`.
+fn stale_temp_pid(path: &Path, name: &str) -> Option<u32> {
+    let template = temp_name(path, 0);
+    let (head, tail) = template.split_once(".0.tmp.")?;
+    let pid = name.strip_prefix(head)?.strip_prefix('.')?;
+    let pid = pid.strip_suffix(tail)?.strip_suffix(".tmp.")?;
+    pid.parse().ok().filter(|_| !pid.starts_with('+'))
 }
 
 /// Writes a file atomically through `write`, which gets the open
@@ -159,25 +244,23 @@ pub fn write_atomic_path(path: &Path, write: impl FnOnce(&Path) -> Result<(), St
     if path.is_dir() {
         return Err(Error::file(path, "cannot write the image: this is a folder"));
     }
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
+    let dir = folder_of(path);
     if !dir.is_dir() {
         return Err(Error::file(
             path,
             format!("cannot write: the folder {} does not exist", dir.display()),
         ));
     }
-    let tmp = temp_path_for(path);
-    let result = write(&tmp)
+    remove_stale_temp_files(path);
+    let tmp = TempFile::new(temp_path_for(path));
+    let result = write(&tmp.0)
         .and_then(|_| {
             // Flush the data to disk before the rename makes it visible.
-            File::open(&tmp).and_then(|f| f.sync_all()).map_err(|e| e.to_string())
+            File::open(&tmp.0).and_then(|f| f.sync_all()).map_err(|e| e.to_string())
         })
-        .and_then(|_| fs::rename(&tmp, path).map_err(|e| e.to_string()));
+        .and_then(|_| fs::rename(&tmp.0, path).map_err(|e| e.to_string()));
+    drop(tmp);
     if let Err(e) = result {
-        let _ = fs::remove_file(&tmp);
         return Err(Error::file(path, format!("cannot write: {e}")));
     }
     // Make the rename itself durable.
@@ -406,6 +489,61 @@ mod tests {
             *p = Rgb::new(i as f32 * 0.1, 2.5, 1e-3 * i as f32);
         }
         img
+    }
+
+    /// A write that fails or panics half-way leaves no temporary file, and
+    /// one left by a process that no longer runs is removed by the next
+    /// write of the same file; a running process's is kept.
+    #[test]
+    fn no_temporary_file_outlives_its_writer() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.exr");
+        let listing = || {
+            let mut v: Vec<String> = fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().file_name().into_string().unwrap())
+                .collect();
+            v.sort();
+            v
+        };
+        let failed = write_atomic(&target, |f| {
+            f.write_all(b"half").unwrap();
+            Err("the encoder failed".into())
+        });
+        assert!(failed.is_err());
+        assert!(listing().is_empty(), "{:?}", listing());
+        let panicked = std::panic::catch_unwind(|| {
+            let _ = write_atomic(&target, |f| {
+                f.write_all(b"half").unwrap();
+                panic!("the encoder panicked")
+            });
+        });
+        assert!(panicked.is_err());
+        assert!(listing().is_empty(), "{:?}", listing());
+        assert!(!UNFINISHED.lock().unwrap().iter().any(|p| p.starts_with(dir.path())));
+
+        // A process number above Linux's largest runs nowhere; process 1
+        // always runs.
+        let dead = dir.path().join(temp_name(&target, 4_194_999));
+        let running = dir.path().join(temp_name(&target, 1));
+        let other = dir.path().join(temp_name(&dir.path().join("other.exr"), 4_194_999));
+        for p in [&dead, &running, &other] {
+            fs::write(p, b"left over").unwrap();
+        }
+        write_atomic(&target, |f| f.write_all(b"done").map_err(|e| e.to_string())).unwrap();
+        let mut expected = vec![
+            "out.exr".to_string(),
+            ".other.exr.4194999.tmp.exr".into(),
+            ".out.exr.1.tmp.exr".into(),
+        ];
+        if !Path::new("/proc/self").is_dir() {
+            expected.push(".out.exr.4194999.tmp.exr".into());
+        }
+        expected.sort();
+        assert_eq!(listing(), expected);
+        assert_eq!(stale_temp_pid(&target, ".out.exr.+12.tmp.exr"), None);
+        assert_eq!(stale_temp_pid(&target, ".out.exr.12.tmp.exr"), Some(12));
+        assert_eq!(stale_temp_pid(&target, ".out.exr.12.tmp.png"), None);
     }
 
     #[test]

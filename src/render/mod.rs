@@ -36,7 +36,7 @@ use glam::Vec2;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::io::IsTerminal;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 /// How to render (as opposed to what: that is the scene's settings).
@@ -448,13 +448,15 @@ fn render_passes<I: Integrator>(
     let earlier_seconds = stats.seconds;
     let tiles = tiles(w, h, options.tile_size);
     let splat = Splat::new(&s.filter);
-    let bar = match options.time_limit {
-        Some(limit) => progress_bar(options.progress, limit.as_millis().max(1) as u64),
-        None => progress_bar(options.progress, w as u64 * h as u64 * s.spp as u64),
-    };
-    if let (Some(b), None) = (&bar, options.time_limit) {
-        b.set_position(w as u64 * h as u64 * stats.spp as u64);
-    }
+    let time_budget = options
+        .time_limit
+        .or_else(|| control.deadline.map(|d| d.saturating_duration_since(start)));
+    let progress = Progress::new(
+        options.progress,
+        w as u64 * h as u64 * s.spp as u64,
+        w as u64 * h as u64 * stats.spp as u64,
+        time_budget.map(|budget| (start, budget)),
+    );
     let passes: Vec<(u32, u32)> = match options.time_limit {
         Some(_) => (0..s.spp).map(|i| (i, i + 1)).collect(),
         None => pass_schedule(s.spp),
@@ -543,12 +545,7 @@ fn render_passes<I: Integrator>(
                         }
                     }
                 }
-                if let Some(b) = &bar {
-                    match options.time_limit {
-                        Some(_) => b.set_position(start.elapsed().as_millis() as u64),
-                        None => b.inc(n as u64 * (end - first) as u64),
-                    }
-                }
+                progress.add(n as u64 * (end - first) as u64);
                 Some(TileResult {
                     tile,
                     sums,
@@ -617,9 +614,7 @@ fn render_passes<I: Integrator>(
             }
         }
     }
-    if let Some(b) = bar {
-        b.finish_and_clear();
-    }
+    progress.finish();
     stats.seconds = earlier_seconds + start.elapsed().as_secs_f64();
     RenderOutput { film, stats, stopped }
 }
@@ -643,6 +638,10 @@ fn render_iterations<P: Progressive>(
         ..RenderStats::default()
     };
     let mut iterations = 0u32;
+    let time_budget = options
+        .time_limit
+        .or_else(|| deadline.map(|d| d.saturating_duration_since(start)));
+    let progress = Progress::new(options.progress, s.spp as u64, 0, time_budget.map(|b| (start, b)));
     let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
     let mut stopped = None;
     while iterations < s.spp {
@@ -663,10 +662,12 @@ fn render_iterations<P: Progressive>(
         stats.photons_emitted += work.photons_emitted;
         stats.photon_seconds += work.photon_seconds;
         iterations += 1;
+        progress.add(1);
         if options.time_limit.is_some_and(|limit| start.elapsed() >= limit) {
             break;
         }
     }
+    progress.finish();
     let film = algorithm.film();
     stats.samples = s.width as u64 * s.height as u64 * iterations as u64;
     stats.spp = iterations;
@@ -674,18 +675,71 @@ fn render_iterations<P: Progressive>(
     RenderOutput { film, stats, stopped }
 }
 
-fn progress_bar(enabled: bool, total: u64) -> Option<ProgressBar> {
-    if !enabled || !std::io::stderr().is_terminal() {
-        return None;
+/// The steps of a progress bar that counts time.
+const PROGRESS_STEPS: u64 = 10_000;
+
+/// A progress bar on stderr (only if stderr is a terminal). It counts work
+/// (samples, iterations), or, where a time budget may end the render first,
+/// whichever of work and time is further along.
+struct Progress {
+    bar: Option<ProgressBar>,
+    total: u64,
+    done: AtomicU64,
+    /// When the budget started, and how long it is.
+    time: Option<(Instant, Duration)>,
+}
+
+impl Progress {
+    fn new(enabled: bool, total: u64, done: u64, time: Option<(Instant, Duration)>) -> Progress {
+        let bar = (enabled && std::io::stderr().is_terminal()).then(|| {
+            let steps = if time.is_some() { PROGRESS_STEPS } else { total };
+            let bar = ProgressBar::with_draw_target(Some(steps), ProgressDrawTarget::stderr_with_hz(4));
+            bar.set_style(
+                ProgressStyle::with_template("{elapsed_precise} [{wide_bar}] {percent:>3}%  ETA {eta}")
+                    .expect("valid template")
+                    .progress_chars("=> "),
+            );
+            bar.enable_steady_tick(Duration::from_millis(250));
+            bar
+        });
+        let progress = Progress {
+            bar,
+            total,
+            done: AtomicU64::new(done),
+            time,
+        };
+        progress.show();
+        if let Some(b) = &progress.bar {
+            // Work of a resumed render was not done at this rate.
+            b.reset_eta();
+        }
+        progress
     }
-    let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr_with_hz(4));
-    bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{wide_bar}] {percent:>3}%  ETA {eta}")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    bar.enable_steady_tick(Duration::from_millis(250));
-    Some(bar)
+
+    /// `n` more units of work are done.
+    fn add(&self, n: u64) {
+        self.done.fetch_add(n, Ordering::Relaxed);
+        self.show();
+    }
+
+    fn show(&self) {
+        let Some(b) = &self.bar else { return };
+        let done = self.done.load(Ordering::Relaxed);
+        match self.time {
+            None => b.set_position(done),
+            Some((from, budget)) => {
+                let by_time = from.elapsed().as_secs_f64() / budget.as_secs_f64().max(1e-3);
+                let by_work = done as f64 / self.total.max(1) as f64;
+                b.set_position((by_time.max(by_work).min(1.0) * PROGRESS_STEPS as f64) as u64);
+            }
+        }
+    }
+
+    fn finish(self) {
+        if let Some(b) = self.bar {
+            b.finish_and_clear();
+        }
+    }
 }
 
 #[cfg(test)]

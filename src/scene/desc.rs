@@ -819,6 +819,12 @@ impl Check<'_> {
 }
 
 impl SceneDesc {
+    /// Whether the scene file states its samples per pixel (rather than
+    /// taking its format's default).
+    pub fn sets_spp(&self) -> bool {
+        self.settings_locs.keys.iter().any(|(k, _)| k == "spp")
+    }
+
     /// Checks every value and reference; the first problem found is
     /// returned with its location.
     pub fn validate(&self) -> Result<()> {

@@ -985,6 +985,9 @@ impl Loader {
                 }
             }
         }
+        // The sampler (read before the film where the sensor lists it
+        // first) records its keys here too.
+        locs.keys.append(&mut self.desc.settings_locs.keys);
         self.desc.settings_locs = locs;
         for key in ["pixel_format", "component_format", "file_format"] {
             let _ = self.string(f, &props, key, &mut used)?;
@@ -2430,6 +2433,16 @@ mod tests {
             ),
             (64, 32, 8, 5)
         );
+        // The sampler, read before the film, states the samples per pixel
+        // (a time limit then only caps them); without one, Mitsuba's 4 are
+        // a default.
+        assert!(d.sets_spp());
+        let without = SPHERE.replace(
+            r#"<sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>"#,
+            "",
+        );
+        let w = parse_str(&without).unwrap();
+        assert!(!w.sets_spp() && w.settings.spp == 4);
         assert_eq!(d.settings.filter, Filter::Box { radius: 0.5 });
         // fov 45° along x on a 2:1 image.
         let ProjectionDesc::Perspective { fov } = d.camera.projection else {

@@ -412,7 +412,12 @@ impl<'a> Table<'a> {
         for (k, _) in self.table.iter() {
             let name = k.get_ref().as_ref();
             if !used.iter().any(|u| u == name) {
-                let hint = suggest(name, used.iter().map(String::as_str));
+                // Other renderers' names for a key first: spelling is
+                // no guide to them ("samples" is nearest "sampler").
+                let hint = match KEY_ALIASES.iter().find(|(alias, _)| *alias == name) {
+                    Some((_, key)) if used.iter().any(|u| u == key) => format!(" (did you mean \"{key}\"?)"),
+                    _ => suggest(name, used.iter().map(String::as_str)),
+                };
                 return Err(Error::scene(
                     Some(self.ctx.loc(&k.span())),
                     self.key_path(name),
@@ -423,6 +428,18 @@ impl<'a> Table<'a> {
         Ok(self.locs.borrow().clone())
     }
 }
+
+/// Keys as other renderers (pbrt-v4, Mitsuba 3, Blender) name them, with
+/// trazo's name.
+const KEY_ALIASES: &[(&str, &str)] = &[
+    ("samples", "spp"),
+    ("sample_count", "spp"),
+    ("pixelsamples", "spp"),
+    ("samples_per_pixel", "spp"),
+    ("maxdepth", "max_depth"),
+    ("xresolution", "width"),
+    ("yresolution", "height"),
+];
 
 fn quote_list(names: &[&str]) -> String {
     names.iter().map(|n| format!("\"{n}\"")).collect::<Vec<_>>().join(", ")
@@ -1047,6 +1064,11 @@ material = "red"
         let e = error_of(&MINIMAL.replace("radius = 1", "radus = 1"));
         assert!(
             e.starts_with("test.toml:18:1: `shape[0].radus`: unknown key (did you mean \"radius\"?)"),
+            "{e}"
+        );
+        let e = error_of("[render]\nsamples = 16\n");
+        assert!(
+            e.contains("`render.samples`: unknown key (did you mean \"spp\"?)"),
             "{e}"
         );
         let e = error_of("[rendr]\nwidth = 3\n");

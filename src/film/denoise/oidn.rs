@@ -101,7 +101,7 @@ impl Library {
         }
         Err(Error::Invalid(format!(
             "Intel Open Image Denoise was not found: run tools/oidn/setup (it installs the library from PyPI), \
-             or set {ENV_VAR} to libOpenImageDenoise; use --denoise atrous for the built-in filter (tried: {})",
+             or set {ENV_VAR} to libOpenImageDenoise; for the built-in filter use --denoise=atrous (in `trazo compare`, the suffix +atrous) (tried: {})",
             tried.join("; ")
         )))
     }
