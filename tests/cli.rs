@@ -401,7 +401,6 @@ fn auxiliary_images_are_written_next_to_the_output() {
     let o = trazo()
         .args([
             "render",
-            "-q",
             "--width",
             "16",
             "--height",
@@ -415,7 +414,14 @@ fn auxiliary_images_are_written_next_to_the_output() {
         .arg(&out)
         .output()
         .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    // The summary names every file written.
+    let albedo_path = dir.path().join("box.albedo.exr");
+    assert!(
+        err.contains(&format!("→ {}, {}", out.display(), albedo_path.display())) && err.contains("box.depth.exr"),
+        "{err}"
+    );
     let albedo = trazo::film::io::read_image(&dir.path().join("box.albedo.exr")).unwrap();
     let normal = trazo::film::io::read_image(&dir.path().join("box.normal.exr")).unwrap();
     let depth = trazo::film::io::read_image(&dir.path().join("box.depth.exr")).unwrap();
@@ -550,9 +556,26 @@ fn diff_reports_errors_and_its_exit_status_says_whether_images_agree() {
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(1), "images that differ give status 1");
+    // Without --max-relmse, images far apart differ: the default bound is
+    // 0.01 (a black image against the box).
+    let black = dir.path().join("black.pfm");
+    trazo::film::io::write_image(
+        &black,
+        &trazo::film::Image::new(16, 16),
+        trazo::settings::Tonemap::Clamp,
+        0.0,
+    )
+    .unwrap();
+    let o = trazo().args(["diff"]).arg(&black).arg(&a).output().unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stdout));
     // Other formats, size mismatch, missing file.
     let png = render("c.png", "1", "4");
-    let o = trazo().args(["diff"]).arg(&png).arg(&a).output().unwrap();
+    let o = trazo()
+        .args(["diff", "--max-relmse", "1"])
+        .arg(&png)
+        .arg(&a)
+        .output()
+        .unwrap();
     assert!(o.status.success());
     let small = dir.path().join("small.pfm");
     let o = trazo()
@@ -563,6 +586,29 @@ fn diff_reports_errors_and_its_exit_status_says_whether_images_agree() {
     assert!(o.status.success());
     let e = fails(&["diff", small.to_str().unwrap(), a.to_str().unwrap()]);
     assert!(e.contains("differ in size"), "{e}");
+    // --downscale averages the reference's 2×2 blocks: the 8×8 render
+    // against the 16×16 one, and not a 16×16 against a 24×24.
+    let o = trazo()
+        .args(["diff", "--downscale", "--max-relmse", "10"])
+        .arg(&small)
+        .arg(&a)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success() && text.contains("B averaged down by 2×2 to 8×8"),
+        "{text}"
+    );
+    let wide = dir.path().join("wide.pfm");
+    trazo::film::io::write_image(
+        &wide,
+        &trazo::film::Image::new(24, 24),
+        trazo::settings::Tonemap::Clamp,
+        0.0,
+    )
+    .unwrap();
+    let e = fails(&["diff", "--downscale", a.to_str().unwrap(), wide.to_str().unwrap()]);
+    assert!(e.contains("not an integer multiple"), "{e}");
     let e = fails(&["diff", "nope.exr", a.to_str().unwrap()]);
     assert!(e.contains("nope.exr"), "{e}");
 }
@@ -796,5 +842,25 @@ fn warnings_before_a_fatal_error_are_printed_with_it() {
     assert!(
         lines[1].starts_with("error: ") && lines[1].contains("missing.ply") && lines[1].contains("file not found"),
         "{lines:?}"
+    );
+}
+
+/// `-D` on the built-in scene, which has no parameters, is named in a
+/// warning rather than ignored.
+#[test]
+fn defines_on_the_built_in_scene_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = trazo()
+        .args([
+            "render", "-D", "spp=8", "--width", "8", "--height", "8", "--spp", "1", "-o",
+        ])
+        .arg(dir.path().join("d.png"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("warning: -D spp: the built-in scene has no parameters"),
+        "{err}"
     );
 }

@@ -54,7 +54,8 @@ enum Command {
     /// with a table of time and noise.
     Compare(CompareArgs),
     /// Compare two images (PNG, EXR, HDR, PFM): RMSE, relative MSE and the
-    /// mean of each channel; the exit status says whether they agree.
+    /// mean of each channel; the exit status says whether they agree (0:
+    /// relative MSE at most --max-relmse, 1: above it).
     Diff(DiffArgs),
     /// Benchmarks of the renderer's kernels on your own inputs.
     #[command(subcommand)]
@@ -74,16 +75,23 @@ struct DiffArgs {
     /// Relative error shown as full yellow in the error image.
     #[arg(long, value_name = "E", default_value_t = 0.2)]
     error_scale: f64,
-    /// Exit with status 1 if the relative MSE exceeds this.
-    #[arg(long, value_name = "X")]
-    max_relmse: Option<f64>,
+    /// The images agree (exit status 0) if their relative MSE is at most
+    /// this, and differ (status 1) otherwise.
+    #[arg(long, value_name = "X", default_value_t = 0.01)]
+    max_relmse: f64,
+    /// Where the reference is an integer multiple of the image's size,
+    /// average its blocks down to that size first (a box filter), to judge
+    /// a small render against a large one.
+    #[arg(long)]
+    downscale: bool,
 }
 
 /// The scene and the settings that override what it says.
 #[derive(Args, Debug)]
 struct SceneArgs {
-    /// Scene file: a trazo .toml scene or a lone .obj model (framed with a
-    /// default camera and lights). Without one, the built-in Cornell box.
+    /// Scene file: trazo .toml, Mitsuba 3 .xml, pbrt-v4 .pbrt (or .pbrt.gz),
+    /// glTF .gltf/.glb, or a lone .obj/.ply model (framed with a default
+    /// camera and lights). Without one, the built-in Cornell box.
     scene: Option<PathBuf>,
 
     /// Image width in pixels (overrides the scene).
@@ -359,7 +367,15 @@ impl SceneArgs {
     fn load(&self) -> Result<SceneDesc> {
         let mut desc = match &self.scene {
             Some(path) => scene::load(path, &self.defines)?,
-            None => builtin::cornell_box(),
+            None => {
+                let mut desc = builtin::cornell_box();
+                for (name, _) in &self.defines {
+                    desc.warnings.push(format!(
+                        "-D {name}: the built-in scene has no parameters; the definition is not used"
+                    ));
+                }
+                desc
+            }
         };
         let s = &mut desc.settings;
         if let Some(v) = self.width {
@@ -719,7 +735,11 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             st.samples_per_second() / 1e6,
             st.rays_per_second() / 1e6,
             st.threads,
-            output.display()
+            std::iter::once(output.clone())
+                .chain(aovs.iter().map(|a| aov_path(&output, *a)))
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
         );
         if let Some(note) = denoise_note {
             eprintln!("{note}");
@@ -762,10 +782,9 @@ fn run_diff(args: DiffArgs) -> ExitCode {
 
 /// Prints the comparison; returns whether the images agree.
 fn diff(args: &DiffArgs) -> Result<bool> {
-    if let Some(x) = args.max_relmse {
-        if !(x.is_finite() && x >= 0.0) {
-            return Err(Error::Invalid(format!("--max-relmse must be a number ≥ 0, got {x}")));
-        }
+    let x = args.max_relmse;
+    if !(x.is_finite() && x >= 0.0) {
+        return Err(Error::Invalid(format!("--max-relmse must be a number ≥ 0, got {x}")));
     }
     if !(args.error_scale.is_finite() && args.error_scale > 0.0) {
         return Err(Error::Invalid(format!(
@@ -777,7 +796,25 @@ fn diff(args: &DiffArgs) -> Result<bool> {
         check_output(p)?;
     }
     let a = read_image(&args.a)?;
-    let b = read_image(&args.b)?;
+    let mut b = read_image(&args.b)?;
+    if args.downscale && (b.width, b.height) != (a.width, a.height) {
+        let k = b.width / a.width.max(1);
+        b = b
+            .downscaled(k)
+            .filter(|d| (d.width, d.height) == (a.width, a.height))
+            .ok_or_else(|| {
+                Error::Invalid(format!(
+                    "--downscale: {} is {}×{}, not an integer multiple of {}'s {}×{}",
+                    args.b.display(),
+                    b.width,
+                    b.height,
+                    args.a.display(),
+                    a.width,
+                    a.height
+                ))
+            })?;
+        println!("B averaged down by {k}×{k} to {}×{}", a.width, a.height);
+    }
     let rel = crate::film::metrics::relative_mse(&a, &b)
         .map_err(|e| Error::Invalid(format!("{} and {}: {e}", args.a.display(), args.b.display())))?;
     let rmse = crate::film::metrics::rmse(&a, &b)?;
@@ -806,13 +843,12 @@ fn diff(args: &DiffArgs) -> Result<bool> {
         let img = crate::film::metrics::error_image(&a, &b, args.error_scale)?;
         write_image(p, &img, Tonemap::Clamp, 0.0)?;
     }
-    Ok(match args.max_relmse {
-        Some(x) if rel > x => {
-            println!("the images differ: relative MSE {rel:.6} > {x}");
-            false
-        }
-        _ => true,
-    })
+    if rel > x {
+        println!("the images differ: relative MSE {rel:.6} > {x}");
+        Ok(false)
+    } else {
+        Ok(true)
+    }
 }
 
 fn run_compare(args: CompareArgs) -> Result<()> {

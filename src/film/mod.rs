@@ -44,6 +44,27 @@ impl Image {
         self.pixels[y as usize * self.width as usize + x as usize]
     }
 
+    /// The image `k` times smaller in each direction, each pixel the mean
+    /// of a k×k block (a box filter). `None` unless `k` divides both sides.
+    pub fn downscaled(&self, k: u32) -> Option<Image> {
+        if k == 0 || self.width % k != 0 || self.height % k != 0 {
+            return None;
+        }
+        let mut out = Image::new(self.width / k, self.height / k);
+        for y in 0..out.height {
+            for x in 0..out.width {
+                let mut sum = DVec3::ZERO;
+                for dy in 0..k {
+                    for dx in 0..k {
+                        sum += self.get(x * k + dx, y * k + dy).as_dvec3();
+                    }
+                }
+                out.pixels[(y * out.width + x) as usize] = (sum / (k * k) as f64).as_vec3();
+            }
+        }
+        Some(out)
+    }
+
     /// Mean of each channel.
     pub fn mean(&self) -> Rgb {
         let s = self.pixels.iter().fold(DVec3::ZERO, |a, p| a + p.as_dvec3());
