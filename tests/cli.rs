@@ -513,6 +513,12 @@ fn compare_renders_side_by_side_with_a_table() {
     assert!(e.contains("--time"), "{e}");
 }
 
+/// Writes a black `side`×`side` image to `path`.
+fn write_black(path: &std::path::Path, side: u32) {
+    let black = trazo::film::Image::new(side, side);
+    trazo::film::io::write_image(path, &black, trazo::settings::Tonemap::Clamp, 0.0).unwrap();
+}
+
 #[test]
 fn diff_reports_errors_and_its_exit_status_says_whether_images_agree() {
     let dir = tempfile::tempdir().unwrap();
@@ -559,13 +565,7 @@ fn diff_reports_errors_and_its_exit_status_says_whether_images_agree() {
     // Without --max-relmse, images far apart differ: the default bound is
     // 0.01 (a black image against the box).
     let black = dir.path().join("black.pfm");
-    trazo::film::io::write_image(
-        &black,
-        &trazo::film::Image::new(16, 16),
-        trazo::settings::Tonemap::Clamp,
-        0.0,
-    )
-    .unwrap();
+    write_black(&black, 16);
     let o = trazo().args(["diff"]).arg(&black).arg(&a).output().unwrap();
     assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stdout));
     // Other formats, size mismatch, missing file.
@@ -600,13 +600,7 @@ fn diff_reports_errors_and_its_exit_status_says_whether_images_agree() {
         "{text}"
     );
     let wide = dir.path().join("wide.pfm");
-    trazo::film::io::write_image(
-        &wide,
-        &trazo::film::Image::new(24, 24),
-        trazo::settings::Tonemap::Clamp,
-        0.0,
-    )
-    .unwrap();
+    write_black(&wide, 24);
     let e = fails(&["diff", "--downscale", a.to_str().unwrap(), wide.to_str().unwrap()]);
     assert!(e.contains("not an integer multiple"), "{e}");
     let e = fails(&["diff", "nope.exr", a.to_str().unwrap()]);
