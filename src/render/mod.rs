@@ -718,6 +718,10 @@ impl Progress {
 
     /// `n` more units of work are done.
     fn add(&self, n: u64) {
+        // Without a bar nothing is counted: no shared counter for threads.
+        if self.bar.is_none() {
+            return;
+        }
         self.done.fetch_add(n, Ordering::Relaxed);
         self.show();
     }
