@@ -286,7 +286,7 @@ fn small_cornell(sampling: PathSampling, spp: u32) -> Film {
 
 /// Mean per-pixel variance of a single sample's luminance.
 fn per_sample_variance(f: &Film) -> f64 {
-    f.pixels.iter().map(|p| p.variance_of_mean() * p.weight).sum::<f64>() / f.pixels.len() as f64
+    f.pixels.iter().map(|p| p.variance_of_mean() * p.weight()).sum::<f64>() / f.pixels.len() as f64
 }
 
 /// All four estimators converge to the same image; MIS has the lowest
@@ -447,7 +447,7 @@ fn many_lights_nee_through_the_light_tree_agrees_with_bsdf_sampling() {
     // hitting a lamp is the same noise for both estimators.
     let wall_variance = |f: &Film| {
         let walls: Vec<_> = f.pixels.iter().filter(|p| luminance(p.value()) < 2.0).collect();
-        walls.iter().map(|p| p.variance_of_mean() * p.weight).sum::<f64>() / walls.len() as f64
+        walls.iter().map(|p| p.variance_of_mean() * p.weight()).sum::<f64>() / walls.len() as f64
     };
     let (v0, v1) = (wall_variance(&mis), wall_variance(&bsdf));
     assert!(

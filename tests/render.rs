@@ -1102,7 +1102,7 @@ fn an_interrupt_mid_pass_keeps_whole_passes() {
         "{spp}"
     );
     assert_eq!(out.stats.samples, spp as u64 * 64 * 64);
-    assert!(out.film.pixels.iter().all(|p| p.weight == spp as f64), "{spp}");
+    assert!(out.film.pixels.iter().all(|p| p.sum().weight == spp as f64), "{spp}");
 }
 
 /// An integrator that returns NaN or infinity for some samples: they are
@@ -1138,9 +1138,9 @@ fn non_finite_samples_are_dropped_counted_and_located() {
         assert!(!e.value.is_finite());
         assert!(e.x < 24 && e.y < 20 && e.index < 16);
     }
-    let total: f64 = out.film.pixels.iter().map(|p| p.weight).sum();
+    let total: f64 = out.film.pixels.iter().map(|p| p.sum().weight).sum();
     assert_eq!(total as u64 + st.invalid_samples, st.samples);
-    assert!(out.film.pixels.iter().all(|p| p.rgb.is_finite()));
+    assert!(out.film.pixels.iter().all(|p| p.sum().rgb.is_finite()));
     assert!(
         out.film
             .to_image()

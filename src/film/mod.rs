@@ -1,10 +1,12 @@
 //! The film: where samples accumulate into pixels, and how pixels become
 //! image files.
 //!
-//! Pixels hold sums of weighted linear radiance in double precision, added
-//! in sample order, so that the image does not depend on how the work was
-//! split between threads or passes. Tone mapping happens only when an
-//! 8-bit image is written.
+//! A pass sums its samples into each pixel in double precision
+//! ([`PixelSum`]); the film adds those sums in fixed point
+//! ([`ExactSums`]), where addition is exact and so associative: the image
+//! does not depend on how the work was split between threads, passes,
+//! resumed runs or the shards of a farm, whose films merge bit for bit.
+//! Tone mapping happens only when an 8-bit image is written.
 
 pub mod denoise;
 pub mod filter;
@@ -134,6 +136,132 @@ impl PixelSum {
     }
 }
 
+/// One unit of the film's fixed point is 2⁻⁵⁰ (about 9·10⁻¹⁶); a sum
+/// reaches 2⁷⁷ (about 10²³) before it saturates.
+const FIXED_SCALE: f64 = (1u64 << 50) as f64;
+
+/// `v` in units of 2⁻⁵⁰, rounded toward zero; NaN becomes 0 and values
+/// beyond the range saturate. Pass sums below 2¹³ take the one-instruction
+/// conversion through `i64`.
+#[inline]
+fn to_fixed(v: f64) -> i128 {
+    let x = v * FIXED_SCALE;
+    if x.abs() < 9.2e18 { x as i64 as i128 } else { x as i128 }
+}
+
+/// Sums in fixed point: integers, so that adding them is exact, and the
+/// same numbers added in any grouping and order give the same bits. The
+/// film's pixels (`N` = 5: [`PixelSum`]'s fields) and auxiliary sums
+/// (`N` = 8: [`AovSum`]'s) are kept so.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ExactSums<const N: usize>(pub [i128; N]);
+
+impl<const N: usize> Default for ExactSums<N> {
+    fn default() -> Self {
+        ExactSums([0; N])
+    }
+}
+
+impl<const N: usize> ExactSums<N> {
+    /// Adds `values`, each rounded once to the fixed point.
+    #[inline]
+    pub fn add(&mut self, values: [f64; N]) {
+        for (s, v) in self.0.iter_mut().zip(values) {
+            *s = s.saturating_add(to_fixed(v));
+        }
+    }
+
+    /// Adds other sums, exactly (saturating at the range's ends).
+    #[inline]
+    pub fn merge(&mut self, other: &ExactSums<N>) {
+        for (s, o) in self.0.iter_mut().zip(other.0) {
+            *s = s.saturating_add(o);
+        }
+    }
+
+    /// The sums as floating-point numbers.
+    #[inline]
+    pub fn to_f64(&self) -> [f64; N] {
+        self.0.map(|v| v as f64 / FIXED_SCALE)
+    }
+}
+
+/// A pixel of the film: [`PixelSum`]'s sums (Σw·L, Σw, Σw·Y²) in fixed point.
+pub type FilmPixel = ExactSums<5>;
+
+impl FilmPixel {
+    /// Adds what a pass summed into this pixel.
+    #[inline]
+    pub fn add_sum(&mut self, s: &PixelSum) {
+        self.add([s.rgb.x, s.rgb.y, s.rgb.z, s.weight, s.lum_sq]);
+    }
+
+    /// This pixel plus `s`.
+    #[inline]
+    pub fn plus(mut self, s: &PixelSum) -> FilmPixel {
+        self.add_sum(s);
+        self
+    }
+
+    /// The sums in double precision.
+    #[inline]
+    pub fn sum(&self) -> PixelSum {
+        let [r, g, b, weight, lum_sq] = self.to_f64();
+        PixelSum {
+            rgb: DVec3::new(r, g, b),
+            weight,
+            lum_sq,
+        }
+    }
+
+    /// The pixel's estimate (black without samples).
+    #[inline]
+    pub fn value(&self) -> Rgb {
+        self.sum().value()
+    }
+
+    /// Σw: the number of samples, where each weighs 1.
+    pub fn weight(&self) -> f64 {
+        self.sum().weight
+    }
+
+    /// See [`PixelSum::variance_of_mean`].
+    pub fn variance_of_mean(&self) -> f64 {
+        self.sum().variance_of_mean()
+    }
+}
+
+/// A pixel's auxiliary sums in fixed point ([`AovSum`]'s fields).
+pub type FilmAov = ExactSums<8>;
+
+impl FilmAov {
+    /// Adds what a pass summed into this pixel.
+    #[inline]
+    pub fn add_aov(&mut self, a: &AovSum) {
+        self.add([
+            a.albedo.x, a.albedo.y, a.albedo.z, a.normal.x, a.normal.y, a.normal.z, a.depth, a.count,
+        ]);
+    }
+
+    /// These sums plus `a`.
+    #[inline]
+    pub fn plus(mut self, a: &AovSum) -> FilmAov {
+        self.add_aov(a);
+        self
+    }
+
+    /// The sums in double precision.
+    pub fn sum(&self) -> AovSum {
+        let [ar, ag, ab, nx, ny, nz, depth, count] = self.to_f64();
+        AovSum {
+            albedo: DVec3::new(ar, ag, ab),
+            normal: DVec3::new(nx, ny, nz),
+            depth,
+            count,
+        }
+    }
+}
+
 /// The auxiliary channels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Aov {
@@ -213,9 +341,9 @@ pub struct Film {
     /// Height in pixels.
     pub height: u32,
     /// Pixel sums, row by row from the top.
-    pub pixels: Vec<PixelSum>,
+    pub pixels: Vec<FilmPixel>,
     /// Auxiliary sums, when requested.
-    pub aovs: Option<Vec<AovSum>>,
+    pub aovs: Option<Vec<FilmAov>>,
 }
 
 impl Film {
@@ -224,7 +352,7 @@ impl Film {
         Film {
             width,
             height,
-            pixels: vec![PixelSum::default(); width as usize * height as usize],
+            pixels: vec![FilmPixel::default(); width as usize * height as usize],
             aovs: None,
         }
     }
@@ -236,6 +364,7 @@ impl Film {
         let pixels = sums
             .iter()
             .map(|a| {
+                let a = a.sum();
                 let n = a.count.max(1.0);
                 match aov {
                     Aov::Albedo => (a.albedo / n).as_vec3(),
@@ -256,13 +385,34 @@ impl Film {
         Image {
             width: self.width,
             height: self.height,
-            pixels: self.pixels.iter().map(PixelSum::value).collect(),
+            pixels: self.pixels.iter().map(FilmPixel::value).collect(),
         }
+    }
+
+    /// Adds `other`'s sums (other samples of the same image, such as
+    /// another shard's), exactly: films merged in any order are the same.
+    /// An error if the sizes or the auxiliary channels differ.
+    pub fn merge(&mut self, other: &Film) -> Result<(), String> {
+        if (self.width, self.height) != (other.width, other.height) {
+            return Err(format!(
+                "a film of {}×{} pixels cannot merge one of {}×{}",
+                self.width, self.height, other.width, other.height
+            ));
+        }
+        match (&mut self.aovs, &other.aovs) {
+            (Some(a), Some(b)) => a.iter_mut().zip(b).for_each(|(a, b)| a.merge(b)),
+            (None, None) => {}
+            _ => return Err("one film has auxiliary images and the other not".into()),
+        }
+        for (a, b) in self.pixels.iter_mut().zip(&other.pixels) {
+            a.merge(b);
+        }
+        Ok(())
     }
 
     /// Mean over pixels of the standard error of each pixel's luminance.
     pub fn mean_standard_error(&self) -> f64 {
-        let s: f64 = self.pixels.iter().map(|p| p.variance_of_mean().sqrt()).sum();
+        let s: f64 = self.pixels.iter().map(|p| p.sum().variance_of_mean().sqrt()).sum();
         s / self.pixels.len().max(1) as f64
     }
 }
@@ -287,8 +437,59 @@ mod tests {
     #[test]
     fn pixel_sums_are_the_size_the_memory_estimate_counts() {
         assert_eq!(
-            std::mem::size_of::<PixelSum>() as u64,
+            std::mem::size_of::<FilmPixel>() as u64,
             crate::scene::memory::PIXEL_SUM_BYTES
         );
+    }
+
+    /// The same samples summed in passes of any grouping and in any order
+    /// give the same film, bit for bit, which floating-point sums do not.
+    #[test]
+    fn exact_sums_do_not_depend_on_grouping_or_order() {
+        let mut rng = crate::sampling::rng::Pcg32::new(7, 1);
+        // Values of very different sizes, where float sums would differ.
+        let samples: Vec<Rgb> = (0..300)
+            .map(|i| Rgb::splat(rng.next_f32() * 10f32.powi(i % 9 - 4)))
+            .collect();
+        let film_of = |groups: &[std::ops::Range<usize>]| {
+            let mut px = FilmPixel::default();
+            for g in groups {
+                let mut pass = PixelSum::default();
+                for l in &samples[g.clone()] {
+                    pass.add(*l, 1.0);
+                }
+                px.add_sum(&pass);
+            }
+            px
+        };
+        let one = film_of(std::slice::from_ref(&(0..300)));
+        let a = film_of(&[0..1, 1..2, 2..4, 4..300]);
+        let b = film_of(&[150..300, 0..150]);
+        // Each pass rounds once, so passes of one sample are the reference.
+        let singles: Vec<_> = (0..300).map(|i| i..i + 1).collect();
+        let mut reversed = singles.clone();
+        reversed.reverse();
+        assert_eq!(film_of(&singles), film_of(&reversed));
+        let mut parts = [film_of(&singles[..100]), film_of(&singles[100..])];
+        parts.swap(0, 1);
+        let mut merged = parts[0];
+        merged.merge(&parts[1]);
+        assert_eq!(merged, film_of(&singles));
+        // Grouped passes sum in double precision first, so they differ,
+        // but only by the rounding of those sums.
+        for p in [a, b] {
+            let d = (p.sum().rgb - one.sum().rgb).abs().max_element();
+            assert!(d < 1e-15 * one.sum().rgb.x * 300.0, "{d}");
+        }
+        assert!((one.sum().weight - 300.0).abs() == 0.0);
+        // Saturation instead of wrap-around, and NaN counts as nothing.
+        let mut big = FilmPixel::default();
+        for _ in 0..4 {
+            big.add([1e30, -1e30, f64::NAN, 1.0, 0.0]);
+        }
+        assert_eq!(big.0[0], i128::MAX);
+        assert_eq!(big.0[1], i128::MIN);
+        assert_eq!(big.0[2], 0);
+        assert_eq!(big.sum().weight, 4.0);
     }
 }

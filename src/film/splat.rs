@@ -7,9 +7,9 @@
 //! `(2r)²·(filter's efficiency)` samples into each pixel instead, which
 //! lowers the per-pixel error at equal samples (measured on the Cornell box
 //! in commit 95701ba) at the price of noise correlated between neighbours.
-//! Tiles splat into a buffer with a margin of the filter's radius, merged
-//! into the film in tile order, so renders stay deterministic on any number
-//! of threads.
+//! Tiles splat into a buffer with a margin of the filter's radius, which
+//! the film adds exactly (see [`super::ExactSums`]), so renders stay
+//! deterministic on any number of threads.
 
 use super::PixelSum;
 use crate::settings::Filter;
@@ -126,7 +126,7 @@ fn floor_in_film(x: f32) -> i32 {
 
 /// What one pass splats into one pixel. Single precision suffices: a pass
 /// adds at most 16 samples per pixel (and their neighbours' tails) before
-/// the sum joins the film's double-precision one; and with colour and
+/// the sum joins the film's fixed-point one; and with colour and
 /// weight in one vector, a splat's inner loop is one multiply-add per pixel.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SplatSum {
@@ -146,14 +146,16 @@ impl SplatSum {
     }
 }
 
-impl PixelSum {
-    /// Adds what a pass splatted into this pixel.
+impl SplatSum {
+    /// What a pass splatted into this pixel, as a pixel's sums.
     #[inline]
-    pub fn merge_splat(&mut self, s: &SplatSum) {
-        let v = s.rgb_weight.as_dvec4();
-        self.rgb += DVec3::new(v.x, v.y, v.z);
-        self.weight += v.w;
-        self.lum_sq += s.lum_sq as f64;
+    pub fn sum(&self) -> PixelSum {
+        let v = self.rgb_weight.as_dvec4();
+        PixelSum {
+            rgb: DVec3::new(v.x, v.y, v.z),
+            weight: v.w,
+            lum_sq: self.lum_sq as f64,
+        }
     }
 }
 
@@ -171,8 +173,7 @@ mod tests {
             exact.add_with_luminance(l, y, w);
             splat.add(l.extend(1.0), y * y, w);
         }
-        let mut merged = PixelSum::default();
-        merged.merge_splat(&splat);
+        let merged = splat.sum();
         assert!((merged.rgb - exact.rgb).abs().max_element() < 1e-6 * exact.rgb.max_element());
         assert!((merged.weight - exact.weight).abs() < 1e-7);
         assert!((merged.lum_sq - exact.lum_sq).abs() < 1e-6 * exact.lum_sq);

@@ -4,11 +4,13 @@
 //! A checkpoint holds the job (the caller's settings as `key = value`
 //! pairs: the command line stores the scene's absolute path, the `-D`
 //! definitions and every flag that changes the image), the samples per
-//! pixel asked for and done, the statistics so far and the film's sums in
-//! double precision. Because a sample's random numbers depend only on its
-//! pixel, index and seed, and each pixel's samples are added in index
-//! order, continuing from a checkpoint with the same pass schedule gives
-//! the same image, bit for bit, as a render that was never interrupted.
+//! pixel asked for and done, the statistics so far and the film's exact
+//! sums. Because a sample's random numbers depend only on its pixel, index
+//! and seed, and the film's sums are exact, continuing from a checkpoint
+//! gives the same image, bit for bit, as a render that was never
+//! interrupted. The part files of a sharded render (`.trazo-part`) are
+//! checkpoints too: their job names the shard and the samples per pixel
+//! done are those of the shard's passes.
 //!
 //! The file is binary, little-endian:
 //!
@@ -17,8 +19,9 @@
 //! job: count u32, then per pair: key (len u32, UTF-8), value (len u32, UTF-8)
 //! width u32, height u32, target spp u32, done spp u32, flags u32 (1: AOVs)
 //! samples u64, rays u64, invalid samples u64, seconds f64
-//! width·height pixels: Σw·L (3 × f64), Σw (f64), Σw·Y² (f64)
-//! if AOVs, width·height: Σalbedo (3 × f64), Σnormal (3 × f64), Σdepth, count
+//! width·height pixels: Σw·L (3 × i128), Σw, Σw·Y² (i128), in units of 2⁻⁵⁰
+//! if AOVs, width·height: Σalbedo (3 × i128), Σnormal (3 × i128), Σdepth, count
+//! (version 1 held the same sums as f64, which are read and converted)
 //! FNV-1a 64 of everything above: u64
 //! ```
 //!
@@ -28,7 +31,7 @@
 
 use super::RenderStats;
 use crate::error::{Error, Result};
-use crate::film::{AovSum, Film, PixelSum};
+use crate::film::{AovSum, ExactSums, Film, FilmAov, FilmPixel, PixelSum};
 use crate::settings::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_SPP};
 use glam::DVec3;
 use std::io::Write;
@@ -37,13 +40,13 @@ use std::path::{Path, PathBuf};
 /// The first bytes of every checkpoint.
 pub const MAGIC: &[u8; 8] = b"TRAZOCKP";
 /// The version of the layout this code reads and writes.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 /// Largest job description accepted when reading, in bytes: room for the
 /// settings and some hundred thousand recorded scene files.
 const MAX_JOB_BYTES: usize = 32 << 20;
 /// Bytes per pixel record and per AOV record.
-const PIXEL_BYTES: usize = 5 * 8;
-const AOV_BYTES: usize = 8 * 8;
+const PIXEL_BYTES: usize = 5 * 16;
+const AOV_BYTES: usize = 8 * 16;
 
 /// The state of a render between two passes.
 #[derive(Clone, Debug, PartialEq)]
@@ -106,17 +109,14 @@ impl Checkpoint {
             put_u64(&mut b, v);
         }
         for p in &f.pixels {
-            for v in [p.rgb.x, p.rgb.y, p.rgb.z, p.weight, p.lum_sq] {
-                put_u64(&mut b, v.to_bits());
+            for v in p.0 {
+                b.extend_from_slice(&v.to_le_bytes());
             }
         }
         if let Some(aovs) = &f.aovs {
             for a in aovs {
-                let vals = [
-                    a.albedo.x, a.albedo.y, a.albedo.z, a.normal.x, a.normal.y, a.normal.z, a.depth, a.count,
-                ];
-                for v in vals {
-                    put_u64(&mut b, v.to_bits());
+                for v in a.0 {
+                    b.extend_from_slice(&v.to_le_bytes());
                 }
             }
         }
@@ -136,7 +136,7 @@ impl Checkpoint {
             pos: MAGIC.len(),
         };
         let version = r.u32()?;
-        if version != VERSION {
+        if version != VERSION && version != 1 {
             return Err(format!(
                 "checkpoint version {version} is not supported (this trazo reads version {VERSION})"
             ));
@@ -195,7 +195,10 @@ impl Checkpoint {
             return Err("bad render time".into());
         }
         let n = width as usize * height as usize;
-        let need = n as u128 * (PIXEL_BYTES + if aovs { AOV_BYTES } else { 0 }) as u128;
+        // Version 1's sums were f64.
+        let word = if version == 1 { 8 } else { 16 };
+        let (pixel_bytes, aov_bytes) = (5 * word, 8 * word);
+        let need = n as u128 * (pixel_bytes + if aovs { aov_bytes } else { 0 }) as u128;
         if need != r.remaining() as u128 {
             return Err(format!(
                 "{width}×{height} pixels need {need} bytes of sums, the file has {}",
@@ -204,28 +207,45 @@ impl Checkpoint {
         }
         let mut pixels = Vec::with_capacity(n);
         for _ in 0..n {
-            let p = PixelSum {
-                rgb: DVec3::new(r.f64()?, r.f64()?, r.f64()?),
-                weight: r.f64()?,
-                lum_sq: r.f64()?,
+            let p = if version == 1 {
+                let sum = PixelSum {
+                    rgb: DVec3::new(r.f64()?, r.f64()?, r.f64()?),
+                    weight: r.f64()?,
+                    lum_sq: r.f64()?,
+                };
+                if !(sum.rgb.is_finite() && sum.weight.is_finite() && sum.lum_sq.is_finite()) {
+                    return Err("a pixel sum is not a finite number".into());
+                }
+                FilmPixel::default().plus(&sum)
+            } else {
+                r.exact()?
             };
-            if !(p.rgb.is_finite() && p.weight.is_finite() && p.lum_sq.is_finite() && p.weight >= 0.0) {
-                return Err("a pixel sum is not a finite number".into());
+            if p.0[3] < 0 {
+                return Err("a pixel's weight is negative".into());
             }
             pixels.push(p);
         }
         let aovs = if aovs {
             let mut v = Vec::with_capacity(n);
             for _ in 0..n {
-                let a = AovSum {
-                    albedo: DVec3::new(r.f64()?, r.f64()?, r.f64()?),
-                    normal: DVec3::new(r.f64()?, r.f64()?, r.f64()?),
-                    depth: r.f64()?,
-                    count: r.f64()?,
+                let a = if version == 1 {
+                    let sum = AovSum {
+                        albedo: DVec3::new(r.f64()?, r.f64()?, r.f64()?),
+                        normal: DVec3::new(r.f64()?, r.f64()?, r.f64()?),
+                        depth: r.f64()?,
+                        count: r.f64()?,
+                    };
+                    if !(sum.albedo.is_finite()
+                        && sum.normal.is_finite()
+                        && sum.depth.is_finite()
+                        && sum.count.is_finite())
+                    {
+                        return Err("an auxiliary sum is not a finite number".into());
+                    }
+                    FilmAov::default().plus(&sum)
+                } else {
+                    r.exact()?
                 };
-                if !(a.albedo.is_finite() && a.normal.is_finite() && a.depth.is_finite() && a.count.is_finite()) {
-                    return Err("an auxiliary sum is not a finite number".into());
-                }
                 v.push(a);
             }
             Some(v)
@@ -314,6 +334,14 @@ impl Reader<'_> {
         self.u64().map(f64::from_bits)
     }
 
+    fn exact<const N: usize>(&mut self) -> Result<ExactSums<N>, String> {
+        let mut sums = ExactSums::default();
+        for v in &mut sums.0 {
+            *v = i128::from_le_bytes(self.take(16)?.try_into().expect("16 bytes"));
+        }
+        Ok(sums)
+    }
+
     fn string(&mut self) -> Result<String, String> {
         let len = self.u32()? as usize;
         let at = self.pos;
@@ -329,15 +357,17 @@ mod tests {
     fn sample() -> Checkpoint {
         let mut film = Film::new(3, 2);
         for (i, p) in film.pixels.iter_mut().enumerate() {
-            p.add(crate::Rgb::new(i as f32, 0.5, 1e-3), 1.0);
+            let mut sum = PixelSum::default();
+            sum.add(crate::Rgb::new(i as f32, 0.5, 1e-3), 1.0);
+            p.add_sum(&sum);
         }
         film.aovs = Some(vec![
-            AovSum {
+            FilmAov::default().plus(&AovSum {
                 albedo: DVec3::splat(0.25),
                 normal: DVec3::Z,
                 depth: 3.5,
                 count: 1.0,
-            };
+            });
             6
         ]);
         Checkpoint {
@@ -404,6 +434,38 @@ mod tests {
         put_u64(&mut b, sum);
         let e = Checkpoint::from_bytes(&b).unwrap_err();
         assert!(e.contains("need"), "{e}");
+    }
+
+    /// Checkpoints of trazo before exact sums held f64 sums (version 1):
+    /// they are still read, their sums converted.
+    #[test]
+    fn version_1_checkpoints_are_read() {
+        let mut b = Vec::new();
+        b.extend_from_slice(MAGIC);
+        put_u32(&mut b, 1);
+        put_u32(&mut b, 1);
+        for s in ["scene", "/a.toml"] {
+            put_u32(&mut b, s.len() as u32);
+            b.extend_from_slice(s.as_bytes());
+        }
+        for v in [2, 1, 8, 2, 0] {
+            put_u32(&mut b, v);
+        }
+        for v in [4, 40, 0, 1.5f64.to_bits()] {
+            put_u64(&mut b, v);
+        }
+        for px in [[1.0, 2.0, 0.5, 2.0, 3.0], [0.25, 0.0, 0.0, 2.0, 0.125]] {
+            for v in px {
+                put_u64(&mut b, f64::to_bits(v));
+            }
+        }
+        let sum = fnv1a(&b);
+        put_u64(&mut b, sum);
+        let c = Checkpoint::from_bytes(&b).unwrap();
+        assert_eq!((c.film.width, c.film.height, c.target_spp, c.stats.spp), (2, 1, 8, 2));
+        assert_eq!(c.film.pixels[0].value(), crate::Rgb::new(0.5, 1.0, 0.25));
+        assert_eq!(c.film.pixels[1].sum().lum_sq, 0.125);
+        assert_eq!(c.stats.seconds, 1.5);
     }
 
     #[test]

@@ -9,9 +9,12 @@
 //!
 //! A pass adds a few samples to every pixel; passes grow (1, 1, 2, 4, …
 //! samples) so that the first image is quick. Each sample's random
-//! numbers depend only on its pixel, its index and the seed, and each
-//! pixel's samples are added in index order, so the result is bit-identical
-//! whatever the number of threads or the tile order.
+//! numbers depend only on its pixel, its index and the seed, a pass sums
+//! each pixel's samples in index order, and the film adds the passes'
+//! sums exactly ([`crate::film::ExactSums`]), so the result is
+//! bit-identical whatever the number of threads, the tile order, or how
+//! the passes were shared out: a [`Shard`] renders some of them, and the
+//! films of all shards merge into the film of one render.
 //!
 //! Long renders are controlled by a [`Control`]: a cancellation flag (set by
 //! the command line's signal handler), a deadline, periodic checkpoints and
@@ -26,7 +29,7 @@ pub mod compare;
 use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::film::splat::{MAX_TAPS, Splat, SplatSum};
-use crate::film::{AovSum, Film, Image, PixelSum};
+use crate::film::{AovSum, Film, FilmAov, FilmPixel, Image, PixelSum};
 use crate::geometry::Ray;
 use crate::integrator::aov::camera_aov;
 use crate::integrator::{Integrator, Progressive, RayStats, Work};
@@ -54,6 +57,17 @@ pub struct RenderOptions {
     /// scene's `spp` is then the most samples per pixel. Passes are one
     /// sample per pixel, so the overshoot is at most one pass.
     pub time_limit: Option<Duration>,
+    /// Render only this share of the passes (see [`shard_passes`]).
+    pub shard: Option<Shard>,
+}
+
+/// The `index`-th (from 0) of `count` disjoint shares of a render's passes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    /// Which share, from 0.
+    pub index: u32,
+    /// How many shares.
+    pub count: u32,
 }
 
 impl Default for RenderOptions {
@@ -64,6 +78,7 @@ impl Default for RenderOptions {
             tile_size: 16,
             aovs: false,
             time_limit: None,
+            shard: None,
         }
     }
 }
@@ -233,14 +248,30 @@ fn check_resume(scene: &Scene, options: &RenderOptions, control: &Control) -> Re
                 "cannot resume: the saved film and the render disagree on auxiliary images".into(),
             ));
         }
-        if options.time_limit.is_some() || !pass_schedule(s.spp).iter().any(|p| p.1 == stats.spp) {
+        if options.time_limit.is_some() || !done_passes(&render_schedule(s.spp, options)?, stats.spp).0 {
             return Err(Error::Invalid(format!(
                 "cannot resume: {} samples per pixel is not the end of a pass of a {}-spp render",
                 stats.spp, s.spp
             )));
         }
+    } else {
+        render_schedule(s.spp, options)?;
     }
     Ok(())
+}
+
+/// Whether the first passes of `passes` hold exactly `spp` samples per
+/// pixel, and how many passes they are: a render resumed with `spp` done
+/// goes on from there.
+fn done_passes(passes: &[(u32, u32)], spp: u32) -> (bool, usize) {
+    let mut sum = 0;
+    for (k, p) in passes.iter().enumerate() {
+        if sum >= spp {
+            return (sum == spp, k);
+        }
+        sum += p.1 - p.0;
+    }
+    (sum == spp, passes.len())
 }
 
 /// The renderer's side of [`crate::integrator::drive`]: runs what the
@@ -270,9 +301,9 @@ impl crate::integrator::Driver for RenderDriver<'_, '_> {
         Ok(out)
     }
 
-    /// The iterations, which cannot be checkpointed or resumed.
+    /// The iterations, which cannot be checkpointed, resumed or shared out.
     fn iterations<P: Progressive>(self, algorithm: P) -> Result<RenderOutput> {
-        if self.control.resume.is_some() || self.control.checkpoint_every.is_some() {
+        if self.control.resume.is_some() || self.control.checkpoint_every.is_some() || self.options.shard.is_some() {
             return Err(Error::Invalid(P::NOT_RESUMABLE.into()));
         }
         Ok(render_iterations(
@@ -345,6 +376,63 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
     passes
 }
 
+/// The passes of `shard` of a `spp`-sample render, in schedule order: the
+/// schedule's passes ([`pass_schedule`]) dealt out so that the shards'
+/// samples per pixel differ as little as the passes allow (largest pass
+/// first, each to the shard with the fewest samples so far, the lowest
+/// index on a tie). Every shard's passes cover every pixel, so the shards
+/// finished so far make a whole, noisier image. An error if there are
+/// more shards than passes.
+pub fn shard_passes(spp: u32, shard: Shard) -> Result<Vec<(u32, u32)>> {
+    let passes = pass_schedule(spp);
+    if shard.count == 0 || shard.index >= shard.count {
+        return Err(Error::Invalid(format!(
+            "shard {}/{}: the index must be from 1 to the number of shards",
+            shard.index + 1,
+            shard.count
+        )));
+    }
+    if shard.count as usize > passes.len() {
+        return Err(Error::Invalid(format!(
+            "{} shards: a render of {spp} samples per pixel has {} passes, so at most {} shards (more samples per pixel allow more)",
+            shard.count,
+            passes.len(),
+            passes.len()
+        )));
+    }
+    let mut order: Vec<usize> = (0..passes.len()).collect();
+    // Stable: equal passes keep schedule order.
+    order.sort_by_key(|&i| std::cmp::Reverse(passes[i].1 - passes[i].0));
+    let mut load = vec![0u32; shard.count as usize];
+    let mut owner = vec![0u32; passes.len()];
+    for i in order {
+        let k = (0..load.len())
+            .min_by_key(|&k| (load[k], k))
+            .expect("at least one shard");
+        load[k] += passes[i].1 - passes[i].0;
+        owner[i] = k as u32;
+    }
+    Ok(passes
+        .into_iter()
+        .zip(owner)
+        .filter(|(_, k)| *k == shard.index)
+        .map(|(p, _)| p)
+        .collect())
+}
+
+/// The passes a render goes through: its shard's, one sample per pass
+/// under a time limit, else the whole schedule.
+fn render_schedule(spp: u32, options: &RenderOptions) -> Result<Vec<(u32, u32)>> {
+    match (options.shard, options.time_limit) {
+        (Some(_), Some(_)) => Err(Error::Invalid(
+            "a shard cannot have a time limit: every shard renders its whole share".into(),
+        )),
+        (Some(shard), None) => shard_passes(spp, shard),
+        (None, Some(_)) => Ok((0..spp).map(|i| (i, i + 1)).collect()),
+        (None, None) => Ok(pass_schedule(spp)),
+    }
+}
+
 /// The samples of a tile whose radiance was not finite: how many, and the
 /// first few.
 #[derive(Default)]
@@ -414,12 +502,12 @@ struct TileResult {
     tile: Tile,
     /// The tile's pixels after this pass (filter importance sampling), or
     /// empty when splatting.
-    sums: Vec<PixelSum>,
+    sums: Vec<FilmPixel>,
     /// Splatting: what this pass adds to the pixels of `splat_rect` (the
     /// tile and its margin, within the image).
     splats: Vec<SplatSum>,
     splat_rect: Tile,
-    aovs: Vec<AovSum>,
+    aovs: Vec<FilmAov>,
     rays: RayStats,
     invalid: u64,
     invalid_examples: Vec<InvalidSample>,
@@ -434,12 +522,14 @@ fn render_passes<I: Integrator>(
     let s = &scene.settings;
     let (w, h) = (s.width, s.height);
     let start = Instant::now();
+    // Checked by `check_resume` before the render starts.
+    let passes = render_schedule(s.spp, options).expect("a valid schedule");
     let (mut film, mut stats) = match control.resume.take() {
         Some((film, stats)) => (film, stats),
         None => {
             let mut film = Film::new(w, h);
             if options.aovs {
-                film.aovs = Some(vec![AovSum::default(); (w * h) as usize]);
+                film.aovs = Some(vec![FilmAov::default(); (w * h) as usize]);
             }
             (film, RenderStats::default())
         }
@@ -451,23 +541,21 @@ fn render_passes<I: Integrator>(
     let time_budget = options
         .time_limit
         .or_else(|| control.deadline.map(|d| d.saturating_duration_since(start)));
+    let share: u32 = passes.iter().map(|p| p.1 - p.0).sum();
     let progress = Progress::new(
         options.progress,
-        w as u64 * h as u64 * s.spp as u64,
+        w as u64 * h as u64 * share as u64,
         w as u64 * h as u64 * stats.spp as u64,
         time_budget.map(|budget| (start, budget)),
     );
-    let passes: Vec<(u32, u32)> = match options.time_limit {
-        Some(_) => (0..s.spp).map(|i| (i, i + 1)).collect(),
-        None => pass_schedule(s.spp),
-    };
     let cancel = control.cancel;
     let deadline = control.deadline;
     let mut last_checkpoint = Instant::now();
     let mut stopped = None;
 
-    let done = stats.spp;
-    for (first, end) in passes.into_iter().filter(|p| p.0 >= done) {
+    let done = done_passes(&passes, stats.spp).1;
+    let last_pass = passes.len().saturating_sub(1);
+    for (pass, &(first, end)) in passes.iter().enumerate().skip(done) {
         // The deadline never stops the first pass: there is always an image.
         let deadline_now = deadline.filter(|_| stats.spp > 0);
         let stop_now = || -> Option<Stop> {
@@ -517,8 +605,8 @@ fn render_passes<I: Integrator>(
                     }
                     for x in tile.x0..tile.x1 {
                         let i = (y * w + x) as usize;
-                        let mut sum = film_ref.pixels[i];
-                        let mut aov = film_ref.aovs.as_ref().map(|a| a[i]).unwrap_or_default();
+                        let mut sum = PixelSum::default();
+                        let mut aov = AovSum::default();
                         for index in first..end {
                             let (position, ray) = camera_sample(scene, splat.is_some(), &mut sampler, (x, y, index));
                             let l = integrator.radiance(scene, &ray, &mut sampler, &mut rays);
@@ -538,10 +626,10 @@ fn render_passes<I: Integrator>(
                             }
                         }
                         if splat.is_none() {
-                            sums.push(sum);
+                            sums.push(film_ref.pixels[i].plus(&sum));
                         }
-                        if options.aovs {
-                            aovs.push(aov);
+                        if let Some(a) = &film_ref.aovs {
+                            aovs.push(a[i].plus(&aov));
                         }
                     }
                 }
@@ -577,8 +665,8 @@ fn render_passes<I: Integrator>(
                     k += 1;
                 }
             }
-            // Tiles add their splats in tile order: the same sums in the
-            // same order on any number of threads.
+            // Adding splats is exact, so the tiles' overlaps do not depend
+            // on the order tiles finish in.
             let rect = r.splat_rect;
             let mut k = 0;
             for y in rect.y0..rect.y1 {
@@ -586,7 +674,7 @@ fn render_passes<I: Integrator>(
                     break;
                 }
                 for x in rect.x0..rect.x1 {
-                    film.pixels[(y * w + x) as usize].merge_splat(&r.splats[k]);
+                    film.pixels[(y * w + x) as usize].add_sum(&r.splats[k].sum());
                     k += 1;
                 }
             }
@@ -596,12 +684,12 @@ fn render_passes<I: Integrator>(
             stats.invalid_examples.extend(r.invalid_examples.into_iter().take(room));
         }
         stats.samples += w as u64 * h as u64 * (end - first) as u64;
-        stats.spp = end;
+        stats.spp += end - first;
         stats.seconds = earlier_seconds + start.elapsed().as_secs_f64();
         if options.time_limit.is_some_and(|limit| start.elapsed() >= limit) {
             break;
         }
-        if end < s.spp {
+        if pass < last_pass {
             if let Some(why) = stop_now() {
                 stopped = Some(why);
                 break;
@@ -761,6 +849,52 @@ mod tests {
                 assert!(w[1].1 - w[1].0 <= 16);
             }
         }
+    }
+
+    #[test]
+    fn shards_share_out_every_pass_once_and_evenly() {
+        for spp in [8u32, 64, 100, 1000, 4096] {
+            let all = pass_schedule(spp);
+            for count in 1..=all.len().min(40) as u32 {
+                let shares: Vec<Vec<(u32, u32)>> = (0..count)
+                    .map(|index| shard_passes(spp, Shard { index, count }).unwrap())
+                    .collect();
+                let mut union: Vec<(u32, u32)> = shares.concat();
+                union.sort();
+                assert_eq!(union, all, "{spp} spp, {count} shards");
+                let loads: Vec<u32> = shares.iter().map(|s| s.iter().map(|p| p.1 - p.0).sum()).collect();
+                let (lo, hi) = (*loads.iter().min().unwrap(), *loads.iter().max().unwrap());
+                // Greedy dealing, largest first: the shards differ by at most
+                // one of the largest passes.
+                assert!(hi - lo <= 16, "{spp} spp, {count} shards: {loads:?}");
+                assert!(
+                    shares
+                        .iter()
+                        .all(|s| !s.is_empty() && s.windows(2).all(|w| w[0].0 < w[1].0))
+                );
+            }
+        }
+        // 64 spp: passes 1, 1, 2, 4, 8, 16, 16, 16 in four shares of 16.
+        let loads: Vec<u32> = (0..4)
+            .map(|index| {
+                let s = shard_passes(64, Shard { index, count: 4 }).unwrap();
+                s.iter().map(|p| p.1 - p.0).sum()
+            })
+            .collect();
+        assert_eq!(loads, [16, 16, 16, 16]);
+        let e = shard_passes(64, Shard { index: 0, count: 9 }).unwrap_err().to_string();
+        assert!(e.contains("at most 8 shards"), "{e}");
+        assert!(shard_passes(64, Shard { index: 4, count: 4 }).is_err());
+    }
+
+    #[test]
+    fn resumed_renders_go_on_after_the_passes_done() {
+        let passes = pass_schedule(64);
+        assert_eq!(done_passes(&passes, 0), (true, 0));
+        assert_eq!(done_passes(&passes, 2), (true, 2));
+        assert_eq!(done_passes(&passes, 3), (false, 3));
+        assert_eq!(done_passes(&passes, 64), (true, passes.len()));
+        assert!(!done_passes(&passes, 65).0);
     }
 
     #[test]

@@ -11,12 +11,13 @@
 
 use crate::error::{Error, Result};
 
-/// Bytes per pixel of the film: the sums (40), a pass's copy of them (40),
-/// the checkpoint buffer (40), the output image (12) and its encoding (12).
-pub const FILM_BYTES_PER_PIXEL: u64 = 144;
-/// Bytes per pixel of the auxiliary images: the sums (64), a pass's copy
-/// (64), the checkpoint buffer (64) and three output images (36).
-pub const AOV_BYTES_PER_PIXEL: u64 = 228;
+/// Bytes per pixel of the film: the exact sums (80), a pass's copy of them
+/// (80), the checkpoint buffer (80), the output image (12) and its
+/// encoding (12).
+pub const FILM_BYTES_PER_PIXEL: u64 = 264;
+/// Bytes per pixel of the auxiliary images: the exact sums (128), a pass's
+/// copy (128), the checkpoint buffer (128) and three output images (36).
+pub const AOV_BYTES_PER_PIXEL: u64 = 420;
 /// Meshes with at least this many triangles get their own tree over blocks
 /// of four triangles; smaller ones are single triangles in the top-level
 /// tree (see [`crate::accel::BLOCK_TREE_MIN_TRIANGLES`]), and cost more per
@@ -52,8 +53,8 @@ pub const STORED_PER_EMITTED: u64 = 4;
 /// Bytes per stored photon: the photon (32), its kd-tree split axis (1), and
 /// the per-thread lists the map is gathered from (32).
 pub const BYTES_PER_PHOTON: u64 = 65;
-/// Bytes of one pixel's sums.
-pub const PIXEL_SUM_BYTES: u64 = 40;
+/// Bytes of one pixel's sums on the film.
+pub const PIXEL_SUM_BYTES: u64 = 80;
 /// The limit used when the machine's memory cannot be read.
 pub const FALLBACK_LIMIT: u64 = 4 << 30;
 
@@ -231,7 +232,7 @@ mod tests {
         assert!(e.check(Some(e.total())).is_ok());
         assert!(e.check(None).is_ok());
         let msg = e.check(Some(100 << 20)).unwrap_err().to_string();
-        assert!(msg.contains("film 137.3 MiB") && msg.contains("100.0 MiB"), "{msg}");
+        assert!(msg.contains("film 251.8 MiB") && msg.contains("100.0 MiB"), "{msg}");
     }
 
     #[test]

@@ -86,7 +86,7 @@ pub fn denoise_film(film: &Film, kind: DenoiserKind) -> Result<Denoised> {
             "denoising needs the albedo and normal images: render with AOVs".into(),
         ));
     };
-    let variance: Vec<f32> = film.pixels.iter().map(|p| p.variance_of_mean() as f32).collect();
+    let variance: Vec<f32> = film.pixels.iter().map(|p| p.sum().variance_of_mean() as f32).collect();
     denoise(
         &DenoiseInput {
             color: &color,

@@ -42,7 +42,7 @@ use super::jensen::specular_bounce;
 use super::trace::{PhotonStore, trace_photons_until};
 use super::{PhotonMap, camera_segment, same_surface};
 use crate::color::Rgb;
-use crate::film::{AovSum, Film, PixelSum};
+use crate::film::{AovSum, Film, FilmAov, FilmPixel, PixelSum};
 use crate::integrator::aov::camera_aov;
 use crate::integrator::{Progressive, Work};
 use crate::sampling::Sampler;
@@ -178,14 +178,14 @@ impl Progressive for Sppm {
         for (sum, px) in film.pixels.iter_mut().zip(&self.pixels) {
             let indirect = px.tau / (k * PI * px.r2 as f64);
             let l = px.direct / k + indirect;
-            *sum = PixelSum {
+            *sum = FilmPixel::default().plus(&PixelSum {
                 rgb: l,
                 weight: 1.0,
                 lum_sq: crate::color::luminance(l.as_vec3()) as f64 * crate::color::luminance(l.as_vec3()) as f64,
-            };
+            });
         }
         if self.aovs {
-            film.aovs = Some(self.pixels.iter().map(|px| px.aov).collect());
+            film.aovs = Some(self.pixels.iter().map(|px| FilmAov::default().plus(&px.aov)).collect());
         }
         film
     }
