@@ -97,3 +97,283 @@ fn progressive_photon_mapping_cannot_be_sharded() {
     };
     assert!(render(&scene, &options).is_err());
 }
+
+// ---- The command line: `trazo render --shard` and `trazo merge`. ----
+
+use assert_cmd::Command;
+use std::path::Path;
+
+fn trazo(dir: &Path) -> Command {
+    let mut c = Command::cargo_bin("trazo").unwrap();
+    c.current_dir(dir);
+    c
+}
+
+/// A small render of the textured scene (a Gaussian filter: splatting) at
+/// 24 spp: 1, 1, 2, 4, 8 and 8 samples per pass.
+const RENDER: [&str; 8] = [
+    "--width",
+    "24",
+    "--height",
+    "16",
+    "--spp",
+    "24",
+    "--aov",
+    "albedo,depth",
+];
+
+/// scenes/materials.toml with a Gaussian filter, written into `dir`.
+fn scene_in(dir: &Path) -> String {
+    let text = std::fs::read_to_string(format!("{}/scenes/materials.toml", env!("CARGO_MANIFEST_DIR"))).unwrap();
+    let text = text
+        .replacen("[render]\n", "[render]\nfilter = \"gaussian\"\n", 1)
+        .replace(
+            "\"textures/",
+            &format!("\"{}/scenes/textures/", env!("CARGO_MANIFEST_DIR")),
+        );
+    assert!(text.contains("filter = \"gaussian\""));
+    let path = dir.join("materials.toml");
+    std::fs::write(&path, text).unwrap();
+    path.to_string_lossy().into_owned()
+}
+
+fn render_shard(dir: &Path, k: u32, n: u32) {
+    trazo(dir)
+        .args(["render", &scene_in(dir)])
+        .args(RENDER)
+        .args([
+            "--shard",
+            &format!("{k}/{n}"),
+            "-q",
+            "-o",
+            &format!("part{k}.trazo-part"),
+        ])
+        .assert()
+        .success();
+}
+
+fn merge(dir: &Path, parts: &[&str], extra: &[&str]) -> std::process::Output {
+    trazo(dir).arg("merge").args(parts).args(extra).output().unwrap()
+}
+
+#[test]
+fn merged_shards_write_the_single_render_file_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    trazo(d)
+        .args(["render", &scene_in(d)])
+        .args(RENDER)
+        .args(["-q", "-o", "whole.exr"])
+        .assert()
+        .success();
+    for k in [3, 1, 4, 2] {
+        render_shard(d, k, 4);
+    }
+    let parts = [
+        "part4.trazo-part",
+        "part2.trazo-part",
+        "part1.trazo-part",
+        "part3.trazo-part",
+    ];
+    let out = merge(d, &parts, &["-o", "merged.exr"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for (a, b) in [
+        ("merged.exr", "whole.exr"),
+        ("merged.albedo.exr", "whole.albedo.exr"),
+        ("merged.depth.exr", "whole.depth.exr"),
+    ] {
+        assert!(
+            std::fs::read(d.join(a)).unwrap() == std::fs::read(d.join(b)).unwrap(),
+            "{a} and {b} differ"
+        );
+    }
+    // --status: every shard done, every sample there.
+    let out = merge(d, &parts, &["--status"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    assert!(
+        text.contains("4 of 4 shards done; the parts hold 24 of 24 samples per pixel (100.0 %)"),
+        "{text}"
+    );
+    assert_eq!(text.lines().filter(|l| l.contains(" done ")).count(), 4, "{text}");
+}
+
+#[test]
+fn merge_refuses_parts_that_do_not_belong_together() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for k in 1..=3 {
+        render_shard(d, k, 3);
+    }
+    let err = |out: std::process::Output| {
+        assert_eq!(out.status.code(), Some(2));
+        String::from_utf8_lossy(&out.stderr).trim().to_string()
+    };
+    // A missing shard is named, and --partial writes the noisier image.
+    let e = err(merge(d, &["part1.trazo-part", "part3.trazo-part"], &["-o", "m.png"]));
+    assert!(e.contains("no part of shard 2/3") && e.contains("--partial"), "{e}");
+    assert!(!d.join("m.png").exists());
+    let out = merge(
+        d,
+        &["part1.trazo-part", "part3.trazo-part"],
+        &["-o", "m.png", "--partial"],
+    );
+    assert!(out.status.success() && d.join("m.png").exists());
+    let status = merge(d, &["part1.trazo-part", "part3.trazo-part"], &["--status"]);
+    let text = String::from_utf8_lossy(&status.stdout);
+    assert!(
+        text.contains("2 of 3 shards done") && text.contains("no part of 2/3"),
+        "{text}"
+    );
+    // The same shard twice.
+    std::fs::copy(d.join("part1.trazo-part"), d.join("copy.trazo-part")).unwrap();
+    let e = err(merge(
+        d,
+        &["part1.trazo-part", "copy.trazo-part", "part2.trazo-part"],
+        &["-o", "m.png"],
+    ));
+    assert!(e.contains("is shard 1/3 again"), "{e}");
+    // Another render's shard: another size, another seed.
+    trazo(d)
+        .args(["render", &scene_in(d), "--width", "20", "--height", "16", "--spp", "24"])
+        .args([
+            "--aov",
+            "albedo,depth",
+            "--shard",
+            "2/3",
+            "-q",
+            "-o",
+            "other.trazo-part",
+        ])
+        .assert()
+        .success();
+    let e = err(merge(d, &["part1.trazo-part", "other.trazo-part"], &["-o", "m.png"]));
+    assert!(
+        e.contains("other.trazo-part: is not a shard of the same render") && e.contains("image sizes"),
+        "{e}"
+    );
+    trazo(d)
+        .args(["render", &scene_in(d)])
+        .args(RENDER)
+        .args(["--seed", "9", "--shard", "2/3", "-q", "-o", "seed.trazo-part"])
+        .assert()
+        .success();
+    let e = err(merge(d, &["part1.trazo-part", "seed.trazo-part"], &["-o", "m.png"]));
+    assert!(e.contains("render settings differ"), "{e}");
+    // Split differently.
+    trazo(d)
+        .args(["render", &scene_in(d)])
+        .args(RENDER)
+        .args(["--shard", "2/2", "-q", "-o", "half.trazo-part"])
+        .assert()
+        .success();
+    let e = err(merge(d, &["part1.trazo-part", "half.trazo-part"], &["-o", "m.png"]));
+    assert!(e.contains("different numbers of shards"), "{e}");
+    // A damaged part, and an image given as a part.
+    let mut bytes = std::fs::read(d.join("part3.trazo-part")).unwrap();
+    bytes.truncate(bytes.len() / 2);
+    std::fs::write(d.join("cut.trazo-part"), bytes).unwrap();
+    let e = err(merge(d, &["part1.trazo-part", "cut.trazo-part"], &["-o", "m.png"]));
+    assert!(e.contains("cut.trazo-part") && e.contains("truncated"), "{e}");
+    let e = err(merge(d, &["m.png"], &["-o", "x.png"]));
+    assert!(e.contains("m.png"), "{e}");
+}
+
+#[test]
+fn shard_flags_are_checked_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fails = |args: &[&str]| {
+        let out = trazo(d).args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    assert!(fails(&["render", "--shard", "0/4"]).contains("expected K/N"));
+    assert!(fails(&["render", "--shard", "5/4"]).contains("expected K/N"));
+    assert!(fails(&["render", "--shard", "1/4", "-o", "x.png"]).contains("NAME.trazo-part"));
+    let e = fails(&[
+        "render", "--shard", "1/9", "--spp", "64", "--width", "8", "--height", "8",
+    ]);
+    assert!(e.contains("at most 8 shards"), "{e}");
+    let e = fails(&["render", "--shard", "1/2", "--time-limit", "3"]);
+    assert!(e.contains("cannot be used with"), "{e}");
+    let e = fails(&[
+        "render",
+        "--shard",
+        "1/2",
+        "--integrator",
+        "sppm",
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    assert!(e.contains("sharded"), "{e}");
+    // The default part name follows the scene.
+    trazo(d)
+        .args([
+            "render", "--shard", "2/2", "--spp", "2", "--width", "8", "--height", "8", "-q",
+        ])
+        .assert()
+        .success();
+    assert!(d.join("cornell-box.shard-2-of-2.trazo-part").is_file());
+    // A part is not overwritten unless asked.
+    let e = fails(&[
+        "render", "--shard", "2/2", "--spp", "2", "--width", "8", "--height", "8",
+    ]);
+    assert!(e.contains("--resume") && e.contains("--restart"), "{e}");
+}
+
+/// A shard interrupted (its part written at the end of a pass) and
+/// resumed ends with the part an uninterrupted shard writes.
+#[test]
+fn an_interrupted_shard_resumes_to_the_same_part() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let args = [
+        "render", "--width", "32", "--height", "32", "--spp", "4096", "--shard", "1/2",
+    ];
+    let mut child = std::process::Command::new(assert_cmd::cargo::cargo_bin("trazo"))
+        .current_dir(d)
+        .args(args)
+        .args(["-q", "-o", "a.trazo-part", "--checkpoint-every", "0"])
+        .spawn()
+        .unwrap();
+    // Once the part of the first passes is on disk.
+    let start = std::time::Instant::now();
+    while !d.join("a.trazo-part").exists() && start.elapsed().as_secs() < 30 {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    interrupt(child.id());
+    let status = child.wait().unwrap();
+    assert!(start.elapsed().as_secs() < 60);
+    assert_eq!(status.code(), Some(130));
+    let out = merge(d, &["a.trazo-part"], &["--status"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("unfinished"), "{text}");
+    trazo(d)
+        .args(["render", "--resume", "a.trazo-part", "-q"])
+        .assert()
+        .success();
+    trazo(d)
+        .args(args)
+        .args(["-q", "-o", "b.trazo-part"])
+        .assert()
+        .success();
+    let (a, b) = (
+        Checkpoint::read(&d.join("a.trazo-part")).unwrap(),
+        Checkpoint::read(&d.join("b.trazo-part")).unwrap(),
+    );
+    assert!(a.film == b.film, "the resumed shard's film differs");
+    assert_eq!(a.stats.spp, 2048);
+}
+
+use trazo::render::checkpoint::Checkpoint;
+
+/// Sends SIGINT, as Ctrl-C does.
+fn interrupt(pid: u32) {
+    std::process::Command::new("kill")
+        .args(["-INT", &pid.to_string()])
+        .status()
+        .unwrap();
+}

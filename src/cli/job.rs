@@ -93,6 +93,9 @@ impl Job {
             arg.push(format!("-D{name}={value}"));
         }
         arg.push(format!("--output={}", absolute(output).to_string_lossy()));
+        if let Some(shard) = args.shard {
+            arg.push(format!("--shard={}/{}", shard.index + 1, shard.count));
+        }
         // The samples per pixel in effect (a time limit alone sets the
         // largest), which fix the pass schedule and the stratification.
         arg.push(format!("--spp={}", desc.settings.spp));
@@ -137,6 +140,12 @@ impl Job {
             entries.push(("scene_hash".into(), scene_hash(p)?));
         }
         entries.push(("settings".into(), format!("{:?}", scene.settings)));
+        // What `trazo merge` needs to write a shard's image.
+        if let Some(shard) = args.shard {
+            entries.push(("shard".into(), format!("{}/{}", shard.index + 1, shard.count)));
+            entries.push(("tonemap".into(), scene.settings.tonemap.name().into()));
+            entries.push(("exposure".into(), scene.settings.exposure.to_string()));
+        }
         // The hash first: a path may hold spaces.
         let mut listed: Vec<(String, String)> = files
             .iter()

@@ -2,6 +2,7 @@
 //! logic lives here.
 
 mod bench;
+mod farm;
 mod job;
 
 use crate::error::{Error, Result};
@@ -10,7 +11,7 @@ use crate::film::io::{ImageFormat, read_image, write_image};
 use crate::film::{Aov, Film};
 use crate::render::checkpoint::checkpoint_path;
 use crate::render::compare::{Budget, Contestant, compare, side_by_side, table};
-use crate::render::{Control, RenderOptions, RenderStats, Stop, render_controlled};
+use crate::render::{Control, RenderOptions, RenderStats, Shard, Stop, render_controlled};
 use crate::sampling::SamplerKind;
 use crate::scene::{self, SceneDesc, builtin};
 use crate::settings::{
@@ -60,6 +61,10 @@ enum Command {
     /// Benchmarks of the renderer's kernels on your own inputs.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
+    /// Merge the part files of a sharded render (`trazo render --shard`)
+    /// into its image, which is bit for bit the image of the render on one
+    /// machine; or, with --status, tell how far the shards are.
+    Merge(farm::MergeArgs),
 }
 
 #[derive(Args, Debug)]
@@ -197,9 +202,18 @@ struct RenderArgs {
 
     /// Output image; the format follows the extension: .png (8-bit sRGB,
     /// tone-mapped), .exr, .hdr or .pfm (linear float). Default: the
-    /// scene's name with .png, in the current folder.
+    /// scene's name with .png, in the current folder. With --shard, the
+    /// part file (NAME.trazo-part; default: the scene's name with
+    /// .shard-K-of-N.trazo-part).
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
+
+    /// Render the K-th of N shares of the samples (K from 1 to N), for a
+    /// render farm: every pixel gets its share, and the output is a part
+    /// file that `trazo merge` combines with the other shards' into the
+    /// image of the whole render, bit for bit. Not with --time-limit.
+    #[arg(long, value_name = "K/N", value_parser = parse_shard, conflicts_with = "time_limit")]
+    shard: Option<Shard>,
 
     /// Samples per pixel (overrides the scene).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=(MAX_SPP as i64)))]
@@ -259,7 +273,7 @@ struct RenderArgs {
     #[arg(long, value_name = "CHECKPOINT", conflicts_with_all = [
         "scene", "width", "height", "max_depth", "march_step", "seed", "sampler", "tonemap", "exposure", "defines",
         "output", "spp", "integrator", "sampling", "aov", "denoise", "photons", "caustic_photons",
-        "sppm_photons", "photon_gather", "photon_radius", "final_gather", "photon_kernel", "restart",
+        "sppm_photons", "photon_gather", "photon_radius", "final_gather", "photon_kernel", "restart", "shard",
     ])]
     resume: Option<PathBuf>,
 
@@ -269,6 +283,19 @@ struct RenderArgs {
     /// machine's memory.
     #[arg(long, value_name = "SIZE", value_parser = scene::memory::parse_size)]
     max_memory: Option<u64>,
+}
+
+fn parse_shard(s: &str) -> std::result::Result<Shard, String> {
+    let bad = || format!("expected K/N with 1 ≤ K ≤ N (the K-th of N shards), got \"{s}\"");
+    let (k, n) = s.split_once('/').ok_or_else(bad)?;
+    let (k, n): (u32, u32) = (
+        k.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if k == 0 || k > n {
+        return Err(bad());
+    }
+    Ok(Shard { index: k - 1, count: n })
 }
 
 fn parse_length(s: &str) -> std::result::Result<f32, String> {
@@ -332,6 +359,7 @@ pub fn main() -> ExitCode {
         Command::Compare(args) => run_compare(args).map(|()| ExitCode::SUCCESS),
         Command::Diff(args) => return run_diff(args),
         Command::Bench(command) => bench::run(command).map(|()| ExitCode::SUCCESS),
+        Command::Merge(args) => farm::run_merge(args).map(|()| ExitCode::SUCCESS),
     };
     match result {
         Ok(code) => code,
@@ -546,21 +574,35 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         }
         None => (args, None),
     };
-    let output = args
-        .output
-        .clone()
-        .unwrap_or_else(|| default_output(args.scene.scene.as_deref()));
-    check_output(&output)?;
-    let checkpoint_file = checkpoint_path(&output);
+    let output = match (&args.output, args.shard) {
+        (Some(o), _) => o.clone(),
+        (None, None) => default_output(args.scene.scene.as_deref()),
+        (None, Some(shard)) => farm::default_part(args.scene.scene.as_deref(), shard),
+    };
+    // A shard's part file is its checkpoint too: unfinished, it is resumed.
+    let checkpoint_file = match args.shard {
+        None => {
+            check_output(&output)?;
+            checkpoint_path(&output)
+        }
+        Some(_) => {
+            farm::check_part_name(&output)?;
+            check_writable(&output)?;
+            output.clone()
+        }
+    };
     if resume.is_none() && checkpoint_file.is_file() {
         if !args.restart {
             // Refused before anything is loaded or written: the checkpoint
             // may hold hours of work.
+            let what = match args.shard {
+                None => format!("an unfinished render of {}", output.display()),
+                Some(_) => "a shard's part of a render".to_string(),
+            };
             return Err(Error::file(
                 &checkpoint_file,
                 format!(
-                    "holds an unfinished render of {}: continue it with `trazo render --resume {}`, or start afresh with --restart (which deletes it)",
-                    output.display(),
+                    "holds {what}: continue it with `trazo render --resume {}`, or start afresh with --restart (which deletes it)",
                     checkpoint_file.display()
                 ),
             ));
@@ -599,7 +641,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     }
     // SPPM's state is not a film of samples: it has no checkpoints.
     let resumable = desc.settings.integrator != IntegratorKind::Sppm;
-    if !resumable && (args.checkpoint_every.is_some() || resume.is_some()) {
+    if !resumable && (args.checkpoint_every.is_some() || resume.is_some() || args.shard.is_some()) {
         let e = Error::Invalid(crate::integrator::photon::sppm::NOT_RESUMABLE.into());
         return Err(after_loading(e, &desc));
     }
@@ -635,6 +677,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     let s = scene.settings.clone();
     let options = RenderOptions {
         aovs: !aovs.is_empty() || denoiser.is_some(),
+        shard: args.shard,
         ..args.scene.options()
     };
     let mut save = |film: &Film, stats: &RenderStats| {
@@ -656,27 +699,22 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         eprintln!("interrupted before the first pass was complete: nothing was written");
         return Ok(ExitCode::from(EXIT_INTERRUPTED));
     }
-    let mut denoise_note = None;
-    match denoiser {
-        None => write_image(&output, &out.film.to_image(), s.tonemap, s.exposure)?,
-        Some(kind) => {
-            let noisy = sibling_path(&output, "noisy");
-            write_image(&noisy, &out.film.to_image(), s.tonemap, s.exposure)?;
-            let start = Instant::now();
-            let d = denoise_film(&out.film, kind)?;
-            write_image(&output, &d.image, s.tonemap, s.exposure)?;
-            denoise_note = Some(format!(
-                "denoised with {} in {:.2} s (the noisy image: {})",
-                d.denoiser,
-                start.elapsed().as_secs_f64(),
-                noisy.display()
-            ));
-        }
+    if let Some(shard) = args.shard {
+        job.checkpoint(&out.film, st).write(&output)?;
+        farm::report_shard(shard, &output, &s, &out, args.scene.quiet);
+        return Ok(match out.stopped {
+            Some(Stop::Interrupted) => ExitCode::from(EXIT_INTERRUPTED),
+            _ => ExitCode::SUCCESS,
+        });
     }
-    for aov in &aovs {
-        let img = out.film.aov_image(*aov).expect("AOVs were recorded");
-        write_image(&aov_path(&output, *aov), &img, s.tonemap, 0.0)?;
-    }
+    let images = ImageOutputs {
+        output: &output,
+        tonemap: s.tonemap,
+        exposure: s.exposure,
+        denoiser,
+        aovs: &aovs,
+    };
+    let denoise_note = images.write(&out.film)?;
     match out.stopped {
         Some(_) if resumable => job.checkpoint(&out.film, st).write(&checkpoint_file)?,
         _ => {
@@ -764,6 +802,47 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         Some(Stop::Interrupted) => ExitCode::from(EXIT_INTERRUPTED),
         _ => ExitCode::SUCCESS,
     })
+}
+
+/// The images a render writes from its film: the image (denoised, with
+/// the noisy one beside it, if asked) and the auxiliary images.
+struct ImageOutputs<'a> {
+    output: &'a Path,
+    tonemap: Tonemap,
+    exposure: f32,
+    denoiser: Option<DenoiserKind>,
+    aovs: &'a [Aov],
+}
+
+impl ImageOutputs<'_> {
+    /// Writes them; returns what to say about the denoising, if any.
+    fn write(&self, film: &Film) -> Result<Option<String>> {
+        let (output, tonemap, exposure) = (self.output, self.tonemap, self.exposure);
+        let mut note = None;
+        match self.denoiser {
+            None => write_image(output, &film.to_image(), tonemap, exposure)?,
+            Some(kind) => {
+                let noisy = sibling_path(output, "noisy");
+                write_image(&noisy, &film.to_image(), tonemap, exposure)?;
+                let start = Instant::now();
+                let d = denoise_film(film, kind)?;
+                write_image(output, &d.image, tonemap, exposure)?;
+                note = Some(format!(
+                    "denoised with {} in {:.2} s (the noisy image: {})",
+                    d.denoiser,
+                    start.elapsed().as_secs_f64(),
+                    noisy.display()
+                ));
+            }
+        }
+        for aov in self.aovs {
+            let img = film
+                .aov_image(*aov)
+                .ok_or_else(|| Error::Invalid("the auxiliary images were not recorded".into()))?;
+            write_image(&aov_path(output, *aov), &img, tonemap, 0.0)?;
+        }
+        Ok(note)
+    }
 }
 
 /// Exit status of `trazo diff` when the images differ by more than allowed.

@@ -92,12 +92,22 @@ pub fn write_image(path: &Path, image: &Image, tonemap: Tonemap, exposure: f32) 
             })
         }
         ImageFormat::Exr => write_atomic_path(path, |tmp| {
+            use exr::prelude::{Encoding, Image as ExrImage, LineOrder, SpecificChannels, WritableImage};
             let w = image.width as usize;
-            exr::prelude::write_rgb_file(tmp, w, image.height as usize, |x, y| {
+            let channels = SpecificChannels::rgb(|exr::math::Vec2(x, y): exr::math::Vec2<usize>| {
                 let c = image.pixels[y * w + x] * scale;
                 (c.x, c.y, c.z)
-            })
-            .map_err(|e| e.to_string())
+            });
+            // Blocks in increasing order, not in the order the threads that
+            // compress them finish: the same image gives the same file.
+            let encoding = Encoding {
+                line_order: LineOrder::Increasing,
+                ..Encoding::FAST_LOSSLESS
+            };
+            ExrImage::from_encoded_channels((w, image.height as usize), encoding, channels)
+                .write()
+                .to_file(tmp)
+                .map_err(|e| e.to_string())
         }),
     }
 }

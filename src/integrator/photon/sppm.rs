@@ -69,7 +69,7 @@ struct PixelState {
 }
 
 /// Why SPPM refuses checkpoints.
-pub const NOT_RESUMABLE: &str = "SPPM renders cannot be checkpointed or resumed (its state is per-pixel radii and photon statistics, not a film): drop --checkpoint-every/--resume, or use --integrator photon or path";
+pub const NOT_RESUMABLE: &str = "SPPM renders cannot be checkpointed, resumed or sharded (its state is per-pixel radii and photon statistics, not a film): drop --checkpoint-every/--resume/--shard, or use --integrator photon or path";
 
 /// SPPM's state between iterations: every pixel's statistics. The
 /// renderer runs `spp` iterations (or as many as its time limit or
