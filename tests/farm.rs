@@ -377,3 +377,111 @@ fn interrupt(pid: u32) {
         .status()
         .unwrap();
 }
+
+// ---- The farms' scripts and manifests. ----
+
+fn repo_file(path: &str) -> String {
+    std::fs::read_to_string(format!("{}/{path}", env!("CARGO_MANIFEST_DIR"))).unwrap()
+}
+
+/// The value of the first `key: value` line whose key is `key`, at any
+/// depth (list items' dashes left out), unquoted.
+fn yaml_value<'a>(text: &'a str, key: &str) -> Option<&'a str> {
+    text.lines()
+        .filter(|l| !l.trim_start().starts_with('#'))
+        .map(|l| l.trim_start().trim_start_matches("- "))
+        .find_map(|l| l.strip_prefix(&format!("{key}:")))
+        .map(|v| v.trim().trim_matches('"'))
+}
+
+/// The shell command of a Job's container: the item after `args:`.
+fn job_command(text: &str) -> String {
+    let mut lines = text.lines().skip_while(|l| l.trim() != "args:");
+    lines.next().expect("an args: list");
+    lines
+        .next()
+        .expect("one command")
+        .trim()
+        .trim_start_matches("- ")
+        .to_string()
+}
+
+/// The Kubernetes manifests run the commands the Slurm test proves
+/// (tools/farm/slurm/ci-test, run by .ci/run): the shards through
+/// render-shard with the Indexed Job's index, the merge through
+/// merge-parts, both on the one shared volume.
+#[test]
+fn the_kubernetes_jobs_run_the_commands_the_slurm_test_proves() {
+    let render = repo_file("tools/farm/k8s/render-job.yaml");
+    let merge = repo_file("tools/farm/k8s/merge-job.yaml");
+    let volume = repo_file("tools/farm/k8s/volume.yaml");
+    for m in [&render, &merge] {
+        assert_eq!(yaml_value(m, "apiVersion"), Some("batch/v1"));
+        assert_eq!(yaml_value(m, "kind"), Some("Job"));
+        assert_eq!(yaml_value(m, "restartPolicy"), Some("Never"));
+        assert_eq!(yaml_value(m, "mountPath"), Some("/render"));
+        assert_eq!(yaml_value(m, "claimName"), yaml_value(&volume, "name"));
+    }
+    assert_eq!(yaml_value(&volume, "kind"), Some("PersistentVolumeClaim"));
+    assert!(volume.contains("accessModes: [ReadWriteMany]"));
+    // One pod per shard, the index from 0: shard index + 1 of N.
+    assert_eq!(yaml_value(&render, "completionMode"), Some("Indexed"));
+    let n = yaml_value(&render, "completions").unwrap();
+    assert_eq!(yaml_value(&render, "parallelism"), Some(n));
+    let shards_env = render.split("name: SHARDS").nth(1).expect("a SHARDS variable");
+    assert_eq!(yaml_value(shards_env, "value"), Some(n));
+    let shard = job_command(&render);
+    assert!(
+        shard.starts_with(r#"exec /opt/trazo/tools/farm/render-shard "$((JOB_COMPLETION_INDEX + 1))" "$SHARDS" "#),
+        "{shard}"
+    );
+    let words: Vec<&str> = shard.split_whitespace().collect();
+    let at = words.iter().position(|w| *w == "\"$SHARDS\"").unwrap();
+    let parts = words[at + 2];
+    assert!(parts.starts_with("/render/"), "{shard}");
+    let merged = job_command(&merge);
+    assert_eq!(
+        merged.split_whitespace().take(3).collect::<Vec<_>>(),
+        ["exec", "/opt/trazo/tools/farm/merge-parts", parts]
+    );
+    // The container has the scripts where the jobs look for them.
+    let docker = repo_file("tools/farm/k8s/Dockerfile");
+    assert!(docker.contains("COPY tools/farm /opt/trazo/tools/farm"));
+    assert!(docker.contains("/usr/local/bin/trazo"));
+    // And Slurm's scripts run the same two.
+    let sbatch = repo_file("tools/farm/slurm/shard.sbatch");
+    assert!(sbatch.contains(r#"exec "$farm/render-shard" "$k" "$n" "$@""#));
+    assert!(repo_file("tools/farm/slurm/merge.sbatch").contains(r#"exec "$farm/merge-parts" "$@""#));
+    let ci = repo_file("tools/farm/slurm/ci-test");
+    assert!(ci.contains("tools/farm/slurm/shard.sbatch") && ci.contains("tools/farm/slurm/merge.sbatch"));
+    assert!(repo_file(".ci/run").contains("tools/farm/slurm/ci-test"));
+}
+
+/// render-shard, as every farm runs it: shard K of N into its part, and
+/// the unfinished part continued, not restarted, when the task reruns.
+#[test]
+fn render_shard_writes_and_continues_the_part() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let script = format!("{}/tools/farm/render-shard", env!("CARGO_MANIFEST_DIR"));
+    let bin = assert_cmd::cargo::cargo_bin("trazo");
+    let scene = scene_in(d);
+    let run = |scene: &str| {
+        std::process::Command::new("bash")
+            .arg(&script)
+            .args(["2", "3", scene, "parts", "--spp", "24", "--width", "8", "--height", "8"])
+            .current_dir(d)
+            .env("TRAZO", &bin)
+            .output()
+            .unwrap()
+    };
+    let out = run(&scene);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let part = d.join("parts/shard-2-of-3.trazo-part");
+    let first = Checkpoint::read(&part).unwrap();
+    assert_eq!(first.job_value("shard"), Some("2/3"));
+    // Run again: the finished part is resumed (nothing to add), not refused.
+    let out = run(&scene);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(Checkpoint::read(&part).unwrap().film == first.film);
+}
