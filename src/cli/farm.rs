@@ -331,7 +331,7 @@ pub(super) fn run_merge(args: MergeArgs) -> Result<()> {
         denoiser,
         aovs: &aovs,
     };
-    let note = images.write(&film)?;
+    let (_, note) = images.write(&film)?;
     if !missing.is_empty() || !unfinished.is_empty() {
         eprintln!(
             "warning: --partial: the image holds {held} of {target} samples per pixel ({} shards of {count} present)",

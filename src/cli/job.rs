@@ -225,7 +225,7 @@ fn hash_and_path(entry: &str) -> Option<(&str, &str)> {
 
 /// The render arguments a checkpoint holds, with the run-control flags
 /// (threads, output verbosity, time limit, checkpoint interval, memory
-/// limit) of the command that resumes it (where it gives no time limit, a
+/// limit, display server) of the command that resumes it (where it gives no time limit, a
 /// render that only its time limit ends gets that limit afresh); and the
 /// checkpoint.
 pub(super) fn resume_args(path: &Path, current: &RenderArgs) -> Result<(RenderArgs, Checkpoint)> {
@@ -265,5 +265,6 @@ pub(super) fn resume_args(path: &Path, current: &RenderArgs) -> Result<(RenderAr
     args.time_limit = current.time_limit.or(args.time_limit);
     args.checkpoint_every = current.checkpoint_every;
     args.max_memory = current.max_memory;
+    args.display_server = current.display_server.clone();
     Ok((args, checkpoint))
 }

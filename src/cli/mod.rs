@@ -268,8 +268,8 @@ struct RenderArgs {
     /// Continue an interrupted render from its checkpoint, which holds the
     /// scene, the output and every setting; the image is the same, bit for
     /// bit, as if it had never stopped. Only --threads, --time-limit,
-    /// --checkpoint-every, --max-memory, --quiet and --verbose may be given
-    /// with it.
+    /// --checkpoint-every, --max-memory, --display-server, --quiet and
+    /// --verbose may be given with it.
     #[arg(long, value_name = "CHECKPOINT", conflicts_with_all = [
         "scene", "width", "height", "max_depth", "march_step", "seed", "sampler", "tonemap", "exposure", "defines",
         "output", "spp", "integrator", "sampling", "aov", "denoise", "photons", "caustic_photons",
@@ -277,12 +277,29 @@ struct RenderArgs {
     ])]
     resume: Option<PathBuf>,
 
+    /// Show the render as it progresses in the tev image viewer listening
+    /// at HOST:PORT (tev's default is 127.0.0.1:14158): the image after
+    /// each pass, the auxiliary images as channel groups, and at the end
+    /// the image written. A viewer that is not there or goes away does not
+    /// stop the render (a warning; trazo tries again after each pass).
+    #[arg(long, value_name = "HOST:PORT", value_parser = parse_host_port)]
+    display_server: Option<String>,
+
     /// Refuse to start a render whose estimated memory (film, auxiliary
     /// images, geometry and BVH, textures) exceeds this size: a number of
     /// bytes with K, M, G or T (e.g. 512M, 16G). Default: 90% of the
     /// machine's memory.
     #[arg(long, value_name = "SIZE", value_parser = scene::memory::parse_size)]
     max_memory: Option<u64>,
+}
+
+fn parse_host_port(s: &str) -> std::result::Result<String, String> {
+    match s.rsplit_once(':') {
+        Some((host, port)) if !host.is_empty() && port.parse::<u16>().is_ok_and(|p| p > 0) => Ok(s.to_string()),
+        _ => Err(format!(
+            "expected HOST:PORT (tev listens on 127.0.0.1:14158), got \"{s}\""
+        )),
+    }
 }
 
 fn parse_shard(s: &str) -> std::result::Result<Shard, String> {
@@ -685,15 +702,33 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             eprintln!("warning: {e}");
         }
     };
+    let display = args.display_server.as_deref().map(|address| {
+        let name = output
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        crate::film::display::Display::start(address, &name)
+    });
+    // At most a few frames a second, and none while one is being sent.
+    let mut last_frame: Option<Instant> = None;
+    let mut show = |film: &Film, _: &RenderStats| {
+        let Some(d) = &display else { return };
+        if d.ready() && last_frame.is_none_or(|t| t.elapsed() >= Duration::from_millis(250)) {
+            d.offer(display_frame(film, &film.to_image(), &aovs));
+            last_frame = Some(Instant::now());
+        }
+    };
     let mut control = Control {
         resume: resume.map(|(_, c)| (c.film, c.stats)),
         cancel: Some(interrupt.as_ref()),
         deadline: args.time_limit.map(|t| started + Duration::from_secs_f64(t)),
         checkpoint_every: args.checkpoint_every.map(Duration::from_secs_f64),
         on_checkpoint: Some(&mut save),
+        on_pass: Some(&mut show),
     };
-    let out = render_controlled(&scene, &options, &mut control)?;
+    let out = render_controlled(&scene, &options, &mut control);
     drop(control);
+    let out = out?;
     let st = &out.stats;
     if st.spp == 0 {
         eprintln!("interrupted before the first pass was complete: nothing was written");
@@ -701,6 +736,9 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     }
     if let Some(shard) = args.shard {
         job.checkpoint(&out.film, st).write(&output)?;
+        if let Some(d) = display {
+            d.finish(display_frame(&out.film, &out.film.to_image(), &aovs));
+        }
         farm::report_shard(shard, &output, &s, &out, args.scene.quiet);
         return Ok(match out.stopped {
             Some(Stop::Interrupted) => ExitCode::from(EXIT_INTERRUPTED),
@@ -714,7 +752,11 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         denoiser,
         aovs: &aovs,
     };
-    let denoise_note = images.write(&out.film)?;
+    let (image, denoise_note) = images.write(&out.film)?;
+    if let Some(d) = display {
+        // The viewer ends with the image written (denoised, if it was).
+        d.finish(display_frame(&out.film, &image, &aovs));
+    }
     match out.stopped {
         Some(_) if resumable => job.checkpoint(&out.film, st).write(&checkpoint_file)?,
         _ => {
@@ -804,6 +846,21 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     })
 }
 
+/// What the live preview shows: `image`, and the auxiliary images asked
+/// for as channel groups named after them.
+fn display_frame(film: &Film, image: &crate::film::Image, aovs: &[Aov]) -> crate::film::display::Frame {
+    let extra: Vec<(Aov, crate::film::Image)> = aovs
+        .iter()
+        .filter_map(|a| film.aov_image(*a).map(|img| (*a, img)))
+        .collect();
+    let mut layers: Vec<(&str, &[crate::Rgb], usize)> = vec![("", &image.pixels, 3)];
+    for (aov, img) in &extra {
+        let n = if *aov == Aov::Depth { 1 } else { 3 };
+        layers.push((aov.name(), &img.pixels, n));
+    }
+    crate::film::display::Frame::new(image.width, image.height, &layers)
+}
+
 /// The images a render writes from its film: the image (denoised, with
 /// the noisy one beside it, if asked) and the auxiliary images.
 struct ImageOutputs<'a> {
@@ -815,18 +872,21 @@ struct ImageOutputs<'a> {
 }
 
 impl ImageOutputs<'_> {
-    /// Writes them; returns what to say about the denoising, if any.
-    fn write(&self, film: &Film) -> Result<Option<String>> {
+    /// Writes them; returns the image (denoised, if it was) and what to
+    /// say about the denoising, if any.
+    fn write(&self, film: &Film) -> Result<(crate::film::Image, Option<String>)> {
         let (output, tonemap, exposure) = (self.output, self.tonemap, self.exposure);
         let mut note = None;
+        let mut image = film.to_image();
         match self.denoiser {
-            None => write_image(output, &film.to_image(), tonemap, exposure)?,
+            None => write_image(output, &image, tonemap, exposure)?,
             Some(kind) => {
                 let noisy = sibling_path(output, "noisy");
                 write_image(&noisy, &film.to_image(), tonemap, exposure)?;
                 let start = Instant::now();
                 let d = denoise_film(film, kind)?;
                 write_image(output, &d.image, tonemap, exposure)?;
+                image = d.image;
                 note = Some(format!(
                     "denoised with {} in {:.2} s (the noisy image: {})",
                     d.denoiser,
@@ -841,7 +901,7 @@ impl ImageOutputs<'_> {
                 .ok_or_else(|| Error::Invalid("the auxiliary images were not recorded".into()))?;
             write_image(&aov_path(output, *aov), &img, tonemap, 0.0)?;
         }
-        Ok(note)
+        Ok((image, note))
     }
 }
 

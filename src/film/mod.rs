@@ -9,6 +9,7 @@
 //! Tone mapping happens only when an 8-bit image is written.
 
 pub mod denoise;
+pub mod display;
 pub mod filter;
 pub mod io;
 pub mod metrics;

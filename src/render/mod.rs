@@ -179,6 +179,8 @@ pub struct Control<'a> {
     pub checkpoint_every: Option<Duration>,
     /// Saves the state at a pass boundary (writes a checkpoint file).
     pub on_checkpoint: Option<&'a mut CheckpointFn<'a>>,
+    /// Called after every pass with the film so far (a live preview).
+    pub on_pass: Option<&'a mut CheckpointFn<'a>>,
 }
 
 /// Renders `scene` with its own settings into an in-memory image, using
@@ -686,6 +688,9 @@ fn render_passes<I: Integrator>(
         stats.samples += w as u64 * h as u64 * (end - first) as u64;
         stats.spp += end - first;
         stats.seconds = earlier_seconds + start.elapsed().as_secs_f64();
+        if let Some(show) = control.on_pass.as_mut() {
+            show(&film, &stats);
+        }
         if options.time_limit.is_some_and(|limit| start.elapsed() >= limit) {
             break;
         }
