@@ -9,7 +9,7 @@
 //! same render agree on all of these but the paths (shards may run on
 //! machines that mount the scene elsewhere), the shard and the output.
 
-use super::{ImageOutputs, aov_path};
+use super::ImageOutputs;
 use crate::error::{Error, Result};
 use crate::film::denoise::DenoiserKind;
 use crate::film::{Aov, Film};
@@ -344,11 +344,7 @@ pub(super) fn run_merge(args: MergeArgs) -> Result<()> {
         film.width,
         film.height,
         stats.seconds,
-        std::iter::once(output.clone())
-            .chain(aovs.iter().map(|a| aov_path(&output, *a)))
-            .map(|p| p.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
+        images.names()
     );
     if stats.invalid_samples > 0 {
         eprintln!(

@@ -815,11 +815,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             st.samples_per_second() / 1e6,
             st.rays_per_second() / 1e6,
             st.threads,
-            std::iter::once(output.clone())
-                .chain(aovs.iter().map(|a| aov_path(&output, *a)))
-                .map(|p| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
+            images.names()
         );
         if let Some(note) = denoise_note {
             eprintln!("{note}");
@@ -872,6 +868,15 @@ struct ImageOutputs<'a> {
 }
 
 impl ImageOutputs<'_> {
+    /// The files [`ImageOutputs::write`] writes, for the summary line.
+    fn names(&self) -> String {
+        std::iter::once(self.output.to_path_buf())
+            .chain(self.aovs.iter().map(|a| aov_path(self.output, *a)))
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
     /// Writes them; returns the image (denoised, if it was) and what to
     /// say about the denoising, if any.
     fn write(&self, film: &Film) -> Result<(crate::film::Image, Option<String>)> {
