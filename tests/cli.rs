@@ -497,6 +497,21 @@ fn compare_renders_side_by_side_with_a_table() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stdout).contains("rel. MSE"));
 
+    // Without --spp, the scene's samples per pixel, as `trazo render`.
+    let scene = write_scene(dir.path(), "three.toml", &SPHERE.replace("spp = 1", "spp = 3"));
+    let o = trazo()
+        .args(["compare", "-q", "--integrators", "whitted,path:mis", "-o"])
+        .arg(&out)
+        .arg(&scene)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        table.contains("| whitted | 3 |") && table.contains("| path:mis | 3 |"),
+        "{table}"
+    );
+
     let e = fails(&["compare", "--integrators", "path:magic", "-o", out.to_str().unwrap()]);
     assert!(e.contains("magic"), "{e}");
     let e = fails(&[

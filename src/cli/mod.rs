@@ -341,8 +341,9 @@ struct CompareArgs {
     #[arg(long, value_name = "LIST", default_value = "whitted,path:uniform,path:mis")]
     integrators: String,
 
-    /// Samples per pixel for every contestant (equal samples). With --time,
-    /// the most samples per pixel.
+    /// Samples per pixel for every contestant (equal samples); default: the
+    /// scene's, as `trazo render` renders it. With --time, the most samples
+    /// per pixel.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=(MAX_SPP as i64)))]
     spp: Option<u32>,
 
@@ -1006,19 +1007,20 @@ fn run_compare(args: CompareArgs) -> Result<()> {
     if contestants.is_empty() {
         return Err(Error::Invalid("--integrators lists no integrator".into()));
     }
+    if let Some(t) = args.time.filter(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(Error::Invalid(format!(
+            "--time must be a positive number of seconds, got {t}"
+        )));
+    }
+    let desc = args.scene.load()?;
     let budget = match args.time {
-        Some(t) if !(t.is_finite() && t > 0.0) => {
-            return Err(Error::Invalid(format!(
-                "--time must be a positive number of seconds, got {t}"
-            )));
-        }
         Some(t) => Budget::Time {
             limit: Duration::from_secs_f64(t),
             max_spp: args.spp.unwrap_or(MAX_SPP),
         },
-        None => Budget::Spp(args.spp.unwrap_or(16)),
+        // Equal samples: the scene's own, as `trazo render` renders it.
+        None => Budget::Spp(args.spp.unwrap_or(desc.settings.spp)),
     };
-    let desc = args.scene.load()?;
     let reference = args
         .reference
         .as_deref()
