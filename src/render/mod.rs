@@ -405,14 +405,14 @@ pub fn shard_passes(spp: u32, shard: Shard) -> Result<Vec<(u32, u32)>> {
     let mut order: Vec<usize> = (0..passes.len()).collect();
     // Stable: equal passes keep schedule order.
     order.sort_by_key(|&i| std::cmp::Reverse(passes[i].1 - passes[i].0));
-    let mut load = vec![0u32; shard.count as usize];
+    // The least-loaded shard, lowest index first: a min-heap of (load, shard).
+    let mut shards: std::collections::BinaryHeap<std::cmp::Reverse<(u32, u32)>> =
+        (0..shard.count).map(|k| std::cmp::Reverse((0, k))).collect();
     let mut owner = vec![0u32; passes.len()];
     for i in order {
-        let k = (0..load.len())
-            .min_by_key(|&k| (load[k], k))
-            .expect("at least one shard");
-        load[k] += passes[i].1 - passes[i].0;
-        owner[i] = k as u32;
+        let std::cmp::Reverse((load, k)) = shards.pop().expect("at least one shard");
+        shards.push(std::cmp::Reverse((load + passes[i].1 - passes[i].0, k)));
+        owner[i] = k;
     }
     Ok(passes
         .into_iter()
