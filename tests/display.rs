@@ -123,7 +123,8 @@ fn the_last_update_is_the_written_image_with_its_auxiliary_images() {
         viewer.serve(&mut stream);
         viewer
     });
-    // 150 pixels wide: tiles of 128 and 22.
+    // 150 pixels wide: tiles of 128 and 22; an exposure, which the float
+    // file and the viewer's image both get.
     trazo(d)
         .args([
             "render",
@@ -136,6 +137,7 @@ fn the_last_update_is_the_written_image_with_its_auxiliary_images() {
             "--aov",
             "albedo,depth",
         ])
+        .args(["--exposure", "1"])
         .args(["--display-server", &address, "-q", "-o", "out.pfm"])
         .assert()
         .success();

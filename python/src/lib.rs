@@ -248,7 +248,7 @@ fn render<'py>(
     let out = out.map_err(error)?;
     // The scene's exposure, as the command line applies it to the image
     // files it writes (the same product, so the same bits).
-    let scale = 2f32.powf(built.settings.exposure);
+    let scale = trazo::film::io::exposure_scale(built.settings.exposure);
     let mut image = out.film.to_image();
     if scale != 1.0 {
         image.pixels.iter_mut().for_each(|p| *p *= scale);

@@ -715,7 +715,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     let mut show = |film: &Film, _: &RenderStats| {
         let Some(d) = &display else { return };
         if d.ready() && last_frame.is_none_or(|t| t.elapsed() >= Duration::from_millis(250)) {
-            d.offer(display_frame(film, &film.to_image(), &aovs));
+            d.offer(display_frame(film, &film.to_image(), s.exposure, &aovs));
             last_frame = Some(Instant::now());
         }
     };
@@ -738,7 +738,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     if let Some(shard) = args.shard {
         job.checkpoint(&out.film, st).write(&output)?;
         if let Some(d) = display {
-            d.finish(display_frame(&out.film, &out.film.to_image(), &aovs));
+            d.finish(display_frame(&out.film, &out.film.to_image(), s.exposure, &aovs));
         }
         farm::report_shard(shard, &output, &s, &out, args.scene.quiet);
         return Ok(match out.stopped {
@@ -756,7 +756,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     let (image, denoise_note) = images.write(&out.film)?;
     if let Some(d) = display {
         // The viewer ends with the image written (denoised, if it was).
-        d.finish(display_frame(&out.film, &image, &aovs));
+        d.finish(display_frame(&out.film, &image, s.exposure, &aovs));
     }
     match out.stopped {
         Some(_) if resumable => job.checkpoint(&out.film, st).write(&checkpoint_file)?,
@@ -845,7 +845,19 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
 
 /// What the live preview shows: `image`, and the auxiliary images asked
 /// for as channel groups named after them.
-fn display_frame(film: &Film, image: &crate::film::Image, aovs: &[Aov]) -> crate::film::display::Frame {
+fn display_frame(film: &Film, image: &crate::film::Image, exposure: f32, aovs: &[Aov]) -> crate::film::display::Frame {
+    // The exposure, as the float image files get it.
+    let scale = crate::film::io::exposure_scale(exposure);
+    let scaled;
+    let image = if scale == 1.0 {
+        image
+    } else {
+        scaled = crate::film::Image {
+            pixels: image.pixels.iter().map(|p| *p * scale).collect(),
+            ..image.clone()
+        };
+        &scaled
+    };
     let extra: Vec<(Aov, crate::film::Image)> = aovs
         .iter()
         .filter_map(|a| film.aov_image(*a).map(|img| (*a, img)))

@@ -58,12 +58,17 @@ impl ImageFormat {
     }
 }
 
+/// The factor an exposure of `exposure` stops multiplies radiance by.
+pub fn exposure_scale(exposure: f32) -> f32 {
+    2f32.powf(exposure)
+}
+
 /// Writes `image` in the format its extension names. 8-bit formats get
 /// `exposure` (stops) and `tonemap` applied, then the sRGB curve; float
 /// formats get the exposure only.
 pub fn write_image(path: &Path, image: &Image, tonemap: Tonemap, exposure: f32) -> Result<()> {
     let format = ImageFormat::from_path(path)?;
-    let scale = 2f32.powf(exposure);
+    let scale = exposure_scale(exposure);
     match format {
         ImageFormat::Png => {
             let bytes = encode_png(image, tonemap, scale)?;
