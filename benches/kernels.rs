@@ -16,7 +16,7 @@ use trazo::integrator::{Integrator, PathTracer, RayStats};
 use trazo::material::bsdf::{Bsdf, TransportMode};
 use trazo::material::conductor::{ConductorBsdf, ConductorFresnel};
 use trazo::material::lambert::LambertBsdf;
-use trazo::material::microfacet::Ggx;
+use trazo::material::microfacet::Microfacet;
 use trazo::render::{RenderOptions, render};
 use trazo::sampling::Pcg32;
 use trazo::sampling::{Sampler, SamplerKind};
@@ -231,7 +231,7 @@ fn bsdf_sampling(c: &mut Criterion) {
                     k: Rgb::new(3.9, 2.4, 2.2),
                 },
                 tint: Rgb::splat(1.0),
-                ggx: Ggx::isotropic(0.2),
+                microfacet: Microfacet::isotropic(0.2),
             }),
         ),
     ];

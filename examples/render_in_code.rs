@@ -36,6 +36,7 @@ fn main() -> Result<(), trazo::Error> {
             fresnel: ConductorDesc::Reflectance(Rgb::new(1.0, 0.78, 0.34)),
             tint: Rgb::ONE,
             roughness: (0.0, 0.0),
+            distribution: MicrofacetDistribution::Ggx,
         },
     );
     desc.materials.extend([red, gold, MaterialDesc::new("floor")]);

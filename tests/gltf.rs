@@ -368,6 +368,7 @@ fn materials_map_to_conductor_plastic_dielectric_and_diffuse() {
             fresnel: ConductorDesc::Reflectance(Rgb::new(0.9, 0.6, 0.2)),
             tint: Rgb::ONE,
             roughness: (0.25, 0.25),
+            distribution: MicrofacetDistribution::Ggx,
         }
     );
     let MaterialKindDesc::Plastic {
@@ -392,6 +393,7 @@ fn materials_map_to_conductor_plastic_dielectric_and_diffuse() {
             ior: 1.6,
             ext_ior: 1.0,
             roughness: 0.1f32 * 0.1,
+            distribution: MicrofacetDistribution::Ggx,
             reflect_tint: Rgb::ONE,
             transmit_tint: Rgb::new(0.9, 1.0, 0.9),
         }

@@ -130,6 +130,7 @@ fn white_furnace_smooth_glass_renders_one() {
             ior: 1.5,
             ext_ior: 1.0,
             roughness: 0.0,
+            distribution: MicrofacetDistribution::Ggx,
             reflect_tint: Rgb::ONE,
             transmit_tint: Rgb::ONE,
         },
@@ -147,6 +148,7 @@ fn white_furnace_rough_glass_and_mirror_conserve_energy() {
             fresnel: ConductorDesc::Mirror(Rgb::ONE),
             tint: Rgb::ONE,
             roughness: (0.0, 0.0),
+            distribution: MicrofacetDistribution::Ggx,
         },
     );
     assert_uniform(&render_film(&furnace(mirror, PathSampling::Mis)), 1.0, "mirror");
@@ -162,6 +164,7 @@ fn white_furnace_rough_glass_and_mirror_conserve_energy() {
                 ior: 1.5,
                 ext_ior: 1.0,
                 roughness: alpha,
+                distribution: MicrofacetDistribution::Ggx,
                 reflect_tint: Rgb::ONE,
                 transmit_tint: Rgb::ONE,
             },

@@ -11,7 +11,7 @@ use trazo::material::classic::ClassicBsdf;
 use trazo::material::conductor::{ConductorBsdf, ConductorFresnel};
 use trazo::material::dielectric::DielectricBsdf;
 use trazo::material::lambert::LambertBsdf;
-use trazo::material::microfacet::Ggx;
+use trazo::material::microfacet::{Microfacet, MicrofacetDistribution};
 use trazo::material::plastic::{CoatTables, PlasticBsdf, smooth_internal_reflectance};
 use trazo::material::{Bsdf, DirectionSampling, TransportMode};
 use trazo::sampling::Pcg32;
@@ -29,16 +29,24 @@ fn coat_smooth() -> f32 {
     smooth_internal_reflectance(1.5)
 }
 
+/// The rough plastics' coats under test: GGX and Beckmann.
+fn coat_roughness() -> [Microfacet; 2] {
+    [
+        Microfacet::isotropic(0.3),
+        Microfacet::new(MicrofacetDistribution::Beckmann, 0.3, 0.3),
+    ]
+}
+
 /// Every BSDF configuration under test, with a name.
-fn bsdfs<'a>(tables: &'a CoatTables) -> Vec<(String, Bsdf<'a>)> {
+fn bsdfs<'a>(tables: &'a [CoatTables; 2]) -> Vec<(String, Bsdf<'a>)> {
     let complex = ConductorFresnel::Complex {
         eta: Rgb::new(0.2, 0.92, 1.1),
         k: Rgb::new(3.9, 2.45, 2.14),
     };
-    let plastic = |alpha: f32, tables: Option<&'a CoatTables>| PlasticBsdf {
+    let plastic = |microfacet: Microfacet, tables: Option<&'a CoatTables>| PlasticBsdf {
         diffuse: Rgb::new(0.6, 0.3, 0.2),
         eta: 1.5,
-        ggx: Ggx::isotropic(alpha),
+        microfacet,
         specular_tint: Rgb::ONE,
         nonlinear: false,
         specular_weight: 0.6,
@@ -79,7 +87,7 @@ fn bsdfs<'a>(tables: &'a CoatTables) -> Vec<(String, Bsdf<'a>)> {
             Bsdf::Conductor(ConductorBsdf {
                 fresnel: complex,
                 tint: Rgb::ONE,
-                ggx: Ggx::isotropic(0.15),
+                microfacet: Microfacet::isotropic(0.15),
             }),
         ),
         (
@@ -87,7 +95,7 @@ fn bsdfs<'a>(tables: &'a CoatTables) -> Vec<(String, Bsdf<'a>)> {
             Bsdf::Conductor(ConductorBsdf {
                 fresnel: ConductorFresnel::Schlick(Rgb::new(0.9, 0.6, 0.3)),
                 tint: Rgb::ONE,
-                ggx: Ggx::isotropic(0.6),
+                microfacet: Microfacet::isotropic(0.6),
             }),
         ),
         (
@@ -95,17 +103,39 @@ fn bsdfs<'a>(tables: &'a CoatTables) -> Vec<(String, Bsdf<'a>)> {
             Bsdf::Conductor(ConductorBsdf {
                 fresnel: complex,
                 tint: Rgb::ONE,
-                ggx: Ggx {
-                    alpha_x: 0.1,
-                    alpha_y: 0.5,
-                },
+                microfacet: Microfacet::new(MicrofacetDistribution::Ggx, 0.1, 0.5),
+            }),
+        ),
+        (
+            "rough conductor Beckmann α=0.3".into(),
+            Bsdf::Conductor(ConductorBsdf {
+                fresnel: complex,
+                tint: Rgb::ONE,
+                microfacet: Microfacet::new(MicrofacetDistribution::Beckmann, 0.3, 0.3),
+            }),
+        ),
+        (
+            "anisotropic conductor Beckmann α=(0.4, 0.08)".into(),
+            Bsdf::Conductor(ConductorBsdf {
+                fresnel: ConductorFresnel::Schlick(Rgb::new(0.9, 0.6, 0.3)),
+                tint: Rgb::ONE,
+                microfacet: Microfacet::new(MicrofacetDistribution::Beckmann, 0.4, 0.08),
+            }),
+        ),
+        (
+            "rough dielectric Beckmann α=0.25 η=1.5".into(),
+            Bsdf::Dielectric(DielectricBsdf {
+                eta: 1.5,
+                microfacet: Microfacet::new(MicrofacetDistribution::Beckmann, 0.25, 0.25),
+                reflect_tint: Rgb::ONE,
+                transmit_tint: Rgb::ONE,
             }),
         ),
         (
             "rough dielectric α=0.2 η=1.5".into(),
             Bsdf::Dielectric(DielectricBsdf {
                 eta: 1.5,
-                ggx: Ggx::isotropic(0.2),
+                microfacet: Microfacet::isotropic(0.2),
                 reflect_tint: Rgb::ONE,
                 transmit_tint: Rgb::ONE,
             }),
@@ -114,22 +144,29 @@ fn bsdfs<'a>(tables: &'a CoatTables) -> Vec<(String, Bsdf<'a>)> {
             "rough dielectric α=0.5 η=1.33".into(),
             Bsdf::Dielectric(DielectricBsdf {
                 eta: 1.33,
-                ggx: Ggx::isotropic(0.5),
+                microfacet: Microfacet::isotropic(0.5),
                 reflect_tint: Rgb::ONE,
                 transmit_tint: Rgb::ONE,
             }),
         ),
         (
             "smooth plastic (diffuse part)".into(),
-            Bsdf::Plastic(plastic(0.0, None)),
+            Bsdf::Plastic(plastic(Microfacet::isotropic(0.0), None)),
         ),
-        ("rough plastic α=0.3".into(), Bsdf::Plastic(plastic(0.3, Some(tables)))),
+        (
+            "rough plastic α=0.3".into(),
+            Bsdf::Plastic(plastic(coat_roughness()[0], Some(&tables[0]))),
+        ),
+        (
+            "rough plastic Beckmann α=0.3".into(),
+            Bsdf::Plastic(plastic(coat_roughness()[1], Some(&tables[1]))),
+        ),
     ]
 }
 
 #[test]
 fn bsdf_sampling_matches_the_density() {
-    let tables = CoatTables::new(&Ggx::isotropic(0.3), 1.5);
+    let tables = coat_roughness().map(|m| CoatTables::new(&m, 1.5));
     let configs = bsdfs(&tables);
     let incident = [dir(20.0, 30.0), dir(65.0, 200.0), dir(150.0, 80.0)];
     let strategies = [
@@ -230,7 +267,7 @@ fn bsdf_sampling_matches_the_density() {
 /// density). No probability is lost or invented.
 #[test]
 fn densities_integrate_to_the_share_of_returned_samples() {
-    let tables = CoatTables::new(&Ggx::isotropic(0.3), 1.5);
+    let tables = coat_roughness().map(|m| CoatTables::new(&m, 1.5));
     let mode = TransportMode::Radiance;
     for (name, bsdf) in bsdfs(&tables) {
         for wo in [dir(35.0, 10.0), dir(70.0, 100.0), dir(120.0, 250.0)] {

@@ -6,7 +6,7 @@
 //! Two-sided.
 
 use super::bsdf::{BsdfSample, TransportMode, flip_z, reflect_local, same_hemisphere};
-use super::microfacet::Ggx;
+use super::microfacet::Microfacet;
 use super::optics::{fresnel_conductor, fresnel_schlick};
 use crate::color::Rgb;
 use glam::{Vec2, Vec3};
@@ -55,12 +55,12 @@ pub struct ConductorBsdf {
     /// Colour multiplier (Mitsuba's `specular_reflectance`).
     pub tint: Rgb,
     /// Microfacet roughness; smooth below [`super::microfacet::SMOOTH_ALPHA`].
-    pub ggx: Ggx,
+    pub microfacet: Microfacet,
 }
 
 impl ConductorBsdf {
     pub(crate) fn eval(&self, wo: Vec3, wi: Vec3, _mode: TransportMode) -> Rgb {
-        if self.ggx.is_smooth() || !same_hemisphere(wo, wi) {
+        if self.microfacet.is_smooth() || !same_hemisphere(wo, wi) {
             return Rgb::ZERO;
         }
         let (wo, wi) = if wo.z < 0.0 { (flip_z(wo), flip_z(wi)) } else { (wo, wi) };
@@ -69,13 +69,13 @@ impl ConductorBsdf {
             return Rgb::ZERO;
         }
         let h = h.normalize();
-        let d = self.ggx.d(h);
-        let g = self.ggx.g(wo, wi);
+        let d = self.microfacet.d(h);
+        let g = self.microfacet.g(wo, wi);
         self.tint * self.fresnel.eval(wo.dot(h)) * (d * g / (4.0 * wo.z * wi.z))
     }
 
     pub(crate) fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if self.ggx.is_smooth() || !same_hemisphere(wo, wi) {
+        if self.microfacet.is_smooth() || !same_hemisphere(wo, wi) {
             return 0.0;
         }
         let (wo, wi) = if wo.z < 0.0 { (flip_z(wo), flip_z(wi)) } else { (wo, wi) };
@@ -85,11 +85,11 @@ impl ConductorBsdf {
         }
         let h = h.normalize();
         // Reflection maps normals to directions with Jacobian 1/(4 |wo·h|).
-        self.ggx.pdf_visible_normal(wo, h) / (4.0 * wo.dot(h).abs())
+        self.microfacet.pdf_visible_normal(wo, h) / (4.0 * wo.dot(h).abs())
     }
 
     pub(crate) fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
-        if self.ggx.is_smooth() {
+        if self.microfacet.is_smooth() {
             return self.sample_delta(wo, u_lobe, mode);
         }
         if wo.z == 0.0 {
@@ -97,7 +97,7 @@ impl ConductorBsdf {
         }
         let flip = wo.z < 0.0;
         let wo_up = if flip { flip_z(wo) } else { wo };
-        let h = self.ggx.sample_visible_normal(wo_up, u);
+        let h = self.microfacet.sample_visible_normal(wo_up, u);
         let wi_up = 2.0 * wo_up.dot(h) * h - wo_up;
         if wi_up.z <= 0.0 {
             return None;
@@ -117,11 +117,11 @@ impl ConductorBsdf {
     }
 
     pub(crate) fn delta_probability(&self, _wo: Vec3) -> f32 {
-        if self.ggx.is_smooth() { 1.0 } else { 0.0 }
+        if self.microfacet.is_smooth() { 1.0 } else { 0.0 }
     }
 
     pub(crate) fn sample_delta(&self, wo: Vec3, _u: f32, _mode: TransportMode) -> Option<BsdfSample> {
-        if !self.ggx.is_smooth() || wo.z == 0.0 {
+        if !self.microfacet.is_smooth() || wo.z == 0.0 {
             return None;
         }
         let wi = reflect_local(wo);
@@ -135,7 +135,7 @@ impl ConductorBsdf {
     }
 
     pub(crate) fn has_smooth(&self) -> bool {
-        !self.ggx.is_smooth()
+        !self.microfacet.is_smooth()
     }
 
     pub(crate) fn albedo(&self) -> Rgb {

@@ -13,7 +13,7 @@
 //! ([`TransportMode::Importance`]) are not scaled.
 
 use super::bsdf::{BsdfSample, TransportMode, same_hemisphere};
-use super::microfacet::Ggx;
+use super::microfacet::Microfacet;
 use super::optics::{fresnel_dielectric, reflect, refract};
 use crate::color::Rgb;
 use glam::{Vec2, Vec3};
@@ -24,7 +24,7 @@ pub struct DielectricBsdf {
     /// Relative index of refraction, inside over outside.
     pub eta: f32,
     /// Roughness; smooth below [`super::microfacet::SMOOTH_ALPHA`].
-    pub ggx: Ggx,
+    pub microfacet: Microfacet,
     /// Multiplier of reflected light (Mitsuba's `specular_reflectance`).
     pub reflect_tint: Rgb,
     /// Multiplier of transmitted light (Mitsuba's `specular_transmittance`).
@@ -63,14 +63,14 @@ impl DielectricBsdf {
     }
 
     pub(crate) fn eval(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> Rgb {
-        if self.eta == 1.0 || self.ggx.is_smooth() {
+        if self.eta == 1.0 || self.microfacet.is_smooth() {
             return Rgb::ZERO;
         }
         let Some((wm, etap, reflect)) = self.half_vector(wo, wi) else {
             return Rgb::ZERO;
         };
         let f = fresnel_dielectric(wo.dot(wm), self.eta);
-        let (d, g) = (self.ggx.d(wm), self.ggx.g(wo, wi));
+        let (d, g) = (self.microfacet.d(wm), self.microfacet.g(wo, wi));
         if reflect {
             return self.reflect_tint * (d * g * f / (4.0 * wi.z * wo.z).abs());
         }
@@ -83,7 +83,7 @@ impl DielectricBsdf {
     }
 
     pub(crate) fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if self.eta == 1.0 || self.ggx.is_smooth() {
+        if self.eta == 1.0 || self.microfacet.is_smooth() {
             return 0.0;
         }
         let Some((wm, etap, reflect)) = self.half_vector(wo, wi) else {
@@ -91,7 +91,7 @@ impl DielectricBsdf {
         };
         let r = fresnel_dielectric(wo.dot(wm), self.eta);
         let t = 1.0 - r;
-        let pdf_m = self.ggx.pdf_visible_normal(wo, wm);
+        let pdf_m = self.microfacet.pdf_visible_normal(wo, wm);
         if reflect {
             pdf_m / (4.0 * wo.dot(wm).abs()) * r
         } else {
@@ -101,13 +101,13 @@ impl DielectricBsdf {
     }
 
     pub(crate) fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
-        if self.eta == 1.0 || self.ggx.is_smooth() {
+        if self.eta == 1.0 || self.microfacet.is_smooth() {
             return self.sample_delta(wo, u_lobe, mode);
         }
         if wo.z == 0.0 {
             return None;
         }
-        let wm = self.ggx.sample_visible_normal(wo, u);
+        let wm = self.microfacet.sample_visible_normal(wo, u);
         let r = fresnel_dielectric(wo.dot(wm), self.eta);
         let wi = if u_lobe < r {
             let wi = reflect(wo, wm);
@@ -143,7 +143,7 @@ impl DielectricBsdf {
     }
 
     pub(crate) fn delta_probability(&self, _wo: Vec3) -> f32 {
-        if self.eta == 1.0 || self.ggx.is_smooth() {
+        if self.eta == 1.0 || self.microfacet.is_smooth() {
             1.0
         } else {
             0.0
@@ -151,7 +151,7 @@ impl DielectricBsdf {
     }
 
     pub(crate) fn sample_delta(&self, wo: Vec3, u: f32, mode: TransportMode) -> Option<BsdfSample> {
-        if wo.z == 0.0 || !(self.eta == 1.0 || self.ggx.is_smooth()) {
+        if wo.z == 0.0 || !(self.eta == 1.0 || self.microfacet.is_smooth()) {
             return None;
         }
         let r = fresnel_dielectric(wo.z, self.eta);
@@ -173,7 +173,7 @@ impl DielectricBsdf {
     }
 
     pub(crate) fn has_smooth(&self) -> bool {
-        !(self.eta == 1.0 || self.ggx.is_smooth())
+        !(self.eta == 1.0 || self.microfacet.is_smooth())
     }
 
     pub(crate) fn albedo(&self) -> Rgb {

@@ -37,7 +37,7 @@ use classic::ClassicBsdf;
 use conductor::{ConductorBsdf, ConductorFresnel};
 use dielectric::DielectricBsdf;
 use lambert::LambertBsdf;
-use microfacet::Ggx;
+pub use microfacet::{Microfacet, MicrofacetDistribution};
 use plastic::{CoatTables, PlasticBsdf};
 use thin::ThinBsdf;
 
@@ -70,15 +70,15 @@ pub enum MaterialKind {
         fresnel: ConductorFresnel,
         /// Colour multiplier.
         tint: Rgb,
-        /// GGX roughness along the tangent and the bitangent.
-        alpha: (f32, f32),
+        /// Microfacet roughness along the tangent and the bitangent.
+        microfacet: Microfacet,
     },
     /// Glass, smooth or rough.
     Dielectric {
         /// Relative index of refraction, inside over outside.
         eta: f32,
-        /// GGX roughness.
-        alpha: f32,
+        /// Microfacet roughness.
+        microfacet: Microfacet,
         /// Reflection multiplier.
         reflect_tint: Rgb,
         /// Transmission multiplier.
@@ -90,8 +90,8 @@ pub enum MaterialKind {
         diffuse: Texture,
         /// Relative index of refraction of the coat.
         eta: f32,
-        /// GGX roughness of the coat.
-        alpha: f32,
+        /// Microfacet roughness of the coat (isotropic).
+        microfacet: Microfacet,
         /// Coat reflection multiplier.
         specular_tint: Rgb,
         /// Whether internal scattering saturates the colour.
@@ -231,12 +231,11 @@ impl Material {
     pub fn plastic(
         diffuse: Texture,
         eta: f32,
-        alpha: f32,
+        microfacet: Microfacet,
         specular_tint: Rgb,
         nonlinear: bool,
         images: &[ImageTexture],
     ) -> Material {
-        let ggx = Ggx::isotropic(alpha);
         let d_mean = {
             let a = diffuse.average(images);
             (a.x + a.y + a.z) / 3.0
@@ -251,12 +250,12 @@ impl Material {
             kind: MaterialKind::Plastic {
                 diffuse,
                 eta,
-                alpha,
+                microfacet,
                 specular_tint,
                 nonlinear,
                 specular_weight,
                 smooth_internal_reflectance: plastic::smooth_internal_reflectance(eta),
-                tables: (!ggx.is_smooth()).then(|| Box::new(CoatTables::new(&ggx, eta))),
+                tables: (!microfacet.is_smooth()).then(|| Box::new(CoatTables::new(&microfacet, eta))),
             },
             emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
@@ -338,10 +337,14 @@ impl Material {
                 kd: reflectance.eval(images, tc),
                 ..zero
             },
-            MaterialKind::Conductor { fresnel, tint, alpha } => {
+            MaterialKind::Conductor {
+                fresnel,
+                tint,
+                microfacet,
+            } => {
                 let f0 = *tint * fresnel.eval(1.0);
-                let a = alpha.0.max(alpha.1);
-                if a < microfacet::SMOOTH_ALPHA {
+                let a = microfacet.alpha_x.max(microfacet.alpha_y);
+                if microfacet.is_smooth() {
                     ClassicParams { kr: f0, ..zero }
                 } else {
                     ClassicParams {
@@ -359,19 +362,20 @@ impl Material {
             MaterialKind::Plastic {
                 diffuse,
                 eta,
-                alpha,
+                microfacet,
                 specular_tint,
                 ..
             } => {
                 let f0 = optics::fresnel_dielectric(1.0, *eta);
-                let smooth = *alpha < microfacet::SMOOTH_ALPHA;
+                let alpha = microfacet.alpha_x;
+                let smooth = microfacet.is_smooth();
                 ClassicParams {
                     kd: diffuse.eval(images, tc),
                     ks: *specular_tint * f0,
                     shininess: if smooth {
                         1000.0
                     } else {
-                        phong_exponent_for_alpha(*alpha)
+                        phong_exponent_for_alpha(alpha)
                     },
                     kr: if smooth { *specular_tint * f0 } else { Rgb::ZERO },
                     ..zero
@@ -419,29 +423,30 @@ impl Material {
                 Bsdf::Classic(ClassicBsdf::new(c.kd, c.ks, c.shininess, c.kr, c.kt, c.ior))
             }
             MaterialKind::Diffuse { reflectance } => diffuse_bsdf(reflectance, images, tc),
-            MaterialKind::Conductor { fresnel, tint, alpha } => Bsdf::Conductor(ConductorBsdf {
+            MaterialKind::Conductor {
+                fresnel,
+                tint,
+                microfacet,
+            } => Bsdf::Conductor(ConductorBsdf {
                 fresnel: *fresnel,
                 tint: *tint,
-                ggx: Ggx {
-                    alpha_x: alpha.0,
-                    alpha_y: alpha.1,
-                },
+                microfacet: *microfacet,
             }),
             MaterialKind::Dielectric {
                 eta,
-                alpha,
+                microfacet,
                 reflect_tint,
                 transmit_tint,
             } => Bsdf::Dielectric(DielectricBsdf {
                 eta: *eta,
-                ggx: Ggx::isotropic(*alpha),
+                microfacet: *microfacet,
                 reflect_tint: *reflect_tint,
                 transmit_tint: *transmit_tint,
             }),
             MaterialKind::Plastic {
                 diffuse,
                 eta,
-                alpha,
+                microfacet,
                 specular_tint,
                 nonlinear,
                 specular_weight,
@@ -450,7 +455,7 @@ impl Material {
             } => Bsdf::Plastic(PlasticBsdf {
                 diffuse: diffuse.eval(images, tc),
                 eta: *eta,
-                ggx: Ggx::isotropic(*alpha),
+                microfacet: *microfacet,
                 specular_tint: *specular_tint,
                 nonlinear: *nonlinear,
                 specular_weight: *specular_weight,

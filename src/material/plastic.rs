@@ -17,7 +17,7 @@
 //! Two-sided.
 
 use super::bsdf::{BsdfSample, TransportMode, flip_z, reflect_local, same_hemisphere};
-use super::microfacet::Ggx;
+use super::microfacet::Microfacet;
 use super::optics::{fresnel_dielectric, fresnel_diffuse_reflectance};
 use crate::color::Rgb;
 use crate::sampling::warp::{pdf_hemisphere_cosine, sample_hemisphere_cosine};
@@ -39,7 +39,7 @@ pub struct CoatTables {
 /// Directional albedo of a rough dielectric interface's reflection lobe,
 /// ∫ F·D·G/(4 cos θo) dωi, by quadrature over visible normals: with m drawn
 /// from D_wo, the integrand's weight is F(wo·m)·G/G1(wo) = F·G1(wi).
-pub fn rough_reflection_albedo(ggx: &Ggx, cos_o: f32, eta: f32) -> f32 {
+pub fn rough_reflection_albedo(microfacet: &Microfacet, cos_o: f32, eta: f32) -> f32 {
     let cos_o = cos_o.clamp(1e-6, 1.0);
     let wo = Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
     let n = 48;
@@ -47,12 +47,12 @@ pub fn rough_reflection_albedo(ggx: &Ggx, cos_o: f32, eta: f32) -> f32 {
     for i in 0..n {
         for j in 0..n {
             let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
-            let m = ggx.sample_visible_normal(wo, u);
+            let m = microfacet.sample_visible_normal(wo, u);
             let wi = 2.0 * wo.dot(m) * m - wo;
             if wi.z <= 0.0 {
                 continue;
             }
-            let weight = fresnel_dielectric(wo.dot(m), eta) * ggx.g(wo, wi) / ggx.g1(wo);
+            let weight = fresnel_dielectric(wo.dot(m), eta) * microfacet.g(wo, wi) / microfacet.g1(wo);
             debug_assert!(weight.is_finite());
             sum += weight as f64;
         }
@@ -63,7 +63,7 @@ pub fn rough_reflection_albedo(ggx: &Ggx, cos_o: f32, eta: f32) -> f32 {
 /// Directional albedo of a rough dielectric interface's transmission lobe,
 /// by quadrature over visible normals: with m drawn from D_wo, the weight of
 /// the refracted direction wt is (1 − F(wo·m))·G1(wt).
-pub fn rough_transmission_albedo(ggx: &Ggx, cos_o: f32, eta: f32) -> f32 {
+pub fn rough_transmission_albedo(microfacet: &Microfacet, cos_o: f32, eta: f32) -> f32 {
     let cos_o = cos_o.clamp(1e-6, 1.0);
     let wo = Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
     let n = 48;
@@ -71,29 +71,29 @@ pub fn rough_transmission_albedo(ggx: &Ggx, cos_o: f32, eta: f32) -> f32 {
     for i in 0..n {
         for j in 0..n {
             let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
-            let m = ggx.sample_visible_normal(wo, u);
+            let m = microfacet.sample_visible_normal(wo, u);
             let Some((wt, _)) = super::optics::refract(wo, m, eta) else {
                 continue; // total internal reflection
             };
             if wt.z >= 0.0 {
                 continue;
             }
-            sum += ((1.0 - fresnel_dielectric(wo.dot(m), eta)) * ggx.g1(wt)) as f64;
+            sum += ((1.0 - fresnel_dielectric(wo.dot(m), eta)) * microfacet.g1(wt)) as f64;
         }
     }
     (sum / (n * n) as f64) as f32
 }
 
 impl CoatTables {
-    /// Tables for a coat of roughness `ggx` and relative index `eta`, on the
+    /// Tables for a coat of roughness `microfacet` and relative index `eta`, on the
     /// same grid as Mitsuba's (so that both renderers agree).
-    pub fn new(ggx: &Ggx, eta: f32) -> CoatTables {
+    pub fn new(microfacet: &Microfacet, eta: f32) -> CoatTables {
         let mut external_transmittance = [0.0; TABLE_SIZE];
         let mut internal = 0.0f64;
         for (i, t) in external_transmittance.iter_mut().enumerate() {
             let mu = (i as f32 / (TABLE_SIZE - 1) as f32).max(1e-6);
-            *t = rough_transmission_albedo(ggx, mu, eta);
-            internal += (rough_reflection_albedo(ggx, mu, 1.0 / eta) * mu) as f64;
+            *t = rough_transmission_albedo(microfacet, mu, eta);
+            internal += (rough_reflection_albedo(microfacet, mu, 1.0 / eta) * mu) as f64;
         }
         CoatTables {
             external_transmittance,
@@ -125,7 +125,7 @@ pub struct PlasticBsdf<'a> {
     /// Relative index of refraction of the coat.
     pub eta: f32,
     /// Coat roughness; smooth below [`super::microfacet::SMOOTH_ALPHA`].
-    pub ggx: Ggx,
+    pub microfacet: Microfacet,
     /// Multiplier of the coat's reflection.
     pub specular_tint: Rgb,
     /// Whether the base's colour saturates with internal scattering.
@@ -140,7 +140,7 @@ pub struct PlasticBsdf<'a> {
 
 impl PlasticBsdf<'_> {
     fn rough(&self) -> Option<&CoatTables> {
-        if self.ggx.is_smooth() { None } else { self.tables }
+        if self.microfacet.is_smooth() { None } else { self.tables }
     }
 
     /// ρ' = ρ/(1 − R_int), or ρ/(1 − ρ·R_int) when nonlinear.
@@ -178,8 +178,8 @@ impl PlasticBsdf<'_> {
         match self.rough() {
             Some(t) => {
                 let h = (wo + wi).normalize();
-                let spec =
-                    fresnel_dielectric(wo.dot(h), self.eta) * self.ggx.d(h) * self.ggx.g(wo, wi) / (4.0 * wo.z * wi.z);
+                let spec = fresnel_dielectric(wo.dot(h), self.eta) * self.microfacet.d(h) * self.microfacet.g(wo, wi)
+                    / (4.0 * wo.z * wi.z);
                 let diff = self.base(t.internal_reflectance)
                     * (FRAC_1_PI * inv_eta2 * t.transmittance(wi.z) * t.transmittance(wo.z));
                 self.specular_tint * spec + diff
@@ -201,7 +201,7 @@ impl PlasticBsdf<'_> {
         let mut pdf = (1.0 - ps) * pdf_hemisphere_cosine(wi.z);
         if self.rough().is_some() {
             let h = (wo + wi).normalize();
-            pdf += ps * self.ggx.pdf_visible_normal(wo, h) / (4.0 * wo.dot(h).abs());
+            pdf += ps * self.microfacet.pdf_visible_normal(wo, h) / (4.0 * wo.dot(h).abs());
         }
         pdf
     }
@@ -219,7 +219,7 @@ impl PlasticBsdf<'_> {
             return Some(s);
         }
         let wi_up = if u_lobe < ps {
-            let h = self.ggx.sample_visible_normal(wo_up, u);
+            let h = self.microfacet.sample_visible_normal(wo_up, u);
             2.0 * wo_up.dot(h) * h - wo_up
         } else {
             sample_hemisphere_cosine(u)

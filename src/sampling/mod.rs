@@ -3,6 +3,7 @@
 
 pub mod chi2;
 pub mod distribution;
+pub mod erf;
 pub mod rng;
 pub mod sampler;
 pub mod sobol;

@@ -14,7 +14,7 @@ use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sp
 use crate::geometry::{Aabb, Transform, TriangleMesh};
 use crate::light::{Background, EnvironmentMap, Light, SpotProjection};
 use crate::material::conductor::ConductorFresnel;
-use crate::material::{Material, MaterialKind};
+use crate::material::{Material, MaterialKind, Microfacet};
 use crate::media::{Field, Medium, MediumInterface, Phase, VoxelGrid};
 use crate::sampling::Distribution1D;
 use crate::settings::IntegratorKind;
@@ -579,6 +579,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             fresnel,
             tint,
             roughness,
+            distribution,
         } => Material {
             kind: MaterialKind::Conductor {
                 fresnel: match fresnel {
@@ -587,7 +588,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
                     ConductorDesc::Mirror(r) => ConductorFresnel::Constant(*r),
                 },
                 tint: *tint,
-                alpha: *roughness,
+                microfacet: Microfacet::new(*distribution, roughness.0, roughness.1),
             },
             emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
@@ -597,12 +598,13 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             ior,
             ext_ior,
             roughness,
+            distribution,
             reflect_tint,
             transmit_tint,
         } => Material {
             kind: MaterialKind::Dielectric {
                 eta: ior / ext_ior,
-                alpha: *roughness,
+                microfacet: Microfacet::new(*distribution, *roughness, *roughness),
                 reflect_tint: *reflect_tint,
                 transmit_tint: *transmit_tint,
             },
@@ -615,12 +617,13 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             ior,
             ext_ior,
             roughness,
+            distribution,
             specular_tint,
             nonlinear,
         } => Material::plastic(
             color(diffuse),
             ior / ext_ior,
-            *roughness,
+            Microfacet::new(*distribution, *roughness, *roughness),
             *specular_tint,
             *nonlinear,
             images,

@@ -10,6 +10,7 @@ use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::geometry::{Transform, TriangleMesh};
 use crate::light::SpotProfile;
+pub use crate::material::MicrofacetDistribution;
 use crate::settings::{
     Filter, MAX_DEPTH, MAX_GATHER, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, RenderSettings,
 };
@@ -243,8 +244,10 @@ pub enum MaterialKindDesc {
         fresnel: ConductorDesc,
         /// Colour multiplier.
         tint: Rgb,
-        /// GGX α along tangent and bitangent (0: smooth).
+        /// Microfacet α along tangent and bitangent (0: smooth).
         roughness: (f32, f32),
+        /// The distribution of microfacet normals.
+        distribution: MicrofacetDistribution,
     },
     /// Glass.
     Dielectric {
@@ -252,8 +255,10 @@ pub enum MaterialKindDesc {
         ior: f32,
         /// Index of refraction outside.
         ext_ior: f32,
-        /// GGX α (0: smooth).
+        /// Microfacet α (0: smooth).
         roughness: f32,
+        /// The distribution of microfacet normals.
+        distribution: MicrofacetDistribution,
         /// Reflection multiplier.
         reflect_tint: Rgb,
         /// Transmission multiplier.
@@ -267,8 +272,10 @@ pub enum MaterialKindDesc {
         ior: f32,
         /// Index of refraction outside.
         ext_ior: f32,
-        /// GGX α of the coat (0: smooth).
+        /// Microfacet α of the coat (0: smooth).
         roughness: f32,
+        /// The distribution of the coat's microfacet normals.
+        distribution: MicrofacetDistribution,
         /// Coat reflection multiplier.
         specular_tint: Rgb,
         /// Colour saturation by internal scattering.
@@ -942,6 +949,7 @@ impl SceneDesc {
                     fresnel,
                     tint,
                     roughness: (ax, ay),
+                    ..
                 } => {
                     match fresnel {
                         ConductorDesc::Complex { eta, k } => {
@@ -963,6 +971,7 @@ impl SceneDesc {
                     roughness: r,
                     reflect_tint,
                     transmit_tint,
+                    ..
                 } => {
                     ior("ior", *int)?;
                     ior("ext_ior", *ext_ior)?;

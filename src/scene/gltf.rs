@@ -1555,6 +1555,7 @@ impl<'a> Reader<'a> {
                 fresnel: ConductorDesc::Reflectance(reflectance),
                 tint: Rgb::ONE,
                 roughness: (alpha, alpha),
+                distribution: MicrofacetDistribution::Ggx,
             }
         } else {
             if metallic > 0.0 {
@@ -1591,6 +1592,7 @@ impl<'a> Reader<'a> {
                     ior,
                     ext_ior: 1.0,
                     roughness: alpha,
+                    distribution: MicrofacetDistribution::Ggx,
                     reflect_tint: Rgb::ONE,
                     transmit_tint,
                 }
@@ -1610,6 +1612,7 @@ impl<'a> Reader<'a> {
                         ior,
                         ext_ior: 1.0,
                         roughness: alpha,
+                        distribution: MicrofacetDistribution::Ggx,
                         specular_tint: Rgb::ONE,
                         nonlinear: false,
                     }

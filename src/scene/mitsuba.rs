@@ -1306,33 +1306,37 @@ impl Loader {
         Ok(ColorSource::Texture(name))
     }
 
-    fn alpha(&mut self, f: &FileCtx, node: Node, props: &[Node], used: &mut Vec<String>) -> Result<(f32, f32)> {
-        if let Some(d) = self.string(f, props, "distribution", used)? {
-            if d == "beckmann" {
-                self.warn(
+    /// A rough BSDF's microfacet distribution and its α along u and v
+    /// (Mitsuba's default: Beckmann, α = 0.1).
+    fn alpha(
+        &mut self,
+        f: &FileCtx,
+        node: Node,
+        props: &[Node],
+        used: &mut Vec<String>,
+    ) -> Result<(MicrofacetDistribution, f32, f32)> {
+        let distribution = match self.string(f, props, "distribution", used)? {
+            Some(d) => MicrofacetDistribution::from_name(&d).ok_or_else(|| {
+                self.err(
                     f,
                     node,
-                    "the Beckmann distribution is approximated by GGX with the same alpha",
-                );
-            } else if d != "ggx" {
-                return Err(self.err(f, node, format!("unknown distribution \"{d}\"")));
-            }
-        } else {
-            self.warn(
-                f,
-                node,
-                "Mitsuba's default microfacet distribution (Beckmann) is approximated by GGX with the same alpha",
-            );
-        }
+                    format!("unknown distribution \"{d}\": expected \"beckmann\" or \"ggx\""),
+                )
+            })?,
+            None => MicrofacetDistribution::Beckmann,
+        };
+        // Mitsuba draws all microfacet normals instead of the visible ones
+        // when this is false: the same image, with more noise.
         let _ = self.boolean(f, props, "sample_visible", used)?;
         let a = self.float(f, props, "alpha", used)?;
         let au = self.float(f, props, "alpha_u", used)?;
         let av = self.float(f, props, "alpha_v", used)?;
-        Ok(match (a, au, av) {
+        let (u, v) = match (a, au, av) {
             (_, Some(u), Some(v)) => (u, v),
             (Some(a), _, _) => (a, a),
             _ => (0.1, 0.1),
-        })
+        };
+        Ok((distribution, u, v))
     }
 
     fn ior(
@@ -1409,10 +1413,11 @@ impl Loader {
                     .unwrap_or(ColorSource::Rgb(Rgb::splat(0.5))),
             },
             "conductor" | "roughconductor" => {
-                let roughness = if ty == "roughconductor" {
-                    self.alpha(f, node, &props, &mut used)?
+                let (distribution, roughness) = if ty == "roughconductor" {
+                    let (d, a, b) = self.alpha(f, node, &props, &mut used)?;
+                    (d, (a, b))
                 } else {
-                    (0.0, 0.0)
+                    (MicrofacetDistribution::Ggx, (0.0, 0.0))
                 };
                 let material = self.string(f, &props, "material", &mut used)?;
                 let eta = self.constant_color(f, node, &props, "eta", &mut used)?;
@@ -1451,6 +1456,7 @@ impl Loader {
                     fresnel,
                     tint,
                     roughness,
+                    distribution,
                 }
             }
             "null" => {
@@ -1465,14 +1471,14 @@ impl Loader {
                 return Ok(def);
             }
             "dielectric" | "roughdielectric" | "thindielectric" => {
-                let roughness = if ty == "roughdielectric" {
-                    let (a, b) = self.alpha(f, node, &props, &mut used)?;
+                let (distribution, roughness) = if ty == "roughdielectric" {
+                    let (d, a, b) = self.alpha(f, node, &props, &mut used)?;
                     if a != b {
                         self.warn(f, node, "anisotropic rough dielectrics are approximated as isotropic");
                     }
-                    a
+                    (d, a)
                 } else {
-                    0.0
+                    (MicrofacetDistribution::Ggx, 0.0)
                 };
                 let ior = self.ior(f, node, &props, "int_ior", 1.5046, &mut used)?;
                 let ext_ior = self.ior(f, node, &props, "ext_ior", 1.000277, &mut used)?;
@@ -1501,15 +1507,17 @@ impl Loader {
                     ior,
                     ext_ior,
                     roughness,
+                    distribution,
                     reflect_tint,
                     transmit_tint,
                 }
             }
             "plastic" | "roughplastic" => {
-                let roughness = if ty == "roughplastic" {
-                    self.alpha(f, node, &props, &mut used)?.0
+                let (distribution, roughness) = if ty == "roughplastic" {
+                    let (d, a, _) = self.alpha(f, node, &props, &mut used)?;
+                    (d, a)
                 } else {
-                    0.0
+                    (MicrofacetDistribution::Ggx, 0.0)
                 };
                 MaterialKindDesc::Plastic {
                     diffuse: self
@@ -1518,6 +1526,7 @@ impl Loader {
                     ior: self.ior(f, node, &props, "int_ior", 1.49, &mut used)?,
                     ext_ior: self.ior(f, node, &props, "ext_ior", 1.000277, &mut used)?,
                     roughness,
+                    distribution,
                     specular_tint: self
                         .constant_color(f, node, &props, "specular_reflectance", &mut used)?
                         .unwrap_or(Rgb::ONE),
@@ -2608,10 +2617,12 @@ mod tests {
           <bsdf type="dielectric" id="b"><string name="int_ior" value="water"/></bsdf>
           <bsdf type="roughplastic" id="c"><string name="distribution" value="ggx"/>
               <rgb name="diffuse_reflectance" value="0.1, 0.2, 0.3"/></bsdf>
+          <bsdf type="roughdielectric" id="e"><float name="alpha" value="0.3"/></bsdf>
           <shape type="sphere"><ref id="a"/></shape>
           <shape type="sphere"><ref id="b"/></shape>
           <shape type="sphere"><ref id="c"/></shape>
           <shape type="sphere"><ref id="c"/><emitter type="area"><rgb name="radiance" value="4"/></emitter></shape>
+          <shape type="sphere"><ref id="e"/></shape>
         </scene>"#;
         let d = parse_str(xml).unwrap();
         let by = |i: usize| {
@@ -2624,8 +2635,15 @@ mod tests {
         assert!(matches!(by(0).kind, MaterialKindDesc::Conductor { roughness: (a, _), .. } if a == 0.2));
         assert!(matches!(by(1).kind, MaterialKindDesc::Dielectric { ior, .. } if (ior - 1.333).abs() < 1e-3));
         assert!(
-            matches!(by(2).kind, MaterialKindDesc::Plastic { roughness, ior, .. } if roughness == 0.1 && ior == 1.49)
+            matches!(by(2).kind, MaterialKindDesc::Plastic { roughness, ior, distribution, .. }
+                if roughness == 0.1 && ior == 1.49 && distribution == MicrofacetDistribution::Ggx)
         );
+        // Mitsuba's default distribution is Beckmann's.
+        assert!(matches!(
+            by(4).kind,
+            MaterialKindDesc::Dielectric { roughness, distribution: MicrofacetDistribution::Beckmann, .. } if roughness == 0.3
+        ));
+        assert!(!d.warnings.iter().any(|w| w.contains("distribution")), "{:?}", d.warnings);
         // The emitting shape gets its own material; the plain one is shared.
         assert_ne!(d.shapes[2].material, d.shapes[3].material);
         assert_eq!(by(3).emission, ColorSource::Rgb(Rgb::splat(4.0)));

@@ -640,6 +640,7 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
             fresnel: ConductorDesc::Mirror(t.color("reflectance")?.unwrap_or(Rgb::ONE)),
             tint: Rgb::ONE,
             roughness: (0.0, 0.0),
+            distribution: MicrofacetDistribution::Ggx,
         },
         "conductor" => {
             let metal = t.choice("metal", &crate::material::conductor::METAL_NAMES)?;
@@ -675,12 +676,14 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
                 fresnel,
                 tint: t.color("tint")?.unwrap_or(Rgb::ONE),
                 roughness,
+                distribution: distribution(t)?,
             }
         }
         "dielectric" => MaterialKindDesc::Dielectric {
             ior: t.number_or("ior", 1.5)?,
             ext_ior: t.number_or("ext_ior", 1.0)?,
             roughness: t.number_or("roughness", 0.0)?,
+            distribution: distribution(t)?,
             reflect_tint: t.color("reflect_tint")?.unwrap_or(Rgb::ONE),
             transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
         },
@@ -696,6 +699,7 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
             ior: t.number_or("ior", 1.49)?,
             ext_ior: t.number_or("ext_ior", 1.0)?,
             roughness: t.number_or("roughness", 0.0)?,
+            distribution: distribution(t)?,
             specular_tint: t.color("specular_tint")?.unwrap_or(Rgb::ONE),
             nonlinear: t.boolean("nonlinear")?.unwrap_or(false),
         },
@@ -706,6 +710,13 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
     m.opacity = t.color_source("opacity")?;
     m.locs = t.finish()?;
     Ok(m)
+}
+
+/// A rough material's `distribution = "ggx" | "beckmann"` (GGX when absent).
+fn distribution(t: &Table) -> Result<MicrofacetDistribution> {
+    Ok(t.choice("distribution", &["ggx", "beckmann"])?
+        .and_then(|d| MicrofacetDistribution::from_name(&d))
+        .unwrap_or_default())
 }
 
 /// `[[medium]]`: `type = "homogeneous"` (σt and albedo everywhere the
@@ -1050,6 +1061,42 @@ material = "red"
         }
         let e = error_of(&MINIMAL.replace("spp = 4", "spp = 4\nsampler = \"halton\""));
         assert!(e.starts_with("test.toml:6:") && e.contains("sobol"), "{e}");
+    }
+
+    #[test]
+    fn rough_materials_name_their_microfacet_distribution() {
+        let with = |kind: &str, extra: &str| {
+            MINIMAL.replace(
+                "diffuse = [0.8, 0.1, 0.1]",
+                &format!("type = \"{kind}\"\nroughness = 0.2\n{extra}"),
+            )
+        };
+        for kind in ["conductor", "dielectric", "plastic"] {
+            let d = parse_str(&with(kind, "distribution = \"beckmann\"")).unwrap();
+            let distribution = match d.materials[0].kind {
+                MaterialKindDesc::Conductor { distribution, .. }
+                | MaterialKindDesc::Dielectric { distribution, .. }
+                | MaterialKindDesc::Plastic { distribution, .. } => distribution,
+                _ => panic!("{kind}"),
+            };
+            assert_eq!(distribution, MicrofacetDistribution::Beckmann, "{kind}");
+            let d = parse_str(&with(kind, "")).unwrap();
+            assert!(matches!(
+                d.materials[0].kind,
+                MaterialKindDesc::Conductor {
+                    distribution: MicrofacetDistribution::Ggx,
+                    ..
+                } | MaterialKindDesc::Dielectric {
+                    distribution: MicrofacetDistribution::Ggx,
+                    ..
+                } | MaterialKindDesc::Plastic {
+                    distribution: MicrofacetDistribution::Ggx,
+                    ..
+                }
+            ));
+        }
+        let e = error_of(&with("conductor", "distribution = \"phong\""));
+        assert!(e.starts_with("test.toml:") && e.contains("beckmann"), "{e}");
     }
 
     #[test]

@@ -398,6 +398,7 @@ impl Parser {
             fresnel,
             tint: Rgb::ONE,
             roughness,
+            distribution: MicrofacetDistribution::Ggx,
         })
     }
 
@@ -441,6 +442,7 @@ impl Parser {
                     ior,
                     ext_ior: 1.0,
                     roughness,
+                    distribution: MicrofacetDistribution::Ggx,
                     reflect_tint: Rgb::ONE,
                     transmit_tint: Rgb::ONE,
                 }
@@ -464,6 +466,7 @@ impl Parser {
                         ior,
                         ext_ior: 1.0,
                         roughness,
+                        distribution: MicrofacetDistribution::Ggx,
                         specular_tint: Rgb::ONE,
                         nonlinear: false,
                     }
@@ -500,6 +503,7 @@ impl Parser {
                         ior,
                         ext_ior: 1.0,
                         roughness,
+                        distribution: MicrofacetDistribution::Ggx,
                         specular_tint: Rgb::ONE,
                         nonlinear: false,
                     }

@@ -581,6 +581,7 @@ Shape "sphere""#,
             tint: Rgb::ONE,
             // remaproughness: α = √roughness.
             roughness: (0.2, 0.2),
+            distribution: MicrofacetDistribution::Ggx,
         }
     );
     assert_eq!(
@@ -589,6 +590,7 @@ Shape "sphere""#,
             fresnel: ConductorDesc::Reflectance(Rgb::new(0.9, 0.8, 0.7)),
             tint: Rgb::ONE,
             roughness: (0.01, 0.09),
+            distribution: MicrofacetDistribution::Ggx,
         }
     );
     assert!(
@@ -604,6 +606,7 @@ Shape "sphere""#,
             ior: 1.5,
             ext_ior: 1.0,
             roughness: 0.0,
+            distribution: MicrofacetDistribution::Ggx,
             specular_tint: Rgb::ONE,
             nonlinear: false,
         }
