@@ -7,7 +7,7 @@
 use crate::color::Rgb;
 use crate::film::AovSample;
 use crate::geometry::Ray;
-use crate::material::{Frame, TransportMode};
+use crate::material::TransportMode;
 use crate::scene::Scene;
 use crate::texture::TexCoord;
 
@@ -33,14 +33,14 @@ pub fn camera_aov(scene: &Scene, camera_ray: &Ray) -> AovSample {
         }
         let m = &scene.materials[hit.material as usize];
         let bsdf = m.bsdf(&scene.images, &TexCoord { uv: hit.uv, p: hit.p });
-        let facing = if hit.ns.dot(wo_world) < 0.0 { -hit.ns } else { hit.ns };
+        let frame = m.shading_frame(&scene.images, &hit, wo_world);
+        let facing = if frame.n.dot(wo_world) < 0.0 { -frame.n } else { frame.n };
         if bsdf.has_smooth() || bounce == MAX_SPECULAR_CHAIN {
             out.albedo = throughput * bsdf.albedo();
             out.normal = facing;
             return out;
         }
         // Follow the most likely specular lobe, deterministically.
-        let frame = Frame::from_orthonormal(hit.ns, hit.tangent);
         let wo = frame.to_local(wo_world);
         let Some(s) = bsdf.sample_delta(wo, 0.5, TransportMode::Radiance) else {
             out.normal = facing;

@@ -32,7 +32,7 @@ use super::{Integrator, RayStats, choose_light, light_choice_pmf};
 use crate::color::Rgb;
 use crate::geometry::Ray;
 use crate::light::ShadowTarget;
-use crate::material::{DirectionSampling, Frame, TransportMode};
+use crate::material::{DirectionSampling, TransportMode};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::texture::TexCoord;
@@ -129,7 +129,7 @@ impl Integrator for PathTracer {
                 continue;
             }
             let bsdf = m.bsdf(&scene.images, &tc);
-            let frame = Frame::from_orthonormal(hit.ns, hit.tangent);
+            let frame = m.shading_frame(&scene.images, &hit, wo_world);
             let wo = frame.to_local(wo_world);
             if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
                 break; // the back of a one-sided surface is black
@@ -151,7 +151,7 @@ impl Integrator for PathTracer {
                 let pmf = chosen.map_or(0.0, |(_, pmf)| pmf);
                 if let Some(ls) = sample {
                     let wi = frame.to_local(ls.wi);
-                    let f = bsdf.eval(wo, wi, mode);
+                    let f = bsdf.eval(wo, wi, mode) * frame.factor(ls.wi);
                     // The geometric normal decides reflection or transmission.
                     let front_i = hit.ng.dot(ls.wi) > 0.0;
                     let consistent = (front_i == front_o) == (wi.z * wo.z > 0.0);
@@ -193,7 +193,11 @@ impl Integrator for PathTracer {
             if (hit.ng.dot(wi_world) > 0.0) != (front_o == reflection) {
                 break; // the shading normal sent the path through the surface
             }
-            beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+            let mapped = frame.factor(wi_world);
+            if mapped == 0.0 {
+                break;
+            }
+            beta *= bs.f * (mapped * bs.wi.z.abs() / bs.pdf);
             if !reflection {
                 eta_scale *= bs.eta * bs.eta;
             }

@@ -31,7 +31,7 @@ use crate::color::Rgb;
 use crate::geometry::interaction::SHADOW_EPSILON;
 use crate::geometry::{Ray, SurfaceHit};
 use crate::light::ShadowTarget;
-use crate::material::{Bsdf, Frame, MaterialKind, TransportMode};
+use crate::material::{Bsdf, MaterialKind, ShadingFrame, TransportMode};
 use crate::media::{Phase, sample_majorant};
 use crate::sampling::Sampler;
 use crate::sampling::rng::{Pcg32, hash_u64s};
@@ -64,7 +64,7 @@ enum Vertex<'a> {
     /// A surface point with its BSDF.
     Surface {
         hit: &'a SurfaceHit,
-        frame: &'a Frame,
+        frame: &'a ShadingFrame,
         bsdf: &'a Bsdf<'a>,
         /// Direction toward the previous vertex, local frame.
         wo: Vec3,
@@ -143,7 +143,7 @@ impl VolPathTracer {
                 if (front_i == front_o) != (wi.z * wo.z > 0.0) {
                     return Rgb::ZERO;
                 }
-                let f = bsdf.eval(*wo, wi, TransportMode::Radiance) * wi.z.abs();
+                let f = bsdf.eval(*wo, wi, TransportMode::Radiance) * (wi.z.abs() * frame.factor(ls.wi));
                 let shadow = match ls.target {
                     ShadowTarget::Point(q) => hit.spawn_ray_to(q),
                     ShadowTarget::Infinity => hit.spawn_ray(ls.wi),
@@ -188,7 +188,7 @@ impl VolPathTracer {
                 // surface itself lets through unchanged.
                 let alpha = m.opacity_at(&scene.images, &tc);
                 let sheet = if thin {
-                    let frame = Frame::from_orthonormal(h.ns, h.tangent);
+                    let frame = m.shading_frame(&scene.images, h, -dir);
                     m.bsdf(&scene.images, &tc).pass_through(frame.to_local(-dir))
                 } else {
                     Rgb::ZERO
@@ -320,7 +320,7 @@ impl Integrator for VolPathTracer {
 
             let tc = TexCoord { uv: hit.uv, p: hit.p };
             let bsdf = m.bsdf(&scene.images, &tc);
-            let frame = Frame::from_orthonormal(hit.ns, hit.tangent);
+            let frame = m.shading_frame(&scene.images, &hit, wo_world);
             let wo = frame.to_local(wo_world);
             if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
                 return s.l; // the back of a one-sided surface is black
@@ -367,7 +367,11 @@ impl Integrator for VolPathTracer {
             if (hit.ng.dot(wi_world) > 0.0) != (front_o == reflection) {
                 return s.l; // the shading normal sent the path through the surface
             }
-            s.beta *= bs.weight();
+            let mapped = frame.factor(wi_world);
+            if mapped == 0.0 {
+                return s.l;
+            }
+            s.beta *= bs.weight() * mapped;
             s.r_l = s.r_u / bs.pdf;
             s.specular = bs.delta;
             if !reflection {

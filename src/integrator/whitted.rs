@@ -74,8 +74,10 @@ impl Whitted {
             return l;
         }
 
-        // Surfaces shade on both sides: the shading normal faces the viewer.
-        let n = if hit.ns.dot(wo) < 0.0 { -hit.ns } else { hit.ns };
+        // Surfaces shade on both sides: the shading normal (a normal map's,
+        // where the material has one) faces the viewer.
+        let ns = m.shading_frame(&scene.images, &hit, wo).n;
+        let n = if ns.dot(wo) < 0.0 { -ns } else { ns };
         let c = m.classic(&scene.images, &tc);
         let (kd, ks) = (c.kd, c.ks);
 
@@ -110,11 +112,11 @@ impl Whitted {
         }
         if c.kt != Rgb::ZERO {
             // Fresnel with the outward normal: cosθ < 0 means leaving the inside.
-            let cos_i = hit.ns.dot(wo);
+            let cos_i = ns.dot(wo);
             let fresnel = fresnel_dielectric(cos_i, c.ior);
             let reflected = hit.spawn_ray(reflect(wo, n));
             let mut through = Rgb::ZERO;
-            if let Some((wt, _)) = refract(wo, hit.ns, c.ior) {
+            if let Some((wt, _)) = refract(wo, ns, c.ior) {
                 if fresnel < 1.0 {
                     through = (1.0 - fresnel) * self.trace(scene, &hit.spawn_ray(wt), depth + 1, sampler, stats);
                 }

@@ -574,6 +574,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
             opacity: None,
+            normal_map: None,
         },
         MaterialKindDesc::Conductor {
             fresnel,
@@ -593,6 +594,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
             opacity: None,
+            normal_map: None,
         },
         MaterialKindDesc::Dielectric {
             ior,
@@ -611,6 +613,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
             opacity: None,
+            normal_map: None,
         },
         MaterialKindDesc::Plastic {
             diffuse,
@@ -642,11 +645,13 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             emission: Texture::Constant(Rgb::ZERO),
             two_sided: true,
             opacity: None,
+            normal_map: None,
         },
     };
     mat.emission = color(&m.emission);
     mat.two_sided = m.two_sided;
     mat.opacity = m.opacity.as_ref().map(color);
+    mat.normal_map = m.normal_map.as_ref().map(color);
     mat
 }
 

@@ -321,6 +321,10 @@ pub struct MaterialDesc {
     /// below 1 light passes the surface unchanged with the rest (Mitsuba's
     /// `mask` BSDF); `None`: opaque.
     pub opacity: Option<ColorSource>,
+    /// A tangent-space normal map: colours c in [0, 1]³ meaning the normal
+    /// 2c − 1 in the frame of (tangent along u, bitangent, shading normal),
+    /// read raw (no sRGB decoding); `None`: the surface's own normal.
+    pub normal_map: Option<ColorSource>,
     /// Source locations.
     pub locs: Locs,
 }
@@ -344,6 +348,7 @@ impl MaterialDesc {
             emission: ColorSource::Rgb(Rgb::ZERO),
             two_sided: true,
             opacity: None,
+            normal_map: None,
             locs: Locs::default(),
         }
     }
@@ -934,6 +939,9 @@ impl SceneDesc {
             };
             if let Some(o) = &m.opacity {
                 texture("opacity", o)?;
+            }
+            if let Some(n) = &m.normal_map {
+                texture("normal_map", n)?;
             }
             match &m.kind {
                 MaterialKindDesc::Classic(cl) => {

@@ -1669,6 +1669,7 @@ impl<'a> Reader<'a> {
             emission,
             two_sided: mat.double_sided,
             opacity: None,
+            normal_map: None,
             locs,
         })
     }

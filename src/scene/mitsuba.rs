@@ -104,6 +104,8 @@ struct BsdfDef {
     two_sided: bool,
     /// A `mask`'s opacity.
     opacity: Option<ColorSource>,
+    /// A `normalmap`'s texture.
+    normal_map: Option<ColorSource>,
     /// The desc material already made for it (without emission).
     material: Option<String>,
     loc: SourceLoc,
@@ -1462,6 +1464,7 @@ impl Loader {
             "null" => {
                 let def = BsdfDef {
                     opacity: None,
+                    normal_map: None,
                     kind: MaterialKindDesc::NULL,
                     two_sided: true,
                     material: None,
@@ -1492,6 +1495,7 @@ impl Loader {
                     self.unused(f, node, &props, &used);
                     return Ok(BsdfDef {
                         opacity: None,
+                        normal_map: None,
                         kind: MaterialKindDesc::Thin {
                             ior,
                             ext_ior,
@@ -1547,7 +1551,21 @@ impl Loader {
                     ..def
                 });
             }
-            "bumpmap" | "normalmap" => {
+            "normalmap" => {
+                let inner = nested().ok_or_else(|| self.err(f, node, "normalmap needs a nested BSDF"))?;
+                let map = self
+                    .color_source(f, &props, "normalmap", &mut used)?
+                    .ok_or_else(|| self.err(f, node, "normalmap needs a texture named \"normalmap\""))?;
+                self.unused(f, node, &props, &used);
+                let def = self.bsdf(f, inner)?;
+                return Ok(BsdfDef {
+                    loc,
+                    normal_map: Some(map),
+                    material: None,
+                    ..def
+                });
+            }
+            "bumpmap" => {
                 self.warn(
                     f,
                     node,
@@ -1577,6 +1595,7 @@ impl Loader {
         self.unused(f, node, &props, &used);
         Ok(BsdfDef {
             opacity: None,
+            normal_map: None,
             kind,
             two_sided: false,
             material: None,
@@ -1787,6 +1806,7 @@ impl Loader {
                 (
                     BsdfDef {
                         opacity: None,
+                        normal_map: None,
                         kind: MaterialKindDesc::Diffuse {
                             reflectance: ColorSource::Rgb(Rgb::splat(0.5)),
                         },
@@ -1821,6 +1841,7 @@ impl Loader {
         let mut m = MaterialDesc::with_kind(name.clone(), def.kind.clone());
         m.two_sided = def.two_sided;
         m.opacity = def.opacity.clone();
+        m.normal_map = def.normal_map.clone();
         m.locs = Locs::at(if def.loc.line > 0 { Some(def.loc.clone()) } else { None });
         if let Some((e, loc)) = emission {
             m.emission = e;
@@ -2618,11 +2639,13 @@ mod tests {
           <bsdf type="roughplastic" id="c"><string name="distribution" value="ggx"/>
               <rgb name="diffuse_reflectance" value="0.1, 0.2, 0.3"/></bsdf>
           <bsdf type="roughdielectric" id="e"><float name="alpha" value="0.3"/></bsdf>
+          <bsdf type="normalmap" id="f"><rgb name="normalmap" value="0.6, 0.5, 0.9"/><bsdf type="diffuse"/></bsdf>
           <shape type="sphere"><ref id="a"/></shape>
           <shape type="sphere"><ref id="b"/></shape>
           <shape type="sphere"><ref id="c"/></shape>
           <shape type="sphere"><ref id="c"/><emitter type="area"><rgb name="radiance" value="4"/></emitter></shape>
           <shape type="sphere"><ref id="e"/></shape>
+          <shape type="sphere"><ref id="f"/></shape>
         </scene>"#;
         let d = parse_str(xml).unwrap();
         let by = |i: usize| {
@@ -2643,7 +2666,16 @@ mod tests {
             by(4).kind,
             MaterialKindDesc::Dielectric { roughness, distribution: MicrofacetDistribution::Beckmann, .. } if roughness == 0.3
         ));
-        assert!(!d.warnings.iter().any(|w| w.contains("distribution")), "{:?}", d.warnings);
+        assert!(
+            !d.warnings.iter().any(|w| w.contains("distribution")),
+            "{:?}",
+            d.warnings
+        );
+        // A normal map keeps its nested BSDF and adds its texture.
+        assert!(matches!(by(5).kind, MaterialKindDesc::Diffuse { .. }));
+        assert_eq!(by(5).normal_map, Some(ColorSource::Rgb(Rgb::new(0.6, 0.5, 0.9))));
+        assert!(by(0).normal_map.is_none());
+        assert!(!d.warnings.iter().any(|w| w.contains("normalmap")), "{:?}", d.warnings);
         // The emitting shape gets its own material; the plain one is shared.
         assert_ne!(d.shapes[2].material, d.shapes[3].material);
         assert_eq!(by(3).emission, ColorSource::Rgb(Rgb::splat(4.0)));

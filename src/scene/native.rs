@@ -708,6 +708,7 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
     m.emission = t.color_source("emission")?.unwrap_or(ColorSource::Rgb(Rgb::ZERO));
     m.two_sided = t.boolean("two_sided")?.unwrap_or(true);
     m.opacity = t.color_source("opacity")?;
+    m.normal_map = t.color_source("normal_map")?;
     m.locs = t.finish()?;
     Ok(m)
 }
@@ -1095,6 +1096,11 @@ material = "red"
                 }
             ));
         }
+        let d = parse_str(&with("plastic", "normal_map = [0.5, 0.6, 0.9]")).unwrap();
+        assert_eq!(
+            d.materials[0].normal_map,
+            Some(ColorSource::Rgb(Rgb::new(0.5, 0.6, 0.9)))
+        );
         let e = error_of(&with("conductor", "distribution = \"phong\""));
         assert!(e.starts_with("test.toml:") && e.contains("beckmann"), "{e}");
     }

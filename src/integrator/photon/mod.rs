@@ -35,7 +35,7 @@ pub use map::{Nearest, Photon, PhotonMap};
 use crate::color::Rgb;
 use crate::geometry::{Ray, SurfaceHit};
 use crate::light::ShadowTarget;
-use crate::material::{Bsdf, Frame, TransportMode};
+use crate::material::{Bsdf, ShadingFrame, TransportMode};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::settings::{PhotonKernel, PhotonSettings};
@@ -112,7 +112,7 @@ pub(crate) fn camera_segment<'a>(
 /// The BSDF at a surface as the camera-side passes see it.
 pub(crate) struct ShadingPoint<'a> {
     pub(crate) bsdf: Bsdf<'a>,
-    pub(crate) frame: Frame,
+    pub(crate) frame: ShadingFrame,
     /// Outgoing direction in the local frame.
     pub(crate) wo: Vec3,
     /// Whether `wo` is on the geometric front.
@@ -128,7 +128,7 @@ impl<'a> ShadingPoint<'a> {
         if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
             return None;
         }
-        let frame = Frame::from_orthonormal(hit.ns, hit.tangent);
+        let frame = m.shading_frame(&scene.images, hit, wo_world);
         Some(ShadingPoint {
             bsdf,
             frame,
@@ -146,7 +146,7 @@ impl<'a> ShadingPoint<'a> {
         if (front_i == self.front_o) != (wi.z * self.wo.z > 0.0) {
             return Rgb::ZERO;
         }
-        self.bsdf.eval(self.wo, wi, TransportMode::Radiance)
+        self.bsdf.eval(self.wo, wi, TransportMode::Radiance) * self.frame.factor(wi_world)
     }
 
     /// Reflected radiance from the photons of `map` near `hit`: the density

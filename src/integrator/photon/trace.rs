@@ -15,7 +15,7 @@
 
 use super::Photon;
 use crate::color::Rgb;
-use crate::material::{Frame, TransportMode};
+use crate::material::TransportMode;
 use crate::sampling::rng::{Pcg32, hash_u64s};
 use crate::scene::Scene;
 use glam::Vec2;
@@ -178,7 +178,10 @@ fn trace_one(
         if depth + 1 == max_depth {
             return;
         }
-        let frame = Frame::from_orthonormal(hit.ns, hit.tangent);
+        // A normal map turns the frame as the light side sees it and
+        // scales the scattering by its factor toward the light (Mitsuba's
+        // radiance convention, applied to the photon's own direction).
+        let frame = m.shading_frame(&scene.images, &hit, wo_world);
         let wo = frame.to_local(wo_world);
         let (u_lobe, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
         let Some(bs) = bsdf.sample(wo, u_lobe, u, TransportMode::Importance) else {
@@ -201,7 +204,7 @@ fn trace_one(
             return;
         }
         let correction = wo.z.abs() * ng_wi.abs() / (ng_wo * bs.wi.z.abs());
-        let next = beta * bs.f * (bs.wi.z.abs() * correction / bs.pdf);
+        let next = beta * bs.f * (frame.factor(wo_world) * bs.wi.z.abs() * correction / bs.pdf);
         let q = (next.max_element() / beta.max_element()).min(1.0);
         if q.is_nan() || q <= 0.0 || rng.next_f32() >= q {
             return;
