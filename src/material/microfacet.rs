@@ -190,8 +190,9 @@ impl Microfacet {
 
     /// Beckmann's visible normals (Heitz and d'Eon 2014, §4): stretch `wo`
     /// to roughness 1, draw a slope from the visible-slope distribution
-    /// there, rotate it to `wo`'s azimuth and unstretch.
-    #[inline]
+    /// there, rotate it to `wo`'s azimuth and unstretch. Kept out of line:
+    /// its root finding would bloat every BSDF sampler it is inlined into.
+    #[inline(never)]
     fn sample_visible_beckmann(&self, wo: Vec3, u: Vec2) -> Vec3 {
         let w = Vec3::new(self.alpha_x * wo.x, self.alpha_y * wo.y, wo.z).normalize();
         let sin_theta = (w.x * w.x + w.y * w.y).sqrt();
