@@ -403,7 +403,14 @@ impl Parser {
     }
 
     /// Converts a material of type `kind`; `name` is the name trazo gives it.
-    pub(super) fn material(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc, name: String) -> Result<MatDef> {
+    pub(super) fn material(
+        &mut self,
+        kind: &str,
+        p: &ParamList,
+        loc: &SourceLoc,
+        name: String,
+        dir_rel: &Path,
+    ) -> Result<MatDef> {
         let mut def = MatDef {
             name,
             kind: MatKind::Desc(MaterialKindDesc::Diffuse {
@@ -411,8 +418,29 @@ impl Parser {
             }),
             locs: Locs::at(Some(loc.clone())),
             tex_refs: Vec::new(),
+            normal_map: None,
         };
         let what = format!("material \"{kind}\"");
+        // pbrt-v4's normal map: an image read linearly, looked up at
+        // (u, 1 − v) as its image textures are, the normal 2c − 1 in the
+        // frame of ∂p/∂u and the shading normal.
+        if let Some((file, prm)) = p.string("normalmap")? {
+            let texture = format!("{}: normalmap", def.name);
+            self.desc.textures.push(TextureDesc {
+                name: texture.clone(),
+                kind: TextureKind::Image {
+                    source: ImageSource::File(self.resolve(dir_rel, &file)),
+                    scale: Vec2::ONE,
+                    offset: Vec2::ZERO,
+                    srgb: Some(false),
+                    tint: Rgb::ONE,
+                    wrap: crate::texture::WrapMode::Repeat,
+                    filter: crate::texture::ImageFilter::Bilinear,
+                },
+                locs: Locs::at(Some(prm.loc.clone())),
+            });
+            def.normal_map = Some(ColorSource::Texture(texture));
+        }
         let desc = match kind {
             "diffuse" => MaterialKindDesc::Diffuse {
                 reflectance: self.albedo(p, "reflectance", 0.5, "reflectance", &mut def)?,

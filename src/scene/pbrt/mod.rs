@@ -245,6 +245,8 @@ struct MatDef {
     locs: Locs,
     /// Texture names it uses, with where they were written.
     tex_refs: Vec<(String, SourceLoc)>,
+    /// Its `"string normalmap"` image, as a texture.
+    normal_map: Option<ColorSource>,
 }
 
 #[derive(Clone, Debug)]
@@ -849,7 +851,7 @@ impl Parser {
                 check_kind(lx, koff, "Material", &kind, materials::MATERIAL_TYPES)?;
                 let params = self.with_attributes(params, "material");
                 let n = self.materials.len();
-                let def = self.material(&kind, &params, &loc, format!("{kind}#{n}"))?;
+                let def = self.material(&kind, &params, &loc, format!("{kind}#{n}"), dir_rel)?;
                 self.report_unused(&params, &format!("Material \"{kind}\""));
                 self.materials.push(def);
                 self.gs.material = MatRef::Index(n);
@@ -883,7 +885,7 @@ impl Parser {
                         suggest(&kind, materials::MATERIAL_TYPES.iter().copied())
                     )));
                 }
-                let def = self.material(&kind, &params, &loc, mname.clone())?;
+                let def = self.material(&kind, &params, &loc, mname.clone(), dir_rel)?;
                 self.report_unused(&params, &format!("MakeNamedMaterial \"{mname}\""));
                 self.named_materials.insert(mname, self.materials.len());
                 self.materials.push(def);
@@ -1350,6 +1352,7 @@ impl Parser {
         };
         let mut m = MaterialDesc::with_kind(name, kind);
         m.locs = def.locs.clone();
+        m.normal_map = def.normal_map.clone();
         if let Some(e) = emission {
             m.emission = ColorSource::Rgb(e.radiance);
             m.locs.keys.push(("emission".into(), e.loc.clone()));

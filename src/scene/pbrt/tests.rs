@@ -1650,3 +1650,29 @@ Shape "sphere" "float radius" 3"#,
     let d = parse_str("MakeNamedMedium \"fog\" \"string type\" \"homogeneous\"\nWorldBegin\nMediumInterface \"fog\"\nShape \"sphere\"").unwrap();
     assert!(d.shapes[0].media.is_none());
 }
+
+#[test]
+fn normal_maps_are_linear_images_on_the_material() {
+    let d = world(
+        r#"Material "coateddiffuse" "string normalmap" "textures/bumps.png"
+Shape "sphere""#,
+    );
+    let m = &d.materials[0];
+    let Some(ColorSource::Texture(name)) = &m.normal_map else {
+        panic!("no normal map: {:?}", m.normal_map)
+    };
+    let t = d.textures.iter().find(|t| &t.name == name).expect("its texture");
+    assert_eq!(
+        t.kind,
+        TextureKind::Image {
+            source: ImageSource::File(PathBuf::from("textures/bumps.png")),
+            scale: Vec2::ONE,
+            offset: Vec2::ZERO,
+            srgb: Some(false),
+            tint: Rgb::ONE,
+            wrap: crate::texture::WrapMode::Repeat,
+            filter: crate::texture::ImageFilter::Bilinear,
+        }
+    );
+    assert!(!d.warnings.iter().any(|w| w.contains("normalmap")), "{:?}", d.warnings);
+}
