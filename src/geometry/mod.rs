@@ -9,6 +9,7 @@ pub mod mesh;
 pub mod ray;
 pub(crate) mod real;
 pub mod shape;
+pub mod subdivision;
 pub mod transform;
 pub mod triangle;
 

@@ -5,6 +5,7 @@ use super::params::ParamList;
 use super::{Parser, PendingShape};
 use crate::error::{Error, Result, SourceLoc};
 use crate::geometry::TriangleMesh;
+use crate::geometry::subdivision::{MAX_SUBDIVISION_LEVELS, loop_subdivide};
 use crate::scene::desc::*;
 use glam::{Vec2, Vec3};
 use std::path::Path;
@@ -96,11 +97,11 @@ impl Parser {
                 )
             }
             "trianglemesh" => {
-                let mesh = self.mesh(p, &loc, 3, &mut locs)?;
+                let mesh = self.mesh(p, &loc, "trianglemesh", 3, &mut locs)?;
                 (ShapeKind::InlineMesh(MeshSource::Inline(mesh)), false)
             }
             "bilinearmesh" => {
-                let mesh = self.mesh(p, &loc, 4, &mut locs)?;
+                let mesh = self.mesh(p, &loc, "bilinearmesh", 4, &mut locs)?;
                 (ShapeKind::InlineMesh(MeshSource::Inline(mesh)), false)
             }
             "plymesh" => {
@@ -124,8 +125,39 @@ impl Parser {
                     (ShapeKind::InlineMesh(MeshSource::File(path)), false)
                 }
             }
+            "loopsubdiv" => {
+                let levels = match p.int_opt("levels")? {
+                    Some((l, prm)) if !(0..=i64::from(MAX_SUBDIVISION_LEVELS)).contains(&l) => {
+                        return Err(prm.err(format!(
+                            "{l} is not a number of subdivision levels (0 to {MAX_SUBDIVISION_LEVELS}; each level makes 4 times the triangles)"
+                        )));
+                    }
+                    Some((l, _)) => l as u32,
+                    None => 3,
+                };
+                let control = self.mesh(p, &loc, "loopsubdiv", 3, &mut locs)?;
+                for (key, given) in [("N", !control.normals.is_empty()), ("uv", !control.uvs.is_empty())] {
+                    if let Some(prm) = p.find(key).filter(|_| given) {
+                        let l = prm.loc.clone();
+                        self.unsupported(
+                            &l,
+                            format!("\"{}\" of loopsubdiv", prm.written),
+                            "the subdivided surface takes its limit normals and no texture coordinates (as in pbrt-v4)",
+                        );
+                    }
+                }
+                let mesh = loop_subdivide(&control.positions, &control.indices, levels)
+                    .map_err(|e| Error::scene(Some(loc.clone()), "levels", format!("Shape \"loopsubdiv\": {e}")))?;
+                // pbrt-v4's limit normal (the cross product of its tangents
+                // over its one-ring order) faces away from the side the
+                // control faces wind counter-clockwise on, and its
+                // triangles take their side from that normal: wound the
+                // other way, trazo's triangles face the same side.
+                let mesh = mesh.flipped();
+                (ShapeKind::InlineMesh(MeshSource::Inline(mesh)), false)
+            }
             _ => {
-                // loopsubdiv and curve.
+                // curve.
                 Self::use_all(p);
                 self.unsupported(&loc, &what, "the shape is skipped");
                 return Ok(());
@@ -174,10 +206,18 @@ impl Parser {
         Ok(ply.mesh)
     }
 
-    /// A `trianglemesh` (`corners` = 3) or a `bilinearmesh` (`corners` = 4,
-    /// each patch v00 v10 v01 v11 split into two triangles).
-    fn mesh(&mut self, p: &ParamList, loc: &SourceLoc, corners: usize, locs: &mut Locs) -> Result<TriangleMesh> {
-        let kind = if corners == 3 { "trianglemesh" } else { "bilinearmesh" };
+    /// The mesh of a `trianglemesh` or a `loopsubdiv`'s control mesh
+    /// (`corners` = 3), or of a `bilinearmesh` (`corners` = 4, each patch
+    /// v00 v10 v01 v11 split into two triangles); `kind` names the shape in
+    /// messages.
+    fn mesh(
+        &mut self,
+        p: &ParamList,
+        loc: &SourceLoc,
+        kind: &str,
+        corners: usize,
+        locs: &mut Locs,
+    ) -> Result<TriangleMesh> {
         let Some((positions, pp)) = p.vec3s("P", &["point3"])? else {
             return Err(Error::scene(
                 Some(loc.clone()),

@@ -427,6 +427,46 @@ Shape "sphere""#,
 }
 
 #[test]
+fn loop_subdivision_surfaces_become_their_refined_limit_meshes() {
+    // A tetrahedron: 4 faces, 3 levels by default (pbrt-v4's).
+    let tetrahedron = r#""point3 P" [1 1 1  1 -1 -1  -1 1 -1  -1 -1 1]
+        "integer indices" [0 1 2  0 3 1  0 2 3  1 3 2]"#;
+    for (levels, faces) in [("", 4 * 64), ("\"integer levels\" 1", 4 * 4), ("\"integer levels\" 0", 4)] {
+        let d = world(&format!("Shape \"loopsubdiv\" {levels} {tetrahedron}"));
+        assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+        let ShapeKind::InlineMesh(MeshSource::Inline(m)) = &d.shapes[0].kind else {
+            panic!("{:?}", d.shapes[0].kind)
+        };
+        assert_eq!(m.indices.len(), faces);
+        assert_eq!(m.normals.len(), m.positions.len());
+        // The limit surface lies inside the control hull, and its triangles
+        // face the side of pbrt-v4's limit normals: inward, against the
+        // control faces' counter-clockwise side.
+        let centre: Vec3 = m.positions.iter().sum::<Vec3>() / m.positions.len() as f32;
+        assert!(centre.length() < 1e-4);
+        for t in &m.indices {
+            let [a, b, c] = t.map(|i| m.positions[i as usize]);
+            let n = (b - a).cross(c - a);
+            assert!(n.dot(a + b + c) < 0.0);
+            assert!(m.normals[t[0] as usize].dot(n) > 0.0);
+        }
+    }
+    for (shape, message) in [
+        (
+            format!("Shape \"loopsubdiv\" \"integer levels\" 99 {tetrahedron}"),
+            "test.pbrt:2:20: `integer levels`: 99 is not a number of subdivision levels",
+        ),
+        (
+            "Shape \"loopsubdiv\" \"integer indices\" [0 1 2]".to_string(),
+            "test.pbrt:2:1: `P`: loopsubdiv needs vertex positions",
+        ),
+    ] {
+        let e = parse_str(&format!("WorldBegin\n{shape}")).unwrap_err().to_string();
+        assert!(e.starts_with(message), "{e}");
+    }
+}
+
+#[test]
 fn analytic_shapes() {
     let d = world(
         r#"Shape "sphere" "float radius" 2
@@ -434,8 +474,7 @@ Shape "disk" "float height" 0.5 "float radius" 3
 Shape "cylinder" "float radius" 0.5 "float zmin" -2 "float zmax" 3
 Shape "sphere" "float zmax" 0.5
 Shape "disk" "float innerradius" 0.5
-Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3]
-Shape "loopsubdiv" "integer levels" 2"#,
+Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3]"#,
     );
     assert_eq!(
         d.shapes[0].kind,
@@ -460,7 +499,7 @@ Shape "loopsubdiv" "integer levels" 2"#,
             radius: 0.5
         }
     );
-    assert_eq!(d.shapes.len(), 5, "curves and subdivision surfaces are skipped");
+    assert_eq!(d.shapes.len(), 5, "curves are skipped");
     let w = &d.warnings;
     assert!(
         w[0].starts_with("test.pbrt:5:1: Shape \"sphere\" with zmin/zmax/phimax is approximated"),
@@ -472,10 +511,6 @@ Shape "loopsubdiv" "integer levels" 2"#,
     );
     assert!(
         w[2].starts_with("test.pbrt:7:1: Shape \"curve\" is unsupported"),
-        "{w:?}"
-    );
-    assert!(
-        w[3].starts_with("test.pbrt:8:1: Shape \"loopsubdiv\" is unsupported"),
         "{w:?}"
     );
     // The default material is pbrt's: diffuse 0.5.
