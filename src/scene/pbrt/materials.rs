@@ -3,7 +3,9 @@
 //! models, each spectrum texture the nearest of trazo's textures.
 
 use super::params::{FloatValue, Param, ParamList, SpectrumValue};
-use super::spectrum::{blackbody_rgb, glass_ior, illuminant_rgb, metal_of, sampled_rgb};
+use super::spectrum::{
+    blackbody_rgb, glass_ior, illuminant_rgb, metal_of, parse_spd, sampled_rgb, spectrum_at_rgb_wavelengths,
+};
 use super::{MatDef, MatKind, Parser};
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
@@ -312,7 +314,7 @@ impl Parser {
 
     /// η or k of a conductor: RGB, a named metal spectrum such as
     /// `"metal-Au-eta"`, or a sampled spectrum. pbrt-v4's default is copper.
-    fn metal_part(&mut self, v: Option<(SpectrumValue, &Param)>, is_eta: bool) -> Result<Rgb> {
+    fn metal_part(&mut self, v: Option<(SpectrumValue, &Param)>, is_eta: bool, dir_rel: &Path) -> Result<Rgb> {
         let (cu_eta, cu_k) = metal_ior("Cu").expect("copper is tabulated");
         let default = if is_eta { cu_eta } else { cu_k };
         let Some((v, prm)) = v else {
@@ -341,20 +343,20 @@ impl Parser {
                         if part_eta { cu_eta } else { cu_k }
                     }
                 },
+                // Not a named spectrum: a file of samples, found as
+                // textures are.
                 None => {
-                    self.unsupported(&loc, format!("{what} \"{n}\""), "not a metal spectrum; copper is used");
-                    default
+                    let path = self.top_dir.join(self.resolve(dir_rel, &n));
+                    let text = crate::files::read_limited(&path, crate::files::MAX_SCENE_BYTES).map_err(|e| {
+                        prm.err(format!("\"{n}\" is neither a named spectrum nor a readable file: {e}"))
+                    })?;
+                    let samples = parse_spd(&String::from_utf8_lossy(&text))
+                        .map_err(|e| prm.err(format!("{}: {e}", path.display())))?;
+                    spectrum_at_rgb_wavelengths(&samples)
                 }
             },
-            SpectrumValue::Sampled(s) => {
-                let mean = s.iter().map(|x| x.1).sum::<f32>() / s.len() as f32;
-                self.approximated(
-                    &loc,
-                    format!("sampled spectrum {what}"),
-                    format!("the mean value {mean} is used at every wavelength"),
-                );
-                Rgb::splat(mean)
-            }
+            // As trazo's metals are tabulated: at one wavelength per channel.
+            SpectrumValue::Sampled(s) => spectrum_at_rgb_wavelengths(&s),
             SpectrumValue::Blackbody { .. } | SpectrumValue::Texture(_) => {
                 self.unsupported(&loc, what, "trazo's conductors take constant η and k; copper's is used");
                 default
@@ -364,7 +366,7 @@ impl Parser {
 
     /// A conductor from `eta`/`k` or `reflectance` (with `prefix`
     /// `"conductor."` for coatedconductor).
-    fn conductor(&mut self, p: &ParamList, prefix: &str, def: &mut MatDef) -> Result<MaterialKindDesc> {
+    fn conductor(&mut self, p: &ParamList, prefix: &str, def: &mut MatDef, dir_rel: &Path) -> Result<MaterialKindDesc> {
         let eta = p.spectrum(&format!("{prefix}eta"))?;
         let k = p.spectrum(&format!("{prefix}k"))?;
         let roughness = self.roughness(p, prefix, def)?;
@@ -389,8 +391,8 @@ impl Parser {
                     }
                 }
                 ConductorDesc::Complex {
-                    eta: self.metal_part(eta, true)?,
-                    k: self.metal_part(k, false)?,
+                    eta: self.metal_part(eta, true, dir_rel)?,
+                    k: self.metal_part(k, false, dir_rel)?,
                 }
             }
         };
@@ -445,9 +447,9 @@ impl Parser {
             "diffuse" => MaterialKindDesc::Diffuse {
                 reflectance: self.albedo(p, "reflectance", 0.5, "reflectance", &mut def)?,
             },
-            "conductor" => self.conductor(p, "", &mut def)?,
+            "conductor" => self.conductor(p, "", &mut def, dir_rel)?,
             "coatedconductor" => {
-                let m = self.conductor(p, "conductor.", &mut def)?;
+                let m = self.conductor(p, "conductor.", &mut def, dir_rel)?;
                 self.layered_warning(
                     p,
                     loc,
@@ -749,6 +751,14 @@ impl Parser {
                 (TextureKind::Constant(c), c)
             }
             "scale" => {
+                // A texture times a constant keeps the texture; anything
+                // else becomes a constant.
+                if let Some(scaled) = self.scaled_texture(p, "tex", "scale")? {
+                    return self.push_texture(name, loc, locs, scaled);
+                }
+                if let Some(scaled) = self.scaled_texture(p, "scale", "tex")? {
+                    return self.push_texture(name, loc, locs, scaled);
+                }
                 let tex = self.texture_color(p, "tex", Rgb::ONE)?;
                 let s = match p.spectrum("scale")? {
                     Some((SpectrumValue::Float(s), _)) => s,
@@ -802,6 +812,17 @@ impl Parser {
                 (TextureKind::Constant(c), c)
             }
         };
+        self.push_texture(name, loc, locs, (kind, typical))
+    }
+
+    /// Records a spectrum texture and its typical colour.
+    fn push_texture(
+        &mut self,
+        name: &str,
+        loc: &SourceLoc,
+        locs: Locs,
+        (kind, typical): (TextureKind, Rgb),
+    ) -> Result<()> {
         self.spectrum_textures.insert(name.to_string(), loc.clone());
         self.texture_colors.insert(name.to_string(), typical);
         self.desc.textures.push(TextureDesc {
@@ -810,6 +831,57 @@ impl Parser {
             locs,
         });
         Ok(())
+    }
+
+    /// A `scale` texture whose `textured` parameter names a texture
+    /// already defined and whose `constant` parameter is a colour or a
+    /// number: that texture with its colours multiplied, and its typical
+    /// colour. `None` when the parameters are not of that form.
+    fn scaled_texture(&mut self, p: &ParamList, textured: &str, constant: &str) -> Result<Option<(TextureKind, Rgb)>> {
+        let Some((SpectrumValue::Texture(name), _)) = p.spectrum(textured)? else {
+            return Ok(None);
+        };
+        let factor = match p.spectrum(constant)? {
+            None => Rgb::ONE,
+            Some((SpectrumValue::Float(x), _)) => Rgb::splat(x),
+            Some((SpectrumValue::Rgb(c), _)) => c,
+            Some(_) => return Ok(None),
+        };
+        let Some(base) = self.desc.textures.iter().rev().find(|t| t.name == name) else {
+            return Ok(None);
+        };
+        let kind = match base.kind.clone() {
+            TextureKind::Constant(c) => TextureKind::Constant(c * factor),
+            TextureKind::Checkerboard { even, odd, scale } => TextureKind::Checkerboard {
+                even: even * factor,
+                odd: odd * factor,
+                scale,
+            },
+            TextureKind::Checkerboard3d { even, odd, scale } => TextureKind::Checkerboard3d {
+                even: even * factor,
+                odd: odd * factor,
+                scale,
+            },
+            TextureKind::Image {
+                source,
+                scale,
+                offset,
+                srgb,
+                tint,
+                wrap,
+                filter,
+            } => TextureKind::Image {
+                source,
+                scale,
+                offset,
+                srgb,
+                tint: tint * factor,
+                wrap,
+                filter,
+            },
+        };
+        let typical = self.texture_colors.get(&name).copied().unwrap_or(Rgb::splat(0.5)) * factor;
+        Ok(Some((kind, typical)))
     }
 
     /// A constant colour parameter of a texture (another texture stands

@@ -142,9 +142,81 @@ pub fn illuminant_rgb(name: &str) -> Option<(Rgb, bool)> {
     }
 }
 
+/// The wavelengths (nm) at which trazo's metals are tabulated
+/// ([`crate::material::conductor::metal_ior`]): red, green, blue.
+pub const RGB_WAVELENGTHS_NM: [f32; 3] = [650.0, 550.0, 450.0];
+
+/// A sampled spectrum (wavelengths increasing) at `nm`, interpolated
+/// linearly and held constant beyond its ends.
+pub fn sample_spectrum(pairs: &[(f32, f32)], nm: f32) -> f32 {
+    match pairs.iter().position(|&(l, _)| l >= nm) {
+        None => pairs.last().map_or(0.0, |p| p.1),
+        Some(0) => pairs[0].1,
+        Some(i) => {
+            let ((l0, v0), (l1, v1)) = (pairs[i - 1], pairs[i]);
+            v0 + (v1 - v0) * (nm - l0) / (l1 - l0)
+        }
+    }
+}
+
+/// A sampled spectrum's value at each of [`RGB_WAVELENGTHS_NM`], as trazo's
+/// metals are tabulated.
+pub fn spectrum_at_rgb_wavelengths(pairs: &[(f32, f32)]) -> Rgb {
+    let [r, g, b] = RGB_WAVELENGTHS_NM.map(|nm| sample_spectrum(pairs, nm));
+    Rgb::new(r, g, b)
+}
+
+/// The samples of a pbrt `.spd` file: whitespace-separated pairs of
+/// wavelength (nm, increasing) and value; `#` starts a comment.
+pub fn parse_spd(text: &str) -> Result<Vec<(f32, f32)>, String> {
+    let mut numbers = Vec::new();
+    for (line_no, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("");
+        for word in line.split_whitespace() {
+            let x: f32 = word
+                .parse()
+                .map_err(|_| format!("line {}: \"{word}\" is not a number", line_no + 1))?;
+            if !x.is_finite() {
+                return Err(format!("line {}: {word} is not finite", line_no + 1));
+            }
+            numbers.push(x);
+        }
+    }
+    if numbers.len() < 2 || numbers.len() % 2 != 0 {
+        return Err(format!(
+            "needs pairs of wavelength and value, found {} numbers",
+            numbers.len()
+        ));
+    }
+    let pairs: Vec<(f32, f32)> = numbers.chunks_exact(2).map(|c| (c[0], c[1])).collect();
+    if let Some(w) = pairs.windows(2).find(|w| w[1].0 <= w[0].0) {
+        return Err(format!("wavelengths must increase, but {} follows {}", w[1].0, w[0].0));
+    }
+    Ok(pairs)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn spd_files_are_pairs_sampled_linearly() {
+        let s = parse_spd("# gold\n400 1.0\n500 3.0 # comment\n600 2.0\n").unwrap();
+        assert_eq!(s, vec![(400.0, 1.0), (500.0, 3.0), (600.0, 2.0)]);
+        assert_eq!(sample_spectrum(&s, 450.0), 2.0);
+        assert_eq!(sample_spectrum(&s, 300.0), 1.0);
+        assert_eq!(sample_spectrum(&s, 700.0), 2.0);
+        assert_eq!(spectrum_at_rgb_wavelengths(&s), Rgb::new(2.0, 2.5, 2.0));
+        for (bad, why) in [
+            ("400 1 500", "found 3 numbers"),
+            ("400 1 x 2", "line 1: \"x\" is not a number"),
+            ("500 1\n400 2", "wavelengths must increase"),
+            ("", "found 0 numbers"),
+        ] {
+            let e = parse_spd(bad).unwrap_err();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
+    }
 
     #[test]
     fn blackbody_colours_follow_temperature() {

@@ -431,7 +431,11 @@ fn loop_subdivision_surfaces_become_their_refined_limit_meshes() {
     // A tetrahedron: 4 faces, 3 levels by default (pbrt-v4's).
     let tetrahedron = r#""point3 P" [1 1 1  1 -1 -1  -1 1 -1  -1 -1 1]
         "integer indices" [0 1 2  0 3 1  0 2 3  1 3 2]"#;
-    for (levels, faces) in [("", 4 * 64), ("\"integer levels\" 1", 4 * 4), ("\"integer levels\" 0", 4)] {
+    for (levels, faces) in [
+        ("", 4 * 64),
+        ("\"integer levels\" 1", 4 * 4),
+        ("\"integer levels\" 0", 4),
+    ] {
         let d = world(&format!("Shape \"loopsubdiv\" {levels} {tetrahedron}"));
         assert!(d.warnings.is_empty(), "{:?}", d.warnings);
         let ShapeKind::InlineMesh(MeshSource::Inline(m)) = &d.shapes[0].kind else {
@@ -1710,4 +1714,70 @@ Shape "sphere""#,
         }
     );
     assert!(!d.warnings.iter().any(|w| w.contains("normalmap")), "{:?}", d.warnings);
+}
+
+#[test]
+fn conductor_spectra_from_spd_files_and_samples_are_read_at_the_rgb_wavelengths() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    std::fs::create_dir_all(root.join("spds")).unwrap();
+    std::fs::write(root.join("spds/eta.spd"), "# eta\n400 1\n500 2\n600 3\n700 4\n").unwrap();
+    std::fs::write(root.join("spds/bad.spd"), "400 1\n300 2\n").unwrap();
+    let scene = |eta: &str| {
+        std::fs::write(
+            root.join("main.pbrt"),
+            format!(
+                "WorldBegin\nMaterial \"conductor\" \"spectrum eta\" {eta} \"spectrum k\" [400 5 700 5]\nShape \"sphere\"\n"
+            ),
+        )
+        .unwrap();
+        load(&root.join("main.pbrt"), &[])
+    };
+    let d = scene("\"spds/eta.spd\"").unwrap();
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let MaterialKindDesc::Conductor {
+        fresnel: ConductorDesc::Complex { eta, k },
+        ..
+    } = &material(&d, 0).kind
+    else {
+        panic!("{:?}", material(&d, 0).kind)
+    };
+    // 650, 550 and 450 nm.
+    assert!((*eta - Rgb::new(3.5, 2.5, 1.5)).abs().max_element() < 1e-6, "{eta:?}");
+    assert_eq!(*k, Rgb::splat(5.0));
+    let e = scene("\"spds/bad.spd\"").unwrap_err().to_string();
+    assert!(
+        e.contains("bad.spd: wavelengths must increase, but 300 follows 400"),
+        "{e}"
+    );
+    let e = scene("\"spds/none.spd\"").unwrap_err().to_string();
+    assert!(
+        e.contains("\"spds/none.spd\" is neither a named spectrum nor a readable file"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_scaled_texture_stays_a_texture() {
+    let d = world(
+        r#"Texture "grid" "spectrum" "imagemap" "string filename" "lines.png" "float uscale" 2
+Texture "half" "spectrum" "scale" "float scale" 0.5 "texture tex" "grid"
+Texture "checks" "spectrum" "checkerboard" "rgb tex1" [1 1 1] "rgb tex2" [0 0 0]
+Texture "tinted" "spectrum" "scale" "texture scale" "checks" "rgb tex" [1 0.5 0.25]
+Material "diffuse" "texture reflectance" "half"
+Shape "sphere""#,
+    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let TextureKind::Image { tint, scale, .. } = &d.textures[1].kind else {
+        panic!("{:?}", d.textures[1].kind)
+    };
+    assert_eq!((*tint, *scale), (Rgb::splat(0.5), Vec2::new(2.0, 1.0)));
+    assert_eq!(
+        d.textures[3].kind,
+        TextureKind::Checkerboard {
+            even: Rgb::new(1.0, 0.5, 0.25),
+            odd: Rgb::ZERO,
+            scale: Vec2::ONE
+        }
+    );
 }
