@@ -12,6 +12,7 @@ use super::classic::ClassicBsdf;
 use super::conductor::ConductorBsdf;
 use super::dielectric::DielectricBsdf;
 use super::lambert::LambertBsdf;
+use super::layered::LayeredBsdf;
 use super::plastic::PlasticBsdf;
 use super::thin::ThinBsdf;
 use crate::color::Rgb;
@@ -99,6 +100,9 @@ pub enum Bsdf<'a> {
     Plastic(PlasticBsdf<'a>),
     /// A thin dielectric sheet, or (of index 1) no surface at all.
     Thin(ThinBsdf),
+    /// pbrt-v4's stochastic layered BSDF: a dielectric coat over a diffuse
+    /// or conductor base.
+    Layered(LayeredBsdf),
 }
 
 macro_rules! dispatch {
@@ -110,6 +114,7 @@ macro_rules! dispatch {
             Bsdf::Dielectric($b) => $e,
             Bsdf::Plastic($b) => $e,
             Bsdf::Thin($b) => $e,
+            Bsdf::Layered($b) => $e,
         }
     };
 }

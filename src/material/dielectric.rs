@@ -34,7 +34,7 @@ pub struct DielectricBsdf {
 impl DielectricBsdf {
     /// The generalised half vector of (wo, wi) and the relative index of
     /// the crossing, or `None` if degenerate or back-facing.
-    fn half_vector(&self, wo: Vec3, wi: Vec3) -> Option<(Vec3, f32, bool)> {
+    pub(super) fn half_vector(&self, wo: Vec3, wi: Vec3) -> Option<(Vec3, f32, bool)> {
         let (cos_o, cos_i) = (wo.z, wi.z);
         if cos_o == 0.0 || cos_i == 0.0 {
             return None;

@@ -22,6 +22,7 @@ pub mod conductor;
 pub mod dielectric;
 pub mod frame;
 pub mod lambert;
+pub mod layered;
 pub mod microfacet;
 pub mod optics;
 pub mod phong;
@@ -39,6 +40,7 @@ use conductor::{ConductorBsdf, ConductorFresnel};
 use dielectric::DielectricBsdf;
 use glam::Vec3;
 use lambert::LambertBsdf;
+use layered::{LayerBase, LayeredBsdf};
 pub use microfacet::{Microfacet, MicrofacetDistribution};
 use plastic::{CoatTables, PlasticBsdf};
 use thin::ThinBsdf;
@@ -105,6 +107,26 @@ pub enum MaterialKind {
         /// Tables of the rough coat (`None` when smooth).
         tables: Option<Box<CoatTables>>,
     },
+    /// pbrt-v4's layered BSDF: a dielectric coat over a base (see
+    /// [`layered`]).
+    Layered {
+        /// What lies under the coat.
+        base: LayerBaseKind,
+        /// Index of refraction of the coat, relative to the outside.
+        coat_eta: f32,
+        /// Roughness of the coat.
+        coat: Microfacet,
+        /// Thickness of the slab between coat and base.
+        thickness: f32,
+        /// Single-scattering albedo of the slab's medium.
+        albedo: Rgb,
+        /// The medium's phase function.
+        phase: crate::media::phase::Phase,
+        /// Most scattering events of one walk.
+        max_depth: u32,
+        /// Walks per evaluation.
+        samples: u32,
+    },
     /// A thin dielectric sheet (index 1: no surface, only the boundary of
     /// a medium).
     Thin {
@@ -114,6 +136,20 @@ pub enum MaterialKind {
         reflect_tint: Rgb,
         /// Transmission multiplier.
         transmit_tint: Rgb,
+    },
+}
+
+/// The base of a layered material.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LayerBaseKind {
+    /// Lambertian.
+    Diffuse(Texture),
+    /// A conductor, its indices relative to the coat.
+    Conductor {
+        /// Reflectance model.
+        fresnel: ConductorFresnel,
+        /// Roughness.
+        microfacet: Microfacet,
     },
 }
 
@@ -330,7 +366,12 @@ impl Material {
         let textures: &[&Texture] = match &self.kind {
             MaterialKind::Classic { diffuse, specular, .. } => &[diffuse, specular],
             MaterialKind::Diffuse { reflectance } => &[reflectance],
-            MaterialKind::Plastic { diffuse, .. } => &[diffuse],
+            MaterialKind::Plastic { diffuse, .. }
+            | MaterialKind::Layered {
+                base: LayerBaseKind::Diffuse(diffuse),
+                ..
+            } => &[diffuse],
+            MaterialKind::Layered { .. } => &[],
             MaterialKind::Conductor { .. } | MaterialKind::Dielectric { .. } | MaterialKind::Thin { .. } => &[],
         };
         self.emission.reads_uv()
@@ -476,6 +517,32 @@ impl Material {
                     ..zero
                 }
             }
+            MaterialKind::Layered {
+                base, coat_eta, coat, ..
+            } => {
+                // The coat as a mirror or a Phong lobe over the base.
+                let f0 = optics::fresnel_dielectric(1.0, *coat_eta);
+                let smooth = coat.is_smooth();
+                let kd = match base {
+                    LayerBaseKind::Diffuse(r) => r.eval(images, tc),
+                    LayerBaseKind::Conductor { .. } => Rgb::ZERO,
+                };
+                let kr = match base {
+                    LayerBaseKind::Conductor { fresnel, .. } => fresnel.eval(1.0),
+                    LayerBaseKind::Diffuse(_) => Rgb::ZERO,
+                };
+                ClassicParams {
+                    kd,
+                    ks: Rgb::splat(f0),
+                    shininess: if smooth {
+                        1000.0
+                    } else {
+                        phong_exponent_for_alpha(coat.alpha_x.max(coat.alpha_y))
+                    },
+                    kr: kr.max(if smooth { Rgb::splat(f0) } else { Rgb::ZERO }),
+                    ..zero
+                }
+            }
             MaterialKind::Thin {
                 eta,
                 reflect_tint,
@@ -556,6 +623,36 @@ impl Material {
                 specular_weight: *specular_weight,
                 smooth_internal_reflectance: *smooth_internal_reflectance,
                 tables: tables.as_deref(),
+            }),
+            MaterialKind::Layered {
+                base,
+                coat_eta,
+                coat,
+                thickness,
+                albedo,
+                phase,
+                max_depth,
+                samples,
+            } => Bsdf::Layered(LayeredBsdf {
+                coat: DielectricBsdf {
+                    eta: *coat_eta,
+                    microfacet: *coat,
+                    reflect_tint: Rgb::ONE,
+                    transmit_tint: Rgb::ONE,
+                },
+                base: match base {
+                    LayerBaseKind::Diffuse(r) => LayerBase::Diffuse(r.eval(images, tc)),
+                    LayerBaseKind::Conductor { fresnel, microfacet } => LayerBase::Conductor(ConductorBsdf {
+                        fresnel: *fresnel,
+                        tint: Rgb::ONE,
+                        microfacet: *microfacet,
+                    }),
+                },
+                thickness: *thickness,
+                albedo: *albedo,
+                phase: *phase,
+                max_depth: *max_depth,
+                samples: *samples,
             }),
             MaterialKind::Thin {
                 eta,

@@ -14,7 +14,7 @@ use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sp
 use crate::geometry::{Aabb, Transform, TriangleMesh};
 use crate::light::{Background, EnvironmentMap, Light, SpotProjection};
 use crate::material::conductor::ConductorFresnel;
-use crate::material::{Material, MaterialKind, Microfacet};
+use crate::material::{LayerBaseKind, Material, MaterialKind, Microfacet, MicrofacetDistribution};
 use crate::media::{Field, Medium, MediumInterface, Phase, VoxelGrid};
 use crate::sampling::Distribution1D;
 use crate::settings::IntegratorKind;
@@ -631,6 +631,55 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             *nonlinear,
             images,
         ),
+        MaterialKindDesc::Layered {
+            base,
+            coat_ior,
+            coat_roughness,
+            thickness,
+            albedo,
+            g,
+            max_depth,
+            samples,
+        } => Material {
+            kind: MaterialKind::Layered {
+                base: match base {
+                    LayeredBaseDesc::Diffuse(r) => LayerBaseKind::Diffuse(color(r)),
+                    LayeredBaseDesc::Conductor { fresnel, roughness } => {
+                        // The conductor lies in the coat: its indices are
+                        // relative to the coat's (pbrt-v4's
+                        // CoatedConductorMaterial). A reflectance becomes
+                        // the index η = 1, k = 2√r/√(1 − r) that reflects it
+                        // at normal incidence, as pbrt-v4 converts it.
+                        let (eta, k) = match fresnel {
+                            ConductorDesc::Complex { eta, k } => (*eta, *k),
+                            ConductorDesc::Reflectance(r) | ConductorDesc::Mirror(r) => {
+                                let r = r.min(Rgb::splat(0.9999));
+                                let k = |x: f32| 2.0 * x.sqrt() / (1.0 - x).max(0.0).sqrt();
+                                (Rgb::ONE, Rgb::new(k(r.x), k(r.y), k(r.z)))
+                            }
+                        };
+                        LayerBaseKind::Conductor {
+                            fresnel: ConductorFresnel::Complex {
+                                eta: eta / *coat_ior,
+                                k: k / *coat_ior,
+                            },
+                            microfacet: Microfacet::new(MicrofacetDistribution::Ggx, roughness.0, roughness.1),
+                        }
+                    }
+                },
+                coat_eta: *coat_ior,
+                coat: Microfacet::new(MicrofacetDistribution::Ggx, coat_roughness.0, coat_roughness.1),
+                thickness: *thickness,
+                albedo: *albedo,
+                phase: Phase::henyey_greenstein(*g),
+                max_depth: *max_depth,
+                samples: *samples,
+            },
+            emission: Texture::Constant(Rgb::ZERO),
+            two_sided: true,
+            opacity: None,
+            normal_map: None,
+        },
         MaterialKindDesc::Thin {
             ior,
             ext_ior,

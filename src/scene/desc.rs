@@ -212,6 +212,21 @@ impl Default for ClassicDesc {
     }
 }
 
+/// The base of a layered material.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LayeredBaseDesc {
+    /// Lambertian, of this albedo.
+    Diffuse(ColorSource),
+    /// A conductor (η and k relative to the outside, as written; the
+    /// build divides them by the coat's index).
+    Conductor {
+        /// Reflectance.
+        fresnel: ConductorDesc,
+        /// Microfacet α along tangent and bitangent (0: smooth).
+        roughness: (f32, f32),
+    },
+}
+
 /// How a conductor's reflectance is given.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ConductorDesc {
@@ -280,6 +295,27 @@ pub enum MaterialKindDesc {
         specular_tint: Rgb,
         /// Colour saturation by internal scattering.
         nonlinear: bool,
+    },
+    /// pbrt-v4's layered material (`coateddiffuse`, `coatedconductor`): a
+    /// dielectric coat over a base, a slab between them that may hold a
+    /// scattering medium, rendered by a random walk between the layers.
+    Layered {
+        /// What lies under the coat.
+        base: LayeredBaseDesc,
+        /// Index of refraction of the coat (outside: 1).
+        coat_ior: f32,
+        /// Microfacet α of the coat along tangent and bitangent (0: smooth).
+        coat_roughness: (f32, f32),
+        /// Thickness of the slab, in mean free paths of its medium.
+        thickness: f32,
+        /// Single-scattering albedo of the slab's medium (zero: empty).
+        albedo: Rgb,
+        /// Henyey–Greenstein asymmetry of the medium, in [−1, 1].
+        g: f32,
+        /// Most scattering events of one walk.
+        max_depth: u32,
+        /// Walks per evaluation.
+        samples: u32,
     },
     /// A thin dielectric sheet; with `ior` equal to `ext_ior`, no surface
     /// at all (only the boundary of a medium).
@@ -1003,6 +1039,58 @@ impl SceneDesc {
                     }
                     roughness("roughness", *r)?;
                     c.color("specular_tint", *specular_tint)?;
+                }
+                MaterialKindDesc::Layered {
+                    base,
+                    coat_ior,
+                    coat_roughness: (cx, cy),
+                    thickness,
+                    albedo,
+                    g,
+                    max_depth,
+                    samples,
+                } => {
+                    match base {
+                        LayeredBaseDesc::Diffuse(r) => texture("reflectance", r)?,
+                        LayeredBaseDesc::Conductor {
+                            fresnel,
+                            roughness: (ax, ay),
+                        } => {
+                            match fresnel {
+                                ConductorDesc::Complex { eta, k } => {
+                                    c.color("conductor.eta", *eta)?;
+                                    c.color("conductor.k", *k)?;
+                                    if eta.min_element() <= 0.0 {
+                                        return Err(c.err("conductor.eta", "must be positive"));
+                                    }
+                                }
+                                ConductorDesc::Reflectance(r) | ConductorDesc::Mirror(r) => {
+                                    c.color("reflectance", *r)?
+                                }
+                            }
+                            roughness("conductor.roughness", *ax)?;
+                            roughness("conductor.roughness", *ay)?;
+                        }
+                    }
+                    ior("interface.eta", *coat_ior)?;
+                    roughness("interface.roughness", *cx)?;
+                    roughness("interface.roughness", *cy)?;
+                    if !(thickness.is_finite() && *thickness > 0.0) {
+                        return Err(c.err("thickness", format!("must be positive, got {thickness}")));
+                    }
+                    c.color("albedo", *albedo)?;
+                    if albedo.max_element() > 1.0 {
+                        return Err(c.err("albedo", "must be at most 1"));
+                    }
+                    if !(-1.0..=1.0).contains(g) {
+                        return Err(c.err("g", format!("must be in [-1, 1], got {g}")));
+                    }
+                    if *max_depth == 0 || *max_depth > 4096 {
+                        return Err(c.err("maxdepth", format!("must be 1 to 4096, got {max_depth}")));
+                    }
+                    if *samples == 0 || *samples > 4096 {
+                        return Err(c.err("nsamples", format!("must be 1 to 4096, got {samples}")));
+                    }
                 }
                 MaterialKindDesc::Thin {
                     ior: int,

@@ -449,14 +449,19 @@ impl Parser {
             },
             "conductor" => self.conductor(p, "", &mut def, dir_rel)?,
             "coatedconductor" => {
-                let m = self.conductor(p, "conductor.", &mut def, dir_rel)?;
-                self.layered_warning(
+                let MaterialKindDesc::Conductor { fresnel, roughness, .. } =
+                    self.conductor(p, "conductor.", &mut def, dir_rel)?
+                else {
+                    unreachable!("conductor() makes conductors")
+                };
+                let coat_ior = self.eta(p, "interface.eta", 1.5, &mut def)?;
+                let coat_roughness = self.roughness(p, "interface.", &mut def)?;
+                self.layered(
                     p,
-                    loc,
-                    &what,
-                    "the dielectric coat is left out; the conductor below is rendered",
-                );
-                m
+                    LayeredBaseDesc::Conductor { fresnel, roughness },
+                    coat_ior,
+                    coat_roughness,
+                )?
             }
             "thindielectric" => MaterialKindDesc::Thin {
                 ior: self.eta(p, "eta", 1.5, &mut def)?,
@@ -479,28 +484,9 @@ impl Parser {
             }
             "coateddiffuse" => {
                 let diffuse = self.albedo(p, "reflectance", 0.5, "diffuse", &mut def)?;
-                let r = self.roughness(p, "", &mut def)?;
-                let roughness = self.isotropic(r, loc, &what);
-                let ior = self.eta(p, "eta", 1.5, &mut def)?;
-                self.layered_warning(
-                    p,
-                    loc,
-                    &what,
-                    "rendered as trazo's plastic (a diffuse base under a dielectric coat, without the layer's thickness and medium)",
-                );
-                if ior == 1.0 {
-                    MaterialKindDesc::Diffuse { reflectance: diffuse }
-                } else {
-                    MaterialKindDesc::Plastic {
-                        diffuse,
-                        ior,
-                        ext_ior: 1.0,
-                        roughness,
-                        distribution: MicrofacetDistribution::Ggx,
-                        specular_tint: Rgb::ONE,
-                        nonlinear: false,
-                    }
-                }
+                let coat_roughness = self.roughness(p, "", &mut def)?;
+                let coat_ior = self.eta(p, "eta", 1.5, &mut def)?;
+                self.layered(p, LayeredBaseDesc::Diffuse(diffuse), coat_ior, coat_roughness)?
             }
             "diffusetransmission" => {
                 let reflectance = self.albedo(p, "reflectance", 0.25, "reflectance", &mut def)?;
@@ -595,21 +581,50 @@ impl Parser {
     }
 
     /// One warning for a layered material; its layer parameters count as read.
-    fn layered_warning(&mut self, p: &ParamList, loc: &SourceLoc, what: &str, how: &str) {
-        for name in [
-            "thickness",
-            "albedo",
-            "g",
-            "maxdepth",
-            "nsamples",
-            "interface.roughness",
-            "interface.uroughness",
-            "interface.vroughness",
-            "interface.eta",
-        ] {
-            p.find(name);
+    /// The slab of a `coateddiffuse` or `coatedconductor` (pbrt-v4's
+    /// defaults: thickness 0.01, no medium, `g` 0, 10 scattering events, 1
+    /// walk per evaluation).
+    fn layered(
+        &mut self,
+        p: &ParamList,
+        base: LayeredBaseDesc,
+        coat_ior: f32,
+        coat_roughness: (f32, f32),
+    ) -> Result<MaterialKindDesc> {
+        let thickness = self.float_param(p, "thickness", 0.01)?.map_or(0.01, |(v, _)| v);
+        if let Some(prm) = p
+            .find("thickness")
+            .filter(|_| !(thickness.is_finite() && thickness > 0.0))
+        {
+            return Err(prm.err(format!("must be positive, got {thickness}")));
         }
-        self.approximated(loc, what, how);
+        let g = self.float_param(p, "g", 0.0)?.map_or(0.0, |(v, _)| v);
+        if let Some(prm) = p.find("g").filter(|_| !(-1.0..=1.0).contains(&g)) {
+            return Err(prm.err(format!("must be in [-1, 1], got {g}")));
+        }
+        let albedo = self.texture_color(p, "albedo", Rgb::ZERO)?;
+        if let Some(prm) = p.find("albedo").filter(|_| albedo.max_element() > 1.0) {
+            return Err(prm.err("an albedo must be at most 1"));
+        }
+        let count = |name: &str, default: u32| -> Result<u32> {
+            match p.int_opt(name)? {
+                None => Ok(default),
+                Some((n, _)) if (1..=4096).contains(&n) => Ok(n as u32),
+                Some((n, prm)) => Err(prm.err(format!("must be 1 to 4096, got {n}"))),
+            }
+        };
+        let max_depth = count("maxdepth", 10)?;
+        let samples = count("nsamples", 1)?;
+        Ok(MaterialKindDesc::Layered {
+            base,
+            coat_ior,
+            coat_roughness,
+            thickness,
+            albedo,
+            g,
+            max_depth,
+            samples,
+        })
     }
 
     /// `Texture "name" "spectrum"|"float" "class" …`.

@@ -640,14 +640,15 @@ Shape "sphere""#,
     );
     assert_eq!(
         material(&d, 4).kind,
-        MaterialKindDesc::Plastic {
-            diffuse: ColorSource::Rgb(Rgb::new(0.2, 0.3, 0.4)),
-            ior: 1.5,
-            ext_ior: 1.0,
-            roughness: 0.0,
-            distribution: MicrofacetDistribution::Ggx,
-            specular_tint: Rgb::ONE,
-            nonlinear: false,
+        MaterialKindDesc::Layered {
+            base: LayeredBaseDesc::Diffuse(ColorSource::Rgb(Rgb::new(0.2, 0.3, 0.4))),
+            coat_ior: 1.5,
+            coat_roughness: (0.0, 0.0),
+            thickness: 0.01,
+            albedo: Rgb::ZERO,
+            g: 0.0,
+            max_depth: 10,
+            samples: 1,
         }
     );
     // pbrt-v4's default conductor is copper.
@@ -661,17 +662,74 @@ Shape "sphere""#,
         w.contains("test.pbrt:8:23: \"spectrum eta\" \"glass-BK7\" is approximated"),
         "{w}"
     );
-    assert!(
-        w.contains("test.pbrt:10:1: material \"coateddiffuse\" is approximated"),
-        "{w}"
+    assert!(!w.contains("coateddiffuse"), "{w}");
+}
+
+#[test]
+fn coated_materials_are_pbrt_v4s_layered_bsdf() {
+    let d = world(
+        r#"Material "coatedconductor" "spectrum conductor.eta" [400 0.2 700 0.2] "spectrum conductor.k" [400 3 700 3]
+    "float conductor.roughness" 0.04 "float interface.roughness" 0.09 "float interface.eta" 1.4
+    "float thickness" 0.2 "rgb albedo" [0.5 0.4 0.3] "float g" -0.3 "integer maxdepth" 20 "integer nsamples" 4
+Shape "sphere"
+Material "coatedconductor"
+Shape "sphere""#,
     );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    assert_eq!(
+        material(&d, 0).kind,
+        MaterialKindDesc::Layered {
+            base: LayeredBaseDesc::Conductor {
+                fresnel: ConductorDesc::Complex {
+                    eta: Rgb::splat(0.2),
+                    k: Rgb::splat(3.0)
+                },
+                roughness: (0.2, 0.2),
+            },
+            coat_ior: 1.4,
+            coat_roughness: (0.3, 0.3),
+            thickness: 0.2,
+            albedo: Rgb::new(0.5, 0.4, 0.3),
+            g: -0.3,
+            max_depth: 20,
+            samples: 4,
+        }
+    );
+    let (cu_eta, cu_k) = crate::material::conductor::metal_ior("Cu").unwrap();
+    assert!(matches!(
+        material(&d, 1).kind,
+        MaterialKindDesc::Layered {
+            base: LayeredBaseDesc::Conductor { fresnel: ConductorDesc::Complex { eta, k }, roughness: (0.0, 0.0) },
+            coat_ior: 1.5,
+            ..
+        } if eta == cu_eta && k == cu_k
+    ));
+    for (bad, message) in [
+        (
+            "\"float thickness\" 0",
+            "test.pbrt:2:26: `float thickness`: must be positive, got 0",
+        ),
+        ("\"float g\" 2", "test.pbrt:2:26: `float g`: must be in [-1, 1], got 2"),
+        (
+            "\"integer maxdepth\" 0",
+            "test.pbrt:2:26: `integer maxdepth`: must be 1 to 4096, got 0",
+        ),
+        (
+            "\"rgb albedo\" [2 0 0]",
+            "test.pbrt:2:26: `rgb albedo`: an albedo must be at most 1",
+        ),
+    ] {
+        let e = error_of(&format!(
+            "WorldBegin\nMaterial \"coateddiffuse\" {bad}\nShape \"sphere\""
+        ));
+        assert!(e.starts_with(message), "{e}");
+    }
 }
 
 #[test]
 fn other_materials_are_approximated_with_warnings() {
     for (kind, expect) in [
         ("diffusetransmission", "Diffuse"),
-        ("coatedconductor", "Conductor"),
         ("measured", "Diffuse"),
         ("hair", "Diffuse"),
         ("subsurface", "Plastic"),
