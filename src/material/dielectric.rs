@@ -12,9 +12,10 @@
 //! path is traced backwards from the camera); paths traced from the lights
 //! ([`TransportMode::Importance`]) are not scaled.
 
-use super::bsdf::{BsdfSample, TransportMode, same_hemisphere};
+use super::bsdf::{BsdfSample, TransportMode};
+use super::layered::Lobes;
 use super::microfacet::Microfacet;
-use super::optics::{fresnel_dielectric, reflect, refract};
+use super::optics::{fresnel_dielectric, refract};
 use crate::color::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -104,42 +105,7 @@ impl DielectricBsdf {
         if self.eta == 1.0 || self.microfacet.is_smooth() {
             return self.sample_delta(wo, u_lobe, mode);
         }
-        if wo.z == 0.0 {
-            return None;
-        }
-        let wm = self.microfacet.sample_visible_normal(wo, u);
-        let r = fresnel_dielectric(wo.dot(wm), self.eta);
-        let wi = if u_lobe < r {
-            let wi = reflect(wo, wm);
-            if !same_hemisphere(wo, wi) {
-                return None;
-            }
-            wi
-        } else {
-            let (wi, _) = refract(wo, wm, self.eta)?;
-            if same_hemisphere(wo, wi) || wi.z == 0.0 {
-                return None;
-            }
-            wi
-        };
-        let pdf = self.pdf(wo, wi);
-        if pdf <= 0.0 {
-            return None;
-        }
-        let eta = if same_hemisphere(wo, wi) {
-            1.0
-        } else if wo.z > 0.0 {
-            self.eta
-        } else {
-            1.0 / self.eta
-        };
-        Some(BsdfSample {
-            wi,
-            f: self.eval(wo, wi, mode),
-            pdf,
-            delta: false,
-            eta,
-        })
+        self.sample_lobes(wo, u_lobe, u, mode, Lobes::Both)
     }
 
     pub(crate) fn delta_probability(&self, _wo: Vec3) -> f32 {

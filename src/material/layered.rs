@@ -92,7 +92,7 @@ fn transmittance(dz: f32, w: Vec3) -> f32 {
 
 /// Which lobes of the coat a sample may take.
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum Lobes {
+pub(super) enum Lobes {
     Reflection,
     Transmission,
     Both,
@@ -114,7 +114,14 @@ impl Lobes {
 /// The coat's sampling and density restricted to some lobes (pbrt-v4's
 /// `BxDFReflTransFlags`), on top of trazo's dielectric interface.
 impl DielectricBsdf {
-    fn sample_lobes(&self, wo: Vec3, uc: f32, u: Vec2, mode: TransportMode, lobes: Lobes) -> Option<BsdfSample> {
+    pub(super) fn sample_lobes(
+        &self,
+        wo: Vec3,
+        uc: f32,
+        u: Vec2,
+        mode: TransportMode,
+        lobes: Lobes,
+    ) -> Option<BsdfSample> {
         if wo.z == 0.0 {
             return None;
         }
@@ -180,7 +187,7 @@ impl DielectricBsdf {
         })
     }
 
-    fn pdf_lobes(&self, wo: Vec3, wi: Vec3, lobes: Lobes) -> f32 {
+    pub(super) fn pdf_lobes(&self, wo: Vec3, wi: Vec3, lobes: Lobes) -> f32 {
         if self.eta == 1.0 || self.microfacet.is_smooth() {
             return 0.0;
         }
