@@ -865,36 +865,15 @@ impl Parser {
         let Some(base) = self.desc.textures.iter().rev().find(|t| t.name == name) else {
             return Ok(None);
         };
-        let kind = match base.kind.clone() {
-            TextureKind::Constant(c) => TextureKind::Constant(c * factor),
-            TextureKind::Checkerboard { even, odd, scale } => TextureKind::Checkerboard {
-                even: even * factor,
-                odd: odd * factor,
-                scale,
-            },
-            TextureKind::Checkerboard3d { even, odd, scale } => TextureKind::Checkerboard3d {
-                even: even * factor,
-                odd: odd * factor,
-                scale,
-            },
-            TextureKind::Image {
-                source,
-                scale,
-                offset,
-                srgb,
-                tint,
-                wrap,
-                filter,
-            } => TextureKind::Image {
-                source,
-                scale,
-                offset,
-                srgb,
-                tint: tint * factor,
-                wrap,
-                filter,
-            },
-        };
+        let mut kind = base.kind.clone();
+        match &mut kind {
+            TextureKind::Constant(c) => *c *= factor,
+            TextureKind::Checkerboard { even, odd, .. } | TextureKind::Checkerboard3d { even, odd, .. } => {
+                *even *= factor;
+                *odd *= factor;
+            }
+            TextureKind::Image { tint, .. } => *tint *= factor,
+        }
         let typical = self.texture_colors.get(&name).copied().unwrap_or(Rgb::splat(0.5)) * factor;
         Ok(Some((kind, typical)))
     }
