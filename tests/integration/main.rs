@@ -1,0 +1,22 @@
+//! Every integration test in one binary: one link (with the release
+//! profile's whole-program optimisation) instead of one per file. Each
+//! module is one area, as its own doc comment says.
+
+mod bench_rays;
+mod cli;
+mod denoise;
+mod display;
+mod farm;
+mod fuzz_regressions;
+mod gltf;
+mod long_renders;
+mod malformed;
+mod media;
+mod mitsuba;
+mod path;
+mod pbrt;
+mod pbrt_refs;
+mod photon;
+mod ply;
+mod render;
+mod sampling;
