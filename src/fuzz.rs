@@ -1,5 +1,5 @@
 //! Entry points for fuzzing (the targets in `fuzz/`) and for the tests that
-//! replay what fuzzing found (`tests/fuzz_regressions.rs`).
+//! replay what fuzzing found (`tests/integration/fuzz_regressions.rs`).
 //!
 //! Each takes untrusted bytes and runs them through one reader; whatever
 //! the reader accepts goes on through [`crate::scene::build_limited`] and a

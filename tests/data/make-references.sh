@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Renders the reference images that tests/photon.rs and tests/denoise.rs
+# Renders the reference images that tests/integration/photon.rs and tests/integration/denoise.rs
 # compare against: long path-traced renders of small images. They are
 # committed; rerun this only when the scenes change, never to make a test
 # pass.

@@ -374,7 +374,7 @@ fn the_corpus_and_the_table_agree() {
             );
             assert!(
                 listed.contains(rel.as_str()),
-                "{rel} has no expected outcome in tests/malformed.rs"
+                "{rel} has no expected outcome in tests/integration/malformed.rs"
             );
         }
     }
