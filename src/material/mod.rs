@@ -169,6 +169,52 @@ pub struct Material {
     /// A tangent-space normal map (colour c: the normal 2c − 1 in the
     /// frame of tangent, bitangent and shading normal); `None`: none.
     pub normal_map: Option<Texture>,
+    /// Microfacet roughness that varies over the surface; it replaces the
+    /// constant α of a conductor or a dielectric. `None`: constant.
+    pub roughness_map: Option<RoughnessMap>,
+}
+
+/// Roughness read from textures (their first channel) at each hit: α along
+/// the tangent and along the bitangent, as Mitsuba's rough BSDFs take
+/// `alpha_u`/`alpha_v` textures and pbrt-v4's materials float textures for
+/// `uroughness`/`vroughness`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RoughnessMap {
+    /// Roughness along the tangent.
+    pub u: Texture,
+    /// Roughness along the bitangent.
+    pub v: Texture,
+    /// Whether the texture holds pbrt-v4's perceptual roughness r, whose α
+    /// is √r (`remaproughness`, `TrowbridgeReitzDistribution::RoughnessToAlpha`),
+    /// rather than α itself.
+    pub remap_sqrt: bool,
+}
+
+impl RoughnessMap {
+    /// `base` with the map's α at `tc` (negative texels count as 0).
+    #[inline]
+    pub fn microfacet_at(&self, base: Microfacet, images: &[ImageTexture], tc: &TexCoord) -> Microfacet {
+        let alpha = |t: &Texture| {
+            let a = t.eval(images, tc).x.max(0.0);
+            if self.remap_sqrt { a.sqrt() } else { a }
+        };
+        Microfacet::new(base.distribution, alpha(&self.u), alpha(&self.v))
+    }
+
+    /// The α of the textures' averages: what a material with this map is
+    /// built with, so that it counts as rough unless every texel is 0.
+    pub fn average_alpha(&self, images: &[ImageTexture]) -> (f32, f32) {
+        let alpha = |t: &Texture| {
+            let a = t.average(images).x.max(0.0);
+            if self.remap_sqrt { a.sqrt() } else { a }
+        };
+        (alpha(&self.u), alpha(&self.v))
+    }
+
+    /// Whether either texture reads surface coordinates.
+    pub fn reads_uv(&self) -> bool {
+        self.u.reads_uv() || self.v.reads_uv()
+    }
 }
 
 /// The classical parameters that the Whitted integrator reads.
@@ -284,6 +330,7 @@ impl Material {
                 two_sided: true,
                 opacity: None,
                 normal_map: None,
+                roughness_map: None,
             };
         }
         Material {
@@ -299,6 +346,7 @@ impl Material {
             two_sided: true,
             opacity: None,
             normal_map: None,
+            roughness_map: None,
         }
     }
 
@@ -348,6 +396,7 @@ impl Material {
             two_sided: true,
             opacity: None,
             normal_map: None,
+            roughness_map: None,
         }
     }
 
@@ -377,6 +426,7 @@ impl Material {
         self.emission.reads_uv()
             || self.opacity.as_ref().is_some_and(|o| o.reads_uv())
             || self.normal_map.as_ref().is_some_and(|n| n.reads_uv())
+            || self.roughness_map.as_ref().is_some_and(|r| r.reads_uv())
             || textures.iter().any(|t| t.reads_uv())
     }
 
@@ -577,6 +627,15 @@ impl Material {
         }
     }
 
+    /// `base`, or the roughness map's α at `tc` where there is one.
+    #[inline]
+    fn microfacet_at(&self, base: Microfacet, images: &[ImageTexture], tc: &TexCoord) -> Microfacet {
+        match &self.roughness_map {
+            None => base,
+            Some(map) => map.microfacet_at(base, images, tc),
+        }
+    }
+
     /// [`Material::bsdf`] of the materials other than diffuse.
     fn bsdf_other<'a>(&'a self, images: &[ImageTexture], tc: &TexCoord) -> Bsdf<'a> {
         match &self.kind {
@@ -592,7 +651,7 @@ impl Material {
             } => Bsdf::Conductor(ConductorBsdf {
                 fresnel: *fresnel,
                 tint: *tint,
-                microfacet: *microfacet,
+                microfacet: self.microfacet_at(*microfacet, images, tc),
             }),
             MaterialKind::Dielectric {
                 eta,
@@ -601,7 +660,7 @@ impl Material {
                 transmit_tint,
             } => Bsdf::Dielectric(DielectricBsdf {
                 eta: *eta,
-                microfacet: *microfacet,
+                microfacet: self.microfacet_at(*microfacet, images, tc),
                 reflect_tint: *reflect_tint,
                 transmit_tint: *transmit_tint,
             }),
@@ -683,6 +742,47 @@ mod tests {
             transmission,
             1.5,
         )
+    }
+
+    /// A roughness map sets α per hit from its textures: the checks of a
+    /// checkerboard give a conductor their two roughnesses, and pbrt's
+    /// remapping takes the square root.
+    #[test]
+    fn roughness_maps_set_alpha_per_hit() {
+        let checks = |even: f32, odd: f32| Texture::Checkerboard {
+            even: Rgb::splat(even),
+            odd: Rgb::splat(odd),
+            scale: Vec2::splat(2.0),
+        };
+        let mut m = Material::diffuse(Rgb::ONE);
+        m.kind = MaterialKind::Conductor {
+            fresnel: ConductorFresnel::Constant(Rgb::ONE),
+            tint: Rgb::ONE,
+            microfacet: Microfacet::new(MicrofacetDistribution::Beckmann, 0.1, 0.1),
+        };
+        m.roughness_map = Some(RoughnessMap {
+            u: checks(0.05, 0.3),
+            v: checks(0.3, 0.05),
+            remap_sqrt: false,
+        });
+        assert!(m.reads_uv());
+        let at = |m: &Material, u: f32| {
+            let tc = TexCoord {
+                uv: Vec2::new(u, 0.25),
+                p: Vec3::ZERO,
+            };
+            match m.bsdf(&[], &tc) {
+                Bsdf::Conductor(c) => (c.microfacet.alpha_x, c.microfacet.alpha_y, c.microfacet.distribution),
+                other => panic!("not a conductor: {other:?}"),
+            }
+        };
+        assert_eq!(at(&m, 0.25), (0.05, 0.3, MicrofacetDistribution::Beckmann));
+        assert_eq!(at(&m, 0.75), (0.3, 0.05, MicrofacetDistribution::Beckmann));
+        m.roughness_map.as_mut().unwrap().remap_sqrt = true;
+        let (ax, ay, _) = at(&m, 0.25);
+        assert!((ax - 0.05f32.sqrt()).abs() < 1e-6 && (ay - 0.3f32.sqrt()).abs() < 1e-6);
+        let avg = m.roughness_map.as_ref().unwrap().average_alpha(&[]);
+        assert!((avg.0 - 0.175f32.sqrt()).abs() < 1e-6, "{avg:?}");
     }
 
     #[test]

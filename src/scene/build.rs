@@ -14,7 +14,7 @@ use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sp
 use crate::geometry::{Aabb, Transform, TriangleMesh};
 use crate::light::{Background, EnvironmentMap, Light, SpotProjection};
 use crate::material::conductor::ConductorFresnel;
-use crate::material::{LayerBaseKind, Material, MaterialKind, Microfacet, MicrofacetDistribution};
+use crate::material::{LayerBaseKind, Material, MaterialKind, Microfacet, MicrofacetDistribution, RoughnessMap};
 use crate::media::{Field, Medium, MediumInterface, Phase, VoxelGrid};
 use crate::sampling::Distribution1D;
 use crate::settings::IntegratorKind;
@@ -575,6 +575,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             two_sided: true,
             opacity: None,
             normal_map: None,
+            roughness_map: None,
         },
         MaterialKindDesc::Conductor {
             fresnel,
@@ -595,6 +596,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             two_sided: true,
             opacity: None,
             normal_map: None,
+            roughness_map: None,
         },
         MaterialKindDesc::Dielectric {
             ior,
@@ -614,6 +616,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             two_sided: true,
             opacity: None,
             normal_map: None,
+            roughness_map: None,
         },
         MaterialKindDesc::Plastic {
             diffuse,
@@ -679,6 +682,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             two_sided: true,
             opacity: None,
             normal_map: None,
+            roughness_map: None,
         },
         MaterialKindDesc::Thin {
             ior,
@@ -695,12 +699,29 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             two_sided: true,
             opacity: None,
             normal_map: None,
+            roughness_map: None,
         },
     };
     mat.emission = color(&m.emission);
     mat.two_sided = m.two_sided;
     mat.opacity = m.opacity.as_ref().map(color);
     mat.normal_map = m.normal_map.as_ref().map(color);
+    if let Some(r) = &m.roughness_map {
+        let map = RoughnessMap {
+            u: color(&r.u),
+            v: color(&r.v),
+            remap_sqrt: r.remap_sqrt,
+        };
+        // The constant α the kind was built with becomes the textures'
+        // average: the material is rough unless every texel is 0.
+        let (au, av) = map.average_alpha(images);
+        // (Validation admits a map on conductors and dielectrics only.)
+        if let MaterialKind::Conductor { microfacet, .. } | MaterialKind::Dielectric { microfacet, .. } = &mut mat.kind
+        {
+            *microfacet = Microfacet::new(microfacet.distribution, au, av);
+            mat.roughness_map = Some(map);
+        }
+    }
     mat
 }
 

@@ -361,8 +361,24 @@ pub struct MaterialDesc {
     /// 2c − 1 in the frame of (tangent along u, bitangent, shading normal),
     /// read raw (no sRGB decoding); `None`: the surface's own normal.
     pub normal_map: Option<ColorSource>,
+    /// Roughness that varies over the surface, for a conductor or a
+    /// dielectric: it replaces the kind's constant roughness.
+    pub roughness_map: Option<RoughnessMapDesc>,
     /// Source locations.
     pub locs: Locs,
+}
+
+/// Microfacet roughness from textures (see
+/// [`crate::material::RoughnessMap`]): the first channel of `u` is α along
+/// the tangent, of `v` along the bitangent.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RoughnessMapDesc {
+    /// Roughness along the tangent.
+    pub u: ColorSource,
+    /// Roughness along the bitangent.
+    pub v: ColorSource,
+    /// The textures hold pbrt-v4's roughness r, whose α is √r.
+    pub remap_sqrt: bool,
 }
 
 impl MaterialDesc {
@@ -385,6 +401,7 @@ impl MaterialDesc {
             two_sided: true,
             opacity: None,
             normal_map: None,
+            roughness_map: None,
             locs: Locs::default(),
         }
     }
@@ -978,6 +995,19 @@ impl SceneDesc {
             }
             if let Some(n) = &m.normal_map {
                 texture("normal_map", n)?;
+            }
+            if let Some(r) = &m.roughness_map {
+                texture("roughness_texture", &r.u)?;
+                texture("roughness_texture", &r.v)?;
+                if !matches!(
+                    m.kind,
+                    MaterialKindDesc::Conductor { .. } | MaterialKindDesc::Dielectric { .. }
+                ) {
+                    return Err(c.err(
+                        "roughness_texture",
+                        "a roughness texture applies to conductors and dielectrics only",
+                    ));
+                }
             }
             match &m.kind {
                 MaterialKindDesc::Classic(cl) => {

@@ -106,6 +106,8 @@ struct BsdfDef {
     opacity: Option<ColorSource>,
     /// A `normalmap`'s texture.
     normal_map: Option<ColorSource>,
+    /// Roughness textures of a rough conductor or dielectric.
+    roughness_map: Option<RoughnessMapDesc>,
     /// The desc material already made for it (without emission).
     material: Option<String>,
     loc: SourceLoc,
@@ -1286,7 +1288,8 @@ impl Loader {
                 if offset != Vec2::ZERO {
                     self.warn(f, node, "a checkerboard's to_uv offset is unsupported; ignored");
                 }
-                // Mitsuba's checks are half a unit of (u, v) wide.
+                // Mitsuba's checks are half a unit of (u, v) wide; color0
+                // is at u, v < ½ (as a colour; see `float_texture`).
                 TextureKind::Checkerboard {
                     even: c0,
                     odd: c1,
@@ -1308,15 +1311,47 @@ impl Loader {
         Ok(ColorSource::Texture(name))
     }
 
+    /// `src` as Mitsuba reads a texture where it wants a float
+    /// (`Texture::eval_1`). Its checkerboard's `eval_1` puts color0 on the
+    /// other checks than its `eval` does (`neq` against `eq` of the two
+    /// halves, Mitsuba 3.9's checkerboard.cpp), and its render tests are
+    /// rendered so: a checkerboard read as a float has its colours swapped.
+    fn float_texture(&mut self, src: ColorSource) -> ColorSource {
+        let ColorSource::Texture(name) = &src else {
+            return src;
+        };
+        let Some(t) = self.desc.textures.iter().find(|t| &t.name == name) else {
+            return src;
+        };
+        let TextureKind::Checkerboard { even, odd, scale } = t.kind else {
+            return src;
+        };
+        let locs = t.locs.clone();
+        let swapped = TextureDesc {
+            name: self.fresh_name("mitsuba-texture"),
+            kind: TextureKind::Checkerboard {
+                even: odd,
+                odd: even,
+                scale,
+            },
+            locs,
+        };
+        let name = swapped.name.clone();
+        self.desc.textures.push(swapped);
+        ColorSource::Texture(name)
+    }
+
     /// A rough BSDF's microfacet distribution and its α along u and v
-    /// (Mitsuba's default: Beckmann, α = 0.1).
+    /// (Mitsuba's default: Beckmann, α = 0.1); where `alpha`, `alpha_u` or
+    /// `alpha_v` is a texture, the textures too (the constants are then
+    /// replaced at build time).
     fn alpha(
         &mut self,
         f: &FileCtx,
         node: Node,
         props: &[Node],
         used: &mut Vec<String>,
-    ) -> Result<(MicrofacetDistribution, f32, f32)> {
+    ) -> Result<(MicrofacetDistribution, f32, f32, Option<RoughnessMapDesc>)> {
         let distribution = match self.string(f, props, "distribution", used)? {
             Some(d) => MicrofacetDistribution::from_name(&d).ok_or_else(|| {
                 self.err(
@@ -1330,15 +1365,30 @@ impl Loader {
         // Mitsuba draws all microfacet normals instead of the visible ones
         // when this is false: the same image, with more noise.
         let _ = self.boolean(f, props, "sample_visible", used)?;
-        let a = self.float(f, props, "alpha", used)?;
-        let au = self.float(f, props, "alpha_u", used)?;
-        let av = self.float(f, props, "alpha_v", used)?;
+        let a = self.color_source(f, props, "alpha", used)?;
+        let au = self.color_source(f, props, "alpha_u", used)?;
+        let av = self.color_source(f, props, "alpha_v", used)?;
         let (u, v) = match (a, au, av) {
-            (_, Some(u), Some(v)) => (u, v),
-            (Some(a), _, _) => (a, a),
-            _ => (0.1, 0.1),
+            (_, Some(u), Some(v)) => (self.float_texture(u), self.float_texture(v)),
+            (Some(a), _, _) => {
+                let a = self.float_texture(a);
+                (a.clone(), a)
+            }
+            _ => (ColorSource::Rgb(Rgb::splat(0.1)), ColorSource::Rgb(Rgb::splat(0.1))),
         };
-        Ok((distribution, u, v))
+        Ok(match (u, v) {
+            (ColorSource::Rgb(u), ColorSource::Rgb(v)) => (distribution, u.x, v.x, None),
+            (u, v) => (
+                distribution,
+                0.1,
+                0.1,
+                Some(RoughnessMapDesc {
+                    u,
+                    v,
+                    remap_sqrt: false,
+                }),
+            ),
+        })
     }
 
     fn ior(
@@ -1389,6 +1439,7 @@ impl Loader {
                 .find(|c| c.is_element() && matches!(c.tag_name().name(), "bsdf" | "ref") && !c.has_attribute("name"))
         };
         let loc = f.loc_of(node);
+        let mut roughness_map = None;
         let kind = match ty.as_str() {
             "twosided" => {
                 let inner = nested().ok_or_else(|| self.err(f, node, "twosided needs a nested BSDF"))?;
@@ -1416,7 +1467,8 @@ impl Loader {
             },
             "conductor" | "roughconductor" => {
                 let (distribution, roughness) = if ty == "roughconductor" {
-                    let (d, a, b) = self.alpha(f, node, &props, &mut used)?;
+                    let (d, a, b, map) = self.alpha(f, node, &props, &mut used)?;
+                    roughness_map = map;
                     (d, (a, b))
                 } else {
                     (MicrofacetDistribution::Ggx, (0.0, 0.0))
@@ -1434,15 +1486,9 @@ impl Loader {
                     }
                     (None, None, None) | (None, None, Some("none")) => ConductorDesc::Mirror(Rgb::ONE),
                     (None, None, Some(m)) => {
+                        // Mitsuba's own RGB projections of its spectra.
                         match crate::material::conductor::metal_ior(m) {
-                            Some((eta, k)) => {
-                                self.warn(
-                                f,
-                                node,
-                                format!("material \"{m}\": Mitsuba's spectral data are approximated by trazo's RGB table"),
-                            );
-                                ConductorDesc::Complex { eta, k }
-                            }
+                            Some((eta, k)) => ConductorDesc::Complex { eta, k },
                             None => {
                                 self.warn(
                                     f,
@@ -1465,6 +1511,7 @@ impl Loader {
                 let def = BsdfDef {
                     opacity: None,
                     normal_map: None,
+                    roughness_map: None,
                     kind: MaterialKindDesc::NULL,
                     two_sided: true,
                     material: None,
@@ -1475,10 +1522,11 @@ impl Loader {
             }
             "dielectric" | "roughdielectric" | "thindielectric" => {
                 let (distribution, roughness) = if ty == "roughdielectric" {
-                    let (d, a, b) = self.alpha(f, node, &props, &mut used)?;
-                    if a != b {
+                    let (d, a, b, map) = self.alpha(f, node, &props, &mut used)?;
+                    if a != b || map.as_ref().is_some_and(|m| m.u != m.v) {
                         self.warn(f, node, "anisotropic rough dielectrics are approximated as isotropic");
                     }
+                    roughness_map = map.map(|m| RoughnessMapDesc { v: m.u.clone(), ..m });
                     (d, a)
                 } else {
                     (MicrofacetDistribution::Ggx, 0.0)
@@ -1496,6 +1544,7 @@ impl Loader {
                     return Ok(BsdfDef {
                         opacity: None,
                         normal_map: None,
+                        roughness_map: None,
                         kind: MaterialKindDesc::Thin {
                             ior,
                             ext_ior,
@@ -1518,7 +1567,14 @@ impl Loader {
             }
             "plastic" | "roughplastic" => {
                 let (distribution, roughness) = if ty == "roughplastic" {
-                    let (d, a, _) = self.alpha(f, node, &props, &mut used)?;
+                    let (d, a, _, map) = self.alpha(f, node, &props, &mut used)?;
+                    if map.is_some() {
+                        self.warn(
+                            f,
+                            node,
+                            "a roughness texture on a rough plastic is unsupported: its coat has α = 0.1",
+                        );
+                    }
                     (d, a)
                 } else {
                     (MicrofacetDistribution::Ggx, 0.0)
@@ -1539,9 +1595,11 @@ impl Loader {
             }
             "mask" => {
                 let inner = nested().ok_or_else(|| self.err(f, node, "mask needs a nested BSDF"))?;
-                let opacity = self
-                    .color_source(f, &props, "opacity", &mut used)?
-                    .unwrap_or(ColorSource::Rgb(Rgb::splat(0.5)));
+                // Mitsuba reads the opacity as a float (`eval_1`).
+                let opacity = match self.color_source(f, &props, "opacity", &mut used)? {
+                    Some(o) => self.float_texture(o),
+                    None => ColorSource::Rgb(Rgb::splat(0.5)),
+                };
                 self.unused(f, node, &props, &used);
                 let def = self.bsdf(f, inner)?;
                 return Ok(BsdfDef {
@@ -1596,6 +1654,7 @@ impl Loader {
         Ok(BsdfDef {
             opacity: None,
             normal_map: None,
+            roughness_map,
             kind,
             two_sided: false,
             material: None,
@@ -1807,6 +1866,7 @@ impl Loader {
                     BsdfDef {
                         opacity: None,
                         normal_map: None,
+                        roughness_map: None,
                         kind: MaterialKindDesc::Diffuse {
                             reflectance: ColorSource::Rgb(Rgb::splat(0.5)),
                         },
@@ -1842,6 +1902,7 @@ impl Loader {
         m.two_sided = def.two_sided;
         m.opacity = def.opacity.clone();
         m.normal_map = def.normal_map.clone();
+        m.roughness_map = def.roughness_map.clone();
         m.locs = Locs::at(if def.loc.line > 0 { Some(def.loc.clone()) } else { None });
         if let Some((e, loc)) = emission {
             m.emission = e;
@@ -2679,6 +2740,50 @@ mod tests {
         // The emitting shape gets its own material; the plain one is shared.
         assert_ne!(d.shapes[2].material, d.shapes[3].material);
         assert_eq!(by(3).emission, ColorSource::Rgb(Rgb::splat(4.0)));
+    }
+
+    /// Roughness given as textures (Mitsuba's float textures for `alpha_u`
+    /// and `alpha_v`) becomes a roughness map; a constant stays constant.
+    #[test]
+    fn rough_bsdfs_take_roughness_textures() {
+        let xml = r#"<scene>
+          <bsdf type="roughconductor" id="a">
+            <texture name="alpha_u" type="checkerboard">
+              <float name="color0" value="0.05"/><float name="color1" value="0.3"/></texture>
+            <float name="alpha_v" value="0.2"/>
+          </bsdf>
+          <bsdf type="roughdielectric" id="b">
+            <texture name="alpha" type="checkerboard"/>
+          </bsdf>
+          <shape type="sphere"><ref id="a"/></shape>
+          <shape type="sphere"><ref id="b"/></shape>
+        </scene>"#;
+        let d = parse_str(xml).unwrap();
+        let by = |i: usize| {
+            d.materials
+                .iter()
+                .find(|m| Some(&m.name) == d.shapes[i].material.as_ref())
+                .unwrap()
+        };
+        let a = by(0).roughness_map.as_ref().expect("a roughness map");
+        let ColorSource::Texture(t) = &a.u else {
+            panic!("alpha_u is not a texture: {:?}", a.u)
+        };
+        let tex = d.textures.iter().find(|x| &x.name == t).unwrap();
+        // Read as a float, Mitsuba's checkerboard swaps its colours.
+        assert!(matches!(tex.kind, TextureKind::Checkerboard { even, odd, .. }
+            if even == Rgb::splat(0.3) && odd == Rgb::splat(0.05)));
+        assert_eq!(a.v, ColorSource::Rgb(Rgb::splat(0.2)));
+        assert!(!a.remap_sqrt);
+        let b = by(1).roughness_map.as_ref().expect("a roughness map");
+        assert_eq!(b.u, b.v);
+        assert!(
+            !d.warnings.iter().any(|w| w.contains("alpha") || w.contains("texture")),
+            "{:?}",
+            d.warnings
+        );
+        let built = crate::scene::build(&d).unwrap();
+        assert_eq!(built.materials.iter().filter(|m| m.roughness_map.is_some()).count(), 2);
     }
 
     #[test]

@@ -709,6 +709,14 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
     m.two_sided = t.boolean("two_sided")?.unwrap_or(true);
     m.opacity = t.color_source("opacity")?;
     m.normal_map = t.color_source("normal_map")?;
+    if let Some(u) = t.string("roughness_texture")? {
+        let v = t.string("roughness_texture_v")?.unwrap_or_else(|| u.clone());
+        m.roughness_map = Some(RoughnessMapDesc {
+            u: ColorSource::Texture(u),
+            v: ColorSource::Texture(v),
+            remap_sqrt: false,
+        });
+    }
     m.locs = t.finish()?;
     Ok(m)
 }
