@@ -12,7 +12,13 @@
 //! part of its bounds is never chosen, and one close by is chosen often, so
 //! a room lit by hundreds of small lights is sampled nearly as well as one
 //! lit by one. Lights without bounds (the environment, directional lights)
-//! are chosen apart from the tree, in proportion to power.
+//! are chosen apart from the tree: the tree as a whole counts as one more
+//! light, so with one environment each gets half the samples (pbrt-v4's
+//! `pInfinite`), and the unbounded ones share theirs in proportion to
+//! power. Their power, measured over the scene's bounding sphere, says
+//! little about what reaches a given point: by power, an environment of
+//! radiance 0.1 around a 6-unit wall took 98 % of the samples from the one
+//! spot light that lit it.
 //!
 //! Only the probabilities depend on the point, never whether a light that
 //! can contribute is reachable: an importance is zero only where the bounds
@@ -302,13 +308,11 @@ impl LightSampler {
             ..Default::default()
         };
         let mut bounded = Vec::new();
-        let (mut power_bounded, mut power_unbounded) = (0.0f64, 0.0f64);
         let mut unbounded_powers = Vec::new();
         for (i, (bounds, power)) in lights.iter().enumerate() {
             match bounds {
                 Some(b) if b.phi > 0.0 && b.phi.is_finite() && !b.bounds.is_empty() => {
                     bounded.push((i as u32, *b));
-                    power_bounded += *power as f64;
                 }
                 Some(_) => {} // no power: never chosen
                 None => {
@@ -316,18 +320,15 @@ impl LightSampler {
                     s.unbounded.push(i as u32);
                     let p = if power.is_finite() { power.max(0.0) } else { 0.0 };
                     unbounded_powers.push(p);
-                    power_unbounded += p as f64;
                 }
             }
         }
         s.unbounded_choice = Distribution1D::new(&unbounded_powers);
-        s.p_unbounded = match (bounded.is_empty(), s.unbounded.is_empty()) {
+        let n_unbounded = unbounded_powers.iter().filter(|&&p| p > 0.0).count();
+        s.p_unbounded = match (bounded.is_empty(), n_unbounded) {
             (true, _) => 1.0,
-            (false, true) => 0.0,
-            (false, false) if power_bounded + power_unbounded > 0.0 => {
-                (power_unbounded / (power_bounded + power_unbounded)) as f32
-            }
-            (false, false) => 0.5,
+            (false, 0) => 0.0,
+            (false, n) => n as f32 / (n + 1) as f32,
         };
         if !bounded.is_empty() {
             let root = build(&mut bounded, 0);
