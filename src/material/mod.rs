@@ -191,11 +191,12 @@ pub struct RoughnessMap {
 }
 
 impl RoughnessMap {
-    /// `base` with the map's α at `tc` (negative texels count as 0).
+    /// `base` with the map's α at `tc`, kept in [0, 1] as constant
+    /// roughness is.
     #[inline]
     pub fn microfacet_at(&self, base: Microfacet, images: &[ImageTexture], tc: &TexCoord) -> Microfacet {
         let alpha = |t: &Texture| {
-            let a = t.eval(images, tc).x.max(0.0);
+            let a = t.eval(images, tc).x.clamp(0.0, 1.0);
             if self.remap_sqrt { a.sqrt() } else { a }
         };
         Microfacet::new(base.distribution, alpha(&self.u), alpha(&self.v))

@@ -206,19 +206,47 @@ impl Parser {
         }
     }
 
+    /// A roughness parameter: a number, or a float texture trazo reads (its
+    /// typical value, where, and the desc texture's name); other float
+    /// textures give 0 with a warning.
+    fn roughness_param(&mut self, p: &ParamList, name: &str) -> Result<Option<(f32, SourceLoc, Option<String>)>> {
+        if let Some((FloatValue::Texture(t), prm)) = p.float_or_texture(name)? {
+            if let Some((desc_name, typical)) = self.float_texture_descs.get(&t) {
+                return Ok(Some((*typical, prm.loc.clone(), Some(desc_name.clone()))));
+            }
+        }
+        Ok(self.float_param(p, name, 0.0)?.map(|(v, l)| (v, l, None)))
+    }
+
     /// GGX α along u and v from `roughness`/`uroughness`/`vroughness`,
     /// mapped by pbrt-v4's `TrowbridgeReitzDistribution::RoughnessToAlpha`
     /// (α = √roughness) unless `remaproughness` is false.
+    ///
+    /// A float texture that trazo reads sets `def.roughness_map` (its
+    /// typical value gives the constant α); materials that cannot vary
+    /// their roughness drop it with a warning (see [`Self::material`]).
     fn roughness(&mut self, p: &ParamList, prefix: &str, def: &mut MatDef) -> Result<(f32, f32)> {
-        let both = self.float_param(p, &format!("{prefix}roughness"), 0.0)?;
+        let both = self.roughness_param(p, &format!("{prefix}roughness"))?;
         let u = self
-            .float_param(p, &format!("{prefix}uroughness"), 0.0)?
+            .roughness_param(p, &format!("{prefix}uroughness"))?
             .or(both.clone());
-        let v = self.float_param(p, &format!("{prefix}vroughness"), 0.0)?.or(both);
+        let v = self.roughness_param(p, &format!("{prefix}vroughness"))?.or(both);
         let remap = p.bool("remaproughness", true)?;
+        if [&u, &v].iter().any(|r| matches!(r, Some((_, _, Some(_))))) {
+            let source = |r: &Option<(f32, SourceLoc, Option<String>)>| match r {
+                Some((_, _, Some(t))) => ColorSource::Texture(t.clone()),
+                Some((x, _, None)) => ColorSource::Rgb(Rgb::splat(*x)),
+                None => ColorSource::Rgb(Rgb::ZERO),
+            };
+            def.roughness_map = Some(RoughnessMapDesc {
+                u: source(&u),
+                v: source(&v),
+                remap_sqrt: remap,
+            });
+        }
         let mut alpha = [0.0f32; 2];
         for (slot, r) in alpha.iter_mut().zip([u, v]) {
-            let Some((r, loc)) = r else { continue };
+            let Some((r, loc, _)) = r else { continue };
             if r.is_nan() || r < 0.0 {
                 return Err(Error::scene(
                     Some(loc),
@@ -421,6 +449,7 @@ impl Parser {
             locs: Locs::at(Some(loc.clone())),
             tex_refs: Vec::new(),
             normal_map: None,
+            roughness_map: None,
         };
         let what = format!("material \"{kind}\"");
         // pbrt-v4's normal map: an image read linearly, looked up at
@@ -576,6 +605,25 @@ impl Parser {
             // interface, none and "": the shape only bounds a medium.
             _ => MaterialKindDesc::NULL,
         };
+        if def.roughness_map.is_some() {
+            match &desc {
+                MaterialKindDesc::Conductor { .. } => {}
+                MaterialKindDesc::Dielectric { .. } => {
+                    // trazo's rough dielectric is isotropic.
+                    if let Some(m) = &mut def.roughness_map {
+                        m.v = m.u.clone();
+                    }
+                }
+                _ => {
+                    def.roughness_map = None;
+                    self.approximated(
+                        loc,
+                        format!("{what} with a float texture for its roughness"),
+                        "the texture's typical value is used",
+                    );
+                }
+            }
+        }
         def.kind = MatKind::Desc(desc);
         Ok(def)
     }
@@ -647,11 +695,29 @@ impl Parser {
                     format!("the float texture \"{name}\" is already defined"),
                 ));
             }
+            // Images, constants and checkerboards of numbers are read as
+            // spectrum textures under a name no scene can write (the float
+            // and spectrum namespaces are apart in pbrt), read by their
+            // first channel: pbrt-v4's float image textures read channel 0.
+            let readable = match class {
+                "imagemap" | "constant" => true,
+                "checkerboard" => ["tex1", "tex2"]
+                    .iter()
+                    .all(|k| !matches!(p.float_or_texture(k), Ok(Some((FloatValue::Texture(_), _))))),
+                _ => false,
+            };
+            if readable {
+                let desc_name = format!("\u{0}float texture {name}");
+                self.texture(&desc_name, "spectrum", class, p, loc, name_loc, dir_rel)?;
+                let typical = self.texture_colors.get(&desc_name).map_or(0.0, |c| c.x);
+                self.float_texture_descs.insert(name.to_string(), (desc_name, typical));
+                return Ok(());
+            }
             Self::use_all(p);
             self.unsupported(
                 loc,
-                format!("float texture \"{name}\""),
-                "float textures are not supported; parameters that name it take their default values",
+                format!("float texture \"{name}\" \"{class}\""),
+                "trazo reads float imagemap, constant and checkerboard textures; parameters that name this one take their default values",
             );
             return Ok(());
         }

@@ -247,6 +247,8 @@ struct MatDef {
     tex_refs: Vec<(String, SourceLoc)>,
     /// Its `"string normalmap"` image, as a texture.
     normal_map: Option<ColorSource>,
+    /// Roughness from float textures (conductors and dielectrics).
+    roughness_map: Option<RoughnessMapDesc>,
 }
 
 #[derive(Clone, Debug)]
@@ -307,6 +309,9 @@ struct Parser {
     named_materials: HashMap<String, usize>,
     spectrum_textures: HashMap<String, SourceLoc>,
     float_textures: HashSet<String>,
+    /// Float textures trazo reads: pbrt's name → (the desc texture's name,
+    /// its typical value).
+    float_texture_descs: HashMap<String, (String, f32)>,
     /// A colour that stands for each spectrum texture where only a constant
     /// can be used.
     texture_colors: HashMap<String, Rgb>,
@@ -376,6 +381,7 @@ impl Parser {
             named_materials: HashMap::new(),
             spectrum_textures: HashMap::new(),
             float_textures: HashSet::new(),
+            float_texture_descs: HashMap::new(),
             texture_colors: HashMap::new(),
             shapes: Vec::new(),
             current_object: None,
@@ -1189,6 +1195,23 @@ impl Parser {
             }
         }
 
+        // Float textures that no roughness reads are not loaded (pbrt's
+        // float textures are mostly bump maps, which trazo does not use).
+        let read_floats: HashSet<String> = self
+            .materials
+            .iter()
+            .filter_map(|m| m.roughness_map.as_ref())
+            .flat_map(|r| [&r.u, &r.v])
+            .filter_map(|c| match c {
+                ColorSource::Texture(t) => Some(t.clone()),
+                ColorSource::Rgb(_) => None,
+            })
+            .collect();
+        let float_names: HashSet<&String> = self.float_texture_descs.values().map(|(n, _)| n).collect();
+        self.desc
+            .textures
+            .retain(|t| !float_names.contains(&t.name) || read_floats.contains(&t.name));
+
         // Texture references of materials.
         for m in &self.materials {
             for (t, loc) in &m.tex_refs {
@@ -1353,6 +1376,7 @@ impl Parser {
         let mut m = MaterialDesc::with_kind(name, kind);
         m.locs = def.locs.clone();
         m.normal_map = def.normal_map.clone();
+        m.roughness_map = def.roughness_map.clone();
         if let Some(e) = emission {
             m.emission = ColorSource::Rgb(e.radiance);
             m.locs.keys.push(("emission".into(), e.loc.clone()));

@@ -835,18 +835,14 @@ Shape "sphere""#,
         }
     );
     assert_eq!(d.textures[3].kind, TextureKind::Constant(Rgb::splat(0.3)));
-    assert_eq!(d.textures.len(), 4, "float textures are skipped");
+    assert_eq!(d.textures.len(), 4, "float textures no roughness reads are dropped");
     assert_eq!(
         material(&d, 0).kind,
         MaterialKindDesc::Diffuse {
             reflectance: ColorSource::Texture("checks".into())
         }
     );
-    assert!(
-        d.warnings[0].starts_with("test.pbrt:6:1: float texture \"bump\" is unsupported"),
-        "{:?}",
-        d.warnings
-    );
+    assert!(!d.warnings.iter().any(|w| w.contains("bump")), "{:?}", d.warnings);
 
     let e = error_of("WorldBegin\nMaterial \"diffuse\" \"texture reflectance\" \"nothing\"\nShape \"sphere\"");
     assert!(
@@ -1746,6 +1742,57 @@ Shape "sphere" "float radius" 3"#,
     // The same medium on both sides is no transition.
     let d = parse_str("MakeNamedMedium \"fog\" \"string type\" \"homogeneous\"\nWorldBegin\nMediumInterface \"fog\"\nShape \"sphere\"").unwrap();
     assert!(d.shapes[0].media.is_none());
+}
+
+/// A float texture for a conductor's or dielectric's roughness becomes a
+/// roughness map (remapped α = √r unless `remaproughness` is false); on a
+/// material that cannot vary its roughness it gives its typical value with
+/// a warning; float textures nothing reads are not kept.
+#[test]
+fn float_textures_give_roughness_maps() {
+    let d = world(
+        r#"Texture "rough" "float" "checkerboard" "float tex1" 0.01 "float tex2" 0.25 "float uscale" 8 "float vscale" 8
+Texture "unused" "float" "imagemap" "string filename" "missing.png"
+Material "conductor" "texture roughness" "rough"
+Shape "sphere"
+Material "dielectric" "texture uroughness" "rough" "float vroughness" 0.5 "bool remaproughness" false
+Shape "sphere"
+Material "coateddiffuse" "texture roughness" "rough"
+Shape "sphere""#,
+    );
+    assert_eq!(d.textures.len(), 1, "{:?}", d.textures);
+    let t = &d.textures[0];
+    assert_eq!(
+        t.kind,
+        TextureKind::Checkerboard {
+            even: Rgb::splat(0.01),
+            odd: Rgb::splat(0.25),
+            scale: Vec2::splat(8.0)
+        }
+    );
+    let conductor = material(&d, 0);
+    let map = conductor.roughness_map.as_ref().expect("a roughness map");
+    assert_eq!(map.u, ColorSource::Texture(t.name.clone()));
+    assert_eq!(map.v, map.u);
+    assert!(map.remap_sqrt);
+    // The constant α is the remapped typical roughness, the checks' mean.
+    assert!(
+        matches!(conductor.kind, MaterialKindDesc::Conductor { roughness: (a, _), .. } if (a - 0.13f32.sqrt()).abs() < 1e-6),
+        "{:?}",
+        conductor.kind
+    );
+    let dielectric = material(&d, 1).roughness_map.as_ref().expect("a roughness map");
+    assert!(!dielectric.remap_sqrt);
+    assert_eq!(dielectric.v, dielectric.u, "trazo's rough dielectric is isotropic");
+    assert!(material(&d, 2).roughness_map.is_none());
+    assert!(
+        d.warnings
+            .iter()
+            .any(|w| w.contains("coateddiffuse") && w.contains("float texture")),
+        "{:?}",
+        d.warnings
+    );
+    crate::scene::build(&d).expect("builds");
 }
 
 #[test]
