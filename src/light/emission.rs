@@ -103,6 +103,10 @@ impl Light {
                     Ray::new(*position, dir),
                 )
             }
+            Light::Projector(proj) => {
+                let (power, dir) = proj.sample_emission(&scene.images, u_dir)?;
+                (power, Ray::new(proj.position, dir))
+            }
             Light::Directional { direction, irradiance } => {
                 let (center, radius) = bounds;
                 let frame = Frame::from_normal(*direction);

@@ -68,6 +68,12 @@ pub enum Light {
         /// Inverse-square falloff.
         falloff: bool,
     },
+    /// A point light that projects an image through a pinhole, as a
+    /// projector does (Mitsuba 3's `projector`): the image fills the frame
+    /// of a perspective camera at the light, and a surface facing it at
+    /// depth z in that frame receives the image's value as irradiance
+    /// scaled by π/z².
+    Projector(Box<Projector>),
     /// Parallel light from infinitely far away, like the sun.
     Directional {
         /// Unit direction in which the light travels.
@@ -214,6 +220,78 @@ impl SpotProjection {
     pub fn eval(&self, images: &[crate::texture::ImageTexture], d: Vec3) -> Rgb {
         let uv = self.uv(d);
         self.texture.eval(images, &TexCoord { uv, p: Vec3::ZERO })
+    }
+}
+
+/// A projector light's frame and image (see [`Light::Projector`]).
+#[derive(Clone, Debug)]
+pub struct Projector {
+    /// Position of the pinhole.
+    pub position: Vec3,
+    /// The light's frame to world (linear part of its `to_world`): light
+    /// leaves along +z; +x and +y run toward the image's left and top.
+    pub to_world: glam::Mat3,
+    /// Its inverse.
+    pub to_local: glam::Mat3,
+    /// tan of half the field of view across and up the image.
+    pub tan_half: Vec2,
+    /// Irradiance multiplier (π times the scene's `scale`).
+    pub scale: f32,
+    /// The image, read at the (u, v) that [`Projector::uv`] gives a
+    /// direction (Mitsuba's: v = 0 at the image's top).
+    pub image: Texture,
+}
+
+impl Projector {
+    /// Where the point `local` (in the light's frame) falls in the image,
+    /// as Mitsuba's perspective projection maps it: u = ½ − ½·x/(z·tan_x),
+    /// v = ½ − ½·y/(z·tan_y); `None` behind the light or outside the frame.
+    #[inline]
+    fn uv(&self, local: Vec3) -> Option<Vec2> {
+        if local.z <= 0.0 {
+            return None;
+        }
+        let uv = Vec2::splat(0.5) - 0.5 * Vec2::new(local.x, local.y) / (local.z * self.tan_half);
+        (uv.x >= 0.0 && uv.x <= 1.0 && uv.y >= 0.0 && uv.y <= 1.0).then_some(uv)
+    }
+
+    /// Area of the image on the plane z = 1 of the light's frame.
+    #[inline]
+    pub fn image_area(&self) -> f32 {
+        4.0 * self.tan_half.x * self.tan_half.y
+    }
+
+    /// The image's value at `uv`.
+    #[inline]
+    fn eval(&self, images: &[crate::texture::ImageTexture], uv: Vec2) -> Rgb {
+        self.image.eval(images, &TexCoord { uv, p: Vec3::ZERO })
+    }
+
+    /// Intensity (W/sr) toward world point `p`, and the direction from the
+    /// light to it; zero outside the frame. In the light's frame the
+    /// intensity is π·scale·E(u, v)/cos³θ (cos θ from the axis), so that a
+    /// plane facing the light at depth z receives E·π·scale/z².
+    #[inline]
+    pub fn intensity_toward(&self, images: &[crate::texture::ImageTexture], p: Vec3) -> Option<(Rgb, Vec3)> {
+        let local = self.to_local * (p - self.position);
+        let uv = self.uv(local)?;
+        let dir = (p - self.position).try_normalize()?;
+        let cos = local.z / local.length();
+        Some((self.eval(images, uv) * (self.scale / (cos * cos * cos)), dir))
+    }
+
+    /// A direction of emission drawn uniformly over the image's area on
+    /// the plane z = 1, and the power that carries: the intensity over the
+    /// direction's density 1/(area·cos³θ), i.e. π·scale·E·area.
+    #[inline]
+    pub fn sample_emission(&self, images: &[crate::texture::ImageTexture], u: Vec2) -> Option<(Rgb, Vec3)> {
+        let local = Vec3::new(
+            (1.0 - 2.0 * u.x) * self.tan_half.x,
+            (1.0 - 2.0 * u.y) * self.tan_half.y,
+            1.0,
+        );
+        let dir = (self.to_world * local).try_normalize()?;
+        Some((self.eval(images, u) * (self.scale * self.image_area()), dir))
     }
 }
 
@@ -433,6 +511,17 @@ impl Light {
                     target: ShadowTarget::Point(*position),
                 })
             }
+            Light::Projector(proj) => {
+                let (intensity, dir) = proj.intensity_toward(&scene.images, p)?;
+                let dist2 = (proj.position - p).length_squared();
+                Some(LightSample {
+                    wi: -dir,
+                    li: intensity / dist2,
+                    pdf: 1.0,
+                    is_delta: true,
+                    target: ShadowTarget::Point(proj.position),
+                })
+            }
             Light::Directional { direction, irradiance } => Some(LightSample {
                 wi: -*direction,
                 li: *irradiance,
@@ -531,7 +620,7 @@ impl Light {
     pub fn is_delta(&self) -> bool {
         matches!(
             self,
-            Light::Point { .. } | Light::Spot { .. } | Light::Directional { .. }
+            Light::Point { .. } | Light::Spot { .. } | Light::Projector(_) | Light::Directional { .. }
         )
     }
 
@@ -547,6 +636,7 @@ impl Light {
                 cos_outer,
                 ..
             } => 2.0 * PI * luminance(*intensity) * (1.0 - 0.5 * (cos_inner + cos_outer)),
+            Light::Projector(p) => p.scale * p.image_area() * luminance(p.image.average(&scene.images)),
             Light::Directional { irradiance, .. } => disk * luminance(*irradiance),
             Light::Area {
                 emitter,
@@ -624,6 +714,19 @@ impl Light {
                     cos_theta_o,
                     cos_theta_e: 0.0,
                     two_sided: false,
+                })
+            }
+            Light::Projector(proj) => {
+                // Every direction of the frame lies within the half-diagonal
+                // of the axis; the spread beyond it is a generous bound
+                // (an importance must not vanish where light arrives).
+                let axis = proj.to_world * Vec3::Z;
+                let half_diagonal = 1.0 / (1.0 + proj.tan_half.length_squared()).sqrt();
+                Some(LightBounds {
+                    w: axis.try_normalize()?,
+                    cos_theta_o: half_diagonal,
+                    cos_theta_e: 0.0,
+                    ..LightBounds::point(proj.position, power)
                 })
             }
             Light::Directional { .. } | Light::Environment => None,
@@ -857,6 +960,70 @@ material = "lamp"
     /// A projected image spans the outer cone's square: the axis reads its
     /// centre, the cone's edge along the light's x and y axes the middle of
     /// its right and top edges, and the light's frame turns it.
+    fn projector(tan_half: Vec2, e: f32) -> Projector {
+        // Looking down −z from (0, 0, 1), as Mitsuba's lookat from there to
+        // the origin with +y up: local x = up × axis.
+        let axis = Vec3::NEG_Z;
+        let x = Vec3::Y.cross(axis);
+        let to_world = glam::Mat3::from_cols(x, axis.cross(x), axis);
+        Projector {
+            position: Vec3::Z,
+            to_world,
+            to_local: to_world.inverse(),
+            tan_half,
+            scale: PI * 2.0,
+            image: Texture::Constant(Rgb::splat(e)),
+        }
+    }
+
+    /// A plane facing a projector at depth z receives π·scale·E/z² inside
+    /// the frame and nothing outside, and the intensity integrated over
+    /// the sphere is the power the photon emission carries.
+    #[test]
+    fn projector_irradiance_and_power_agree() {
+        let p = projector(Vec2::new(1.0, 0.5), 0.3);
+        let expected = 0.3 * PI * 2.0;
+        for q in [Vec3::ZERO, Vec3::new(0.6, 0.2, 0.0), Vec3::new(-0.9, -0.45, 0.0)] {
+            let (i, dir) = p.intensity_toward(&[], q).expect("inside the frame");
+            let d2 = (q - p.position).length_squared();
+            // Irradiance on the plane z = 0: I·cos/d².
+            let irradiance = i.x * dir.dot(Vec3::NEG_Z) / d2;
+            assert!(
+                (irradiance - expected).abs() < 1e-4 * expected,
+                "{q}: {irradiance} vs {expected}"
+            );
+        }
+        assert!(p.intensity_toward(&[], Vec3::new(1.1, 0.0, 0.0)).is_none());
+        assert!(p.intensity_toward(&[], Vec3::new(0.0, 0.6, 0.0)).is_none());
+        assert!(
+            p.intensity_toward(&[], Vec3::new(0.0, 0.0, 2.0)).is_none(),
+            "behind the light"
+        );
+        // ∫ I dω by uniform directions on the sphere: 4π · mean.
+        let mut rng = Pcg32::new(7, 0);
+        let n = 400_000;
+        let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+        for _ in 0..n {
+            let d = crate::sampling::warp::sample_sphere_uniform(Vec2::new(rng.next_f32(), rng.next_f32()));
+            let x = p
+                .intensity_toward(&[], p.position + d)
+                .map_or(0.0, |(i, _)| 4.0 * PI as f64 * i.x as f64);
+            sum += x;
+            sum2 += x * x;
+        }
+        let mean = sum / n as f64;
+        let sigma = ((sum2 / n as f64 - mean * mean) / n as f64).sqrt();
+        let power = (p.scale * p.image_area() * 0.3) as f64;
+        assert!(
+            (mean - power).abs() < 4.0 * sigma,
+            "∫ I dω = {mean} ± {sigma}, emission {power}"
+        );
+        let (w, dir) = p.sample_emission(&[], Vec2::new(0.25, 0.5)).unwrap();
+        assert!((w.x as f64 - power).abs() < 1e-4 * power);
+        // u = 0.25 lies left of centre: +x of the frame (Mitsuba's left).
+        assert!(dir.dot(p.to_world * Vec3::X) > 0.0 && dir.z < 0.0);
+    }
+
     #[test]
     fn spot_projection_spans_the_outer_cone() {
         let outer = 20f32.to_radians();

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::files::io_reason;
 use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere};
 use crate::geometry::{Aabb, Transform, TriangleMesh};
-use crate::light::{Background, EnvironmentMap, Light, SpotProjection};
+use crate::light::{Background, EnvironmentMap, Light, Projector, SpotProjection};
 use crate::material::conductor::ConductorFresnel;
 use crate::material::{LayerBaseKind, Material, MaterialKind, Microfacet, MicrofacetDistribution, RoughnessMap};
 use crate::media::{Field, Medium, MediumInterface, Phase, VoxelGrid};
@@ -319,11 +319,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     let mut geometry = Aggregate::build(meshes, shapes, mesh_objects, instances);
 
     // Lights: the explicit ones, then one per emissive surface.
-    let mut lights: Vec<Light> = desc
-        .lights
-        .iter()
-        .map(|l| to_light(&l.kind, |name| textures[name]))
-        .collect();
+    let mut lights: Vec<Light> = desc.lights.iter().map(|l| to_light(&l.kind, &color, &images)).collect();
     let emissive = |m: u32| materials[m as usize].is_emissive();
     let mut emitters: Vec<(EmitterRef, u32)> = Vec::new();
     for (i, s) in geometry.shapes.iter().enumerate() {
@@ -882,7 +878,8 @@ fn read_mesh_source(
     }
 }
 
-fn to_light(kind: &LightKind, texture: impl Fn(&str) -> Texture) -> Light {
+fn to_light(kind: &LightKind, color: &dyn Fn(&ColorSource) -> Texture, images: &[ImageTexture]) -> Light {
+    let texture = |name: &str| color(&ColorSource::Texture(name.to_string()));
     match *kind {
         LightKind::Point {
             position,
@@ -916,6 +913,32 @@ fn to_light(kind: &LightKind, texture: impl Fn(&str) -> Texture) -> Light {
             }),
             falloff,
         },
+        LightKind::Projector {
+            position,
+            to_world,
+            fov,
+            fov_axis,
+            ref irradiance,
+            scale,
+        } => {
+            let image = color(irradiance);
+            // The frame has the image's proportions (a constant: square).
+            let (w, h) = match image {
+                Texture::Image { image, .. } => {
+                    let i = &images[image as usize];
+                    (i.width, i.height)
+                }
+                _ => (1, 1),
+            };
+            Light::Projector(Box::new(Projector {
+                position,
+                to_world,
+                to_local: to_world.inverse(),
+                tan_half: fov_axis.tan_half(fov, w, h),
+                scale: std::f32::consts::PI * scale,
+                image,
+            }))
+        }
         LightKind::Directional { direction, irradiance } => Light::Directional {
             direction: direction.normalize(),
             irradiance,

@@ -465,6 +465,24 @@ pub enum LightKind {
         /// Inverse-square falloff.
         falloff: bool,
     },
+    /// A projector: a point light that projects an image through a
+    /// pinhole (Mitsuba 3's `projector`; see [`crate::light::Light::Projector`]).
+    Projector {
+        /// Position of the pinhole.
+        position: Vec3,
+        /// The light's frame: the linear part of its `to_world` (light
+        /// leaves along +z; +x toward the image's left, +y toward its top).
+        to_world: glam::Mat3,
+        /// Field of view, degrees, along `fov_axis`.
+        fov: f32,
+        /// Which extent of the image `fov` spans.
+        fov_axis: FovAxis,
+        /// The image: irradiance on a surface facing the light at depth 1,
+        /// over π (a colour or a texture name).
+        irradiance: ColorSource,
+        /// Multiplier.
+        scale: f32,
+    },
     /// Directional light.
     Directional {
         /// Direction the light travels in.
@@ -483,6 +501,52 @@ pub struct SpotProjectionDesc {
     /// The light's frame: the linear part of its `to_world` (the axis is
     /// its +z).
     pub to_world: glam::Mat3,
+}
+
+/// Which extent of an image a field of view spans (Mitsuba's `fov_axis`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FovAxis {
+    /// Across.
+    #[default]
+    X,
+    /// Up.
+    Y,
+    /// Along the diagonal.
+    Diagonal,
+    /// Along the shorter side.
+    Smaller,
+    /// Along the longer side.
+    Larger,
+}
+
+impl FovAxis {
+    /// The axis Mitsuba names so (`x`, `y`, `diagonal`, `smaller`, `larger`).
+    pub fn from_name(name: &str) -> Option<FovAxis> {
+        Some(match name {
+            "x" => FovAxis::X,
+            "y" => FovAxis::Y,
+            "diagonal" => FovAxis::Diagonal,
+            "smaller" => FovAxis::Smaller,
+            "larger" => FovAxis::Larger,
+            _ => return None,
+        })
+    }
+
+    /// tan of half the field of view across and up a `w` × `h` image
+    /// whose field of view along this axis is `fov_degrees`.
+    pub fn tan_half(self, fov_degrees: f32, w: u32, h: u32) -> glam::Vec2 {
+        let (w, h) = (w.max(1) as f32, h.max(1) as f32);
+        let t = (fov_degrees.to_radians() / 2.0).tan();
+        let across = match self {
+            FovAxis::X => t,
+            FovAxis::Y => t * w / h,
+            FovAxis::Diagonal => t * w / w.hypot(h),
+            FovAxis::Smaller if w < h => t,
+            FovAxis::Larger if w > h => t,
+            FovAxis::Smaller | FovAxis::Larger => t * w / h,
+        };
+        glam::Vec2::new(across, across * h / w)
+    }
 }
 
 /// A light with its location.
@@ -1203,6 +1267,33 @@ impl SceneDesc {
                         }
                         if !self.textures.iter().any(|t| t.name == image.texture) {
                             return Err(c.err("texture", format!("no texture named \"{}\"", image.texture)));
+                        }
+                    }
+                }
+                LightKind::Projector {
+                    position,
+                    to_world,
+                    fov,
+                    irradiance,
+                    scale,
+                    ..
+                } => {
+                    c.vec3("position", *position)?;
+                    let det = to_world.determinant();
+                    if !(det.is_finite() && det != 0.0) {
+                        return Err(c.err("to_world", "the light's transform is singular"));
+                    }
+                    c.positive("fov", *fov)?;
+                    if *fov >= 180.0 {
+                        return Err(c.err("fov", format!("must be below 180 degrees, got {fov}")));
+                    }
+                    c.non_negative("scale", *scale)?;
+                    match irradiance {
+                        ColorSource::Rgb(rgb) => c.color("irradiance", *rgb)?,
+                        ColorSource::Texture(t) => {
+                            if !self.textures.iter().any(|x| &x.name == t) {
+                                return Err(c.err("irradiance", format!("no texture named \"{t}\"")));
+                            }
                         }
                     }
                 }

@@ -237,7 +237,12 @@ impl Loader {
             );
             self.desc.camera.to_world = Some(Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0)));
             self.desc.camera.projection = ProjectionDesc::Perspective {
-                fov: vertical_fov(39.597_755, "x", self.desc.settings.width, self.desc.settings.height),
+                fov: vertical_fov(
+                    39.597_755,
+                    FovAxis::X,
+                    self.desc.settings.width,
+                    self.desc.settings.height,
+                ),
             };
             (self.desc.camera.near_clip, self.desc.camera.far_clip) = (1e-2, 1e4);
         }
@@ -894,32 +899,8 @@ impl Loader {
         cam.locs = Locs::at(Some(f.loc_of(node)));
         match ty.as_str() {
             "perspective" | "thinlens" => {
-                let mut fov_axis = self
-                    .string(f, &props, "fov_axis", &mut used)?
-                    .unwrap_or_else(|| "x".into());
-                if !["x", "y", "diagonal", "smaller", "larger"].contains(&fov_axis.as_str()) {
-                    return Err(self.err(f, node, format!("unknown fov_axis \"{fov_axis}\"")));
-                }
-                let fov = match self.float(f, &props, "fov", &mut used)? {
-                    Some(v) => v,
-                    None => {
-                        // As Mitsuba: a focal length (default 50 mm) on a
-                        // 36 × 24 mm film, measured along its diagonal
-                        // whatever fov_axis says (34.02° across a square
-                        // film at 50 mm).
-                        fov_axis = "diagonal".into();
-                        let focal = self
-                            .string(f, &props, "focal_length", &mut used)?
-                            .unwrap_or_else(|| "50mm".into());
-                        let mm: f32 = focal
-                            .trim_end_matches("mm")
-                            .trim()
-                            .parse()
-                            .map_err(|_| self.err(f, node, format!("bad focal_length \"{focal}\"")))?;
-                        (2.0 * (36.0f32.hypot(24.0) / (2.0 * mm)).atan()).to_degrees()
-                    }
-                };
-                let fov_y = vertical_fov(fov, &fov_axis, w, h);
+                let (fov, fov_axis) = self.field_of_view(f, node, &props, &mut used)?;
+                let fov_y = vertical_fov(fov, fov_axis, w, h);
                 self.desc.camera.projection = ProjectionDesc::Perspective { fov: fov_y };
                 if ty == "thinlens" {
                     let r = self.float(f, &props, "aperture_radius", &mut used)?.unwrap_or(0.0);
@@ -1089,6 +1070,40 @@ impl Loader {
         Ok(())
     }
 
+    /// A perspective sensor's (or projector's) `fov` and `fov_axis`, or
+    /// without `fov` its `focal_length`.
+    fn field_of_view(
+        &mut self,
+        f: &FileCtx,
+        node: Node,
+        props: &[Node],
+        used: &mut Vec<String>,
+    ) -> Result<(f32, FovAxis)> {
+        let name = self.string(f, props, "fov_axis", used)?.unwrap_or_else(|| "x".into());
+        let axis =
+            FovAxis::from_name(&name).ok_or_else(|| self.err(f, node, format!("unknown fov_axis \"{name}\"")))?;
+        Ok(match self.float(f, props, "fov", used)? {
+            Some(v) => (v, axis),
+            None => {
+                // As Mitsuba: a focal length (default 50 mm) on a 36 × 24 mm
+                // film, measured along its diagonal whatever fov_axis says
+                // (34.02° across a square film at 50 mm).
+                let focal = self
+                    .string(f, props, "focal_length", used)?
+                    .unwrap_or_else(|| "50mm".into());
+                let mm: f32 = focal
+                    .trim_end_matches("mm")
+                    .trim()
+                    .parse()
+                    .map_err(|_| self.err(f, node, format!("bad focal_length \"{focal}\"")))?;
+                (
+                    (2.0 * (36.0f32.hypot(24.0) / (2.0 * mm)).atan()).to_degrees(),
+                    FovAxis::Diagonal,
+                )
+            }
+        })
+    }
+
     fn emitter(&mut self, f: &FileCtx, node: Node) -> Result<()> {
         self.in_emitter = true;
         let result = self.emitter_properties(f, node);
@@ -1154,6 +1169,24 @@ impl Loader {
                         profile: SpotProfile::LinearInAngle,
                         projection,
                         falloff: true,
+                    },
+                    locs,
+                });
+            }
+            "projector" => {
+                let (fov, fov_axis) = self.field_of_view(f, node, &props, &mut used)?;
+                let irradiance = self
+                    .color_source(f, &props, "irradiance", &mut used)?
+                    .ok_or_else(|| self.err(f, node, "a projector needs an \"irradiance\" (a colour or a texture)"))?;
+                let scale = self.float(f, &props, "scale", &mut used)?.unwrap_or(1.0);
+                self.desc.lights.push(LightDesc {
+                    kind: LightKind::Projector {
+                        position: to_world.transform_point3(Vec3::ZERO),
+                        to_world: glam::Mat3::from_mat4(to_world),
+                        fov,
+                        fov_axis,
+                        irradiance,
+                        scale,
                     },
                     locs,
                 });
@@ -2460,30 +2493,9 @@ pub fn mitsuba_look_at(origin: Vec3, target: Vec3, up: Vec3) -> Option<Mat4> {
 }
 
 /// The vertical field of view of a camera whose `fov` is measured along
-/// `axis` ("x", "y", "diagonal", "smaller" or "larger"), for a `w`×`h` image.
-pub fn vertical_fov(fov: f32, axis: &str, w: u32, h: u32) -> f32 {
-    let (w, h) = (w.max(1) as f32, h.max(1) as f32);
-    let t = (fov.to_radians() / 2.0).tan();
-    let ty = match axis {
-        "y" => t,
-        "x" => t * h / w,
-        "diagonal" => t * h / (w * w + h * h).sqrt(),
-        "smaller" => {
-            if w < h {
-                t * h / w
-            } else {
-                t
-            }
-        }
-        _ => {
-            if w > h {
-                t * h / w
-            } else {
-                t
-            }
-        }
-    };
-    (2.0 * ty.atan()).to_degrees()
+/// `axis`, for a `w`×`h` image.
+pub fn vertical_fov(fov: f32, axis: FovAxis, w: u32, h: u32) -> f32 {
+    (2.0 * axis.tan_half(fov, w, h).y.atan()).to_degrees()
 }
 
 #[cfg(test)]
@@ -2784,6 +2796,42 @@ mod tests {
         );
         let built = crate::scene::build(&d).unwrap();
         assert_eq!(built.materials.iter().filter(|m| m.roughness_map.is_some()).count(), 2);
+    }
+
+    /// A projector keeps its frame, field of view and image; without an
+    /// irradiance it is an error, as in Mitsuba.
+    #[test]
+    fn projectors_are_read() {
+        let xml = r#"<scene>
+          <emitter type="projector">
+            <float name="fov" value="60"/><string name="fov_axis" value="y"/>
+            <float name="scale" value="3"/>
+            <rgb name="irradiance" value="0.5"/>
+            <transform name="to_world"><translate value="1, 2, 3"/></transform>
+          </emitter>
+        </scene>"#;
+        let d = parse_str(xml).unwrap();
+        let LightKind::Projector {
+            position,
+            fov,
+            fov_axis,
+            ref irradiance,
+            scale,
+            ..
+        } = d.lights[0].kind
+        else {
+            panic!("not a projector: {:?}", d.lights[0].kind)
+        };
+        assert_eq!(
+            (position, fov, fov_axis, scale),
+            (Vec3::new(1.0, 2.0, 3.0), 60.0, FovAxis::Y, 3.0)
+        );
+        assert_eq!(*irradiance, ColorSource::Rgb(Rgb::splat(0.5)));
+        assert!(!d.warnings.iter().any(|w| w.contains("projector")), "{:?}", d.warnings);
+        let e = parse_str(r#"<scene><emitter type="projector"/></scene>"#)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("needs an \"irradiance\""), "{e}");
     }
 
     #[test]
@@ -3329,16 +3377,16 @@ mod tests {
 
     #[test]
     fn fov_axes() {
-        assert!((vertical_fov(60.0, "y", 200, 100) - 60.0).abs() < 1e-4);
-        let x = vertical_fov(60.0, "x", 200, 100);
+        assert!((vertical_fov(60.0, FovAxis::Y, 200, 100) - 60.0).abs() < 1e-4);
+        let x = vertical_fov(60.0, FovAxis::X, 200, 100);
         assert!(((x / 2.0).to_radians().tan() - (30f32).to_radians().tan() / 2.0).abs() < 1e-5);
         assert_eq!(
-            vertical_fov(60.0, "smaller", 200, 100),
-            vertical_fov(60.0, "y", 200, 100)
+            vertical_fov(60.0, FovAxis::Smaller, 200, 100),
+            vertical_fov(60.0, FovAxis::Y, 200, 100)
         );
         assert_eq!(
-            vertical_fov(60.0, "larger", 200, 100),
-            vertical_fov(60.0, "x", 200, 100)
+            vertical_fov(60.0, FovAxis::Larger, 200, 100),
+            vertical_fov(60.0, FovAxis::X, 200, 100)
         );
     }
 }
