@@ -2506,6 +2506,14 @@ mod tests {
         parse(xml, Path::new("test.xml"), &[])
     }
 
+    /// The material of shape `i`.
+    fn material_of(d: &SceneDesc, i: usize) -> &MaterialDesc {
+        d.materials
+            .iter()
+            .find(|m| Some(&m.name) == d.shapes[i].material.as_ref())
+            .unwrap()
+    }
+
     const SPHERE: &str = r#"<scene version="3.0.0">
     <default name="spp" value="8"/>
     <integrator type="path"><integer name="max_depth" value="5"/></integrator>
@@ -2721,12 +2729,7 @@ mod tests {
           <shape type="sphere"><ref id="f"/></shape>
         </scene>"#;
         let d = parse_str(xml).unwrap();
-        let by = |i: usize| {
-            d.materials
-                .iter()
-                .find(|m| Some(&m.name) == d.shapes[i].material.as_ref())
-                .unwrap()
-        };
+        let by = |i: usize| material_of(&d, i);
         assert!(by(0).two_sided);
         assert!(matches!(by(0).kind, MaterialKindDesc::Conductor { roughness: (a, _), .. } if a == 0.2));
         assert!(matches!(by(1).kind, MaterialKindDesc::Dielectric { ior, .. } if (ior - 1.333).abs() < 1e-3));
@@ -2771,12 +2774,7 @@ mod tests {
           <shape type="sphere"><ref id="b"/></shape>
         </scene>"#;
         let d = parse_str(xml).unwrap();
-        let by = |i: usize| {
-            d.materials
-                .iter()
-                .find(|m| Some(&m.name) == d.shapes[i].material.as_ref())
-                .unwrap()
-        };
+        let by = |i: usize| material_of(&d, i);
         let a = by(0).roughness_map.as_ref().expect("a roughness map");
         let ColorSource::Texture(t) = &a.u else {
             panic!("alpha_u is not a texture: {:?}", a.u)
