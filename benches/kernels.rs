@@ -43,10 +43,7 @@ fn random_rays_into(n: usize, seed: u64, extent: f32) -> Vec<Ray> {
 
 fn intersection(c: &mut Criterion) {
     let rays = random_rays(1024, 1);
-    let sphere = Shape::Sphere(Sphere {
-        center: Vec3::ZERO,
-        radius: 0.8,
-    });
+    let sphere = Shape::Sphere(Sphere::new(Vec3::ZERO, 0.8));
     c.bench_function("ray-sphere x1024", |b| {
         b.iter(|| rays.iter().filter(|r| sphere.intersect(black_box(r)).is_some()).count())
     });

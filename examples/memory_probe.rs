@@ -47,6 +47,7 @@ fn grid(side: usize, x: f32, z: f32) -> TriangleMesh {
         normals: Vec::new(),
         uvs: Vec::new(),
         indices,
+        attributes: Vec::new(),
     }
 }
 

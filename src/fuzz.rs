@@ -18,12 +18,14 @@ use std::path::Path;
 pub type Target = fn(&[u8]);
 
 /// The fuzzing targets, by name.
-pub const TARGETS: [(&str, Target); 8] = [
+pub const TARGETS: [(&str, Target); 10] = [
     ("native", native),
     ("mitsuba", mitsuba),
     ("pbrt", pbrt),
     ("obj", obj),
     ("ply", ply),
+    ("serialized", serialized),
+    ("sdfgrid", sdfgrid),
     ("gltf", gltf),
     ("image", image),
     ("checkpoint", checkpoint),
@@ -106,6 +108,44 @@ pub fn ply(data: &[u8]) {
     if let Ok(p) = scene::ply::parse_ply(data, path) {
         if let Ok(desc) = scene::builtin::framed_ply(p, path) {
             exercise(desc);
+        }
+    }
+}
+
+/// Mitsuba's `.serialized` meshes: the file's first mesh and its second
+/// (found through the table at the end), framed as a PLY model is.
+pub fn serialized(data: &[u8]) {
+    for index in [0, 1] {
+        if let Ok(s) = scene::serialized::parse_serialized(data, index) {
+            let ply = scene::ply::PlyMesh {
+                mesh: s.mesh,
+                ..Default::default()
+            };
+            if let Ok(desc) = scene::builtin::framed_ply(ply, Path::new("fuzz.serialized")) {
+                exercise(desc);
+            }
+        }
+    }
+}
+
+/// A signed distance grid from a Mitsuba `.vol` file, met by rays across
+/// the unit cube in both shading modes.
+pub fn sdfgrid(data: &[u8]) {
+    let Ok(grid) = crate::media::grid::VoxelGrid::parse_mitsuba_vol(data) else {
+        return;
+    };
+    for smooth in [false, true] {
+        let Ok(sdf) = crate::geometry::sdf_grid::SdfGrid::new(grid.res, grid.data.clone(), smooth) else {
+            return;
+        };
+        for k in 0..16 {
+            let a = k as f32 * 0.7;
+            let origin = glam::Vec3::new(0.5 + 2.0 * a.cos(), 0.5 + (a * 1.3).sin(), 0.5 + 2.0 * a.sin());
+            let ray = crate::geometry::Ray::new(origin, (glam::Vec3::splat(0.5) - origin).normalize());
+            if let Some(t) = sdf.intersect(&ray) {
+                let p = ray.at(t);
+                let _ = (sdf.surface(p), sdf.shading_normal(p));
+            }
         }
     }
 }

@@ -871,9 +871,11 @@ impl Aggregate {
         // A tangent known in advance (a rectangle's, in world space) spares
         // a square root and a division at the hit.
         let mut tangent = None;
+        let mut attribute = Vec3::ZERO;
         let (mut ls, mut ns) = match hit.prim {
             HitPrim::Triangle { object, tri, b } => {
                 let mesh = &self.meshes[self.mesh_objects[object as usize].mesh as usize];
+                attribute = mesh.attribute(tri as usize, b);
                 (mesh.surface(tri as usize, b), mesh.shading_normal(tri as usize, b))
             }
             HitPrim::Shape(i) => {
@@ -887,11 +889,14 @@ impl Aggregate {
                     }
                     (_, None) => {
                         tangent = s.shape.constant_tangent();
-                        (s.shape.surface_with(ray.at(hit.t), uv), None)
+                        let ls = s.shape.surface_with(ray.at(hit.t), uv);
+                        (ls, s.shape.shading_normal(ls.p))
                     }
                     (_, Some(t)) => {
                         let obj_ray = t.inv_ray(ray);
-                        (transform_surface(t, s.shape.surface_with(obj_ray.at(hit.t), uv)), None)
+                        let ls = s.shape.surface_with(obj_ray.at(hit.t), uv);
+                        let ns = s.shape.shading_normal(ls.p).and_then(|n| t.normal(n).try_normalize());
+                        (transform_surface(t, ls), ns)
                     }
                 }
             }
@@ -899,6 +904,7 @@ impl Aggregate {
                 let inst = &self.instances[instance as usize];
                 let mesh = &self.meshes[inst.mesh as usize];
                 let t = &inst.transform;
+                attribute = mesh.attribute(tri as usize, b);
                 let ls = transform_surface(t, mesh.surface(tri as usize, b));
                 let ns = mesh
                     .shading_normal(tri as usize, b)
@@ -915,7 +921,7 @@ impl Aggregate {
             ls.n = -ls.n;
             ns = ns.map(|n| -n);
         }
-        finish_surface(hit.t, ls, ns, tangent, material, light)
+        finish_surface(hit.t, ls, ns, tangent, material, light, attribute)
     }
 
     /// The density, per unit world area, with which [`Aggregate::sample_emitter`]
@@ -1084,6 +1090,7 @@ fn bake_transform(mut s: ShapeInstance) -> ShapeInstance {
                 s.shape = Shape::Sphere(crate::geometry::shape::Sphere {
                     center: t.point(sp.center),
                     radius: sp.radius * c,
+                    uv_frame: sp.uv_frame,
                 });
                 s.transform = None;
             }
@@ -1133,6 +1140,7 @@ fn finish_surface(
     tangent: Option<Vec3>,
     material: u32,
     light: Option<u32>,
+    attribute: Vec3,
 ) -> SurfaceHit {
     let ng = ls.n;
     let shading_normal = ns.is_some();
@@ -1155,6 +1163,7 @@ fn finish_surface(
         tangent,
         material,
         light,
+        attribute,
     }
 }
 
@@ -1189,7 +1198,7 @@ mod tests {
                 uv: Vec2::ZERO,
                 dpdu,
             };
-            let hit = finish_surface(1.0, ls, None, None, 0, None);
+            let hit = finish_surface(1.0, ls, None, None, 0, None, Vec3::ZERO);
             let t = hit.tangent;
             assert!((t.length() - 1.0).abs() < 1e-5, "{dpdu} at {n}: |t| = {}", t.length());
             assert!(t.dot(hit.ns).abs() < 1e-3, "{dpdu} at {n}: t·n = {}", t.dot(hit.ns));
@@ -1211,10 +1220,7 @@ mod tests {
             for k in 0..40 {
                 let c = point() * spread;
                 let shape = match k % 3 {
-                    0 => Shape::Sphere(Sphere {
-                        center: c,
-                        radius: 0.05 + 0.3 * point().x.abs(),
-                    }),
+                    0 => Shape::Sphere(Sphere::new(c, 0.05 + 0.3 * point().x.abs())),
                     1 => Shape::Rectangle(crate::geometry::shape::Rectangle::new(c, point() * 0.5, point() * 0.5)),
                     _ => Shape::Cuboid(crate::geometry::shape::Cuboid {
                         min: c,
@@ -1231,10 +1237,7 @@ mod tests {
             }
             // A huge sphere, as smallpt's walls.
             shapes.push(ShapeInstance {
-                shape: Shape::Sphere(Sphere {
-                    center: Vec3::new(1e4 + 6.0, 0.0, 0.0),
-                    radius: 1e4,
-                }),
+                shape: Shape::Sphere(Sphere::new(Vec3::new(1e4 + 6.0, 0.0, 0.0), 1e4)),
                 transform: None,
                 material: 50,
                 light: None,
@@ -1420,10 +1423,7 @@ mod tests {
     #[test]
     fn scaled_sphere_is_an_exact_ellipsoid() {
         let g = one_shape(
-            Shape::Sphere(Sphere {
-                center: Vec3::ZERO,
-                radius: 1.0,
-            }),
+            Shape::Sphere(Sphere::new(Vec3::ZERO, 1.0)),
             Transform::scale(Vec3::new(2.0, 1.0, 1.0)).unwrap(),
         );
         let h = hit(&g, Vec3::new(-5.0, 0.0, 0.0), Vec3::X).unwrap();
@@ -1478,10 +1478,7 @@ mod tests {
     #[test]
     fn mirrored_sphere_normals_point_out() {
         let g = one_shape(
-            Shape::Sphere(Sphere {
-                center: Vec3::new(1.0, 0.0, 0.0),
-                radius: 1.0,
-            }),
+            Shape::Sphere(Sphere::new(Vec3::new(1.0, 0.0, 0.0), 1.0)),
             Transform::scale(Vec3::new(-1.0, 1.0, 1.0)).unwrap(),
         );
         let h = hit(&g, Vec3::new(-5.0, 0.0, 0.0), Vec3::X).unwrap();
@@ -1546,7 +1543,7 @@ mod tests {
                 .unwrap()
                 .then(&Transform::rotate(Vec3::new(1.0, 0.0, 0.0), 30.0).unwrap())
                 .then(&Transform::translate(Vec3::new(0.0, 0.0, 1.0)));
-            let g = one_shape(rect, t);
+            let g = one_shape(rect.clone(), t);
             assert!(g.shapes[0].transform.is_none(), "baked");
             // Aim at the image of object point (0.5, 0.25, 0): uv (0.75, 0.625).
             let target = t.point(Vec3::new(0.5, 0.25, 0.0));

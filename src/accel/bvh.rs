@@ -511,10 +511,10 @@ mod tests {
         let mut r = Pcg32::new(seed, 0);
         (0..n)
             .map(|_| {
-                Shape::Sphere(Sphere {
-                    center: Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 20.0 - 10.0,
-                    radius: 0.05 + r.next_f32() * 0.6,
-                })
+                Shape::Sphere(Sphere::new(
+                    Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 20.0 - 10.0,
+                    0.05 + r.next_f32() * 0.6,
+                ))
             })
             .collect()
     }
@@ -537,7 +537,7 @@ mod tests {
             let shapes = random_spheres(n, seed);
             let bounds: Vec<Aabb> = shapes.iter().map(|s| s.bounds().unwrap()).collect();
             let (bvh, order) = Bvh::build(&bounds);
-            let ordered: Vec<Shape> = order.iter().map(|&i| shapes[i as usize]).collect();
+            let ordered: Vec<Shape> = order.iter().map(|&i| shapes[i as usize].clone()).collect();
             let mut rng = Pcg32::new(seed + 100, 0);
             for _ in 0..2000 {
                 let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 30.0 - 15.0;

@@ -26,6 +26,9 @@ pub struct SurfaceHit {
     pub material: u32,
     /// Index of the area light this surface is, if it emits.
     pub light: Option<u32>,
+    /// The value of the mesh attribute its material reads (first three
+    /// channels), 0 where there is none.
+    pub attribute: Vec3,
 }
 
 impl SurfaceHit {

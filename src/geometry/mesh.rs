@@ -9,6 +9,16 @@ use crate::sampling::warp::{orthonormal_basis, sample_triangle_uniform};
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
+/// The angle between two unit vectors, accurate near 0 and π too (from the
+/// chord between them rather than the arc cosine of their dot product).
+fn unit_angle(a: Vec3, b: Vec3) -> f32 {
+    if a.dot(b) < 0.0 {
+        PI - 2.0 * ((a + b).length() / 2.0).min(1.0).asin()
+    } else {
+        2.0 * ((a - b).length() / 2.0).min(1.0).asin()
+    }
+}
+
 /// A triangle mesh. Faces wind counter-clockwise seen from their front side.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriangleMesh {
@@ -20,6 +30,38 @@ pub struct TriangleMesh {
     pub uvs: Vec<Vec2>,
     /// Vertex indices of each triangle.
     pub indices: Vec<[u32; 3]>,
+    /// Other values per vertex or per triangle, by name (Mitsuba's mesh
+    /// attributes). A scene keeps only the one its material reads, first.
+    pub attributes: Vec<MeshAttribute>,
+}
+
+/// Values a mesh carries per vertex or per triangle besides its geometry
+/// (a PLY file's colours, weights…), named as Mitsuba names them:
+/// `vertex_color`, `face_weight`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshAttribute {
+    /// `vertex_…` or `face_…`.
+    pub name: String,
+    /// Whether there is one value per triangle (else one per vertex).
+    pub per_face: bool,
+    /// Channels per value (1 to 4).
+    pub channels: usize,
+    /// The values, `channels` numbers each.
+    pub values: Vec<f32>,
+}
+
+impl MeshAttribute {
+    /// The first three channels of element `i` (one channel as grey).
+    #[inline]
+    fn get(&self, i: usize) -> Vec3 {
+        let v = &self.values[i * self.channels..(i + 1) * self.channels];
+        match v {
+            [g] => Vec3::splat(*g),
+            [a, b] => Vec3::new(*a, *b, 0.0),
+            [a, b, c, ..] => Vec3::new(*a, *b, *c),
+            [] => Vec3::ZERO,
+        }
+    }
 }
 
 /// Why a mesh is unusable.
@@ -85,6 +127,20 @@ impl TriangleMesh {
                 });
             }
         }
+        for a in &self.attributes {
+            let count = if a.per_face { self.indices.len() } else { n };
+            if !(1..=4).contains(&a.channels) || a.values.len() != count * a.channels {
+                return Err(MeshError::AttributeCount {
+                    attribute: if a.per_face {
+                        "face attribute values"
+                    } else {
+                        "vertex attribute values"
+                    },
+                    len: a.values.len(),
+                    vertices: count,
+                });
+            }
+        }
         if let Some(vertex) = self.positions.iter().position(|p| !p.is_finite()) {
             return Err(MeshError::NonFinite { vertex });
         }
@@ -110,6 +166,21 @@ impl TriangleMesh {
     /// Whether the mesh has no triangles.
     pub fn is_empty(&self) -> bool {
         self.indices.is_empty()
+    }
+
+    /// The value of the mesh's first attribute on triangle `i` at
+    /// barycentrics `b` (interpolated per vertex, constant per face), or 0.
+    #[inline]
+    pub fn attribute(&self, i: usize, b: [f32; 3]) -> Vec3 {
+        let Some(a) = self.attributes.first() else {
+            return Vec3::ZERO;
+        };
+        if a.per_face {
+            a.get(i)
+        } else {
+            let [ia, ib, ic] = self.indices[i].map(|x| x as usize);
+            b[0] * a.get(ia) + b[1] * a.get(ib) + b[2] * a.get(ic)
+        }
     }
 
     /// The three vertex positions of triangle `i`.
@@ -233,6 +304,7 @@ impl TriangleMesh {
             positions: self.positions.iter().map(|&p| t.point(p)).collect(),
             normals: self.normals.iter().map(|&n| t.normal(n).normalize_or_zero()).collect(),
             uvs: self.uvs.clone(),
+            attributes: self.attributes.clone(),
             // A mirroring transform reverses winding; swap two indices so
             // that faces keep their front side.
             indices: if flip {
@@ -255,6 +327,27 @@ impl TriangleMesh {
         self
     }
 
+    /// Gives the mesh smooth vertex normals, replacing any it has: each
+    /// triangle adds its unit normal to its corners' normals, weighted by
+    /// the corner's interior angle (Thürmer and Wüthrich 1998, "Computing
+    /// Vertex Normals from Polygonal Facets", as Mitsuba 3 smooths meshes
+    /// that come without normals). A vertex that only degenerate
+    /// triangles use gets +x, as in Mitsuba.
+    pub fn compute_vertex_normals(&mut self) {
+        let mut sums = vec![Vec3::ZERO; self.positions.len()];
+        for &tri in &self.indices {
+            let p = tri.map(|i| self.positions[i as usize]);
+            let Some(n) = (p[1] - p[0]).cross(p[2] - p[0]).try_normalize() else {
+                continue;
+            };
+            for k in 0..3 {
+                let e1 = (p[(k + 1) % 3] - p[k]).normalize_or_zero();
+                let e2 = (p[(k + 2) % 3] - p[k]).normalize_or_zero();
+                sums[tri[k] as usize] += n * unit_angle(e1, e2);
+            }
+        }
+        self.normals = sums.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::X)).collect();
+    }
     /// A latitude–longitude sphere of `segments` × `rings` quads (two
     /// triangles each, fans at the poles), with normals and UVs. Useful for
     /// stress tests: 1000 × 500 gives about one million triangles.
@@ -309,7 +402,34 @@ mod tests {
             normals: vec![],
             uvs: vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y],
             indices: vec![[0, 1, 2], [0, 2, 3]],
+            attributes: Vec::new(),
         }
+    }
+
+    #[test]
+    fn computed_vertex_normals_weigh_faces_by_corner_angle() {
+        let mut m = quad();
+        m.compute_vertex_normals();
+        assert!(
+            m.normals.iter().all(|n| (*n - Vec3::Y).length() < 1e-6),
+            "{:?}",
+            m.normals
+        );
+        // Vertex 0 is a 90° corner of a triangle facing +z and a 45° corner
+        // of one facing +x: its normal leans twice as far towards +z. The
+        // unused vertex 4 gets Mitsuba's fallback.
+        let mut m = TriangleMesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.0, 1.0, 1.0), Vec3::ONE],
+            normals: vec![],
+            uvs: vec![],
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            attributes: Vec::new(),
+        };
+        m.compute_vertex_normals();
+        let expected = Vec3::new(1.0, 0.0, 2.0).normalize();
+        assert!((m.normals[0] - expected).length() < 1e-6, "{}", m.normals[0]);
+        assert_eq!(m.normals[1], Vec3::Z);
+        assert_eq!(m.normals[4], Vec3::X);
     }
 
     #[test]

@@ -11,7 +11,7 @@ use super::bounds::{Aabb, gamma};
 use super::ray::Ray;
 use super::real::Real;
 use crate::sampling::warp::{orthonormal_basis, sample_disk_concentric, sample_sphere_uniform};
-use glam::{DVec3, Vec2, Vec3};
+use glam::{DVec3, Mat3, Vec2, Vec3};
 use std::f32::consts::PI;
 
 /// A sphere given by centre and radius.
@@ -21,6 +21,12 @@ pub struct Sphere {
     pub center: Vec3,
     /// Radius (> 0).
     pub radius: f32,
+    /// The orientation of its surface coordinates: the axes of the space
+    /// in which u runs around +y and v from −y to +y, as columns in the
+    /// sphere's space (orthonormal; the identity unless a rotation was
+    /// baked into the sphere, or a reader follows another renderer's
+    /// convention).
+    pub uv_frame: Mat3,
 }
 
 /// An infinite plane through `point` with unit normal `normal`.
@@ -61,6 +67,19 @@ pub struct Disk {
     pub normal: Vec3,
     /// Radius (> 0).
     pub radius: f32,
+    /// Which of its surface coordinates is the angle.
+    pub uv: DiskUv,
+}
+
+/// How a disk's surface coordinates follow its angle φ (from the first
+/// axis of its frame towards the second) and its radius r.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DiskUv {
+    /// u = φ/2π, v = 1 − r/R (pbrt's disk).
+    #[default]
+    AngleRadius,
+    /// u = r/R, v = φ/2π (Mitsuba's disk).
+    RadiusAngle,
 }
 
 /// An axis-aligned box; rotate it with a transform for an oriented one.
@@ -85,7 +104,7 @@ pub struct Cylinder {
 }
 
 /// An analytic shape in object space.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
     /// A sphere.
     Sphere(Sphere),
@@ -99,6 +118,8 @@ pub enum Shape {
     Cuboid(Cuboid),
     /// An open cylinder.
     Cylinder(Cylinder),
+    /// A signed distance function sampled on a grid over [0, 1]³.
+    SdfGrid(std::sync::Arc<super::sdf_grid::SdfGrid>),
 }
 
 /// The surface of a shape at a point, in the shape's object space.
@@ -160,6 +181,7 @@ impl Shape {
                 let half = Vec3::new(e.x.sqrt(), e.y.sqrt(), e.z.sqrt()) * c.radius;
                 Some(Aabb::new(c.p0 - half, c.p0 + half).union(&Aabb::new(c.p1 - half, c.p1 + half)))
             }
+            Shape::SdfGrid(ref g) => Some(g.bounds()),
         }
     }
 
@@ -173,6 +195,7 @@ impl Shape {
             Shape::Disk(d) => d.intersect(ray),
             Shape::Cuboid(c) => c.intersect(ray),
             Shape::Cylinder(c) => c.intersect(ray),
+            Shape::SdfGrid(g) => g.intersect(ray),
         }
     }
 
@@ -207,16 +230,41 @@ impl Shape {
                 let (x, y) = (q.dot(s), q.dot(t));
                 let phi = y.atan2(x).rem_euclid(2.0 * PI);
                 let dist = (x * x + y * y).sqrt();
+                let (uv, dpdu) = match d.uv {
+                    DiskUv::AngleRadius => (
+                        Vec2::new(phi / (2.0 * PI), 1.0 - dist / d.radius),
+                        (-y * s + x * t) * (2.0 * PI),
+                    ),
+                    DiskUv::RadiusAngle => (
+                        Vec2::new(dist / d.radius, phi / (2.0 * PI)),
+                        if dist > 0.0 {
+                            q * (d.radius / dist)
+                        } else {
+                            s * d.radius
+                        },
+                    ),
+                };
                 LocalSurface {
                     p,
                     p_error: planar_error(p, d.center),
                     n: d.normal,
-                    uv: Vec2::new(phi / (2.0 * PI), 1.0 - dist / d.radius),
-                    dpdu: (-y * s + x * t) * (2.0 * PI),
+                    uv,
+                    dpdu,
                 }
             }
             Shape::Cuboid(c) => c.surface(p),
             Shape::Cylinder(c) => c.surface(p),
+            Shape::SdfGrid(g) => g.surface(p),
+        }
+    }
+
+    /// The shading normal at a point of the surface, where it differs from
+    /// the geometric one (a signed distance grid's smooth normals).
+    #[inline]
+    pub fn shading_normal(&self, p: Vec3) -> Option<Vec3> {
+        match self {
+            Shape::SdfGrid(g) => g.shading_normal(p),
+            _ => None,
         }
     }
 
@@ -229,6 +277,8 @@ impl Shape {
             Shape::Disk(d) => PI * d.radius * d.radius,
             Shape::Cuboid(c) => Aabb::new(c.min, c.max).surface_area(),
             Shape::Cylinder(c) => 2.0 * PI * c.radius * (c.p1 - c.p0).length(),
+            // Not an emitter (nor in Mitsuba): the scene reader refuses one.
+            Shape::SdfGrid(_) => 0.0,
         }
     }
 
@@ -257,6 +307,7 @@ impl Shape {
 
     fn sample_area_point(&self, u: Vec2) -> Option<AreaSample> {
         match *self {
+            Shape::SdfGrid(_) => None,
             Shape::Sphere(s) => {
                 let n = sample_sphere_uniform(u);
                 Some(AreaSample {
@@ -327,6 +378,15 @@ impl Shape {
 }
 
 impl Sphere {
+    /// The sphere with surface coordinates around +y.
+    pub const fn new(center: Vec3, radius: f32) -> Sphere {
+        Sphere {
+            center,
+            radius,
+            uv_frame: Mat3::IDENTITY,
+        }
+    }
+
     /// Ray–sphere intersection with the refined quadratic of Haines et al.,
     /// "Precision Improvements for Ray/Sphere Intersection" (Ray Tracing
     /// Gems, ch. 7), evaluated in double precision: exact enough for radii
@@ -345,14 +405,16 @@ impl Sphere {
         let p = (self.center.as_dvec3() + dir * self.radius as f64).as_vec3();
         let n = dir.as_vec3();
         let p_error = gamma(5) * ((p - self.center).abs() + self.center.abs());
-        // Longitude around +y, latitude from the south pole: v = 1 at the top.
+        // Longitude around +y, latitude from the south pole: v = 1 at the
+        // top, in the frame of the surface coordinates.
+        let local = self.uv_frame.transpose() * n;
         let uv = if with_uv {
-            let phi = n.z.atan2(n.x).rem_euclid(2.0 * PI);
-            Vec2::new(phi / (2.0 * PI), 0.5 + n.y.clamp(-1.0, 1.0).asin() / PI)
+            let phi = local.z.atan2(local.x).rem_euclid(2.0 * PI);
+            Vec2::new(phi / (2.0 * PI), 0.5 + local.y.clamp(-1.0, 1.0).asin() / PI)
         } else {
             Vec2::ZERO
         };
-        let dpdu = Vec3::new(-n.z, 0.0, n.x) * (2.0 * PI * self.radius);
+        let dpdu = self.uv_frame * Vec3::new(-local.z, 0.0, local.x) * (2.0 * PI * self.radius);
         LocalSurface {
             p,
             p_error,
@@ -734,10 +796,7 @@ mod tests {
     }
 
     fn unit_sphere() -> Shape {
-        Shape::Sphere(Sphere {
-            center: Vec3::ZERO,
-            radius: 1.0,
-        })
+        Shape::Sphere(Sphere::new(Vec3::ZERO, 1.0))
     }
 
     #[test]
@@ -777,27 +836,18 @@ mod tests {
     #[test]
     fn huge_and_tiny_spheres_are_exact() {
         // smallpt's wall: radius 1e5, seen from 50 units.
-        let big = Shape::Sphere(Sphere {
-            center: Vec3::new(1e5 + 1.0, 40.8, 81.6),
-            radius: 1e5,
-        });
+        let big = Shape::Sphere(Sphere::new(Vec3::new(1e5 + 1.0, 40.8, 81.6), 1e5));
         let r = Ray::new(Vec3::new(50.0, 40.8, 81.6), -Vec3::X);
         let t = big.intersect(&r).unwrap();
         assert!(near(t, 49.0, 1e-6), "t = {t}");
-        let tiny = Shape::Sphere(Sphere {
-            center: Vec3::new(1e-6, 0.0, 0.0),
-            radius: 1e-7,
-        });
+        let tiny = Shape::Sphere(Sphere::new(Vec3::new(1e-6, 0.0, 0.0), 1e-7));
         let r = Ray::new(Vec3::ZERO, Vec3::X);
         assert!(near(tiny.intersect(&r).unwrap(), 9e-7, 1e-5));
     }
 
     #[test]
     fn sphere_surface_normal_and_uv() {
-        let s = Shape::Sphere(Sphere {
-            center: Vec3::new(1.0, 2.0, 3.0),
-            radius: 2.0,
-        });
+        let s = Shape::Sphere(Sphere::new(Vec3::new(1.0, 2.0, 3.0), 2.0));
         let ls = s.surface(Vec3::new(1.0, 4.0, 3.0));
         assert!((ls.n - Vec3::Y).length() < 1e-6);
         assert!(near(ls.uv.y, 1.0, 1e-6)); // north pole
@@ -881,6 +931,7 @@ mod tests {
             center: Vec3::new(0.0, 1.0, 0.0),
             normal: Vec3::Y,
             radius: 2.0,
+            uv: crate::geometry::DiskUv::AngleRadius,
         });
         assert!(near(
             d.intersect(&Ray::new(Vec3::new(1.0, 3.0, 1.0), -Vec3::Y)).unwrap(),
@@ -983,15 +1034,13 @@ mod tests {
     #[test]
     fn area_samples_lie_on_the_surface() {
         let shapes = [
-            Shape::Sphere(Sphere {
-                center: Vec3::ONE,
-                radius: 0.5,
-            }),
+            Shape::Sphere(Sphere::new(Vec3::ONE, 0.5)),
             Shape::Rectangle(Rectangle::new(Vec3::ZERO, Vec3::X, Vec3::Z)),
             Shape::Disk(Disk {
                 center: Vec3::Y,
                 normal: Vec3::new(0.0, 0.6, 0.8),
                 radius: 1.5,
+                uv: crate::geometry::DiskUv::AngleRadius,
             }),
             Shape::Cuboid(Cuboid {
                 min: Vec3::ZERO,

@@ -68,6 +68,7 @@ pub fn loop_subdivide(positions: &[Vec3], faces: &[[u32; 3]], levels: u32) -> Re
         normals,
         uvs: Vec::new(),
         indices: faces,
+        attributes: Vec::new(),
     })
 }
 

@@ -111,13 +111,13 @@ impl Integrator for PathTracer {
                     }
                     _ => 1.0,
                 };
-                l += beta * m.emission_at(&scene.images, &TexCoord { uv: hit.uv, p: hit.p }) * w;
+                l += beta * m.emission_at(&scene.images, &TexCoord::at(&hit)) * w;
             }
             if depth == self.max_depth {
                 break;
             }
 
-            let tc = TexCoord { uv: hit.uv, p: hit.p };
+            let tc = TexCoord::at(&hit);
             // A mask's cut-out part, chosen with probability 1 − α: the path
             // goes on unchanged (a bounce, as Mitsuba's path counts it).
             // Shadow rays do not see through masks (nor do Mitsuba's), so

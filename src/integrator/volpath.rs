@@ -183,7 +183,7 @@ impl VolPathTracer {
                 if !thin && m.opacity.is_none() {
                     return Rgb::ZERO;
                 }
-                let tc = TexCoord { uv: h.uv, p: h.p };
+                let tc = TexCoord::at(h);
                 // Light passes a mask's cut-out part (1 − α) and what the
                 // surface itself lets through unchanged.
                 let alpha = m.opacity_at(&scene.images, &tc);
@@ -292,7 +292,7 @@ impl Integrator for VolPathTracer {
             let m = &scene.materials[hit.material as usize];
             let wo_world = -dir;
             if m.is_emissive() && hit.is_front(wo_world) {
-                let le = m.emission_at(&scene.images, &TexCoord { uv: hit.uv, p: hit.p });
+                let le = m.emission_at(&scene.images, &TexCoord::at(&hit));
                 let (prev_p, prev_n) = (s.prev_p, s.prev_n);
                 self.add_emission(&mut s, le, || match hit.light {
                     Some(li) => {
@@ -310,15 +310,14 @@ impl Integrator for VolPathTracer {
             // A surface that is not there, or a mask's cut-out part
             // (chosen with probability 1 − α): the path goes on unchanged,
             // no bounce.
-            let cut_out = m.opacity.is_some()
-                && sampler.next_1d() >= m.opacity_at(&scene.images, &TexCoord { uv: hit.uv, p: hit.p });
+            let cut_out = m.opacity.is_some() && sampler.next_1d() >= m.opacity_at(&scene.images, &TexCoord::at(&hit));
             if cut_out || matches!(m.kind, MaterialKind::Thin { eta, .. } if eta == 1.0) {
                 medium = cross(medium, dir);
                 ray = hit.spawn_ray(dir);
                 continue;
             }
 
-            let tc = TexCoord { uv: hit.uv, p: hit.p };
+            let tc = TexCoord::at(&hit);
             let bsdf = m.bsdf(&scene.images, &tc);
             let frame = m.shading_frame(&scene.images, &hit, wo_world);
             let wo = frame.to_local(wo_world);

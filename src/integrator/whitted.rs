@@ -64,7 +64,7 @@ impl Whitted {
         let m = &scene.materials[hit.material as usize];
         let wo = -ray.dir.normalize();
         let front = hit.is_front(wo);
-        let tc = TexCoord { uv: hit.uv, p: hit.p };
+        let tc = TexCoord::at(&hit);
         let mut l = if front {
             m.emission_at(&scene.images, &tc)
         } else {
@@ -150,13 +150,13 @@ fn shadow_transmittance(scene: &Scene, hit: &SurfaceHit, ls: &LightSample, stats
         let Some(h) = scene.geometry.intersect(&ray) else {
             return transmittance;
         };
-        let (material, _) = scene.geometry.material_and_light(&h.prim);
-        let m = &scene.materials[material as usize];
+        let mut s = scene.geometry.surface(&ray, &h);
+        scene.choose_material(&mut s, ray.dir);
+        let m = &scene.materials[s.material as usize];
         if !m.is_transmissive() {
             return Rgb::ZERO;
         }
-        let s = scene.geometry.surface(&ray, &h);
-        let c = m.classic(&scene.images, &TexCoord { uv: s.uv, p: s.p });
+        let c = m.classic(&scene.images, &TexCoord::at(&s));
         let cos = s.ns.dot(-ray.dir.normalize());
         transmittance *= c.kt * (1.0 - fresnel_dielectric(cos, c.ior));
         if transmittance == Rgb::ZERO {

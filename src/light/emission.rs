@@ -129,7 +129,7 @@ impl Light {
                     return None;
                 }
                 let dir = Frame::from_normal(s.n).to_world(local);
-                let le = radiance.eval(&scene.images, &TexCoord { uv: s.uv, p: s.p });
+                let le = radiance.eval(&scene.images, &TexCoord::new(s.uv, s.p));
                 // Le·cos θ / (p_A · cos θ/π) = π·Le / p_A.
                 let push = s.n * (EMITTER_OFFSET * s.p.abs().max_element().max(1.0));
                 (le * (PI / s.pdf_area), Ray::new(s.p + push, dir))

@@ -219,7 +219,7 @@ impl SpotProjection {
     #[inline]
     pub fn eval(&self, images: &[crate::texture::ImageTexture], d: Vec3) -> Rgb {
         let uv = self.uv(d);
-        self.texture.eval(images, &TexCoord { uv, p: Vec3::ZERO })
+        self.texture.eval(images, &TexCoord::new(uv, Vec3::ZERO))
     }
 }
 
@@ -264,7 +264,7 @@ impl Projector {
     /// The image's value at `uv`.
     #[inline]
     fn eval(&self, images: &[crate::texture::ImageTexture], uv: Vec2) -> Rgb {
-        self.image.eval(images, &TexCoord { uv, p: Vec3::ZERO })
+        self.image.eval(images, &TexCoord::new(uv, Vec3::ZERO))
     }
 
     /// Intensity (W/sr) toward world point `p`, and the direction from the
@@ -380,7 +380,7 @@ fn area_light_sample(
     }
     Some(LightSample {
         wi,
-        li: radiance.eval(&scene.images, &TexCoord { uv, p: lp }),
+        li: radiance.eval(&scene.images, &TexCoord::new(uv, lp)),
         pdf,
         is_delta: false,
         target: ShadowTarget::Point(lp),
@@ -741,7 +741,7 @@ pub fn emitter_sphere(scene_geometry: &crate::accel::Aggregate, emitter: Emitter
         return None;
     };
     let s = &scene_geometry.shapes[i as usize];
-    match (s.shape, &s.transform) {
+    match (&s.shape, &s.transform) {
         (Shape::Sphere(sp), None) => Some((sp.center, sp.radius)),
         _ => None,
     }

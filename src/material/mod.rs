@@ -218,6 +218,38 @@ impl RoughnessMap {
     }
 }
 
+/// A material that is one of two at each point: the second with the
+/// weight's first channel as its probability, so that on average it
+/// scatters as (1 − w)·f₀ + w·f₁ (Mitsuba's `blendbsdf`). The choice is a
+/// hash of the point and the direction, as pbrt-v4's `MixMaterial` makes
+/// it: the same for every look-up of one shading point, and independent of
+/// the sampler's dimensions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MaterialMix {
+    /// The probability of `materials[1]` (first channel, clamped to [0, 1]).
+    pub weight: Texture,
+    /// The two materials (indices into the scene's).
+    pub materials: [u32; 2],
+}
+
+impl MaterialMix {
+    /// The material chosen at a point seen from direction `dir`.
+    #[inline]
+    pub fn choose(&self, images: &[ImageTexture], tc: &TexCoord, dir: Vec3) -> u32 {
+        let w = self.weight.eval(images, tc).x;
+        if w <= 0.0 {
+            return self.materials[0];
+        }
+        if w >= 1.0 {
+            return self.materials[1];
+        }
+        let bits = [tc.p.x, tc.p.y, tc.p.z, dir.x, dir.y, dir.z].map(|x| x.to_bits() as u64);
+        let h = crate::sampling::rng::hash_u64s(&bits);
+        let u = (h >> 40) as f32 * (1.0 / (1u64 << 24) as f32);
+        self.materials[(u < w) as usize]
+    }
+}
+
 /// The classical parameters that the Whitted integrator reads.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClassicParams {
@@ -413,6 +445,11 @@ impl Material {
 
     /// Whether any of its textures reads surface coordinates (u, v).
     pub fn reads_uv(&self) -> bool {
+        self.textures().iter().any(|t| t.reads_uv())
+    }
+
+    /// Every texture it reads.
+    pub(crate) fn textures(&self) -> Vec<&Texture> {
         let textures: &[&Texture] = match &self.kind {
             MaterialKind::Classic { diffuse, specular, .. } => &[diffuse, specular],
             MaterialKind::Diffuse { reflectance } => &[reflectance],
@@ -424,11 +461,14 @@ impl Material {
             MaterialKind::Layered { .. } => &[],
             MaterialKind::Conductor { .. } | MaterialKind::Dielectric { .. } | MaterialKind::Thin { .. } => &[],
         };
-        self.emission.reads_uv()
-            || self.opacity.as_ref().is_some_and(|o| o.reads_uv())
-            || self.normal_map.as_ref().is_some_and(|n| n.reads_uv())
-            || self.roughness_map.as_ref().is_some_and(|r| r.reads_uv())
-            || textures.iter().any(|t| t.reads_uv())
+        let mut all = vec![&self.emission];
+        all.extend(self.opacity.as_ref());
+        all.extend(self.normal_map.as_ref());
+        if let Some(r) = &self.roughness_map {
+            all.extend([&r.u, &r.v]);
+        }
+        all.extend(textures);
+        all
     }
 
     /// The opacity at a point (1 where the material has no mask).
@@ -458,7 +498,7 @@ impl Material {
                 unmapped: None,
             };
         };
-        let c = map.eval(images, &TexCoord { uv: hit.uv, p: hit.p });
+        let c = map.eval(images, &TexCoord::at(hit));
         let Some(mut local) = Vec3::new(2.0 * c.x - 1.0, 2.0 * c.y - 1.0, 2.0 * c.z - 1.0).try_normalize() else {
             return ShadingFrame {
                 frame: base,
@@ -768,10 +808,7 @@ mod tests {
         });
         assert!(m.reads_uv());
         let at = |m: &Material, u: f32| {
-            let tc = TexCoord {
-                uv: Vec2::new(u, 0.25),
-                p: Vec3::ZERO,
-            };
+            let tc = TexCoord::new(Vec2::new(u, 0.25), Vec3::ZERO);
             match m.bsdf(&[], &tc) {
                 Bsdf::Conductor(c) => (c.microfacet.alpha_x, c.microfacet.alpha_y, c.microfacet.distribution),
                 other => panic!("not a conductor: {other:?}"),
@@ -806,10 +843,7 @@ mod tests {
     /// pass over drawing; the other BSDFs say they read it.
     #[test]
     fn only_lambert_ignores_the_lobe_choice() {
-        let tc = TexCoord {
-            uv: Vec2::ZERO,
-            p: Vec3::ZERO,
-        };
+        let tc = TexCoord::new(Vec2::ZERO, Vec3::ZERO);
         let lambert = Material::diffuse(Rgb::new(0.5, 0.6, 0.7));
         let lambert = lambert.bsdf(&[], &tc);
         assert!(!lambert.reads_lobe_choice());
@@ -837,10 +871,7 @@ mod tests {
     #[test]
     fn diffuse_only_classical_bsdf_equals_lambert_bit_for_bit() {
         let mut rng = Pcg32::new(7, 3);
-        let tc = TexCoord {
-            uv: Vec2::ZERO,
-            p: Vec3::ZERO,
-        };
+        let tc = TexCoord::new(Vec2::ZERO, Vec3::ZERO);
         for kd in [Rgb::new(0.8, 0.5, 0.2), Rgb::new(0.05, 0.9, 1.0), Rgb::splat(1e-3)] {
             let material = Material::diffuse(kd);
             let lambert = material.bsdf(&[], &tc);
@@ -890,6 +921,7 @@ mod tests {
             tangent: Vec3::X,
             material: 0,
             light: None,
+            attribute: Vec3::ZERO,
         }
     }
 

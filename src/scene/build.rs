@@ -14,7 +14,9 @@ use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sp
 use crate::geometry::{Aabb, Transform, TriangleMesh};
 use crate::light::{Background, EnvironmentMap, Light, Projector, SpotProjection};
 use crate::material::conductor::ConductorFresnel;
-use crate::material::{LayerBaseKind, Material, MaterialKind, Microfacet, MicrofacetDistribution, RoughnessMap};
+use crate::material::{
+    LayerBaseKind, Material, MaterialKind, MaterialMix, Microfacet, MicrofacetDistribution, RoughnessMap,
+};
 use crate::media::{Field, Medium, MediumInterface, Phase, VoxelGrid};
 use crate::sampling::Distribution1D;
 use crate::settings::IntegratorKind;
@@ -71,9 +73,17 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     // Textures.
     let mut images = Vec::new();
     let mut textures: HashMap<&str, Texture> = HashMap::new();
+    let mut attribute_names: Vec<String> = Vec::new();
     for (i, t) in desc.textures.iter().enumerate() {
         let tex = match &t.kind {
             TextureKind::Constant(c) => Texture::Constant(*c),
+            TextureKind::MeshAttribute { name } => {
+                let k = attribute_names.iter().position(|n| n == name).unwrap_or_else(|| {
+                    attribute_names.push(name.clone());
+                    attribute_names.len() - 1
+                });
+                Texture::MeshAttribute(k as u32)
+            }
             TextureKind::Checkerboard { even, odd, scale } => Texture::Checkerboard {
                 even: *even,
                 odd: *odd,
@@ -135,8 +145,10 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         .enumerate()
         .map(|(i, m)| (m.name.as_str(), i as u32))
         .collect();
+    let mut material_mixes = resolve_mixes(desc, &mut materials, &material_index, &color, &mut warnings);
     let default_material = materials.len() as u32;
     materials.push(Material::default());
+    material_mixes.push(None);
 
     // Media; a shape that bounds media gets its own copy of its material,
     // which carries the interface ([`Scene::material_media`]).
@@ -203,15 +215,18 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         let transform = compose(&s.transform)
             .map_err(|e| Error::scene(s.locs.key("transform"), format!("shape[{i}].transform"), e))?;
         let analytic = match &s.kind {
-            ShapeKind::Sphere { center, radius } => Some(Shape::Sphere(Sphere {
-                center: *center,
-                radius: *radius,
-            })),
+            ShapeKind::Sphere { center, radius } => Some(Shape::Sphere(Sphere::new(*center, *radius))),
             ShapeKind::Plane { point, normal } => Some(Shape::Plane(Plane::new(*point, *normal))),
             ShapeKind::Rectangle { corner, edge_u, edge_v } => {
                 Some(Shape::Rectangle(Rectangle::new(*corner, *edge_u, *edge_v)))
             }
-            ShapeKind::Disk { center, normal, radius } => Some(Shape::Disk(Disk {
+            ShapeKind::Disk {
+                center,
+                normal,
+                radius,
+                uv,
+            } => Some(Shape::Disk(Disk {
+                uv: *uv,
                 center: *center,
                 normal: normal.normalize(),
                 radius: *radius,
@@ -222,17 +237,21 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 p1: *p1,
                 radius: *radius,
             })),
+            ShapeKind::SdfGrid(g) => Some(Shape::SdfGrid(g.clone())),
             ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_) => None,
         };
         if let Some(shape) = analytic {
             // A sphere under a similarity (rotation, uniform scale,
             // translation) is still a sphere: bake the transform in, so it
             // intersects faster and can be sampled by solid angle.
-            let (shape, transform) = match (shape, similarity_scale(&transform)) {
-                (Shape::Sphere(sp), Some(scale)) if !transform.is_identity() => (
+            let (shape, transform) = match (&shape, similarity_scale(&transform)) {
+                (&Shape::Sphere(sp), Some(scale)) if !transform.is_identity() => (
                     Shape::Sphere(Sphere {
                         center: transform.point(sp.center),
                         radius: sp.radius * scale,
+                        // The rotation (or mirror) turns the surface
+                        // coordinates with the sphere.
+                        uv_frame: glam::Mat3::from_mat4(transform.m) * (1.0 / scale) * sp.uv_frame,
                     }),
                     Transform::IDENTITY,
                 ),
@@ -287,7 +306,9 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 mesh.transformed(&transform)
             };
             let mesh = if s.flip_normals { mesh.flipped() } else { mesh };
-            meshes.push(mesh);
+            let what = format!("shape[{i}]");
+            let read = read_attribute(material, &materials, &material_mixes);
+            meshes.push(keep_read_attribute(mesh, read, &attribute_names, &what, &mut warnings));
             mesh_objects.push(MeshObject {
                 mesh: meshes.len() as u32 - 1,
                 material,
@@ -297,7 +318,10 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             let ShapeKind::Mesh(name) = &s.kind else { unreachable!() };
             // Moved, not copied: a mesh placed many times is held once.
             let mesh = *instanced_mesh_index.entry(name.as_str()).or_insert_with(|| {
-                meshes.push(named_meshes.remove(name.as_str()).expect("loaded"));
+                let mesh = named_meshes.remove(name.as_str()).expect("loaded");
+                let what = format!("shape[{i}]");
+                let read = read_attribute(material, &materials, &material_mixes);
+                meshes.push(keep_read_attribute(mesh, read, &attribute_names, &what, &mut warnings));
                 meshes.len() as u32 - 1
             });
             instances.push(MeshInstance {
@@ -447,7 +471,13 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         warnings.push("the scene has no lights, no emissive surfaces, no ambient light and a black background: the image will be black".into());
     }
     let any_transmissive = materials.iter().any(Material::is_transmissive);
-    let materials_reading_uv = materials.iter().map(Material::reads_uv).collect();
+    let materials_reading_uv = (0..materials.len() as u32)
+        .map(|m| {
+            let mut t = Vec::new();
+            deciding_textures(m, &materials, &material_mixes, &mut t);
+            t.iter().any(Texture::reads_uv)
+        })
+        .collect();
     let camera_medium = medium_of(&desc.camera_medium);
     if !desc.media.is_empty() && desc.settings.integrator != IntegratorKind::VolPath {
         let first = desc.media[0]
@@ -472,7 +502,9 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             desc.settings.integrator.name()
         ));
     }
+    material_mixes.resize(materials.len(), None);
     let mut scene = Scene {
+        material_mixes,
         media,
         material_media,
         camera_medium,
@@ -550,6 +582,125 @@ fn similarity_scale(t: &Transform) -> Option<f32> {
         && close(mtm.x_axis.z, 0.0)
         && close(mtm.y_axis.z, 0.0);
     ok.then(|| s2.sqrt())
+}
+
+/// The mesh with only the attribute its material reads, first, where the
+/// surface record looks for it (a mesh placed many times keeps the one of
+/// its first placement's material); a material reading one the mesh does
+/// not have gets a warning and reads 0.
+fn keep_read_attribute(
+    mut mesh: TriangleMesh,
+    read: Option<u32>,
+    names: &[String],
+    what: &str,
+    warnings: &mut Vec<String>,
+) -> TriangleMesh {
+    let read = read.map(|k| names[k as usize].as_str());
+    let kept = read.and_then(|name| mesh.attributes.iter().position(|a| a.name == name));
+    match (read, kept) {
+        (_, Some(k)) => {
+            let a = mesh.attributes.swap_remove(k);
+            mesh.attributes = vec![a];
+        }
+        (Some(name), None) => {
+            let has: Vec<&str> = mesh.attributes.iter().map(|a| a.name.as_str()).collect();
+            warnings.push(format!(
+                "{what}: its material reads the mesh attribute \"{name}\", which the mesh does not have (it has {}); it reads 0",
+                if has.is_empty() { "none".to_string() } else { has.join(", ") }
+            ));
+            mesh.attributes.clear();
+        }
+        (None, None) => mesh.attributes.clear(),
+    }
+    mesh
+}
+
+/// The mixes among the materials (`None` for the others), and each mix's
+/// place taken by a copy of its first material (what light sampling and
+/// the checks of every material read: a mix's emission is its own). Where
+/// a mix has its own emission, sides, opacity or normal map, its two
+/// materials are copied with them (appended to `materials`); a mix inside
+/// such a mix does not take them (warning).
+fn resolve_mixes(
+    desc: &SceneDesc,
+    materials: &mut Vec<Material>,
+    index: &HashMap<&str, u32>,
+    color: &dyn Fn(&ColorSource) -> Texture,
+    warnings: &mut Vec<String>,
+) -> Vec<Option<MaterialMix>> {
+    let mut mixes: Vec<Option<MaterialMix>> = vec![None; materials.len()];
+    for (i, m) in desc.materials.iter().enumerate() {
+        let MaterialKindDesc::Mix {
+            weight,
+            materials: names,
+        } = &m.kind
+        else {
+            continue;
+        };
+        let own = materials[i].clone();
+        let overrides = own.emission != Texture::Constant(Rgb::ZERO)
+            || own.two_sided
+            || own.opacity.is_some()
+            || own.normal_map.is_some();
+        let mut parts = [index[names[0].as_str()], index[names[1].as_str()]];
+        if overrides {
+            for (k, part) in parts.iter_mut().enumerate() {
+                if matches!(
+                    desc.materials.get(*part as usize).map(|d| &d.kind),
+                    Some(MaterialKindDesc::Mix { .. })
+                ) {
+                    warnings.push(format!(
+                        "material \"{}\": its mix \"{}\" does not take its emission, sides, opacity or normal map",
+                        m.name, names[k]
+                    ));
+                    continue;
+                }
+                let mut copy = materials[*part as usize].clone();
+                if own.emission != Texture::Constant(Rgb::ZERO) {
+                    copy.emission = own.emission;
+                }
+                copy.two_sided |= own.two_sided;
+                copy.opacity = own.opacity.or(copy.opacity);
+                copy.normal_map = own.normal_map.or(copy.normal_map);
+                materials.push(copy);
+                mixes.push(None);
+                *part = materials.len() as u32 - 1;
+            }
+        }
+        let mut stand_in = materials[parts[0] as usize].clone();
+        stand_in.emission = own.emission;
+        materials[i] = stand_in;
+        mixes[i] = Some(MaterialMix {
+            weight: color(weight),
+            materials: parts,
+        });
+    }
+    mixes
+}
+
+/// The textures that decide a surface's look with material `m`: a mix's
+/// weight and, through it, those of the materials it chooses among.
+fn deciding_textures<'a>(m: u32, materials: &'a [Material], mixes: &'a [Option<MaterialMix>], out: &mut Vec<Texture>) {
+    match mixes.get(m as usize).and_then(Option::as_ref) {
+        Some(mix) if out.len() < 64 * MAX_MIX_DEPTH => {
+            out.push(mix.weight);
+            for p in mix.materials {
+                deciding_textures(p, materials, mixes, out);
+            }
+        }
+        _ => out.extend(materials[m as usize].textures().into_iter().copied()),
+    }
+}
+
+/// The mesh attribute (by number) a surface with material `m` reads, the
+/// first if several.
+fn read_attribute(m: u32, materials: &[Material], mixes: &[Option<MaterialMix>]) -> Option<u32> {
+    let mut t = Vec::new();
+    deciding_textures(m, materials, mixes, &mut t);
+    t.iter().find_map(|t| match t {
+        Texture::MeshAttribute(k) => Some(*k),
+        _ => None,
+    })
 }
 
 /// The render-time material of a description.
@@ -697,6 +848,8 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             normal_map: None,
             roughness_map: None,
         },
+        // Replaced by `resolve_mixes` once every material is made.
+        MaterialKindDesc::Mix { .. } => Material::default(),
     };
     mat.emission = color(&m.emission);
     mat.two_sided = m.two_sided;
@@ -989,12 +1142,9 @@ material = "plain"
         assert_eq!(scene.materials_reading_uv[..2], [true, false]);
         let toward = |x: f32| scene.intersect(&Ray::new(Vec3::new(x, 0.3, 5.0), Vec3::new(0.0, 0.0, -1.0)));
         let checked = toward(-2.0).unwrap();
-        let expected = crate::geometry::Shape::Sphere(crate::geometry::Sphere {
-            center: Vec3::new(-2.0, 0.0, 0.0),
-            radius: 1.0,
-        })
-        .surface(checked.p)
-        .uv;
+        let expected = crate::geometry::Shape::Sphere(crate::geometry::Sphere::new(Vec3::new(-2.0, 0.0, 0.0), 1.0))
+            .surface(checked.p)
+            .uv;
         assert!((checked.uv - expected).length() < 1e-6 && checked.uv != glam::Vec2::ZERO);
         assert_eq!(toward(2.0).unwrap().uv, glam::Vec2::ZERO);
     }

@@ -38,9 +38,21 @@ fn load_model(path: &Path) -> Result<Model> {
         Some("obj") => Ok(obj_model(super::obj::load_obj_scene(path)?)),
         // Through `read_ply` rather than `load_ply_mesh`, to keep its warnings.
         Some("ply") => super::ply::read_ply(path).map(ply_model),
+        // Its first mesh, smoothed where it has no normals, as Mitsuba
+        // shows it.
+        Some("serialized") => super::serialized::read_serialized(path, 0).map(|s| {
+            let mut mesh = s.mesh;
+            if mesh.normals.is_empty() && !s.face_normals {
+                mesh.compute_vertex_normals();
+            }
+            ply_model(super::ply::PlyMesh {
+                mesh,
+                ..Default::default()
+            })
+        }),
         _ => Err(Error::file(
             path,
-            "unknown model format: trazo reads .obj and .ply models",
+            "unknown model format: trazo reads .obj, .ply and .serialized models",
         )),
     }
 }

@@ -160,6 +160,12 @@ pub enum TextureKind {
         /// How it is read between texel centres.
         filter: ImageFilter,
     },
+    /// A mesh's values per vertex or per face, by name (`vertex_color`,
+    /// `face_weight`: Mitsuba's `mesh_attribute`); 0 on surfaces without it.
+    MeshAttribute {
+        /// The attribute's name.
+        name: String,
+    },
 }
 
 /// Where an image texture's pixels come from.
@@ -329,7 +335,21 @@ pub enum MaterialKindDesc {
         /// Transmission multiplier.
         transmit_tint: Rgb,
     },
+    /// One of two materials at each point, the second with the weight's
+    /// first channel as its probability: on average (1 − w)·f₀ + w·f₁
+    /// (Mitsuba's `blendbsdf`, pbrt-v4's `mix`, which chooses likewise).
+    /// Its own emission, sidedness, opacity and normal map, where given,
+    /// apply to both.
+    Mix {
+        /// The probability of the second material (first channel).
+        weight: ColorSource,
+        /// The two materials' names.
+        materials: [String; 2],
+    },
 }
+
+/// How deep mixes may nest (a deeper chain is refused as a likely cycle).
+pub const MAX_MIX_DEPTH: usize = 16;
 
 impl MaterialKindDesc {
     /// The surface that is not there: it bounds a medium and does not
@@ -665,6 +685,8 @@ pub enum ShapeKind {
         normal: Vec3,
         /// Radius.
         radius: f32,
+        /// Which surface coordinate is the angle.
+        uv: crate::geometry::DiskUv,
     },
     /// Axis-aligned box (before its transform).
     Cuboid {
@@ -682,6 +704,9 @@ pub enum ShapeKind {
         /// Radius.
         radius: f32,
     },
+    /// A signed distance function sampled on a grid over [0, 1]³ (before
+    /// its transform).
+    SdfGrid(std::sync::Arc<crate::geometry::sdf_grid::SdfGrid>),
     /// A named mesh from the scene's meshes.
     Mesh(String),
     /// A mesh given with the shape itself.
@@ -1001,6 +1026,14 @@ impl SceneDesc {
                     c.color("odd", *odd)?;
                     c.positive("scale", *scale)?;
                 }
+                TextureKind::MeshAttribute { name } => {
+                    if !(name.starts_with("vertex_") || name.starts_with("face_")) {
+                        return Err(c.err(
+                            "name",
+                            format!("\"{name}\" names no mesh attribute: their names start with vertex_ or face_"),
+                        ));
+                    }
+                }
                 TextureKind::Image {
                     scale, offset, tint, ..
                 } => {
@@ -1197,6 +1230,42 @@ impl SceneDesc {
                     c.color("reflect_tint", *reflect_tint)?;
                     c.color("transmit_tint", *transmit_tint)?;
                 }
+                MaterialKindDesc::Mix { weight, materials } => {
+                    texture("weight", weight)?;
+                    for name in materials {
+                        if !self.materials.iter().any(|other| &other.name == name) {
+                            return Err(c.err(
+                                "materials",
+                                format!(
+                                    "no material named \"{name}\"{}",
+                                    suggest(name, self.materials.iter().map(|m| m.name.as_str()))
+                                ),
+                            ));
+                        }
+                    }
+                    // Follow the first materials down: a chain deeper than
+                    // the limit is a cycle or absurd.
+                    let mut depth = 0;
+                    let mut stack: Vec<&str> = materials.iter().map(String::as_str).collect();
+                    while let Some(name) = stack.pop() {
+                        let Some(MaterialKindDesc::Mix { materials: inner, .. }) =
+                            self.materials.iter().find(|o| o.name == name).map(|o| &o.kind)
+                        else {
+                            continue;
+                        };
+                        depth += 1;
+                        if depth > MAX_MIX_DEPTH * MAX_MIX_DEPTH || inner.iter().any(|n| n == &m.name) {
+                            return Err(c.err(
+                                "materials",
+                                format!(
+                                    "mixes nest in a cycle, or deeper than {MAX_MIX_DEPTH} levels, below \"{}\"",
+                                    m.name
+                                ),
+                            ));
+                        }
+                        stack.extend(inner.iter().map(String::as_str));
+                    }
+                }
             }
             texture("emission", &m.emission)?;
         }
@@ -1371,6 +1440,17 @@ impl SceneDesc {
             if let Some(mi) = &s.media {
                 medium_exists(&c, "inside", &mi.inside)?;
                 medium_exists(&c, "outside", &mi.outside)?;
+                let mix = s.material.as_ref().is_some_and(|name| {
+                    self.materials
+                        .iter()
+                        .any(|m| &m.name == name && matches!(m.kind, MaterialKindDesc::Mix { .. }))
+                });
+                if mix {
+                    return Err(c.err(
+                        "material",
+                        "a mix material cannot bound a medium in trazo: give the shape one material",
+                    ));
+                }
             }
             match &s.kind {
                 ShapeKind::Sphere { center, radius } => {
@@ -1389,7 +1469,9 @@ impl SceneDesc {
                         return Err(c.err("edge_v", "is parallel to edge_u: the rectangle has zero area"));
                     }
                 }
-                ShapeKind::Disk { center, normal, radius } => {
+                ShapeKind::Disk {
+                    center, normal, radius, ..
+                } => {
                     c.vec3("center", *center)?;
                     c.nonzero_vec3("normal", *normal)?;
                     c.positive("radius", *radius)?;
@@ -1421,6 +1503,19 @@ impl SceneDesc {
                     }
                 }
                 ShapeKind::InlineMesh(src) => validate_mesh_source(&c, src)?,
+                ShapeKind::SdfGrid(_) => {
+                    let emits = s.material.as_ref().is_some_and(|name| {
+                        self.materials
+                            .iter()
+                            .any(|m| &m.name == name && m.emission != ColorSource::Rgb(Rgb::ZERO))
+                    });
+                    if emits {
+                        return Err(c.err(
+                            "material",
+                            "a signed distance grid cannot emit light (nor in Mitsuba): it has no area to sample",
+                        ));
+                    }
+                }
             }
             for op in &s.transform {
                 op.to_transform()

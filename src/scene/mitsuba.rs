@@ -23,6 +23,7 @@ use crate::color::Rgb;
 use crate::color::spectrum::{SpectrumUse, sampled_to_rgb};
 use crate::error::{Error, Result, SourceLoc};
 use crate::files::{MAX_XML_BYTES, io_reason, read_limited};
+use crate::geometry::TriangleMesh;
 use crate::light::SpotProfile;
 use crate::sampling::SamplerKind;
 use crate::settings::{Filter, IntegratorKind, MAX_DEPTH, MAX_SPP, PathSampling};
@@ -135,7 +136,7 @@ struct Loader {
     instances: Vec<InstanceUse>,
     /// The meshes of groups, each file read once: by (type, path,
     /// face_normals, flip_tex_coords), the name of its [`MeshDesc`].
-    group_mesh_names: HashMap<(String, PathBuf, bool, bool), String>,
+    group_mesh_names: HashMap<(String, PathBuf, u32, bool, bool), String>,
     /// Those meshes; `finish` keeps the ones a placed shape uses.
     group_meshes: Vec<MeshDesc>,
     /// Where relative file names are looked for, first first, as Mitsuba's
@@ -1329,6 +1330,30 @@ impl Loader {
                     scale: 2.0 * scale,
                 }
             }
+            "mesh_attribute" => {
+                let name = self.string(f, &props, "name", &mut used)?.ok_or_else(|| {
+                    self.err(
+                        f,
+                        node,
+                        "a mesh_attribute texture needs a \"name\" (vertex_… or face_…)",
+                    )
+                })?;
+                if !(name.starts_with("vertex_") || name.starts_with("face_")) {
+                    return Err(self.err(
+                        f,
+                        node,
+                        format!("mesh attribute \"{name}\": Mitsuba's names start with vertex_ or face_"),
+                    ));
+                }
+                if let Some(s) = self.float(f, &props, "scale", &mut used)?.filter(|&s| s != 1.0) {
+                    self.warn(
+                        f,
+                        node,
+                        format!("a mesh_attribute's scale ({s}) is unsupported; ignored"),
+                    );
+                }
+                TextureKind::MeshAttribute { name }
+            }
             other => {
                 self.warn(f, node, format!("texture \"{other}\" is unsupported: using grey 0.5"));
                 TextureKind::Constant(Rgb::splat(0.5))
@@ -1655,6 +1680,32 @@ impl Loader {
                     material: None,
                     ..def
                 });
+            }
+            "blendbsdf" => {
+                // Mitsuba reads the weight as a float (`eval_1`).
+                let weight = match self.color_source(f, &props, "weight", &mut used)? {
+                    Some(w) => self.float_texture(w),
+                    None => ColorSource::Rgb(Rgb::splat(0.5)),
+                };
+                let inner: Vec<Node> = node
+                    .children()
+                    .filter(|c| {
+                        c.is_element() && matches!(c.tag_name().name(), "bsdf" | "ref") && !c.has_attribute("name")
+                    })
+                    .collect();
+                let [first, second] = inner.as_slice() else {
+                    return Err(self.err(
+                        f,
+                        node,
+                        format!("blendbsdf blends two nested BSDFs, not {}", inner.len()),
+                    ));
+                };
+                let (first, second) = (self.bsdf(f, *first)?, self.bsdf(f, *second)?);
+                let materials = [
+                    self.material_for(Some((first, None)), None),
+                    self.material_for(Some((second, None)), None),
+                ];
+                MaterialKindDesc::Mix { weight, materials }
             }
             "bumpmap" => {
                 self.warn(
@@ -2201,13 +2252,20 @@ impl Loader {
         let to_world = self.transform(f, &props, "to_world", &mut used)?;
         let flip_normals = self.boolean(f, &props, "flip_normals", &mut used)?.unwrap_or(false);
         let mut locs = Locs::at(Some(f.loc_of(node)));
+        // A rotation of a sphere about its centre that aligns trazo's
+        // surface coordinates with Mitsuba's.
+        let mut sphere_uv = None;
 
         let kind = match ty.as_str() {
             "sphere" => {
-                if node.descendants().any(|d| d.tag_name().name() == "texture") {
-                    self.warn(f, node, "textures on spheres are approximated: trazo parameterises spheres around +y, Mitsuba around +z");
-                }
                 let center = self.point(f, &props, "center", &mut used)?.unwrap_or(Vec3::ZERO);
+                // Mitsuba's (u, v) are longitude around its object space's
+                // +z from +x towards +y, and latitude from +z (v = 0) to −z;
+                // trazo's run around +y from +x towards +z, v = 0 at −y.
+                // Mitsuba's space seen from trazo's: x stays, trazo's y is
+                // Mitsuba's −z, trazo's z Mitsuba's y.
+                let mitsuba_from_trazo = Mat4::from_mat3(glam::Mat3::from_cols(Vec3::X, -Vec3::Z, Vec3::Y));
+                sphere_uv = Some(Mat4::from_translation(center) * mitsuba_from_trazo * Mat4::from_translation(-center));
                 let radius = self.float(f, &props, "radius", &mut used)?.unwrap_or(1.0);
                 if let Some(p) = props.iter().find(|p| p.attribute("name") == Some("radius")) {
                     locs.keys.push(("radius".into(), f.loc_of(*p)));
@@ -2223,6 +2281,7 @@ impl Loader {
                 center: Vec3::ZERO,
                 normal: Vec3::Z,
                 radius: 1.0,
+                uv: crate::geometry::DiskUv::RadiusAngle,
             },
             // Mitsuba's cube is a triangle mesh whose faces each map onto
             // [0,1]² in (u, v); reproduce it so that textures line up.
@@ -2233,7 +2292,42 @@ impl Loader {
                 let radius = self.float(f, &props, "radius", &mut used)?.unwrap_or(1.0);
                 ShapeKind::Cylinder { p0, p1, radius }
             }
-            "obj" | "ply" => {
+            "sdfgrid" => {
+                let file = self
+                    .string(f, &props, "filename", &mut used)?
+                    .ok_or_else(|| self.err(f, node, "an sdfgrid needs a \"filename\" (a .vol grid of one channel)"))?;
+                let path = self.resolve(&file);
+                let smooth = match self.string(f, &props, "normals", &mut used)?.as_deref() {
+                    None | Some("smooth") => true,
+                    Some("analytic") => false,
+                    Some(other) => {
+                        return Err(self.err(
+                            f,
+                            node,
+                            format!(
+                                "normals \"{other}\" is unknown: Mitsuba's sdfgrid takes \"smooth\" or \"analytic\""
+                            ),
+                        ));
+                    }
+                };
+                let grid = crate::media::grid::VoxelGrid::load_mitsuba_vol(&path)
+                    .map_err(|e| self.err(f, node, e.to_string()))?;
+                if grid.channels != 1 {
+                    return Err(self.err(
+                        f,
+                        node,
+                        format!(
+                            "{}: an sdfgrid's grid has one channel, not {}",
+                            path.display(),
+                            grid.channels
+                        ),
+                    ));
+                }
+                let sdf = crate::geometry::sdf_grid::SdfGrid::new(grid.res, grid.data, smooth)
+                    .map_err(|e| self.err(f, node, format!("{}: {e}", path.display())))?;
+                ShapeKind::SdfGrid(Arc::new(sdf))
+            }
+            "obj" | "ply" | "serialized" => {
                 let file = self
                     .string(f, &props, "filename", &mut used)?
                     .ok_or_else(|| self.err(f, node, "a mesh needs a \"filename\""))?;
@@ -2245,37 +2339,47 @@ impl Loader {
                 let flip_tex = self
                     .boolean(f, &props, "flip_tex_coords", &mut used)?
                     .unwrap_or(ty == "obj");
-                if ty != "obj" && (face_normals || flip_tex) {
+                if ty != "obj" && flip_tex {
                     self.warn(
                         f,
                         node,
-                        "face_normals and flip_tex_coords are unsupported for PLY files; ignored",
+                        format!("flip_tex_coords is unsupported for {ty} files; ignored"),
                     );
                 }
+                let shape_index = match self.integer(f, &props, "shape_index", &mut used)? {
+                    Some(i) if ty != "serialized" => {
+                        self.warn(
+                            f,
+                            node,
+                            format!("shape_index {i} applies to serialized files only; ignored"),
+                        );
+                        0
+                    }
+                    Some(i) => u32::try_from(i).map_err(|_| {
+                        self.err(
+                            f,
+                            node,
+                            format!("shape_index {i} is out of range: it counts meshes from 0"),
+                        )
+                    })?,
+                    None => 0,
+                };
                 // A file that groups use again is read once and named.
                 let key = in_group.then(|| {
                     let canonical = path.canonicalize().unwrap_or_else(|_| path.clone());
-                    let obj = ty == "obj";
-                    (ty.clone(), canonical, obj && face_normals, obj && flip_tex)
+                    (
+                        ty.clone(),
+                        canonical,
+                        shape_index,
+                        face_normals,
+                        flip_tex && ty == "obj",
+                    )
                 });
                 match key.as_ref().and_then(|k| self.group_mesh_names.get(k)) {
                     Some(name) => ShapeKind::Mesh(name.clone()),
                     None => {
-                        let source = if ty == "obj" {
-                            let mut mesh =
-                                super::obj::load_obj_mesh(&path).map_err(|e| self.err(f, node, e.to_string()))?;
-                            if face_normals {
-                                mesh.normals.clear();
-                            }
-                            if flip_tex {
-                                for uv in &mut mesh.uvs {
-                                    uv.y = 1.0 - uv.y;
-                                }
-                            }
-                            MeshSource::Inline(mesh)
-                        } else {
-                            MeshSource::File(path)
-                        };
+                        let mesh = self.mesh_file(f, node, &ty, &path, shape_index, face_normals, flip_tex)?;
+                        let source = MeshSource::Inline(mesh);
                         match key {
                             Some(key) => {
                                 let name = self.group_mesh(f, node, source);
@@ -2366,6 +2470,9 @@ impl Loader {
         let mut shape = ShapeDesc::new(kind, Some(&material));
         shape.flip_normals = flip_normals;
         shape.media = media;
+        if let Some(m) = sphere_uv {
+            shape.transform.push(TransformOp::Matrix(m));
+        }
         if let Some(m) = to_world {
             shape.transform.push(TransformOp::Matrix(m));
             locs.keys.push(("transform".into(), f.loc_of(node)));
@@ -2391,6 +2498,51 @@ impl Loader {
             }
         }
         Ok(vec![shape])
+    }
+
+    /// The triangles of an `obj`, `ply` or `serialized` shape's file, as
+    /// Mitsuba loads them: with `face_normals` the file's normals are
+    /// dropped (the mesh is faceted), and a mesh without normals gets
+    /// smooth ones otherwise; an OBJ's v is flipped unless
+    /// `flip_tex_coords` is false.
+    #[allow(clippy::too_many_arguments)]
+    fn mesh_file(
+        &mut self,
+        f: &FileCtx,
+        node: Node,
+        ty: &str,
+        path: &Path,
+        shape_index: u32,
+        face_normals: bool,
+        flip_tex: bool,
+    ) -> Result<TriangleMesh> {
+        let (mut mesh, file_face_normals) = match ty {
+            "obj" => {
+                let mut mesh = super::obj::load_obj_mesh(path).map_err(|e| self.err(f, node, e.to_string()))?;
+                if flip_tex {
+                    for uv in &mut mesh.uvs {
+                        uv.y = 1.0 - uv.y;
+                    }
+                }
+                (mesh, false)
+            }
+            "ply" => {
+                let ply = super::ply::read_ply(path).map_err(|e| self.err(f, node, e.to_string()))?;
+                self.desc.warnings.extend(ply.warnings);
+                (ply.mesh, false)
+            }
+            _ => {
+                let s = super::serialized::read_serialized(path, shape_index)
+                    .map_err(|e| self.err(f, node, e.to_string()))?;
+                (s.mesh, s.face_normals)
+            }
+        };
+        if face_normals || file_face_normals {
+            mesh.normals.clear();
+        } else if mesh.normals.is_empty() {
+            mesh.compute_vertex_normals();
+        }
+        Ok(mesh)
     }
 
     /// Names a mesh of a group; `finish` keeps it if a placed shape uses it.
@@ -2512,6 +2664,208 @@ mod tests {
             .iter()
             .find(|m| Some(&m.name) == d.shapes[i].material.as_ref())
             .unwrap()
+    }
+
+    /// The (u, v) where a ray from `origin` towards `target` meets the
+    /// scene's surface.
+    fn uv_at(d: &SceneDesc, origin: Vec3, target: Vec3) -> Vec2 {
+        let scene = crate::scene::build(d).unwrap();
+        let ray = crate::geometry::Ray::new(origin, (target - origin).normalize());
+        let hit = scene.geometry.intersect(&ray).expect("the ray meets the surface");
+        scene.geometry.surface(&ray, &hit).uv
+    }
+
+    #[test]
+    fn spheres_and_disks_have_mitsubas_surface_coordinates() {
+        let near = |a: Vec2, b: Vec2| (a - b).length() < 1e-4;
+        let sphere = |to_world: &str| {
+            parse_str(&format!(
+                r#"<scene version="3.0.0"><shape type="sphere"><point name="center" value="1, 2, 3"/><float name="radius" value="2"/>{to_world}</shape></scene>"#
+            ))
+            .unwrap()
+        };
+        let c = Vec3::new(1.0, 2.0, 3.0);
+        let d = sphere("");
+        // u = φ/2π around +z from +x, v = θ/π from +z.
+        for (dir, uv) in [
+            (Vec3::Y, Vec2::new(0.25, 0.5)),
+            (-Vec3::X, Vec2::new(0.5, 0.5)),
+            (Vec3::new(0.0, -1.0, 0.0), Vec2::new(0.75, 0.5)),
+            (Vec3::new(1.0, 0.0, 1.0).normalize(), Vec2::new(0.0, 0.25)),
+        ] {
+            let got = uv_at(&d, c + dir * 10.0, c);
+            assert!(near(got, uv), "{dir}: {got}, expected {uv}");
+        }
+        // A rotation turns the coordinates with the sphere: +x to +y.
+        let d = sphere(r#"<transform name="to_world"><rotate z="1" angle="90"/></transform>"#);
+        let c_rot = Vec3::new(-2.0, 1.0, 3.0);
+        let got = uv_at(&d, c_rot + Vec3::Y * 10.0, c_rot);
+        let u = got.x.rem_euclid(1.0);
+        assert!(!(1e-4..=1.0 - 1e-4).contains(&u) && (got.y - 0.5).abs() < 1e-4, "{got}");
+        // A disk: u = r, v = φ/2π.
+        let d = parse_str(r#"<scene version="3.0.0"><shape type="disk"/></scene>"#).unwrap();
+        let got = uv_at(&d, Vec3::new(0.0, 0.5, 5.0), Vec3::new(0.0, 0.5, 0.0));
+        assert!(near(got, Vec2::new(0.5, 0.25)), "{got}");
+    }
+
+    /// A `.serialized` file of `meshes` (positions, triangles), version 4,
+    /// without normals or texture coordinates.
+    fn serialized_file(meshes: &[(&[Vec3], &[[u32; 3]])]) -> Vec<u8> {
+        use std::io::Write;
+        let mut file = Vec::new();
+        let mut offsets = Vec::new();
+        for (positions, triangles) in meshes {
+            offsets.push(file.len() as u64);
+            let mut body = 0x1000u32.to_le_bytes().to_vec();
+            body.push(0);
+            body.extend((positions.len() as u64).to_le_bytes());
+            body.extend((triangles.len() as u64).to_le_bytes());
+            for p in *positions {
+                for x in p.to_array() {
+                    body.extend(x.to_le_bytes());
+                }
+            }
+            for t in *triangles {
+                for i in t {
+                    body.extend(i.to_le_bytes());
+                }
+            }
+            let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+            z.write_all(&body).unwrap();
+            file.extend(0x041Cu16.to_le_bytes());
+            file.extend(4u16.to_le_bytes());
+            file.extend(z.finish().unwrap());
+        }
+        for o in offsets {
+            file.extend(o.to_le_bytes());
+        }
+        file.extend((meshes.len() as u32).to_le_bytes());
+        file
+    }
+
+    #[test]
+    fn serialized_meshes_sdf_grids_and_mesh_attributes_are_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let quad = [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.5), Vec3::Y];
+        let file = serialized_file(&[(&tri, &[[0, 1, 2]]), (&quad, &[[0, 1, 2], [0, 2, 3]])]);
+        std::fs::write(dir.path().join("two.serialized"), file).unwrap();
+        // A sphere of radius 0.3 in an 11³ grid.
+        let mut vol = b"VOL".to_vec();
+        vol.push(3);
+        for v in [1i32, 11, 11, 11, 1] {
+            vol.extend(v.to_le_bytes());
+        }
+        for v in [0.0f32, 0.0, 0.0, 1.0, 1.0, 1.0] {
+            vol.extend(v.to_le_bytes());
+        }
+        for z in 0..11 {
+            for y in 0..11 {
+                for x in 0..11 {
+                    let p = Vec3::new(x as f32, y as f32, z as f32) / 10.0;
+                    vol.extend(((p - Vec3::splat(0.5)).length() - 0.3).to_le_bytes());
+                }
+            }
+        }
+        std::fs::write(dir.path().join("ball.vol"), vol).unwrap();
+        let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+                   property float color_0\nproperty float color_1\nproperty float color_2\n\
+                   element face 1\nproperty list uchar int vertex_indices\nproperty float weight_0\nend_header\n\
+                   0 0 0 1 0 0\n1 0 0 0 1 0\n0 1 0 0 0 1\n3 0 1 2 0.25\n";
+        std::fs::write(dir.path().join("tri.ply"), ply).unwrap();
+        let main = dir.path().join("main.xml");
+        std::fs::write(
+            &main,
+            r#"<scene version="3.0.0">
+    <texture type="mesh_attribute" id="w"><string name="name" value="face_weight"/></texture>
+    <shape type="serialized"><string name="filename" value="two.serialized"/><integer name="shape_index" value="1"/></shape>
+    <shape type="serialized"><string name="filename" value="two.serialized"/><boolean name="face_normals" value="true"/></shape>
+    <shape type="sdfgrid"><string name="filename" value="ball.vol"/></shape>
+    <shape type="ply"><string name="filename" value="tri.ply"/>
+        <bsdf type="blendbsdf"><ref name="weight" id="w"/><bsdf type="diffuse"/><bsdf type="conductor"/></bsdf>
+    </shape>
+</scene>"#,
+        )
+        .unwrap();
+        let d = load(&main, &[]).unwrap();
+        let mesh = |i: usize| match &d.shapes[i].kind {
+            ShapeKind::InlineMesh(MeshSource::Inline(m)) => m.clone(),
+            other => panic!("{other:?}"),
+        };
+        // The second mesh, smoothed (its normals lean between its faces);
+        // the first, faceted as asked.
+        let second = mesh(0);
+        assert_eq!(second.positions, quad);
+        assert_eq!(second.normals.len(), 4);
+        assert!(
+            second.normals[0].z > 0.9 && second.normals[0].y < 0.0,
+            "{}",
+            second.normals[0]
+        );
+        let first = mesh(1);
+        assert_eq!(first.positions, tri);
+        assert!(first.normals.is_empty());
+        assert!(matches!(&d.shapes[2].kind, ShapeKind::SdfGrid(_)));
+        // The PLY's attributes, named as Mitsuba names them.
+        let attributes: Vec<(String, bool, usize)> = mesh(3)
+            .attributes
+            .iter()
+            .map(|a| (a.name.clone(), a.per_face, a.channels))
+            .collect();
+        assert_eq!(
+            attributes,
+            [
+                ("vertex_color".to_string(), false, 3),
+                ("face_weight".to_string(), true, 1)
+            ]
+        );
+        let MaterialKindDesc::Mix { weight, materials } = &material_of(&d, 3).kind else {
+            panic!("{:?}", material_of(&d, 3).kind)
+        };
+        let ColorSource::Texture(w) = weight else {
+            panic!("{weight:?}")
+        };
+        let texture = d.textures.iter().find(|t| &t.name == w).unwrap();
+        assert_eq!(
+            texture.kind,
+            TextureKind::MeshAttribute {
+                name: "face_weight".into()
+            }
+        );
+        let kinds: Vec<bool> = materials
+            .iter()
+            .map(|n| {
+                matches!(
+                    d.materials.iter().find(|m| &m.name == n).unwrap().kind,
+                    MaterialKindDesc::Diffuse { .. }
+                )
+            })
+            .collect();
+        assert_eq!(kinds, [true, false]);
+        // The grid's surface is where its values say, 0.3 from the centre.
+        let scene = crate::scene::build(&d).unwrap();
+        let hit = scene
+            .intersect(&crate::geometry::Ray::new(Vec3::new(0.5, 0.5, 3.0), -Vec3::Z))
+            .unwrap();
+        assert!((hit.p.z - 0.8).abs() < 0.02, "{}", hit.p);
+        // Errors name the place.
+        std::fs::write(
+            &main,
+            r#"<scene version="3.0.0"><shape type="sdfgrid"><string name="filename" value="ball.vol"/><string name="normals" value="flat"/></shape></scene>"#,
+        )
+        .unwrap();
+        let e = load(&main, &[]).unwrap_err().to_string();
+        assert!(e.contains("main.xml:1:") && e.contains("\"flat\" is unknown"), "{e}");
+        std::fs::write(
+            &main,
+            r#"<scene version="3.0.0"><shape type="serialized"><string name="filename" value="two.serialized"/><integer name="shape_index" value="2"/></shape></scene>"#,
+        )
+        .unwrap();
+        let e = load(&main, &[]).unwrap_err().to_string();
+        assert!(
+            e.contains("shape_index 2 is out of range: the file holds 2 meshes"),
+            "{e}"
+        );
     }
 
     const SPHERE: &str = r#"<scene version="3.0.0">
@@ -3012,10 +3366,17 @@ mod tests {
         let scene_dir = root.path().join("scenes");
         std::fs::create_dir_all(scene_dir.join("parts")).unwrap();
         std::fs::create_dir_all(root.path().join("common/meshes")).unwrap();
-        std::fs::write(root.path().join("common/meshes/shared.ply"), "ply").unwrap();
-        std::fs::write(scene_dir.join("local.ply"), "ply").unwrap();
+        // One triangle each, told apart by its first vertex's x.
+        let ply = |x: f32| {
+            format!(
+                "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+                 element face 1\nproperty list uchar int vertex_indices\nend_header\n{x} 0 0\n{x} 1 0\n{x} 0 1\n3 0 1 2\n"
+            )
+        };
+        std::fs::write(root.path().join("common/meshes/shared.ply"), ply(1.0)).unwrap();
+        std::fs::write(scene_dir.join("local.ply"), ply(2.0)).unwrap();
         // A decoy beside the included file, which Mitsuba does not search.
-        std::fs::write(scene_dir.join("parts/local.ply"), "ply").unwrap();
+        std::fs::write(scene_dir.join("parts/local.ply"), ply(3.0)).unwrap();
         std::fs::write(
             scene_dir.join("parts/sub.xml"),
             r#"<scene version="3.0.0">
@@ -3031,21 +3392,15 @@ mod tests {
 </scene>"#;
         std::fs::write(&main, text).unwrap();
         let d = load(&main, &[]).unwrap();
-        let files: Vec<PathBuf> = d
+        let files: Vec<f32> = d
             .shapes
             .iter()
             .filter_map(|s| match &s.kind {
-                ShapeKind::InlineMesh(MeshSource::File(p)) => Some(p.clone()),
+                ShapeKind::InlineMesh(MeshSource::Inline(m)) => Some(m.positions[0].x),
                 _ => None,
             })
             .collect();
-        assert_eq!(
-            files,
-            vec![
-                scene_dir.join("../common").join("meshes/shared.ply"),
-                scene_dir.join("local.ply")
-            ]
-        );
+        assert_eq!(files, vec![1.0, 2.0]);
         // Without the search path the shared mesh is missing, reported in
         // the main folder, where Mitsuba looks last.
         std::fs::write(&main, text.replace("<path value=\"../common\"/>", "")).unwrap();
@@ -3369,8 +3724,16 @@ mod tests {
             b.starts_with("test.xml:3:") && b.contains("\"unused\" is never placed"),
             "{b}"
         );
-        // As in Mitsuba, the group's own to_world does not move its shapes.
-        assert!(d.shapes[2].transform.is_empty());
+        // As in Mitsuba, the group's own to_world does not move its shapes:
+        // the sphere's one transform turns its surface coordinates about
+        // its centre.
+        let ShapeKind::Sphere { center, .. } = d.shapes[2].kind else {
+            panic!("{:?}", d.shapes[2].kind)
+        };
+        let [TransformOp::Matrix(m)] = d.shapes[2].transform.as_slice() else {
+            panic!("{:?}", d.shapes[2].transform)
+        };
+        assert_eq!(m.transform_point3(center), center);
     }
 
     #[test]

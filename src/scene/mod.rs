@@ -15,6 +15,7 @@ pub mod native;
 pub mod obj;
 pub mod pbrt;
 pub mod ply;
+pub mod serialized;
 
 pub use build::{BuildLimits, build, build_limited};
 pub use desc::SceneDesc;
@@ -72,6 +73,9 @@ pub struct Scene {
     pub material_media: Vec<Option<crate::media::MediumInterface>>,
     /// The medium the camera is in.
     pub camera_medium: Option<u32>,
+    /// Per material, how it chooses between two others (`None` for most);
+    /// [`Scene::intersect`] records the chosen one in the hit.
+    pub material_mixes: Vec<Option<crate::material::MaterialMix>>,
 }
 
 impl Scene {
@@ -79,9 +83,23 @@ impl Scene {
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
         let hit = self.geometry.intersect(ray)?;
-        Some(self.geometry.surface_with(ray, &hit, |m| {
+        let mut surface = self.geometry.surface_with(ray, &hit, |m| {
             self.materials_reading_uv.get(m as usize).copied().unwrap_or(true)
-        }))
+        });
+        self.choose_material(&mut surface, ray.dir);
+        Some(surface)
+    }
+
+    /// Replaces a mix material of a hit seen along `dir` by the material it
+    /// chooses there (through nested mixes).
+    #[inline]
+    pub fn choose_material(&self, hit: &mut SurfaceHit, dir: glam::Vec3) {
+        for _ in 0..crate::scene::desc::MAX_MIX_DEPTH {
+            let Some(mix) = self.material_mixes.get(hit.material as usize).and_then(Option::as_ref) else {
+                return;
+            };
+            hit.material = mix.choose(&self.images, &crate::texture::TexCoord::at(hit), dir);
+        }
     }
 
     /// Whether any material lets light through (shadow rays then have to
@@ -110,7 +128,7 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
     let mut desc = match ext.as_str() {
         "xml" => return mitsuba::load(path, defines),
         "toml" => native::load(path)?,
-        "obj" | "ply" => builtin::framed_model(path)?,
+        "obj" | "ply" | "serialized" => builtin::framed_model(path)?,
         // These readers warn about -D definitions themselves.
         "pbrt" => return pbrt::load(path, defines),
         // pbrt-v4 reads gzip-compressed scenes.
@@ -125,7 +143,7 @@ pub fn load(path: &Path, defines: &[(String, String)]) -> Result<SceneDesc> {
             return Err(Error::file(
                 path,
                 format!(
-                    "unknown scene format{}: trazo reads .toml (trazo), .xml (Mitsuba 3), .pbrt (pbrt-v4) and .gltf/.glb (glTF 2.0) scenes, and .obj and .ply models",
+                    "unknown scene format{}: trazo reads .toml (trazo), .xml (Mitsuba 3), .pbrt (pbrt-v4) and .gltf/.glb (glTF 2.0) scenes, and .obj, .ply and .serialized (Mitsuba) models",
                     if ext.is_empty() {
                         String::new()
                     } else {

@@ -605,7 +605,7 @@ fn read_texture(t: &Table) -> Result<TextureDesc> {
 }
 
 /// The material types of the native format.
-pub const MATERIAL_TYPES: [&str; 8] = [
+pub const MATERIAL_TYPES: [&str; 9] = [
     "classic",
     "diffuse",
     "mirror",
@@ -614,6 +614,7 @@ pub const MATERIAL_TYPES: [&str; 8] = [
     "plastic",
     "thin",
     "null",
+    "mix",
 ];
 
 fn read_material(t: &Table) -> Result<MaterialDesc> {
@@ -694,6 +695,28 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
             transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
         },
         "null" => MaterialKindDesc::NULL,
+        "mix" => {
+            let names = t.value("materials").and_then(|v| match v.get_ref() {
+                DeValue::Array(a) => {
+                    let names: Option<Vec<String>> =
+                        a.iter().map(|x| x.get_ref().as_str().map(str::to_string)).collect();
+                    names.and_then(|n| <[String; 2]>::try_from(n).ok())
+                }
+                _ => None,
+            });
+            let Some(materials) = names else {
+                let span = t.value("materials").map(|v| v.span()).unwrap_or(t.span.clone());
+                return Err(t.err_at(
+                    "materials",
+                    &span,
+                    "a mix needs `materials`: the names of two materials, [\"a\", \"b\"]".to_string(),
+                ));
+            };
+            MaterialKindDesc::Mix {
+                weight: t.color_source("weight")?.unwrap_or(ColorSource::Rgb(Rgb::splat(0.5))),
+                materials,
+            }
+        }
         _ => MaterialKindDesc::Plastic {
             diffuse: t.color_source("diffuse")?.unwrap_or(ColorSource::Rgb(Rgb::splat(0.5))),
             ior: t.number_or("ior", 1.49)?,
@@ -909,6 +932,7 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
             center: t.vec3("center")?.unwrap_or(Vec3::ZERO),
             normal: t.vec3("normal")?.unwrap_or(Vec3::Y),
             radius: t.number_or("radius", 1.0)?,
+            uv: crate::geometry::DiskUv::AngleRadius,
         },
         "box" => ShapeKind::Cuboid {
             min: t.vec3("min")?.unwrap_or(Vec3::splat(-1.0)),

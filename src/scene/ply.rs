@@ -677,13 +677,94 @@ enum Role {
         slots: Vec<Option<usize>>,
         normals: bool,
         uvs: bool,
+        attributes: Vec<AttributePlan>,
     },
     Faces {
         /// The property with the vertex indices.
         list: usize,
         vertices: u64,
+        attributes: Vec<AttributePlan>,
     },
     Skip,
+}
+
+/// Properties of an element read as one mesh attribute.
+#[derive(Debug)]
+struct AttributePlan {
+    /// Mitsuba's name for it: `vertex_color`, `face_weight`.
+    name: String,
+    /// Its properties, one per channel, in order.
+    props: Vec<usize>,
+}
+
+/// The channel suffixes Mitsuba groups, by position: x y z w, r g b a,
+/// 0 1 2 3 or 1 2 3 4.
+const SUFFIXES: [[&str; 4]; 4] = [
+    ["x", "y", "z", "w"],
+    ["r", "g", "b", "a"],
+    ["0", "1", "2", "3"],
+    ["1", "2", "3", "4"],
+];
+
+/// The element's other scalar properties (those `used` does not mark)
+/// grouped into attributes as Mitsuba 3's PLY reader groups them (its
+/// `find_other_fields`): `r g b [a]` or `red green blue [alpha]` make
+/// `color`; consecutive `P_x P_y P_z` (or with suffixes r g b, 0 1 2, 1 2 3)
+/// make `P` (`P_color` for r g b), a lone `P_x` makes `P` of one channel;
+/// the names take the element's prefix `vertex_` or `face_`. Marks what it
+/// takes in `used`.
+fn attribute_plans(e: &Element, prefix: &str, used: &mut [bool]) -> Vec<AttributePlan> {
+    let free = |i: usize, used: &[bool]| !used[i] && matches!(e.props[i].kind, PropKind::Scalar(_));
+    let find = |name: &str, used: &[bool]| e.props.iter().position(|p| p.name == name).filter(|&i| free(i, used));
+    let mut plans = Vec::new();
+    for names in [["r", "g", "b", "a"], ["red", "green", "blue", "alpha"]] {
+        let rgb: Option<Vec<usize>> = names[..3].iter().map(|n| find(n, used)).collect();
+        if let Some(mut props) = rgb {
+            props.extend(find(names[3], used));
+            for &i in &props {
+                used[i] = true;
+            }
+            plans.push(AttributePlan {
+                name: format!("{prefix}color"),
+                props,
+            });
+            break;
+        }
+    }
+    let mut i = 0;
+    while i < e.props.len() {
+        let Some((stem, suffix)) = e.props[i].name.rsplit_once('_').filter(|_| free(i, used)) else {
+            i += 1;
+            continue;
+        };
+        let Some(scheme) = SUFFIXES.iter().position(|s| s[0] == suffix) else {
+            i += 1;
+            continue;
+        };
+        let mut props = vec![i];
+        while props.len() < 4 {
+            let j = i + props.len();
+            let next = format!("{stem}_{}", SUFFIXES[scheme][props.len()]);
+            if j < e.props.len() && free(j, used) && e.props[j].name == next {
+                props.push(j);
+            } else {
+                break;
+            }
+        }
+        i += props.len();
+        // Mitsuba takes one channel or three.
+        if props.len() == 1 || props.len() == 3 {
+            for &k in &props {
+                used[k] = true;
+            }
+            let color = if scheme == 1 { "_color" } else { "" };
+            plans.push(AttributePlan {
+                name: format!("{prefix}{stem}{color}"),
+                props,
+            });
+        }
+    }
+    plans
 }
 
 struct Plan {
@@ -748,10 +829,12 @@ fn plan(src: &Source, h: &Header, warnings: &mut Vec<String>) -> Result<Plan> {
                 for (u, s) in used.iter_mut().zip(&slots) {
                     *u = s.is_some();
                 }
+                let attributes = attribute_plans(e, "vertex_", &mut used);
                 Role::Vertices {
                     slots,
                     normals,
                     uvs: uv.is_some(),
+                    attributes,
                 }
             }
             "face" => {
@@ -777,9 +860,11 @@ fn plan(src: &Source, h: &Header, warnings: &mut Vec<String>) -> Result<Plan> {
                     PropKind::List { .. } => {}
                 }
                 used[list] = true;
+                let attributes = attribute_plans(e, "face_", &mut used);
                 Role::Faces {
                     list,
                     vertices: vertex_count,
+                    attributes,
                 }
             }
             _ => {
@@ -810,7 +895,7 @@ fn plan(src: &Source, h: &Header, warnings: &mut Vec<String>) -> Result<Plan> {
         if let Some(first) = ignored.first() {
             let names: Vec<String> = ignored.iter().map(|p| format!("`{}`", p.name)).collect();
             warnings.push(format!(
-                "{}: {} {} {} {} unsupported: ignored (trazo reads positions, normals nx ny nz, texture coordinates and vertex indices)",
+                "{}: {} {} {} {} unsupported: ignored (trazo reads positions, normals nx ny nz, texture coordinates, vertex indices, and attributes of 1 or 3 channels named as Mitsuba groups them: r g b, P_x P_y P_z, P_0 P_1 P_2…)",
                 src.loc(first.offset),
                 e.name,
                 if names.len() == 1 { "property" } else { "properties" },
@@ -1182,8 +1267,17 @@ fn read_body<B: Body>(b: &mut B, h: &Header, plan: &Plan) -> Result<PlyMesh> {
             property: None,
         };
         match role {
-            Role::Vertices { slots, normals, uvs } => read_vertices(b, e, slots, *normals, *uvs, &mut out.mesh)?,
-            Role::Faces { list, vertices } => read_faces(b, e, *list, *vertices, &mut out)?,
+            Role::Vertices {
+                slots,
+                normals,
+                uvs,
+                attributes,
+            } => read_vertices(b, e, slots, *normals, *uvs, attributes, &mut out.mesh)?,
+            Role::Faces {
+                list,
+                vertices,
+                attributes,
+            } => read_faces(b, e, *list, *vertices, attributes, &mut out)?,
             Role::Skip => {
                 // An entry without properties has nothing in the body.
                 if e.props.is_empty() {
@@ -1227,14 +1321,41 @@ fn skip_property<B: Body>(b: &mut B, p: &Property, key: &Key) -> Result<()> {
     }
 }
 
+/// For each property of an element, the attribute and channel it fills,
+/// and the attributes' empty value arrays.
+fn attribute_targets(
+    e: &Element,
+    plans: &[AttributePlan],
+    per_face: bool,
+) -> (Vec<Option<(usize, usize)>>, Vec<crate::geometry::mesh::MeshAttribute>) {
+    let mut target = vec![None; e.props.len()];
+    let mut attributes = Vec::new();
+    for (a, plan) in plans.iter().enumerate() {
+        for (channel, &p) in plan.props.iter().enumerate() {
+            target[p] = Some((a, channel));
+        }
+        attributes.push(crate::geometry::mesh::MeshAttribute {
+            name: plan.name.clone(),
+            per_face,
+            channels: plan.props.len(),
+            values: Vec::new(),
+        });
+    }
+    (target, attributes)
+}
+
+#[allow(clippy::too_many_arguments)]
 fn read_vertices<B: Body>(
     b: &mut B,
     e: &Element,
     slots: &[Option<usize>],
     normals: bool,
     uvs: bool,
+    plans: &[AttributePlan],
     mesh: &mut TriangleMesh,
 ) -> Result<()> {
+    let (target, mut attributes) = attribute_targets(e, plans, false);
+    let mut vertex_values: Vec<Vec<f32>> = attributes.iter().map(|a| vec![0.0; a.channels]).collect();
     // The count was checked against the size of the body.
     let n = e.count as usize;
     mesh.positions.reserve(n);
@@ -1253,13 +1374,19 @@ fn read_vertices<B: Body>(
         b.begin(&key, e.count)?;
         let start = b.offset();
         let mut v = [0.0f64; 8];
-        for (p, slot) in e.props.iter().zip(slots) {
-            match (p.kind, slot) {
-                (PropKind::Scalar(t), Some(s)) => v[*s] = b.value(t, &key.with(&p.name))?.1.as_f64(),
+        for ((p, slot), to) in e.props.iter().zip(slots).zip(&target) {
+            match (p.kind, slot, to) {
+                (PropKind::Scalar(t), Some(s), _) => v[*s] = b.value(t, &key.with(&p.name))?.1.as_f64(),
+                (PropKind::Scalar(t), None, Some((a, channel))) => {
+                    vertex_values[*a][*channel] = b.value(t, &key.with(&p.name))?.1.as_f64() as f32;
+                }
                 _ => skip_property(b, p, &key.with(&p.name))?,
             }
         }
         b.end(&key)?;
+        for (a, values) in attributes.iter_mut().zip(&vertex_values) {
+            a.values.extend_from_slice(values);
+        }
         let f = |s: usize| v[s] as f32;
         let position = Vec3::new(f(X), f(X + 1), f(X + 2));
         if !position.is_finite() {
@@ -1290,10 +1417,21 @@ fn read_vertices<B: Body>(
             mesh.uvs.push(uv);
         }
     }
+    mesh.attributes.extend(attributes);
     Ok(())
 }
 
-fn read_faces<B: Body>(b: &mut B, e: &Element, list: usize, vertices: u64, out: &mut PlyMesh) -> Result<()> {
+fn read_faces<B: Body>(
+    b: &mut B,
+    e: &Element,
+    list: usize,
+    vertices: u64,
+    plans: &[AttributePlan],
+    out: &mut PlyMesh,
+) -> Result<()> {
+    let (target, mut attributes) = attribute_targets(e, plans, true);
+    // The face's values, then one copy per triangle it makes.
+    let mut face_values: Vec<Vec<f32>> = attributes.iter().map(|a| vec![0.0; a.channels]).collect();
     // The count was checked against the size of the body; most faces give
     // one triangle at least.
     out.mesh.indices.reserve(e.count as usize);
@@ -1313,7 +1451,12 @@ fn read_faces<B: Body>(b: &mut B, e: &Element, list: usize, vertices: u64, out: 
         for (pi, p) in e.props.iter().enumerate() {
             let pkey = key.with(&p.name);
             let PropKind::List { count, item } = p.kind else {
-                skip_property(b, p, &pkey)?;
+                match (p.kind, target[pi]) {
+                    (PropKind::Scalar(t), Some((a, channel))) => {
+                        face_values[a][channel] = b.value(t, &pkey)?.1.as_f64() as f32;
+                    }
+                    _ => skip_property(b, p, &pkey)?,
+                }
                 continue;
             };
             if pi != list {
@@ -1354,8 +1497,12 @@ fn read_faces<B: Body>(b: &mut B, e: &Element, list: usize, vertices: u64, out: 
         for k in 1..polygon.len() - 1 {
             out.mesh.indices.push([polygon[0], polygon[k], polygon[k + 1]]);
             out.face_of_triangle.push(face);
+            for (a, values) in attributes.iter_mut().zip(&face_values) {
+                a.values.extend_from_slice(values);
+            }
         }
     }
+    out.mesh.attributes.extend(attributes);
     if let Some((i, at)) = first_degenerate {
         out.warnings.push(format!(
             "{}: faces with fewer than 3 vertices are unsupported: {degenerate} skipped, the first is `{}[{i}]`",
@@ -1617,6 +1764,38 @@ mod tests {
                 },
             ],
         )
+    }
+
+    /// Other properties become attributes named as Mitsuba names them;
+    /// polygons give each of their triangles the face's values.
+    #[test]
+    fn attributes_are_grouped_as_mitsuba_groups_them() {
+        let text = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+                    property uchar red\nproperty uchar green\nproperty uchar blue\nproperty float n_x\nproperty float n_y\n\
+                    property float temp_1\nelement face 1\nproperty list uchar int vertex_indices\nproperty float tint_r\n\
+                    property float tint_g\nproperty float tint_b\nend_header\n\
+                    0 0 0 1 2 3 0 0 10\n1 0 0 4 5 6 0 0 20\n1 1 0 7 8 9 0 0 30\n0 1 0 0 0 0 0 0 40\n4 0 1 2 3 0.1 0.2 0.3\n";
+        let m = parse_ply(text.as_bytes(), Path::new("a.ply")).unwrap();
+        let got: Vec<(&str, bool, usize, &[f32])> = m
+            .mesh
+            .attributes
+            .iter()
+            .map(|a| (a.name.as_str(), a.per_face, a.channels, a.values.as_slice()))
+            .collect();
+        let colours = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 0.0, 0.0, 0.0];
+        let tint = [0.1, 0.2, 0.3, 0.1, 0.2, 0.3];
+        assert_eq!(
+            got,
+            [
+                ("vertex_color", false, 3, &colours[..]),
+                ("vertex_temp", false, 1, &[10.0, 20.0, 30.0, 40.0][..]),
+                ("face_tint_color", true, 3, &tint[..]),
+            ]
+        );
+        m.mesh.validate().unwrap();
+        // Two channels are not an attribute in Mitsuba: skipped, named.
+        let w = m.warnings.join("\n");
+        assert!(w.contains("vertex properties `n_x`, `n_y` are unsupported"), "{w}");
     }
 
     #[test]

@@ -23,6 +23,32 @@ pub struct TexCoord {
     pub uv: Vec2,
     /// World-space position (for solid textures).
     pub p: Vec3,
+    /// The value of the mesh attribute the surface's material reads, at
+    /// the point (0 where the surface has none).
+    pub attribute: Rgb,
+}
+
+impl TexCoord {
+    /// A look-up at (u, v) and p, where no mesh attribute is known (a
+    /// point sampled on a light, say).
+    #[inline]
+    pub fn new(uv: Vec2, p: Vec3) -> TexCoord {
+        TexCoord {
+            uv,
+            p,
+            attribute: Rgb::ZERO,
+        }
+    }
+
+    /// Where a surface hit looks up its textures.
+    #[inline]
+    pub fn at(hit: &crate::geometry::SurfaceHit) -> TexCoord {
+        TexCoord {
+            uv: hit.uv,
+            p: hit.p,
+            attribute: hit.attribute,
+        }
+    }
 }
 
 /// A colour texture. Image data lives in the scene's image list and is
@@ -64,6 +90,11 @@ pub enum Texture {
         /// How it is read between texel centres.
         filter: ImageFilter,
     },
+    /// A value that a mesh carries per vertex (interpolated) or per face
+    /// (Mitsuba's `mesh_attribute` texture), its first three channels (one
+    /// channel read as grey); the number is the attribute's name among the
+    /// scene's `attribute_names`. Surfaces without it read 0.
+    MeshAttribute(u32),
 }
 
 impl Texture {
@@ -113,6 +144,7 @@ impl Texture {
                 wrap,
                 filter,
             } => images[image as usize].lookup(tc.uv * scale + offset, wrap, filter) * tint,
+            Texture::MeshAttribute(_) => tc.attribute,
         }
     }
 
@@ -123,6 +155,8 @@ impl Texture {
             Texture::Constant(c) => c,
             Texture::Checkerboard { even, odd, .. } | Texture::Checkerboard3d { even, odd, .. } => 0.5 * (even + odd),
             Texture::Image { image, tint, .. } => images[image as usize].average() * tint,
+            // Unknown before a mesh is hit: the middle of [0, 1].
+            Texture::MeshAttribute(_) => Rgb::splat(0.5),
         }
     }
 }
@@ -135,6 +169,7 @@ mod tests {
         TexCoord {
             uv: Vec2::new(u, v),
             p: Vec3::ZERO,
+            attribute: Rgb::ZERO,
         }
     }
 
@@ -159,7 +194,11 @@ mod tests {
             odd: Rgb::ZERO,
             scale: 1.0,
         };
-        let tc = |p: Vec3| TexCoord { uv: Vec2::ZERO, p };
+        let tc = |p: Vec3| TexCoord {
+            uv: Vec2::ZERO,
+            p,
+            attribute: Rgb::ZERO,
+        };
         assert_eq!(t.eval(&[], &tc(Vec3::splat(0.5))), Rgb::ONE);
         assert_eq!(t.eval(&[], &tc(Vec3::new(1.5, 0.5, 0.5))), Rgb::ZERO);
         assert_eq!(t.eval(&[], &tc(Vec3::new(1.5, 1.5, 0.5))), Rgb::ONE);

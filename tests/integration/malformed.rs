@@ -189,6 +189,30 @@ const CASES: &[(&str, Expect)] = &[
     ("obj/bad-mtl.obj", Warning("wood.png")),
     ("obj/bad-mtl.mtl", Error(&["unknown scene format"])),
     // PLY (lone models)
+    // Mitsuba's serialized meshes, rendered as models
+    ("serialized/good-triangle.serialized", Warning("")),
+    // Its table names a second mesh past the end; the first renders.
+    ("serialized/offset-past-the-end.serialized", Warning("")),
+    (
+        "serialized/index-out-of-range.serialized",
+        Error(&["index-out-of-range.serialized:", "face 0 uses vertex 9"]),
+    ),
+    (
+        "serialized/lying-counts.serialized",
+        Error(&["lying-counts.serialized:", "the data ends in the positions"]),
+    ),
+    (
+        "serialized/nan-position.serialized",
+        Error(&["nan-position.serialized:", "NaN or infinite"]),
+    ),
+    (
+        "serialized/not-zlib.serialized",
+        Error(&["not-zlib.serialized:", "zlib"]),
+    ),
+    (
+        "serialized/truncated-header.serialized",
+        Error(&["truncated-header.serialized:", "ends before the mesh header"]),
+    ),
     ("ply/valid.ply", Warning("")),
     ("ply/truncated.ply", Error(&["truncated.ply:"])),
     ("ply/wrong-type.ply", Error(&["wrong-type.ply:", "zero"])),
@@ -235,6 +259,55 @@ const CASES: &[(&str, Expect)] = &[
         Error(&["absurd-chunk-length.glb", "chunk"]),
     ),
 ];
+
+/// Signed distance grids (`.vol`), each rendered as the `sdfgrid` of a
+/// Mitsuba scene: their errors.
+const VOLUME_CASES: &[(&str, Option<&[&str]>)] = &[
+    ("sdfgrid/sphere.vol", None),
+    (
+        "sdfgrid/all-positive.vol",
+        Some(&["all-positive.vol", "all of one sign"]),
+    ),
+    ("sdfgrid/nan-value.vol", Some(&["nan-value.vol", "NaN or infinite"])),
+    (
+        "sdfgrid/inf-and-zero.vol",
+        Some(&["inf-and-zero.vol", "NaN or infinite"]),
+    ),
+    ("sdfgrid/one-value-wide.vol", Some(&["one-value-wide.vol", "no cells"])),
+    ("sdfgrid/huge-header.vol", Some(&["huge-header.vol", "more than"])),
+];
+
+#[test]
+fn malformed_sdf_grids_are_errors_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("grid.xml");
+    let mut failures = Vec::new();
+    for (rel, expect) in VOLUME_CASES {
+        let file = corpus(rel);
+        std::fs::write(
+            &scene,
+            format!(
+                r#"<scene version="3.0.0"><shape type="sdfgrid"><string name="filename" value="{}"/></shape></scene>"#,
+                file.display()
+            ),
+        )
+        .unwrap();
+        let args = [
+            "render", "grid.xml", "-o", "out.png", "--width", "8", "--height", "8", "--spp", "1", "-q",
+        ];
+        let (code, err) = run(&args, dir.path());
+        match expect {
+            None if code != Some(0) => failures.push(format!("{rel}: expected to render, got {code:?}: {err}")),
+            Some(parts)
+                if !(code == Some(2) && err.starts_with("error: ") && parts.iter().all(|p| err.contains(p))) =>
+            {
+                failures.push(format!("{rel}: expected exit 2 with {parts:?}, got {code:?}: {err}"))
+            }
+            _ => {}
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
 
 /// Image files, read by `trazo diff FILE FILE`: their errors.
 const IMAGE_CASES: &[(&str, Option<&[&str]>)] = &[
@@ -362,6 +435,7 @@ fn the_corpus_and_the_table_agree() {
         .iter()
         .map(|c| c.0)
         .chain(IMAGE_CASES.iter().map(|c| c.0))
+        .chain(VOLUME_CASES.iter().map(|c| c.0))
         .collect();
     for dir in std::fs::read_dir(corpus("")).unwrap() {
         let dir = dir.unwrap().path();
@@ -393,6 +467,8 @@ fn truncated_files_never_panic_or_allocate_by_untrusted_counts() {
         ("ply/binary-valid.ply", trazo::fuzz::ply),
         ("gltf/valid.glb", trazo::fuzz::gltf),
         ("gltf/valid.gltf", trazo::fuzz::gltf),
+        ("serialized/good-triangle.serialized", trazo::fuzz::serialized),
+        ("sdfgrid/sphere.vol", trazo::fuzz::sdfgrid),
     ];
     for (rel, read) in files {
         let bytes = std::fs::read(corpus(rel)).unwrap();

@@ -89,37 +89,61 @@ fn white_furnace_lambertian_albedo_one_renders_one() {
     }
 }
 
-#[test]
-fn convex_lambertian_of_albedo_rho_renders_rho() {
-    let f = render_film(&furnace(diffuse(0.5), PathSampling::Mis));
-    // Pixels that miss the sphere see the background (1); the others ρ.
-    let scene = trazo::scene::build(&furnace(diffuse(0.5), PathSampling::Mis)).unwrap();
+/// Every pixel entirely on the furnace's sphere (all its samples hit it)
+/// is `expect` within 5 of its standard errors.
+fn assert_sphere_pixels(d: &SceneDesc, expect: f32, what: &str) {
+    let f = render_film(d);
+    let scene = trazo::scene::build(d).unwrap();
     let mut on_sphere = 0;
     for y in 0..16 {
         for x in 0..16 {
-            let ray = scene
-                .camera
-                .generate_ray(trazo::Vec2::new(x as f32 + 0.5, y as f32 + 0.5), trazo::Vec2::ZERO);
-            let p = f.pixels[(y * 16 + x) as usize];
-            // Only pixels entirely on the sphere (all their samples hit it).
-            let corners_hit = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)].iter().all(|(dx, dy)| {
-                let r = scene
-                    .camera
-                    .generate_ray(trazo::Vec2::new(x as f32 + dx, y as f32 + dy), trazo::Vec2::ZERO);
-                scene.intersect(&r).is_some()
-            });
-            if scene.intersect(&ray).is_some() && corners_hit {
+            let corners_hit = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.5, 0.5)]
+                .iter()
+                .all(|(dx, dy)| {
+                    let r = scene
+                        .camera
+                        .generate_ray(trazo::Vec2::new(x as f32 + dx, y as f32 + dy), trazo::Vec2::ZERO);
+                    scene.intersect(&r).is_some()
+                });
+            if corners_hit {
                 on_sphere += 1;
+                let p = f.pixels[(y * 16 + x) as usize];
                 let sigma = p.variance_of_mean().sqrt() as f32;
                 let v = p.value();
                 assert!(
-                    (v.x - 0.5).abs() <= 5.0 * sigma + 1e-4,
-                    "pixel ({x},{y}) = {v} ± {sigma}"
+                    (v.x - expect).abs() <= 5.0 * sigma + 1e-4,
+                    "{what}: pixel ({x},{y}) = {v} ± {sigma}, expected {expect}"
                 );
             }
         }
     }
     assert!(on_sphere > 50, "{on_sphere}");
+}
+
+#[test]
+fn convex_lambertian_of_albedo_rho_renders_rho() {
+    // Pixels that miss the sphere see the background (1); the others ρ.
+    assert_sphere_pixels(&furnace(diffuse(0.5), PathSampling::Mis), 0.5, "albedo 0.5");
+}
+
+/// A mix chooses its second material with the weight's probability: on a
+/// convex sphere in a white furnace it renders (1 − w)·ρ₀ + w·ρ₁.
+#[test]
+fn a_mix_of_two_lambertians_renders_their_weighted_albedo() {
+    let mix = MaterialDesc::with_kind(
+        "mix",
+        MaterialKindDesc::Mix {
+            weight: ColorSource::Rgb(Rgb::splat(0.25)),
+            materials: ["dark".into(), "light".into()],
+        },
+    );
+    let mut d = furnace(mix, PathSampling::Mis);
+    for (name, albedo) in [("dark", 0.2), ("light", 0.8)] {
+        let mut m = diffuse(albedo);
+        m.name = name.into();
+        d.materials.push(m);
+    }
+    assert_sphere_pixels(&d, 0.75 * 0.2 + 0.25 * 0.8, "mix");
 }
 
 #[test]

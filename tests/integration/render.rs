@@ -321,10 +321,7 @@ fn random_aggregate(seed: u64) -> Aggregate {
     for i in 0..60 {
         let c = Vec3::new(v(), v(), v()) * 20.0 - 10.0;
         let shape = match i % 4 {
-            0 => Shape::Sphere(Sphere {
-                center: c,
-                radius: 0.2 + v(),
-            }),
+            0 => Shape::Sphere(Sphere::new(c, 0.2 + v())),
             1 => Shape::Cuboid(Cuboid {
                 min: c,
                 max: c + Vec3::new(v(), v(), v()) + 0.1,
@@ -338,6 +335,7 @@ fn random_aggregate(seed: u64) -> Aggregate {
                 center: c,
                 normal: (Vec3::new(v(), v(), v()) - 0.5).normalize(),
                 radius: 0.3 + v(),
+                uv: trazo::geometry::DiskUv::AngleRadius,
             }),
         };
         let transform = if i % 3 == 0 {
@@ -1172,6 +1170,7 @@ fn the_geometry_estimate_bounds_the_built_bvh_and_meshes() {
             normals: vec![],
             uvs: vec![],
             indices,
+            attributes: Vec::new(),
         }
     };
     let mut large = SceneDesc::default();

@@ -382,6 +382,7 @@ fn light_sampling_matches_the_density() {
                     center: Vec3::ZERO,
                     normal: -Vec3::Z,
                     radius: 0.7,
+                    uv: trazo::geometry::DiskUv::AngleRadius,
                 },
                 None,
             )
@@ -419,6 +420,7 @@ fn light_sampling_matches_the_density() {
                 center: Vec3::new(0.0, 0.0, 1.0),
                 normal: Vec3::new(0.2, 0.1, -1.0),
                 radius: 0.8,
+                uv: trazo::geometry::DiskUv::AngleRadius,
             },
             None,
         )),

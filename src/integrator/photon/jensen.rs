@@ -329,10 +329,7 @@ pub(crate) fn specular_bounce(hit: &SurfaceHit, sp: &ShadingPoint, u: f32) -> Op
 
 /// Whether any material has a delta lobe (otherwise there are no caustics).
 fn scene_has_specular(scene: &Scene) -> bool {
-    let tc = crate::texture::TexCoord {
-        uv: glam::Vec2::splat(0.5),
-        p: glam::Vec3::ZERO,
-    };
+    let tc = crate::texture::TexCoord::new(glam::Vec2::splat(0.5), glam::Vec3::ZERO);
     scene.materials.iter().any(|m| {
         let b = m.bsdf(&scene.images, &tc);
         b.delta_probability(glam::Vec3::Z) > 0.0 || !b.has_smooth()

@@ -100,7 +100,7 @@ pub(crate) fn camera_segment<'a>(
     let wo_world = -ray.dir.normalize();
     let m = &scene.materials[hit.material as usize];
     if m.is_emissive() && hit.is_front(wo_world) {
-        *l += beta * m.emission_at(&scene.images, &crate::texture::TexCoord { uv: hit.uv, p: hit.p });
+        *l += beta * m.emission_at(&scene.images, &crate::texture::TexCoord::at(&hit));
     }
     if last {
         return None;
@@ -124,7 +124,7 @@ impl<'a> ShadingPoint<'a> {
     /// back of a one-sided opaque surface, which is black.
     pub(crate) fn new(scene: &'a Scene, hit: &SurfaceHit, wo_world: Vec3) -> Option<ShadingPoint<'a>> {
         let m = &scene.materials[hit.material as usize];
-        let bsdf = m.bsdf(&scene.images, &crate::texture::TexCoord { uv: hit.uv, p: hit.p });
+        let bsdf = m.bsdf(&scene.images, &crate::texture::TexCoord::at(hit));
         if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
             return None;
         }

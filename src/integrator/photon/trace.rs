@@ -156,7 +156,7 @@ fn trace_one(
             return;
         };
         let m = &scene.materials[hit.material as usize];
-        let tc = crate::texture::TexCoord { uv: hit.uv, p: hit.p };
+        let tc = crate::texture::TexCoord::at(&hit);
         let bsdf = m.bsdf(&scene.images, &tc);
         let wo_world = -ray.dir.normalize();
         if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {

@@ -939,6 +939,7 @@ impl Parser {
                 *odd *= factor;
             }
             TextureKind::Image { tint, .. } => *tint *= factor,
+            TextureKind::MeshAttribute { .. } => unreachable!("pbrt-v4 scenes have no mesh attribute textures"),
         }
         let typical = self.texture_colors.get(&name).copied().unwrap_or(Rgb::splat(0.5)) * factor;
         Ok(Some((kind, typical)))

@@ -63,6 +63,7 @@ impl Parser {
                         center: Vec3::new(0.0, 0.0, height),
                         normal: Vec3::Z,
                         radius,
+                        uv: crate::geometry::DiskUv::AngleRadius,
                     },
                     true,
                 )
@@ -307,6 +308,7 @@ impl Parser {
             normals,
             uvs,
             indices: faces,
+            attributes: Vec::new(),
         })
     }
 }

@@ -492,7 +492,8 @@ Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3]"#,
         ShapeKind::Disk {
             center: Vec3::new(0.0, 0.0, 0.5),
             normal: Vec3::Z,
-            radius: 3.0
+            radius: 3.0,
+            uv: crate::geometry::DiskUv::AngleRadius,
         }
     );
     assert_eq!(
