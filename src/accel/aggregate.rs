@@ -1127,6 +1127,7 @@ fn transform_surface(t: &Transform, ls: LocalSurface) -> LocalSurface {
         n: t.normal(ls.n).normalize_or_zero(),
         uv: ls.uv,
         dpdu: t.vector(ls.dpdu),
+        dpdv: t.vector(ls.dpdv),
     }
 }
 
@@ -1161,6 +1162,8 @@ fn finish_surface(
         ns,
         uv: ls.uv,
         tangent,
+        dpdu: ls.dpdu,
+        dpdv: ls.dpdv,
         material,
         light,
         attribute,
@@ -1197,6 +1200,7 @@ mod tests {
                 n,
                 uv: Vec2::ZERO,
                 dpdu,
+                dpdv: n.cross(dpdu),
             };
             let hit = finish_surface(1.0, ls, None, None, 0, None, Vec3::ZERO);
             let t = hit.tangent;

@@ -22,6 +22,11 @@ pub struct SurfaceHit {
     pub uv: Vec2,
     /// A unit tangent along increasing `u`, perpendicular to `ns`.
     pub tangent: Vec3,
+    /// The surface's derivatives along u and v (not normalised, not
+    /// perpendicular to `ns`), which bump maps tilt.
+    pub dpdu: Vec3,
+    /// See `dpdu`.
+    pub dpdv: Vec3,
     /// Index of the surface's material in the scene.
     pub material: u32,
     /// Index of the area light this surface is, if it emits.

@@ -249,10 +249,13 @@ impl TriangleMesh {
         let (duv02, duv12) = (uv0 - uv2, uv1 - uv2);
         let (dp02, dp12) = (p0 - p2, p1 - p2);
         let det = duv02.x * duv12.y - duv02.y * duv12.x;
-        let dpdu = if det.abs() < 1e-12 {
-            orthonormal_basis(n).0
+        let (dpdu, dpdv) = if det.abs() < 1e-12 {
+            orthonormal_basis(n)
         } else {
-            (duv12.y * dp02 - duv02.y * dp12) / det
+            (
+                (duv12.y * dp02 - duv02.y * dp12) / det,
+                (duv02.x * dp12 - duv12.x * dp02) / det,
+            )
         };
         LocalSurface {
             p,
@@ -260,6 +263,7 @@ impl TriangleMesh {
             n,
             uv,
             dpdu,
+            dpdv,
         }
     }
 

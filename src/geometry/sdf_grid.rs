@@ -283,7 +283,7 @@ impl SdfGrid {
     /// coordinates (as in Mitsuba).
     pub fn surface(&self, p: Vec3) -> LocalSurface {
         let n = self.gradient(p).try_normalize().unwrap_or(Vec3::Z);
-        let (dpdu, _) = orthonormal_basis(n);
+        let (dpdu, dpdv) = orthonormal_basis(n);
         // The root is exact to far below a cell; what remains is the
         // rounding of the distance and of the point in single precision.
         let p_error = Vec3::splat(1e-5) * self.cell_size() + p.abs() * (8.0 * f32::EPSILON);
@@ -293,6 +293,7 @@ impl SdfGrid {
             n,
             uv: Vec2::ZERO,
             dpdu,
+            dpdv,
         }
     }
 

@@ -135,6 +135,8 @@ pub struct LocalSurface {
     pub uv: Vec2,
     /// Tangent along increasing u (not normalised; may be zero at poles).
     pub dpdu: Vec3,
+    /// Tangent along increasing v (not normalised), which bump maps need.
+    pub dpdv: Vec3,
 }
 
 /// A point sampled on a surface.
@@ -220,6 +222,7 @@ impl Shape {
                     n: pl.normal,
                     uv: Vec2::new(d.dot(pl.u_axis), d.dot(v_axis)),
                     dpdu: pl.u_axis,
+                    dpdv: v_axis,
                 }
             }
             Shape::Rectangle(r) => r.surface(p),
@@ -230,19 +233,15 @@ impl Shape {
                 let (x, y) = (q.dot(s), q.dot(t));
                 let phi = y.atan2(x).rem_euclid(2.0 * PI);
                 let dist = (x * x + y * y).sqrt();
-                let (uv, dpdu) = match d.uv {
-                    DiskUv::AngleRadius => (
-                        Vec2::new(phi / (2.0 * PI), 1.0 - dist / d.radius),
-                        (-y * s + x * t) * (2.0 * PI),
-                    ),
-                    DiskUv::RadiusAngle => (
-                        Vec2::new(dist / d.radius, phi / (2.0 * PI)),
-                        if dist > 0.0 {
-                            q * (d.radius / dist)
-                        } else {
-                            s * d.radius
-                        },
-                    ),
+                let around = (-y * s + x * t) * (2.0 * PI);
+                let outward = if dist > 0.0 {
+                    q * (d.radius / dist)
+                } else {
+                    s * d.radius
+                };
+                let (uv, dpdu, dpdv) = match d.uv {
+                    DiskUv::AngleRadius => (Vec2::new(phi / (2.0 * PI), 1.0 - dist / d.radius), around, -outward),
+                    DiskUv::RadiusAngle => (Vec2::new(dist / d.radius, phi / (2.0 * PI)), outward, around),
                 };
                 LocalSurface {
                     p,
@@ -250,6 +249,7 @@ impl Shape {
                     n: d.normal,
                     uv,
                     dpdu,
+                    dpdv,
                 }
             }
             Shape::Cuboid(c) => c.surface(p),
@@ -415,12 +415,22 @@ impl Sphere {
             Vec2::ZERO
         };
         let dpdu = self.uv_frame * Vec3::new(-local.z, 0.0, local.x) * (2.0 * PI * self.radius);
+        // v = 1/2 + θ/π for latitude θ: dp/dv = π·r·dn/dθ, which turns
+        // along the meridian (undefined at the poles: a zero vector there).
+        let cos_lat = (local.x * local.x + local.z * local.z).sqrt();
+        let dpdv = if cos_lat > 0.0 {
+            let k = -local.y / cos_lat;
+            self.uv_frame * Vec3::new(k * local.x, cos_lat, k * local.z) * (PI * self.radius)
+        } else {
+            Vec3::ZERO
+        };
         LocalSurface {
             p,
             p_error,
             n,
             uv,
             dpdu,
+            dpdv,
         }
     }
 }
@@ -587,6 +597,7 @@ impl Rectangle {
             n: self.normal,
             uv: self.coordinates(p),
             dpdu: self.edge_u,
+            dpdv: self.edge_v,
         }
     }
 
@@ -651,8 +662,9 @@ impl Cuboid {
         n[axis] = if high { 1.0 } else { -1.0 };
         let (j, k) = ((axis + 1) % 3, (axis + 2) % 3);
         let e = (self.max - self.min).max(Vec3::splat(f32::MIN_POSITIVE));
-        let mut dpdu = Vec3::ZERO;
+        let (mut dpdu, mut dpdv) = (Vec3::ZERO, Vec3::ZERO);
         dpdu[j] = e[j];
+        dpdv[k] = e[k];
         // The face coordinate is exact; the others carry the ray's error.
         let mut p_error = gamma(6) * q.abs();
         p_error[axis] = 0.0;
@@ -662,6 +674,7 @@ impl Cuboid {
             n,
             uv: Vec2::new((q[j] - self.min[j]) / e[j], (q[k] - self.min[k]) / e[k]),
             dpdu,
+            dpdv,
         }
     }
 
@@ -754,6 +767,7 @@ impl Cylinder {
             n,
             uv: Vec2::new(phi / (2.0 * PI), (z / h).clamp(0.0, 1.0)),
             dpdu: a.cross(n) * (2.0 * PI * self.radius),
+            dpdv: axis,
         }
     }
 }

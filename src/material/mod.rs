@@ -169,9 +169,37 @@ pub struct Material {
     /// A tangent-space normal map (colour c: the normal 2c − 1 in the
     /// frame of tangent, bitangent and shading normal); `None`: none.
     pub normal_map: Option<Texture>,
+    /// A bump map: heights that tilt the shading normal; `None`: none.
+    pub bump_map: Option<BumpMap>,
     /// Microfacet roughness that varies over the surface; it replaces the
     /// constant α of a conductor or a dielectric. `None`: constant.
     pub roughness_map: Option<RoughnessMap>,
+}
+
+/// Heights over the surface (a texture's luminance times `scale`) that
+/// tilt the shading normal as the displaced surface's would be tilted
+/// (Blinn 1978): the derivatives of the height along u and v replace the
+/// normal components of dp/du and dp/dv, as Mitsuba's `bumpmap` does.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BumpMap {
+    /// The heights (luminance).
+    pub height: Texture,
+    /// Height per unit of the texture's value.
+    pub scale: f32,
+}
+
+impl BumpMap {
+    /// The bumped normal at `hit` (world, unit, on the geometric normal's
+    /// side), or `None` where the tilted derivatives are parallel.
+    #[inline]
+    pub fn normal(&self, images: &[ImageTexture], hit: &SurfaceHit) -> Option<Vec3> {
+        let g = self.height.luminance_gradient(images, &TexCoord::at(hit)) * self.scale;
+        let n = hit.ns;
+        let dpdu = hit.dpdu + n * (g.x - n.dot(hit.dpdu));
+        let dpdv = hit.dpdv + n * (g.y - n.dot(hit.dpdv));
+        let bumped = dpdu.cross(dpdv).try_normalize()?;
+        Some(if bumped.dot(hit.ng) < 0.0 { -bumped } else { bumped })
+    }
 }
 
 /// Roughness read from textures (their first channel) at each hit: α along
@@ -363,6 +391,7 @@ impl Material {
                 two_sided: true,
                 opacity: None,
                 normal_map: None,
+                bump_map: None,
                 roughness_map: None,
             };
         }
@@ -379,6 +408,7 @@ impl Material {
             two_sided: true,
             opacity: None,
             normal_map: None,
+            bump_map: None,
             roughness_map: None,
         }
     }
@@ -429,6 +459,7 @@ impl Material {
             two_sided: true,
             opacity: None,
             normal_map: None,
+            bump_map: None,
             roughness_map: None,
         }
     }
@@ -464,6 +495,7 @@ impl Material {
         let mut all = vec![&self.emission];
         all.extend(self.opacity.as_ref());
         all.extend(self.normal_map.as_ref());
+        all.extend(self.bump_map.as_ref().map(|b| &b.height));
         if let Some(r) = &self.roughness_map {
             all.extend([&r.u, &r.v]);
         }
@@ -481,29 +513,34 @@ impl Material {
 
     /// The frame in which the BSDF sees directions at `hit`, seen from
     /// `wo` (world, away from the surface): the shading normal and the
-    /// tangent along u, turned to the normal map's normal where there is
-    /// one.
+    /// tangent along u, turned to the normal map's or the bump map's normal
+    /// where there is one.
     ///
     /// A mapped normal is Mitsuba 3's (`normalmap`): the colour c means the
     /// normal 2c − 1 relative to (tangent, bitangent, shading normal); one
     /// that faces away from `wo` has its tilt mirrored (Schüssler et al.
     /// 2017's fix, Mitsuba's `flip_invalid_normals`); the tangent is the
-    /// hit's, made perpendicular to the new normal.
+    /// hit's, made perpendicular to the new normal. A bumped normal
+    /// ([`BumpMap::normal`]) is mirrored and weighted the same way, as
+    /// Mitsuba's `bumpmap` does.
     #[inline]
     pub fn shading_frame(&self, images: &[ImageTexture], hit: &SurfaceHit, wo: Vec3) -> ShadingFrame {
         let base = Frame::from_orthonormal(hit.ns, hit.tangent);
-        let Some(map) = &self.normal_map else {
-            return ShadingFrame {
-                frame: base,
-                unmapped: None,
-            };
+        let unmapped = ShadingFrame {
+            frame: base,
+            unmapped: None,
         };
-        let c = map.eval(images, &TexCoord::at(hit));
-        let Some(mut local) = Vec3::new(2.0 * c.x - 1.0, 2.0 * c.y - 1.0, 2.0 * c.z - 1.0).try_normalize() else {
-            return ShadingFrame {
-                frame: base,
-                unmapped: None,
-            }; // a black texel names no direction
+        let local = if let Some(map) = &self.normal_map {
+            let c = map.eval(images, &TexCoord::at(hit));
+            // A black texel names no direction.
+            Vec3::new(2.0 * c.x - 1.0, 2.0 * c.y - 1.0, 2.0 * c.z - 1.0).try_normalize()
+        } else if let Some(bump) = &self.bump_map {
+            bump.normal(images, hit).map(|n| base.to_local(n))
+        } else {
+            None
+        };
+        let Some(mut local) = local else {
+            return unmapped;
         };
         let wo_local = base.to_local(wo);
         if wo_local.z * wo_local.dot(local) <= 0.0 {
@@ -919,10 +956,63 @@ mod tests {
             ns: Vec3::Z,
             uv: Vec2::new(0.3, 0.7),
             tangent: Vec3::X,
+            dpdu: Vec3::X,
+            dpdv: Vec3::Y,
             material: 0,
             light: None,
             attribute: Vec3::ZERO,
         }
+    }
+
+    /// A bump map tilts the normal by the height's slope: on a plane with
+    /// dp/du = x and dp/dv = y, heights s·u give the normal (−s, 0, 1)
+    /// normalised, whatever the texture's resolution; the frame is then
+    /// mirrored and weighted as a normal map's is.
+    #[test]
+    fn bump_maps_tilt_the_normal_by_the_heights_slope() {
+        // A ramp along u: luminance 0, 1, …, 7 at the texel centres.
+        let ramp = ImageTexture {
+            width: 8,
+            height: 2,
+            pixels: (0..16).map(|i| Rgb::splat((i % 8) as f32)).collect(),
+        };
+        let mut hit = hit_at_origin();
+        hit.uv = Vec2::new(0.5, 0.5);
+        let mut m = Material::diffuse(Rgb::splat(0.5));
+        m.bump_map = Some(BumpMap {
+            height: Texture::Image {
+                image: 0,
+                scale: Vec2::ONE,
+                offset: Vec2::ZERO,
+                tint: Rgb::ONE,
+                wrap: crate::texture::WrapMode::Clamp,
+                filter: crate::texture::ImageFilter::Bilinear,
+            },
+            scale: 0.05,
+        });
+        // Height 0.05·8·u: slope 0.4 along u.
+        let images = [ramp];
+        let expected = Vec3::new(-0.4, 0.0, 1.0).normalize();
+        let f = m.shading_frame(&images, &hit, Vec3::new(-0.3, 0.1, 0.9).normalize());
+        assert!((f.n - expected).length() < 1e-5, "{}", f.n);
+        assert!(f.s.dot(f.n).abs() < 1e-6 && (f.s.length() - 1.0).abs() < 1e-6);
+        // Longer dp/du (the same heights over a wider surface): half the slope.
+        hit.dpdu = Vec3::X * 2.0;
+        let f = m.shading_frame(&images, &hit, Vec3::Z);
+        assert!((f.n - Vec3::new(-0.2, 0.0, 1.0).normalize()).length() < 1e-5, "{}", f.n);
+        // Seen from far on the +x side the tilt would hide the viewer: mirrored.
+        hit.dpdu = Vec3::X;
+        let g = m.shading_frame(&images, &hit, Vec3::new(0.95, 0.0, 0.3).normalize());
+        assert!(
+            (g.n - Vec3::new(-expected.x, 0.0, expected.z)).length() < 1e-5,
+            "{}",
+            g.n
+        );
+        assert_eq!(g.factor(Vec3::new(-0.99, 0.0, 0.05).normalize()), 0.0);
+        // A constant height is no bump.
+        m.bump_map.as_mut().unwrap().height = Texture::Constant(Rgb::ONE);
+        let flat = m.shading_frame(&images, &hit, Vec3::Z);
+        assert!((flat.n - Vec3::Z).length() < 1e-6);
     }
 
     /// A normal map turns the frame to 2c − 1 about (tangent, bitangent,

@@ -641,7 +641,8 @@ fn resolve_mixes(
         let overrides = own.emission != Texture::Constant(Rgb::ZERO)
             || own.two_sided
             || own.opacity.is_some()
-            || own.normal_map.is_some();
+            || own.normal_map.is_some()
+            || own.bump_map.is_some();
         let mut parts = [index[names[0].as_str()], index[names[1].as_str()]];
         if overrides {
             for (k, part) in parts.iter_mut().enumerate() {
@@ -650,7 +651,7 @@ fn resolve_mixes(
                     Some(MaterialKindDesc::Mix { .. })
                 ) {
                     warnings.push(format!(
-                        "material \"{}\": its mix \"{}\" does not take its emission, sides, opacity or normal map",
+                        "material \"{}\": its mix \"{}\" does not take its emission, sides, opacity, normal map or bump map",
                         m.name, names[k]
                     ));
                     continue;
@@ -662,6 +663,7 @@ fn resolve_mixes(
                 copy.two_sided |= own.two_sided;
                 copy.opacity = own.opacity.or(copy.opacity);
                 copy.normal_map = own.normal_map.or(copy.normal_map);
+                copy.bump_map = own.bump_map.clone().or(copy.bump_map);
                 materials.push(copy);
                 mixes.push(None);
                 *part = materials.len() as u32 - 1;
@@ -722,6 +724,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             two_sided: true,
             opacity: None,
             normal_map: None,
+            bump_map: None,
             roughness_map: None,
         },
         MaterialKindDesc::Conductor {
@@ -743,6 +746,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             two_sided: true,
             opacity: None,
             normal_map: None,
+            bump_map: None,
             roughness_map: None,
         },
         MaterialKindDesc::Dielectric {
@@ -763,6 +767,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             two_sided: true,
             opacity: None,
             normal_map: None,
+            bump_map: None,
             roughness_map: None,
         },
         MaterialKindDesc::Plastic {
@@ -829,6 +834,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             two_sided: true,
             opacity: None,
             normal_map: None,
+            bump_map: None,
             roughness_map: None,
         },
         MaterialKindDesc::Thin {
@@ -846,6 +852,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             two_sided: true,
             opacity: None,
             normal_map: None,
+            bump_map: None,
             roughness_map: None,
         },
         // Replaced by `resolve_mixes` once every material is made.
@@ -855,6 +862,10 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
     mat.two_sided = m.two_sided;
     mat.opacity = m.opacity.as_ref().map(color);
     mat.normal_map = m.normal_map.as_ref().map(color);
+    mat.bump_map = m.bump_map.as_ref().map(|b| crate::material::BumpMap {
+        height: color(&b.height),
+        scale: b.scale,
+    });
     if let Some(r) = &m.roughness_map {
         let map = RoughnessMap {
             u: color(&r.u),

@@ -381,6 +381,9 @@ pub struct MaterialDesc {
     /// 2c − 1 in the frame of (tangent along u, bitangent, shading normal),
     /// read raw (no sRGB decoding); `None`: the surface's own normal.
     pub normal_map: Option<ColorSource>,
+    /// A bump map: a texture whose luminance times `scale` is a height
+    /// over the surface, tilting the shading normal; `None`: none.
+    pub bump_map: Option<BumpMapDesc>,
     /// Roughness that varies over the surface, for a conductor or a
     /// dielectric: it replaces the kind's constant roughness.
     pub roughness_map: Option<RoughnessMapDesc>,
@@ -399,6 +402,15 @@ pub struct RoughnessMapDesc {
     pub v: ColorSource,
     /// The textures hold pbrt-v4's roughness r, whose α is √r.
     pub remap_sqrt: bool,
+}
+
+/// A material's bump map (see [`crate::material::BumpMap`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BumpMapDesc {
+    /// The heights: the texture's luminance.
+    pub height: ColorSource,
+    /// Height per unit of the texture's value.
+    pub scale: f32,
 }
 
 impl MaterialDesc {
@@ -421,6 +433,7 @@ impl MaterialDesc {
             two_sided: true,
             opacity: None,
             normal_map: None,
+            bump_map: None,
             roughness_map: None,
             locs: Locs::default(),
         }
@@ -1092,6 +1105,13 @@ impl SceneDesc {
             }
             if let Some(n) = &m.normal_map {
                 texture("normal_map", n)?;
+            }
+            if let Some(b) = &m.bump_map {
+                texture("bump_map", &b.height)?;
+                c.finite("bump_scale", b.scale)?;
+                if m.normal_map.is_some() {
+                    return Err(c.err("bump_map", "a material takes a normal map or a bump map, not both"));
+                }
             }
             if let Some(r) = &m.roughness_map {
                 texture("roughness_texture", &r.u)?;

@@ -1670,6 +1670,7 @@ impl<'a> Reader<'a> {
             two_sided: mat.double_sided,
             opacity: None,
             normal_map: None,
+            bump_map: None,
             roughness_map: None,
             locs,
         })

@@ -107,6 +107,8 @@ struct BsdfDef {
     opacity: Option<ColorSource>,
     /// A `normalmap`'s texture.
     normal_map: Option<ColorSource>,
+    /// A `bumpmap`'s texture and scale.
+    bump_map: Option<BumpMapDesc>,
     /// Roughness textures of a rough conductor or dielectric.
     roughness_map: Option<RoughnessMapDesc>,
     /// The desc material already made for it (without emission).
@@ -1569,6 +1571,7 @@ impl Loader {
                 let def = BsdfDef {
                     opacity: None,
                     normal_map: None,
+                    bump_map: None,
                     roughness_map: None,
                     kind: MaterialKindDesc::NULL,
                     two_sided: true,
@@ -1602,6 +1605,7 @@ impl Loader {
                     return Ok(BsdfDef {
                         opacity: None,
                         normal_map: None,
+                        bump_map: None,
                         roughness_map: None,
                         kind: MaterialKindDesc::Thin {
                             ior,
@@ -1667,6 +1671,47 @@ impl Loader {
                     ..def
                 });
             }
+            "bumpmap" => {
+                // Mitsuba takes the nested texture and BSDF by their kinds,
+                // whatever their names.
+                let is_texture = |c: &Node| {
+                    c.tag_name().name() == "texture"
+                        || (c.tag_name().name() == "ref"
+                            && c.attribute("id").is_some_and(|id| self.textures.contains_key(id)))
+                };
+                let inner = node
+                    .children()
+                    .find(|c| c.is_element() && matches!(c.tag_name().name(), "bsdf" | "ref") && !is_texture(c))
+                    .ok_or_else(|| self.err(f, node, "bumpmap needs a nested BSDF"))?;
+                let tex_node = node.children().find(|c| c.is_element() && is_texture(c));
+                let Some(tex_node) = tex_node else {
+                    return Err(self.err(f, node, "bumpmap needs a nested texture of heights"));
+                };
+                if let Some(name) = tex_node.attribute("name") {
+                    used.push(name.to_string());
+                }
+                let height = match tex_node.tag_name().name() {
+                    "texture" => self.texture(f, tex_node)?,
+                    _ => self.textures[tex_node.attribute("id").unwrap_or_default()].clone(),
+                };
+                let scale = self.float(f, &props, "scale", &mut used)?.unwrap_or(1.0);
+                self.unused(f, node, &props, &used);
+                let def = self.bsdf(f, inner)?;
+                if def.normal_map.is_some() || def.bump_map.is_some() {
+                    self.warn(
+                        f,
+                        node,
+                        "a bumpmap over a normalmap or another bumpmap is unsupported: only the outer one is applied",
+                    );
+                }
+                return Ok(BsdfDef {
+                    loc,
+                    normal_map: None,
+                    bump_map: Some(BumpMapDesc { height, scale }),
+                    material: None,
+                    ..def
+                });
+            }
             "normalmap" => {
                 let inner = nested().ok_or_else(|| self.err(f, node, "normalmap needs a nested BSDF"))?;
                 let map = self
@@ -1674,9 +1719,17 @@ impl Loader {
                     .ok_or_else(|| self.err(f, node, "normalmap needs a texture named \"normalmap\""))?;
                 self.unused(f, node, &props, &used);
                 let def = self.bsdf(f, inner)?;
+                if def.normal_map.is_some() || def.bump_map.is_some() {
+                    self.warn(
+                        f,
+                        node,
+                        "a normalmap over a bumpmap or another normalmap is unsupported: only the outer one is applied",
+                    );
+                }
                 return Ok(BsdfDef {
                     loc,
                     normal_map: Some(map),
+                    bump_map: None,
                     material: None,
                     ..def
                 });
@@ -1707,19 +1760,6 @@ impl Loader {
                 ];
                 MaterialKindDesc::Mix { weight, materials }
             }
-            "bumpmap" => {
-                self.warn(
-                    f,
-                    node,
-                    format!("\"{ty}\" is unsupported: its nested BSDF is used as it is"),
-                );
-                let inner = nested().ok_or_else(|| self.err(f, node, format!("{ty} needs a nested BSDF")))?;
-                for p in &props {
-                    used.push(p.attribute("name").unwrap_or("").to_string());
-                }
-                let def = self.bsdf(f, inner)?;
-                return Ok(BsdfDef { loc, ..def });
-            }
             other => {
                 self.warn(
                     f,
@@ -1738,6 +1778,7 @@ impl Loader {
         Ok(BsdfDef {
             opacity: None,
             normal_map: None,
+            bump_map: None,
             roughness_map,
             kind,
             two_sided: false,
@@ -1950,6 +1991,7 @@ impl Loader {
                     BsdfDef {
                         opacity: None,
                         normal_map: None,
+                        bump_map: None,
                         roughness_map: None,
                         kind: MaterialKindDesc::Diffuse {
                             reflectance: ColorSource::Rgb(Rgb::splat(0.5)),
@@ -1986,6 +2028,7 @@ impl Loader {
         m.two_sided = def.two_sided;
         m.opacity = def.opacity.clone();
         m.normal_map = def.normal_map.clone();
+        m.bump_map = def.bump_map.clone();
         m.roughness_map = def.roughness_map.clone();
         m.locs = Locs::at(if def.loc.line > 0 { Some(def.loc.clone()) } else { None });
         if let Some((e, loc)) = emission {
@@ -3109,6 +3152,70 @@ mod tests {
         // The emitting shape gets its own material; the plain one is shared.
         assert_ne!(d.shapes[2].material, d.shapes[3].material);
         assert_eq!(by(3).emission, ColorSource::Rgb(Rgb::splat(4.0)));
+    }
+
+    /// A bump map keeps its nested BSDF and takes its texture whatever the
+    /// texture's name, with its scale; one over a normal map is named.
+    #[test]
+    fn bump_maps_take_their_texture_and_scale() {
+        let xml = r#"<scene version="3.0.0">
+          <texture type="checkerboard" id="checks"/>
+          <bsdf type="bumpmap" id="a">
+            <float name="scale" value="0.02"/>
+            <texture name="anything" type="checkerboard"><float name="color0" value="0.2"/></texture>
+            <bsdf type="roughconductor"/>
+          </bsdf>
+          <bsdf type="bumpmap" id="b"><ref id="checks"/><bsdf type="diffuse"/></bsdf>
+          <bsdf type="bumpmap" id="c">
+            <ref name="heights" id="checks"/>
+            <bsdf type="normalmap"><rgb name="normalmap" value="0.5, 0.5, 1"/><bsdf type="diffuse"/></bsdf>
+          </bsdf>
+          <shape type="sphere"><ref id="a"/></shape>
+          <shape type="sphere"><ref id="b"/></shape>
+          <shape type="sphere"><ref id="c"/></shape>
+        </scene>"#;
+        let d = parse_str(xml).unwrap();
+        let by = |i: usize| material_of(&d, i);
+        assert!(matches!(by(0).kind, MaterialKindDesc::Conductor { .. }));
+        let a = by(0).bump_map.clone().expect("a bump map");
+        assert_eq!(a.scale, 0.02);
+        let ColorSource::Texture(name) = &a.height else {
+            panic!("{:?}", a.height)
+        };
+        assert!(
+            d.textures
+                .iter()
+                .any(|t| &t.name == name && matches!(t.kind, TextureKind::Checkerboard { .. }))
+        );
+        let b = by(1).bump_map.clone().expect("a bump map");
+        assert_eq!(b.scale, 1.0);
+        assert!(matches!(by(1).kind, MaterialKindDesc::Diffuse { .. }));
+        // The outer map wins, and the inner one is named.
+        assert!(by(2).bump_map.is_some() && by(2).normal_map.is_none());
+        assert_eq!(
+            d.warnings
+                .iter()
+                .filter(|w| w.contains("a bumpmap over a normalmap"))
+                .count(),
+            1,
+            "{:?}",
+            d.warnings
+        );
+        assert!(
+            !d.warnings
+                .iter()
+                .any(|w| !w.contains("a bumpmap over") && (w.contains("unsupported") || w.contains("ignored"))),
+            "{:?}",
+            d.warnings
+        );
+        // Without a texture there are no heights.
+        let err = parse_str(
+            r#"<scene version="3.0.0"><bsdf type="bumpmap" id="x"><bsdf type="diffuse"/></bsdf>
+               <shape type="sphere"><ref id="x"/></shape></scene>"#,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("bumpmap needs a nested texture"), "{err}");
     }
 
     /// Roughness given as textures (Mitsuba's float textures for `alpha_u`

@@ -732,6 +732,12 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
     m.two_sided = t.boolean("two_sided")?.unwrap_or(true);
     m.opacity = t.color_source("opacity")?;
     m.normal_map = t.color_source("normal_map")?;
+    if let Some(height) = t.color_source("bump_map")? {
+        m.bump_map = Some(BumpMapDesc {
+            height,
+            scale: t.number_or("bump_scale", 1.0)?,
+        });
+    }
     if let Some(u) = t.string("roughness_texture")? {
         let v = t.string("roughness_texture_v")?.unwrap_or_else(|| u.clone());
         m.roughness_map = Some(RoughnessMapDesc {
@@ -1128,6 +1134,19 @@ material = "red"
                 }
             ));
         }
+        let d = parse_str(&with("plastic", "bump_map = [0.5, 0.5, 0.5]\nbump_scale = 0.25")).unwrap();
+        assert_eq!(
+            d.materials[0].bump_map,
+            Some(BumpMapDesc {
+                height: ColorSource::Rgb(Rgb::splat(0.5)),
+                scale: 0.25
+            })
+        );
+        let e = error_of(&with(
+            "plastic",
+            "bump_map = [0.5, 0.5, 0.5]\nnormal_map = [0.5, 0.5, 1.0]",
+        ));
+        assert!(e.contains("bump_map") && e.contains("not both"), "{e}");
         let d = parse_str(&with("plastic", "normal_map = [0.5, 0.6, 0.9]")).unwrap();
         assert_eq!(
             d.materials[0].normal_map,

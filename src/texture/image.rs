@@ -120,6 +120,27 @@ impl ImageTexture {
         }
     }
 
+    /// The derivatives along u and v of the luminance of
+    /// [`ImageTexture::lookup`] at `uv` times `tint`: those of the bilinear interpolant
+    /// (zero for nearest-texel reads, constant between texels), as
+    /// Mitsuba's `bitmap` gives them to bump maps (`eval_1_grad`).
+    pub fn luminance_gradient(&self, uv: Vec2, wrap: WrapMode, filter: ImageFilter, tint: Rgb) -> Vec2 {
+        let (w, h) = (self.width as f32, self.height as f32);
+        let (x, y) = (uv.x * w - 0.5, (1.0 - uv.y) * h - 0.5);
+        if filter == ImageFilter::Nearest || !x.is_finite() || !y.is_finite() {
+            return Vec2::ZERO;
+        }
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (xi, yi) = (x0 as i64, y0 as i64);
+        let f = |dx: i64, dy: i64| crate::color::luminance(self.texel(xi + dx, yi + dy, wrap) * tint);
+        let (f00, f10, f01, f11) = (f(0, 0), f(1, 0), f(0, 1), f(1, 1));
+        let d_dx = (1.0 - fy) * (f10 - f00) + fy * (f11 - f01);
+        let d_dy = (1.0 - fx) * (f01 - f00) + fx * (f11 - f10);
+        // x = u·w − 1/2 and y = (1 − v)·h − 1/2.
+        Vec2::new(d_dx * w, -d_dy * h)
+    }
+
     /// Mean colour.
     pub fn average(&self) -> Rgb {
         let sum = self.pixels.iter().fold(glam::DVec3::ZERO, |a, p| a + p.as_dvec3());
@@ -168,6 +189,52 @@ pub enum ImageFilter {
 mod tests {
     use super::*;
     use crate::color::srgb_to_linear;
+
+    #[test]
+    fn luminance_gradients_are_the_interpolants_derivatives() {
+        // A 5 × 4 image of unrelated colours, every wrap, against central
+        // differences of the looked-up luminance inside texel cells.
+        let mut rng = crate::sampling::rng::Pcg32::new(11, 3);
+        let pixels = (0..20)
+            .map(|_| Rgb::new(rng.next_f32(), rng.next_f32(), rng.next_f32()))
+            .collect();
+        let t = ImageTexture {
+            width: 5,
+            height: 4,
+            pixels,
+        };
+        let tint = Rgb::new(0.5, 2.0, 1.0);
+        let lum = |uv: Vec2, wrap| crate::color::luminance(t.lookup(uv, wrap, ImageFilter::Bilinear) * tint);
+        let h = 1e-3;
+        for wrap in [WrapMode::Repeat, WrapMode::Clamp, WrapMode::Mirror] {
+            for _ in 0..200 {
+                let uv = Vec2::new(rng.next_f32() * 3.0 - 1.0, rng.next_f32() * 3.0 - 1.0);
+                // Central differences straddle no texel centre.
+                let (x, y) = (uv.x * 5.0 - 0.5, (1.0 - uv.y) * 4.0 - 0.5);
+                if (x - x.round()).abs() < 0.01 || (y - y.round()).abs() < 0.01 {
+                    continue;
+                }
+                let g = t.luminance_gradient(uv, wrap, ImageFilter::Bilinear, tint);
+                let du = (lum(uv + Vec2::new(h, 0.0), wrap) - lum(uv - Vec2::new(h, 0.0), wrap)) / (2.0 * h);
+                let dv = (lum(uv + Vec2::new(0.0, h), wrap) - lum(uv - Vec2::new(0.0, h), wrap)) / (2.0 * h);
+                assert!(
+                    (g.x - du).abs() < 0.02 * (1.0 + du.abs()),
+                    "{wrap:?} {uv}: {} against {du}",
+                    g.x
+                );
+                assert!(
+                    (g.y - dv).abs() < 0.02 * (1.0 + dv.abs()),
+                    "{wrap:?} {uv}: {} against {dv}",
+                    g.y
+                );
+            }
+        }
+        // Nearest-texel reads are flat.
+        assert_eq!(
+            t.luminance_gradient(Vec2::splat(0.3), WrapMode::Repeat, ImageFilter::Nearest, tint),
+            Vec2::ZERO
+        );
+    }
 
     #[test]
     fn bilinear_interpolates_and_wraps() {

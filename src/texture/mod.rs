@@ -148,6 +148,26 @@ impl Texture {
         }
     }
 
+    /// The derivatives along u and v of the texture's luminance at `tc`,
+    /// for bump maps: an image's are its interpolant's; checks are constant
+    /// almost everywhere, as are constants; a mesh attribute gives none.
+    pub fn luminance_gradient(&self, images: &[ImageTexture], tc: &TexCoord) -> Vec2 {
+        match *self {
+            Texture::Image {
+                image,
+                scale,
+                offset,
+                wrap,
+                filter,
+                tint,
+            } => images[image as usize].luminance_gradient(tc.uv * scale + offset, wrap, filter, tint) * scale,
+            Texture::Constant(_)
+            | Texture::Checkerboard { .. }
+            | Texture::Checkerboard3d { .. }
+            | Texture::MeshAttribute(_) => Vec2::ZERO,
+        }
+    }
+
     /// The texture's average colour: its value for constants, the mean of
     /// the checks or of the image otherwise.
     pub fn average(&self, images: &[ImageTexture]) -> Rgb {

@@ -449,6 +449,7 @@ impl Parser {
             locs: Locs::at(Some(loc.clone())),
             tex_refs: Vec::new(),
             normal_map: None,
+            bump_map: None,
             roughness_map: None,
         };
         let what = format!("material \"{kind}\"");
@@ -471,6 +472,25 @@ impl Parser {
                 locs: Locs::at(Some(prm.loc.clone())),
             });
             def.normal_map = Some(ColorSource::Texture(texture));
+        }
+        // pbrt-v4's bump map: a float texture of heights along the shading
+        // normal; a normal map, where there is one, takes precedence.
+        if let Some((FloatValue::Texture(t), prm)) = p.float_or_texture("displacement")? {
+            let loc = prm.loc.clone();
+            match self.float_texture_descs.get(&t) {
+                Some(_) if def.normal_map.is_some() => {}
+                Some((desc_name, _)) => {
+                    def.bump_map = Some(BumpMapDesc {
+                        height: ColorSource::Texture(desc_name.clone()),
+                        scale: 1.0,
+                    });
+                }
+                None => self.unsupported(
+                    &loc,
+                    format!("\"displacement\" texture \"{t}\""),
+                    "trazo bumps only with the float textures it reads; the surface is left smooth",
+                ),
+            }
         }
         let desc = match kind {
             "diffuse" => MaterialKindDesc::Diffuse {

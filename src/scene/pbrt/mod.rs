@@ -247,6 +247,8 @@ struct MatDef {
     tex_refs: Vec<(String, SourceLoc)>,
     /// Its `"string normalmap"` image, as a texture.
     normal_map: Option<ColorSource>,
+    /// Its `"texture displacement"`, as a bump map.
+    bump_map: Option<BumpMapDesc>,
     /// Roughness from float textures (conductors and dielectrics).
     roughness_map: Option<RoughnessMapDesc>,
 }
@@ -1195,13 +1197,14 @@ impl Parser {
             }
         }
 
-        // Float textures that no roughness reads are not loaded (pbrt's
-        // float textures are mostly bump maps, which trazo does not use).
+        // Float textures that no roughness or bump map reads are not loaded.
         let read_floats: HashSet<String> = self
             .materials
             .iter()
-            .filter_map(|m| m.roughness_map.as_ref())
-            .flat_map(|r| [&r.u, &r.v])
+            .flat_map(|m| {
+                let roughness = m.roughness_map.iter().flat_map(|r| [&r.u, &r.v]);
+                roughness.chain(m.bump_map.iter().map(|b| &b.height))
+            })
             .filter_map(|c| match c {
                 ColorSource::Texture(t) => Some(t.clone()),
                 ColorSource::Rgb(_) => None,
@@ -1376,6 +1379,7 @@ impl Parser {
         let mut m = MaterialDesc::with_kind(name, kind);
         m.locs = def.locs.clone();
         m.normal_map = def.normal_map.clone();
+        m.bump_map = def.bump_map.clone();
         m.roughness_map = def.roughness_map.clone();
         if let Some(e) = emission {
             m.emission = ColorSource::Rgb(e.radiance);

@@ -1823,6 +1823,52 @@ Shape "sphere""#,
 }
 
 #[test]
+fn displacement_textures_are_bump_maps() {
+    let d = world(
+        r#"Texture "bumps" "float" "imagemap" "string filename" "textures/bumps.png"
+Texture "noise" "float" "fbm"
+Material "diffuse" "texture displacement" "bumps"
+Shape "sphere"
+Material "diffuse" "texture displacement" "noise"
+Shape "sphere"
+Material "diffuse" "texture displacement" "bumps" "string normalmap" "textures/n.png"
+Shape "sphere""#,
+    );
+    let material = |i: usize| {
+        let name = d.shapes[i].material.as_ref().expect("a material");
+        d.materials.iter().find(|m| &m.name == name).expect("its material")
+    };
+    let b = material(0).bump_map.as_ref().expect("a bump map");
+    assert_eq!(b.scale, 1.0);
+    let ColorSource::Texture(name) = &b.height else {
+        panic!("{:?}", b.height)
+    };
+    let t = d.textures.iter().find(|t| &t.name == name).expect("its texture");
+    assert!(
+        matches!(&t.kind, TextureKind::Image { source: ImageSource::File(f), .. } if f.ends_with("textures/bumps.png")),
+        "{:?}",
+        t.kind
+    );
+    // A float texture trazo does not read leaves the surface smooth, named.
+    assert!(material(1).bump_map.is_none());
+    assert!(
+        d.warnings
+            .iter()
+            .any(|w| w.contains("\"displacement\" texture \"noise\"")),
+        "{:?}",
+        d.warnings
+    );
+    // As in pbrt-v4, a normal map wins.
+    let both = material(2);
+    assert!(both.normal_map.is_some() && both.bump_map.is_none());
+    assert!(
+        !d.warnings.iter().any(|w| w.contains("\"displacement\" is")),
+        "{:?}",
+        d.warnings
+    );
+}
+
+#[test]
 fn conductor_spectra_from_spd_files_and_samples_are_read_at_the_rgb_wavelengths() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
