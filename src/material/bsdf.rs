@@ -14,6 +14,7 @@ use super::dielectric::DielectricBsdf;
 use super::lambert::LambertBsdf;
 use super::layered::LayeredBsdf;
 use super::plastic::PlasticBsdf;
+use super::principled::PrincipledBsdf;
 use super::thin::ThinBsdf;
 use crate::color::Rgb;
 use crate::sampling::warp::{
@@ -103,6 +104,8 @@ pub enum Bsdf<'a> {
     /// pbrt-v4's stochastic layered BSDF: a dielectric coat over a diffuse
     /// or conductor base.
     Layered(LayeredBsdf),
+    /// Disney's principled BSDF, as Mitsuba 3 evaluates it.
+    Principled(PrincipledBsdf),
 }
 
 macro_rules! dispatch {
@@ -115,6 +118,7 @@ macro_rules! dispatch {
             Bsdf::Plastic($b) => $e,
             Bsdf::Thin($b) => $e,
             Bsdf::Layered($b) => $e,
+            Bsdf::Principled($b) => $e,
         }
     };
 }
@@ -167,7 +171,11 @@ impl Bsdf<'_> {
     /// Whether a non-delta lobe transmits (glossy or diffuse transmission).
     #[inline]
     pub fn has_smooth_transmission(&self) -> bool {
-        matches!(self, Bsdf::Dielectric(d) if d.has_smooth())
+        match self {
+            Bsdf::Dielectric(d) => d.has_smooth(),
+            Bsdf::Principled(p) => p.transmits(),
+            _ => false,
+        }
     }
 
     /// Whether light can pass through the surface.
@@ -176,6 +184,7 @@ impl Bsdf<'_> {
         match self {
             Bsdf::Dielectric(_) | Bsdf::Thin(_) => true,
             Bsdf::Classic(c) => c.kt != Rgb::ZERO,
+            Bsdf::Principled(p) => p.transmits(),
             _ => false,
         }
     }

@@ -27,6 +27,7 @@ pub mod microfacet;
 pub mod optics;
 pub mod phong;
 pub mod plastic;
+pub mod principled;
 pub mod thin;
 
 pub use bsdf::{Bsdf, BsdfSample, DirectionSampling, TransportMode};
@@ -43,6 +44,7 @@ use lambert::LambertBsdf;
 use layered::{LayerBase, LayeredBsdf};
 pub use microfacet::{Microfacet, MicrofacetDistribution};
 use plastic::{CoatTables, PlasticBsdf};
+use principled::PrincipledParams;
 use thin::ThinBsdf;
 
 /// The scattering model of a material.
@@ -126,6 +128,15 @@ pub enum MaterialKind {
         max_depth: u32,
         /// Walks per evaluation.
         samples: u32,
+    },
+    /// Disney's principled BSDF, as Mitsuba 3's `principled`.
+    Principled {
+        /// Its parameters.
+        params: Box<PrincipledParams<Texture>>,
+        /// Index of refraction inside, relative to the outside.
+        eta: f32,
+        /// The thin form (Mitsuba's `principledthin`).
+        thin: bool,
     },
     /// A thin dielectric sheet (index 1: no surface, only the boundary of
     /// a medium).
@@ -470,6 +481,10 @@ impl Material {
         match &self.kind {
             MaterialKind::Classic { transmission, .. } => *transmission != Rgb::ZERO,
             MaterialKind::Dielectric { .. } | MaterialKind::Thin { .. } => true,
+            MaterialKind::Principled { params, thin, .. } => {
+                params.spec_trans != Texture::Constant(Rgb::ZERO)
+                    || (*thin && params.diff_trans != Texture::Constant(Rgb::ZERO))
+            }
             _ => false,
         }
     }
@@ -491,8 +506,12 @@ impl Material {
             } => &[diffuse],
             MaterialKind::Layered { .. } => &[],
             MaterialKind::Conductor { .. } | MaterialKind::Dielectric { .. } | MaterialKind::Thin { .. } => &[],
+            MaterialKind::Principled { .. } => &[],
         };
         let mut all = vec![&self.emission];
+        if let MaterialKind::Principled { params, .. } = &self.kind {
+            all.extend(params.named().map(|(_, t)| t));
+        }
         all.extend(self.opacity.as_ref());
         all.extend(self.normal_map.as_ref());
         all.extend(self.bump_map.as_ref().map(|b| &b.height));
@@ -671,6 +690,21 @@ impl Material {
                     ..zero
                 }
             }
+            MaterialKind::Principled { params, eta, thin } => {
+                // The lobes' weights at normal incidence.
+                let b = params.bsdf_at(images, tc, *eta, *thin);
+                let dielectric = 1.0 - b.metallic;
+                let f0 = optics::fresnel_dielectric(1.0, *eta);
+                let alpha = (b.roughness * b.roughness).max(0.001);
+                ClassicParams {
+                    kd: b.base_color * dielectric * (1.0 - b.spec_trans),
+                    ks: Rgb::splat(dielectric * f0) + b.base_color * b.metallic,
+                    shininess: phong_exponent_for_alpha(alpha),
+                    kt: b.base_color.powf(0.5) * dielectric * b.spec_trans,
+                    ior: *eta,
+                    ..zero
+                }
+            }
             MaterialKind::Thin {
                 eta,
                 reflect_tint,
@@ -791,6 +825,7 @@ impl Material {
                 max_depth: *max_depth,
                 samples: *samples,
             }),
+            MaterialKind::Principled { params, eta, thin } => Bsdf::Principled(params.bsdf_at(images, tc, *eta, *thin)),
             MaterialKind::Thin {
                 eta,
                 reflect_tint,

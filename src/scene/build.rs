@@ -855,6 +855,19 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             bump_map: None,
             roughness_map: None,
         },
+        MaterialKindDesc::Principled { params, eta, thin } => Material {
+            kind: MaterialKind::Principled {
+                params: Box::new(params.map(color)),
+                eta: *eta,
+                thin: *thin,
+            },
+            emission: Texture::Constant(Rgb::ZERO),
+            two_sided: *thin,
+            opacity: None,
+            normal_map: None,
+            bump_map: None,
+            roughness_map: None,
+        },
         // Replaced by `resolve_mixes` once every material is made.
         MaterialKindDesc::Mix { .. } => Material::default(),
     };

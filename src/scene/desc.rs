@@ -346,6 +346,16 @@ pub enum MaterialKindDesc {
         /// The two materials' names.
         materials: [String; 2],
     },
+    /// Disney's principled BSDF (Mitsuba's `principled`; see
+    /// [`crate::material::principled`]).
+    Principled {
+        /// The parameters: the base colour, the others' first channels.
+        params: Box<crate::material::principled::PrincipledParams<ColorSource>>,
+        /// Index of refraction inside, relative to the outside.
+        eta: f32,
+        /// The thin form (Mitsuba's `principledthin`): a two-sided sheet.
+        thin: bool,
+    },
 }
 
 /// How deep mixes may nest (a deeper chain is refused as a likely cycle).
@@ -1249,6 +1259,12 @@ impl SceneDesc {
                     ior("ext_ior", *ext_ior)?;
                     c.color("reflect_tint", *reflect_tint)?;
                     c.color("transmit_tint", *transmit_tint)?;
+                }
+                MaterialKindDesc::Principled { params, eta, .. } => {
+                    for (key, t) in params.named() {
+                        texture(key, t)?;
+                    }
+                    ior("eta", *eta)?;
                 }
                 MaterialKindDesc::Mix { weight, materials } => {
                     texture("weight", weight)?;

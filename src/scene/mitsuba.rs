@@ -1520,6 +1520,102 @@ impl Loader {
                 def.loc = loc;
                 return Ok(def);
             }
+            "principled" | "principledthin" => {
+                let thin = ty == "principledthin";
+                let base_color = self
+                    .color_source(f, &props, "base_color", &mut used)?
+                    .unwrap_or(ColorSource::Rgb(Rgb::splat(0.5)));
+                // The rest are floats (`eval_1`), 0 by default but roughness;
+                // the thin form has no metal or clearcoat.
+                let mut float = |me: &mut Self, name: &str, default: f32| -> Result<ColorSource> {
+                    let takes = !(thin && matches!(name, "metallic" | "clearcoat" | "clearcoat_gloss"))
+                        && (thin || name != "diff_trans");
+                    if !takes {
+                        return Ok(ColorSource::Rgb(Rgb::splat(default)));
+                    }
+                    Ok(match me.color_source(f, &props, name, &mut used)? {
+                        Some(c) => me.float_texture(c),
+                        None => ColorSource::Rgb(Rgb::splat(default)),
+                    })
+                };
+                let params = crate::material::principled::PrincipledParams {
+                    base_color,
+                    roughness: float(self, "roughness", 0.5)?,
+                    anisotropic: float(self, "anisotropic", 0.0)?,
+                    metallic: float(self, "metallic", 0.0)?,
+                    spec_trans: float(self, "spec_trans", 0.0)?,
+                    spec_tint: float(self, "spec_tint", 0.0)?,
+                    sheen: float(self, "sheen", 0.0)?,
+                    sheen_tint: float(self, "sheen_tint", 0.0)?,
+                    flatness: float(self, "flatness", 0.0)?,
+                    clearcoat: float(self, "clearcoat", 0.0)?,
+                    clearcoat_gloss: float(self, "clearcoat_gloss", 0.0)?,
+                    diff_trans: float(self, "diff_trans", 0.0)?,
+                };
+                // Mitsuba's sampling rates change the noise, not the image.
+                let rates: &[&str] = if thin {
+                    &[
+                        "specular_reflectance_sampling_rate",
+                        "specular_transmittance_sampling_rate",
+                        "diffuse_transmittance_sampling_rate",
+                        "diffuse_reflectance_sampling_rate",
+                    ]
+                } else {
+                    &[
+                        "main_specular_sampling_rate",
+                        "clearcoat_sampling_rate",
+                        "diffuse_reflectance_sampling_rate",
+                    ]
+                };
+                for rate in rates {
+                    self.float(f, &props, rate, &mut used)?;
+                }
+                let eta = if thin {
+                    match self.color_source(f, &props, "eta", &mut used)? {
+                        None => 1.5,
+                        Some(ColorSource::Rgb(c)) => c.x,
+                        Some(ColorSource::Texture(_)) => {
+                            self.warn(
+                                f,
+                                node,
+                                "a textured \"eta\" is unsupported: Mitsuba's default 1.5 is used",
+                            );
+                            1.5
+                        }
+                    }
+                } else {
+                    // A present spec_trans (unless the number 0) turns the
+                    // transmission on, and with it Mitsuba's guards on η.
+                    let transmits = !matches!(params.spec_trans, ColorSource::Rgb(c) if c == Rgb::ZERO);
+                    match (
+                        self.float(f, &props, "eta", &mut used)?,
+                        self.float(f, &props, "specular", &mut used)?,
+                    ) {
+                        (Some(_), Some(_)) => {
+                            return Err(self.err(f, node, "principled takes \"eta\" or \"specular\", not both"));
+                        }
+                        (Some(eta), None) if transmits && eta == 1.0 => 1.001,
+                        (Some(eta), None) => eta,
+                        (None, specular) => {
+                            let specular = specular.unwrap_or(0.5);
+                            let specular = if transmits && specular == 0.0 { 1e-3 } else { specular };
+                            if !(0.0..12.5).contains(&specular) {
+                                return Err(self.err(
+                                    f,
+                                    node,
+                                    format!("principled \"specular\" must lie in [0, 12.5), got {specular}"),
+                                ));
+                            }
+                            crate::material::principled::eta_from_specular(specular)
+                        }
+                    }
+                };
+                MaterialKindDesc::Principled {
+                    params: Box::new(params),
+                    eta,
+                    thin,
+                }
+            }
             "diffuse" => MaterialKindDesc::Diffuse {
                 reflectance: self
                     .color_source(f, &props, "reflectance", &mut used)?
@@ -1775,13 +1871,15 @@ impl Loader {
             }
         };
         self.unused(f, node, &props, &used);
+        // Mitsuba's BSDFs are one-sided, but for its thin sheet.
+        let two_sided = matches!(kind, MaterialKindDesc::Principled { thin: true, .. });
         Ok(BsdfDef {
             opacity: None,
             normal_map: None,
             bump_map: None,
             roughness_map,
             kind,
-            two_sided: false,
+            two_sided,
             material: None,
             loc,
         })
@@ -3216,6 +3314,78 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(err.contains("bumpmap needs a nested texture"), "{err}");
+    }
+
+    /// `principled` takes Mitsuba's defaults, its index from `specular`
+    /// (or `eta`, not both) and floats as float textures; `principledthin`
+    /// is two-sided and takes `diff_trans`.
+    #[test]
+    fn principled_bsdfs_take_mitsubas_parameters() {
+        let xml = r#"<scene version="3.0.0">
+          <bsdf type="principled" id="a"/>
+          <bsdf type="principled" id="b">
+            <rgb name="base_color" value="0.2, 0.8, 0.1"/>
+            <float name="roughness" value="0.15"/>
+            <texture name="metallic" type="checkerboard">
+              <float name="color0" value="0.7"/><float name="color1" value="0.1"/>
+            </texture>
+            <float name="spec_trans" value="0.5"/>
+            <float name="eta" value="1"/>
+            <float name="main_specular_sampling_rate" value="2"/>
+          </bsdf>
+          <bsdf type="principledthin" id="c">
+            <float name="diff_trans" value="1.4"/>
+            <float name="eta" value="1.33"/>
+          </bsdf>
+          <shape type="sphere"><ref id="a"/></shape>
+          <shape type="sphere"><ref id="b"/></shape>
+          <shape type="rectangle"><ref id="c"/></shape>
+        </scene>"#;
+        let d = parse_str(xml).unwrap();
+        assert!(
+            d.warnings
+                .iter()
+                .all(|w| !w.contains("principled") && !w.contains("ignored")),
+            "{:?}",
+            d.warnings
+        );
+        let by = |i: usize| material_of(&d, i);
+        let MaterialKindDesc::Principled { params, eta, thin } = &by(0).kind else {
+            panic!("{:?}", by(0).kind)
+        };
+        assert!(!thin && !by(0).two_sided);
+        assert!((eta - 1.5).abs() < 1e-3, "{eta}"); // specular 0.5
+        assert_eq!(params.base_color, ColorSource::Rgb(Rgb::splat(0.5)));
+        assert_eq!(params.roughness, ColorSource::Rgb(Rgb::splat(0.5)));
+        assert_eq!(params.clearcoat, ColorSource::Rgb(Rgb::ZERO));
+        let MaterialKindDesc::Principled { params, eta, .. } = &by(1).kind else {
+            panic!("{:?}", by(1).kind)
+        };
+        // With transmission on, η = 1 becomes 1.001, as in Mitsuba.
+        assert_eq!(*eta, 1.001);
+        assert_eq!(params.roughness, ColorSource::Rgb(Rgb::splat(0.15)));
+        // A float read from checks: Mitsuba's eval_1 swaps color0 and color1.
+        let ColorSource::Texture(name) = &params.metallic else {
+            panic!("{:?}", params.metallic)
+        };
+        let t = d.textures.iter().find(|t| &t.name == name).unwrap();
+        assert!(
+            matches!(t.kind, TextureKind::Checkerboard { even, .. } if even == Rgb::splat(0.1)),
+            "{:?}",
+            t.kind
+        );
+        let MaterialKindDesc::Principled { params, eta, thin } = &by(2).kind else {
+            panic!("{:?}", by(2).kind)
+        };
+        assert!(*thin && by(2).two_sided);
+        assert_eq!((*eta, &params.diff_trans), (1.33, &ColorSource::Rgb(Rgb::splat(1.4))));
+        let e = parse_str(
+            r#"<scene version="3.0.0"><bsdf type="principled" id="x"><float name="eta" value="1.4"/>
+               <float name="specular" value="0.3"/></bsdf><shape type="sphere"><ref id="x"/></shape></scene>"#,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("\"eta\" or \"specular\", not both"), "{e}");
     }
 
     /// Roughness given as textures (Mitsuba's float textures for `alpha_u`

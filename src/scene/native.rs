@@ -605,7 +605,7 @@ fn read_texture(t: &Table) -> Result<TextureDesc> {
 }
 
 /// The material types of the native format.
-pub const MATERIAL_TYPES: [&str; 9] = [
+pub const MATERIAL_TYPES: [&str; 10] = [
     "classic",
     "diffuse",
     "mirror",
@@ -615,6 +615,7 @@ pub const MATERIAL_TYPES: [&str; 9] = [
     "thin",
     "null",
     "mix",
+    "principled",
 ];
 
 fn read_material(t: &Table) -> Result<MaterialDesc> {
@@ -695,6 +696,42 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
             transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
         },
         "null" => MaterialKindDesc::NULL,
+        "principled" => {
+            let thin = t.boolean("thin")?.unwrap_or(false);
+            let param = |key: &str, default: f32| -> Result<ColorSource> {
+                Ok(t.color_source(key)?.unwrap_or(ColorSource::Rgb(Rgb::splat(default))))
+            };
+            let zero = ColorSource::Rgb(Rgb::ZERO);
+            // The thin sheet has no metal or clearcoat; only it transmits diffusely.
+            let (metallic, clearcoat, clearcoat_gloss, diff_trans) = if thin {
+                (zero.clone(), zero.clone(), zero.clone(), param("diff_trans", 0.0)?)
+            } else {
+                (
+                    param("metallic", 0.0)?,
+                    param("clearcoat", 0.0)?,
+                    param("clearcoat_gloss", 0.0)?,
+                    zero,
+                )
+            };
+            MaterialKindDesc::Principled {
+                params: Box::new(crate::material::principled::PrincipledParams {
+                    base_color: param("base_color", 0.5)?,
+                    roughness: param("roughness", 0.5)?,
+                    anisotropic: param("anisotropic", 0.0)?,
+                    metallic,
+                    spec_trans: param("spec_trans", 0.0)?,
+                    spec_tint: param("spec_tint", 0.0)?,
+                    sheen: param("sheen", 0.0)?,
+                    sheen_tint: param("sheen_tint", 0.0)?,
+                    flatness: param("flatness", 0.0)?,
+                    clearcoat,
+                    clearcoat_gloss,
+                    diff_trans,
+                }),
+                eta: t.number_or("ior", 1.5)?,
+                thin,
+            }
+        }
         "mix" => {
             let names = t.value("materials").and_then(|v| match v.get_ref() {
                 DeValue::Array(a) => {
@@ -1147,6 +1184,24 @@ material = "red"
             "bump_map = [0.5, 0.5, 0.5]\nnormal_map = [0.5, 0.5, 1.0]",
         ));
         assert!(e.contains("bump_map") && e.contains("not both"), "{e}");
+        let d = parse_str(&MINIMAL.replace(
+            "diffuse = [0.8, 0.1, 0.1]",
+            "type = \"principled\"\nbase_color = [0.2, 0.8, 0.1]\nmetallic = 0.3\nior = 1.4",
+        ))
+        .unwrap();
+        let MaterialKindDesc::Principled { params, eta, thin } = &d.materials[0].kind else {
+            panic!("{:?}", d.materials[0].kind)
+        };
+        assert_eq!((*eta, *thin), (1.4, false));
+        assert_eq!(params.base_color, ColorSource::Rgb(Rgb::new(0.2, 0.8, 0.1)));
+        assert_eq!(params.metallic, ColorSource::Rgb(Rgb::splat(0.3)));
+        assert_eq!(params.roughness, ColorSource::Rgb(Rgb::splat(0.5)));
+        // A thin sheet has no metal.
+        let e = error_of(&MINIMAL.replace(
+            "diffuse = [0.8, 0.1, 0.1]",
+            "type = \"principled\"\nthin = true\nmetallic = 0.3",
+        ));
+        assert!(e.contains("metallic"), "{e}");
         let d = parse_str(&with("plastic", "normal_map = [0.5, 0.6, 0.9]")).unwrap();
         assert_eq!(
             d.materials[0].normal_map,
