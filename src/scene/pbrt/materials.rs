@@ -210,12 +210,24 @@ impl Parser {
     /// typical value, where, and the desc texture's name); other float
     /// textures give 0 with a warning.
     fn roughness_param(&mut self, p: &ParamList, name: &str) -> Result<Option<(f32, SourceLoc, Option<String>)>> {
+        self.float_or_read_texture(p, name, 0.0)
+    }
+
+    /// A float parameter, or a float texture trazo reads (its typical
+    /// value, where, and the desc texture's name); other float textures
+    /// give `default` with a warning.
+    fn float_or_read_texture(
+        &mut self,
+        p: &ParamList,
+        name: &str,
+        default: f32,
+    ) -> Result<Option<(f32, SourceLoc, Option<String>)>> {
         if let Some((FloatValue::Texture(t), prm)) = p.float_or_texture(name)? {
             if let Some((desc_name, typical)) = self.float_texture_descs.get(&t) {
                 return Ok(Some((*typical, prm.loc.clone(), Some(desc_name.clone()))));
             }
         }
-        Ok(self.float_param(p, name, 0.0)?.map(|(v, l)| (v, l, None)))
+        Ok(self.float_param(p, name, default)?.map(|(v, l)| (v, l, None)))
     }
 
     /// GGX α along u and v from `roughness`/`uroughness`/`vroughness`,
@@ -604,20 +616,17 @@ impl Parser {
                     return Err(prm.err(format!("needs two material names, found {}", names.len())));
                 }
                 let mloc = prm.loc.clone();
-                let amount = self.float_param(p, "amount", 0.5)?.map_or(0.5, |(a, _)| a);
-                // pbrt-v4 `MixMaterial::ChooseMaterial` picks the second
-                // with probability `amount`.
-                let pick = usize::from(amount >= 0.5);
-                self.approximated(
-                    loc,
-                    &what,
-                    format!(
-                        "only \"{}\", the material with the larger weight, is rendered",
-                        names[pick]
-                    ),
-                );
+                // pbrt-v4's `MixMaterial::ChooseMaterial` takes the second
+                // with probability `amount`, by a hash of the point and the
+                // direction: trazo's mix.
+                let amount = match self.float_or_read_texture(p, "amount", 0.5)? {
+                    Some((_, _, Some(texture))) => ColorSource::Texture(texture),
+                    Some((a, _, None)) => ColorSource::Rgb(Rgb::splat(a)),
+                    None => ColorSource::Rgb(Rgb::splat(0.5)),
+                };
                 def.kind = MatKind::Mix {
-                    name: names[pick].clone(),
+                    names: [names[0].clone(), names[1].clone()],
+                    amount,
                     loc: mloc,
                 };
                 return Ok(def);

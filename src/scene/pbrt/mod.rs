@@ -256,9 +256,11 @@ struct MatDef {
 #[derive(Clone, Debug)]
 enum MatKind {
     Desc(MaterialKindDesc),
-    /// pbrt's `mix`: the chosen one of two named materials.
+    /// pbrt's `mix` of two named materials: the second with probability
+    /// `amount` at each point.
     Mix {
-        name: String,
+        names: [String; 2],
+        amount: ColorSource,
         loc: SourceLoc,
     },
 }
@@ -1197,13 +1199,18 @@ impl Parser {
             }
         }
 
-        // Float textures that no roughness or bump map reads are not loaded.
+        // Float textures that no roughness, bump map or mix reads are not
+        // loaded.
         let read_floats: HashSet<String> = self
             .materials
             .iter()
             .flat_map(|m| {
                 let roughness = m.roughness_map.iter().flat_map(|r| [&r.u, &r.v]);
-                roughness.chain(m.bump_map.iter().map(|b| &b.height))
+                let amount = match &m.kind {
+                    MatKind::Mix { amount, .. } => Some(amount),
+                    MatKind::Desc(_) => None,
+                };
+                roughness.chain(m.bump_map.iter().map(|b| &b.height)).chain(amount)
             })
             .filter_map(|c| match c {
                 ColorSource::Texture(t) => Some(t.clone()),
@@ -1240,7 +1247,7 @@ impl Parser {
         let mut named: Vec<(usize, String)> = self.named_materials.iter().map(|(n, &i)| (i, n.clone())).collect();
         named.sort();
         for (i, n) in named {
-            let base = self.resolve_material(i, 0)?;
+            let base = self.resolve_material(i)?;
             let name = unique_name(&mut names, n);
             let m = self.material_desc(base, None, name.clone());
             self.desc.materials.push(m);
@@ -1268,7 +1275,7 @@ impl Parser {
                 },
             };
             let index = match index {
-                Some(i) => Some(self.resolve_material(i, 0)?),
+                Some(i) => Some(self.resolve_material(i)?),
                 None => None,
             };
             let key = (
@@ -1344,37 +1351,35 @@ impl Parser {
     }
 
     /// Follows `mix` materials to the one chosen.
-    fn resolve_material(&self, i: usize, depth: usize) -> Result<usize> {
-        match &self.materials[i].kind {
-            MatKind::Desc(_) => Ok(i),
-            MatKind::Mix { name, loc } => {
-                if depth > 32 {
+    /// Material `i`, once the materials a mix names are known to exist (a
+    /// mix stays a mix; loops are refused when the scene is checked).
+    fn resolve_material(&self, i: usize) -> Result<usize> {
+        if let MatKind::Mix { names, loc, .. } = &self.materials[i].kind {
+            for name in names {
+                if !self.named_materials.contains_key(name) {
                     return Err(Error::scene(
-                        Some(loc.clone()),
-                        "materials",
-                        "mix materials refer to each other in a loop",
-                    ));
-                }
-                match self.named_materials.get(name) {
-                    Some(&j) => self.resolve_material(j, depth + 1),
-                    None => Err(Error::scene(
                         Some(loc.clone()),
                         "materials",
                         format!(
                             "no material named \"{name}\"{}",
                             suggest(name, self.named_materials.keys().map(String::as_str))
                         ),
-                    )),
+                    ));
                 }
             }
         }
+        Ok(i)
     }
 
     fn material_desc(&self, i: usize, emission: Option<&Emission>, name: String) -> MaterialDesc {
         let def = &self.materials[i];
         let kind = match &def.kind {
             MatKind::Desc(k) => k.clone(),
-            MatKind::Mix { .. } => unreachable!("resolved"),
+            // Named materials keep their names in the description.
+            MatKind::Mix { names, amount, .. } => MaterialKindDesc::Mix {
+                weight: amount.clone(),
+                materials: names.clone(),
+            },
         };
         let mut m = MaterialDesc::with_kind(name, kind);
         m.locs = def.locs.clone();

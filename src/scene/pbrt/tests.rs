@@ -761,13 +761,24 @@ Shape "sphere""#,
     );
     // Named materials are resolved when the file has been read, as pbrt does.
     assert_eq!(d.shapes[0].material.as_deref(), Some("later"));
-    // mix picks the second material with probability `amount`.
-    assert!(matches!(material(&d, 1).kind, MaterialKindDesc::Conductor { .. }));
-    assert!(
-        d.warnings
-            .iter()
-            .any(|w| w.contains("material \"mix\" is approximated"))
+    // mix takes the second material with probability `amount`.
+    assert_eq!(
+        material(&d, 1).kind,
+        MaterialKindDesc::Mix {
+            weight: ColorSource::Rgb(Rgb::splat(0.8)),
+            materials: ["later".to_string(), "metal".to_string()],
+        }
     );
+    assert!(!d.warnings.iter().any(|w| w.contains("mix")), "{:?}", d.warnings);
+    crate::scene::build(&d).expect("builds");
+    let e = error_of(
+        "WorldBegin\nMakeNamedMaterial \"m\" \"string type\" \"mix\" \"string materials\" [\"m\" \"m\"]\nNamedMaterial \"m\"\nShape \"sphere\"",
+    );
+    assert!(e.contains("m"), "{e}");
+    let e = error_of(
+        "WorldBegin\nMakeNamedMaterial \"m\" \"string type\" \"mix\" \"string materials\" [\"x\" \"y\"]\nNamedMaterial \"m\"\nShape \"sphere\"",
+    );
+    assert!(e.contains("no material named \"x\""), "{e}");
 
     let e = error_of(
         "WorldBegin\nNamedMaterial \"nope\"\nShape \"sphere\"\nMakeNamedMaterial \"nop\" \"string type\" \"diffuse\"",
