@@ -42,6 +42,10 @@ pub struct RenderSettings {
     pub tonemap: Tonemap,
     /// Exposure compensation in stops, applied before tone mapping.
     pub exposure: f32,
+    /// Largest RGB component of one camera sample once exposed: brighter
+    /// samples are scaled down to it (pbrt-v4's film `maxcomponentvalue`,
+    /// which trades fireflies for bias); infinite: no limit.
+    pub max_component_value: f32,
     /// Photon mapping and SPPM parameters.
     pub photon: PhotonSettings,
     /// The volumetric path tracer's estimator: `None`, delta and ratio
@@ -65,6 +69,7 @@ impl Default for RenderSettings {
             filter: Filter::default(),
             tonemap: Tonemap::default(),
             exposure: 0.0,
+            max_component_value: f32::INFINITY,
             photon: PhotonSettings::default(),
             march_step: None,
         }

@@ -452,6 +452,14 @@ impl InvalidSamples {
     }
 }
 
+/// `l` scaled down so that its largest component is at most `max`
+/// (pbrt-v4's `RGBFilm::AddSample`); `max` infinite leaves it as it is.
+#[inline]
+fn limit_component(l: Rgb, max: f32) -> Rgb {
+    let m = l.max_element();
+    if m > max { l * (max / m) } else { l }
+}
+
 /// Starts sample `index` of pixel `(x, y)` in `sampler` and draws its
 /// camera ray: the film position (anywhere in the pixel when splatting,
 /// else by the filter's importance) and the ray through it.
@@ -570,6 +578,9 @@ fn render_passes<I: Integrator>(
             }
         };
         let film_ref = &film;
+        // The limit applies to exposed values, as pbrt-v4's film applies it
+        // to sensor values.
+        let max_component = s.max_component_value / crate::film::io::exposure_scale(s.exposure);
         let results: Vec<Option<TileResult>> = tiles
             .par_iter()
             .map(|&tile| {
@@ -613,6 +624,7 @@ fn render_passes<I: Integrator>(
                             let (position, ray) = camera_sample(scene, splat.is_some(), &mut sampler, (x, y, index));
                             let l = integrator.radiance(scene, &ray, &mut sampler, &mut rays);
                             if l.is_finite() {
+                                let l = limit_component(l, max_component);
                                 match &splat {
                                     None => sum.add(l, 1.0),
                                     Some(sp) => splat_sample(sp, &mut splat_buffer, position, l),

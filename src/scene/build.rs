@@ -491,6 +491,18 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             desc.settings.integrator.name()
         ));
     }
+    if desc.settings.max_component_value.is_finite() && desc.settings.integrator == IntegratorKind::Sppm {
+        let at = desc
+            .settings_locs
+            .keys
+            .iter()
+            .find(|(k, _)| k == "max_component_value")
+            .map(|(_, l)| format!("{l}: "))
+            .unwrap_or_default();
+        warnings.push(format!(
+            "{at}max_component_value is unsupported by \"sppm\", whose pixels gather photons rather than samples: ignored"
+        ));
+    }
     let path_tracers = [IntegratorKind::Path, IntegratorKind::VolPath];
     if let Some(m) = desc.materials.iter().find(|m| m.opacity.is_some())
         && !path_tracers.contains(&desc.settings.integrator)

@@ -1604,6 +1604,12 @@ impl SceneDesc {
             return Err(c.err("max_depth", format!("must be at most {MAX_DEPTH}, got {}", s.max_depth)));
         }
         c.finite("exposure", s.exposure)?;
+        if !(s.max_component_value > 0.0) {
+            return Err(c.err(
+                "max_component_value",
+                format!("must be positive, got {}", s.max_component_value),
+            ));
+        }
         let ph = &s.photon;
         for (key, v, max) in [
             ("photons", ph.photons, MAX_PHOTONS),

@@ -482,6 +482,9 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     if let Some(e) = t.number("exposure")? {
         s.exposure = e;
     }
+    if let Some(m) = t.number("max_component_value")? {
+        s.max_component_value = m;
+    }
     if let Some(n) = t.unsigned("photons", u32::MAX as u64)? {
         s.photon.photons = n as u32;
     }

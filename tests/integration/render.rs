@@ -314,6 +314,35 @@ fn glass_sphere_in_a_uniform_background_disappears() {
     }
 }
 
+/// pbrt-v4's `maxcomponentvalue`: each sample is scaled so that its
+/// largest component, once exposed, is at most the limit; hue is kept.
+#[test]
+fn the_largest_component_of_a_sample_is_limited_after_exposure() {
+    let mut d = SceneDesc::default();
+    d.settings.width = 4;
+    d.settings.height = 4;
+    d.settings.spp = 2;
+    d.background = BackgroundDesc::Constant(Rgb::new(4.0, 2.0, 1.0));
+    let free = render_desc(&d, None).to_image();
+    assert!(
+        free.pixels
+            .iter()
+            .all(|p| (*p - Rgb::new(4.0, 2.0, 1.0)).abs().max_element() < 1e-5)
+    );
+    d.settings.max_component_value = 1.0;
+    d.settings.exposure = 1.0; // ×2: the film keeps at most 1/2
+    let limited = render_desc(&d, None).to_image();
+    for p in &limited.pixels {
+        assert!((*p - Rgb::new(0.5, 0.25, 0.125)).abs().max_element() < 1e-6, "{p}");
+    }
+    d.settings.max_component_value = 0.0;
+    let e = trazo::scene::build(&d)
+        .err()
+        .expect("a zero limit is refused")
+        .to_string();
+    assert!(e.contains("max_component_value") && e.contains("positive"), "{e}");
+}
+
 fn random_aggregate(seed: u64) -> Aggregate {
     let mut r = Pcg32::new(seed, 0);
     let mut v = || r.next_f32();

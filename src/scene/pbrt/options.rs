@@ -44,6 +44,13 @@ impl Parser {
                 "ignored; the output file is chosen with `-o`",
             );
         }
+        if let Some((m, prm)) = p.float_opt("maxcomponentvalue")? {
+            self.desc
+                .settings_locs
+                .keys
+                .push(("max_component_value".into(), prm.loc.clone()));
+            self.desc.settings.max_component_value = m;
+        }
         if let Some((iso, prm)) = p.float_opt("iso")? {
             if iso <= 0.0 {
                 return Err(prm.err(format!("must be positive, got {iso}")));

@@ -105,6 +105,24 @@ fn film_iso_and_shutter_set_the_exposure() {
 }
 
 #[test]
+fn film_maxcomponentvalue_limits_samples() {
+    let d = parse_str("Film \"rgb\" \"float maxcomponentvalue\" 10\nWorldBegin").unwrap();
+    assert_eq!(d.settings.max_component_value, 10.0);
+    assert!(
+        !d.warnings.iter().any(|w| w.contains("maxcomponentvalue")),
+        "{:?}",
+        d.warnings
+    );
+    assert!(
+        parse_str("WorldBegin")
+            .unwrap()
+            .settings
+            .max_component_value
+            .is_infinite()
+    );
+}
+
+#[test]
 fn perspective_fov_is_for_the_shorter_image_axis() {
     let fov = |w: u32, h: u32| {
         let d = parse_str(&format!(
