@@ -1604,7 +1604,7 @@ impl SceneDesc {
             return Err(c.err("max_depth", format!("must be at most {MAX_DEPTH}, got {}", s.max_depth)));
         }
         c.finite("exposure", s.exposure)?;
-        if !(s.max_component_value > 0.0) {
+        if s.max_component_value.is_nan() || s.max_component_value <= 0.0 {
             return Err(c.err(
                 "max_component_value",
                 format!("must be positive, got {}", s.max_component_value),
