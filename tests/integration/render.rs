@@ -336,10 +336,10 @@ fn the_largest_component_of_a_sample_is_limited_after_exposure() {
         assert!((*p - Rgb::new(0.5, 0.25, 0.125)).abs().max_element() < 1e-6, "{p}");
     }
     d.settings.max_component_value = 0.0;
-    let e = trazo::scene::build(&d)
-        .err()
-        .expect("a zero limit is refused")
-        .to_string();
+    let Err(e) = trazo::scene::build(&d) else {
+        panic!("a zero limit is refused")
+    };
+    let e = e.to_string();
     assert!(e.contains("max_component_value") && e.contains("positive"), "{e}");
 }
 
