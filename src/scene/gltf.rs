@@ -128,6 +128,42 @@ pub fn parse_bytes(bytes: &[u8], path: &Path, defines: &[(String, String)]) -> R
         }
     }
     root.extensions_required.clear();
+    // §3.2: the asset's version is "<major>.<minor>"; a loader reads only
+    // its own major version, and refuses a file whose minVersion is newer
+    // than what it knows.
+    let version_ok = |v: &str| {
+        let mut parts = v.split('.');
+        match (parts.next(), parts.next(), parts.next()) {
+            (Some(major), Some(minor), None) => Some((major.parse::<u32>().ok()?, minor.parse::<u32>().ok()?)),
+            _ => None,
+        }
+    };
+    match version_ok(&root.asset.version) {
+        Some((2, _)) => {}
+        Some(_) => {
+            return Err(reader.err(
+                "asset.version",
+                format!("glTF {} is not supported (trazo reads glTF 2.0)", root.asset.version),
+            ));
+        }
+        None => {
+            return Err(reader.err(
+                "asset.version",
+                format!("\"{}\" is not a glTF version (\"<major>.<minor>\")", root.asset.version),
+            ));
+        }
+    }
+    if let Some(min) = &root.asset.min_version {
+        match version_ok(min) {
+            Some((2, 0)) => {}
+            _ => {
+                return Err(reader.err(
+                    "asset.minVersion",
+                    format!("the file needs glTF {min} or later; trazo reads glTF 2.0"),
+                ));
+            }
+        }
+    }
     // The gltf crate's validation (1.4) indexes the accessors with each
     // primitive's POSITION before checking that it exists: check first.
     for (m, mesh) in root.meshes.iter().enumerate() {
@@ -1098,7 +1134,45 @@ impl<'a> Reader<'a> {
     }
 
     fn read_floats(&mut self, root: &json::Root, a: usize, ty: AccessorType, what: &str) -> Result<Vec<f32>> {
+        self.check_attribute_components(root, a, what)?;
         self.read_accessor(root, a, ty, what, &[], decode_f32)
+    }
+
+    /// §3.7.2.1: the component types a vertex attribute may have: floats
+    /// for POSITION and NORMAL, floats or normalized unsigned bytes and
+    /// shorts for TEXCOORD_n, and, where the file uses
+    /// KHR_mesh_quantization, the integer types that extension adds.
+    fn check_attribute_components(&self, root: &json::Root, a: usize, what: &str) -> Result<()> {
+        use ComponentType::*;
+        let acc = &root.accessors[a];
+        let Checked::Valid(ct) = acc.component_type else {
+            return Ok(()); // read_accessor names an invalid value
+        };
+        let (ct, normalized) = (ct.0, acc.normalized);
+        let quantized = root.extensions_used.iter().any(|e| e == "KHR_mesh_quantization");
+        let allowed = match (what, quantized) {
+            (_, _) if ct == F32 => true,
+            ("POSITION", false) | ("NORMAL", false) => false,
+            ("POSITION", true) => matches!(ct, I8 | U8 | I16 | U16),
+            ("NORMAL", true) => normalized && matches!(ct, I8 | I16),
+            (_, false) => normalized && matches!(ct, U8 | U16),
+            (_, true) => matches!(ct, I8 | U8 | I16 | U16),
+        };
+        if allowed {
+            return Ok(());
+        }
+        let kind = format!("{}{}", if normalized { "normalized " } else { "" }, component_name(ct));
+        Err(self.err(
+            &format!("accessors[{a}].componentType"),
+            format!(
+                "{what} cannot have components of type {kind} in glTF 2.0{}",
+                if quantized {
+                    ", even with KHR_mesh_quantization"
+                } else {
+                    " (only KHR_mesh_quantization allows more, and the file does not use it)"
+                }
+            ),
+        ))
     }
 
     fn read_indices(&mut self, root: &json::Root, a: usize) -> Result<Vec<u32>> {

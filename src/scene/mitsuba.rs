@@ -116,6 +116,139 @@ struct BsdfDef {
     loc: SourceLoc,
 }
 
+/// The deepest nesting of elements read: real scenes nest a few levels
+/// (scene, shape, BSDF, nested BSDFs, texture); the reader recurses once
+/// per level.
+const MAX_NESTING: usize = 64;
+
+/// The elements that instantiate a plugin by `type` (and may carry an id).
+const PLUGIN_TAGS: &[&str] = &[
+    "bsdf",
+    "emitter",
+    "film",
+    "integrator",
+    "medium",
+    "phase",
+    "rfilter",
+    "sampler",
+    "sensor",
+    "shape",
+    "spectrum",
+    "texture",
+    "volume",
+];
+
+/// Every plugin Mitsuba 3.9.1 ships (its `plugins` folder, and the
+/// integrators its Python package registers), by name.
+const MITSUBA_PLUGINS: &[&str] = &[
+    "aov",
+    "area",
+    "batch",
+    "bitmap",
+    "blackbody",
+    "blendbsdf",
+    "blender",
+    "blendphase",
+    "box",
+    "bsplinecurve",
+    "bumpmap",
+    "catmullrom",
+    "checkerboard",
+    "circular",
+    "conductor",
+    "constant",
+    "constvolume",
+    "cube",
+    "cylinder",
+    "d65",
+    "depth",
+    "dielectric",
+    "diffuse",
+    "direct",
+    "direct_projective",
+    "directional",
+    "directionalarea",
+    "disk",
+    "distant",
+    "ellipsoids",
+    "ellipsoidsmesh",
+    "envmap",
+    "gaussian",
+    "gridvolume",
+    "hair",
+    "hdrfilm",
+    "heterogeneous",
+    "hg",
+    "homogeneous",
+    "independent",
+    "instance",
+    "irradiancemeter",
+    "irregular",
+    "isotropic",
+    "lanczos",
+    "ldsampler",
+    "linearcurve",
+    "mask",
+    "measured",
+    "measured_polarized",
+    "merge",
+    "mesh_attribute",
+    "mitchell",
+    "moment",
+    "multijitter",
+    "normalmap",
+    "null",
+    "obj",
+    "orthogonal",
+    "orthographic",
+    "path",
+    "perspective",
+    "plastic",
+    "ply",
+    "point",
+    "polarizer",
+    "pplastic",
+    "prb",
+    "prb_basic",
+    "prb_projective",
+    "prbvolpath",
+    "principled",
+    "principledthin",
+    "projector",
+    "ptracer",
+    "radiancemeter",
+    "rawconstant",
+    "rayleigh",
+    "rectangle",
+    "regular",
+    "retarder",
+    "roughconductor",
+    "roughdielectric",
+    "roughplastic",
+    "sdfgrid",
+    "serialized",
+    "sggx",
+    "shapegroup",
+    "specfilm",
+    "sphere",
+    "spot",
+    "srgb",
+    "stokes",
+    "stratified",
+    "sunsky",
+    "tabphase",
+    "tent",
+    "thindielectric",
+    "thinlens",
+    "timed_sunsky",
+    "twosided",
+    "uniform",
+    "volpath",
+    "volpathmis",
+    "volprim_rf_basic",
+    "volume",
+];
+
 struct Loader {
     desc: SceneDesc,
     params: HashMap<String, String>,
@@ -149,6 +282,9 @@ struct Loader {
     /// Whether an emitter's properties are being read (its spectra
     /// convert as emission).
     in_emitter: bool,
+    /// Where each object id was defined, in every file read: Mitsuba
+    /// refuses a second object with the same id.
+    ids: HashMap<String, SourceLoc>,
 }
 
 /// A `<shape type="shapegroup" id="..">`: its shapes, each with its own
@@ -216,6 +352,7 @@ impl Loader {
             saw_sensor: false,
             saw_integrator: false,
             groups: HashMap::new(),
+            ids: HashMap::new(),
             instances: Vec::new(),
             group_mesh_names: HashMap::new(),
             group_meshes: Vec::new(),
@@ -360,8 +497,71 @@ impl Loader {
         if root.tag_name().name() != "scene" {
             return Err(self.err(&f, root, "the root element must be <scene>"));
         }
+        self.check_structure(&f, root)?;
         for child in root.children().filter(Node::is_element) {
             self.scene_child(&f, child)?;
+        }
+        Ok(())
+    }
+
+    /// Checks the whole document before reading it, without recursion:
+    /// elements nested deeper than [`MAX_NESTING`] (which the recursive
+    /// reading below could not follow without overflowing its stack) and
+    /// a second object with an id already defined (an error in Mitsuba,
+    /// also across included files). Ids made of `$` parameters are not
+    /// known yet and are not checked.
+    fn check_structure(&mut self, f: &FileCtx, root: Node) -> Result<()> {
+        // Elements in document order, each with its depth (the scene's is 1).
+        let mut stack = vec![(root, 1usize)];
+        // The line and column (in characters) of byte `counted`.
+        let (mut counted, mut line, mut column) = (0usize, 1u32, 1u32);
+        while let Some((node, depth)) = stack.pop() {
+            if depth > MAX_NESTING {
+                return Err(self.err(
+                    f,
+                    node,
+                    format!("elements are nested more than {MAX_NESTING} deep; trazo refuses such a scene"),
+                ));
+            }
+            // Pushed last to first, so that the first child is checked next.
+            stack.extend(node.children().rev().filter(Node::is_element).map(|c| (c, depth + 1)));
+            let tag = node.tag_name().name();
+            let Some(id) = node.attribute("id") else {
+                continue;
+            };
+            if !PLUGIN_TAGS.contains(&tag) || id.contains('$') {
+                continue;
+            }
+            // Lines counted on from the last id's, as the elements come in
+            // the order of the text: locating each from the start would
+            // make a scene of many ids quadratic.
+            let offset = node.range().start;
+            for c in f.text[counted..offset].chars() {
+                if c == '\n' {
+                    (line, column) = (line + 1, 1);
+                } else {
+                    column += 1;
+                }
+            }
+            counted = offset;
+            let loc = SourceLoc {
+                file: f.path.clone(),
+                line,
+                column,
+            };
+            if let Some(first) = self.ids.get(id) {
+                return Err(self.err(
+                    f,
+                    node,
+                    format!(
+                        "duplicate id \"{id}\" (first defined at {}:{}:{})",
+                        first.file.display(),
+                        first.line,
+                        first.column
+                    ),
+                ));
+            }
+            self.ids.insert(id.to_string(), loc);
         }
         Ok(())
     }
@@ -410,9 +610,26 @@ impl Loader {
         Ok(Some(out))
     }
 
+    /// An attribute that must be there. A plugin's `type` must also be one
+    /// that Mitsuba 3 knows (a type Mitsuba knows and trazo does not is
+    /// warned about where it is read; one Mitsuba does not know is an
+    /// error in Mitsuba too).
     fn required_attr(&mut self, f: &FileCtx, node: Node, name: &str) -> Result<String> {
-        self.attr(f, node, name)?
-            .ok_or_else(|| self.err(f, node, format!("missing attribute `{name}`")))
+        let value = self
+            .attr(f, node, name)?
+            .ok_or_else(|| self.err(f, node, format!("missing attribute `{name}`")))?;
+        if name == "type" && PLUGIN_TAGS.contains(&node.tag_name().name()) && !MITSUBA_PLUGINS.contains(&value.as_str())
+        {
+            return Err(self.err(
+                f,
+                node,
+                format!(
+                    "unknown plugin type \"{value}\": Mitsuba 3 has no such plugin{}",
+                    crate::scene::desc::suggest(&value, MITSUBA_PLUGINS.iter().copied())
+                ),
+            ));
+        }
+        Ok(value)
     }
 
     fn scene_child(&mut self, f: &FileCtx, node: Node) -> Result<()> {

@@ -131,6 +131,18 @@ const CASES: &[(&str, Expect)] = &[
         Error(&["zero-area-light.xml:", "transform"]),
     ),
     ("mitsuba/include-loop.xml", Error(&["include loop"])),
+    (
+        "mitsuba/unknown-plugin.xml",
+        Error(&[
+            "unknown-plugin.xml:6:3",
+            "unknown plugin type \"spherez\"",
+            "\"sphere\"?",
+        ]),
+    ),
+    (
+        "mitsuba/duplicate-id.xml",
+        Error(&["duplicate-id.xml:7:3", "duplicate id \"white\"", "duplicate-id.xml:6:3"]),
+    ),
     ("mitsuba/include-loop-b.xml", Error(&["include loop"])),
     (
         "mitsuba/undefined-parameter.xml",
@@ -250,6 +262,18 @@ const CASES: &[(&str, Expect)] = &[
     ),
     ("gltf/missing-buffer.gltf", Error(&["missing-buffer.gltf", "mesh.bin"])),
     ("gltf/node-cycle.glb", Error(&["node-cycle.glb", "cycle"])),
+    (
+        "gltf/version-1.gltf",
+        Error(&["version-1.gltf:3:", "asset.version", "glTF 1.0 is not supported"]),
+    ),
+    (
+        "gltf/position-ubyte.gltf",
+        Error(&[
+            "position-ubyte.gltf:",
+            "accessors[0].componentType",
+            "POSITION cannot have components of type UNSIGNED_BYTE",
+        ]),
+    ),
     (
         "gltf/missing-material.glb",
         Error(&["missing-material.glb", "material"]),

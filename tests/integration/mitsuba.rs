@@ -130,6 +130,51 @@ fn cli_reads_xml_with_defines_and_reports_errors() {
         "{err}"
     );
 
+    // Deep nesting is refused before the recursive reading could overflow
+    // its stack (Mitsuba itself crashes on this file).
+    let depth = 20_000;
+    let deep = format!(
+        "<scene>\n<shape type=\"sphere\">{}<bsdf type=\"diffuse\"/>{}</shape></scene>",
+        "<bsdf type=\"twosided\">".repeat(depth),
+        "</bsdf>".repeat(depth)
+    );
+    let err = fails_with(&deep);
+    assert!(
+        err.contains("bad.xml:2:") && err.contains("nested more than 64 deep"),
+        "{err}"
+    );
+    // Deep, but within the limit: read (the innermost twosided warns).
+    let nested = |depth: usize| {
+        format!(
+            "<scene>\n<shape type=\"sphere\">{}<bsdf type=\"diffuse\"/>{}</shape></scene>",
+            "<bsdf type=\"twosided\">".repeat(depth),
+            "</bsdf>".repeat(depth)
+        )
+    };
+    std::fs::write(&bad, nested(61)).unwrap();
+    let o = trazo()
+        .args(["render", "-q", "-o"])
+        .arg(&out)
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = fails_with(&nested(62));
+    assert!(err.contains("nested more than 64 deep"), "{err}");
+    // A plugin type Mitsuba does not know is an error, as in Mitsuba; so is
+    // a second object with an id already taken.
+    let err = fails_with("<scene>\n  <shape type=\"spherez\"/>\n</scene>");
+    assert!(
+        err.contains("bad.xml:2:3") && err.contains("unknown plugin type \"spherez\"") && err.contains("\"sphere\"?"),
+        "{err}"
+    );
+    let err =
+        fails_with("<scene>\n  <bsdf type=\"diffuse\" id=\"a\"/>\n  <texture type=\"bitmap\" id=\"a\"/>\n</scene>");
+    assert!(
+        err.contains("bad.xml:3:3") && err.contains("duplicate id \"a\"") && err.contains("bad.xml:2:3"),
+        "{err}"
+    );
+
     let err = fails_with("<scene><shape type=\"sphere\"><float name=\"radius\" value=\"$r\"/></shape></scene>");
     assert!(err.contains("undefined parameter $r"), "{err}");
     let o = trazo()
