@@ -862,8 +862,8 @@ impl Aggregate {
     }
 
     /// [`Aggregate::surface`], with surface coordinates only where
-    /// `reads_uv(material)` (elsewhere a sphere's are zero: they cost an
-    /// arc tangent and an arc sine).
+    /// `reads_uv(material)` (elsewhere a sphere's, and its dp/dv, are
+    /// zero: they cost an arc tangent, an arc sine and a division).
     #[inline]
     pub fn surface_with(&self, ray: &Ray, hit: &Hit, reads_uv: impl Fn(u32) -> bool) -> SurfaceHit {
         let (material, light) = self.material_and_light(&hit.prim);

@@ -207,8 +207,8 @@ impl Shape {
     }
 
     /// [`Shape::surface`], with surface coordinates only if `uv` (a
-    /// sphere's are then zero; the other shapes' cost little and are
-    /// always there).
+    /// sphere's (u, v) and dp/dv are then zero; the other shapes' cost
+    /// little and are always there).
     pub fn surface_with(&self, p: Vec3, uv: bool) -> LocalSurface {
         match self {
             Shape::Sphere(s) => s.surface(p, uv),
@@ -417,8 +417,10 @@ impl Sphere {
         let dpdu = self.uv_frame * Vec3::new(-local.z, 0.0, local.x) * (2.0 * PI * self.radius);
         // v = 1/2 + θ/π for latitude θ: dp/dv = π·r·dn/dθ, which turns
         // along the meridian (undefined at the poles: a zero vector there).
+        // Only bump maps read it, and only through textures that read
+        // (u, v): without those it is left zero.
         let cos_lat = (local.x * local.x + local.z * local.z).sqrt();
-        let dpdv = if cos_lat > 0.0 {
+        let dpdv = if with_uv && cos_lat > 0.0 {
             let k = -local.y / cos_lat;
             self.uv_frame * Vec3::new(k * local.x, cos_lat, k * local.z) * (PI * self.radius)
         } else {

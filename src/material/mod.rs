@@ -544,6 +544,19 @@ impl Material {
     /// Mitsuba's `bumpmap` does.
     #[inline]
     pub fn shading_frame(&self, images: &[ImageTexture], hit: &SurfaceHit, wo: Vec3) -> ShadingFrame {
+        if self.normal_map.is_none() && self.bump_map.is_none() {
+            return ShadingFrame {
+                frame: Frame::from_orthonormal(hit.ns, hit.tangent),
+                unmapped: None,
+            };
+        }
+        self.mapped_frame(images, hit, wo)
+    }
+
+    /// [`Material::shading_frame`] of a material with a normal or bump
+    /// map: kept out of line, so that the common case above inlines.
+    #[inline(never)]
+    fn mapped_frame(&self, images: &[ImageTexture], hit: &SurfaceHit, wo: Vec3) -> ShadingFrame {
         let base = Frame::from_orthonormal(hit.ns, hit.tangent);
         let unmapped = ShadingFrame {
             frame: base,
