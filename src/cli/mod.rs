@@ -7,10 +7,10 @@ mod job;
 
 use crate::error::{Error, Result};
 use crate::film::denoise::{DenoiserKind, denoise_film};
-use crate::film::io::{ImageFormat, read_image, write_image};
-use crate::film::{Aov, Film};
+use crate::film::io::{ImageFormat, read_image, write_atomic, write_image};
+use crate::film::{Aov, Film, plot};
 use crate::render::checkpoint::checkpoint_path;
-use crate::render::compare::{Budget, Contestant, compare, side_by_side, table};
+use crate::render::compare::{Budget, Contestant, compare, convergence_curves, side_by_side, table};
 use crate::render::{Control, RenderOptions, RenderStats, Shard, Stop, render_controlled};
 use crate::sampling::SamplerKind;
 use crate::scene::{self, SceneDesc, builtin};
@@ -352,13 +352,21 @@ struct CompareArgs {
     time: Option<f64>,
 
     /// A converged image of the same scene: the table then reports each
-    /// contestant's relative MSE against it.
+    /// contestant's relative MSE against it, and a convergence plot (error
+    /// against time, log–log) is written beside the image. The plot's
+    /// points are extra renders at 1/2, 1/4, … 1/32 of the budget, so the
+    /// comparison takes about twice as long.
     #[arg(long, value_name = "FILE")]
     reference: Option<PathBuf>,
 
     /// The side-by-side image.
     #[arg(short, long, value_name = "FILE", default_value = "compare.png")]
     output: PathBuf,
+
+    /// The convergence plot (with --reference), written as FILE.svg and
+    /// FILE.png [default: the image's name with "-convergence"].
+    #[arg(long, value_name = "FILE")]
+    plot: Option<PathBuf>,
 }
 
 /// Runs the command line; the exit status is 0 on success and 2 on any
@@ -1057,8 +1065,31 @@ fn run_compare(args: CompareArgs) -> Result<()> {
         desc.settings.exposure,
     )?;
     print!("{}", table(&rows));
+    let curves = convergence_curves(&rows);
+    let mut written = vec![args.output.clone()];
+    if !curves.is_empty() {
+        let base = args.plot.clone().unwrap_or_else(|| {
+            let stem = args
+                .output
+                .file_stem()
+                .map_or("compare".into(), |s| s.to_string_lossy().into_owned());
+            args.output.with_file_name(format!("{stem}-convergence"))
+        });
+        let y_label = "RMS relative error";
+        for (ext, bytes) in [
+            ("svg", plot::convergence_svg(&curves, y_label)?.into_bytes()),
+            ("png", plot::convergence_png(&curves, y_label)?),
+        ] {
+            let path = base.with_extension(ext);
+            write_atomic(&path, |f| {
+                std::io::Write::write_all(f, &bytes).map_err(|e| e.to_string())
+            })?;
+            written.push(path);
+        }
+    }
     if !args.scene.quiet {
-        eprintln!("→ {}", args.output.display());
+        let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
+        eprintln!("→ {}", names.join(", "));
     }
     Ok(())
 }

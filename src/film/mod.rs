@@ -13,6 +13,7 @@ pub mod display;
 pub mod filter;
 pub mod io;
 pub mod metrics;
+pub mod plot;
 pub mod splat;
 pub mod text;
 pub mod tonemap;

@@ -71,27 +71,28 @@ pub fn text_width(text: &str, scale: u32) -> u32 {
     text.chars().count() as u32 * (GLYPH_W + 1) * scale
 }
 
+/// The image pixels that `text` drawn at `scale` with its top-left corner
+/// at (0, 0) covers.
+pub fn text_pixels(text: &str, scale: u32) -> impl Iterator<Item = (u32, u32)> + '_ {
+    text.chars().enumerate().flat_map(move |(i, c)| {
+        let rows = glyph(c);
+        let gx = i as u32 * (GLYPH_W + 1) * scale;
+        (0..GLYPH_H * scale).flat_map(move |y| {
+            let bits = rows[(y / scale) as usize];
+            (0..GLYPH_W * scale)
+                .filter(move |x| bits & (1 << (GLYPH_W - 1 - x / scale)) != 0)
+                .map(move |x| (gx + x, y))
+        })
+    })
+}
+
 /// Draws `text` with its top-left corner at (x, y), each font pixel a
 /// `scale`×`scale` block of `color`. Parts outside the image are clipped.
 pub fn draw_text(image: &mut Image, x: u32, y: u32, text: &str, scale: u32, color: Rgb) {
-    for (i, c) in text.chars().enumerate() {
-        let rows = glyph(c);
-        let gx = x + i as u32 * (GLYPH_W + 1) * scale;
-        for (ry, bits) in rows.iter().enumerate() {
-            for cx in 0..GLYPH_W {
-                if bits & (1 << (GLYPH_W - 1 - cx)) == 0 {
-                    continue;
-                }
-                for dy in 0..scale {
-                    for dx in 0..scale {
-                        let px = gx + cx * scale + dx;
-                        let py = y + ry as u32 * scale + dy;
-                        if px < image.width && py < image.height {
-                            image.pixels[(py * image.width + px) as usize] = color;
-                        }
-                    }
-                }
-            }
+    for (dx, dy) in text_pixels(text, scale) {
+        let (px, py) = (x + dx, y + dy);
+        if px < image.width && py < image.height {
+            image.pixels[(py * image.width + px) as usize] = color;
         }
     }
 }

@@ -122,6 +122,20 @@ pub enum Budget {
     },
 }
 
+impl Budget {
+    /// 1/2^k of the budget; `None` where that is less than one sample per
+    /// pixel.
+    pub fn fraction(self, k: u32) -> Option<Budget> {
+        match self {
+            Budget::Spp(n) => Some(Budget::Spp(n.checked_shr(k).filter(|&m| m >= 1)?)),
+            Budget::Time { limit, max_spp } => Some(Budget::Time {
+                limit: limit / 2u32.checked_pow(k)?,
+                max_spp,
+            }),
+        }
+    }
+}
+
 /// The result for one contestant.
 #[derive(Clone, Debug)]
 pub struct ComparisonRow {
@@ -140,9 +154,17 @@ pub struct ComparisonRow {
     pub mean_standard_error: Option<f64>,
     /// Relative MSE against the reference, when one is given.
     pub rel_mse: Option<f64>,
+    /// With a reference: (seconds, relative MSE) of renders at 1/32, 1/16,
+    /// …, 1/2 of the budget (those of at least one sample per pixel) and of
+    /// the full one, for the convergence plot.
+    pub convergence: Vec<(f64, f64)>,
     /// The image.
     pub image: Image,
 }
+
+/// Budget fractions 1/2^k of the convergence plot's extra renders: up to
+/// five points below the full budget, each render independent.
+const CONVERGENCE_HALVINGS: u32 = 5;
 
 /// Renders the scene once per contestant.
 pub fn compare(
@@ -160,43 +182,104 @@ pub fn compare(
         d.settings.march_step = c.march_step;
         let mut opts = options.clone();
         opts.aovs |= c.denoise.is_some();
-        match budget {
-            Budget::Spp(n) => d.settings.spp = n,
-            Budget::Time { limit, max_spp } => {
-                d.settings.spp = max_spp;
-                opts.time_limit = Some(limit);
+        let mut scene = crate::scene::build(&d)?;
+        let run = run_contestant(&mut scene, c, budget, &opts)?;
+        let rel_mse = reference.map(|r| relative_mse(&run.image, r)).transpose()?;
+        let mut convergence = Vec::new();
+        if let (Some(r), Some(e)) = (reference, rel_mse) {
+            // Smaller budgets first, each its own render; quiet, as the
+            // full render already showed its progress.
+            let quiet = RenderOptions {
+                progress: false,
+                ..opts.clone()
+            };
+            for k in (1..=CONVERGENCE_HALVINGS).rev() {
+                let Some(part) = budget.fraction(k) else {
+                    continue;
+                };
+                let partial = run_contestant(&mut scene, c, part, &quiet)?;
+                convergence.push((partial.seconds, relative_mse(&partial.image, r)?));
             }
+            convergence.push((run.seconds, e));
         }
-        let scene = crate::scene::build(&d)?;
-        let out = render(&scene, &opts)?;
-        let mut seconds = out.stats.seconds;
-        let mut mean_standard_error = match c.integrator {
-            IntegratorKind::Sppm => None,
-            _ => Some(out.film.mean_standard_error()),
-        };
-        let image = match c.denoise {
-            Some(kind) => {
-                let start = Instant::now();
-                let d = denoise_film(&out.film, kind)?;
-                seconds += start.elapsed().as_secs_f64();
-                mean_standard_error = None;
-                d.image
-            }
-            None => out.film.to_image(),
-        };
-        let rel_mse = reference.map(|r| relative_mse(&image, r)).transpose()?;
         rows.push(ComparisonRow {
             label: c.label.clone(),
-            spp: out.stats.spp,
-            seconds,
-            msamples_per_second: out.stats.samples_per_second() / 1e6,
-            mrays_per_second: out.stats.rays_per_second() / 1e6,
-            mean_standard_error,
+            spp: run.spp,
+            seconds: run.seconds,
+            msamples_per_second: run.msamples_per_second,
+            mrays_per_second: run.mrays_per_second,
+            mean_standard_error: run.mean_standard_error,
             rel_mse,
-            image,
+            convergence,
+            image: run.image,
         });
     }
     Ok(rows)
+}
+
+/// One render of a contestant and what the table reports of it.
+struct Run {
+    spp: u32,
+    seconds: f64,
+    msamples_per_second: f64,
+    mrays_per_second: f64,
+    mean_standard_error: Option<f64>,
+    image: Image,
+}
+
+/// Renders `scene` (built for contestant `c`) within `budget`, denoising
+/// the image if `c` asks for it (its time then counts too).
+fn run_contestant(
+    scene: &mut crate::scene::Scene,
+    c: &Contestant,
+    budget: Budget,
+    options: &RenderOptions,
+) -> Result<Run> {
+    let mut opts = options.clone();
+    scene.settings.spp = match budget {
+        Budget::Spp(n) => n,
+        Budget::Time { limit, max_spp } => {
+            opts.time_limit = Some(limit);
+            max_spp
+        }
+    };
+    let out = render(scene, &opts)?;
+    let mut seconds = out.stats.seconds;
+    let mut mean_standard_error = match c.integrator {
+        IntegratorKind::Sppm => None,
+        _ => Some(out.film.mean_standard_error()),
+    };
+    let image = match c.denoise {
+        Some(kind) => {
+            let start = Instant::now();
+            let d = denoise_film(&out.film, kind)?;
+            seconds += start.elapsed().as_secs_f64();
+            mean_standard_error = None;
+            d.image
+        }
+        None => out.film.to_image(),
+    };
+    Ok(Run {
+        spp: out.stats.spp,
+        seconds,
+        msamples_per_second: out.stats.samples_per_second() / 1e6,
+        mrays_per_second: out.stats.rays_per_second() / 1e6,
+        mean_standard_error,
+        image,
+    })
+}
+
+/// The convergence plot's curves: per contestant, the root of each
+/// relative MSE (an RMS relative error, which falls as 1/√t for an
+/// unbiased estimator) against seconds.
+pub fn convergence_curves(rows: &[ComparisonRow]) -> Vec<crate::film::plot::Curve> {
+    rows.iter()
+        .filter(|r| !r.convergence.is_empty())
+        .map(|r| crate::film::plot::Curve {
+            label: r.label.clone(),
+            points: r.convergence.iter().map(|&(t, e)| (t, e.sqrt())).collect(),
+        })
+        .collect()
 }
 
 /// The comparison as a Markdown table.
@@ -254,6 +337,57 @@ pub fn side_by_side(rows: &[ComparisonRow]) -> Image {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn budget_fractions() {
+        assert_eq!(Budget::Spp(64).fraction(1), Some(Budget::Spp(32)));
+        assert_eq!(Budget::Spp(64).fraction(6), Some(Budget::Spp(1)));
+        assert_eq!(Budget::Spp(64).fraction(7), None);
+        assert_eq!(Budget::Spp(1).fraction(40), None);
+        let t = Budget::Time {
+            limit: Duration::from_secs(2),
+            max_spp: 9,
+        };
+        assert_eq!(
+            t.fraction(2),
+            Some(Budget::Time {
+                limit: Duration::from_millis(500),
+                max_spp: 9
+            })
+        );
+    }
+
+    /// The convergence points of an unbiased estimator: one per halving of
+    /// the budget and the full one, in order of samples, the error falling
+    /// as the samples grow (by the 32× between first and last, 1/32 of the
+    /// relative MSE in expectation; a factor of 4 is far outside the noise
+    /// of 16×16 pixels).
+    #[test]
+    fn convergence_points_follow_the_budget() {
+        let mut desc = crate::scene::builtin::cornell_box();
+        desc.settings.width = 16;
+        desc.settings.height = 16;
+        desc.settings.spp = 1024;
+        let options = RenderOptions {
+            progress: false,
+            ..RenderOptions::default()
+        };
+        let reference = render(&crate::scene::build(&desc).unwrap(), &options)
+            .unwrap()
+            .film
+            .to_image();
+        let c = [Contestant::parse("path:mis").unwrap()];
+        let rows = compare(&desc, &c, Budget::Spp(32), Some(&reference), &options).unwrap();
+        let points = &rows[0].convergence;
+        assert_eq!(points.len(), 6, "{points:?}");
+        assert_eq!(points.last().unwrap().1, rows[0].rel_mse.unwrap());
+        assert!(points[0].1 > 4.0 * points[5].1, "{points:?}");
+        let curves = convergence_curves(&rows);
+        assert_eq!(curves[0].points[5].1, points[5].1.sqrt());
+        // Without a reference, no extra renders.
+        let rows = compare(&desc, &c, Budget::Spp(2), None, &options).unwrap();
+        assert!(rows[0].convergence.is_empty() && convergence_curves(&rows).is_empty());
+    }
 
     #[test]
     fn contestant_specs() {

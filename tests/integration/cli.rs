@@ -496,6 +496,37 @@ fn compare_renders_side_by_side_with_a_table() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stdout).contains("rel. MSE"));
+    // With a reference, a convergence plot beside the image, as SVG and PNG.
+    let svg = std::fs::read_to_string(dir.path().join("cmp-convergence.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("path:bsdf") && svg.contains("path:mis"));
+    let plot = image::open(dir.path().join("cmp-convergence.png")).unwrap();
+    assert!(plot.width() > 100 && plot.height() > 100);
+    // --plot names it; without -q the summary names every file written.
+    let named = dir.path().join("curves");
+    let o = trazo()
+        .args([
+            "compare",
+            "--width",
+            "24",
+            "--height",
+            "16",
+            "--spp",
+            "8",
+            "--integrators",
+            "path:mis",
+            "-o",
+        ])
+        .arg(&out)
+        .arg("--reference")
+        .arg(&reference)
+        .arg("--plot")
+        .arg(&named)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(said.contains("curves.svg") && said.contains("curves.png"), "{said}");
+    assert!(named.with_extension("svg").is_file() && named.with_extension("png").is_file());
 
     // Without --spp, the scene's samples per pixel, as `trazo render`.
     let scene = write_scene(dir.path(), "three.toml", &SPHERE.replace("spp = 1", "spp = 3"));
