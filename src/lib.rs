@@ -1,15 +1,35 @@
 //! # trazo
 //!
 //! A physically based renderer that implements the classical ray-tracing
-//! curriculum as real software: Whitted's recursive ray tracer with shadow
-//! rays, Phong shading, reflection and refraction, on a core of robust
-//! ray–shape intersection, affine transforms, a SAH bounding volume
-//! hierarchy, perspective and orthographic cameras and supersampling.
+//! curriculum as real software: Whitted's recursive ray tracer, Kajiya's
+//! path tracer (from the uniform-hemisphere estimator to next-event
+//! estimation with multiple importance sampling), a volumetric path tracer
+//! for participating media, and Jensen's photon mapping and progressive
+//! photon mapping (SPPM); over robust ray–shape intersection (spheres,
+//! planes, rectangles, disks, boxes, cylinders, triangle meshes, Loop
+//! subdivision surfaces, signed distance grids), affine transforms and
+//! instancing, a wide SAH bounding volume hierarchy, and perspective,
+//! thin-lens and orthographic cameras. It reads trazo's TOML scenes,
+//! Mitsuba 3 XML, pbrt-v4, glTF 2.0, OBJ and PLY.
 //!
 //! Data flows one way:
 //!
 //! ```text
 //! scene file ─► scene::load ─► SceneDesc ─► scene::build ─► Scene ─► render::render ─► Film ─► film::io
+//! ```
+//!
+//! Load a scene file, render it, write the image:
+//!
+//! ```
+//! use trazo::{film::io::write_image, render::{RenderOptions, render}, scene};
+//! use std::path::Path;
+//!
+//! let mut desc = scene::load(Path::new("scenes/cornell-box.toml"), &[])?;
+//! (desc.settings.width, desc.settings.height, desc.settings.spp) = (32, 32, 4);
+//! let out = render(&scene::build(&desc)?, &RenderOptions::default())?;
+//! let path = std::env::temp_dir().join("trazo-doc-cornell-box.png");
+//! write_image(&path, &out.film.to_image(), desc.settings.tonemap, desc.settings.exposure)?;
+//! # Ok::<(), trazo::Error>(())
 //! ```
 //!
 //! A scene can also be described in code and rendered to memory:

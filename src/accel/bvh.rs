@@ -51,7 +51,7 @@ pub struct SahCosts {
     /// tested one at a time.
     pub block: u32,
     /// Blocks of one kind a leaf may hold (primitives tested alone: at most
-    /// [`MAX_LEAF`]).
+    /// `MAX_LEAF`).
     pub leaf_blocks: u32,
 }
 

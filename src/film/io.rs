@@ -5,7 +5,7 @@
 //! folder, which is flushed to disk and then renamed over the target. A
 //! render killed at any moment leaves either the old file or the new one.
 //! No temporary file outlives its process: one being written is removed on
-//! an error, a panic ([`TempFile`]'s drop) and an abort by a second Ctrl-C
+//! an error, a panic (a `TempFile`'s drop) and an abort by a second Ctrl-C
 //! ([`remove_unfinished_temp_files`]); one left by a process killed outright
 //! (`kill -9`) is removed by the next write to the same file.
 

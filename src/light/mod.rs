@@ -237,7 +237,7 @@ pub struct Projector {
     pub tan_half: Vec2,
     /// Irradiance multiplier (π times the scene's `scale`).
     pub scale: f32,
-    /// The image, read at the (u, v) that [`Projector::uv`] gives a
+    /// The image, read at the (u, v) that `Projector::uv` gives a
     /// direction (Mitsuba's: v = 0 at the image's top).
     pub image: Texture,
 }

@@ -1,5 +1,5 @@
 //! `SceneDesc`: the plain-data description of a scene that every format
-//! reader produces and that [`crate::scene::build`] turns into a renderable
+//! reader produces and that [`crate::scene::build()`] turns into a renderable
 //! [`crate::scene::Scene`].
 //!
 //! Every element carries where it came from ([`Locs`]), so that validation,

@@ -141,14 +141,29 @@ fn default_output_name_follows_the_scene() {
 fn every_example_scene_renders() {
     let dir = tempfile::tempdir().unwrap();
     let mut count = 0;
-    for entry in fs::read_dir(repo("scenes")).unwrap() {
-        let path = entry.unwrap().path();
-        if path.extension().is_none_or(|e| e != "toml") {
-            continue;
+    // scenes/ and its folders: trazo TOML, Mitsuba XML, pbrt-v4 and lone
+    // models.
+    let mut files = Vec::new();
+    let mut folders = vec![repo("scenes")];
+    while let Some(folder) = folders.pop() {
+        for entry in fs::read_dir(folder).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                folders.push(path);
+            } else if path
+                .extension()
+                .is_some_and(|e| ["toml", "xml", "pbrt", "ply", "obj"].iter().any(|x| e == *x))
+            {
+                files.push(path);
+            }
         }
-        let out = dir
-            .path()
-            .join(format!("{}.png", path.file_stem().unwrap().to_string_lossy()));
+    }
+    for path in files {
+        let out = dir.path().join(format!(
+            "{}-{}.png",
+            path.file_stem().unwrap().to_string_lossy(),
+            path.extension().unwrap().to_string_lossy()
+        ));
         let o = trazo()
             .args(["render", "-q", "--width", "24", "--height", "16", "--spp", "1", "-o"])
             .arg(&out)
@@ -164,7 +179,7 @@ fn every_example_scene_renders() {
         assert!(out.is_file());
         count += 1;
     }
-    assert!(count >= 6, "found {count} scenes");
+    assert!(count >= 15, "found {count} scenes");
 }
 
 #[test]

@@ -24,7 +24,7 @@
 //! for all its light instead: a quick, blotchy preview.
 //!
 //! Each map read is the density estimate over the `photon_gather` nearest
-//! photons within `photon_radius` ([`super::ShadingPoint::photon_radiance`]).
+//! photons within `photon_radius` (`ShadingPoint::photon_radiance`).
 //! Photon mapping is biased (the estimate blurs light over the disk) but
 //! consistent: the error vanishes as photons grow in number and the disks
 //! shrink.
