@@ -64,8 +64,23 @@ def main():
         action="store_true",
         help="render with Mitsuba 3 scalar_rgb instead of trazo (the judge's own check: Mitsuba passes)",
     )
+    ap.add_argument(
+        "--exclude",
+        action="append",
+        default=[],
+        help="leave out the tests whose name contains this (may be repeated)",
+    )
+    ap.add_argument(
+        "--known-failures",
+        help="a file naming, one a line (# starts a comment), the tests that fail today: the run then fails "
+        "only when another test fails or a listed one passes (so that the list stays true)",
+    )
     ap.add_argument("filters", nargs="*")
     args = ap.parse_args()
+    known = set()
+    if args.known_failures:
+        with open(args.known_failures) as f:
+            known = {line.split("#")[0].strip() for line in f} - {""}
 
     rows = []
     for scene in sorted(glob.glob(os.path.join(args.data, "tests/scenes/*/*.xml"))):
@@ -76,6 +91,8 @@ def main():
         for integ in integrators:
             name = f"{os.path.basename(os.path.dirname(scene))}/{base}_{integ}"
             if args.filters and not any(f in name for f in args.filters):
+                continue
+            if any(x in name for x in args.exclude):
                 continue
             ref = read_xyz(os.path.join(refs, f"{base}_ref_rgb.exr"))
             var = read_xyz(os.path.join(refs, f"{base}_ref_rgb_var.exr"))
@@ -130,6 +147,15 @@ def main():
             f.write(f"| {name} | {pixels} | {spp} | {verdict} | {fmt(rejected, 4)} | {fmt(z, 2)} | {fmt(seconds, 1)} | {note} |\n")
         f.write(f"\n**{passed} of {len(rows)} pass.**\n")
     print(f"{passed} of {len(rows)} pass (table: {table})")
+    # The exit status: 0 when every test passes, or fails only as the list
+    # of known failures says.
+    unexpected = [r[0] for r in rows if r[3] != "pass" and r[0] not in known]
+    fixed = [r[0] for r in rows if r[3] == "pass" and r[0] in known]
+    for name in unexpected:
+        print(f"FAILED: {name}", file=sys.stderr)
+    for name in fixed:
+        print(f"PASSES NOW: {name} (remove it from {args.known_failures})", file=sys.stderr)
+    return 1 if unexpected or fixed else 0
 
 
 if __name__ == "__main__":
