@@ -309,7 +309,7 @@ pub fn decode_image(bytes: &[u8], format: ImageFormat) -> Result<Image, String> 
     match format {
         ImageFormat::Exr => decode_exr(bytes),
         ImageFormat::Pfm => parse_pfm(bytes).map_err(|m| format!("not a valid PFM file: {m}")),
-        ImageFormat::Png | ImageFormat::Hdr => decode_encoded(bytes, None),
+        ImageFormat::Png | ImageFormat::Hdr => decode_encoded(bytes, None, None),
     }
 }
 
@@ -317,15 +317,21 @@ pub fn decode_image(bytes: &[u8], format: ImageFormat) -> Result<Image, String> 
 /// and images compared.
 pub const MAX_IMAGE_PIXELS: u64 = 16384 * 16384;
 
-/// Decodes a PNG, JPEG, BMP, Radiance HDR, OpenEXR or PFM image held in memory,
+/// Decodes a PNG, JPEG, BMP, PPM, Radiance HDR, OpenEXR or PFM image held in memory,
 /// told apart by their first bytes, as linear RGB: integer images from
 /// sRGB unless `srgb` is `Some(false)`, float images as they are unless
 /// `Some(true)`. Sizes in headers are checked before pixels are allocated.
 /// Errors are plain reasons.
 pub fn decode_any(bytes: &[u8], srgb: Option<bool>) -> Result<Image, String> {
+    decode_any_named(bytes, srgb, None)
+}
+
+/// [`decode_any`] for a file of extension `ext`, which names the format
+/// where the bytes cannot: Truevision TGA files have no signature.
+pub fn decode_any_named(bytes: &[u8], srgb: Option<bool>, ext: Option<&str>) -> Result<Image, String> {
     let is_pfm = bytes.starts_with(b"PF") || bytes.starts_with(b"Pf");
     if !bytes.starts_with(&EXR_MAGIC) && !is_pfm {
-        return decode_encoded(bytes, srgb);
+        return decode_encoded(bytes, srgb, ext);
     }
     let mut image = decode_image(bytes, if is_pfm { ImageFormat::Pfm } else { ImageFormat::Exr })?;
     if srgb == Some(true) {
@@ -336,12 +342,21 @@ pub fn decode_any(bytes: &[u8], srgb: Option<bool>) -> Result<Image, String> {
     Ok(image)
 }
 
-/// [`decode_any`] for the formats of the `image` crate (PNG, JPEG, BMP, HDR).
-fn decode_encoded(bytes: &[u8], srgb: Option<bool>) -> Result<Image, String> {
-    let reader = ::image::ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| format!("cannot read image: {e}"))?;
-    let (w, h) = reader
+/// [`decode_any`] for the formats of the `image` crate (PNG, JPEG, BMP, HDR,
+/// TGA, PPM/PGM/PBM); `ext` names the format where the first bytes do not.
+fn decode_encoded(bytes: &[u8], srgb: Option<bool>, ext: Option<&str>) -> Result<Image, String> {
+    let open = || -> Result<_, String> {
+        let mut reader = ::image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| format!("cannot read image: {e}"))?;
+        if reader.format().is_none() {
+            if let Some(format) = ext.and_then(::image::ImageFormat::from_extension) {
+                reader.set_format(format);
+            }
+        }
+        Ok(reader)
+    };
+    let (w, h) = open()?
         .into_dimensions()
         .map_err(|e| format!("not a readable image: {e}"))?;
     // Checked before decoding, which allocates by the header's size.
@@ -350,11 +365,7 @@ fn decode_encoded(bytes: &[u8], srgb: Option<bool>) -> Result<Image, String> {
             "image of {w}×{h} pixels is larger than the limit of 16384×16384"
         ));
     }
-    let img = ::image::ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| format!("cannot read image: {e}"))?
-        .decode()
-        .map_err(|e| format!("cannot decode image: {e}"))?;
+    let img = open()?.decode().map_err(|e| format!("cannot decode image: {e}"))?;
     let is_float = matches!(img.color(), ::image::ColorType::Rgb32F | ::image::ColorType::Rgba32F);
     let decode_srgb = srgb.unwrap_or(!is_float);
     let rgb = img.to_rgb32f();

@@ -21,13 +21,16 @@ pub struct ImageTexture {
 pub const MAX_TEXTURE_PIXELS: u64 = crate::film::io::MAX_IMAGE_PIXELS;
 
 impl ImageTexture {
-    /// Reads a PNG, JPEG, BMP, Radiance HDR, OpenEXR or PFM file. Integer images are
-    /// decoded from sRGB unless `srgb` is `Some(false)`; float images are
-    /// taken as linear unless `srgb` is `Some(true)`.
+    /// Reads a PNG, JPEG, BMP, TGA, PPM (PGM, PBM), Radiance HDR, OpenEXR
+    /// or PFM file. Integer images are decoded from sRGB unless `srgb` is
+    /// `Some(false)`; float images are taken as linear unless `srgb` is
+    /// `Some(true)`.
     pub fn load(path: &Path, srgb: Option<bool>) -> Result<ImageTexture> {
         let bytes = crate::files::read_limited(path, crate::files::MAX_IMAGE_FILE_BYTES)
             .map_err(|e| Error::file(path, format!("cannot open image: {e}")))?;
-        Self::decode(&bytes, srgb).map_err(|e| Error::file(path, e))
+        let ext = path.extension().and_then(|e| e.to_str());
+        let image = crate::film::io::decode_any_named(&bytes, srgb, ext).map_err(|e| Error::file(path, e))?;
+        Self::from_image(image).map_err(|e| Error::file(path, e))
     }
 
     /// Decodes a PNG, JPEG, BMP, Radiance HDR, OpenEXR or PFM image held in
@@ -35,18 +38,17 @@ impl ImageTexture {
     /// The size in the header is checked before any pixel is allocated.
     /// Errors are plain reasons, for the caller to place.
     pub fn decode(bytes: &[u8], srgb: Option<bool>) -> Result<ImageTexture, String> {
-        let t = Self::decode_any_size(bytes, srgb)?;
-        if t.pixels.is_empty() || t.pixels.len() != t.width as usize * t.height as usize {
-            return Err(format!(
-                "an image of {}×{} pixels cannot be a texture",
-                t.width, t.height
-            ));
-        }
-        Ok(t)
+        Self::from_image(crate::film::io::decode_any(bytes, srgb)?)
     }
 
-    fn decode_any_size(bytes: &[u8], srgb: Option<bool>) -> Result<ImageTexture, String> {
-        let image = crate::film::io::decode_any(bytes, srgb)?;
+    /// A decoded image as a texture, which must have pixels.
+    fn from_image(image: crate::film::Image) -> Result<ImageTexture, String> {
+        if image.pixels.is_empty() || image.pixels.len() != image.width as usize * image.height as usize {
+            return Err(format!(
+                "an image of {}×{} pixels cannot be a texture",
+                image.width, image.height
+            ));
+        }
         Ok(ImageTexture {
             width: image.width,
             height: image.height,
@@ -315,6 +317,30 @@ mod tests {
         assert_eq!((t.width, t.height), (2, 3));
         assert!((t.pixels[0].x - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
         assert_eq!((t.pixels[5].y, t.pixels[5].z), (1.0, 0.0));
+    }
+
+    /// TGA (which has no signature: its extension names it) and binary PPM
+    /// files, as Mitsuba reads them: 8-bit sRGB, rows from the top.
+    #[test]
+    fn tga_and_ppm_files_are_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut img = ::image::RgbImage::from_pixel(2, 3, ::image::Rgb([128, 255, 0]));
+        img.put_pixel(1, 2, ::image::Rgb([0, 0, 255]));
+        for name in ["t.tga", "t.ppm"] {
+            let path = dir.path().join(name);
+            img.save(&path).unwrap();
+            let t = ImageTexture::load(&path, None).unwrap();
+            assert_eq!((t.width, t.height), (2, 3), "{name}");
+            assert!((t.pixels[0].x - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6, "{name}");
+            assert_eq!(t.pixels[5], Rgb::new(0.0, 0.0, 1.0), "{name}");
+        }
+        // A TGA's bytes alone name no format; a truncated one is an error.
+        let tga = std::fs::read(dir.path().join("t.tga")).unwrap();
+        assert!(ImageTexture::decode(&tga, None).is_err());
+        let cut = dir.path().join("cut.tga");
+        std::fs::write(&cut, &tga[..20]).unwrap();
+        let e = ImageTexture::load(&cut, None).unwrap_err().to_string();
+        assert!(e.contains("cut.tga"), "{e}");
     }
 
     #[test]
