@@ -32,7 +32,8 @@ pub fn camera_aov(scene: &Scene, camera_ray: &Ray) -> AovSample {
             out.depth = hit.t * ray.dir.length();
         }
         let m = &scene.materials[hit.material as usize];
-        let bsdf = m.bsdf(&scene.images, &TexCoord::at(&hit));
+        let mut parts = None;
+        let bsdf = scene.bsdf(hit.material, &TexCoord::at(&hit), &mut parts);
         let frame = m.shading_frame(&scene.images, &hit, wo_world);
         let facing = if frame.n.dot(wo_world) < 0.0 { -frame.n } else { frame.n };
         if bsdf.has_smooth() || bounce == MAX_SPECULAR_CHAIN {

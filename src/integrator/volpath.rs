@@ -318,7 +318,8 @@ impl Integrator for VolPathTracer {
             }
 
             let tc = TexCoord::at(&hit);
-            let bsdf = m.bsdf(&scene.images, &tc);
+            let mut parts = None;
+            let bsdf = scene.bsdf(hit.material, &tc, &mut parts);
             let frame = m.shading_frame(&scene.images, &hit, wo_world);
             let wo = frame.to_local(wo_world);
             if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {

@@ -58,9 +58,11 @@ impl Whitted {
     /// Radiance along `ray`, the `depth`-th segment of its path.
     fn trace(&self, scene: &Scene, ray: &Ray, depth: u32, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb {
         stats.rays += 1;
-        let Some(hit) = scene.intersect(ray) else {
+        let Some(mut hit) = scene.intersect(ray) else {
             return scene.background.eval(ray.dir);
         };
+        // A blend's classical parameters are those of one of its materials.
+        scene.choose_any_material(&mut hit, ray.dir);
         let m = &scene.materials[hit.material as usize];
         let wo = -ray.dir.normalize();
         let front = hit.is_front(wo);
@@ -151,7 +153,7 @@ fn shadow_transmittance(scene: &Scene, hit: &SurfaceHit, ls: &LightSample, stats
             return transmittance;
         };
         let mut s = scene.geometry.surface(&ray, &h);
-        scene.choose_material(&mut s, ray.dir);
+        scene.choose_any_material(&mut s, ray.dir);
         let m = &scene.materials[s.material as usize];
         if !m.is_transmissive() {
             return Rgb::ZERO;

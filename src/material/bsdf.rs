@@ -8,6 +8,7 @@
 //! `pdf`, and `f` scaled so that `f·|cos θi|/pdf` is the right weight; `eval`
 //! and `pdf` ignore them.
 
+use super::blend::BlendBsdf;
 use super::classic::ClassicBsdf;
 use super::conductor::ConductorBsdf;
 use super::dielectric::DielectricBsdf;
@@ -106,6 +107,8 @@ pub enum Bsdf<'a> {
     Layered(LayeredBsdf),
     /// Disney's principled BSDF, as Mitsuba 3 evaluates it.
     Principled(PrincipledBsdf),
+    /// Two BSDFs blended by a weight (Mitsuba's `blendbsdf`).
+    Blend(BlendBsdf<'a>),
 }
 
 macro_rules! dispatch {
@@ -119,6 +122,7 @@ macro_rules! dispatch {
             Bsdf::Thin($b) => $e,
             Bsdf::Layered($b) => $e,
             Bsdf::Principled($b) => $e,
+            Bsdf::Blend($b) => $e,
         }
     };
 }
@@ -174,6 +178,7 @@ impl Bsdf<'_> {
         match self {
             Bsdf::Dielectric(d) => d.has_smooth(),
             Bsdf::Principled(p) => p.transmits(),
+            Bsdf::Blend(b) => b.has_smooth_transmission(),
             _ => false,
         }
     }
@@ -185,6 +190,7 @@ impl Bsdf<'_> {
             Bsdf::Dielectric(_) | Bsdf::Thin(_) => true,
             Bsdf::Classic(c) => c.kt != Rgb::ZERO,
             Bsdf::Principled(p) => p.transmits(),
+            Bsdf::Blend(b) => b.transmits(),
             _ => false,
         }
     }
@@ -197,6 +203,7 @@ impl Bsdf<'_> {
     pub fn pass_through(&self, wo: Vec3) -> Rgb {
         match self {
             Bsdf::Thin(t) => t.pass_through(wo),
+            Bsdf::Blend(b) => b.pass_through(wo),
             _ => Rgb::ZERO,
         }
     }
@@ -205,7 +212,11 @@ impl Bsdf<'_> {
     /// without changing direction (see [`Bsdf::pass_through`]).
     #[inline]
     pub fn passed_through(&self, wo: Vec3, s: &BsdfSample) -> bool {
-        matches!(self, Bsdf::Thin(_)) && s.wi == -wo
+        match self {
+            Bsdf::Thin(_) => s.wi == -wo,
+            Bsdf::Blend(b) => b.passed_through(wo, s),
+            _ => false,
+        }
     }
 
     /// An estimate of the surface's colour (its reflectance at normal

@@ -16,6 +16,7 @@
 //! roughness = 0.0
 //! ```
 
+pub mod blend;
 pub mod bsdf;
 pub mod classic;
 pub mod conductor;
@@ -257,18 +258,22 @@ impl RoughnessMap {
     }
 }
 
-/// A material that is one of two at each point: the second with the
-/// weight's first channel as its probability, so that on average it
-/// scatters as (1 − w)·f₀ + w·f₁ (Mitsuba's `blendbsdf`). The choice is a
-/// hash of the point and the direction, as pbrt-v4's `MixMaterial` makes
-/// it: the same for every look-up of one shading point, and independent of
-/// the sampler's dimensions.
+/// A material that scatters as (1 − w)·f₀ + w·f₁ (Mitsuba's `blendbsdf`,
+/// pbrt-v4's `mix`), w the weight's first channel. Where the two differ
+/// only in their BSDFs (`exact`), both are evaluated at each point
+/// ([`crate::material::blend::BlendBsdf`]). Otherwise (normal or bump maps,
+/// opacity, emission, sides or nested mixes of their own) the second is
+/// chosen with probability w at each point, by a hash of the point and the
+/// direction as pbrt-v4's `MixMaterial` chooses: the same for every look-up
+/// of one shading point, and independent of the sampler's dimensions.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MaterialMix {
-    /// The probability of `materials[1]` (first channel, clamped to [0, 1]).
+    /// The share of `materials[1]` (first channel, clamped to [0, 1]).
     pub weight: Texture,
     /// The two materials (indices into the scene's).
     pub materials: [u32; 2],
+    /// Whether the two are blended as one BSDF rather than chosen between.
+    pub exact: bool,
 }
 
 impl MaterialMix {

@@ -516,6 +516,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     }
     material_mixes.resize(materials.len(), None);
     let mut scene = Scene {
+        any_blend: material_mixes.iter().flatten().any(|m| m.exact),
         material_mixes,
         media,
         material_media,
@@ -681,12 +682,29 @@ fn resolve_mixes(
                 *part = materials.len() as u32 - 1;
             }
         }
+        // Blended as one BSDF where the two differ in their BSDFs alone: the
+        // stand-in below then answers for everything but the BSDF.
+        let plain = |k: u32| {
+            let m = &materials[k as usize];
+            !matches!(
+                desc.materials.get(k as usize).map(|d| &d.kind),
+                Some(MaterialKindDesc::Mix { .. })
+            ) && m.normal_map.is_none()
+                && m.bump_map.is_none()
+                && m.opacity.is_none()
+                && !m.is_emissive()
+                && !matches!(m.kind, MaterialKind::Thin { .. })
+        };
+        let exact = !overrides
+            && parts.iter().all(|&k| plain(k))
+            && materials[parts[0] as usize].two_sided == materials[parts[1] as usize].two_sided;
         let mut stand_in = materials[parts[0] as usize].clone();
         stand_in.emission = own.emission;
         materials[i] = stand_in;
         mixes[i] = Some(MaterialMix {
             weight: color(weight),
             materials: parts,
+            exact,
         });
     }
     mixes

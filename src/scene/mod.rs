@@ -76,6 +76,9 @@ pub struct Scene {
     /// Per material, how it chooses between two others (`None` for most);
     /// [`Scene::intersect`] records the chosen one in the hit.
     pub material_mixes: Vec<Option<crate::material::MaterialMix>>,
+    /// Whether any mix is blended exactly: where none is, [`Scene::bsdf`]
+    /// looks no mix up.
+    pub any_blend: bool,
 }
 
 impl Scene {
@@ -91,15 +94,63 @@ impl Scene {
     }
 
     /// Replaces a mix material of a hit seen along `dir` by the material it
-    /// chooses there (through nested mixes).
+    /// chooses there (through nested mixes), except a mix that is blended
+    /// exactly, whose BSDF [`Scene::bsdf`] makes.
     #[inline]
     pub fn choose_material(&self, hit: &mut SurfaceHit, dir: glam::Vec3) {
         for _ in 0..crate::scene::desc::MAX_MIX_DEPTH {
             let Some(mix) = self.material_mixes.get(hit.material as usize).and_then(Option::as_ref) else {
                 return;
             };
+            if mix.exact {
+                return;
+            }
             hit.material = mix.choose(&self.images, &crate::texture::TexCoord::at(hit), dir);
         }
+    }
+
+    /// [`Scene::choose_material`] for every mix, those blended exactly too:
+    /// for the Whitted ray tracer, which reads one material's classical
+    /// parameters.
+    pub fn choose_any_material(&self, hit: &mut SurfaceHit, dir: glam::Vec3) {
+        for _ in 0..crate::scene::desc::MAX_MIX_DEPTH {
+            let Some(mix) = self.material_mixes.get(hit.material as usize).and_then(Option::as_ref) else {
+                return;
+            };
+            hit.material = mix.choose(&self.images, &crate::texture::TexCoord::at(hit), dir);
+        }
+    }
+
+    /// The BSDF of material `m` at `tc`: the material's own, or for a mix
+    /// blended exactly the blend of its two materials' BSDFs, which are
+    /// kept in `parts`.
+    #[inline]
+    pub fn bsdf<'s>(
+        &'s self,
+        m: u32,
+        tc: &crate::texture::TexCoord,
+        parts: &'s mut Option<[crate::material::Bsdf<'s>; 2]>,
+    ) -> crate::material::Bsdf<'s> {
+        if self.any_blend {
+            if let Some(mix) = self.material_mixes.get(m as usize).and_then(Option::as_ref) {
+                if mix.exact {
+                    return self.blend(mix, tc, parts);
+                }
+            }
+        }
+        self.materials[m as usize].bsdf(&self.images, tc)
+    }
+
+    #[inline(never)]
+    fn blend<'s>(
+        &'s self,
+        mix: &crate::material::MaterialMix,
+        tc: &crate::texture::TexCoord,
+        parts: &'s mut Option<[crate::material::Bsdf<'s>; 2]>,
+    ) -> crate::material::Bsdf<'s> {
+        let weight = mix.weight.eval(&self.images, tc).x.clamp(0.0, 1.0);
+        let parts = parts.insert(mix.materials.map(|k| self.materials[k as usize].bsdf(&self.images, tc)));
+        crate::material::Bsdf::Blend(crate::material::blend::BlendBsdf { weight, parts })
     }
 
     /// Whether any material lets light through (shadow rays then have to

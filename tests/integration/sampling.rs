@@ -7,6 +7,7 @@
 use std::f32::consts::PI;
 use trazo::color::Rgb;
 use trazo::light::{Background, EnvironmentMap, Light};
+use trazo::material::blend::BlendBsdf;
 use trazo::material::classic::ClassicBsdf;
 use trazo::material::conductor::{ConductorBsdf, ConductorFresnel};
 use trazo::material::dielectric::DielectricBsdf;
@@ -53,7 +54,7 @@ fn bsdfs<'a>(tables: &'a [CoatTables; 2]) -> Vec<(String, Bsdf<'a>)> {
         smooth_internal_reflectance: coat_smooth(),
         tables,
     };
-    vec![
+    let configs: Vec<(String, Bsdf<'a>)> = vec![
         (
             "lambert".into(),
             Bsdf::Lambert(LambertBsdf {
@@ -161,7 +162,29 @@ fn bsdfs<'a>(tables: &'a [CoatTables; 2]) -> Vec<(String, Bsdf<'a>)> {
             "rough plastic Beckmann α=0.3".into(),
             Bsdf::Plastic(plastic(coat_roughness()[1], Some(&tables[1]))),
         ),
-    ]
+    ];
+    // Blends (Mitsuba's blendbsdf) of some of the above: diffuse and
+    // glossy, and glossy reflection with delta and glossy transmission.
+    let find = |name: &str| configs.iter().find(|(n, _)| n == name).map(|(_, b)| *b).unwrap();
+    let blends = [
+        ("lambert", "rough conductor α=0.15", 0.3),
+        (
+            "classic phong s=80 + mirror + glass",
+            "rough dielectric α=0.2 η=1.5",
+            0.6,
+        ),
+    ];
+    let mut all = configs.clone();
+    for (a, b, weight) in blends {
+        // The parts live as long as the test: leaked, as the scene's
+        // integrators hold them on the stack for one shading point.
+        let parts: &'a [Bsdf<'a>; 2] = Box::leak(Box::new([find(a), find(b)]));
+        all.push((
+            format!("blend of {a} and {b}, w={weight}"),
+            Bsdf::Blend(BlendBsdf { weight, parts }),
+        ));
+    }
+    all
 }
 
 #[test]

@@ -222,9 +222,10 @@ impl PhotonMapper {
             let mut ray = hit.spawn_ray(wi_world);
             for _ in 0..MAX_GATHER_SPECULAR {
                 stats.rays += 1;
-                let Some(h) = scene.intersect(&ray) else {
+                let Some(mut h) = scene.intersect(&ray) else {
                     break;
                 };
+                scene.choose_any_material(&mut h, ray.dir);
                 let Some(sp2) = ShadingPoint::new(scene, &h, -ray.dir.normalize()) else {
                     break;
                 };

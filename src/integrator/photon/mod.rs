@@ -91,12 +91,15 @@ pub(crate) fn camera_segment<'a>(
     rays: &mut u64,
 ) -> Option<(SurfaceHit, ShadingPoint<'a>)> {
     *rays += 1;
-    let Some(hit) = scene.intersect(ray) else {
+    let Some(mut hit) = scene.intersect(ray) else {
         if scene.environment_light.is_some() {
             *l += beta * scene.background.eval(ray.dir);
         }
         return None;
     };
+    // Photon mapping takes one material of a blend per shading point (the
+    // blend on average): its shading points outlive a blend's parts.
+    scene.choose_any_material(&mut hit, ray.dir);
     let wo_world = -ray.dir.normalize();
     let m = &scene.materials[hit.material as usize];
     if m.is_emissive() && hit.is_front(wo_world) {

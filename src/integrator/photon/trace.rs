@@ -152,9 +152,11 @@ fn trace_one(
     let mut only_specular = true;
     for depth in 0..max_depth {
         *rays += 1;
-        let Some(hit) = scene.intersect(&ray) else {
+        let Some(mut hit) = scene.intersect(&ray) else {
             return;
         };
+        // One material of a blend per point, as the camera side takes it.
+        scene.choose_any_material(&mut hit, ray.dir);
         let m = &scene.materials[hit.material as usize];
         let tc = crate::texture::TexCoord::at(&hit);
         let bsdf = m.bsdf(&scene.images, &tc);
