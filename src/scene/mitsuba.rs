@@ -285,6 +285,11 @@ struct Loader {
     /// Where each object id was defined, in every file read: Mitsuba
     /// refuses a second object with the same id.
     ids: HashMap<String, SourceLoc>,
+    /// Top-level area emitters by id, for shapes that refer to them.
+    area_emitters: HashMap<String, (ColorSource, SourceLoc)>,
+    /// Top-level samplers by id (kind, samples per pixel, seed), for the
+    /// sensor that refers to one.
+    samplers: HashMap<String, (SamplerKind, u32, u64)>,
 }
 
 /// A `<shape type="shapegroup" id="..">`: its shapes, each with its own
@@ -353,6 +358,8 @@ impl Loader {
             saw_integrator: false,
             groups: HashMap::new(),
             ids: HashMap::new(),
+            area_emitters: HashMap::new(),
+            samplers: HashMap::new(),
             instances: Vec::new(),
             group_mesh_names: HashMap::new(),
             group_meshes: Vec::new(),
@@ -683,6 +690,20 @@ impl Loader {
                 self.medium(f, node)?;
             }
             "phase" | "volume" => self.warn(f, node, "a top-level phase function or volume is never used; ignored"),
+            "sampler" => match self.attr(f, node, "id")? {
+                // Read as a sensor's would be, kept for the sensor that
+                // refers to it.
+                Some(id) => {
+                    let s = &self.desc.settings;
+                    let saved = (s.sampler, s.spp, s.seed);
+                    self.sampler(f, node)?;
+                    let s = &mut self.desc.settings;
+                    let read = (s.sampler, s.spp, s.seed);
+                    (s.sampler, s.spp, s.seed) = saved;
+                    self.samplers.insert(id, read);
+                }
+                None => self.warn(f, node, "a top-level sampler without an id is never used; ignored"),
+            },
             _ => self.warn(f, node, "unsupported element; ignored"),
         }
         Ok(())
@@ -1103,7 +1124,21 @@ impl Loader {
             self.sampler(f, sampler)?;
         }
         for c in node.children().filter(Node::is_element) {
-            if !matches!(c.tag_name().name(), "film" | "sampler") && !c.has_attribute("name") {
+            if c.tag_name().name() == "ref" && !c.has_attribute("name") {
+                let id = self.required_attr(f, c, "id")?;
+                match self.samplers.get(&id) {
+                    Some(&read) => {
+                        let s = &mut self.desc.settings;
+                        (s.sampler, s.spp, s.seed) = read;
+                    }
+                    None if self.ids.contains_key(&id) => self.warn(
+                        f,
+                        c,
+                        format!("a sensor's reference to \"{id}\" is unsupported (only a sampler's is read); ignored"),
+                    ),
+                    None => return Err(self.err(f, c, format!("no object with id \"{id}\""))),
+                }
+            } else if !matches!(c.tag_name().name(), "film" | "sampler") && !c.has_attribute("name") {
                 self.warn(f, c, "unsupported inside a sensor; ignored");
             }
         }
@@ -1331,6 +1366,18 @@ impl Loader {
         result
     }
 
+    /// An area emitter's radiance (1 by default), read as emission.
+    fn area_radiance(&mut self, f: &FileCtx, node: Node) -> Result<ColorSource> {
+        let props = Self::props(node);
+        let mut used = Vec::new();
+        let was = std::mem::replace(&mut self.in_emitter, true);
+        let radiance = self.color_source(f, &props, "radiance", &mut used);
+        self.in_emitter = was;
+        let radiance = radiance?.unwrap_or(ColorSource::Rgb(Rgb::ONE));
+        self.unused(f, node, &props, &used);
+        Ok(radiance)
+    }
+
     fn emitter_properties(&mut self, f: &FileCtx, node: Node) -> Result<()> {
         let ty = self.required_attr(f, node, "type")?;
         let props = Self::props(node);
@@ -1451,7 +1498,15 @@ impl Loader {
                     },
                 );
             }
-            "area" => self.warn(f, node, "an area emitter must be attached to a shape; ignored"),
+            "area" => match self.attr(f, node, "id")? {
+                // Defined here, placed by the shapes that refer to it.
+                Some(id) => {
+                    let radiance = self.area_radiance(f, node)?;
+                    self.area_emitters.insert(id, (radiance, f.loc_of(node)));
+                    return Ok(());
+                }
+                None => self.warn(f, node, "an area emitter must be attached to a shape; ignored"),
+            },
             other => self.warn(f, node, format!("emitter \"{other}\" is unsupported; ignored")),
         }
         self.unused(f, node, &props, &used);
@@ -2771,6 +2826,10 @@ impl Loader {
                 }
                 "ref" if !c.has_attribute("name") || c.attribute("name") == Some("bsdf") => {
                     let id = self.required_attr(f, c, "id")?;
+                    if let (None, Some(e)) = (c.attribute("name"), self.area_emitters.get(&id)) {
+                        emission = Some(e.clone());
+                        continue;
+                    }
                     let def = self
                         .bsdfs
                         .get(&id)
@@ -2788,14 +2847,7 @@ impl Loader {
                         );
                         continue;
                     }
-                    let eprops = Self::props(c);
-                    let mut eused = Vec::new();
-                    self.in_emitter = true;
-                    let radiance = self.color_source(f, &eprops, "radiance", &mut eused);
-                    self.in_emitter = false;
-                    let radiance = radiance?.unwrap_or(ColorSource::Rgb(Rgb::ONE));
-                    self.unused(f, c, &eprops, &eused);
-                    emission = Some((radiance, f.loc_of(c)));
+                    emission = Some((self.area_radiance(f, c)?, f.loc_of(c)));
                 }
                 "transform" | "float" | "integer" | "boolean" | "string" | "point" | "vector" | "rgb" | "spectrum" => {}
                 "medium" | "ref" => {
@@ -3420,6 +3472,58 @@ mod tests {
             "{:?}",
             d.warnings
         );
+    }
+
+    /// An area emitter defined at the top with an id lights every shape
+    /// that refers to it (with or without a BSDF of its own); one without
+    /// an id is placed nowhere.
+    #[test]
+    fn area_emitters_by_reference() {
+        let xml = r#"<scene>
+          <emitter type="area" id="lamp"><rgb name="radiance" value="5"/></emitter>
+          <bsdf type="diffuse" id="white"/>
+          <shape type="rectangle"><ref id="lamp"/></shape>
+          <shape type="sphere"><ref id="white"/><ref id="lamp"/></shape>
+          <shape type="sphere"><ref id="white"/></shape>
+        </scene>"#;
+        let d = parse_str(xml).unwrap();
+        for i in 0..2 {
+            assert_eq!(
+                material_of(&d, i).emission,
+                ColorSource::Rgb(Rgb::splat(5.0)),
+                "shape {i}"
+            );
+        }
+        assert_eq!(material_of(&d, 2).emission, ColorSource::Rgb(Rgb::ZERO));
+        let e = parse_str(
+            r#"<scene><emitter type="area" id="lamp"/>
+            <shape type="sphere"><ref name="bsdf" id="lamp"/></shape></scene>"#,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("no BSDF with id \"lamp\""), "{e}");
+    }
+
+    /// A sampler defined at the top with an id is the sensor's when the
+    /// sensor refers to it, and nobody's before.
+    #[test]
+    fn samplers_by_reference() {
+        let sampler = r#"<sampler type="stratified" id="s"><integer name="sample_count" value="9"/>
+            <integer name="seed" value="3"/></sampler>"#;
+        let d = parse_str(&format!(
+            r#"<scene>{sampler}<sensor type="perspective"><ref id="s"/></sensor></scene>"#
+        ))
+        .unwrap();
+        assert_eq!(
+            (d.settings.sampler, d.settings.spp, d.settings.seed),
+            (SamplerKind::Stratified, 9, 3)
+        );
+        let d = parse_str(&format!(r#"<scene>{sampler}<sensor type="perspective"/></scene>"#)).unwrap();
+        assert_eq!(d.settings.spp, 4, "Mitsuba's default, not the unused sampler's");
+        let e = parse_str(r#"<scene><sensor type="perspective"><ref id="t"/></sensor></scene>"#)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no object with id \"t\""), "{e}");
     }
 
     #[test]
