@@ -73,8 +73,9 @@ pub struct Scene {
     pub material_media: Vec<Option<crate::media::MediumInterface>>,
     /// The medium the camera is in.
     pub camera_medium: Option<u32>,
-    /// Per material, how it chooses between two others (`None` for most);
-    /// [`Scene::intersect`] records the chosen one in the hit.
+    /// Per material, how it mixes two others (`None` for most);
+    /// [`Scene::intersect`] records the chosen one in the hit, except for a
+    /// blend, whose BSDF [`Scene::bsdf`] makes.
     pub material_mixes: Vec<Option<crate::material::MaterialMix>>,
     /// Whether any mix is blended exactly: where none is, [`Scene::bsdf`]
     /// looks no mix up.
@@ -98,25 +99,27 @@ impl Scene {
     /// exactly, whose BSDF [`Scene::bsdf`] makes.
     #[inline]
     pub fn choose_material(&self, hit: &mut SurfaceHit, dir: glam::Vec3) {
-        for _ in 0..crate::scene::desc::MAX_MIX_DEPTH {
-            let Some(mix) = self.material_mixes.get(hit.material as usize).and_then(Option::as_ref) else {
-                return;
-            };
-            if mix.exact {
-                return;
-            }
-            hit.material = mix.choose(&self.images, &crate::texture::TexCoord::at(hit), dir);
-        }
+        self.resolve_mixes(hit, dir, true);
     }
 
     /// [`Scene::choose_material`] for every mix, those blended exactly too:
-    /// for the Whitted ray tracer, which reads one material's classical
-    /// parameters.
+    /// for Whitted's tracer, which reads one material's classical
+    /// parameters, and photon mapping, whose shading points outlive a
+    /// blend's parts.
+    #[inline]
     pub fn choose_any_material(&self, hit: &mut SurfaceHit, dir: glam::Vec3) {
+        self.resolve_mixes(hit, dir, false);
+    }
+
+    #[inline]
+    fn resolve_mixes(&self, hit: &mut SurfaceHit, dir: glam::Vec3, keep_blends: bool) {
         for _ in 0..crate::scene::desc::MAX_MIX_DEPTH {
             let Some(mix) = self.material_mixes.get(hit.material as usize).and_then(Option::as_ref) else {
                 return;
             };
+            if keep_blends && mix.exact {
+                return;
+            }
             hit.material = mix.choose(&self.images, &crate::texture::TexCoord::at(hit), dir);
         }
     }
