@@ -257,7 +257,7 @@ fn render<'py>(
     let extra = PyDict::new(py);
     for aov in aovs {
         let img = out.film.aov_image(aov).expect("recorded");
-        let channels = if aov == Aov::Depth { 1 } else { 3 };
+        let channels = if matches!(aov, Aov::Depth | Aov::Steps) { 1 } else { 3 };
         extra.set_item(aov.name(), array(py, &img, channels))?;
     }
     Ok((image, extra))

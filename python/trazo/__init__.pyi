@@ -38,7 +38,7 @@ def render(
     width: Optional[int] = None,
     height: Optional[int] = None,
     max_depth: Optional[int] = None,
-    aovs: Sequence[Literal["albedo", "normal", "depth"]] = (),
+    aovs: Sequence[Literal["albedo", "normal", "depth", "steps"]] = (),
     progress: Progress = None,
 ) -> Union[Image, Dict[str, Image]]: ...
 def read(path: Union[str, PathLike[str]]) -> Image: ...

@@ -240,7 +240,9 @@ struct RenderArgs {
     denoise: Option<String>,
 
     /// Also write auxiliary images (comma-separated: albedo, normal,
-    /// depth) as OUTPUT-NAME.<aov>.exr next to the output.
+    /// depth, steps) as OUTPUT-NAME.<aov>.exr next to the output (steps:
+    /// sphere-tracing steps per camera ray, also as a heat map
+    /// OUTPUT-NAME.steps.png).
     #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = Aov::NAMES)]
     aov: Vec<String>,
 
@@ -777,6 +779,30 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             }
         }
     }
+    for s in &scene.geometry.shapes {
+        if let crate::geometry::Shape::Implicit(f) = &s.shape {
+            let n = f.give_ups();
+            if n > 0 {
+                eprintln!(
+                    "warning: {}: the root search gave up on {n} rays after {} interval evaluations each ({:.1e} of the rays traced; they pass through the shape there); raise the shape's max_evaluations",
+                    f.origin().unwrap_or("an implicit surface"),
+                    f.max_evaluations(),
+                    n as f64 / st.rays.max(1) as f64
+                );
+            }
+        }
+        if let crate::geometry::Shape::Sdf(f) = &s.shape {
+            let n = f.step_cap_hits();
+            if n > 0 {
+                eprintln!(
+                    "warning: {}: sphere tracing gave up on {n} rays after {} steps each ({:.1e} of the rays traced; they pass through the shape there); raise the shape's max_steps or epsilon",
+                    f.origin().unwrap_or("a distance-function shape"),
+                    f.max_steps(),
+                    n as f64 / st.rays.max(1) as f64
+                );
+            }
+        }
+    }
     if st.invalid_samples > 0 {
         eprintln!(
             "warning: {} samples were NaN or infinite and were dropped{}",
@@ -872,7 +898,7 @@ fn display_frame(film: &Film, image: &crate::film::Image, exposure: f32, aovs: &
         .collect();
     let mut layers: Vec<(&str, &[crate::Rgb], usize)> = vec![("", &image.pixels, 3)];
     for (aov, img) in &extra {
-        let n = if *aov == Aov::Depth { 1 } else { 3 };
+        let n = if matches!(aov, Aov::Depth | Aov::Steps) { 1 } else { 3 };
         layers.push((aov.name(), &img.pixels, n));
     }
     crate::film::display::Frame::new(image.width, image.height, &layers)
@@ -926,6 +952,24 @@ impl ImageOutputs<'_> {
                 .aov_image(*aov)
                 .ok_or_else(|| Error::Invalid("the auxiliary images were not recorded".into()))?;
             write_image(&aov_path(output, *aov), &img, tonemap, 0.0)?;
+            if *aov == Aov::Steps {
+                // The counts are in the EXR; a heat map shows them, from
+                // black (none) to yellow (the most in any pixel).
+                let most = img.pixels.iter().map(|p| p.x).fold(0.0f32, f32::max).ceil().max(1.0);
+                let path = output.with_file_name(format!(
+                    "{}.steps.png",
+                    output.file_stem().map(|s| s.to_string_lossy()).unwrap_or_default()
+                ));
+                write_image(&path, &crate::film::metrics::heat_map(&img, most), Tonemap::Clamp, 0.0)?;
+                let line = format!(
+                    "sphere-tracing steps per camera ray: heat map {} (black 0, yellow {most})",
+                    path.display()
+                );
+                note = Some(match note {
+                    Some(n) => format!("{n}; {line}"),
+                    None => line,
+                });
+            }
         }
         Ok((image, note))
     }

@@ -50,26 +50,6 @@ pub fn rmse(a: &Image, b: &Image) -> Result<f64> {
 /// (no error) through purple and orange to yellow (≥ `full_scale`).
 pub fn error_image(a: &Image, b: &Image, full_scale: f64) -> Result<Image> {
     check_sizes(a, b)?;
-    // An inferno-like ramp, given in sRGB and converted to linear so that
-    // the written PNG shows these colours.
-    let stops: [[f32; 3]; 5] = [
-        [0.0, 0.0, 0.02],
-        [0.34, 0.06, 0.43],
-        [0.73, 0.21, 0.33],
-        [0.98, 0.55, 0.04],
-        [0.99, 1.0, 0.64],
-    ];
-    let ramp = |t: f32| -> crate::color::Rgb {
-        let t = t.clamp(0.0, 1.0) * (stops.len() - 1) as f32;
-        let i = (t as usize).min(stops.len() - 2);
-        let f = t - i as f32;
-        let c: Vec<f32> = (0..3).map(|k| stops[i][k] * (1.0 - f) + stops[i + 1][k] * f).collect();
-        crate::color::Rgb::new(
-            crate::color::srgb_to_linear(c[0]),
-            crate::color::srgb_to_linear(c[1]),
-            crate::color::srgb_to_linear(c[2]),
-        )
-    };
     let pixels = a
         .pixels
         .iter()
@@ -80,7 +60,7 @@ pub fn error_image(a: &Image, b: &Image, full_scale: f64) -> Result<Image> {
                 let (x, y) = (p[c] as f64, q[c] as f64);
                 e += (x - y) * (x - y) / (y * y + REL_MSE_EPSILON);
             }
-            ramp(((e / 3.0).sqrt() / full_scale.max(1e-12)) as f32)
+            heat_ramp(((e / 3.0).sqrt() / full_scale.max(1e-12)) as f32)
         })
         .collect();
     Ok(Image {
@@ -88,6 +68,38 @@ pub fn error_image(a: &Image, b: &Image, full_scale: f64) -> Result<Image> {
         height: a.height,
         pixels,
     })
+}
+
+/// An inferno-like ramp from black (t = 0) through purple and orange to
+/// yellow (t ≥ 1), given in sRGB and converted to linear so that a written
+/// PNG shows these colours.
+pub fn heat_ramp(t: f32) -> crate::color::Rgb {
+    const STOPS: [[f32; 3]; 5] = [
+        [0.0, 0.0, 0.02],
+        [0.34, 0.06, 0.43],
+        [0.73, 0.21, 0.33],
+        [0.98, 0.55, 0.04],
+        [0.99, 1.0, 0.64],
+    ];
+    let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) } * (STOPS.len() - 1) as f32;
+    let i = (t as usize).min(STOPS.len() - 2);
+    let f = t - i as f32;
+    let c = |k: usize| crate::color::srgb_to_linear(STOPS[i][k] * (1.0 - f) + STOPS[i + 1][k] * f);
+    crate::color::Rgb::new(c(0), c(1), c(2))
+}
+
+/// A false-colour image of `img`'s first channel, from black at 0 to
+/// yellow at `full_scale` and above.
+pub fn heat_map(img: &Image, full_scale: f32) -> Image {
+    Image {
+        width: img.width,
+        height: img.height,
+        pixels: img
+            .pixels
+            .iter()
+            .map(|p| heat_ramp(p.x / full_scale.max(1e-12)))
+            .collect(),
+    }
 }
 
 #[cfg(test)]

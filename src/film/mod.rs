@@ -154,7 +154,7 @@ fn to_fixed(v: f64) -> i128 {
 /// Sums in fixed point: integers, so that adding them is exact, and the
 /// same numbers added in any grouping and order give the same bits. The
 /// film's pixels (`N` = 5: [`PixelSum`]'s fields) and auxiliary sums
-/// (`N` = 8: [`AovSum`]'s) are kept so.
+/// (`N` = 9: [`AovSum`]'s) are kept so.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ExactSums<const N: usize>(pub [i128; N]);
 
@@ -234,14 +234,14 @@ impl FilmPixel {
 }
 
 /// A pixel's auxiliary sums in fixed point ([`AovSum`]'s fields).
-pub type FilmAov = ExactSums<8>;
+pub type FilmAov = ExactSums<9>;
 
 impl FilmAov {
     /// Adds what a pass summed into this pixel.
     #[inline]
     pub fn add_aov(&mut self, a: &AovSum) {
         self.add([
-            a.albedo.x, a.albedo.y, a.albedo.z, a.normal.x, a.normal.y, a.normal.z, a.depth, a.count,
+            a.albedo.x, a.albedo.y, a.albedo.z, a.normal.x, a.normal.y, a.normal.z, a.depth, a.count, a.steps,
         ]);
     }
 
@@ -254,12 +254,13 @@ impl FilmAov {
 
     /// The sums in double precision.
     pub fn sum(&self) -> AovSum {
-        let [ar, ag, ab, nx, ny, nz, depth, count] = self.to_f64();
+        let [ar, ag, ab, nx, ny, nz, depth, count, steps] = self.to_f64();
         AovSum {
             albedo: DVec3::new(ar, ag, ab),
             normal: DVec3::new(nx, ny, nz),
             depth,
             count,
+            steps,
         }
     }
 }
@@ -274,11 +275,14 @@ pub enum Aov {
     Normal,
     /// Distance along the camera ray to the first hit (0 where nothing is hit).
     Depth,
+    /// Evaluations of distance functions by sphere tracing along the camera
+    /// ray (0 where it meets none): where the marcher works hard.
+    Steps,
 }
 
 impl Aov {
     /// The names accepted on the command line.
-    pub const NAMES: [&'static str; 3] = ["albedo", "normal", "depth"];
+    pub const NAMES: [&'static str; 4] = ["albedo", "normal", "depth", "steps"];
 
     /// Parses one of [`Aov::NAMES`].
     pub fn from_name(s: &str) -> Option<Aov> {
@@ -286,6 +290,7 @@ impl Aov {
             "albedo" => Some(Aov::Albedo),
             "normal" => Some(Aov::Normal),
             "depth" => Some(Aov::Depth),
+            "steps" => Some(Aov::Steps),
             _ => None,
         }
     }
@@ -296,6 +301,7 @@ impl Aov {
             Aov::Albedo => "albedo",
             Aov::Normal => "normal",
             Aov::Depth => "depth",
+            Aov::Steps => "steps",
         }
     }
 }
@@ -309,6 +315,8 @@ pub struct AovSample {
     pub normal: Vec3,
     /// Depth.
     pub depth: f32,
+    /// Sphere-tracing steps.
+    pub steps: f32,
 }
 
 /// Accumulated auxiliary values of one pixel (computed by [`crate::integrator::aov`]).
@@ -322,6 +330,8 @@ pub struct AovSum {
     pub depth: f64,
     /// Number of samples.
     pub count: f64,
+    /// Σ sphere-tracing steps.
+    pub steps: f64,
 }
 
 impl AovSum {
@@ -332,6 +342,7 @@ impl AovSum {
         self.normal += s.normal.as_dvec3();
         self.depth += s.depth as f64;
         self.count += 1.0;
+        self.steps += s.steps as f64;
     }
 }
 
@@ -372,6 +383,7 @@ impl Film {
                     Aov::Albedo => (a.albedo / n).as_vec3(),
                     Aov::Normal => (a.normal / n).as_vec3(),
                     Aov::Depth => Rgb::splat((a.depth / n) as f32),
+                    Aov::Steps => Rgb::splat((a.steps / n) as f32),
                 }
             })
             .collect();

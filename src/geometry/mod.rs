@@ -2,12 +2,14 @@
 //! record.
 
 pub mod bounds;
+pub mod implicit;
 pub mod interaction;
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod lanes;
 pub mod mesh;
 pub mod ray;
 pub(crate) mod real;
+pub mod sdf;
 pub mod sdf_grid;
 pub mod shape;
 pub mod subdivision;

@@ -120,6 +120,10 @@ pub enum Shape {
     Cylinder(Cylinder),
     /// A signed distance function sampled on a grid over [0, 1]³.
     SdfGrid(std::sync::Arc<super::sdf_grid::SdfGrid>),
+    /// A tree of signed distance functions, sphere traced.
+    Sdf(std::sync::Arc<super::sdf::Sdf>),
+    /// The surface f(x, y, z) = 0 of an equation, within a box.
+    Implicit(std::sync::Arc<super::implicit::ImplicitSurface>),
 }
 
 /// The surface of a shape at a point, in the shape's object space.
@@ -184,6 +188,8 @@ impl Shape {
                 Some(Aabb::new(c.p0 - half, c.p0 + half).union(&Aabb::new(c.p1 - half, c.p1 + half)))
             }
             Shape::SdfGrid(ref g) => Some(g.bounds()),
+            Shape::Sdf(ref f) => Some(f.bounds()),
+            Shape::Implicit(ref f) => Some(f.bounds()),
         }
     }
 
@@ -198,6 +204,8 @@ impl Shape {
             Shape::Cuboid(c) => c.intersect(ray),
             Shape::Cylinder(c) => c.intersect(ray),
             Shape::SdfGrid(g) => g.intersect(ray),
+            Shape::Sdf(f) => f.intersect(ray),
+            Shape::Implicit(f) => f.intersect(ray),
         }
     }
 
@@ -255,6 +263,8 @@ impl Shape {
             Shape::Cuboid(c) => c.surface(p),
             Shape::Cylinder(c) => c.surface(p),
             Shape::SdfGrid(g) => g.surface(p),
+            Shape::Sdf(f) => f.surface(p),
+            Shape::Implicit(f) => f.surface(p),
         }
     }
 
@@ -278,7 +288,7 @@ impl Shape {
             Shape::Cuboid(c) => Aabb::new(c.min, c.max).surface_area(),
             Shape::Cylinder(c) => 2.0 * PI * c.radius * (c.p1 - c.p0).length(),
             // Not an emitter (nor in Mitsuba): the scene reader refuses one.
-            Shape::SdfGrid(_) => 0.0,
+            Shape::SdfGrid(_) | Shape::Sdf(_) | Shape::Implicit(_) => 0.0,
         }
     }
 
@@ -307,7 +317,7 @@ impl Shape {
 
     fn sample_area_point(&self, u: Vec2) -> Option<AreaSample> {
         match *self {
-            Shape::SdfGrid(_) => None,
+            Shape::SdfGrid(_) | Shape::Sdf(_) | Shape::Implicit(_) => None,
             Shape::Sphere(s) => {
                 let n = sample_sphere_uniform(u);
                 Some(AreaSample {

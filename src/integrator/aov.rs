@@ -20,7 +20,12 @@ pub fn camera_aov(scene: &Scene, camera_ray: &Ray) -> AovSample {
     let mut out = AovSample::default();
     let mut throughput = Rgb::ONE;
     for bounce in 0..=MAX_SPECULAR_CHAIN {
-        let Some(hit) = scene.intersect(&ray) else {
+        let steps_before = crate::geometry::sdf::steps_on_this_thread();
+        let found = scene.intersect(&ray);
+        if bounce == 0 {
+            out.steps = (crate::geometry::sdf::steps_on_this_thread() - steps_before) as f32;
+        }
+        let Some(hit) = found else {
             // Seen through a specular chain, the background is the colour.
             if bounce > 0 {
                 out.albedo = (throughput * scene.background.eval(ray.dir)).min(Rgb::ONE);

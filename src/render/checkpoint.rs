@@ -20,8 +20,10 @@
 //! width u32, height u32, target spp u32, done spp u32, flags u32 (1: AOVs)
 //! samples u64, rays u64, invalid samples u64, seconds f64
 //! width·height pixels: Σw·L (3 × i128), Σw, Σw·Y² (i128), in units of 2⁻⁵⁰
-//! if AOVs, width·height: Σalbedo (3 × i128), Σnormal (3 × i128), Σdepth, count
-//! (version 1 held the same sums as f64, which are read and converted)
+//! if AOVs, width·height: Σalbedo (3 × i128), Σnormal (3 × i128), Σdepth, count,
+//! Σsteps (i128 each)
+//! (version 1 held the same sums as f64, which are read and converted;
+//! versions 1 and 2 had no Σsteps, read as 0)
 //! FNV-1a 64 of everything above: u64
 //! ```
 //!
@@ -40,13 +42,13 @@ use std::path::{Path, PathBuf};
 /// The first bytes of every checkpoint.
 pub const MAGIC: &[u8; 8] = b"TRAZOCKP";
 /// The version of the layout this code reads and writes.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 /// Largest job description accepted when reading, in bytes: room for the
 /// settings and some hundred thousand recorded scene files.
 const MAX_JOB_BYTES: usize = 32 << 20;
 /// Bytes per pixel record and per AOV record.
 const PIXEL_BYTES: usize = 5 * 16;
-const AOV_BYTES: usize = 8 * 16;
+const AOV_BYTES: usize = 9 * 16;
 
 /// The state of a render between two passes.
 #[derive(Clone, Debug, PartialEq)]
@@ -136,7 +138,7 @@ impl Checkpoint {
             pos: MAGIC.len(),
         };
         let version = r.u32()?;
-        if version != VERSION && version != 1 {
+        if !(1..=VERSION).contains(&version) {
             return Err(format!(
                 "checkpoint version {version} is not supported (this trazo reads version {VERSION})"
             ));
@@ -197,7 +199,8 @@ impl Checkpoint {
         let n = width as usize * height as usize;
         // Version 1's sums were f64.
         let word = if version == 1 { 8 } else { 16 };
-        let (pixel_bytes, aov_bytes) = (5 * word, 8 * word);
+        // Before version 3 the auxiliary sums had no steps.
+        let (pixel_bytes, aov_bytes) = (5 * word, if version < 3 { 8 } else { 9 } * word);
         let need = n as u128 * (pixel_bytes + if aovs { aov_bytes } else { 0 }) as u128;
         if need != r.remaining() as u128 {
             return Err(format!(
@@ -234,6 +237,7 @@ impl Checkpoint {
                         normal: DVec3::new(r.f64()?, r.f64()?, r.f64()?),
                         depth: r.f64()?,
                         count: r.f64()?,
+                        steps: 0.0,
                     };
                     if !(sum.albedo.is_finite()
                         && sum.normal.is_finite()
@@ -243,6 +247,11 @@ impl Checkpoint {
                         return Err("an auxiliary sum is not a finite number".into());
                     }
                     FilmAov::default().plus(&sum)
+                } else if version == 2 {
+                    let old: ExactSums<8> = r.exact()?;
+                    let mut a = FilmAov::default();
+                    a.0[..8].copy_from_slice(&old.0);
+                    a
                 } else {
                     r.exact()?
                 };
@@ -367,6 +376,7 @@ mod tests {
                 normal: DVec3::Z,
                 depth: 3.5,
                 count: 1.0,
+                steps: 12.0,
             });
             6
         ]);
@@ -466,6 +476,34 @@ mod tests {
         assert_eq!(c.film.pixels[0].value(), crate::Rgb::new(0.5, 1.0, 0.25));
         assert_eq!(c.film.pixels[1].sum().lum_sq, 0.125);
         assert_eq!(c.stats.seconds, 1.5);
+    }
+
+    /// Version 2 had eight auxiliary sums, without the steps.
+    #[test]
+    fn version_2_checkpoints_are_read_with_no_steps() {
+        let mut b = Vec::new();
+        b.extend_from_slice(MAGIC);
+        put_u32(&mut b, 2);
+        put_u32(&mut b, 0);
+        for v in [1, 1, 4, 1, 1] {
+            put_u32(&mut b, v);
+        }
+        for v in [1, 10, 0, 0.5f64.to_bits()] {
+            put_u64(&mut b, v);
+        }
+        let mut px = FilmPixel::default();
+        px.add([0.5, 0.5, 0.5, 1.0, 0.25]);
+        let mut aov = ExactSums::<8>::default();
+        aov.add([0.2, 0.3, 0.4, 0.0, 0.0, 1.0, 7.5, 1.0]);
+        for v in px.0.iter().chain(aov.0.iter()) {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        let sum = fnv1a(&b);
+        put_u64(&mut b, sum);
+        let c = Checkpoint::from_bytes(&b).unwrap();
+        let a = c.film.aovs.as_ref().unwrap()[0].sum();
+        assert_eq!((a.depth, a.count, a.steps), (7.5, 1.0, 0.0));
+        assert_eq!(c.film.pixels[0].value(), crate::Rgb::splat(0.5));
     }
 
     #[test]

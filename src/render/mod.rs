@@ -634,7 +634,11 @@ fn render_passes<I: Integrator>(
                             }
                             if options.aovs {
                                 let a = camera_aov(scene, &ray);
-                                if a.albedo.is_finite() && a.normal.is_finite() && a.depth.is_finite() {
+                                if a.albedo.is_finite()
+                                    && a.normal.is_finite()
+                                    && a.depth.is_finite()
+                                    && a.steps.is_finite()
+                                {
                                     aov.add(&a);
                                 }
                             }

@@ -238,6 +238,8 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 radius: *radius,
             })),
             ShapeKind::SdfGrid(g) => Some(Shape::SdfGrid(g.clone())),
+            ShapeKind::Sdf(f) => Some(Shape::Sdf(f.clone())),
+            ShapeKind::Implicit(f) => Some(Shape::Implicit(f.clone())),
             ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_) => None,
         };
         if let Some(shape) = analytic {

@@ -730,6 +730,12 @@ pub enum ShapeKind {
     /// A signed distance function sampled on a grid over [0, 1]³ (before
     /// its transform).
     SdfGrid(std::sync::Arc<crate::geometry::sdf_grid::SdfGrid>),
+    /// A tree of signed distance functions, sphere traced (before its
+    /// transform).
+    Sdf(std::sync::Arc<crate::geometry::sdf::Sdf>),
+    /// The surface of an equation f(x, y, z) = 0 within a box (before its
+    /// transform).
+    Implicit(std::sync::Arc<crate::geometry::implicit::ImplicitSurface>),
     /// A named mesh from the scene's meshes.
     Mesh(String),
     /// A mesh given with the shape itself.
@@ -1539,7 +1545,7 @@ impl SceneDesc {
                     }
                 }
                 ShapeKind::InlineMesh(src) => validate_mesh_source(&c, src)?,
-                ShapeKind::SdfGrid(_) => {
+                ShapeKind::SdfGrid(_) | ShapeKind::Sdf(_) | ShapeKind::Implicit(_) => {
                     let emits = s.material.as_ref().is_some_and(|name| {
                         self.materials
                             .iter()
@@ -1548,7 +1554,7 @@ impl SceneDesc {
                     if emits {
                         return Err(c.err(
                             "material",
-                            "a signed distance grid cannot emit light (nor in Mitsuba): it has no area to sample",
+                            "a distance function or implicit surface cannot emit light (nor in Mitsuba): it has no area to sample",
                         ));
                     }
                 }

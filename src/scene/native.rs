@@ -10,6 +10,7 @@ use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::files::{MAX_SCENE_BYTES, io_reason, read_limited};
 use crate::geometry::TriangleMesh;
+use crate::geometry::sdf::{self, SdfBuilder};
 use crate::sampling::SamplerKind;
 use crate::settings::{Filter, IntegratorKind, PathSampling, PhotonKernel, RenderSettings, Tonemap};
 use glam::{Mat4, Vec2, Vec3, Vec4};
@@ -958,7 +959,17 @@ fn vec3_list(t: &Table, key: &str, v: &Value) -> Result<Vec<Vec3>> {
 }
 
 fn read_shape(t: &Table) -> Result<ShapeDesc> {
-    let types = ["sphere", "plane", "rectangle", "disk", "box", "cylinder", "mesh"];
+    let types = [
+        "sphere",
+        "plane",
+        "rectangle",
+        "disk",
+        "box",
+        "cylinder",
+        "sdf",
+        "implicit",
+        "mesh",
+    ];
     let kind = t.choice("type", &types)?;
     let kind = match t.required("type", kind)?.as_str() {
         "sphere" => ShapeKind::Sphere {
@@ -989,6 +1000,48 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
             p1: t.vec3("p1")?.unwrap_or(Vec3::Y),
             radius: t.number_or("radius", 1.0)?,
         },
+        "sdf" => {
+            let node = t.required("sdf", t.table("sdf")?)?;
+            let mut builder = SdfBuilder::new();
+            let root = read_sdf_node(&node, &mut builder, 0)?;
+            let epsilon = t.number("epsilon")?;
+            let max_steps = t
+                .unsigned("max_steps", sdf::MAX_MAX_STEPS as u64)?
+                .map_or(sdf::DEFAULT_MAX_STEPS, |n| n as u32);
+            let shape = builder
+                .build(root, epsilon, max_steps)
+                .map_err(|e| t.err_at("sdf", &node.span, e))?;
+            ShapeKind::Sdf(Arc::new(shape.with_origin(t.ctx.loc(&t.span).to_string())))
+        }
+        "implicit" => {
+            let text = t.required_string("equation")?;
+            let at = t.value("equation").map(|v| v.span()).unwrap_or(t.span.clone());
+            let equation = crate::geometry::implicit::Equation::parse(&text).map_err(|e| {
+                // The column inside a one-line string written with quotes.
+                let mut span = at.clone();
+                span.start += e.column;
+                t.err_at("equation", &span, e.message)
+            })?;
+            let bounds_value = t.required("bounds", t.value("bounds"))?;
+            let corners = flat_numbers(t, "bounds", bounds_value, 3)?;
+            if corners.len() != 6 {
+                return Err(t.err_at(
+                    "bounds",
+                    &bounds_value.span(),
+                    "bounds are two corners, [[xmin, ymin, zmin], [xmax, ymax, zmax]]",
+                ));
+            }
+            let bounds = crate::geometry::Aabb {
+                min: Vec3::new(corners[0], corners[1], corners[2]),
+                max: Vec3::new(corners[3], corners[4], corners[5]),
+            };
+            let max_evaluations = t
+                .unsigned("max_evaluations", 1 << 20)?
+                .map_or(crate::geometry::implicit::DEFAULT_MAX_EVALUATIONS, |n| n as u32);
+            let surface = crate::geometry::implicit::ImplicitSurface::new(equation, bounds, max_evaluations)
+                .map_err(|e| t.err_at("bounds", &bounds_value.span(), e))?;
+            ShapeKind::Implicit(Arc::new(surface.with_origin(t.ctx.loc(&t.span).to_string())))
+        }
         _ => match t.string("mesh")? {
             Some(name) => {
                 if read_mesh_source(t, false)?.is_some() {
@@ -1020,6 +1073,181 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
         media,
         locs: t.finish()?,
     })
+}
+
+/// The kinds of node of a distance function, each written as the key that
+/// holds its main parameter.
+const SDF_KINDS: [&str; 15] = [
+    "sphere",
+    "box",
+    "torus",
+    "capsule",
+    "cylinder",
+    "cone",
+    "plane",
+    "mandelbulb",
+    "union",
+    "intersection",
+    "difference",
+    "repeat",
+    "twist",
+    "bend",
+    "displace",
+];
+
+/// One node of a distance function (`{ sphere = 1 }`, `{ union = [..],
+/// smooth = 0.1 }`, …), with its children, its optional `round` and
+/// `transform`; returns its index in `b`.
+fn read_sdf_node(t: &Table, b: &mut SdfBuilder, depth: usize) -> Result<u32> {
+    if depth >= sdf::MAX_SDF_DEPTH {
+        return Err(node_error(
+            t,
+            format!("a distance function may nest at most {} deep", sdf::MAX_SDF_DEPTH),
+        ));
+    }
+    let present: Vec<&str> = SDF_KINDS
+        .iter()
+        .copied()
+        .filter(|k| t.table.iter().any(|(key, _)| key.get_ref().as_ref() == *k))
+        .collect();
+    let kind = match present.as_slice() {
+        [k] => *k,
+        [] => {
+            return Err(node_error(
+                t,
+                format!("a distance function node needs one of {}", SDF_KINDS.join(", ")),
+            ));
+        }
+        more => {
+            return Err(node_error(
+                t,
+                format!("a node is one kind, found {}", more.join(" and ")),
+            ));
+        }
+    };
+    let v = t.value(kind).expect("present");
+    let built = match kind {
+        "sphere" => b.sphere(t.number_of(kind, v)?),
+        "box" => match v.get_ref() {
+            DeValue::Array(_) => b.cuboid(t.vec3_of(kind, v)?),
+            _ => b.cuboid(Vec3::splat(t.number_of(kind, v)?)),
+        },
+        "torus" => {
+            let r = t.numbers_of(kind, v, 2)?;
+            b.torus(r[0], r[1])
+        }
+        "capsule" => {
+            let DeValue::Array(ends) = v.get_ref() else {
+                return Err(t.expected(kind, v, "an array of two points"));
+            };
+            if ends.len() != 2 {
+                return Err(t.err_at(kind, &v.span(), "a capsule is an array of its two end points"));
+            }
+            let (a, c) = (t.vec3_of(kind, &ends[0])?, t.vec3_of(kind, &ends[1])?);
+            let radius = t.required("radius", t.number("radius")?)?;
+            b.capsule(a, c, radius)
+        }
+        "cylinder" | "cone" => {
+            let r = t.numbers_of(kind, v, 2)?;
+            if kind == "cone" {
+                b.cone(r[0], r[1])
+            } else {
+                b.cylinder(r[0], r[1])
+            }
+        }
+        "plane" => b.plane(t.vec3_of(kind, v)?, t.number_or("offset", 0.0)?),
+        "mandelbulb" => {
+            let iterations = t
+                .unsigned("iterations", sdf::MAX_MANDELBULB_ITERATIONS as u64)?
+                .unwrap_or(12);
+            b.mandelbulb(t.number_of(kind, v)?, iterations as u32)
+        }
+        "union" | "intersection" | "difference" => {
+            let DeValue::Array(items) = v.get_ref() else {
+                return Err(t.expected(kind, v, "an array of nodes"));
+            };
+            if items.len() < 2 {
+                return Err(t.err_at(kind, &v.span(), format!("a {kind} needs at least two nodes")));
+            }
+            let smooth = t.number_or("smooth", 0.0)?;
+            let mut acc = None;
+            for (i, item) in items.iter().enumerate() {
+                let key = format!("{kind}[{i}]");
+                let n = read_sdf_node(&sdf_child(t, &key, item)?, b, depth + 1)?;
+                acc = Some(match acc {
+                    None => n,
+                    Some(a) => {
+                        let r = match kind {
+                            "union" => b.union(a, n, smooth),
+                            "intersection" => b.intersection(a, n, smooth),
+                            _ => b.difference(a, n, smooth),
+                        };
+                        r.map_err(|e| t.err_at(kind, &item.span(), e))?
+                    }
+                });
+            }
+            Ok(acc.expect("two or more"))
+        }
+        _ => {
+            let inner = read_sdf_node(&sdf_child(t, kind, v)?, b, depth + 1)?;
+            match kind {
+                "repeat" => {
+                    let period = t.required("period", t.vec3_or_scalar("period")?)?;
+                    let count = t.required("count", t.vec3_or_scalar("count")?)?;
+                    if count.cmplt(Vec3::ZERO).any()
+                        || count.fract() != Vec3::ZERO
+                        || count.cmpgt(Vec3::splat(1e4)).any()
+                    {
+                        return Err(t.err_at(
+                            "count",
+                            &t.span,
+                            "counts are whole numbers of copies on each side, 0 to 10000",
+                        ));
+                    }
+                    b.repeat(inner, period, [count.x as u32, count.y as u32, count.z as u32])
+                }
+                "twist" => b.twist(inner, t.required("rate", t.number("rate")?)?),
+                "bend" => b.bend(inner, t.required("rate", t.number("rate")?)?),
+                _ => b.displace(
+                    inner,
+                    t.required("amplitude", t.number("amplitude")?)?,
+                    t.number_or("frequency", 1.0)?,
+                    t.unsigned("seed", u32::MAX as u64)?.unwrap_or(0) as u32,
+                ),
+            }
+        }
+    };
+    let mut node = built.map_err(|e| t.err_at(kind, &v.span(), e))?;
+    if let Some(r) = t.number("round")? {
+        node = b.round(node, r).map_err(|e| t.err_at("round", &t.span, e))?;
+    }
+    if let Some(tv) = t.value("transform") {
+        let mut to_parent = crate::geometry::Transform::IDENTITY;
+        for op in read_transform(t, tv)? {
+            let step = op
+                .to_transform()
+                .map_err(|e| t.err_at("transform", &tv.span(), format!("{}: {e}", op.name())))?;
+            to_parent = to_parent.then(&step);
+        }
+        node = b
+            .transform(node, &to_parent)
+            .map_err(|e| t.err_at("transform", &tv.span(), e))?;
+    }
+    t.finish()?;
+    Ok(node)
+}
+
+/// An error about node `t` as a whole.
+fn node_error(t: &Table, msg: String) -> Error {
+    Error::scene(Some(t.ctx.loc(&t.span)), t.path.clone(), msg)
+}
+
+/// The node that `v`, the value of `key` in `t`, holds.
+fn sdf_child<'a>(t: &Table<'a>, key: &str, v: &'a Value<'a>) -> Result<Table<'a>> {
+    match v.get_ref() {
+        DeValue::Table(inner) => Ok(Table::new(t.ctx, t.key_path(key), inner, v.span())),
+        _ => Err(t.expected(key, v, "a table (a node such as { sphere = 1 })")),
+    }
 }
 
 /// `transform = [{ translate = [..] }, { rotate = { axis = [..], angle = .. } }, ...]`

@@ -20,3 +20,4 @@ mod photon;
 mod ply;
 mod render;
 mod sampling;
+mod sdf;

@@ -99,6 +99,40 @@ const CASES: &[(&str, Expect)] = &[
         Warning("texels are NaN, infinite or negative"),
     ),
     ("native/not-utf8.toml", Error(&["not-utf8.toml:1:1", "UTF-8"])),
+    (
+        "native/sdf-negative-box.toml",
+        Error(&["sdf-negative-box.toml:13:42", "shape[0].sdf.union[1].box", "positive"]),
+    ),
+    ("native/sdf-two-kinds.toml", Error(&["shape[0].sdf", "one kind"])),
+    ("native/sdf-unbounded.toml", Error(&["shape[0].sdf", "unbounded"])),
+    (
+        "native/sdf-overlapping-repeat.toml",
+        Error(&["shape[0].sdf.repeat", "overlap"]),
+    ),
+    (
+        "native/sdf-absurd-iterations.toml",
+        Error(&["shape[0].sdf.iterations", "64"]),
+    ),
+    ("native/sdf-nan-rate.toml", Error(&["shape[0].sdf.twist", "finite"])),
+    ("native/sdf-absurd-steps.toml", Error(&["shape[0].max_steps"])),
+    (
+        "native/sdf-too-deep.toml",
+        Error(&["sdf-too-deep.toml:13:", "nest at most 64"]),
+    ),
+    ("native/sdf-emitting.toml", Error(&["shape[0].material", "cannot emit"])),
+    (
+        "native/implicit-unknown-name.toml",
+        Error(&["implicit-unknown-name.toml:13:25", "shape[0].equation", "\"w\""]),
+    ),
+    (
+        "native/implicit-flat-bounds.toml",
+        Error(&["shape[0].bounds", "min below max"]),
+    ),
+    ("native/implicit-no-bounds.toml", Error(&["shape[0].bounds", "missing"])),
+    (
+        "native/implicit-unclosed.toml",
+        Error(&["shape[0].equation", "expected ')'"]),
+    ),
     // Mitsuba 3 XML
     ("mitsuba/truncated.xml", Error(&["truncated.xml:"])),
     ("mitsuba/wrong-type.xml", Error(&["wrong-type.xml:", "radius"])),

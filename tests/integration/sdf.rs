@@ -1,0 +1,223 @@
+//! Shapes given by signed distance functions (sphere traced) and by
+//! equations (roots found by interval arithmetic): white furnaces of
+//! non-convex ones (a ray that met its own surface again on leaving would
+//! darken them), a sphere of each kind against the analytic sphere under
+//! every integrator, and the `steps` image. Tolerances come from each
+//! render's own per-pixel variance or from the spread over seeds.
+
+use std::path::Path;
+use trazo::color::luminance;
+use trazo::film::{Aov, Film};
+use trazo::render::{RenderOptions, render};
+use trazo::scene::SceneDesc;
+
+fn parse(text: &str) -> SceneDesc {
+    trazo::scene::native::parse(text, Path::new("test.toml")).unwrap()
+}
+
+fn render_film(d: &SceneDesc, aovs: bool) -> Film {
+    let scene = trazo::scene::build(d).unwrap();
+    let options = RenderOptions {
+        aovs,
+        ..RenderOptions::default()
+    };
+    render(&scene, &options).unwrap().film
+}
+
+const FURNACE: &str = r#"
+[render]
+width = 24
+height = 24
+spp = 48
+max_depth = 128
+rr_depth = 128
+
+[camera]
+from = [0, 0.5, 5]
+to = [0, 0, 0]
+fov = 40
+
+[world]
+background = [1, 1, 1]
+
+[[material]]
+name = "white"
+type = "diffuse"
+reflectance = 1
+"#;
+
+/// Every pixel of a furnace is 1 within 5 of its standard errors, and the
+/// image's mean within 4 standard errors of the mean.
+fn assert_white(f: &Film, what: &str) {
+    for (i, p) in f.pixels.iter().enumerate() {
+        let v = p.value();
+        let sigma = p.variance_of_mean().sqrt() as f32;
+        assert!(
+            (v.x - 1.0).abs() <= 5.0 * sigma + 1e-4,
+            "{what}: pixel {i} = {v} ± {sigma}"
+        );
+    }
+    let n = f.pixels.len() as f64;
+    let mean = f.pixels.iter().map(|p| luminance(p.value()) as f64).sum::<f64>() / n;
+    let err = (f.pixels.iter().map(|p| p.variance_of_mean()).sum::<f64>() / (n * n)).sqrt();
+    assert!((mean - 1.0).abs() <= 4.0 * err + 1e-5, "{what}: mean {mean} ± {err}");
+}
+
+#[test]
+fn white_furnaces_of_distance_functions_render_one() {
+    let shapes = [
+        // Concave, sheared and scaled, with a smooth blend.
+        r#"sdf = { difference = [{ box = 0.6, round = 0.08 }, { sphere = 0.75 }], smooth = 0.05 }
+transform = [{ scale = [1, 1.6, 0.7] }, { shear = { xy = 0.4 } }, { rotate = { axis = [1, 1, 0], angle = 30 } }]"#,
+        // Twisted: a value that is only a bound, scaled by the twist.
+        r#"sdf = { twist = { box = [0.5, 1.0, 0.5] }, rate = 1.6 }"#,
+        // Repeated, with a displaced member.
+        r#"sdf = { repeat = { displace = { torus = [0.3, 0.12] }, amplitude = 0.03, frequency = 8 }, period = [1, 1, 1], count = [1, 1, 0] }"#,
+    ];
+    for (i, shape) in shapes.iter().enumerate() {
+        let text = format!("{FURNACE}\n[[shape]]\ntype = \"sdf\"\nmaterial = \"white\"\n{shape}\n");
+        assert_white(&render_film(&parse(&text), false), &format!("shape {i}"));
+    }
+}
+
+#[test]
+fn white_furnaces_of_implicit_surfaces_render_one() {
+    let shapes = [
+        // Taubin's heart: concave, with a cusp.
+        r#"equation = "(x^2 + 9/4 y^2 + z^2 - 1)^3 - x^2 z^3 - 9/80 y^2 z^3"
+bounds = [[-1.5, -1, -1.5], [1.5, 1, 1.5]]
+transform = [{ rotate = { axis = [1, 0, 0], angle = -90 } }]"#,
+        // A superellipsoid, sheared.
+        r#"equation = "x^4 + y^4 + z^4 = 1"
+bounds = [[-1.1, -1.1, -1.1], [1.1, 1.1, 1.1]]
+transform = [{ shear = { xy = 0.5 } }, { rotate = { axis = [0, 1, 1], angle = 40 } }]"#,
+    ];
+    for (i, shape) in shapes.iter().enumerate() {
+        let text = format!("{FURNACE}\n[[shape]]\ntype = \"implicit\"\nmaterial = \"white\"\n{shape}\n");
+        assert_white(&render_film(&parse(&text), false), &format!("shape {i}"));
+    }
+}
+
+/// The unit sphere at (0, 1, 0) written three ways.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum SphereAs {
+    Analytic,
+    DistanceFunction,
+    Equation,
+}
+
+/// A diffuse sphere on a floor lit by a point light and a uniform sky,
+/// with `integrator`.
+fn lit_sphere(integrator: &str, kind: SphereAs) -> SceneDesc {
+    let shape = match kind {
+        SphereAs::DistanceFunction => "type = \"sdf\"\nsdf = { sphere = 1 }\ntransform = [{ translate = [0, 1, 0] }]",
+        SphereAs::Equation => {
+            "type = \"implicit\"\nequation = \"x^2 + (y - 1)^2 + z^2 = 1\"\nbounds = [[-1.1, -0.1, -1.1], [1.1, 2.1, 1.1]]"
+        }
+        SphereAs::Analytic => "type = \"sphere\"\ncenter = [0, 1, 0]\nradius = 1",
+    };
+    parse(&format!(
+        r#"
+[render]
+width = 24
+height = 24
+spp = 64
+max_depth = 6
+integrator = "{integrator}"
+photons = 20000
+
+[camera]
+from = [0, 2, 5]
+to = [0, 0.8, 0]
+fov = 45
+
+[world]
+background = [0.2, 0.25, 0.3]
+
+[[material]]
+name = "grey"
+type = "diffuse"
+reflectance = 0.6
+
+[[light]]
+type = "point"
+position = [2, 4, 3]
+intensity = 20
+
+[[shape]]
+{shape}
+material = "grey"
+
+[[shape]]
+type = "plane"
+point = [0, 0, 0]
+normal = [0, 1, 0]
+material = "grey"
+"#
+    ))
+}
+
+/// Under every integrator, the image's mean agrees between the three within
+/// 4.5 standard errors of the difference, estimated from renders of six
+/// seeds each (photon mapping's and SPPM's noise is not in their films'
+/// variances), plus 0.5 % for the marcher's ε.
+#[test]
+fn spheres_as_distance_functions_and_equations_render_as_the_sphere_under_every_integrator() {
+    const SEEDS: u64 = 6;
+    let mean_and_var = |integrator: &str, kind: SphereAs| {
+        let mut d = lit_sphere(integrator, kind);
+        let means: Vec<f64> = (0..SEEDS)
+            .map(|seed| {
+                d.settings.seed = seed;
+                let f = render_film(&d, false);
+                f.pixels.iter().map(|p| luminance(p.value()) as f64).sum::<f64>() / f.pixels.len() as f64
+            })
+            .collect();
+        let m = means.iter().sum::<f64>() / SEEDS as f64;
+        let var = means.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (SEEDS - 1) as f64;
+        (m, var / SEEDS as f64)
+    };
+    for integrator in ["path", "whitted", "photon", "sppm", "volpath"] {
+        let (ma, va) = mean_and_var(integrator, SphereAs::Analytic);
+        assert!(ma > 0.05);
+        for kind in [SphereAs::DistanceFunction, SphereAs::Equation] {
+            let (mb, vb) = mean_and_var(integrator, kind);
+            let allowed = 4.5 * (va + vb).sqrt() + 0.005 * ma;
+            assert!(
+                (ma - mb).abs() <= allowed,
+                "{integrator}: mean {ma} (sphere) and {mb} ({kind:?}), allowed difference {allowed}"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_steps_image_counts_the_marchers_work_where_it_marched() {
+    let d = lit_sphere("path", SphereAs::DistanceFunction);
+    let f = render_film(&d, true);
+    let steps = f.aov_image(Aov::Steps).unwrap();
+    let scene = trazo::scene::build(&d).unwrap();
+    let (mut on, mut off) = (0, 0);
+    for y in 0..24 {
+        for x in 0..24 {
+            let centre = trazo::Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            let ray = scene.camera.generate_ray(centre, trazo::Vec2::ZERO);
+            let s = steps.get(x, y).x;
+            let hits_sdf = scene
+                .intersect(&ray)
+                .is_some_and(|h| (h.p - trazo::Vec3::new(0.0, 1.0, 0.0)).length() < 1.01);
+            if hits_sdf {
+                on += 1;
+                assert!(s >= 2.0, "pixel ({x}, {y}) on the sphere took {s} steps");
+            }
+            // Rays that miss the distance function's bounds take no step.
+            if s == 0.0 {
+                off += 1;
+            }
+        }
+    }
+    assert!(on > 30 && off > 30, "{on} pixels on the sphere, {off} without steps");
+    // Without distance functions the image is zero.
+    let plain = render_film(&lit_sphere("path", SphereAs::Analytic), true);
+    assert!(plain.aov_image(Aov::Steps).unwrap().pixels.iter().all(|p| p.x == 0.0));
+}
