@@ -659,7 +659,9 @@ impl Interval {
 
     /// Whether it holds no number.
     pub fn is_empty(&self) -> bool {
-        self.lo.partial_cmp(&self.hi).is_none_or(|o| o == std::cmp::Ordering::Greater)
+        self.lo
+            .partial_cmp(&self.hi)
+            .is_none_or(|o| o == std::cmp::Ordering::Greater)
     }
 
     /// Whether it holds `x`.

@@ -7,6 +7,7 @@ pub mod interaction;
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod lanes;
 pub mod mesh;
+pub mod quadric;
 pub mod ray;
 pub(crate) mod real;
 pub mod sdf;

@@ -124,6 +124,9 @@ pub enum Shape {
     Sdf(std::sync::Arc<super::sdf::Sdf>),
     /// The surface f(x, y, z) = 0 of an equation, within a box.
     Implicit(std::sync::Arc<super::implicit::ImplicitSurface>),
+    /// A sphere, cylinder, cone, paraboloid or hyperboloid cut to heights
+    /// and angles, or a disk with a hole.
+    Quadric(super::quadric::Quadric),
 }
 
 /// The surface of a shape at a point, in the shape's object space.
@@ -190,6 +193,7 @@ impl Shape {
             Shape::SdfGrid(ref g) => Some(g.bounds()),
             Shape::Sdf(ref f) => Some(f.bounds()),
             Shape::Implicit(ref f) => Some(f.bounds()),
+            Shape::Quadric(ref q) => Some(q.bounds()),
         }
     }
 
@@ -206,6 +210,7 @@ impl Shape {
             Shape::SdfGrid(g) => g.intersect(ray),
             Shape::Sdf(f) => f.intersect(ray),
             Shape::Implicit(f) => f.intersect(ray),
+            Shape::Quadric(q) => q.intersect(ray),
         }
     }
 
@@ -265,6 +270,7 @@ impl Shape {
             Shape::SdfGrid(g) => g.surface(p),
             Shape::Sdf(f) => f.surface(p),
             Shape::Implicit(f) => f.surface(p),
+            Shape::Quadric(q) => q.surface(p),
         }
     }
 
@@ -289,6 +295,7 @@ impl Shape {
             Shape::Cylinder(c) => 2.0 * PI * c.radius * (c.p1 - c.p0).length(),
             // Not an emitter (nor in Mitsuba): the scene reader refuses one.
             Shape::SdfGrid(_) | Shape::Sdf(_) | Shape::Implicit(_) => 0.0,
+            Shape::Quadric(q) => q.area(),
         }
     }
 
@@ -318,6 +325,7 @@ impl Shape {
     fn sample_area_point(&self, u: Vec2) -> Option<AreaSample> {
         match *self {
             Shape::SdfGrid(_) | Shape::Sdf(_) | Shape::Implicit(_) => None,
+            Shape::Quadric(q) => q.sample_area(u),
             Shape::Sphere(s) => {
                 let n = sample_sphere_uniform(u);
                 Some(AreaSample {

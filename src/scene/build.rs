@@ -240,6 +240,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             ShapeKind::SdfGrid(g) => Some(Shape::SdfGrid(g.clone())),
             ShapeKind::Sdf(f) => Some(Shape::Sdf(f.clone())),
             ShapeKind::Implicit(f) => Some(Shape::Implicit(f.clone())),
+            ShapeKind::Quadric(q) => Some(Shape::Quadric(*q)),
             ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_) => None,
         };
         if let Some(shape) = analytic {

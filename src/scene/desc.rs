@@ -736,6 +736,9 @@ pub enum ShapeKind {
     /// The surface of an equation f(x, y, z) = 0 within a box (before its
     /// transform).
     Implicit(std::sync::Arc<crate::geometry::implicit::ImplicitSurface>),
+    /// A quadric cut to heights and angles about its z axis (before its
+    /// transform).
+    Quadric(crate::geometry::quadric::Quadric),
     /// A named mesh from the scene's meshes.
     Mesh(String),
     /// A mesh given with the shape itself.
@@ -1545,17 +1548,23 @@ impl SceneDesc {
                     }
                 }
                 ShapeKind::InlineMesh(src) => validate_mesh_source(&c, src)?,
-                ShapeKind::SdfGrid(_) | ShapeKind::Sdf(_) | ShapeKind::Implicit(_) => {
+                ShapeKind::SdfGrid(_) | ShapeKind::Sdf(_) | ShapeKind::Implicit(_) | ShapeKind::Quadric(_) => {
                     let emits = s.material.as_ref().is_some_and(|name| {
                         self.materials
                             .iter()
                             .any(|m| &m.name == name && m.emission != ColorSource::Rgb(Rgb::ZERO))
                     });
-                    if emits {
-                        return Err(c.err(
-                            "material",
+                    let why = match &s.kind {
+                        ShapeKind::Quadric(q) if q.area() > 0.0 => None,
+                        ShapeKind::Quadric(_) => Some(
+                            "a cone, paraboloid or hyperboloid cannot emit light: trazo samples only spheres, cylinders and disks by area",
+                        ),
+                        _ => Some(
                             "a distance function or implicit surface cannot emit light (nor in Mitsuba): it has no area to sample",
-                        ));
+                        ),
+                    };
+                    if let (true, Some(why)) = (emits, why) {
+                        return Err(c.err("material", why));
                     }
                 }
             }

@@ -966,16 +966,52 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
         "disk",
         "box",
         "cylinder",
+        "cone",
+        "paraboloid",
+        "hyperboloid",
         "sdf",
         "implicit",
         "mesh",
     ];
     let kind = t.choice("type", &types)?;
+    // A cut sphere is a quadric about its centre: this moves it there.
+    let mut placed_at = None;
+    let quadric = |q: std::result::Result<crate::geometry::quadric::Quadric, String>| {
+        q.map(ShapeKind::Quadric).map_err(|e| t.err_at("type", &t.span, e))
+    };
     let kind = match t.required("type", kind)?.as_str() {
-        "sphere" => ShapeKind::Sphere {
-            center: t.vec3("center")?.unwrap_or(Vec3::ZERO),
-            radius: t.number_or("radius", 1.0)?,
-        },
+        "sphere" => {
+            let center = t.vec3("center")?.unwrap_or(Vec3::ZERO);
+            let radius = t.number_or("radius", 1.0)?;
+            let (zmin, zmax, phimax) = (t.number("zmin")?, t.number("zmax")?, t.number("phimax")?);
+            if zmin.is_some() || zmax.is_some() || phimax.is_some() {
+                placed_at = Some(center);
+                quadric(crate::geometry::quadric::Quadric::sphere(
+                    radius,
+                    zmin.unwrap_or(-radius),
+                    zmax.unwrap_or(radius),
+                    phimax.unwrap_or(360.0),
+                ))?
+            } else {
+                ShapeKind::Sphere { center, radius }
+            }
+        }
+        "cone" => quadric(crate::geometry::quadric::Quadric::cone(
+            t.number_or("radius", 1.0)?,
+            t.number_or("height", 1.0)?,
+            t.number_or("phimax", 360.0)?,
+        ))?,
+        "paraboloid" => quadric(crate::geometry::quadric::Quadric::paraboloid(
+            t.number_or("radius", 1.0)?,
+            t.number_or("zmin", 0.0)?,
+            t.number_or("zmax", 1.0)?,
+            t.number_or("phimax", 360.0)?,
+        ))?,
+        "hyperboloid" => quadric(crate::geometry::quadric::Quadric::hyperboloid(
+            t.vec3("p1")?.unwrap_or(Vec3::ZERO),
+            t.vec3("p2")?.unwrap_or(Vec3::ONE),
+            t.number_or("phimax", 360.0)?,
+        ))?,
         "plane" => ShapeKind::Plane {
             point: t.vec3("point")?.unwrap_or(Vec3::ZERO),
             normal: t.vec3("normal")?.unwrap_or(Vec3::Y),
@@ -1056,10 +1092,13 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
             None => ShapeKind::InlineMesh(read_mesh_source(t, true)?.expect("required")),
         },
     };
-    let transform = match t.value("transform") {
+    let mut transform = match t.value("transform") {
         Some(v) => read_transform(t, v)?,
         None => Vec::new(),
     };
+    if let Some(center) = placed_at {
+        transform.insert(0, TransformOp::Translate(center));
+    }
     let material = t.string("material")?;
     let flip_normals = t.boolean("flip_normals")?.unwrap_or(false);
     let inside = t.string("inside")?;

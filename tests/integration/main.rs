@@ -18,6 +18,7 @@ mod pbrt;
 mod pbrt_refs;
 mod photon;
 mod ply;
+mod quadrics;
 mod render;
 mod sampling;
 mod sdf;

@@ -312,7 +312,6 @@ Sampler "halton" "integer pixelsamples" 2
 WorldBegin
 LightSource "point" "point3 from" [0 3 3] "blackbody I" 5000 "float scale" 20
 Material "hair"
-Shape "sphere" "float phimax" 180
 Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3]
 Shape "disk" "float alpha" 0.5
 "#,
@@ -332,9 +331,8 @@ Shape "disk" "float alpha" 0.5
         "w.pbrt:2:1: Sampler \"halton\" is approximated",
         "w.pbrt:4:43: \"blackbody I\" 5000 K is approximated",
         "w.pbrt:5:1: material \"hair\" is approximated",
-        "w.pbrt:6:1: Shape \"sphere\" with zmin/zmax/phimax is approximated",
-        "w.pbrt:7:1: Shape \"curve\" is unsupported",
-        "w.pbrt:8:14: parameter \"float alpha\" of Shape \"disk\" is unsupported: ignored",
+        "w.pbrt:6:1: Shape \"curve\" is unsupported",
+        "w.pbrt:7:14: parameter \"float alpha\" of Shape \"disk\" is unsupported: ignored",
     ] {
         assert!(
             err.lines().any(|l| l.starts_with("warning: ") && l.contains(expected)),

@@ -841,10 +841,13 @@ impl Parser {
                     &kind,
                     &[
                         "bilinearmesh",
+                        "cone",
                         "curve",
                         "cylinder",
                         "disk",
+                        "hyperboloid",
                         "loopsubdiv",
+                        "paraboloid",
                         "plymesh",
                         "sphere",
                         "trianglemesh",

@@ -5,6 +5,7 @@ use super::params::ParamList;
 use super::{Parser, PendingShape};
 use crate::error::{Error, Result, SourceLoc};
 use crate::geometry::TriangleMesh;
+use crate::geometry::quadric::Quadric;
 use crate::geometry::subdivision::{MAX_SUBDIVISION_LEVELS, loop_subdivide};
 use crate::scene::desc::*;
 use glam::{Vec2, Vec3};
@@ -27,19 +28,18 @@ impl Parser {
                 let zmax = p.float("zmax", radius)?;
                 let phimax = p.float("phimax", 360.0)?;
                 if zmin > -radius || zmax < radius || phimax < 360.0 {
-                    self.approximated(
-                        &loc,
-                        format!("{what} with zmin/zmax/phimax"),
-                        "the partial sphere is rendered as the full sphere",
-                    );
+                    let q = Quadric::sphere(radius, zmin, zmax, phimax)
+                        .map_err(|e| Error::scene(Some(loc.clone()), "zmin", format!("{what}: {e}")))?;
+                    (ShapeKind::Quadric(q), true)
+                } else {
+                    (
+                        ShapeKind::Sphere {
+                            center: Vec3::ZERO,
+                            radius,
+                        },
+                        true,
+                    )
                 }
-                (
-                    ShapeKind::Sphere {
-                        center: Vec3::ZERO,
-                        radius,
-                    },
-                    true,
-                )
             }
             "disk" => {
                 let r = p.float_opt("radius")?;
@@ -48,25 +48,23 @@ impl Parser {
                     locs.keys.push(("radius".into(), prm.loc.clone()));
                 }
                 let height = p.float("height", 0.0)?;
-                if p.float("innerradius", 0.0)? > 0.0 {
-                    self.approximated(
-                        &loc,
-                        format!("{what} with innerradius"),
-                        "the disk is drawn without its hole",
-                    );
+                let inner = p.float("innerradius", 0.0)?;
+                let phimax = p.float("phimax", 360.0)?;
+                if inner != 0.0 || phimax < 360.0 {
+                    let q = Quadric::annulus(height, inner, radius, phimax)
+                        .map_err(|e| Error::scene(Some(loc.clone()), "innerradius", format!("{what}: {e}")))?;
+                    (ShapeKind::Quadric(q), true)
+                } else {
+                    (
+                        ShapeKind::Disk {
+                            center: Vec3::new(0.0, 0.0, height),
+                            normal: Vec3::Z,
+                            radius,
+                            uv: crate::geometry::DiskUv::AngleRadius,
+                        },
+                        true,
+                    )
                 }
-                if p.float("phimax", 360.0)? < 360.0 {
-                    self.approximated(&loc, format!("{what} with phimax"), "the partial disk is drawn whole");
-                }
-                (
-                    ShapeKind::Disk {
-                        center: Vec3::new(0.0, 0.0, height),
-                        normal: Vec3::Z,
-                        radius,
-                        uv: crate::geometry::DiskUv::AngleRadius,
-                    },
-                    true,
-                )
             }
             "cylinder" => {
                 let r = p.float_opt("radius")?;
@@ -81,21 +79,38 @@ impl Parser {
                         locs.keys.push((key.into(), prm.loc.clone()));
                     }
                 }
-                if p.float("phimax", 360.0)? < 360.0 {
-                    self.approximated(
-                        &loc,
-                        format!("{what} with phimax"),
-                        "the partial cylinder is drawn whole",
-                    );
+                let (z0, z1) = (zmin.map_or(-1.0, |(v, _)| v), zmax.map_or(1.0, |(v, _)| v));
+                let phimax = p.float("phimax", 360.0)?;
+                if phimax < 360.0 {
+                    let q = Quadric::cylinder(radius, z0, z1, phimax)
+                        .map_err(|e| Error::scene(Some(loc.clone()), "phimax", format!("{what}: {e}")))?;
+                    (ShapeKind::Quadric(q), true)
+                } else {
+                    (
+                        ShapeKind::Cylinder {
+                            p0: Vec3::new(0.0, 0.0, z0),
+                            p1: Vec3::new(0.0, 0.0, z1),
+                            radius,
+                        },
+                        true,
+                    )
                 }
-                (
-                    ShapeKind::Cylinder {
-                        p0: Vec3::new(0.0, 0.0, zmin.map_or(-1.0, |(v, _)| v)),
-                        p1: Vec3::new(0.0, 0.0, zmax.map_or(1.0, |(v, _)| v)),
-                        radius,
-                    },
-                    true,
-                )
+            }
+            // pbrt-v3's quadrics (pbrt-v4 dropped them), with its defaults.
+            "cone" | "paraboloid" | "hyperboloid" => {
+                let phimax = p.float("phimax", 360.0)?;
+                let q = match kind {
+                    "cone" => Quadric::cone(p.float("radius", 1.0)?, p.float("height", 1.0)?, phimax),
+                    "paraboloid" => Quadric::paraboloid(
+                        p.float("radius", 1.0)?,
+                        p.float("zmin", 0.0)?,
+                        p.float("zmax", 1.0)?,
+                        phimax,
+                    ),
+                    _ => Quadric::hyperboloid(p.point3("p1", Vec3::ZERO)?, p.point3("p2", Vec3::ONE)?, phimax),
+                }
+                .map_err(|e| Error::scene(Some(loc.clone()), kind, format!("{what}: {e}")))?;
+                (ShapeKind::Quadric(q), true)
             }
             "trianglemesh" => {
                 let mesh = self.mesh(p, &loc, "trianglemesh", 3, &mut locs)?;

@@ -496,7 +496,11 @@ Shape "disk" "float height" 0.5 "float radius" 3
 Shape "cylinder" "float radius" 0.5 "float zmin" -2 "float zmax" 3
 Shape "sphere" "float zmax" 0.5
 Shape "disk" "float innerradius" 0.5
-Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3]"#,
+Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3]
+Shape "cylinder" "float phimax" 90
+Shape "cone" "float radius" 2 "float height" 3
+Shape "paraboloid" "float zmax" 2
+Shape "hyperboloid" "point3 p1" [1 0 -1] "point3 p2" [0 1 1] "float phimax" 180"#,
     );
     assert_eq!(
         d.shapes[0].kind,
@@ -522,18 +526,24 @@ Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3]"#,
             radius: 0.5
         }
     );
-    assert_eq!(d.shapes.len(), 5, "curves are skipped");
+    use crate::geometry::quadric::Quadric;
+    assert_eq!(d.shapes.len(), 9, "curves are skipped");
+    // Cut quadrics, pbrt-v4's and pbrt-v3's, are quadrics with their cuts.
+    let expected = [
+        Quadric::sphere(1.0, -1.0, 0.5, 360.0),
+        Quadric::annulus(0.0, 0.5, 1.0, 360.0),
+        Quadric::cylinder(1.0, -1.0, 1.0, 90.0),
+        Quadric::cone(2.0, 3.0, 360.0),
+        Quadric::paraboloid(1.0, 0.0, 2.0, 360.0),
+        Quadric::hyperboloid(Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, 1.0, 1.0), 180.0),
+    ];
+    for (shape, q) in d.shapes[3..].iter().zip(expected) {
+        assert_eq!(shape.kind, ShapeKind::Quadric(q.unwrap()));
+    }
     let w = &d.warnings;
+    assert_eq!(w.len(), 1, "{w:?}");
     assert!(
-        w[0].starts_with("test.pbrt:5:1: Shape \"sphere\" with zmin/zmax/phimax is approximated"),
-        "{w:?}"
-    );
-    assert!(
-        w[1].starts_with("test.pbrt:6:1: Shape \"disk\" with innerradius is approximated"),
-        "{w:?}"
-    );
-    assert!(
-        w[2].starts_with("test.pbrt:7:1: Shape \"curve\" is unsupported"),
+        w[0].starts_with("test.pbrt:7:1: Shape \"curve\" is unsupported"),
         "{w:?}"
     );
     // The default material is pbrt's: diffuse 0.5.
