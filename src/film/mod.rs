@@ -275,8 +275,9 @@ pub enum Aov {
     Normal,
     /// Distance along the camera ray to the first hit (0 where nothing is hit).
     Depth,
-    /// Evaluations of distance functions by sphere tracing along the camera
-    /// ray (0 where it meets none): where the marcher works hard.
+    /// Evaluations along the camera ray of distance functions (sphere
+    /// tracing steps) and of implicit surfaces' equations on intervals (0
+    /// where it meets neither): where the root finders work hard.
     Steps,
 }
 

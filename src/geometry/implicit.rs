@@ -941,8 +941,16 @@ impl ImplicitSurface {
     }
 
     /// The first root of f along the ray (object space) within its
-    /// interval and the bounds.
+    /// interval and the bounds. Its interval evaluations count in the
+    /// `steps` image.
     pub fn intersect(&self, ray: &Ray) -> Option<f32> {
+        let mut evaluations = 0;
+        let hit = self.search(ray, &mut evaluations);
+        super::sdf::add_steps(evaluations as u64);
+        hit
+    }
+
+    fn search(&self, ray: &Ray, evaluations: &mut u32) -> Option<f32> {
         let (t0, t1) = self.bounds.intersect(ray, ray.dir.recip())?;
         let o = ray.origin.as_dvec3();
         let d = ray.dir.as_dvec3();
@@ -963,11 +971,10 @@ impl ImplicitSurface {
         let value = |t: f64| self.equation.value(o + d * t);
         let mut stack: Vec<(f64, f64)> = Vec::with_capacity(64);
         stack.push((t0 as f64, t1 as f64));
-        let mut evaluations = 0u32;
         let t_min = ray.t_min as f64;
         while let Some((a, b)) = stack.pop() {
-            evaluations += 1;
-            if evaluations > self.max_evaluations {
+            *evaluations += 1;
+            if *evaluations > self.max_evaluations {
                 self.give_ups.0.fetch_add(1, Ordering::Relaxed);
                 return None;
             }

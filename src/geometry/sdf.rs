@@ -647,6 +647,12 @@ pub fn steps_on_this_thread() -> u64 {
     STEPS.with(|s| s.get())
 }
 
+/// Adds `n` to this thread's count of [`steps_on_this_thread`] (the
+/// implicit surfaces' interval evaluations count as steps too).
+pub(crate) fn add_steps(n: u64) {
+    STEPS.with(|s| s.set(s.get() + n));
+}
+
 impl Sdf {
     /// Object-space bounds.
     pub fn bounds(&self) -> Aabb {
@@ -690,7 +696,7 @@ impl Sdf {
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<f32> {
         let m = self.march(ray);
-        STEPS.with(|s| s.set(s.get() + m.steps as u64));
+        add_steps(m.steps as u64);
         m.hit
     }
 
