@@ -167,7 +167,8 @@ struct SceneArgs {
     photon_gather: Option<u32>,
 
     /// Largest photon search radius (SPPM: the initial radius), in scene
-    /// units; 0 chooses one from the scene's size.
+    /// units; 0 chooses one: from the scene's size (photon mapping), or two
+    /// pixel footprints (SPPM).
     #[arg(long, value_name = "R")]
     photon_radius: Option<f32>,
 

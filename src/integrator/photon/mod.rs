@@ -58,8 +58,9 @@ impl PhotonKernel {
 
 impl PhotonSettings {
     /// The search radius: the one given, or a fraction of the scene's
-    /// bounding radius (`fraction`: 0.1 for Jensen's maximum search radius,
-    /// 0.02 for SPPM's initial radius).
+    /// bounding radius (`fraction`: 0.1 for Jensen's maximum search
+    /// radius; SPPM's initial radius follows the pixel footprint instead,
+    /// `sppm::initial_radius`).
     pub fn radius_or(&self, scene: &Scene, fraction: f32) -> f32 {
         if self.radius > 0.0 {
             self.radius
