@@ -167,8 +167,8 @@ struct SceneArgs {
     photon_gather: Option<u32>,
 
     /// Largest photon search radius (SPPM: the initial radius), in scene
-    /// units; 0 chooses one: from the scene's size (photon mapping), or two
-    /// pixel footprints (SPPM).
+    /// units; 0 chooses two pixel footprints at the surfaces the camera
+    /// sees.
     #[arg(long, value_name = "R")]
     photon_radius: Option<f32>,
 
@@ -963,7 +963,7 @@ impl ImageOutputs<'_> {
                 ));
                 write_image(&path, &crate::film::metrics::heat_map(&img, most), Tonemap::Clamp, 0.0)?;
                 let line = format!(
-                    "sphere-tracing steps per camera ray: heat map {} (black 0, yellow {most})",
+                    "steps per camera ray (sphere tracing, interval evaluations): heat map {} (black 0, yellow {most})",
                     path.display()
                 );
                 note = Some(match note {

@@ -280,16 +280,16 @@ fn sppm_respects_a_time_limit() {
     assert!(out.stats.seconds < 5.0, "{}", out.stats.seconds);
 }
 
-/// SPPM's initial radius follows the image: two pixel footprints, so a
-/// render of twice the resolution starts with half the radius; a radius
-/// given in the scene is kept.
+/// The default photon radius (SPPM's initial radius, photon mapping's
+/// largest search radius) follows the image: two pixel footprints, so a
+/// render of twice the resolution has half the radius.
 #[test]
-fn sppm_initial_radius_follows_the_pixel_footprint() {
+fn the_default_photon_radius_follows_the_pixel_footprint() {
     let radius = |side: u32| {
         let mut d = small_cornell(IntegratorKind::Sppm, 1);
         d.settings.width = side;
         d.settings.height = side;
-        trazo::integrator::photon::sppm::initial_radius(&trazo::scene::build(&d).unwrap())
+        trazo::integrator::photon::default_radius(&trazo::scene::build(&d).unwrap())
     };
     let (r64, r128) = (radius(64), radius(128));
     assert!((r64 / r128 - 2.0).abs() < 0.05, "{r64} at 64 px, {r128} at 128 px");

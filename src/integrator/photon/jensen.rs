@@ -129,7 +129,7 @@ impl PhotonMapper {
             || PhotonMap::build(global.photons),
             || PhotonMap::build(caustic.photons),
         );
-        let r = s.radius_or(scene, 0.1);
+        let r = s.radius_for(scene);
         let irradiance = if s.final_gather > 0 {
             precompute_irradiance(&global, s.gather as usize, r * r, s.kernel)
         } else {

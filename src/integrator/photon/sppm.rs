@@ -95,11 +95,7 @@ impl Sppm {
         let s = &scene.settings;
         let p = s.photon;
         let (w, h) = (s.width as usize, s.height as usize);
-        let r0 = if p.radius > 0.0 {
-            p.radius
-        } else {
-            initial_radius(scene)
-        };
+        let r0 = p.radius_for(scene);
         Sppm {
             width: s.width,
             height: s.height,
@@ -115,47 +111,6 @@ impl Sppm {
             aovs,
         }
     }
-}
-
-/// Pixel footprints the initial radius spans, where the scene gives none.
-const INITIAL_RADIUS_FOOTPRINTS: f32 = 2.0;
-
-/// SPPM's initial radius where the scene gives none: two pixel
-/// footprints, the median of the footprints at the surfaces the camera
-/// sees through a grid of pixel centres, so that it follows the image's resolution and
-/// the camera as well as the scene's size (a fixed share of the scene's
-/// extent blurs caustics in large scenes and starves small ones; pbrt-v4
-/// leaves it to the user). Two footprints is the middle of the flat
-/// optimum measured on the suite's caustic (docs/photon-mapping.md). A
-/// camera that sees nothing falls back to 2 % of the scene's radius.
-pub fn initial_radius(scene: &Scene) -> f32 {
-    let s = &scene.settings;
-    const GRID: u32 = 16;
-    let mut footprints = Vec::with_capacity((GRID * GRID) as usize);
-    for j in 0..GRID {
-        for i in 0..GRID {
-            let x = (i as f32 + 0.5) / GRID as f32 * s.width as f32;
-            let y = (j as f32 + 0.5) / GRID as f32 * s.height as f32;
-            let ray = scene.camera.generate_ray(Vec2::new(x, y), Vec2::ZERO);
-            let Some(hit) = scene.intersect(&ray) else {
-                continue;
-            };
-            // The neighbouring pixel's ray, followed as far: the distance
-            // between the two points is the footprint, for any projection.
-            let next = scene.camera.generate_ray(Vec2::new(x + 1.0, y), Vec2::ZERO);
-            let d = (hit.p - ray.origin).length();
-            let q = next.origin + next.dir.normalize_or_zero() * d;
-            let footprint = (q - hit.p).length();
-            if footprint.is_finite() && footprint > 0.0 {
-                footprints.push(footprint);
-            }
-        }
-    }
-    if footprints.is_empty() {
-        return crate::light::scene_bounding_sphere(scene).1 * 0.02;
-    }
-    footprints.sort_by(f32::total_cmp);
-    INITIAL_RADIUS_FOOTPRINTS * footprints[footprints.len() / 2]
 }
 
 impl Progressive for Sppm {
