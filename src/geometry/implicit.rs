@@ -21,10 +21,11 @@
 
 use super::bounds::Aabb;
 use super::ray::Ray;
+use super::roots::bisect;
+use super::sdf::RayCount;
 use super::shape::LocalSurface;
 use crate::sampling::warp::orthonormal_basis;
 use glam::{DVec3, Vec2, Vec3};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// The longest equation accepted, in characters.
 pub const MAX_EQUATION_CHARS: usize = 4096;
@@ -859,23 +860,6 @@ impl Interval {
     }
 }
 
-/// Rays that gave up, reported after a render; not part of the shape's
-/// identity.
-#[derive(Debug, Default)]
-pub struct GiveUps(AtomicU64);
-
-impl Clone for GiveUps {
-    fn clone(&self) -> Self {
-        GiveUps::default()
-    }
-}
-
-impl PartialEq for GiveUps {
-    fn eq(&self, _: &Self) -> bool {
-        true
-    }
-}
-
 /// The surface f = 0 of an equation within a box.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ImplicitSurface {
@@ -884,7 +868,7 @@ pub struct ImplicitSurface {
     /// Root tolerance, object units.
     tolerance: f64,
     max_evaluations: u32,
-    give_ups: GiveUps,
+    give_ups: RayCount,
     origin: Option<String>,
 }
 
@@ -909,7 +893,7 @@ impl ImplicitSurface {
             bounds,
             tolerance: extent * RELATIVE_TOLERANCE,
             max_evaluations,
-            give_ups: GiveUps::default(),
+            give_ups: RayCount::default(),
             origin: None,
         })
     }
@@ -932,7 +916,7 @@ impl ImplicitSurface {
 
     /// Rays that gave up (ran out of evaluations) since the shape was made.
     pub fn give_ups(&self) -> u64 {
-        self.give_ups.0.load(Ordering::Relaxed)
+        self.give_ups.get()
     }
 
     /// Interval evaluations a ray may take.
@@ -975,7 +959,7 @@ impl ImplicitSurface {
         while let Some((a, b)) = stack.pop() {
             *evaluations += 1;
             if *evaluations > self.max_evaluations {
-                self.give_ups.0.fetch_add(1, Ordering::Relaxed);
+                self.give_ups.add();
                 return None;
             }
             let f = along(a, b);
@@ -1036,24 +1020,6 @@ impl ImplicitSurface {
             dpdv,
         }
     }
-}
-
-/// The root of `f` in [a, b], where f(a) = `fa` and f(b) differ in sign,
-/// to the precision of doubles.
-fn bisect(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64, fa: f64) -> f64 {
-    let neg_a = fa < 0.0;
-    for _ in 0..64 {
-        let m = 0.5 * (a + b);
-        if m <= a || m >= b {
-            break;
-        }
-        if (f(m) < 0.0) == neg_a {
-            a = m;
-        } else {
-            b = m;
-        }
-    }
-    0.5 * (a + b)
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@ pub mod mesh;
 pub mod quadric;
 pub mod ray;
 pub(crate) mod real;
+pub(crate) mod roots;
 pub mod sdf;
 pub mod sdf_grid;
 pub mod shape;

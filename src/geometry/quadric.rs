@@ -18,6 +18,7 @@
 
 use super::bounds::{Aabb, gamma};
 use super::ray::Ray;
+use super::roots::quadratic_roots;
 use super::shape::{AreaSample, LocalSurface};
 use glam::{DVec3, Vec2, Vec3};
 use std::f64::consts::TAU;
@@ -236,7 +237,7 @@ impl Quadric {
                 let a = d.x * d.x + d.y * d.y - alpha * d.z * d.z;
                 let b = 2.0 * (o.x * d.x + o.y * d.y - alpha * o.z * d.z) - beta * d.z;
                 let c = o.x * o.x + o.y * o.y - alpha * o.z * o.z - beta * o.z - gamma;
-                let roots = solve_quadratic(a, b, c);
+                let roots = quadratic_roots(a, b, c);
                 for t in roots.into_iter().flatten() {
                     if t <= t_min || t > t_max {
                         continue;
@@ -395,22 +396,6 @@ impl Quadric {
 fn angle(p: DVec3) -> f64 {
     let phi = p.y.atan2(p.x);
     if phi < 0.0 { phi + TAU } else { phi }
-}
-
-/// The real roots of a t² + b t + c in increasing order, computed without
-/// cancellation (Press et al., "Numerical Recipes", 5.6); the linear case
-/// where a is 0.
-fn solve_quadratic(a: f64, b: f64, c: f64) -> [Option<f64>; 2] {
-    if a == 0.0 {
-        return if b == 0.0 { [None, None] } else { [Some(-c / b), None] };
-    }
-    let disc = b * b - 4.0 * a * c;
-    if disc < 0.0 {
-        return [None, None];
-    }
-    let q = -0.5 * (b + disc.sqrt().copysign(b));
-    let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (q / a, c / q) };
-    [Some(t0.min(t1)), Some(t0.max(t1))]
 }
 
 #[cfg(test)]

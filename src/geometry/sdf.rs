@@ -457,48 +457,50 @@ impl SdfBuilder {
         )
     }
 
-    /// The child twisted around y.
+    /// The child twisted around y, by `rate` radians per unit of y.
     pub fn twist(&mut self, child: u32, rate: f32) -> Result<u32, String> {
+        self.rotated_along(child, rate, true)
+    }
+
+    /// The child bent in the xy plane, by `rate` radians per unit of x.
+    pub fn bend(&mut self, child: u32, rate: f32) -> Result<u32, String> {
+        self.rotated_along(child, rate, false)
+    }
+
+    /// A twist (xz turned by an angle growing with y) or a bend (xy turned
+    /// by an angle growing with x).
+    fn rotated_along(&mut self, child: u32, rate: f32, twist: bool) -> Result<u32, String> {
         let cb = self.child_bounds(child)?;
         if !is_finite_box(&cb) || !rate.is_finite() {
-            return Err("only a bounded shape can be twisted, by a finite rate".into());
+            let what = if twist { "twisted" } else { "bent" };
+            return Err(format!("only a bounded shape can be {what}, by a finite rate"));
         }
-        let rho = radius_around(cb, 0, 2);
-        let region = Aabb::new(Vec3::new(-rho, cb.min.y, -rho), Vec3::new(rho, cb.max.y, rho));
+        // The plane turned, and the axis left alone: the surface stays
+        // within the child's largest distance ρ from that axis.
+        let (a, b, free) = if twist { (0, 2, 1) } else { (0, 1, 2) };
+        let rho = radius_around(cb, a, b);
+        let mut region = Aabb::new(Vec3::splat(-rho), Vec3::splat(rho));
+        region.min[free] = cb.min[free];
+        region.max[free] = cb.max[free];
         // The map is a rotation plus a rank-one term of norm |rate|·r,
         // r ≤ ρ√2 within the region: it stretches by at most 1 + |rate|·r.
         let scale = 1.0 / (1.0 + rate.abs() * rho * std::f32::consts::SQRT_2);
-        self.push(
+        let node = if twist {
             SdfNode::Twist {
                 child,
                 rate,
                 scale,
                 region,
-            },
-            region,
-            &[child],
-        )
-    }
-
-    /// The child bent in the xy plane.
-    pub fn bend(&mut self, child: u32, rate: f32) -> Result<u32, String> {
-        let cb = self.child_bounds(child)?;
-        if !is_finite_box(&cb) || !rate.is_finite() {
-            return Err("only a bounded shape can be bent, by a finite rate".into());
-        }
-        let rho = radius_around(cb, 0, 1);
-        let region = Aabb::new(Vec3::new(-rho, -rho, cb.min.z), Vec3::new(rho, rho, cb.max.z));
-        let scale = 1.0 / (1.0 + rate.abs() * rho * std::f32::consts::SQRT_2);
-        self.push(
+            }
+        } else {
             SdfNode::Bend {
                 child,
                 rate,
                 scale,
                 region,
-            },
-            region,
-            &[child],
-        )
+            }
+        };
+        self.push(node, region, &[child])
     }
 
     /// The child displaced by value noise.
@@ -548,7 +550,7 @@ impl SdfBuilder {
             epsilon,
             max_steps,
             gradient_step: (epsilon * 0.5).max(extent * 1e-6),
-            cap_hits: StepCapHits::default(),
+            cap_hits: RayCount::default(),
             origin: None,
         })
     }
@@ -591,18 +593,31 @@ fn largest_singular_value(m: Mat3) -> f32 {
     (lambda.max(0.0).sqrt() * (1.0 + 1e-6)) as f32
 }
 
-/// Rays whose march ran out of steps, reported after a render. Not part of
-/// the shape's identity: clones start from zero and compare equal.
+/// A count of rays kept by a shape for a report after the render (rays
+/// whose march or root search gave up). Not part of the shape's identity:
+/// clones start from zero and compare equal.
 #[derive(Debug, Default)]
-pub struct StepCapHits(AtomicU64);
+pub struct RayCount(AtomicU64);
 
-impl Clone for StepCapHits {
-    fn clone(&self) -> Self {
-        StepCapHits::default()
+impl RayCount {
+    /// Counts one more ray.
+    pub fn add(&self) {
+        self.0.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// The rays counted so far.
+    pub fn get(&self) -> u64 {
+        self.0.load(Ordering::Relaxed)
     }
 }
 
-impl PartialEq for StepCapHits {
+impl Clone for RayCount {
+    fn clone(&self) -> Self {
+        RayCount::default()
+    }
+}
+
+impl PartialEq for RayCount {
     fn eq(&self, _: &Self) -> bool {
         true
     }
@@ -620,7 +635,7 @@ pub struct Sdf {
     max_steps: u32,
     /// Step of the central differences.
     gradient_step: f32,
-    cap_hits: StepCapHits,
+    cap_hits: RayCount,
     /// Where the scene defines it ("file:line:column"), for messages.
     origin: Option<String>,
 }
@@ -677,7 +692,7 @@ impl Sdf {
 
     /// Rays that ran out of steps since the shape was made.
     pub fn step_cap_hits(&self) -> u64 {
-        self.cap_hits.0.load(Ordering::Relaxed)
+        self.cap_hits.get()
     }
 
     /// Steps a ray may take.
@@ -758,7 +773,7 @@ impl Sdf {
             return out;
         }
         out.capped = true;
-        self.cap_hits.0.fetch_add(1, Ordering::Relaxed);
+        self.cap_hits.add();
         out
     }
 

@@ -22,6 +22,7 @@
 use glam::{DVec3, Vec2, Vec3};
 
 use super::ray::Ray;
+use super::roots::{bisect, quadratic_roots};
 use super::shape::LocalSurface;
 use crate::sampling::warp::orthonormal_basis;
 
@@ -433,44 +434,6 @@ fn along_ray(c: &[f64; 8], p: DVec3, d: DVec3) -> [f64; 4] {
         }
     }
     out
-}
-
-/// The real roots of a·s² + b·s + c (a linear one where a is 0).
-fn quadratic_roots(a: f64, b: f64, c: f64) -> [Option<f64>; 2] {
-    if a == 0.0 {
-        return [(b != 0.0).then(|| -c / b), None];
-    }
-    let disc = b * b - 4.0 * a * c;
-    if disc < 0.0 {
-        return [None, None];
-    }
-    let q = -0.5 * (b + disc.sqrt().copysign(b));
-    if q == 0.0 {
-        return [Some(0.0), None];
-    }
-    [Some(q / a), Some(c / q)]
-}
-
-/// The root of a function monotonic on [a, b] whose ends differ in sign
-/// (`fa` its value at a), to double precision.
-fn bisect(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64, fa: f64) -> f64 {
-    let a_negative = fa < 0.0;
-    for _ in 0..64 {
-        let m = 0.5 * (a + b);
-        if m <= a || m >= b {
-            break;
-        }
-        let fm = f(m);
-        if fm == 0.0 {
-            return m;
-        }
-        if (fm < 0.0) == a_negative {
-            a = m;
-        } else {
-            b = m;
-        }
-    }
-    0.5 * (a + b)
 }
 
 #[cfg(test)]

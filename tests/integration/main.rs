@@ -18,7 +18,6 @@ mod pbrt;
 mod pbrt_refs;
 mod photon;
 mod ply;
-mod quadrics;
 mod render;
 mod sampling;
-mod sdf;
+mod surfaces;

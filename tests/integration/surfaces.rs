@@ -1,9 +1,11 @@
-//! Shapes given by signed distance functions (sphere traced) and by
-//! equations (roots found by interval arithmetic): white furnaces of
-//! non-convex ones (a ray that met its own surface again on leaving would
-//! darken them), a sphere of each kind against the analytic sphere under
-//! every integrator, and the `steps` image. Tolerances come from each
-//! render's own per-pixel variance or from the spread over seeds.
+//! Implicit and parametric surfaces: signed distance functions (sphere
+//! traced), equations (roots found by interval arithmetic) and quadrics cut
+//! to heights and angles. White furnaces of non-convex and open ones (a ray
+//! that met its own surface again on leaving would darken them), a sphere
+//! of each kind against the analytic sphere under every integrator, the
+//! `steps` image, and light sampled from cut quadrics against BSDF
+//! sampling. Tolerances come from each render's own per-pixel variance or
+//! from the spread over seeds.
 
 use std::path::Path;
 use trazo::color::luminance;
@@ -57,10 +59,16 @@ fn assert_white(f: &Film, what: &str) {
             "{what}: pixel {i} = {v} ± {sigma}"
         );
     }
+    let (mean, err) = mean_and_error(f);
+    assert!((mean - 1.0).abs() <= 4.0 * err + 1e-5, "{what}: mean {mean} ± {err}");
+}
+
+/// The image's mean luminance and its standard error.
+fn mean_and_error(f: &Film) -> (f64, f64) {
     let n = f.pixels.len() as f64;
     let mean = f.pixels.iter().map(|p| luminance(p.value()) as f64).sum::<f64>() / n;
-    let err = (f.pixels.iter().map(|p| p.variance_of_mean()).sum::<f64>() / (n * n)).sqrt();
-    assert!((mean - 1.0).abs() <= 4.0 * err + 1e-5, "{what}: mean {mean} ± {err}");
+    let var: f64 = f.pixels.iter().map(|p| p.variance_of_mean()).sum::<f64>() / (n * n);
+    (mean, var.sqrt())
 }
 
 #[test]
@@ -220,4 +228,136 @@ fn the_steps_image_counts_the_marchers_work_where_it_marched() {
     // Without distance functions the image is zero.
     let plain = render_film(&lit_sphere("path", SphereAs::Analytic), true);
     assert!(plain.aov_image(Aov::Steps).unwrap().pixels.iter().all(|p| p.x == 0.0));
+}
+
+#[test]
+fn white_furnaces_of_cut_quadrics_render_one() {
+    // Open surfaces, seen from both sides (materials are two-sided).
+    let shapes = r#"
+[[shape]]
+type = "sphere"
+radius = 0.6
+zmin = -0.3
+phimax = 270
+material = "white"
+transform = [{ rotate = { axis = [1, 0, 0], angle = -60 } }, { translate = [-1.2, 0.6, 0] }]
+
+[[shape]]
+type = "cone"
+radius = 0.5
+height = 1
+phimax = 300
+material = "white"
+transform = [{ rotate = { axis = [1, 0, 0], angle = -90 } }, { translate = [0, -0.8, 0] }]
+
+[[shape]]
+type = "paraboloid"
+radius = 0.5
+zmin = 0.1
+zmax = 0.8
+material = "white"
+transform = [{ rotate = { axis = [1, 1, 0], angle = 50 } }, { translate = [1.2, 0.6, 0] }]
+
+[[shape]]
+type = "hyperboloid"
+p1 = [0.5, 0, -0.5]
+p2 = [0, 0.5, 0.5]
+phimax = 200
+material = "white"
+transform = [{ translate = [1.2, -0.7, 0] }]
+"#;
+    let text = format!("{FURNACE}{shapes}");
+    assert_white(&render_film(&parse(&text), false), "cut quadrics");
+}
+
+/// A floor lit only by `emitter` (a cut quadric of emission 4), rendered
+/// with `sampling`.
+fn lit_by(emitter: &str, sampling: &str) -> Film {
+    render_film(
+        &parse(&format!(
+            r#"
+[render]
+width = 20
+height = 20
+spp = 256
+max_depth = 2
+sampling = "{sampling}"
+
+[camera]
+from = [0, 3, 4]
+to = [0, 0, 0]
+fov = 50
+
+[[material]]
+name = "floor"
+type = "diffuse"
+reflectance = 0.8
+
+[[material]]
+name = "lamp"
+type = "diffuse"
+reflectance = 0
+emission = 4
+
+[[shape]]
+type = "plane"
+material = "floor"
+
+{emitter}
+material = "lamp"
+"#
+        )),
+        false,
+    )
+}
+
+#[test]
+fn cut_quadric_lights_are_sampled_by_their_area() {
+    // A dome open towards the floor, cut by phimax, emitting from its
+    // inside.
+    let sphere = "[[shape]]\ntype = \"sphere\"\nradius = 0.8\nzmin = 0\nphimax = 300\nflip_normals = true\ntransform = [{ rotate = { axis = [1, 0, 0], angle = -90 } }, { translate = [0, 1.2, 0] }]";
+    // pbrt's cylinder and disk with a hole, cut by phimax.
+    let pbrt_lamps = [
+        r#"Shape "cylinder" "float radius" 0.4 "float zmin" -0.5 "float zmax" 0.5 "float phimax" 240"#,
+        r#"Shape "disk" "float radius" 0.8 "float innerradius" 0.3 "float phimax" 270 "float height" 0"#,
+    ];
+    let check = |mis: &Film, bsdf: &Film, what: &str| {
+        let (a, ea) = mean_and_error(mis);
+        let (b, eb) = mean_and_error(bsdf);
+        assert!(a > 0.01, "{what}: the floor is lit ({a})");
+        let allowed = 4.5 * (ea * ea + eb * eb).sqrt();
+        assert!(
+            (a - b).abs() <= allowed,
+            "{what}: MIS {a} ± {ea}, BSDF sampling {b} ± {eb}"
+        );
+    };
+    check(&lit_by(sphere, "mis"), &lit_by(sphere, "bsdf"), "cut sphere");
+    for (i, shape) in pbrt_lamps.iter().enumerate() {
+        let scene = || {
+            format!(
+                r#"Integrator "path" "integer maxdepth" 2 "bool regularize" false
+Sampler "independent" "integer pixelsamples" 256
+Film "rgb" "integer xresolution" 20 "integer yresolution" 20 "string filename" "x.exr"
+LookAt 0 -4 3  0 0 0  0 0 1
+Camera "perspective" "float fov" 50
+WorldBegin
+Material "diffuse" "rgb reflectance" [0.8 0.8 0.8]
+Shape "trianglemesh" "point3 P" [-20 -20 0 20 -20 0 20 20 0 -20 20 0] "integer indices" [0 1 2 0 2 3]
+AttributeBegin
+AreaLightSource "diffuse" "rgb L" [4 4 4] "bool twosided" true
+Translate 0 0 1.2
+Rotate 150 1 0 0
+{shape}
+AttributeEnd
+"#
+            )
+        };
+        let film = |sampling: &str| {
+            let mut d = trazo::scene::pbrt::parse(&scene(), Path::new("test.pbrt")).unwrap();
+            d.settings.sampling = trazo::settings::PathSampling::from_name(sampling).unwrap();
+            let s = trazo::scene::build(&d).unwrap();
+            render(&s, &RenderOptions::default()).unwrap().film
+        };
+        check(&film("mis"), &film("bsdf"), &format!("pbrt lamp {i}"));
+    }
 }
