@@ -517,7 +517,12 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             desc.settings.integrator.name()
         ));
     }
-    material_mixes.resize(materials.len(), None);
+    // Empty where nothing mixes, so that a hit looks no mix up.
+    if material_mixes.iter().all(Option::is_none) {
+        material_mixes.clear();
+    } else {
+        material_mixes.resize(materials.len(), None);
+    }
     let mut scene = Scene {
         any_blend: material_mixes.iter().flatten().any(|m| m.exact),
         material_mixes,

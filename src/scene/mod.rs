@@ -73,7 +73,8 @@ pub struct Scene {
     pub material_media: Vec<Option<crate::media::MediumInterface>>,
     /// The medium the camera is in.
     pub camera_medium: Option<u32>,
-    /// Per material, how it mixes two others (`None` for most);
+    /// Per material, how it mixes two others (`None` for most; empty where
+    /// no material mixes);
     /// [`Scene::intersect`] records the chosen one in the hit, except for a
     /// blend, whose BSDF [`Scene::bsdf`] makes.
     pub material_mixes: Vec<Option<crate::material::MaterialMix>>,
@@ -99,7 +100,10 @@ impl Scene {
     /// exactly, whose BSDF [`Scene::bsdf`] makes.
     #[inline]
     pub fn choose_material(&self, hit: &mut SurfaceHit, dir: glam::Vec3) {
-        self.resolve_mixes(hit, dir, true);
+        // Checked here, inline: the call costs more than the look-up.
+        if !self.material_mixes.is_empty() {
+            self.resolve_mixes(hit, dir, true);
+        }
     }
 
     /// [`Scene::choose_material`] for every mix, those blended exactly too:
@@ -108,7 +112,9 @@ impl Scene {
     /// blend's parts.
     #[inline]
     pub fn choose_any_material(&self, hit: &mut SurfaceHit, dir: glam::Vec3) {
-        self.resolve_mixes(hit, dir, false);
+        if !self.material_mixes.is_empty() {
+            self.resolve_mixes(hit, dir, false);
+        }
     }
 
     #[inline]
