@@ -99,11 +99,13 @@ pub enum IntegratorKind {
     Sppm,
     /// The volumetric path tracer (participating media).
     VolPath,
+    /// Light tracing: paths from the lights connected to the camera.
+    Light,
 }
 
 impl IntegratorKind {
     /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 5] = ["whitted", "path", "photon", "sppm", "volpath"];
+    pub const NAMES: [&'static str; 6] = ["whitted", "path", "photon", "sppm", "volpath", "light"];
 
     /// Parses one of [`IntegratorKind::NAMES`].
     pub fn from_name(s: &str) -> Option<IntegratorKind> {
@@ -113,6 +115,7 @@ impl IntegratorKind {
             "photon" => Some(IntegratorKind::Photon),
             "sppm" => Some(IntegratorKind::Sppm),
             "volpath" => Some(IntegratorKind::VolPath),
+            "light" => Some(IntegratorKind::Light),
             _ => None,
         }
     }
@@ -125,6 +128,7 @@ impl IntegratorKind {
             IntegratorKind::Photon => "photon",
             IntegratorKind::Sppm => "sppm",
             IntegratorKind::VolPath => "volpath",
+            IntegratorKind::Light => "light",
         }
     }
 }

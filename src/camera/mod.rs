@@ -22,6 +22,22 @@ use crate::sampling::Sampler;
 use crate::sampling::warp::sample_disk_concentric;
 use glam::{Mat4, Vec2, Vec3, Vec4};
 
+/// A connection from a scene point to the camera's lens
+/// ([`Camera::sample_wi`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraConnection {
+    /// Raster position of the image point the connection reaches.
+    pub raster: Vec2,
+    /// Unit direction from the scene point toward the lens.
+    pub wi: Vec3,
+    /// Length of the segment that must be unoccluded (to the lens, or to
+    /// the near clipping plane).
+    pub dist: f32,
+    /// The importance over its density, `We/pdf`: the factor by which
+    /// `β·f·|cos|` at the scene point becomes the splat.
+    pub weight: f32,
+}
+
 /// The projection of a camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Projection {
@@ -59,6 +75,10 @@ pub struct Camera {
     clip: Option<(f32, f32)>,
     /// The viewing axis in world space (unit length).
     forward: Vec3,
+    /// Area of the image on the plane one unit in front of the pinhole
+    /// (perspective), or of the view plane in world units (orthographic):
+    /// the normalisation of the camera's importance.
+    image_area: f32,
     /// Lens radius; 0 for a pinhole.
     pub lens_radius: f32,
     /// Distance to the plane in focus.
@@ -148,6 +168,19 @@ impl Camera {
                 (basis, camera_to_world.point(Vec3::ZERO))
             });
         let forward = camera_to_world.vector(Vec3::Z).normalize();
+        let corner = |x: f32, y: f32| raster_to_camera.m.project_point3(Vec3::new(x, y, 0.0));
+        let (c00, c10, c01) = (corner(0.0, 0.0), corner(width as f32, 0.0), corner(0.0, height as f32));
+        let image_area = match projection {
+            // Directions are what a pinhole sees: the corners projected to z = 1.
+            Projection::Perspective { .. } => {
+                let unit = |c: Vec3| c / c.z;
+                (unit(c10) - unit(c00)).cross(unit(c01) - unit(c00)).length()
+            }
+            Projection::Orthographic { .. } => camera_to_world
+                .vector(c10 - c00)
+                .cross(camera_to_world.vector(c01 - c00))
+                .length(),
+        };
         Ok(Camera {
             projection,
             camera_to_world,
@@ -155,6 +188,7 @@ impl Camera {
             pinhole,
             clip: None,
             forward,
+            image_area,
             lens_radius: 0.0,
             focus_distance: 1.0,
             width,
@@ -234,6 +268,101 @@ impl Camera {
         let o = self.camera_to_world.point(origin);
         let d = self.camera_to_world.vector(dir).normalize();
         Ray::new(o, d)
+    }
+
+    /// A point on the lens seen from the scene point `p`, for algorithms
+    /// that trace from the lights and connect to the camera (pbrt-v4's
+    /// `Camera::SampleWi`, Veach 1997 §10.3.1): `lens` ∈ [0,1)² picks the
+    /// lens point as [`Camera::generate_ray`] does. `None` where the
+    /// camera does not see `p` (behind it, outside the image or the
+    /// clipping planes).
+    ///
+    /// The importance is pbrt's, `We = 1/(A·A_lens·cos⁴θ)` for a
+    /// perspective camera (A the image's area on the plane at unit
+    /// distance) with the solid-angle density `dist²/(A_lens·cos θ)` of
+    /// the lens point, so `We/pdf = 1/(A·cos³θ·dist²)` with or without a
+    /// lens; an orthographic camera sees `p` along its axis only (a delta
+    /// in direction), with `We = 1/A` over its view plane. An image of
+    /// `N` such connections per pixel, each splatted with its weight into
+    /// the pixel it reaches and divided by `N`, estimates the radiance the
+    /// camera's rays measure.
+    pub fn sample_wi(&self, p: Vec3, lens: Vec2) -> Option<CameraConnection> {
+        let q = self.camera_to_world.inv_point(p);
+        let (raster, lens_point, cos) = match self.projection {
+            Projection::Perspective { .. } => {
+                if q.z <= 0.0 {
+                    return None;
+                }
+                let p_lens = if self.lens_radius > 0.0 {
+                    let d = self.lens_radius * sample_disk_concentric(lens);
+                    Vec3::new(d.x, d.y, 0.0)
+                } else {
+                    Vec3::ZERO
+                };
+                // The camera ray from the lens point through q meets the
+                // plane in focus where the pinhole ray of its raster point
+                // does (see `unclipped_ray`); a pinhole projects q itself.
+                let through = if self.lens_radius > 0.0 {
+                    p_lens + (q - p_lens) * (self.focus_distance / q.z)
+                } else {
+                    q
+                };
+                let raster = self.raster_to_camera.inv.project_point3(through);
+                let lens_world = self.camera_to_world.point(p_lens);
+                let cos = (p - lens_world).normalize_or_zero().dot(self.forward);
+                (raster, lens_world, cos)
+            }
+            Projection::Orthographic { .. } => {
+                if self.lens_radius > 0.0 {
+                    // A thin lens over a parallel projection focuses
+                    // nowhere; such cameras are refused before rendering
+                    // (see `Camera::connects`).
+                    return None;
+                }
+                if q.z <= 0.0 {
+                    return None;
+                }
+                let raster = self.raster_to_camera.inv.transform_point3(Vec3::new(q.x, q.y, 0.0));
+                let lens_world = self.camera_to_world.point(Vec3::new(q.x, q.y, 0.0));
+                (raster, lens_world, 1.0)
+            }
+        };
+        let (w, h) = (self.width as f32, self.height as f32);
+        if !(raster.x >= 0.0 && raster.x < w && raster.y >= 0.0 && raster.y < h && cos > 0.0) {
+            return None;
+        }
+        let to_lens = lens_point - p;
+        let dist = to_lens.length();
+        if !(dist > 0.0 && dist.is_finite()) {
+            return None;
+        }
+        let wi = to_lens / dist;
+        // Depth along the viewing axis from the lens plane, which the
+        // clipping planes bound (as `generate_ray` measures them).
+        let depth = dist * cos;
+        let mut visible = dist;
+        if let Some((near, far)) = self.clip {
+            if depth < near || depth > far {
+                return None;
+            }
+            visible = dist - near / cos;
+        }
+        let weight = match self.projection {
+            Projection::Perspective { .. } => 1.0 / (self.image_area * cos * cos * cos * dist * dist),
+            Projection::Orthographic { .. } => 1.0 / self.image_area,
+        };
+        weight.is_finite().then_some(CameraConnection {
+            raster: Vec2::new(raster.x, raster.y),
+            wi,
+            dist: visible,
+            weight,
+        })
+    }
+
+    /// Whether light paths can connect to this camera
+    /// ([`Camera::sample_wi`]): all but an orthographic one with a lens.
+    pub fn connects(&self) -> bool {
+        !(matches!(self.projection, Projection::Orthographic { .. }) && self.lens_radius > 0.0)
     }
 }
 
@@ -383,6 +512,101 @@ mod tests {
             let t = (r.origin.z - 0.0) / -r.dir.z;
             assert!(close(r.at(t), focus), "{:?} vs {focus:?}", r.at(t));
         }
+    }
+
+    /// Connecting a point on a camera ray back to the camera with the
+    /// ray's lens sample lands on the ray's raster position, for pinhole,
+    /// thin-lens and orthographic cameras, clipped or not; points behind
+    /// the camera, outside the image or beyond the clipping planes are
+    /// not seen.
+    #[test]
+    fn connections_to_the_lens_invert_the_camera_rays() {
+        let ortho = Camera::look_at(
+            Projection::Orthographic { height: 3.0 },
+            Vec3::new(1.0, 2.0, 5.0),
+            Vec3::new(0.0, 0.5, 0.0),
+            Vec3::Y,
+            40,
+            30,
+        )
+        .unwrap();
+        let cameras = [
+            persp(50.0, 40, 30),
+            persp(50.0, 40, 30).with_thin_lens(0.3, 4.0),
+            ortho.clone(),
+            persp(70.0, 40, 30).with_thin_lens(0.2, 6.0).with_clipping(1.0, 9.0),
+            ortho.with_clipping(2.0, 8.0),
+        ];
+        for (k, camera) in cameras.iter().enumerate() {
+            for (film, lens, t) in [
+                (Vec2::new(20.0, 15.0), Vec2::new(0.3, 0.6), 3.0f32),
+                (Vec2::new(1.5, 28.25), Vec2::new(0.9, 0.1), 5.5),
+                (Vec2::new(37.75, 0.5), Vec2::new(0.5, 0.5), 7.0),
+            ] {
+                let ray = camera.generate_ray(film, lens);
+                let p = ray.at(t.min(0.9 * ray.t_max));
+                let c = camera
+                    .sample_wi(p, lens)
+                    .unwrap_or_else(|| panic!("camera {k}: {film} unseen"));
+                assert!((c.raster - film).length() < 2e-3, "camera {k}: {} vs {film}", c.raster);
+                assert!((c.wi + ray.dir).length() < 1e-4, "camera {k}: {} vs {}", c.wi, -ray.dir);
+                // The segment to check ends where the ray starts.
+                assert!((p + c.wi * c.dist - ray.origin).length() < 1e-3, "camera {k}");
+                assert!(c.weight > 0.0 && c.weight.is_finite());
+            }
+            let ahead = camera.generate_ray(Vec2::new(20.0, 15.0), Vec2::ZERO);
+            let behind = ahead.origin - ahead.dir * 2.0;
+            assert_eq!(camera.sample_wi(behind, Vec2::splat(0.5)), None, "camera {k}");
+            let aside = ahead.at(3.0) + Vec3::new(50.0, 0.0, 0.0);
+            assert_eq!(camera.sample_wi(aside, Vec2::splat(0.5)), None, "camera {k}");
+        }
+        let clipped = &cameras[3];
+        let ray = clipped.generate_ray(Vec2::new(20.0, 15.0), Vec2::splat(0.5));
+        assert!(clipped.sample_wi(ray.at(ray.t_max + 0.5), Vec2::splat(0.5)).is_none());
+        assert!(
+            clipped
+                .sample_wi(ray.origin - ray.dir * 0.5, Vec2::splat(0.5))
+                .is_none()
+        );
+        assert!(!ortho_with_lens().connects() && cameras.iter().all(Camera::connects));
+    }
+
+    fn ortho_with_lens() -> Camera {
+        Camera::look_at(
+            Projection::Orthographic { height: 2.0 },
+            Vec3::Z,
+            Vec3::ZERO,
+            Vec3::Y,
+            8,
+            8,
+        )
+        .unwrap()
+        .with_thin_lens(0.1, 1.0)
+    }
+
+    /// The importance integrates to one over the image: for a pinhole, the
+    /// weight `We/pdf` at unit distance times the solid angle that each
+    /// direction stands for, summed over a grid of directions through the
+    /// image plane, is 1.
+    #[test]
+    fn perspective_importance_is_normalised_over_the_image() {
+        let c = persp(60.0, 48, 32);
+        let n = 200;
+        let mut sum = 0.0f64;
+        // Directions through raster points; the solid angle of a raster
+        // cell is its area on the plane at unit distance times cos³θ.
+        let cell_area = c.image_area as f64 / (n * n) as f64;
+        for i in 0..n {
+            for j in 0..n {
+                let film = Vec2::new(48.0 * (i as f32 + 0.5) / n as f32, 32.0 * (j as f32 + 0.5) / n as f32);
+                let ray = c.generate_ray(film, Vec2::ZERO);
+                let p = ray.at(1.0);
+                let conn = c.sample_wi(p, Vec2::ZERO).unwrap();
+                let cos = ray.dir.dot(-Vec3::Z) as f64;
+                sum += conn.weight as f64 * cell_area * cos * cos * cos;
+            }
+        }
+        assert!((sum - 1.0).abs() < 1e-3, "{sum}");
     }
 
     #[test]

@@ -221,8 +221,10 @@ struct RenderArgs {
     spp: Option<u32>,
 
     /// Rendering algorithm (overrides the scene): whitted, path, photon
-    /// (Jensen's photon mapping) or sppm (stochastic progressive photon
-    /// mapping; --spp is then the number of iterations).
+    /// (Jensen's photon mapping), sppm (stochastic progressive photon
+    /// mapping; --spp is then the number of iterations), volpath (media)
+    /// or light (light tracing: paths from the lights connected to the
+    /// camera; --spp is the number of light paths per pixel).
     #[arg(long, value_name = "NAME", value_parser = IntegratorKind::NAMES)]
     integrator: Option<String>,
 
@@ -668,11 +670,19 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     if let Some(v) = &args.sampling {
         desc.settings.sampling = PathSampling::from_name(v).expect("clap checked the value");
     }
-    // SPPM's state is not a film of samples: it has no checkpoints.
-    let resumable = desc.settings.integrator != IntegratorKind::Sppm;
-    if !resumable && (args.checkpoint_every.is_some() || resume.is_some() || args.shard.is_some()) {
-        let e = Error::Invalid(crate::integrator::photon::sppm::NOT_RESUMABLE.into());
-        return Err(after_loading(e, &desc));
+    // SPPM's state is not a film of samples, and light tracing's splats
+    // are kept per iteration: neither has checkpoints.
+    let not_resumable = match desc.settings.integrator {
+        IntegratorKind::Sppm => Some(crate::integrator::photon::sppm::NOT_RESUMABLE),
+        IntegratorKind::Light => Some(crate::integrator::light::NOT_RESUMABLE),
+        _ => None,
+    };
+    let resumable = not_resumable.is_none();
+    if let (Some(why), true) = (
+        not_resumable,
+        args.checkpoint_every.is_some() || resume.is_some() || args.shard.is_some(),
+    ) {
+        return Err(after_loading(Error::Invalid(why.into()), &desc));
     }
     let limits = scene::BuildLimits {
         max_memory: Some(args.max_memory.unwrap_or_else(scene::memory::default_limit)),

@@ -13,11 +13,13 @@
 //! it), the passes, the deadline, checkpoints and progress.
 
 pub mod aov;
+pub mod light;
 pub mod path;
 pub mod photon;
 pub mod volpath;
 pub mod whitted;
 
+pub use light::LightTracer;
 pub use path::PathTracer;
 pub use photon::PhotonMapper;
 pub use volpath::VolPathTracer;
@@ -122,6 +124,7 @@ pub fn drive<D: Driver>(scene: &Scene, aovs: bool, cancel: Option<&AtomicBool>, 
             driver.camera_passes(&mapper, prepared)
         }
         IntegratorKind::Sppm => driver.iterations(photon::sppm::Sppm::new(scene, aovs)),
+        IntegratorKind::Light => driver.iterations(LightTracer::new(scene, aovs)),
         IntegratorKind::VolPath => driver.camera_passes(
             &VolPathTracer {
                 max_depth: s.max_depth,

@@ -44,6 +44,22 @@ pub struct EmissionSample {
     pub ray: Ray,
     /// `Le·|cos θ| / (p_A·p_ω)`: its mean over samples is the light's flux.
     pub weight: Rgb,
+    /// For an area light, the point the ray leaves from, which a camera
+    /// may see directly (light tracing's first connection).
+    pub surface: Option<EmitterPoint>,
+}
+
+/// A point sampled on an area light.
+#[derive(Clone, Copy, Debug)]
+pub struct EmitterPoint {
+    /// The point (before the push off the surface).
+    pub p: Vec3,
+    /// The emitting side's unit normal.
+    pub n: Vec3,
+    /// Radiance leaving the front side, the same in every direction.
+    pub le: Rgb,
+    /// Density of the point, per unit area.
+    pub pdf_area: f32,
 }
 
 /// The sphere that bounds the scene's geometry: centre and radius (a unit
@@ -74,6 +90,7 @@ impl Light {
         u_pos: Vec2,
         u_dir: Vec2,
     ) -> Option<EmissionSample> {
+        let mut surface = None;
         let (weight, ray) = match self {
             Light::Point {
                 position, intensity, ..
@@ -132,6 +149,12 @@ impl Light {
                 let le = radiance.eval(&scene.images, &TexCoord::new(s.uv, s.p));
                 // Le·cos θ / (p_A · cos θ/π) = π·Le / p_A.
                 let push = s.n * (EMITTER_OFFSET * s.p.abs().max_element().max(1.0));
+                surface = Some(EmitterPoint {
+                    p: s.p,
+                    n: s.n,
+                    le,
+                    pdf_area: s.pdf_area,
+                });
                 (le * (PI / s.pdf_area), Ray::new(s.p + push, dir))
             }
             Light::Environment => {
@@ -150,7 +173,7 @@ impl Light {
         if weight == Rgb::ZERO || !weight.is_finite() {
             return None;
         }
-        Some(EmissionSample { ray, weight })
+        Some(EmissionSample { ray, weight, surface })
     }
 }
 

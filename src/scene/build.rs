@@ -419,6 +419,13 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
     )
     .with_clipping(cam.near_clip, cam.far_clip);
+    if s.integrator == IntegratorKind::Light && !camera.connects() {
+        return Err(Error::scene(
+            cam.locs.item.clone(),
+            "camera",
+            "light tracing cannot connect to an orthographic camera with a lens (its rays focus nowhere): drop the aperture, or use another integrator",
+        ));
+    }
     let background = match &desc.background {
         BackgroundDesc::Constant(c) => Background::Constant(*c),
         BackgroundDesc::Gradient { top, bottom } => Background::Gradient {
@@ -494,7 +501,9 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             desc.settings.integrator.name()
         ));
     }
-    if desc.settings.max_component_value.is_finite() && desc.settings.integrator == IntegratorKind::Sppm {
+    if desc.settings.max_component_value.is_finite()
+        && matches!(desc.settings.integrator, IntegratorKind::Sppm | IntegratorKind::Light)
+    {
         let at = desc
             .settings_locs
             .keys
@@ -503,15 +512,16 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             .map(|(_, l)| format!("{l}: "))
             .unwrap_or_default();
         warnings.push(format!(
-            "{at}max_component_value is unsupported by \"sppm\", whose pixels gather photons rather than samples: ignored"
+            "{at}max_component_value is unsupported by \"{}\", whose pixels gather photons or splats rather than samples: ignored",
+            desc.settings.integrator.name()
         ));
     }
-    let path_tracers = [IntegratorKind::Path, IntegratorKind::VolPath];
+    let path_tracers = [IntegratorKind::Path, IntegratorKind::VolPath, IntegratorKind::Light];
     if let Some(m) = desc.materials.iter().find(|m| m.opacity.is_some())
         && !path_tracers.contains(&desc.settings.integrator)
     {
         warnings.push(format!(
-            "{}material \"{}\" has an opacity mask, which only \"path\" and \"volpath\" render; \"{}\" renders it opaque",
+            "{}material \"{}\" has an opacity mask, which only \"path\", \"volpath\" and \"light\" render; \"{}\" renders it opaque",
             m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default(),
             m.name,
             desc.settings.integrator.name()

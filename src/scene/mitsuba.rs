@@ -1071,6 +1071,7 @@ impl Loader {
         match ty.as_str() {
             "path" | "direct" => {}
             "volpath" | "volpathmis" => s.integrator = IntegratorKind::VolPath,
+            "ptracer" => s.integrator = IntegratorKind::Light,
             other => self.warn(
                 f,
                 node,
@@ -1094,6 +1095,13 @@ impl Loader {
         }
         if self.boolean(f, &props, "hide_emitters", &mut used)? == Some(true) {
             self.warn(f, node, "hide_emitters is unsupported; emitters are visible");
+        }
+        if self.integer(f, &props, "samples_per_pass", &mut used)?.is_some() {
+            self.warn(
+                f,
+                node,
+                "\"samples_per_pass\" is ignored (each iteration traces one light path per pixel)",
+            );
         }
         // The direct integrator's sample counts only change its noise.
         for ignored in ["emitter_samples", "bsdf_samples"] {
@@ -3953,6 +3961,24 @@ mod tests {
             e.contains("m.xml:1:") && e.contains("exactly one nested integrator"),
             "{e}"
         );
+    }
+
+    /// Mitsuba's particle tracer is trazo's light tracer, with its depth;
+    /// its pass size only changes scheduling and is named as ignored.
+    #[test]
+    fn particle_tracer_is_light_tracing() {
+        let text = r#"<scene version="3.0.0">
+    <integrator type="ptracer">
+        <integer name="max_depth" value="4"/>
+        <integer name="samples_per_pass" value="8"/>
+    </integrator>
+</scene>"#;
+        let d = parse(text, Path::new("p.xml"), &[]).unwrap();
+        assert_eq!(d.settings.integrator, IntegratorKind::Light);
+        assert_eq!(d.settings.max_depth, 4);
+        // The other warning is about the missing sensor.
+        assert_eq!(d.warnings.len(), 2, "{:?}", d.warnings);
+        assert!(d.warnings[0].starts_with("p.xml:2:") && d.warnings[0].contains("samples_per_pass"));
     }
 
     /// File names resolve as in Mitsuba: against the main scene's folder

@@ -9,6 +9,7 @@ mod display;
 mod farm;
 mod fuzz_regressions;
 mod gltf;
+mod light;
 mod long_renders;
 mod malformed;
 mod media;

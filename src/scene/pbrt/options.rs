@@ -157,7 +157,11 @@ impl Parser {
         s.sampling = PathSampling::Mis;
         // Media are known only once the world is read (`finish`).
         self.volpath = kind == "volpath";
-        if !matches!(kind, "path" | "volpath") {
+        if kind == "lightpath" {
+            // pbrt-v4's LightPathIntegrator: light tracing, with the same
+            // depth.
+            s.integrator = IntegratorKind::Light;
+        } else if !matches!(kind, "path" | "volpath") {
             self.approximated(
                 loc,
                 format!("Integrator \"{kind}\""),

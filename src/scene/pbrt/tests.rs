@@ -55,6 +55,14 @@ WorldBegin"#,
     assert_eq!(s.filter, Filter::Tent { radius: 1.5 });
     assert!(d.warnings.is_empty(), "{:?}", d.warnings);
 
+    // pbrt-v4's light path integrator is light tracing, with its depth.
+    let d = parse_str("Integrator \"lightpath\" \"integer maxdepth\" [2]\nWorldBegin").unwrap();
+    assert_eq!(
+        (d.settings.integrator, d.settings.max_depth),
+        (IntegratorKind::Light, 3)
+    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+
     // pbrt-v4's defaults: 1280×720, 16 spp, maxdepth 5, Gaussian filter.
     let d = world("");
     let s = &d.settings;

@@ -1,0 +1,359 @@
+//! Light tracing (particle tracing): paths leave the lights, and every
+//! vertex they reach is connected to the camera's lens, which splats its
+//! contribution into the pixel it lands in (Arvo and Kirk 1990; Veach 1997
+//! §10.3, the t = 1 strategies of bidirectional path tracing; pbrt-v4's
+//! `LightPathIntegrator`, Mitsuba 3's `ptracer`).
+//!
+//! A path starts like a photon ([`Light::sample_le`](crate::light::Light::sample_le)):
+//! a light chosen in proportion to its power, a point and a direction, with
+//! throughput `β = Le·|cos|/(p_light·p_A·p_ω)`. At every surface vertex with
+//! a non-delta lobe the camera is sampled ([`Camera::sample_wi`]) and, if
+//! nothing is in the way, the vertex adds
+//!
+//! ```text
+//! β · f(wo → wi_camera) · |cos| · We / p_camera
+//! ```
+//!
+//! to the pixel it is seen in (the BSDF is the adjoint one, with Veach's
+//! shading-normal correction, eq. 5.21). The area lights' own points are
+//! connected too, so that lights seen directly appear. An iteration traces
+//! one path per pixel; the image after k iterations is the sum of the
+//! splats divided by k, which estimates what the path tracer's camera rays
+//! measure. Lights at infinity and points lights cannot be seen this way
+//! (as in pbrt), so a background seen directly stays black; delta BSDFs
+//! (mirrors, smooth glass) are bounced through but never connected, so
+//! what is seen only through them is black too: the light tracer is for
+//! caustics on diffuse surfaces seen directly, and for teaching.
+//!
+//! Paths are traced in fixed chunks whose random numbers come from (seed,
+//! iteration, path) alone, and the chunks' splats are added in order, so
+//! the image is the same for any number of threads.
+
+use crate::camera::CameraConnection;
+use crate::color::{Rgb, luminance};
+use crate::film::splat::{MAX_TAPS, Splat};
+use crate::film::{AovSum, Film, FilmAov, FilmPixel, PixelSum};
+use crate::geometry::Ray;
+use crate::geometry::interaction::SHADOW_EPSILON;
+use crate::integrator::aov::camera_aov;
+use crate::integrator::{Progressive, Work};
+use crate::material::TransportMode;
+use crate::sampling::rng::{Pcg32, hash_u64s};
+use crate::scene::Scene;
+use crate::texture::TexCoord;
+use glam::{DVec3, Vec2, Vec3};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Why light tracing refuses checkpoints.
+pub const NOT_RESUMABLE: &str = "light tracing renders cannot be checkpointed, resumed or sharded yet (its image is a sum of splats over whole iterations): drop --checkpoint-every/--resume/--shard, or use --integrator path";
+
+/// Paths per work unit.
+const CHUNK: u32 = 4096;
+
+/// Separates light tracing's random numbers from the photon passes'.
+const STREAM: u64 = 0x6c69_6768_7420;
+
+/// Light tracing's state between iterations: the splats' sums.
+pub struct LightTracer {
+    width: u32,
+    height: u32,
+    /// Longest path, in segments from the light to the camera.
+    max_depth: u32,
+    /// Per pixel, row by row from the top: Σ over iterations of the
+    /// iteration's splats, and of their luminance squared.
+    sums: Vec<DVec3>,
+    lum_sq: Vec<f64>,
+    /// Auxiliary sums from one camera ray per pixel and iteration.
+    aovs: Option<Vec<AovSum>>,
+    /// Filter weights for filters wider than a pixel.
+    splat: Option<Splat>,
+    /// Per column and per row, the share of the filter about the pixel's
+    /// centre that lies inside the image: the camera passes normalise
+    /// each pixel by the weights its samples brought, which near the
+    /// border are that share of the rest, so the splats are divided by it.
+    inside: (Vec<f64>, Vec<f64>),
+    iterations: u32,
+}
+
+/// The share of `filter`'s 1D profile about each of `n` pixel centres
+/// that lies within [0, n] (midpoint rule).
+fn share_inside(filter: &crate::settings::Filter, n: u32) -> Vec<f64> {
+    let r = filter.radius();
+    let steps = 256;
+    let at = |c: f32, lo: f32, hi: f32| -> f64 {
+        (0..steps)
+            .map(|i| {
+                let x = -r + 2.0 * r * (i as f32 + 0.5) / steps as f32;
+                if (lo..hi).contains(&(c + x)) {
+                    filter.eval_1d(x) as f64
+                } else {
+                    0.0
+                }
+            })
+            .sum()
+    };
+    (0..n)
+        .map(|j| {
+            let c = j as f32 + 0.5;
+            at(c, 0.0, n as f32) / at(c, f32::NEG_INFINITY, f32::INFINITY)
+        })
+        .collect()
+}
+
+impl LightTracer {
+    /// Nothing traced yet; `aovs` asks for the auxiliary sums. A camera
+    /// that light cannot reach (an orthographic one with a lens) is
+    /// refused when the scene is built, and sees nothing here.
+    pub fn new(scene: &Scene, aovs: bool) -> LightTracer {
+        let s = &scene.settings;
+        let n = s.width as usize * s.height as usize;
+        LightTracer {
+            width: s.width,
+            height: s.height,
+            max_depth: s.max_depth,
+            sums: vec![DVec3::ZERO; n],
+            lum_sq: vec![0.0; n],
+            aovs: aovs.then(|| vec![AovSum::default(); n]),
+            splat: Splat::new(&s.filter),
+            inside: match Splat::new(&s.filter) {
+                Some(_) => (share_inside(&s.filter, s.width), share_inside(&s.filter, s.height)),
+                None => (vec![1.0; s.width as usize], vec![1.0; s.height as usize]),
+            },
+            iterations: 0,
+        }
+    }
+}
+
+impl Progressive for LightTracer {
+    const NOT_RESUMABLE: &'static str = NOT_RESUMABLE;
+
+    /// One path per pixel, given up (and the whole iteration with it) soon
+    /// after `cancel` is set.
+    fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work> {
+        let paths = self.width * self.height;
+        let bounds = crate::light::scene_bounding_sphere(scene);
+        let (seed, iteration) = (scene.settings.seed, self.iterations as u64);
+        let tracer = &*self;
+        let parts: Vec<(Vec<(u32, Rgb)>, u64)> = (0..paths.div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|c| {
+                let (mut splats, mut rays) = (Vec::new(), 0u64);
+                if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                    return (splats, rays);
+                }
+                for i in c * CHUNK..((c + 1) * CHUNK).min(paths) {
+                    let mut rng = Pcg32::new(hash_u64s(&[seed, STREAM, iteration, i as u64]), 0x5bd1);
+                    tracer.trace_path(scene, bounds, &mut rng, &mut splats, &mut rays);
+                }
+                (splats, rays)
+            })
+            .collect();
+        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            return None;
+        }
+        let mut this = vec![DVec3::ZERO; self.sums.len()];
+        let mut rays = 0;
+        for (splats, r) in parts {
+            rays += r;
+            for (px, l) in splats {
+                this[px as usize] += l.as_dvec3();
+            }
+        }
+        for ((sum, sq), l) in self.sums.iter_mut().zip(&mut self.lum_sq).zip(&this) {
+            *sum += *l;
+            let y = luminance(l.as_vec3()) as f64;
+            *sq += y * y;
+        }
+        if let Some(aovs) = &mut self.aovs {
+            let w = self.width as usize;
+            aovs.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+                for (x, sum) in row.iter_mut().enumerate() {
+                    let mut rng = Pcg32::new(hash_u64s(&[seed, STREAM + 1, iteration, (y * w + x) as u64]), 0x5bd1);
+                    let film = Vec2::new(x as f32 + rng.next_f32(), y as f32 + rng.next_f32());
+                    let lens = Vec2::new(rng.next_f32(), rng.next_f32());
+                    sum.add(&camera_aov(scene, &scene.camera.generate_ray(film, lens)));
+                }
+            });
+            rays += paths as u64;
+        }
+        self.iterations += 1;
+        Some(Work {
+            rays,
+            ..Work::default()
+        })
+    }
+
+    /// Each pixel is the mean over iterations of its splats.
+    fn film(&self) -> Film {
+        let mut film = Film::new(self.width, self.height);
+        let k = self.iterations as f64;
+        let w = self.width as usize;
+        for (i, ((pixel, sum), sq)) in film.pixels.iter_mut().zip(&self.sums).zip(&self.lum_sq).enumerate() {
+            let share = self.inside.0[i % w] * self.inside.1[i / w];
+            *pixel = FilmPixel::default().plus(&PixelSum {
+                rgb: *sum,
+                weight: k * share,
+                lum_sq: *sq,
+            });
+        }
+        if let Some(aovs) = &self.aovs {
+            film.aovs = Some(aovs.iter().map(|a| FilmAov::default().plus(a)).collect());
+        }
+        film
+    }
+}
+
+impl LightTracer {
+    /// Traces one light path, adding its splats (pixel, contribution) to
+    /// `out`. The importance is normalised over the whole image, so a path
+    /// estimates the image times its number of pixels; with one path per
+    /// pixel in an iteration, the splats are the iteration's image.
+    fn trace_path(
+        &self,
+        scene: &Scene,
+        bounds: (Vec3, f32),
+        rng: &mut Pcg32,
+        out: &mut Vec<(u32, Rgb)>,
+        rays: &mut u64,
+    ) {
+        if scene.lights.is_empty() || scene.light_distribution.is_empty() {
+            return;
+        }
+        let (light_index, pmf, _) = scene.light_distribution.sample(rng.next_f32());
+        if pmf <= 0.0 {
+            return;
+        }
+        let u_pick = rng.next_f32();
+        let u_pos = Vec2::new(rng.next_f32(), rng.next_f32());
+        let u_dir = Vec2::new(rng.next_f32(), rng.next_f32());
+        let Some(emitted) = scene.lights[light_index].sample_le(scene, bounds, u_pick, u_pos, u_dir) else {
+            return;
+        };
+        // The light's own point, seen directly (one segment).
+        let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
+        if let Some(point) = emitted.surface {
+            if let Some(c) = scene.camera.sample_wi(point.p, u_lens) {
+                let cos = point.n.dot(c.wi);
+                if cos > 0.0 {
+                    *rays += 1;
+                    let target = point.p + c.wi * c.dist;
+                    let shadow =
+                        Ray::with_interval(emitted.ray.origin, target - emitted.ray.origin, 0.0, SHADOW_EPSILON);
+                    if !scene.occluded(&shadow) {
+                        let l = point.le * (cos * c.weight / (point.pdf_area * pmf));
+                        self.add_splat(&c, l, out);
+                    }
+                }
+            }
+        }
+
+        let mut beta = emitted.weight / pmf;
+        let mut ray = emitted.ray;
+        // Segments of the path once it reaches the camera from the next
+        // vertex: light → vertex → camera.
+        let mut segments = 2u32;
+        while segments <= self.max_depth {
+            *rays += 1;
+            let Some(mut hit) = scene.intersect(&ray) else {
+                return;
+            };
+            scene.choose_any_material(&mut hit, ray.dir);
+            let m = &scene.materials[hit.material as usize];
+            let tc = TexCoord::at(&hit);
+            // A mask's cut-out part lets the light through unchanged, as
+            // the path tracer's camera paths pass it.
+            if m.opacity.is_some() && rng.next_f32() >= m.opacity_at(&scene.images, &tc) {
+                ray = hit.spawn_ray(ray.dir);
+                segments += 1;
+                continue;
+            }
+            let bsdf = m.bsdf(&scene.images, &tc);
+            let wo_world = -ray.dir.normalize();
+            if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
+                return; // the back of a one-sided surface absorbs
+            }
+            let ng_wo = hit.ng.dot(wo_world);
+            if ng_wo == 0.0 {
+                return;
+            }
+            let frame = m.shading_frame(&scene.images, &hit, wo_world);
+            let wo = frame.to_local(wo_world);
+            let front_o = ng_wo > 0.0;
+            // The adjoint BSDF with shading normals (Veach 1997, eq. 5.21):
+            // f·|wo·ns|·|wi·ng| / |wo·ng| in place of f·|wi·ns|.
+            let adjoint =
+                |wi_world: Vec3, wi: Vec3| wo.z.abs() * hit.ng.dot(wi_world).abs() / (ng_wo.abs() * wi.z.abs());
+
+            let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
+            if bsdf.has_smooth() {
+                if let Some(c) = scene.camera.sample_wi(hit.p, u_lens) {
+                    let wi = frame.to_local(c.wi);
+                    let front_i = hit.ng.dot(c.wi) > 0.0;
+                    let consistent = (front_i == front_o) == (wi.z * wo.z > 0.0);
+                    if consistent && wi.z != 0.0 {
+                        let f = bsdf.eval(wo, wi, TransportMode::Importance);
+                        if f != Rgb::ZERO {
+                            let l = beta * f * (frame.factor(wo_world) * wi.z.abs() * adjoint(c.wi, wi) * c.weight);
+                            *rays += 1;
+                            if l.is_finite() && !scene.occluded(&hit.spawn_ray_to(hit.p + c.wi * c.dist)) {
+                                self.add_splat(&c, l, out);
+                            }
+                        }
+                    }
+                }
+            }
+            if segments == self.max_depth {
+                return;
+            }
+
+            let (u_lobe, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
+            let Some(bs) = bsdf.sample(wo, u_lobe, u, TransportMode::Importance) else {
+                return;
+            };
+            if bs.pdf <= 0.0 || bs.f == Rgb::ZERO || bs.wi.z == 0.0 || wo.z == 0.0 {
+                return;
+            }
+            let wi_world = frame.to_world(bs.wi);
+            let reflection = bs.wi.z * wo.z > 0.0;
+            if (hit.ng.dot(wi_world) > 0.0) != (front_o == reflection) {
+                return; // the shading normal sent the path through the surface
+            }
+            let next = beta * bs.f * (frame.factor(wo_world) * bs.wi.z.abs() * adjoint(wi_world, bs.wi) / bs.pdf);
+            // Russian roulette on the throughput's change (Jensen 2001,
+            // §5.3): a path's weight stays about its light's share of the
+            // power.
+            let q = (next.max_element() / beta.max_element()).min(1.0);
+            if q.is_nan() || q <= 0.0 || rng.next_f32() >= q {
+                return;
+            }
+            beta = next / q;
+            ray = hit.spawn_ray(wi_world);
+            segments += 1;
+        }
+    }
+
+    /// Adds contribution `l` where connection `c` lands: into its pixel, or
+    /// spread by the filter's weights over the pixels it covers.
+    fn add_splat(&self, c: &CameraConnection, l: Rgb, out: &mut Vec<(u32, Rgb)>) {
+        let (w, h) = (self.width, self.height);
+        match &self.splat {
+            None => {
+                let (x, y) = ((c.raster.x as u32).min(w - 1), (c.raster.y as u32).min(h - 1));
+                out.push((y * w + x, l));
+            }
+            Some(splat) => {
+                let (mut wx, mut wy) = ([0.0; MAX_TAPS], [0.0; MAX_TAPS]);
+                let (x0, xs) = splat.taps(c.raster.x, 0, w, &mut wx);
+                let (y0, ys) = splat.taps(c.raster.y, 0, h, &mut wy);
+                for (dy, fy) in ys.iter().enumerate() {
+                    for (dx, fx) in xs.iter().enumerate() {
+                        if fx * fy != 0.0 {
+                            out.push(((y0 + dy as u32) * w + x0 + dx as u32, l * (fx * fy)));
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
