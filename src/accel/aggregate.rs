@@ -377,9 +377,16 @@ impl Aggregate {
                 })
                 .collect();
             let mut range: Option<BlockRange> = None;
-            for chunk in spheres.chunks(8) {
-                let b = blocks.push_spheres(chunk);
-                range = Some(range.map_or((b, 1), |(first, n)| (first, n + 1)));
+            if spheres.len() == 1 {
+                // A sphere alone is tested by itself: a block of one lane
+                // costs more than the one sphere's own test, which gives
+                // the same bits.
+                items.extend(of_kind(KIND_SPHERE).map(LeafItem::Prim));
+            } else {
+                for chunk in spheres.chunks(8) {
+                    let b = blocks.push_spheres(chunk);
+                    range = Some(range.map_or((b, 1), |(first, n)| (first, n + 1)));
+                }
             }
             if let Some(range) = range {
                 items.push(LeafItem::Spheres(range));
