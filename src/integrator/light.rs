@@ -36,7 +36,7 @@ use crate::film::{AovSum, Film, FilmAov, FilmPixel, PixelSum};
 use crate::geometry::Ray;
 use crate::geometry::interaction::SHADOW_EPSILON;
 use crate::integrator::aov::camera_aov;
-use crate::integrator::{Progressive, Work};
+use crate::integrator::{Progressive, Work, adjoint_shading_factor};
 use crate::material::TransportMode;
 use crate::sampling::rng::{Pcg32, hash_u64s};
 use crate::scene::Scene;
@@ -220,14 +220,7 @@ impl LightTracer {
         if scene.lights.is_empty() || scene.light_distribution.is_empty() {
             return;
         }
-        let (light_index, pmf, _) = scene.light_distribution.sample(rng.next_f32());
-        if pmf <= 0.0 {
-            return;
-        }
-        let u_pick = rng.next_f32();
-        let u_pos = Vec2::new(rng.next_f32(), rng.next_f32());
-        let u_dir = Vec2::new(rng.next_f32(), rng.next_f32());
-        let Some(emitted) = scene.lights[light_index].sample_le(scene, bounds, u_pick, u_pos, u_dir) else {
+        let Some((emitted, pmf)) = crate::light::sample_scene_emission(scene, bounds, rng) else {
             return;
         };
         // The light's own point, seen directly (one segment).
@@ -280,11 +273,9 @@ impl LightTracer {
             let frame = m.shading_frame(&scene.images, &hit, wo_world);
             let wo = frame.to_local(wo_world);
             let front_o = ng_wo > 0.0;
-            // The adjoint BSDF with shading normals (Veach 1997, eq. 5.21):
-            // f·|wo·ns|·|wi·ng| / |wo·ng| in place of f·|wi·ns|.
-            let adjoint =
-                |wi_world: Vec3, wi: Vec3| wo.z.abs() * hit.ng.dot(wi_world).abs() / (ng_wo.abs() * wi.z.abs());
-
+            // The adjoint BSDF with shading normals (Veach 1997, eq. 5.21)
+            // toward the lens, and a normal map's factor toward the light,
+            // as the photons' bounces take them (`scatter_light`).
             let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
             if bsdf.has_smooth() {
                 if let Some(c) = scene.camera.sample_wi(hit.p, u_lens) {
@@ -294,7 +285,12 @@ impl LightTracer {
                     if consistent && wi.z != 0.0 {
                         let f = bsdf.eval(wo, wi, TransportMode::Importance);
                         if f != Rgb::ZERO {
-                            let l = beta * f * (frame.factor(wo_world) * wi.z.abs() * adjoint(c.wi, wi) * c.weight);
+                            let l = beta
+                                * f
+                                * (frame.factor(wo_world)
+                                    * wi.z.abs()
+                                    * adjoint_shading_factor(hit.ng, wo_world, wo.z, c.wi, wi.z)
+                                    * c.weight);
                             *rays += 1;
                             if l.is_finite() && !scene.occluded(&hit.spawn_ray_to(hit.p + c.wi * c.dist)) {
                                 self.add_splat(&c, l, out);
@@ -307,28 +303,12 @@ impl LightTracer {
                 return;
             }
 
-            let (u_lobe, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
-            let Some(bs) = bsdf.sample(wo, u_lobe, u, TransportMode::Importance) else {
+            let Some((next, next_ray, _)) = crate::integrator::scatter_light(&hit, &bsdf, &frame, wo_world, beta, rng)
+            else {
                 return;
             };
-            if bs.pdf <= 0.0 || bs.f == Rgb::ZERO || bs.wi.z == 0.0 || wo.z == 0.0 {
-                return;
-            }
-            let wi_world = frame.to_world(bs.wi);
-            let reflection = bs.wi.z * wo.z > 0.0;
-            if (hit.ng.dot(wi_world) > 0.0) != (front_o == reflection) {
-                return; // the shading normal sent the path through the surface
-            }
-            let next = beta * bs.f * (frame.factor(wo_world) * bs.wi.z.abs() * adjoint(wi_world, bs.wi) / bs.pdf);
-            // Russian roulette on the throughput's change (Jensen 2001,
-            // §5.3): a path's weight stays about its light's share of the
-            // power.
-            let q = (next.max_element() / beta.max_element()).min(1.0);
-            if q.is_nan() || q <= 0.0 || rng.next_f32() >= q {
-                return;
-            }
-            beta = next / q;
-            ray = hit.spawn_ray(wi_world);
+            beta = next;
+            ray = next_ray;
             segments += 1;
         }
     }

@@ -160,3 +160,59 @@ pub(crate) fn light_choice_pmf(scene: &Scene, p: glam::Vec3, n: glam::Vec3, ligh
     }
     scene.light_sampler.pmf(p, n, light)
 }
+
+/// The adjoint BSDF's factor for shading normals (Veach 1997, eq. 5.21),
+/// `|wo·ns|·|wi·ng| / (|wo·ng|·|wi·ns|)`, for light arriving from `wo` and
+/// leaving along `wi` (world directions, `ns` the shading frame's normal,
+/// which the local z components give).
+#[inline]
+pub(crate) fn adjoint_shading_factor(
+    ng: glam::Vec3,
+    wo: glam::Vec3,
+    wo_local_z: f32,
+    wi: glam::Vec3,
+    wi_local_z: f32,
+) -> f32 {
+    wo_local_z.abs() * ng.dot(wi).abs() / (ng.dot(wo).abs() * wi_local_z.abs())
+}
+
+/// The next segment of a path that carries light from the lights (a
+/// photon, a light-tracing path) at `hit`, where it arrived from `wo_world`
+/// with throughput `beta`: the BSDF sampled as importance in `frame` (a
+/// normal map's factor toward the light applied, Mitsuba's convention),
+/// the adjoint correction for shading normals, then Russian roulette on
+/// the throughput's change (Jensen 2001, §5.3), so that a path keeps about
+/// its share of the power. Draws four numbers from `rng`. The new
+/// throughput, the ray and whether the bounce was delta; `None` where the
+/// path ends.
+pub(crate) fn scatter_light(
+    hit: &crate::geometry::SurfaceHit,
+    bsdf: &crate::material::Bsdf,
+    frame: &crate::material::ShadingFrame,
+    wo_world: glam::Vec3,
+    beta: Rgb,
+    rng: &mut crate::sampling::rng::Pcg32,
+) -> Option<(Rgb, Ray, bool)> {
+    let wo = frame.to_local(wo_world);
+    let (u_lobe, u) = (rng.next_f32(), glam::Vec2::new(rng.next_f32(), rng.next_f32()));
+    let bs = bsdf.sample(wo, u_lobe, u, crate::material::TransportMode::Importance)?;
+    if bs.pdf <= 0.0 || bs.f == Rgb::ZERO || bs.wi.z == 0.0 || wo.z == 0.0 {
+        return None;
+    }
+    let wi_world = frame.to_world(bs.wi);
+    let reflection = bs.wi.z * wo.z > 0.0;
+    let front_o = hit.ng.dot(wo_world) > 0.0;
+    if (hit.ng.dot(wi_world) > 0.0) != (front_o == reflection) {
+        return None; // the shading normal sent the path through the surface
+    }
+    if hit.ng.dot(wo_world) == 0.0 {
+        return None;
+    }
+    let correction = adjoint_shading_factor(hit.ng, wo_world, wo.z, wi_world, bs.wi.z);
+    let next = beta * bs.f * (frame.factor(wo_world) * bs.wi.z.abs() * correction / bs.pdf);
+    let q = (next.max_element() / beta.max_element()).min(1.0);
+    if q.is_nan() || q <= 0.0 || rng.next_f32() >= q {
+        return None;
+    }
+    Some((next / q, hit.spawn_ray(wi_world), bs.delta))
+}

@@ -27,6 +27,7 @@ use super::Light;
 use crate::color::Rgb;
 use crate::geometry::Ray;
 use crate::material::Frame;
+use crate::sampling::rng::Pcg32;
 use crate::sampling::warp::{
     pdf_cone_uniform, pdf_sphere_uniform, sample_cone_uniform, sample_disk_concentric, sample_hemisphere_cosine,
     sample_sphere_uniform,
@@ -76,6 +77,22 @@ pub fn scene_bounding_sphere(scene: &Scene) -> (Vec3, f32) {
 /// Relative size of the push that moves a ray's origin off the emitter it
 /// starts on: about 250 ulps, above the rounding error of sampled points.
 const EMITTER_OFFSET: f32 = 3e-5;
+
+/// A ray of light from the whole scene: a light chosen in proportion to
+/// its power, then a point and direction on it ([`Light::sample_le`]), with
+/// the probability of that choice; `None` when the sample carries no
+/// light. Draws six numbers from `rng`, in that order.
+pub fn sample_scene_emission(scene: &Scene, bounds: (Vec3, f32), rng: &mut Pcg32) -> Option<(EmissionSample, f32)> {
+    let (light_index, pmf, _) = scene.light_distribution.sample(rng.next_f32());
+    if pmf <= 0.0 {
+        return None;
+    }
+    let u_pick = rng.next_f32();
+    let u_pos = Vec2::new(rng.next_f32(), rng.next_f32());
+    let u_dir = Vec2::new(rng.next_f32(), rng.next_f32());
+    let emitted = scene.lights[light_index].sample_le(scene, bounds, u_pick, u_pos, u_dir)?;
+    Some((emitted, pmf))
+}
 
 impl Light {
     /// Samples a ray of emitted light. `u_pick` chooses a triangle of a mesh

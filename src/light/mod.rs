@@ -20,7 +20,7 @@ pub mod emission;
 pub mod environment;
 pub mod sampler;
 
-pub use emission::{EmissionSample, scene_bounding_sphere};
+pub use emission::{EmissionSample, sample_scene_emission, scene_bounding_sphere};
 pub use environment::{Background, EnvironmentMap};
 pub use sampler::{LightBounds, LightSampler};
 

@@ -14,11 +14,8 @@
 //! a pass is identical for any number of threads.
 
 use super::Photon;
-use crate::color::Rgb;
-use crate::material::TransportMode;
 use crate::sampling::rng::{Pcg32, hash_u64s};
 use crate::scene::Scene;
-use glam::Vec2;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -137,14 +134,7 @@ fn trace_one(
     out: &mut Vec<Photon>,
     rays: &mut u64,
 ) {
-    let (light_index, pmf, _) = scene.light_distribution.sample(rng.next_f32());
-    if pmf <= 0.0 {
-        return;
-    }
-    let u_pick = rng.next_f32();
-    let u_pos = Vec2::new(rng.next_f32(), rng.next_f32());
-    let u_dir = Vec2::new(rng.next_f32(), rng.next_f32());
-    let Some(emitted) = scene.lights[light_index].sample_le(scene, bounds, u_pick, u_pos, u_dir) else {
+    let Some((emitted, pmf)) = crate::light::sample_scene_emission(scene, bounds, rng) else {
         return;
     };
     let mut beta = emitted.weight / (pmf * count as f32);
@@ -184,37 +174,14 @@ fn trace_one(
         // scales the scattering by its factor toward the light (Mitsuba's
         // radiance convention, applied to the photon's own direction).
         let frame = m.shading_frame(&scene.images, &hit, wo_world);
-        let wo = frame.to_local(wo_world);
-        let (u_lobe, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
-        let Some(bs) = bsdf.sample(wo, u_lobe, u, TransportMode::Importance) else {
+        let Some((next, next_ray, delta)) = crate::integrator::scatter_light(&hit, &bsdf, &frame, wo_world, beta, rng)
+        else {
             return;
         };
-        if bs.pdf <= 0.0 || bs.f == Rgb::ZERO || bs.wi.z == 0.0 || wo.z == 0.0 {
-            return;
-        }
-        let wi_world = frame.to_world(bs.wi);
-        let reflection = bs.wi.z * wo.z > 0.0;
-        let front_o = hit.ng.dot(wo_world) > 0.0;
-        let ng_wi = hit.ng.dot(wi_world);
-        if (ng_wi > 0.0) != (front_o == reflection) {
-            return; // the shading normal sent the photon through the surface
-        }
-        // The adjoint BSDF with shading normals (Veach 1997, eq. 5.21):
-        // |wo·ns| |wi·ng| / (|wo·ng| |wi·ns|).
-        let ng_wo = hit.ng.dot(wo_world).abs();
-        if ng_wo == 0.0 {
-            return;
-        }
-        let correction = wo.z.abs() * ng_wi.abs() / (ng_wo * bs.wi.z.abs());
-        let next = beta * bs.f * (frame.factor(wo_world) * bs.wi.z.abs() * correction / bs.pdf);
-        let q = (next.max_element() / beta.max_element()).min(1.0);
-        if q.is_nan() || q <= 0.0 || rng.next_f32() >= q {
-            return;
-        }
-        beta = next / q;
-        if !bs.delta {
+        beta = next;
+        if !delta {
             only_specular = false;
         }
-        ray = hit.spawn_ray(wi_world);
+        ray = next_ray;
     }
 }
