@@ -8,7 +8,7 @@ use super::{Parser, world_from_camera};
 use crate::error::{Error, Result, SourceLoc};
 use crate::sampling::SamplerKind;
 use crate::scene::desc::*;
-use crate::settings::{Filter, IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP, PathSampling};
+use crate::settings::{Filter, IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, PathSampling};
 
 impl Parser {
     pub(super) fn film(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {
@@ -161,6 +161,39 @@ impl Parser {
             // pbrt-v4's LightPathIntegrator: light tracing, with the same
             // depth.
             s.integrator = IntegratorKind::Light;
+        } else if kind == "sppm" {
+            // pbrt-v4's SPPMIntegrator: one iteration per pixel sample,
+            // `photonsperiteration` photons (−1: one per pixel) and an
+            // initial search radius of `radius` scene units (default 1).
+            s.integrator = IntegratorKind::Sppm;
+            let photons = match p.int_opt("photonsperiteration")? {
+                Some((v, _)) if v == -1 || v == 0 => 0,
+                Some((v, prm)) => {
+                    if !(1..=MAX_PHOTONS as i64).contains(&v) {
+                        return Err(prm.err(format!(
+                            "must be −1 (one per pixel) or between 1 and {MAX_PHOTONS}, got {v}"
+                        )));
+                    }
+                    v as u32
+                }
+                None => 0,
+            };
+            let radius = match p.float_opt("radius")? {
+                Some((v, prm)) => {
+                    if !(v > 0.0 && v.is_finite()) {
+                        return Err(prm.err(format!("must be a positive number, got {v}")));
+                    }
+                    v
+                }
+                None => 1.0,
+            };
+            let seed = p.int_opt("seed")?.map(|(v, _)| v as u64);
+            let s = &mut self.desc.settings;
+            s.photon.sppm_photons = photons;
+            s.photon.radius = radius;
+            if let Some(seed) = seed {
+                s.seed = seed;
+            }
         } else if !matches!(kind, "path" | "volpath") {
             self.approximated(
                 loc,

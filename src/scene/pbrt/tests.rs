@@ -63,6 +63,25 @@ WorldBegin"#,
     );
     assert!(d.warnings.is_empty(), "{:?}", d.warnings);
 
+    // pbrt-v4's SPPM is trazo's, with its photons per iteration, initial
+    // radius (default 1) and seed.
+    let d = parse_str(
+        "Integrator \"sppm\" \"integer maxdepth\" 4 \"integer photonsperiteration\" 5000 \"float radius\" 0.25 \"integer seed\" 7\nWorldBegin",
+    )
+    .unwrap();
+    let s = &d.settings;
+    assert_eq!((s.integrator, s.max_depth, s.seed), (IntegratorKind::Sppm, 5, 7));
+    assert_eq!((s.photon.sppm_photons, s.photon.radius), (5000, 0.25));
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let d = parse_str("Integrator \"sppm\" \"integer photonsperiteration\" -1\nWorldBegin").unwrap();
+    assert_eq!((d.settings.photon.sppm_photons, d.settings.photon.radius), (0, 1.0));
+    for bad in ["\"float radius\" 0", "\"integer photonsperiteration\" -5"] {
+        let e = parse_str(&format!("Integrator \"sppm\" {bad}\nWorldBegin"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("test.pbrt:1:"), "{e}");
+    }
+
     // pbrt-v4's defaults: 1280×720, 16 spp, maxdepth 5, Gaussian filter.
     let d = world("");
     let s = &d.settings;
