@@ -52,6 +52,19 @@ pub struct RenderSettings {
     /// tracking (unbiased); `Some(step)`, fixed-step ray marching with
     /// steps of this length in scene units (biased, for comparison).
     pub march_step: Option<f32>,
+    /// Whether emitters are hidden from the camera (Mitsuba's
+    /// `hide_emitters`): emitting surfaces and the environment seen
+    /// directly show black, and light the scene as before.
+    pub hide_emitters: bool,
+}
+
+impl RenderSettings {
+    /// Whether emission met by the `segment`-th segment of a camera path
+    /// (1: the camera ray itself) is counted.
+    #[inline]
+    pub fn shows_emission(&self, segment: u32) -> bool {
+        segment > 1 || !self.hide_emitters
+    }
 }
 
 impl Default for RenderSettings {
@@ -72,6 +85,7 @@ impl Default for RenderSettings {
             max_component_value: f32::INFINITY,
             photon: PhotonSettings::default(),
             march_step: None,
+            hide_emitters: false,
         }
     }
 }

@@ -225,7 +225,7 @@ impl LightTracer {
         };
         // The light's own point, seen directly (one segment).
         let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
-        if let Some(point) = emitted.surface {
+        if let (Some(point), true) = (emitted.surface, scene.settings.shows_emission(1)) {
             if let Some(c) = scene.camera.sample_wi(point.p, u_lens) {
                 let cos = point.n.dot(c.wi);
                 if cos > 0.0 {

@@ -84,8 +84,9 @@ impl Integrator for PathTracer {
 
         while depth <= self.max_depth {
             stats.rays += 1;
+            let shows_emission = scene.settings.shows_emission(depth);
             let Some(hit) = scene.intersect(&ray) else {
-                if let Some(env) = scene.environment_light {
+                if let (Some(env), true) = (scene.environment_light, shows_emission) {
                     let dir = ray.dir.normalize();
                     let le = scene.background.eval(dir);
                     let w = if nee && !prev_delta {
@@ -102,7 +103,7 @@ impl Integrator for PathTracer {
             let m = &scene.materials[hit.material as usize];
             let wo_world = -ray.dir.normalize();
 
-            if m.is_emissive() && hit.is_front(wo_world) {
+            if m.is_emissive() && shows_emission && hit.is_front(wo_world) {
                 let w = match hit.light {
                     Some(li) if nee && !prev_delta => {
                         let pdf_light = light_choice_pmf(scene, prev_p, prev_n, li as usize)

@@ -279,8 +279,11 @@ impl Integrator for VolPathTracer {
                 }
             }
 
+            // Scattering events so far, plus the camera ray: the segment
+            // that met what it meets.
+            let shows_emission = scene.settings.shows_emission(s.depth + 1);
             let Some(hit) = hit else {
-                if let Some(env) = scene.environment_light {
+                if let (Some(env), true) = (scene.environment_light, shows_emission) {
                     let le = scene.background.eval(dir);
                     let (prev_p, prev_n) = (s.prev_p, s.prev_n);
                     self.add_emission(&mut s, le, || {
@@ -291,7 +294,7 @@ impl Integrator for VolPathTracer {
             };
             let m = &scene.materials[hit.material as usize];
             let wo_world = -dir;
-            if m.is_emissive() && hit.is_front(wo_world) {
+            if m.is_emissive() && shows_emission && hit.is_front(wo_world) {
                 let le = m.emission_at(&scene.images, &TexCoord::at(&hit));
                 let (prev_p, prev_n) = (s.prev_p, s.prev_n);
                 self.add_emission(&mut s, le, || match hit.light {

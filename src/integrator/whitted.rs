@@ -58,8 +58,13 @@ impl Whitted {
     /// Radiance along `ray`, the `depth`-th segment of its path.
     fn trace(&self, scene: &Scene, ray: &Ray, depth: u32, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb {
         stats.rays += 1;
+        let shows_emission = scene.settings.shows_emission(depth);
         let Some(mut hit) = scene.intersect(ray) else {
-            return scene.background.eval(ray.dir);
+            return if shows_emission {
+                scene.background.eval(ray.dir)
+            } else {
+                Rgb::ZERO
+            };
         };
         // A blend's classical parameters are those of one of its materials.
         scene.choose_any_material(&mut hit, ray.dir);
@@ -67,7 +72,7 @@ impl Whitted {
         let wo = -ray.dir.normalize();
         let front = hit.is_front(wo);
         let tc = TexCoord::at(&hit);
-        let mut l = if front {
+        let mut l = if front && shows_emission {
             m.emission_at(&scene.images, &tc)
         } else {
             Rgb::ZERO

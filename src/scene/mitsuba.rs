@@ -1093,8 +1093,8 @@ impl Loader {
         if let Some(d) = rr_depth {
             s.rr_depth = d.clamp(0, u32::MAX as i64) as u32;
         }
-        if self.boolean(f, &props, "hide_emitters", &mut used)? == Some(true) {
-            self.warn(f, node, "hide_emitters is unsupported; emitters are visible");
+        if let Some(hide) = self.boolean(f, &props, "hide_emitters", &mut used)? {
+            self.desc.settings.hide_emitters = hide;
         }
         if self.integer(f, &props, "samples_per_pass", &mut used)?.is_some() {
             self.warn(
@@ -3979,6 +3979,12 @@ mod tests {
         // The other warning is about the missing sensor.
         assert_eq!(d.warnings.len(), 2, "{:?}", d.warnings);
         assert!(d.warnings[0].starts_with("p.xml:2:") && d.warnings[0].contains("samples_per_pass"));
+        assert!(!d.settings.hide_emitters);
+        let hidden = text.replace(
+            "<integer name=\"max_depth\" value=\"4\"/>",
+            "<boolean name=\"hide_emitters\" value=\"true\"/>",
+        );
+        assert!(parse(&hidden, Path::new("p.xml"), &[]).unwrap().settings.hide_emitters);
     }
 
     /// File names resolve as in Mitsuba: against the main scene's folder

@@ -486,6 +486,9 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     if let Some(m) = t.number("max_component_value")? {
         s.max_component_value = m;
     }
+    if let Some(h) = t.boolean("hide_emitters")? {
+        s.hide_emitters = h;
+    }
     if let Some(n) = t.unsigned("photons", u32::MAX as u64)? {
         s.photon.photons = n as u32;
     }
@@ -1396,6 +1399,15 @@ material = "red"
 
     fn error_of(s: &str) -> String {
         parse_str(s).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn hide_emitters_is_read_and_off_by_default() {
+        assert!(!parse_str(MINIMAL).unwrap().settings.hide_emitters);
+        let d = parse_str(&MINIMAL.replace("spp = 4", "spp = 4\nhide_emitters = true")).unwrap();
+        assert!(d.settings.hide_emitters);
+        let e = error_of(&MINIMAL.replace("spp = 4", "spp = 4\nhide_emitters = 1"));
+        assert!(e.starts_with("test.toml:6:") && e.contains("hide_emitters"), "{e}");
     }
 
     #[test]

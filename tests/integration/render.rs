@@ -1241,3 +1241,114 @@ fn the_geometry_estimate_bounds_the_built_bvh_and_meshes() {
         assert!(e.contains("more than the memory limit"), "{e}");
     }
 }
+
+/// `hide_emitters` (Mitsuba's): what the camera sees directly of emitters
+/// and of the environment is black under every integrator, and the light
+/// they cast is unchanged: a view of only an emitting rectangle and the sky
+/// renders black (and not without the setting), and a view of only a floor
+/// lit by them renders the same bits with and without it.
+#[test]
+fn hidden_emitters_are_black_to_the_camera_and_light_the_scene_as_before() {
+    // Black, so that what it reflects of the sky does not show.
+    let mut lamp = MaterialDesc::with_kind(
+        "lamp",
+        MaterialKindDesc::Diffuse {
+            reflectance: ColorSource::Rgb(Rgb::ZERO),
+        },
+    );
+    lamp.emission = ColorSource::Rgb(Rgb::new(4.0, 3.0, 2.0));
+    let floor = MaterialDesc::with_kind(
+        "floor",
+        MaterialKindDesc::Diffuse {
+            reflectance: ColorSource::Rgb(Rgb::splat(0.6)),
+        },
+    );
+    let base = |look_down: bool| {
+        let mut d = SceneDesc::default();
+        d.settings.width = 12;
+        d.settings.height = 10;
+        d.settings.spp = 4;
+        d.settings.max_depth = 4;
+        d.background = BackgroundDesc::Constant(Rgb::new(0.2, 0.3, 0.5));
+        d.materials.push(lamp.clone());
+        d.materials.push(floor.clone());
+        // A lamp facing the camera (+z) and, below the view, a large floor.
+        d.shapes.push(ShapeDesc::new(
+            ShapeKind::Rectangle {
+                corner: Vec3::new(-0.5, 1.5, 0.0),
+                edge_u: Vec3::new(1.0, 0.0, 0.0),
+                edge_v: Vec3::new(0.0, 1.0, 0.0),
+            },
+            Some("lamp"),
+        ));
+        d.shapes.push(ShapeDesc::new(
+            ShapeKind::Rectangle {
+                corner: Vec3::new(-10.0, -3.0, 10.0),
+                edge_u: Vec3::new(20.0, 0.0, 0.0),
+                edge_v: Vec3::new(0.0, 0.0, -20.0),
+            },
+            Some("floor"),
+        ));
+        // For Whitted's tracer, which lights by point lights only.
+        d.lights.push(point_light(Vec3::new(1.0, 0.0, 3.0), 5.0));
+        if look_down {
+            d.camera.from = Vec3::new(0.0, -1.0, 4.0);
+            d.camera.to = Vec3::new(0.0, -3.0, 4.0 - 0.3);
+            d.camera.up = Vec3::Z;
+            d.camera.projection = ProjectionDesc::Perspective { fov: 30.0 };
+        } else {
+            // Only the lamp and the sky above the floor's horizon.
+            d.camera.from = Vec3::new(0.0, 0.3, 5.0);
+            d.camera.to = Vec3::new(0.0, 2.5, 0.0);
+        }
+        d
+    };
+    for integrator in [
+        IntegratorKind::Path,
+        IntegratorKind::VolPath,
+        IntegratorKind::Whitted,
+        IntegratorKind::Photon,
+        IntegratorKind::Sppm,
+        IntegratorKind::Light,
+    ] {
+        let name = integrator.name();
+        let render_with = |look_down: bool, hide: bool| {
+            let mut d = base(look_down);
+            d.settings.integrator = integrator;
+            d.settings.hide_emitters = hide;
+            d.settings.photon.photons = 2_000;
+            d.settings.photon.sppm_photons = 500;
+            if integrator == IntegratorKind::Light {
+                // The sky carries most of the power, so few paths start
+                // on the lamp.
+                d.settings.spp = 64;
+            }
+            render_desc(&d, Some(1)).to_image()
+        };
+        let (hidden, shown) = (render_with(false, true), render_with(false, false));
+        assert!(hidden.pixels.iter().all(|p| *p == Rgb::ZERO), "{name}: something shows");
+        if integrator == IntegratorKind::Light {
+            // The light tracer never sees the sky directly, and the lamp
+            // only where some of its few paths start there.
+            assert!(
+                shown.mean().max_element() > 0.0,
+                "{name}: nothing shows without the setting"
+            );
+        } else {
+            assert!(
+                shown.pixels.iter().all(|p| p.max_element() > 0.0),
+                "{name}: the view is not all emitters"
+            );
+            assert!(
+                shown.mean().max_element() > 0.05,
+                "{name}: nothing shows without the setting"
+            );
+        }
+        let (hidden, shown) = (render_with(true, true), render_with(true, false));
+        assert!(shown.mean().max_element() > 0.01, "{name}: the floor is dark");
+        assert_eq!(
+            hidden, shown,
+            "{name}: hiding the emitters changed the light on the floor"
+        );
+    }
+}

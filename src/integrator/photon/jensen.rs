@@ -162,8 +162,7 @@ impl PhotonMapper {
         let mut beta = Rgb::ONE;
         let mut ray = *camera_ray;
         for depth in 1..=self.max_depth {
-            let last = depth == self.max_depth;
-            let Some((hit, sp)) = camera_segment(scene, &ray, beta, last, &mut l, &mut stats.rays) else {
+            let Some((hit, sp)) = camera_segment(scene, &ray, beta, depth, &mut l, &mut stats.rays) else {
                 break;
             };
             if sp.bsdf.has_smooth() {

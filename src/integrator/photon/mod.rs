@@ -117,22 +117,25 @@ pub(crate) fn same_surface(photon_n: Vec3, n: Vec3) -> bool {
     photon_n.dot(n) > 0.7
 }
 
-/// One segment of a camera path as both photon integrators follow it:
-/// traces `ray`, adds to `l` the light seen along it (the environment on a
-/// miss, emission from the front of an emitter) weighted by `beta`, and
-/// returns the surface to go on from; `None` where the path ends (a miss,
-/// the `last` segment, the back of a one-sided surface).
+/// The `depth`-th segment of a camera path as both photon integrators
+/// follow it: traces `ray`, adds to `l` the light seen along it (the
+/// environment on a miss, emission from the front of an emitter, unless
+/// the settings hide them from the camera) weighted by `beta`, and returns
+/// the surface to go on from; `None` where the path ends (a miss, the last
+/// segment, the back of a one-sided surface).
 pub(crate) fn camera_segment<'a>(
     scene: &'a Scene,
     ray: &Ray,
     beta: Rgb,
-    last: bool,
+    depth: u32,
     l: &mut Rgb,
     rays: &mut u64,
 ) -> Option<(SurfaceHit, ShadingPoint<'a>)> {
     *rays += 1;
+    let last = depth >= scene.settings.max_depth;
+    let shows_emission = scene.settings.shows_emission(depth);
     let Some(mut hit) = scene.intersect(ray) else {
-        if scene.environment_light.is_some() {
+        if scene.environment_light.is_some() && shows_emission {
             *l += beta * scene.background.eval(ray.dir);
         }
         return None;
@@ -142,7 +145,7 @@ pub(crate) fn camera_segment<'a>(
     scene.choose_any_material(&mut hit, ray.dir);
     let wo_world = -ray.dir.normalize();
     let m = &scene.materials[hit.material as usize];
-    if m.is_emissive() && hit.is_front(wo_world) {
+    if m.is_emissive() && shows_emission && hit.is_front(wo_world) {
         *l += beta * m.emission_at(&scene.images, &crate::texture::TexCoord::at(&hit));
     }
     if last {

@@ -219,7 +219,7 @@ fn camera_sample(
     let mut beta = Rgb::ONE;
     let mut ray = camera_ray;
     for depth in 1..=s.max_depth {
-        let Some((hit, sp)) = camera_segment(scene, &ray, beta, depth == s.max_depth, &mut l, rays) else {
+        let Some((hit, sp)) = camera_segment(scene, &ray, beta, depth, &mut l, rays) else {
             break;
         };
         if sp.bsdf.has_smooth() {
