@@ -328,13 +328,10 @@ impl Quadric {
         }
     }
 
-    /// Surface area where the surface can be sampled uniformly by area
-    /// (spheres, cylinders and annuli); 0 for the others, which cannot
-    /// emit.
+    /// Surface area (0 where it cannot be sampled by area, which only a
+    /// degenerate surface gives).
     pub fn area(&self) -> f32 {
         match *self {
-            // A zone of a sphere has the area of the cylinder around it
-            // (Archimedes): φ_max·R·(z_max − z_min) for both.
             Quadric::Revolution {
                 alpha,
                 beta,
@@ -342,11 +339,16 @@ impl Quadric {
                 z_min,
                 z_max,
                 phi_max,
-            } if beta == 0.0 && (alpha == 0.0 || alpha == -1.0) => (phi_max * gamma.sqrt() * (z_max - z_min)) as f32,
+            } => match AreaProfile::new(alpha, beta, gamma) {
+                Some(s) => {
+                    let a = phi_max * (s.antiderivative(z_max) - s.antiderivative(z_min));
+                    if a.is_finite() && a > 0.0 { a as f32 } else { 0.0 }
+                }
+                None => 0.0,
+            },
             Quadric::Annulus {
                 inner, outer, phi_max, ..
             } => (0.5 * phi_max * (outer * outer - inner * inner)) as f32,
-            Quadric::Revolution { .. } => 0.0,
         }
     }
 
@@ -360,15 +362,17 @@ impl Quadric {
         let p = match *self {
             Quadric::Revolution {
                 alpha,
+                beta,
                 gamma,
                 z_min,
                 z_max,
                 phi_max,
-                ..
             } => {
-                // Uniform in height and angle is uniform in area for both.
-                let z = z_min + u0 * (z_max - z_min);
-                let r = (alpha * z * z + gamma).max(0.0).sqrt();
+                // Uniform in angle, and in height with the density of the
+                // area per unit height.
+                let profile = AreaProfile::new(alpha, beta, gamma)?;
+                let z = profile.height_at_share(z_min, z_max, u0);
+                let r = (alpha * z * z + beta * z + gamma).max(0.0).sqrt();
                 let phi = u1 * phi_max;
                 DVec3::new(r * phi.cos(), r * phi.sin(), z)
             }
@@ -389,6 +393,86 @@ impl Quadric {
             n: s.n,
             uv: s.uv,
         })
+    }
+}
+
+/// The area of the surface of revolution x² + y² = q(z) = α z² + β z + γ
+/// per unit height and radian: with r² = q, r·√(1 + r′²) = √(q + q′²/4) =
+/// √(A z² + B z + C) with A = α(1 + α), B = β(1 + α), C = γ + β²/4. A is
+/// 0 for spheres (α = −1: Archimedes' zones), cylinders and paraboloids,
+/// positive for cones and hyperboloids.
+#[derive(Clone, Copy, Debug)]
+struct AreaProfile {
+    a: f64,
+    b: f64,
+    c: f64,
+}
+
+impl AreaProfile {
+    /// The profile, or `None` where A < 0 (no quadric of this module).
+    fn new(alpha: f64, beta: f64, gamma: f64) -> Option<AreaProfile> {
+        let a = alpha * (1.0 + alpha);
+        (a >= 0.0).then_some(AreaProfile {
+            a,
+            b: beta * (1.0 + alpha),
+            c: gamma + 0.25 * beta * beta,
+        })
+    }
+
+    /// The area per unit height and radian at height z.
+    fn at(&self, z: f64) -> f64 {
+        (self.a * z * z + self.b * z + self.c).max(0.0).sqrt()
+    }
+
+    /// An antiderivative of [`AreaProfile::at`] (the integrals of √(linear)
+    /// and of √(u² + k), completed to a square in u = z + B/2A).
+    fn antiderivative(&self, z: f64) -> f64 {
+        let (a, b, c) = (self.a, self.b, self.c);
+        if a == 0.0 {
+            if b == 0.0 {
+                return c.max(0.0).sqrt() * z;
+            }
+            let w = (b * z + c).max(0.0);
+            return 2.0 / (3.0 * b) * w * w.sqrt();
+        }
+        let u = z + b / (2.0 * a);
+        let k = (c - b * b / (4.0 * a)) / a;
+        let root = (u * u + k).max(0.0).sqrt();
+        // A cone (k = 0) has no logarithm: its profile is linear in u.
+        let log = if k == 0.0 { 0.0 } else { k * (u + root).abs().ln() };
+        0.5 * a.sqrt() * (u * root + log)
+    }
+
+    /// The height below which lies `share` of the area between `z_min` and
+    /// `z_max`: Newton's method on the antiderivative, kept inside a
+    /// shrinking bracket by bisection. Linear for a constant profile
+    /// (spheres and cylinders).
+    fn height_at_share(&self, z_min: f64, z_max: f64, share: f64) -> f64 {
+        if self.a == 0.0 && self.b == 0.0 {
+            return z_min + share * (z_max - z_min);
+        }
+        let f0 = self.antiderivative(z_min);
+        let target = share * (self.antiderivative(z_max) - f0);
+        let (mut lo, mut hi) = (z_min, z_max);
+        let mut z = z_min + share * (z_max - z_min);
+        for _ in 0..64 {
+            let g = self.antiderivative(z) - f0 - target;
+            if g > 0.0 {
+                hi = z;
+            } else {
+                lo = z;
+            }
+            let mut next = z - g / self.at(z);
+            if !(next > lo && next < hi) {
+                next = 0.5 * (lo + hi);
+            }
+            let done = (next - z).abs() <= 1e-14 * (1.0 + z.abs());
+            z = next;
+            if done {
+                break;
+            }
+        }
+        z.clamp(z_min, z_max)
     }
 }
 
@@ -504,13 +588,100 @@ mod tests {
             let t = s.intersect(&ray).expect("a sample is on the surface");
             assert!((ray.at(t) - p.p).length() < 1e-4);
         }
-        assert_eq!(Quadric::cone(1.0, 1.0, 360.0).unwrap().area(), 0.0);
-        assert!(
-            Quadric::cone(1.0, 1.0, 360.0)
-                .unwrap()
-                .sample_area(Vec2::ZERO)
-                .is_none()
-        );
+    }
+
+    /// Cones, paraboloids and hyperboloids: the area matches the closed
+    /// form where there is one (a cone's lateral area πRL; Archimedes'
+    /// paraboloid (π R/6h²)((R² + 4h²)^{3/2} − R³)) and a fine quadrature
+    /// of the profile otherwise, and the samples are uniform by area: the
+    /// share of 200 000 samples in each of 16 bands of equal height
+    /// matches the band's share of the area within 4.5 standard errors
+    /// of a binomial count, and every sample lies on the surface.
+    #[test]
+    fn curved_quadrics_are_sampled_uniformly_by_area() {
+        let (r, h) = (1.5f64, 2.0f64);
+        let cone = Quadric::cone(r as f32, h as f32, 360.0).unwrap();
+        let paraboloid = Quadric::paraboloid(r as f32, 0.0, h as f32, 360.0).unwrap();
+        let hyperboloid = Quadric::hyperboloid(Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.3, 0.8, 1.5), 250.0).unwrap();
+        let cut_paraboloid = Quadric::paraboloid(1.0, 0.5, 2.0, 90.0).unwrap();
+        let pi = std::f64::consts::PI;
+        let closed = [
+            Some(pi * r * (r * r + h * h).sqrt()),
+            Some(pi * r / (6.0 * h * h) * ((r * r + 4.0 * h * h).powf(1.5) - r * r * r)),
+            None,
+            None,
+        ];
+        for (k, (q, closed)) in [cone, paraboloid, hyperboloid, cut_paraboloid]
+            .into_iter()
+            .zip(closed)
+            .enumerate()
+        {
+            let Quadric::Revolution {
+                alpha,
+                beta,
+                gamma,
+                z_min,
+                z_max,
+                phi_max,
+            } = q
+            else {
+                unreachable!()
+            };
+            // The profile by the midpoint rule, from its definition
+            // r·√(1 + r′²) with r′ by a central difference.
+            let radius = |z: f64| (alpha * z * z + beta * z + gamma).max(0.0).sqrt();
+            let band_area = |lo: f64, hi: f64| {
+                let n = 20_000;
+                (0..n)
+                    .map(|i| {
+                        let z = lo + (hi - lo) * (i as f64 + 0.5) / n as f64;
+                        let e = 1e-6 * (z_max - z_min);
+                        let dr = (radius(z + e) - radius(z - e)) / (2.0 * e);
+                        radius(z) * (1.0 + dr * dr).sqrt()
+                    })
+                    .sum::<f64>()
+                    * (hi - lo)
+                    / n as f64
+                    * phi_max
+            };
+            let total = band_area(z_min, z_max);
+            let area = q.area() as f64;
+            assert!(
+                (area - total).abs() < 1e-4 * total,
+                "quadric {k}: area {area}, quadrature {total}"
+            );
+            if let Some(c) = closed {
+                assert!((area - c).abs() < 1e-5 * c, "quadric {k}: area {area}, closed form {c}");
+            }
+            let bands = 16;
+            let mut counts = vec![0u32; bands];
+            let n = 200_000;
+            let mut rng = crate::sampling::Pcg32::new(k as u64, 3);
+            for i in 0..n {
+                let s = q.sample_area(Vec2::new(rng.next_f32(), rng.next_f32())).unwrap();
+                let z = s.p.z as f64;
+                let band = (((z - z_min) / (z_max - z_min)) * bands as f64) as usize;
+                counts[band.min(bands - 1)] += 1;
+                if i % 5_000 == 0 {
+                    let ray = Ray::new(s.p + s.n * 0.3, -s.n);
+                    let t = q.intersect(&ray).expect("a sample is on the surface");
+                    assert!((ray.at(t) - s.p).length() < 1e-4, "quadric {k}");
+                }
+            }
+            for (b, &count) in counts.iter().enumerate() {
+                let (lo, hi) = (
+                    z_min + (z_max - z_min) * b as f64 / bands as f64,
+                    z_min + (z_max - z_min) * (b + 1) as f64 / bands as f64,
+                );
+                let p = band_area(lo, hi) / total;
+                let expected = p * n as f64;
+                let sigma = (n as f64 * p * (1.0 - p)).sqrt();
+                assert!(
+                    (count as f64 - expected).abs() < 4.5 * sigma,
+                    "quadric {k}, band {b}: {count} samples, {expected:.0} ± {sigma:.0} expected"
+                );
+            }
+        }
     }
 
     #[test]

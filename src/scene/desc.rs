@@ -1556,9 +1556,7 @@ impl SceneDesc {
                     });
                     let why = match &s.kind {
                         ShapeKind::Quadric(q) if q.area() > 0.0 => None,
-                        ShapeKind::Quadric(_) => Some(
-                            "a cone, paraboloid or hyperboloid cannot emit light: trazo samples only spheres, cylinders and disks by area",
-                        ),
+                        ShapeKind::Quadric(_) => Some("a quadric without area (degenerate) cannot emit light"),
                         _ => Some(
                             "a distance function or implicit surface cannot emit light (nor in Mitsuba): it has no area to sample",
                         ),

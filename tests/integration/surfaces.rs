@@ -332,6 +332,23 @@ fn cut_quadric_lights_are_sampled_by_their_area() {
         );
     };
     check(&lit_by(sphere, "mis"), &lit_by(sphere, "bsdf"), "cut sphere");
+    // A cone, a paraboloid and a hyperboloid, cut by phimax, tilted above
+    // the floor, emitting from their outsides.
+    let tilted = "transform = [{ rotate = { axis = [1, 0, 0], angle = 120 } }, { translate = [0, 1.4, 0] }]";
+    for (what, shape) in [
+        ("cone", "type = \"cone\"\nradius = 0.6\nheight = 0.8\nphimax = 280"),
+        (
+            "paraboloid",
+            "type = \"paraboloid\"\nradius = 0.6\nzmin = 0.1\nzmax = 0.7\nphimax = 300",
+        ),
+        (
+            "hyperboloid",
+            "type = \"hyperboloid\"\np1 = [0.5, 0, -0.4]\np2 = [0.2, 0.4, 0.4]\nphimax = 250",
+        ),
+    ] {
+        let lamp = format!("[[shape]]\n{shape}\n{tilted}");
+        check(&lit_by(&lamp, "mis"), &lit_by(&lamp, "bsdf"), what);
+    }
     for (i, shape) in pbrt_lamps.iter().enumerate() {
         let scene = || {
             format!(
