@@ -56,6 +56,9 @@ pub struct RenderSettings {
     /// `hide_emitters`): emitting surfaces and the environment seen
     /// directly show black, and light the scene as before.
     pub hide_emitters: bool,
+    /// Ambient occlusion: how far a surface still occludes (infinite:
+    /// any).
+    pub ao_distance: f32,
 }
 
 impl RenderSettings {
@@ -86,6 +89,7 @@ impl Default for RenderSettings {
             photon: PhotonSettings::default(),
             march_step: None,
             hide_emitters: false,
+            ao_distance: f32::INFINITY,
         }
     }
 }
@@ -115,11 +119,14 @@ pub enum IntegratorKind {
     VolPath,
     /// Light tracing: paths from the lights connected to the camera.
     Light,
+    /// Ambient occlusion: the share of the hemisphere open within a
+    /// distance.
+    AmbientOcclusion,
 }
 
 impl IntegratorKind {
     /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 6] = ["whitted", "path", "photon", "sppm", "volpath", "light"];
+    pub const NAMES: [&'static str; 7] = ["whitted", "path", "photon", "sppm", "volpath", "light", "ao"];
 
     /// Parses one of [`IntegratorKind::NAMES`].
     pub fn from_name(s: &str) -> Option<IntegratorKind> {
@@ -130,6 +137,7 @@ impl IntegratorKind {
             "sppm" => Some(IntegratorKind::Sppm),
             "volpath" => Some(IntegratorKind::VolPath),
             "light" => Some(IntegratorKind::Light),
+            "ao" => Some(IntegratorKind::AmbientOcclusion),
             _ => None,
         }
     }
@@ -143,6 +151,7 @@ impl IntegratorKind {
             IntegratorKind::Sppm => "sppm",
             IntegratorKind::VolPath => "volpath",
             IntegratorKind::Light => "light",
+            IntegratorKind::AmbientOcclusion => "ao",
         }
     }
 }

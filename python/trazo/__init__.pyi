@@ -31,7 +31,7 @@ def render(
     scene: Union[Scene, Source],
     *,
     spp: Optional[int] = None,
-    integrator: Optional[Literal["whitted", "path", "photon", "sppm", "volpath", "light"]] = None,
+    integrator: Optional[Literal["whitted", "path", "photon", "sppm", "volpath", "light", "ao"]] = None,
     sampling: Optional[Literal["uniform", "cosine", "bsdf", "mis"]] = None,
     seed: Optional[int] = None,
     threads: Optional[int] = None,

@@ -223,8 +223,9 @@ struct RenderArgs {
     /// Rendering algorithm (overrides the scene): whitted, path, photon
     /// (Jensen's photon mapping), sppm (stochastic progressive photon
     /// mapping; --spp is then the number of iterations), volpath (media)
-    /// or light (light tracing: paths from the lights connected to the
-    /// camera; --spp is the number of light paths per pixel).
+    /// light (light tracing: paths from the lights connected to the
+    /// camera; --spp is the number of light paths per pixel) or ao
+    /// (ambient occlusion).
     #[arg(long, value_name = "NAME", value_parser = IntegratorKind::NAMES)]
     integrator: Option<String>,
 

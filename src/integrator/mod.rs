@@ -12,6 +12,7 @@
 //! driver chooses the threads (whatever runs inside its rayon pool uses
 //! it), the passes, the deadline, checkpoints and progress.
 
+pub mod ao;
 pub mod aov;
 pub mod light;
 pub mod path;
@@ -19,6 +20,7 @@ pub mod photon;
 pub mod volpath;
 pub mod whitted;
 
+pub use ao::AmbientOcclusion;
 pub use light::LightTracer;
 pub use path::PathTracer;
 pub use photon::PhotonMapper;
@@ -125,6 +127,12 @@ pub fn drive<D: Driver>(scene: &Scene, aovs: bool, cancel: Option<&AtomicBool>, 
         }
         IntegratorKind::Sppm => driver.iterations(photon::sppm::Sppm::new(scene, aovs)),
         IntegratorKind::Light => driver.iterations(LightTracer::new(scene, aovs)),
+        IntegratorKind::AmbientOcclusion => driver.camera_passes(
+            &AmbientOcclusion {
+                max_distance: s.ao_distance,
+            },
+            Work::default(),
+        ),
         IntegratorKind::VolPath => driver.camera_passes(
             &VolPathTracer {
                 max_depth: s.max_depth,

@@ -1613,6 +1613,12 @@ impl SceneDesc {
                 return Err(c.err("march_step", format!("must be a positive length, got {step}")));
             }
         }
+        if s.ao_distance.is_nan() || s.ao_distance <= 0.0 {
+            return Err(c.err(
+                "ao_distance",
+                format!("must be a positive length, got {}", s.ao_distance),
+            ));
+        }
         if s.max_depth > MAX_DEPTH {
             return Err(c.err("max_depth", format!("must be at most {MAX_DEPTH}, got {}", s.max_depth)));
         }

@@ -489,6 +489,9 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     if let Some(h) = t.boolean("hide_emitters")? {
         s.hide_emitters = h;
     }
+    if let Some(d) = t.number("ao_distance")? {
+        s.ao_distance = d;
+    }
     if let Some(n) = t.unsigned("photons", u32::MAX as u64)? {
         s.photon.photons = n as u32;
     }
@@ -1408,6 +1411,18 @@ material = "red"
         assert!(d.settings.hide_emitters);
         let e = error_of(&MINIMAL.replace("spp = 4", "spp = 4\nhide_emitters = 1"));
         assert!(e.starts_with("test.toml:6:") && e.contains("hide_emitters"), "{e}");
+    }
+
+    #[test]
+    fn ao_distance_is_read_and_must_be_positive() {
+        assert_eq!(parse_str(MINIMAL).unwrap().settings.ao_distance, f32::INFINITY);
+        let d = parse_str(&MINIMAL.replace("spp = 4", "spp = 4\nintegrator = \"ao\"\nao_distance = 0.5")).unwrap();
+        assert_eq!(d.settings.ao_distance, 0.5);
+        let e = error_of(&MINIMAL.replace("spp = 4", "spp = 4\nao_distance = 0"));
+        assert!(
+            e.starts_with("test.toml:6:") && e.contains("ao_distance") && e.contains("positive"),
+            "{e}"
+        );
     }
 
     #[test]

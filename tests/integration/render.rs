@@ -1352,3 +1352,47 @@ fn hidden_emitters_are_black_to_the_camera_and_light_the_scene_as_before() {
         );
     }
 }
+
+/// Ambient occlusion against its closed form: on a floor under a parallel
+/// ceiling at height h, a cosine-distributed direction at angle θ meets the
+/// ceiling within distance d when cos θ > h/d, which has cosine-weighted
+/// measure 1 − (h/d)²; so every pixel that sees the floor is (h/d)² in
+/// expectation. The image mean is within 4.5 standard errors of a
+/// Bernoulli mean of that many samples, for two distances.
+#[test]
+fn ambient_occlusion_under_a_ceiling_matches_its_closed_form() {
+    let h = 0.5f32;
+    for d_max in [1.0f32, 0.7] {
+        let mut d = SceneDesc::default();
+        d.settings.width = 16;
+        d.settings.height = 16;
+        d.settings.spp = 64;
+        d.settings.integrator = IntegratorKind::AmbientOcclusion;
+        d.settings.ao_distance = d_max;
+        d.materials.push(MaterialDesc::new("grey"));
+        for y in [0.0, h] {
+            d.shapes.push(ShapeDesc::new(
+                ShapeKind::Rectangle {
+                    corner: Vec3::new(-10.0, y, 10.0),
+                    edge_u: Vec3::new(20.0, 0.0, 0.0),
+                    edge_v: Vec3::new(0.0, 0.0, -20.0),
+                },
+                Some("grey"),
+            ));
+        }
+        // Between the two, looking down at the floor.
+        d.camera.from = Vec3::new(0.0, 0.25, 0.0);
+        d.camera.to = Vec3::new(0.0, 0.0, -0.3);
+        d.camera.projection = ProjectionDesc::Perspective { fov: 30.0 };
+        let img = render_desc(&d, None).to_image();
+        let expected = (h / d_max) as f64 * (h / d_max) as f64;
+        let n = (16 * 16 * 64) as f64;
+        let sigma = (expected * (1.0 - expected) / n).sqrt();
+        let mean = img.mean().x as f64;
+        assert!(
+            (mean - expected).abs() < 4.5 * sigma,
+            "distance {d_max}: {mean} vs (h/d)² = {expected} ± {sigma}"
+        );
+        assert!(img.pixels.iter().all(|p| p.x == p.y && p.y == p.z));
+    }
+}

@@ -161,6 +161,18 @@ impl Parser {
             // pbrt-v4's LightPathIntegrator: light tracing, with the same
             // depth.
             s.integrator = IntegratorKind::Light;
+        } else if kind == "ambientocclusion" {
+            // pbrt-v4's AOIntegrator. Its `cossample` false samples the
+            // hemisphere uniformly: the same image, noisier; trazo samples
+            // by the cosine either way.
+            s.integrator = IntegratorKind::AmbientOcclusion;
+            if let Some((d, prm)) = p.float_opt("maxdistance")? {
+                if d.is_nan() || d <= 0.0 {
+                    return Err(prm.err(format!("must be a positive distance, got {d}")));
+                }
+                self.desc.settings.ao_distance = d;
+            }
+            p.bool("cossample", true)?;
         } else if kind == "sppm" {
             // pbrt-v4's SPPMIntegrator: one iteration per pixel sample,
             // `photonsperiteration` photons (−1: one per pixel) and an

@@ -63,6 +63,15 @@ WorldBegin"#,
     );
     assert!(d.warnings.is_empty(), "{:?}", d.warnings);
 
+    // pbrt-v4's ambient occlusion, with its distance.
+    let d = parse_str("Integrator \"ambientocclusion\" \"float maxdistance\" 0.5 \"bool cossample\" false\nWorldBegin")
+        .unwrap();
+    assert_eq!(
+        (d.settings.integrator, d.settings.ao_distance),
+        (IntegratorKind::AmbientOcclusion, 0.5)
+    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+
     // pbrt-v4's SPPM is trazo's, with its photons per iteration, initial
     // radius (default 1) and seed.
     let d = parse_str(
