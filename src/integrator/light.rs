@@ -19,7 +19,7 @@
 //! connected too, so that lights seen directly appear. An iteration traces
 //! one path per pixel; the image after k iterations is the sum of the
 //! splats divided by k, which estimates what the path tracer's camera rays
-//! measure. Lights at infinity and points lights cannot be seen this way
+//! measure. Lights at infinity and point lights cannot be seen this way
 //! (as in pbrt), so a background seen directly stays black; delta BSDFs
 //! (mirrors, smooth glass) are bounced through but never connected, so
 //! what is seen only through them is black too: the light tracer is for
@@ -50,6 +50,9 @@ pub const NOT_RESUMABLE: &str = "light tracing renders cannot be checkpointed, r
 
 /// Paths per work unit.
 const CHUNK: u32 = 4096;
+
+/// Work units traced before their splats are added to the image.
+const BATCH: u32 = 64;
 
 /// Separates light tracing's random numbers from the photon passes'.
 const STREAM: u64 = 0x6c69_6768_7420;
@@ -135,29 +138,35 @@ impl Progressive for LightTracer {
         let bounds = crate::light::scene_bounding_sphere(scene);
         let (seed, iteration) = (scene.settings.seed, self.iterations as u64);
         let tracer = &*self;
-        let parts: Vec<(Vec<(u32, Rgb)>, u64)> = (0..paths.div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|c| {
-                let (mut splats, mut rays) = (Vec::new(), 0u64);
-                if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-                    return (splats, rays);
-                }
-                for i in c * CHUNK..((c + 1) * CHUNK).min(paths) {
-                    let mut rng = Pcg32::new(hash_u64s(&[seed, STREAM, iteration, i as u64]), 0x5bd1);
-                    tracer.trace_path(scene, bounds, &mut rng, &mut splats, &mut rays);
-                }
-                (splats, rays)
-            })
-            .collect();
-        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-            return None;
-        }
         let mut this = vec![DVec3::ZERO; self.sums.len()];
         let mut rays = 0;
-        for (splats, r) in parts {
-            rays += r;
-            for (px, l) in splats {
-                this[px as usize] += l.as_dvec3();
+        // Chunks in batches, each batch's splats added in chunk order
+        // before the next is traced: the splats held at once stay bounded
+        // however large the image.
+        let chunks = paths.div_ceil(CHUNK);
+        for batch in (0..chunks).step_by(BATCH as usize) {
+            let parts: Vec<(Vec<(u32, Rgb)>, u64)> = (batch..(batch + BATCH).min(chunks))
+                .into_par_iter()
+                .map(|c| {
+                    let (mut splats, mut rays) = (Vec::new(), 0u64);
+                    if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                        return (splats, rays);
+                    }
+                    for i in c * CHUNK..((c + 1) * CHUNK).min(paths) {
+                        let mut rng = Pcg32::new(hash_u64s(&[seed, STREAM, iteration, i as u64]), 0x5bd1);
+                        tracer.trace_path(scene, bounds, &mut rng, &mut splats, &mut rays);
+                    }
+                    (splats, rays)
+                })
+                .collect();
+            if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                return None;
+            }
+            for (splats, r) in parts {
+                rays += r;
+                for (px, l) in splats {
+                    this[px as usize] += l.as_dvec3();
+                }
             }
         }
         for ((sum, sq), l) in self.sums.iter_mut().zip(&mut self.lum_sq).zip(&this) {
