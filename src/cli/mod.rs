@@ -222,7 +222,7 @@ struct RenderArgs {
 
     /// Rendering algorithm (overrides the scene): whitted, path, photon
     /// (Jensen's photon mapping), sppm (stochastic progressive photon
-    /// mapping; --spp is then the number of iterations), volpath (media)
+    /// mapping; --spp is then the number of iterations), volpath (media),
     /// light (light tracing: paths from the lights connected to the
     /// camera; --spp is the number of light paths per pixel) or ao
     /// (ambient occlusion).
