@@ -29,7 +29,6 @@
 //! iteration, path) alone, and the chunks' splats are added in order, so
 //! the image is the same for any number of threads.
 
-use crate::camera::CameraConnection;
 use crate::color::{Rgb, luminance};
 use crate::film::splat::{MAX_TAPS, Splat};
 use crate::film::{AovSum, Film, FilmAov, FilmPixel, PixelSum};
@@ -57,20 +56,25 @@ const BATCH: u32 = 64;
 /// Separates light tracing's random numbers from the photon passes'.
 const STREAM: u64 = 0x6c69_6768_7420;
 
-/// Light tracing's state between iterations: the splats' sums.
+/// Light tracing's state between iterations: the image of its splats.
 pub struct LightTracer {
-    width: u32,
-    height: u32,
     /// Longest path, in segments from the light to the camera.
     max_depth: u32,
+    image: SplatImage,
+}
+
+/// An image made of splats, iteration by iteration (light tracing and
+/// bidirectional path tracing): per pixel the sum of its splats over the
+/// iterations, and the iterations' count.
+pub(crate) struct SplatImage {
+    /// Where splats land.
+    target: SplatTarget,
     /// Per pixel, row by row from the top: Σ over iterations of the
     /// iteration's splats, and of their luminance squared.
     sums: Vec<DVec3>,
     lum_sq: Vec<f64>,
     /// Auxiliary sums from one camera ray per pixel and iteration.
     aovs: Option<Vec<AovSum>>,
-    /// Filter weights for filters wider than a pixel.
-    splat: Option<Splat>,
     /// Per column and per row, the share of the filter about the pixel's
     /// centre that lies inside the image: the camera passes normalise
     /// each pixel by the weights its samples brought, which near the
@@ -109,16 +113,27 @@ impl LightTracer {
     /// that light cannot reach (an orthographic one with a lens) is
     /// refused when the scene is built, and sees nothing here.
     pub fn new(scene: &Scene, aovs: bool) -> LightTracer {
+        LightTracer {
+            max_depth: scene.settings.max_depth,
+            image: SplatImage::new(scene, aovs),
+        }
+    }
+}
+
+impl SplatImage {
+    /// An image of no iterations; `aovs` asks for the auxiliary sums.
+    pub(crate) fn new(scene: &Scene, aovs: bool) -> SplatImage {
         let s = &scene.settings;
         let n = s.width as usize * s.height as usize;
-        LightTracer {
-            width: s.width,
-            height: s.height,
-            max_depth: s.max_depth,
+        SplatImage {
+            target: SplatTarget {
+                width: s.width,
+                height: s.height,
+                splat: Splat::new(&s.filter),
+            },
             sums: vec![DVec3::ZERO; n],
             lum_sq: vec![0.0; n],
             aovs: aovs.then(|| vec![AovSum::default(); n]),
-            splat: Splat::new(&s.filter),
             inside: match Splat::new(&s.filter) {
                 Some(_) => (share_inside(&s.filter, s.width), share_inside(&s.filter, s.height)),
                 None => (vec![1.0; s.width as usize], vec![1.0; s.height as usize]),
@@ -126,18 +141,19 @@ impl LightTracer {
             iterations: 0,
         }
     }
-}
 
-impl Progressive for LightTracer {
-    const NOT_RESUMABLE: &'static str = NOT_RESUMABLE;
-
-    /// One path per pixel, given up (and the whole iteration with it) soon
-    /// after `cancel` is set.
-    fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work> {
-        let paths = self.width * self.height;
-        let bounds = crate::light::scene_bounding_sphere(scene);
+    /// One more iteration: `trace(i, rng, target, splats, rays)` for every pixel
+    /// index `i`, with random numbers from (seed, `stream`, iteration, i)
+    /// alone, in fixed chunks whose splats are added in chunk order, so
+    /// that the image is the same for any number of threads; given up
+    /// (`None`) soon after `cancel` is set. Returns the rays traced.
+    pub(crate) fn iterate<F>(&mut self, scene: &Scene, stream: u64, cancel: Option<&AtomicBool>, trace: F) -> Option<u64>
+    where
+        F: Fn(u32, &mut Pcg32, &SplatTarget, &mut Vec<(u32, Rgb)>, &mut u64) + Sync,
+    {
+        let target = &self.target;
+        let paths = target.width * target.height;
         let (seed, iteration) = (scene.settings.seed, self.iterations as u64);
-        let tracer = &*self;
         let mut this = vec![DVec3::ZERO; self.sums.len()];
         let mut rays = 0;
         // Chunks in batches, each batch's splats added in chunk order
@@ -153,8 +169,8 @@ impl Progressive for LightTracer {
                         return (splats, rays);
                     }
                     for i in c * CHUNK..((c + 1) * CHUNK).min(paths) {
-                        let mut rng = Pcg32::new(hash_u64s(&[seed, STREAM, iteration, i as u64]), 0x5bd1);
-                        tracer.trace_path(scene, bounds, &mut rng, &mut splats, &mut rays);
+                        let mut rng = Pcg32::new(hash_u64s(&[seed, stream, iteration, i as u64]), 0x5bd1);
+                        trace(i, &mut rng, target, &mut splats, &mut rays);
                     }
                     (splats, rays)
                 })
@@ -175,10 +191,10 @@ impl Progressive for LightTracer {
             *sq += y * y;
         }
         if let Some(aovs) = &mut self.aovs {
-            let w = self.width as usize;
+            let w = self.target.width as usize;
             aovs.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
                 for (x, sum) in row.iter_mut().enumerate() {
-                    let mut rng = Pcg32::new(hash_u64s(&[seed, STREAM + 1, iteration, (y * w + x) as u64]), 0x5bd1);
+                    let mut rng = Pcg32::new(hash_u64s(&[seed, stream + 1, iteration, (y * w + x) as u64]), 0x5bd1);
                     let film = Vec2::new(x as f32 + rng.next_f32(), y as f32 + rng.next_f32());
                     let lens = Vec2::new(rng.next_f32(), rng.next_f32());
                     sum.add(&camera_aov(scene, &scene.camera.generate_ray(film, lens)));
@@ -187,17 +203,14 @@ impl Progressive for LightTracer {
             rays += paths as u64;
         }
         self.iterations += 1;
-        Some(Work {
-            rays,
-            ..Work::default()
-        })
+        Some(rays)
     }
 
     /// Each pixel is the mean over iterations of its splats.
-    fn film(&self) -> Film {
-        let mut film = Film::new(self.width, self.height);
+    pub(crate) fn film(&self) -> Film {
+        let mut film = Film::new(self.target.width, self.target.height);
         let k = self.iterations as f64;
-        let w = self.width as usize;
+        let w = self.target.width as usize;
         for (i, ((pixel, sum), sq)) in film.pixels.iter_mut().zip(&self.sums).zip(&self.lum_sq).enumerate() {
             let share = self.inside.0[i % w] * self.inside.1[i / w];
             *pixel = FilmPixel::default().plus(&PixelSum {
@@ -213,128 +226,28 @@ impl Progressive for LightTracer {
     }
 }
 
-impl LightTracer {
-    /// Traces one light path, adding its splats (pixel, contribution) to
-    /// `out`. The importance is normalised over the whole image, so a path
-    /// estimates the image times its number of pixels; with one path per
-    /// pixel in an iteration, the splats are the iteration's image.
-    fn trace_path(
-        &self,
-        scene: &Scene,
-        bounds: (Vec3, f32),
-        rng: &mut Pcg32,
-        out: &mut Vec<(u32, Rgb)>,
-        rays: &mut u64,
-    ) {
-        if scene.lights.is_empty() || scene.light_distribution.is_empty() {
-            return;
-        }
-        let Some((emitted, pmf)) = crate::light::sample_scene_emission(scene, bounds, rng) else {
-            return;
-        };
-        // The light's own point, seen directly (one segment).
-        let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
-        if let (Some(point), true) = (emitted.surface, scene.settings.shows_emission(1)) {
-            if let Some(c) = scene.camera.sample_wi(point.p, u_lens) {
-                let cos = point.n.dot(c.wi);
-                if cos > 0.0 {
-                    *rays += 1;
-                    let target = point.p + c.wi * c.dist;
-                    let shadow =
-                        Ray::with_interval(emitted.ray.origin, target - emitted.ray.origin, 0.0, SHADOW_EPSILON);
-                    if !scene.occluded(&shadow) {
-                        let l = point.le * (cos * c.weight / (point.pdf_area * pmf));
-                        self.add_splat(&c, l, out);
-                    }
-                }
-            }
-        }
+/// The image's pixels as splats reach them: its size and the filter.
+pub(crate) struct SplatTarget {
+    width: u32,
+    height: u32,
+    /// Filter weights for filters wider than a pixel.
+    splat: Option<Splat>,
+}
 
-        let mut beta = emitted.weight / pmf;
-        let mut ray = emitted.ray;
-        // Segments of the path once it reaches the camera from the next
-        // vertex: light → vertex → camera.
-        let mut segments = 2u32;
-        while segments <= self.max_depth {
-            *rays += 1;
-            let Some(mut hit) = scene.intersect(&ray) else {
-                return;
-            };
-            scene.choose_any_material(&mut hit, ray.dir);
-            let m = &scene.materials[hit.material as usize];
-            let tc = TexCoord::at(&hit);
-            // A mask's cut-out part lets the light through unchanged, as
-            // the path tracer's camera paths pass it.
-            if m.opacity.is_some() && rng.next_f32() >= m.opacity_at(&scene.images, &tc) {
-                ray = hit.spawn_ray(ray.dir);
-                segments += 1;
-                continue;
-            }
-            let bsdf = m.bsdf(&scene.images, &tc);
-            let wo_world = -ray.dir.normalize();
-            if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
-                return; // the back of a one-sided surface absorbs
-            }
-            let ng_wo = hit.ng.dot(wo_world);
-            if ng_wo == 0.0 {
-                return;
-            }
-            let frame = m.shading_frame(&scene.images, &hit, wo_world);
-            let wo = frame.to_local(wo_world);
-            let front_o = ng_wo > 0.0;
-            // The adjoint BSDF with shading normals (Veach 1997, eq. 5.21)
-            // toward the lens, and a normal map's factor toward the light,
-            // as the photons' bounces take them (`scatter_light`).
-            let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
-            if bsdf.has_smooth() {
-                if let Some(c) = scene.camera.sample_wi(hit.p, u_lens) {
-                    let wi = frame.to_local(c.wi);
-                    let front_i = hit.ng.dot(c.wi) > 0.0;
-                    let consistent = (front_i == front_o) == (wi.z * wo.z > 0.0);
-                    if consistent && wi.z != 0.0 {
-                        let f = bsdf.eval(wo, wi, TransportMode::Importance);
-                        if f != Rgb::ZERO {
-                            let l = beta
-                                * f
-                                * (frame.factor(wo_world)
-                                    * wi.z.abs()
-                                    * adjoint_shading_factor(hit.ng, wo_world, wo.z, c.wi, wi.z)
-                                    * c.weight);
-                            *rays += 1;
-                            if l.is_finite() && !scene.occluded(&hit.spawn_ray_to(hit.p + c.wi * c.dist)) {
-                                self.add_splat(&c, l, out);
-                            }
-                        }
-                    }
-                }
-            }
-            if segments == self.max_depth {
-                return;
-            }
-
-            let Some((next, next_ray, _)) = crate::integrator::scatter_light(&hit, &bsdf, &frame, wo_world, beta, rng)
-            else {
-                return;
-            };
-            beta = next;
-            ray = next_ray;
-            segments += 1;
-        }
-    }
-
-    /// Adds contribution `l` where connection `c` lands: into its pixel, or
-    /// spread by the filter's weights over the pixels it covers.
-    fn add_splat(&self, c: &CameraConnection, l: Rgb, out: &mut Vec<(u32, Rgb)>) {
+impl SplatTarget {
+    /// Adds contribution `l` at raster position `raster`: into its pixel,
+    /// or spread by the filter's weights over the pixels it covers.
+    pub(crate) fn add_splat(&self, raster: Vec2, l: Rgb, out: &mut Vec<(u32, Rgb)>) {
         let (w, h) = (self.width, self.height);
         match &self.splat {
             None => {
-                let (x, y) = ((c.raster.x as u32).min(w - 1), (c.raster.y as u32).min(h - 1));
+                let (x, y) = ((raster.x as u32).min(w - 1), (raster.y as u32).min(h - 1));
                 out.push((y * w + x, l));
             }
             Some(splat) => {
                 let (mut wx, mut wy) = ([0.0; MAX_TAPS], [0.0; MAX_TAPS]);
-                let (x0, xs) = splat.taps(c.raster.x, 0, w, &mut wx);
-                let (y0, ys) = splat.taps(c.raster.y, 0, h, &mut wy);
+                let (x0, xs) = splat.taps(raster.x, 0, w, &mut wx);
+                let (y0, ys) = splat.taps(raster.y, 0, h, &mut wy);
                 for (dy, fy) in ys.iter().enumerate() {
                     for (dx, fx) in xs.iter().enumerate() {
                         if fx * fy != 0.0 {
@@ -344,5 +257,135 @@ impl LightTracer {
                 }
             }
         }
+    }
+}
+
+impl Progressive for LightTracer {
+    const NOT_RESUMABLE: &'static str = NOT_RESUMABLE;
+
+    /// One path per pixel, given up (and the whole iteration with it) soon
+    /// after `cancel` is set.
+    fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work> {
+        let bounds = crate::light::scene_bounding_sphere(scene);
+        let max_depth = self.max_depth;
+        let result = self.image.iterate(scene, STREAM, cancel, |_, rng, target, splats, rays| {
+            trace_path(scene, max_depth, target, bounds, rng, splats, rays)
+        });
+        result.map(|rays| Work {
+            rays,
+            ..Work::default()
+        })
+    }
+
+    fn film(&self) -> Film {
+        self.image.film()
+    }
+}
+
+/// Traces one light path, adding its splats (pixel, contribution) to
+/// `out`. The importance is normalised over the whole image, so a path
+/// estimates the image times its number of pixels; with one path per
+/// pixel in an iteration, the splats are the iteration's image.
+fn trace_path(
+    scene: &Scene,
+    max_depth: u32,
+    target: &SplatTarget,
+    bounds: (Vec3, f32),
+    rng: &mut Pcg32,
+    out: &mut Vec<(u32, Rgb)>,
+    rays: &mut u64,
+) {
+    if scene.lights.is_empty() || scene.light_distribution.is_empty() {
+        return;
+    }
+    let Some((emitted, pmf)) = crate::light::sample_scene_emission(scene, bounds, rng) else {
+        return;
+    };
+    // The light's own point, seen directly (one segment).
+    let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
+    if let (Some(point), true) = (emitted.surface, scene.settings.shows_emission(1)) {
+        if let Some(c) = scene.camera.sample_wi(point.p, u_lens) {
+            let cos = point.n.dot(c.wi);
+            if cos > 0.0 {
+                *rays += 1;
+                let end = point.p + c.wi * c.dist;
+                let shadow = Ray::with_interval(emitted.ray.origin, end - emitted.ray.origin, 0.0, SHADOW_EPSILON);
+                if !scene.occluded(&shadow) {
+                    let l = point.le * (cos * c.weight / (point.pdf_area * pmf));
+                    target.add_splat(c.raster, l, out);
+                }
+            }
+        }
+    }
+
+    let mut beta = emitted.weight / pmf;
+    let mut ray = emitted.ray;
+    // Segments of the path once it reaches the camera from the next
+    // vertex: light → vertex → camera.
+    let mut segments = 2u32;
+    while segments <= max_depth {
+        *rays += 1;
+        let Some(mut hit) = scene.intersect(&ray) else {
+            return;
+        };
+        scene.choose_any_material(&mut hit, ray.dir);
+        let m = &scene.materials[hit.material as usize];
+        let tc = TexCoord::at(&hit);
+        // A mask's cut-out part lets the light through unchanged, as
+        // the path tracer's camera paths pass it.
+        if m.opacity.is_some() && rng.next_f32() >= m.opacity_at(&scene.images, &tc) {
+            ray = hit.spawn_ray(ray.dir);
+            segments += 1;
+            continue;
+        }
+        let bsdf = m.bsdf(&scene.images, &tc);
+        let wo_world = -ray.dir.normalize();
+        if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
+            return; // the back of a one-sided surface absorbs
+        }
+        let ng_wo = hit.ng.dot(wo_world);
+        if ng_wo == 0.0 {
+            return;
+        }
+        let frame = m.shading_frame(&scene.images, &hit, wo_world);
+        let wo = frame.to_local(wo_world);
+        let front_o = ng_wo > 0.0;
+        // The adjoint BSDF with shading normals (Veach 1997, eq. 5.21)
+        // toward the lens, and a normal map's factor toward the light,
+        // as the photons' bounces take them (`scatter_light`).
+        let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
+        if bsdf.has_smooth() {
+            if let Some(c) = scene.camera.sample_wi(hit.p, u_lens) {
+                let wi = frame.to_local(c.wi);
+                let front_i = hit.ng.dot(c.wi) > 0.0;
+                let consistent = (front_i == front_o) == (wi.z * wo.z > 0.0);
+                if consistent && wi.z != 0.0 {
+                    let f = bsdf.eval(wo, wi, TransportMode::Importance);
+                    if f != Rgb::ZERO {
+                        let l = beta
+                            * f
+                            * (frame.factor(wo_world)
+                                * wi.z.abs()
+                                * adjoint_shading_factor(hit.ng, wo_world, wo.z, c.wi, wi.z)
+                                * c.weight);
+                        *rays += 1;
+                        if l.is_finite() && !scene.occluded(&hit.spawn_ray_to(hit.p + c.wi * c.dist)) {
+                            target.add_splat(c.raster, l, out);
+                        }
+                    }
+                }
+            }
+        }
+        if segments == max_depth {
+            return;
+        }
+
+        let Some((next, next_ray, _)) = crate::integrator::scatter_light(&hit, &bsdf, &frame, wo_world, beta, rng)
+        else {
+            return;
+        };
+        beta = next;
+        ray = next_ray;
+        segments += 1;
     }
 }
