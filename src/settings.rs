@@ -119,6 +119,9 @@ pub enum IntegratorKind {
     VolPath,
     /// Light tracing: paths from the lights connected to the camera.
     Light,
+    /// Bidirectional path tracing: subpaths from the camera and from a
+    /// light, joined every way and weighted by multiple importance.
+    Bdpt,
     /// Ambient occlusion: the share of the hemisphere open within a
     /// distance.
     AmbientOcclusion,
@@ -126,7 +129,7 @@ pub enum IntegratorKind {
 
 impl IntegratorKind {
     /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 7] = ["whitted", "path", "photon", "sppm", "volpath", "light", "ao"];
+    pub const NAMES: [&'static str; 8] = ["whitted", "path", "photon", "sppm", "volpath", "light", "bdpt", "ao"];
 
     /// Parses one of [`IntegratorKind::NAMES`].
     pub fn from_name(s: &str) -> Option<IntegratorKind> {
@@ -137,6 +140,7 @@ impl IntegratorKind {
             "sppm" => Some(IntegratorKind::Sppm),
             "volpath" => Some(IntegratorKind::VolPath),
             "light" => Some(IntegratorKind::Light),
+            "bdpt" => Some(IntegratorKind::Bdpt),
             "ao" => Some(IntegratorKind::AmbientOcclusion),
             _ => None,
         }
@@ -151,6 +155,7 @@ impl IntegratorKind {
             IntegratorKind::Sppm => "sppm",
             IntegratorKind::VolPath => "volpath",
             IntegratorKind::Light => "light",
+            IntegratorKind::Bdpt => "bdpt",
             IntegratorKind::AmbientOcclusion => "ao",
         }
     }

@@ -28,6 +28,8 @@ use glam::{Mat4, Vec2, Vec3, Vec4};
 pub struct CameraConnection {
     /// Raster position of the image point the connection reaches.
     pub raster: Vec2,
+    /// The point on the lens (or view plane) it reaches.
+    pub origin: Vec3,
     /// Unit direction from the scene point toward the lens.
     pub wi: Vec3,
     /// Length of the segment that must be unoccluded (to the lens, or to
@@ -353,10 +355,46 @@ impl Camera {
         };
         weight.is_finite().then_some(CameraConnection {
             raster: Vec2::new(raster.x, raster.y),
+            origin: lens_point,
             wi,
             dist: visible,
             weight,
         })
+    }
+
+    /// The density with which [`Camera::generate_ray`] draws the unit
+    /// direction `dir` from its lens point: per unit solid angle for a
+    /// perspective camera, `1/(A·cos³θ)` (pbrt-v4's `PDF_We`); for an
+    /// orthographic one, whose direction is its axis, the density `1/A`
+    /// of the ray's point on the view plane, which bidirectional methods
+    /// convert to area without the inverse square
+    /// ([`Camera::is_orthographic`]).
+    pub fn pdf_dir(&self, dir: Vec3) -> f32 {
+        match self.projection {
+            Projection::Perspective { .. } => {
+                let cos = dir.dot(self.forward);
+                if cos <= 0.0 {
+                    0.0
+                } else {
+                    1.0 / (self.image_area * cos * cos * cos)
+                }
+            }
+            Projection::Orthographic { .. } => 1.0 / self.image_area,
+        }
+    }
+
+    /// Whether the camera projects in parallel.
+    pub fn is_orthographic(&self) -> bool {
+        matches!(self.projection, Projection::Orthographic { .. })
+    }
+
+    /// The point on the lens (or view plane) that camera ray `ray` leaves
+    /// from: its origin, before the near clipping plane moved it.
+    pub fn lens_point(&self, ray: &Ray) -> Vec3 {
+        match self.clip {
+            None => ray.origin,
+            Some((near, _)) => ray.origin - ray.dir * (near / ray.dir.dot(self.forward)),
+        }
     }
 
     /// Whether light paths can connect to this camera

@@ -671,11 +671,13 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     if let Some(v) = &args.sampling {
         desc.settings.sampling = PathSampling::from_name(v).expect("clap checked the value");
     }
-    // SPPM's state is not a film of samples, and light tracing's splats
-    // are kept per iteration: neither has checkpoints.
+    // SPPM's state is not a film of samples, and light tracing's and
+    // bidirectional path tracing's splats are kept per iteration: none
+    // has checkpoints.
     let not_resumable = match desc.settings.integrator {
         IntegratorKind::Sppm => Some(crate::integrator::photon::sppm::NOT_RESUMABLE),
         IntegratorKind::Light => Some(crate::integrator::light::NOT_RESUMABLE),
+        IntegratorKind::Bdpt => Some(crate::integrator::bdpt::NOT_RESUMABLE),
         _ => None,
     };
     let resumable = not_resumable.is_none();

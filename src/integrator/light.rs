@@ -142,14 +142,22 @@ impl SplatImage {
         }
     }
 
-    /// One more iteration: `trace(i, rng, target, splats, rays)` for every pixel
-    /// index `i`, with random numbers from (seed, `stream`, iteration, i)
+    /// One more iteration: `trace(i, rng, target, scratch, splats, rays)`
+    /// for every pixel index `i` (`scratch`: the chunk's working memory,
+    /// reused from path to path), with random numbers from (seed, `stream`, iteration, i)
     /// alone, in fixed chunks whose splats are added in chunk order, so
     /// that the image is the same for any number of threads; given up
     /// (`None`) soon after `cancel` is set. Returns the rays traced.
-    pub(crate) fn iterate<F>(&mut self, scene: &Scene, stream: u64, cancel: Option<&AtomicBool>, trace: F) -> Option<u64>
+    pub(crate) fn iterate<S, F>(
+        &mut self,
+        scene: &Scene,
+        stream: u64,
+        cancel: Option<&AtomicBool>,
+        trace: F,
+    ) -> Option<u64>
     where
-        F: Fn(u32, &mut Pcg32, &SplatTarget, &mut Vec<(u32, Rgb)>, &mut u64) + Sync,
+        S: Default,
+        F: Fn(u32, &mut Pcg32, &SplatTarget, &mut S, &mut Vec<(u32, Rgb)>, &mut u64) + Sync,
     {
         let target = &self.target;
         let paths = target.width * target.height;
@@ -168,9 +176,10 @@ impl SplatImage {
                     if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                         return (splats, rays);
                     }
+                    let mut scratch = S::default();
                     for i in c * CHUNK..((c + 1) * CHUNK).min(paths) {
                         let mut rng = Pcg32::new(hash_u64s(&[seed, stream, iteration, i as u64]), 0x5bd1);
-                        trace(i, &mut rng, target, &mut splats, &mut rays);
+                        trace(i, &mut rng, target, &mut scratch, &mut splats, &mut rays);
                     }
                     (splats, rays)
                 })
@@ -268,9 +277,11 @@ impl Progressive for LightTracer {
     fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work> {
         let bounds = crate::light::scene_bounding_sphere(scene);
         let max_depth = self.max_depth;
-        let result = self.image.iterate(scene, STREAM, cancel, |_, rng, target, splats, rays| {
-            trace_path(scene, max_depth, target, bounds, rng, splats, rays)
-        });
+        let result = self
+            .image
+            .iterate(scene, STREAM, cancel, |_, rng, target, _: &mut (), splats, rays| {
+                trace_path(scene, max_depth, target, bounds, rng, splats, rays)
+            });
         result.map(|rays| Work {
             rays,
             ..Work::default()
@@ -298,7 +309,7 @@ fn trace_path(
     if scene.lights.is_empty() || scene.light_distribution.is_empty() {
         return;
     }
-    let Some((emitted, pmf)) = crate::light::sample_scene_emission(scene, bounds, rng) else {
+    let Some((emitted, _, pmf)) = crate::light::sample_scene_emission(scene, bounds, rng) else {
         return;
     };
     // The light's own point, seen directly (one segment).

@@ -14,6 +14,7 @@
 
 pub mod ao;
 pub mod aov;
+pub mod bdpt;
 pub mod light;
 pub mod path;
 pub mod photon;
@@ -21,6 +22,7 @@ pub mod volpath;
 pub mod whitted;
 
 pub use ao::AmbientOcclusion;
+pub use bdpt::Bdpt;
 pub use light::LightTracer;
 pub use path::PathTracer;
 pub use photon::PhotonMapper;
@@ -127,6 +129,7 @@ pub fn drive<D: Driver>(scene: &Scene, aovs: bool, cancel: Option<&AtomicBool>, 
         }
         IntegratorKind::Sppm => driver.iterations(photon::sppm::Sppm::new(scene, aovs)),
         IntegratorKind::Light => driver.iterations(LightTracer::new(scene, aovs)),
+        IntegratorKind::Bdpt => driver.iterations(Bdpt::new(scene, aovs)),
         IntegratorKind::AmbientOcclusion => driver.camera_passes(
             &AmbientOcclusion {
                 max_distance: s.ao_distance,

@@ -80,9 +80,13 @@ const EMITTER_OFFSET: f32 = 3e-5;
 
 /// A ray of light from the whole scene: a light chosen in proportion to
 /// its power, then a point and direction on it ([`Light::sample_le`]), with
-/// the probability of that choice; `None` when the sample carries no
-/// light. Draws six numbers from `rng`, in that order.
-pub fn sample_scene_emission(scene: &Scene, bounds: (Vec3, f32), rng: &mut Pcg32) -> Option<(EmissionSample, f32)> {
+/// the light's index and the probability of that choice; `None` when the
+/// sample carries no light. Draws six numbers from `rng`, in that order.
+pub fn sample_scene_emission(
+    scene: &Scene,
+    bounds: (Vec3, f32),
+    rng: &mut Pcg32,
+) -> Option<(EmissionSample, usize, f32)> {
     let (light_index, pmf, _) = scene.light_distribution.sample(rng.next_f32());
     if pmf <= 0.0 {
         return None;
@@ -91,7 +95,7 @@ pub fn sample_scene_emission(scene: &Scene, bounds: (Vec3, f32), rng: &mut Pcg32
     let u_pos = Vec2::new(rng.next_f32(), rng.next_f32());
     let u_dir = Vec2::new(rng.next_f32(), rng.next_f32());
     let emitted = scene.lights[light_index].sample_le(scene, bounds, u_pick, u_pos, u_dir)?;
-    Some((emitted, pmf))
+    Some((emitted, light_index, pmf))
 }
 
 impl Light {

@@ -280,6 +280,18 @@ impl Projector {
         Some((self.eval(images, uv) * (self.scale / (cos * cos * cos)), dir))
     }
 
+    /// The density per unit solid angle with which
+    /// [`Projector::sample_emission`] draws the unit direction `dir`.
+    #[inline]
+    pub fn pdf_emission(&self, dir: Vec3) -> f32 {
+        let local = self.to_local * dir;
+        if self.uv(local).is_none() || local.z <= 0.0 {
+            return 0.0;
+        }
+        let cos = local.z / local.length();
+        1.0 / (self.image_area() * cos * cos * cos)
+    }
+
     /// A direction of emission drawn uniformly over the image's area on
     /// the plane z = 1, and the power that carries: the intensity over the
     /// direction's density 1/(area·cos³θ), i.e. π·scale·E·area.

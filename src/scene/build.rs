@@ -419,11 +419,14 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
     )
     .with_clipping(cam.near_clip, cam.far_clip);
-    if s.integrator == IntegratorKind::Light && !camera.connects() {
+    if matches!(s.integrator, IntegratorKind::Light | IntegratorKind::Bdpt) && !camera.connects() {
         return Err(Error::scene(
             cam.locs.item.clone(),
             "camera",
-            "light tracing cannot connect to an orthographic camera with a lens (its rays focus nowhere): drop the aperture, or use another integrator",
+            format!(
+                "\"{}\" cannot connect light paths to an orthographic camera with a lens (its rays focus nowhere): drop the aperture, or use another integrator",
+                s.integrator.name()
+            ),
         ));
     }
     let background = match &desc.background {
@@ -502,7 +505,10 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         ));
     }
     if desc.settings.max_component_value.is_finite()
-        && matches!(desc.settings.integrator, IntegratorKind::Sppm | IntegratorKind::Light)
+        && matches!(
+            desc.settings.integrator,
+            IntegratorKind::Sppm | IntegratorKind::Light | IntegratorKind::Bdpt
+        )
     {
         let at = desc
             .settings_locs
@@ -516,12 +522,17 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             desc.settings.integrator.name()
         ));
     }
-    let path_tracers = [IntegratorKind::Path, IntegratorKind::VolPath, IntegratorKind::Light];
+    let path_tracers = [
+        IntegratorKind::Path,
+        IntegratorKind::VolPath,
+        IntegratorKind::Light,
+        IntegratorKind::Bdpt,
+    ];
     if let Some(m) = desc.materials.iter().find(|m| m.opacity.is_some())
         && !path_tracers.contains(&desc.settings.integrator)
     {
         warnings.push(format!(
-            "{}material \"{}\" has an opacity mask, which only \"path\", \"volpath\" and \"light\" render; \"{}\" renders it opaque",
+            "{}material \"{}\" has an opacity mask, which only \"path\", \"volpath\", \"light\" and \"bdpt\" render; \"{}\" renders it opaque",
             m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default(),
             m.name,
             desc.settings.integrator.name()

@@ -13,7 +13,7 @@ use trazo::settings::{Filter, IntegratorKind};
 const BLOCK: u32 = 8;
 
 /// Luminance means of the image's BLOCK×BLOCK blocks.
-fn block_means(img: &Image) -> Vec<f64> {
+pub(crate) fn block_means(img: &Image) -> Vec<f64> {
     let (bw, bh) = (img.width / BLOCK, img.height / BLOCK);
     let mut out = vec![0.0; (bw * bh) as usize];
     for y in 0..bh * BLOCK {
@@ -26,7 +26,7 @@ fn block_means(img: &Image) -> Vec<f64> {
 
 /// Per block, the mean over `seeds` renders of `d` by `integrator` and its
 /// standard error (from the spread between seeds).
-fn blocks_over_seeds(d: &SceneDesc, integrator: IntegratorKind, seeds: u64) -> Vec<(f64, f64)> {
+pub(crate) fn blocks_over_seeds(d: &SceneDesc, integrator: IntegratorKind, seeds: u64) -> Vec<(f64, f64)> {
     let mut runs = Vec::new();
     for seed in 0..seeds {
         let mut d = d.clone();
@@ -47,7 +47,7 @@ fn blocks_over_seeds(d: &SceneDesc, integrator: IntegratorKind, seeds: u64) -> V
         .collect()
 }
 
-fn small_cornell() -> SceneDesc {
+pub(crate) fn small_cornell() -> SceneDesc {
     let mut d = cornell_box();
     d.settings.width = 32;
     d.settings.height = 32;

@@ -2,6 +2,7 @@
 //! profile's whole-program optimisation) instead of one per file. Each
 //! module is one area, as its own doc comment says.
 
+mod bdpt;
 mod bench_rays;
 mod cli;
 mod denoise;

@@ -1,0 +1,894 @@
+//! Bidirectional path tracing (Veach 1997, chapter 10; Lafortune and
+//! Willems 1993): for each pixel sample a subpath from the camera and one
+//! from a light, and every way of joining them into a full path.
+//!
+//! A camera subpath `z₀ z₁ … z_{t−1}` starts on the lens; a light subpath
+//! `y₀ y₁ … y_{s−1}` on a light chosen in proportion to its power. The
+//! strategy (s, t) uses the first s light vertices and the first t camera
+//! vertices:
+//!
+//! | strategy | path | what it is |
+//! |---|---|---|
+//! | s = 0 | the camera subpath reaches an emitter | the path tracer without next-event estimation |
+//! | s = 1 | a light point sampled for `z_{t−1}` | next-event estimation |
+//! | t = 1 | `y_{s−1}` connected to the lens | light tracing, splatted where it lands |
+//! | s, t ≥ 2 | `y_{s−1}` joined to `z_{t−1}` by a shadow ray | the bidirectional connections |
+//!
+//! Every path of length k can be made by k + 1 strategies with different
+//! densities; each contribution is weighted by the power heuristic over
+//! all of them (Veach 1997, eq. 10.9), computed as pbrt does from the
+//! ratios of each vertex's density as sampled from either side (pdfFwd,
+//! pdfRev, per unit area), so that no strategy's full density is formed.
+//! The weights of the strategies that make one path sum to one, so the
+//! estimate is unbiased whatever the weights are.
+//!
+//! Conventions are pbrt-v4's `BDPTIntegrator`: no Russian roulette in the
+//! subpaths; delta bounces store zero densities, which the weights skip;
+//! the strategy (1, 1), a light point seen by the lens, is not used (the
+//! camera subpath's s = 0 finds it); the geometry term uses shading
+//! normals, with the adjoint BSDF's correction for them on light subpaths
+//! (Veach 1997, eq. 5.21). Lights at infinity (environment, directional)
+//! shine from a disk of the scene's bounding radius, as their emitted rays
+//! do. Contributions land where their path crosses the image: in the
+//! camera sample's pixel (spread by the filter as light tracing's splats
+//! are), or, for t = 1, where the connection reaches the film. An
+//! iteration traces one camera subpath and one light subpath per pixel.
+
+use super::adjoint_shading_factor;
+use super::light::{SplatImage, SplatTarget};
+use super::{Progressive, Work};
+use crate::color::Rgb;
+use crate::film::Film;
+use crate::geometry::{Ray, SurfaceHit};
+use crate::light::{Light, ShadowTarget};
+use crate::material::{Bsdf, ShadingFrame, TransportMode};
+use crate::sampling::rng::Pcg32;
+use crate::sampling::warp::{pdf_cone_uniform, pdf_sphere_uniform};
+use crate::scene::Scene;
+use crate::texture::TexCoord;
+use glam::{Vec2, Vec3};
+use std::f32::consts::PI;
+use std::sync::atomic::AtomicBool;
+
+/// Why bidirectional renders refuse checkpoints.
+pub const NOT_RESUMABLE: &str = "bidirectional path tracing renders cannot be checkpointed, resumed or sharded yet (its image is a sum of splats over whole iterations): drop --checkpoint-every/--resume/--shard, or use --integrator path";
+
+/// Separates bidirectional path tracing's random numbers from the others'.
+const STREAM: u64 = 0x6264_7074;
+
+/// What a path vertex lies on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    /// The lens (or the orthographic view plane).
+    Camera,
+    /// A light: `p` is its point, or for a light at infinity the unit
+    /// direction from the scene toward it.
+    Light { light: u32, infinite: bool, delta: bool },
+    /// A surface.
+    Surface,
+}
+
+/// A vertex of a subpath.
+#[derive(Clone, Copy, Debug)]
+struct Vertex {
+    kind: Kind,
+    /// Position (for a light at infinity, the direction toward it).
+    p: Vec3,
+    /// Geometric normal of a surface or an area light (zero elsewhere).
+    ng: Vec3,
+    /// The shading normal the BSDF's frame uses (the normal for an area
+    /// light).
+    ns: Vec3,
+    /// Throughput of the subpath up to here (for lights: emission over
+    /// the density of the point).
+    beta: Rgb,
+    /// Whether the vertex scattered by a delta lobe.
+    delta: bool,
+    /// Whether a connection can end here: a light that is not a
+    /// direction, the camera, a surface with a non-delta lobe.
+    connectible: bool,
+    /// Density of this vertex sampled from its subpath's side, and from
+    /// the other side, per unit area (per solid angle for lights at
+    /// infinity).
+    pdf_fwd: f32,
+    pdf_rev: f32,
+    /// For surfaces: the hit and the unit direction toward the previous
+    /// vertex of its subpath.
+    hit: Option<SurfaceHit>,
+    wo: Vec3,
+    /// Radiance for camera subpaths, importance for light subpaths.
+    mode: TransportMode,
+}
+
+impl Vertex {
+    fn endpoint(kind: Kind, p: Vec3, n: Vec3, beta: Rgb, pdf_fwd: f32) -> Vertex {
+        Vertex {
+            kind,
+            p,
+            ng: n,
+            ns: n,
+            beta,
+            delta: false,
+            connectible: !matches!(
+                kind,
+                Kind::Light {
+                    infinite: true,
+                    delta: true,
+                    ..
+                }
+            ),
+            pdf_fwd,
+            pdf_rev: 0.0,
+            hit: None,
+            wo: Vec3::ZERO,
+            mode: TransportMode::Radiance,
+        }
+    }
+
+    fn is_infinite_light(&self) -> bool {
+        matches!(self.kind, Kind::Light { infinite: true, .. })
+    }
+
+    fn is_delta_light(&self) -> bool {
+        matches!(self.kind, Kind::Light { delta: true, .. })
+    }
+
+    /// Whether densities arriving here are per unit area of a surface
+    /// (surfaces and area lights), which carries a cosine.
+    fn on_surface(&self) -> bool {
+        self.ng != Vec3::ZERO
+    }
+
+    /// Unit direction from this vertex toward `to`, and the squared
+    /// distance (infinite toward a light at infinity).
+    fn toward(&self, to: &Vertex) -> (Vec3, f32) {
+        if to.is_infinite_light() {
+            return (to.p, f32::INFINITY);
+        }
+        if self.is_infinite_light() {
+            return (-self.p, f32::INFINITY);
+        }
+        let d = to.p - self.p;
+        let d2 = d.length_squared();
+        (d / d2.sqrt(), d2)
+    }
+}
+
+/// The BSDF at a surface vertex, in its shading frame.
+fn surface_bsdf<'s>(scene: &'s Scene, hit: &SurfaceHit, wo: Vec3) -> (Bsdf<'s>, ShadingFrame) {
+    let m = &scene.materials[hit.material as usize];
+    let tc = TexCoord::at(hit);
+    (m.bsdf(&scene.images, &tc), m.shading_frame(&scene.images, hit, wo))
+}
+
+/// The BSDF of surface vertex `v` from its previous vertex toward unit
+/// direction `wi`, with a normal map's factor and, on light subpaths, the
+/// adjoint correction for shading normals; the geometry term's shading
+/// cosine at `v` is applied by the caller.
+fn vertex_f(scene: &Scene, v: &Vertex, wi_world: Vec3) -> Rgb {
+    let Some(hit) = &v.hit else {
+        return Rgb::ZERO;
+    };
+    let (bsdf, frame) = surface_bsdf(scene, hit, v.wo);
+    let (wo, wi) = (frame.to_local(v.wo), frame.to_local(wi_world));
+    // The geometric normal decides reflection or transmission.
+    let front_o = hit.ng.dot(v.wo) > 0.0;
+    let front_i = hit.ng.dot(wi_world) > 0.0;
+    if (front_i == front_o) != (wi.z * wo.z > 0.0) || wi.z == 0.0 {
+        return Rgb::ZERO;
+    }
+    match v.mode {
+        TransportMode::Radiance => bsdf.eval(wo, wi, v.mode) * frame.factor(wi_world),
+        TransportMode::Importance => {
+            bsdf.eval(wo, wi, v.mode)
+                * (frame.factor(v.wo) * adjoint_shading_factor(hit.ng, v.wo, wo.z, wi_world, wi.z))
+        }
+    }
+}
+
+/// The densities with which light `light` emits from point `p` (normal
+/// `n`, zero for points) in unit direction `w`: per unit area of the
+/// point, and per solid angle of the direction, as
+/// [`Light::sample_le`] draws them.
+fn pdf_le(scene: &Scene, bounds: (Vec3, f32), light: u32, p: Vec3, n: Vec3, w: Vec3) -> (f32, f32) {
+    let disk = 1.0 / (PI * bounds.1 * bounds.1);
+    match &scene.lights[light as usize] {
+        Light::Point { .. } => (1.0, pdf_sphere_uniform()),
+        Light::Spot {
+            direction, cos_outer, ..
+        } => (
+            1.0,
+            if direction.dot(w) >= *cos_outer {
+                pdf_cone_uniform(*cos_outer)
+            } else {
+                0.0
+            },
+        ),
+        Light::Projector(proj) => (1.0, proj.pdf_emission(w)),
+        Light::Directional { .. } => (disk, 1.0),
+        Light::Area { emitter, area, .. } => {
+            let _ = p;
+            let cos = n.dot(w);
+            (
+                scene.geometry.emitter_pdf_area(*emitter, area, n),
+                if cos > 0.0 { cos / PI } else { 0.0 },
+            )
+        }
+        // `p` is the direction toward the light.
+        Light::Environment => (disk, scene.background.pdf(-w)),
+    }
+}
+
+/// The bidirectional path tracer: its settings and the image of its
+/// iterations.
+pub struct Bdpt {
+    max_depth: u32,
+    image: SplatImage,
+}
+
+impl Bdpt {
+    /// Nothing traced yet; `aovs` asks for the auxiliary sums.
+    pub fn new(scene: &Scene, aovs: bool) -> Bdpt {
+        Bdpt {
+            max_depth: scene.settings.max_depth,
+            image: SplatImage::new(scene, aovs),
+        }
+    }
+}
+
+impl Progressive for Bdpt {
+    const NOT_RESUMABLE: &'static str = NOT_RESUMABLE;
+
+    /// One camera subpath and one light subpath per pixel.
+    fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work> {
+        let tracer = Tracer {
+            scene,
+            bounds: crate::light::scene_bounding_sphere(scene),
+            max_depth: self.max_depth,
+        };
+        let width = scene.settings.width;
+        let rays = self.image.iterate(
+            scene,
+            STREAM,
+            cancel,
+            |i, rng, target, work: &mut Subpaths, splats, rays| {
+                tracer.sample(i % width, i / width, rng, target, work, splats, rays);
+            },
+        )?;
+        Some(Work {
+            rays,
+            ..Work::default()
+        })
+    }
+
+    fn film(&self) -> Film {
+        self.image.film()
+    }
+}
+
+/// The two subpaths of a sample.
+#[derive(Default)]
+struct Subpaths {
+    camera: Vec<Vertex>,
+    light: Vec<Vertex>,
+}
+
+/// What [`Tracer::mis_weight`] changes in the subpaths, to be put back.
+struct Saved {
+    /// (index, pdf_rev, delta) of the vertices whose values change.
+    light_changed: [Option<(usize, f32, bool)>; 2],
+    camera_changed: [Option<(usize, f32, bool)>; 2],
+    /// The first vertex of the light (true) or camera subpath, which the
+    /// strategy's sampled vertex replaced.
+    replaced: Option<(bool, Vertex)>,
+    /// Whether the sampled light vertex was pushed onto an empty subpath.
+    pushed: bool,
+}
+
+impl Saved {
+    fn restore(self, light: &mut Vec<Vertex>, camera: &mut [Vertex]) {
+        for (i, pdf_rev, delta) in self.light_changed.into_iter().flatten() {
+            (light[i].pdf_rev, light[i].delta) = (pdf_rev, delta);
+        }
+        for (i, pdf_rev, delta) in self.camera_changed.into_iter().flatten() {
+            (camera[i].pdf_rev, camera[i].delta) = (pdf_rev, delta);
+        }
+        match self.replaced {
+            Some((true, v)) => light[0] = v,
+            Some((false, v)) => camera[0] = v,
+            None => {}
+        }
+        if self.pushed {
+            light.pop();
+        }
+    }
+}
+
+/// What a sample needs of the scene.
+pub(crate) struct Tracer<'a> {
+    scene: &'a Scene,
+    bounds: (Vec3, f32),
+    max_depth: u32,
+}
+
+impl Tracer<'_> {
+    /// Pixel (x, y)'s sample: both subpaths, then every strategy, each
+    /// contribution added to `out` where it lands on the film.
+    #[allow(clippy::too_many_arguments)]
+    fn sample(
+        &self,
+        x: u32,
+        y: u32,
+        rng: &mut Pcg32,
+        target: &SplatTarget,
+        work: &mut Subpaths,
+        out: &mut Vec<(u32, Rgb)>,
+        rays: &mut u64,
+    ) {
+        let scene = self.scene;
+        let raster = Vec2::new(x as f32 + rng.next_f32(), y as f32 + rng.next_f32());
+        let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
+        self.camera_subpath(raster, u_lens, rng, &mut work.camera, rays);
+        self.light_subpath(rng, &mut work.light, rays);
+        let mut sum = Rgb::ZERO;
+        let (nc, nl) = (work.camera.len(), work.light.len());
+        for t in 1..=nc {
+            // s = 1 samples its own light vertex: it needs none from the
+            // light subpath.
+            for s in 0..=nl.max(1) {
+                let segments = s + t - 1;
+                if (s == 1 && t == 1) || segments == 0 || segments > self.max_depth as usize {
+                    continue;
+                }
+                if !scene.settings.shows_emission(segments as u32) && s + t == 2 {
+                    continue;
+                }
+                if let Some((l, splat_at)) = self.connect(s, t, work, rng, rays) {
+                    if !l.is_finite() || l == Rgb::ZERO {
+                        continue;
+                    }
+                    match splat_at {
+                        Some(r) => target.add_splat(r, l, out),
+                        None => sum += l,
+                    }
+                }
+            }
+        }
+        if sum != Rgb::ZERO {
+            target.add_splat(raster, sum, out);
+        }
+    }
+
+    /// The camera subpath through raster position `raster`.
+    fn camera_subpath(&self, raster: Vec2, u_lens: Vec2, rng: &mut Pcg32, path: &mut Vec<Vertex>, rays: &mut u64) {
+        path.clear();
+        let camera = &self.scene.camera;
+        let ray = camera.generate_ray(raster, u_lens);
+        let lens = camera.lens_point(&ray);
+        path.push(Vertex::endpoint(Kind::Camera, lens, Vec3::ZERO, Rgb::ONE, 1.0));
+        let pdf_dir = camera.pdf_dir(ray.dir);
+        self.walk(
+            ray,
+            Rgb::ONE,
+            pdf_dir,
+            TransportMode::Radiance,
+            self.max_depth as usize + 1,
+            rng,
+            path,
+            rays,
+        );
+    }
+
+    /// The light subpath: a light chosen by power, a point and direction
+    /// on it ([`Light::sample_le`]), then the walk.
+    fn light_subpath(&self, rng: &mut Pcg32, path: &mut Vec<Vertex>, rays: &mut u64) {
+        path.clear();
+        let scene = self.scene;
+        if scene.lights.is_empty() || scene.light_distribution.is_empty() || self.max_depth < 2 {
+            return;
+        }
+        let Some((emitted, light, pmf)) = crate::light::sample_scene_emission(scene, self.bounds, rng) else {
+            return;
+        };
+        let light = light as u32;
+        let w = emitted.ray.dir;
+        let beta = emitted.weight / pmf;
+        let infinite = matches!(
+            scene.lights[light as usize],
+            Light::Environment | Light::Directional { .. }
+        );
+        let delta = scene.lights[light as usize].is_delta();
+        let kind = Kind::Light { light, infinite, delta };
+        let (p, n) = match (&emitted.surface, infinite) {
+            (Some(point), _) => (point.p, point.n),
+            (None, true) => (-w, Vec3::ZERO),
+            (None, false) => (emitted.ray.origin, Vec3::ZERO),
+        };
+        let (pdf_pos, pdf_dir) = pdf_le(scene, self.bounds, light, p, n, w);
+        let mut start = Vertex::endpoint(kind, p, n, Rgb::ZERO, pmf * pdf_pos);
+        start.mode = TransportMode::Importance;
+        if infinite {
+            start.pdf_fwd = self.pdf_light_origin(&start, &start);
+        }
+        path.push(start);
+        self.walk(
+            emitted.ray,
+            beta,
+            pdf_dir,
+            TransportMode::Importance,
+            self.max_depth as usize,
+            rng,
+            path,
+            rays,
+        );
+        // The first surface of a path from infinity was found by a point
+        // on the disk the light shines from.
+        if infinite && path.len() > 1 {
+            path[1].pdf_fwd = pdf_pos * path[1].ng.dot(w).abs();
+        }
+    }
+
+    /// Strategy (s, t) of the sample's subpaths: the unweighted
+    /// contribution times its weight, and for t = 1 the raster position it
+    /// lands on; `None` where the strategy makes no path.
+    fn connect(
+        &self,
+        s: usize,
+        t: usize,
+        work: &mut Subpaths,
+        rng: &mut Pcg32,
+        rays: &mut u64,
+    ) -> Option<(Rgb, Option<Vec2>)> {
+        let scene = self.scene;
+        let mut sampled = None;
+        let mut raster = None;
+        let l = if s == 0 {
+            let pt = &work.camera[t - 1];
+            match pt.kind {
+                Kind::Light { infinite: true, .. } => pt.beta * scene.background.eval(pt.p),
+                Kind::Surface => {
+                    let hit = pt.hit.as_ref()?;
+                    let m = &scene.materials[hit.material as usize];
+                    if !(m.is_emissive() && hit.is_front(pt.wo)) {
+                        return None;
+                    }
+                    pt.beta * m.emission_at(&scene.images, &TexCoord::at(hit))
+                }
+                _ => return None,
+            }
+        } else if t == 1 {
+            let qs = &work.light[s - 1];
+            let u = Vec2::new(rng.next_f32(), rng.next_f32());
+            if !qs.connectible {
+                return None;
+            }
+            let hit = qs.hit.as_ref()?;
+            let c = scene.camera.sample_wi(qs.p, u)?;
+            let l = qs.beta * vertex_f(scene, qs, c.wi) * (qs.ns.dot(c.wi).abs() * c.weight);
+            if l == Rgb::ZERO {
+                return None;
+            }
+            *rays += 1;
+            if scene.occluded(&hit.spawn_ray_to(qs.p + c.wi * c.dist)) {
+                return None;
+            }
+            let mut camera = Vertex::endpoint(Kind::Camera, c.origin, Vec3::ZERO, Rgb::splat(c.weight), 0.0);
+            camera.mode = TransportMode::Radiance;
+            sampled = Some(camera);
+            raster = Some(c.raster);
+            l
+        } else if s == 1 {
+            let pt = &work.camera[t - 1];
+            let (u_light, u_pick) = (rng.next_f32(), rng.next_f32());
+            let u = Vec2::new(rng.next_f32(), rng.next_f32());
+            if !pt.connectible {
+                return None;
+            }
+            let hit = pt.hit.as_ref()?;
+            let (vertex, wi, li, shadow) = self.sample_light_vertex(pt, u_light, u_pick, u)?;
+            let l = pt.beta * vertex_f(scene, pt, wi) * li * pt.ns.dot(wi).abs();
+            if l == Rgb::ZERO {
+                return None;
+            }
+            *rays += 1;
+            let ray = match shadow {
+                ShadowTarget::Point(p) => hit.spawn_ray_to(p),
+                ShadowTarget::Infinity => hit.spawn_ray(wi),
+            };
+            if scene.occluded(&ray) {
+                return None;
+            }
+            sampled = Some(vertex);
+            l
+        } else {
+            let (qs, pt) = (&work.light[s - 1], &work.camera[t - 1]);
+            if !qs.connectible || !pt.connectible {
+                return None;
+            }
+            let (q_hit, p_hit) = (qs.hit.as_ref()?, pt.hit.as_ref()?);
+            let (w, d2) = pt.toward(qs);
+            let g = pt.ns.dot(w).abs() * qs.ns.dot(w).abs() / d2;
+            let l = qs.beta * vertex_f(scene, qs, -w) * vertex_f(scene, pt, w) * pt.beta * g;
+            if l == Rgb::ZERO || !l.is_finite() {
+                return None;
+            }
+            *rays += 1;
+            let end = q_hit.spawn_ray(-w).origin;
+            if scene.occluded(&p_hit.spawn_ray_to(end)) {
+                return None;
+            }
+            l
+        };
+        if l == Rgb::ZERO {
+            return None;
+        }
+        Some((l * self.mis_weight(work, s, t, sampled), raster))
+    }
+
+    /// A light point for camera vertex `pt` (strategy s = 1): a light
+    /// chosen by power as light subpaths choose it; an area light's point
+    /// drawn by area as its emitted rays draw it, the other lights'
+    /// through [`Light::sample_li`]. The light vertex, the unit direction
+    /// toward it, the light arriving along it over the densities, and the
+    /// shadow ray's end.
+    fn sample_light_vertex(
+        &self,
+        pt: &Vertex,
+        u_light: f32,
+        u_pick: f32,
+        u: Vec2,
+    ) -> Option<(Vertex, Vec3, Rgb, ShadowTarget)> {
+        let scene = self.scene;
+        if scene.light_distribution.is_empty() {
+            return None;
+        }
+        let (index, pmf, _) = scene.light_distribution.sample(u_light);
+        if pmf <= 0.0 {
+            return None;
+        }
+        let light = &scene.lights[index];
+        let infinite = matches!(light, Light::Environment | Light::Directional { .. });
+        let kind = Kind::Light {
+            light: index as u32,
+            infinite,
+            delta: light.is_delta(),
+        };
+        let (mut vertex, wi, li, target) = match light {
+            Light::Area {
+                emitter,
+                area,
+                radiance,
+                ..
+            } => {
+                let es = scene.geometry.sample_emitter(*emitter, area, u_pick, u)?;
+                let d = pt.p - es.p;
+                let d2 = d.length_squared();
+                let cos = es.n.dot(d) / d2.sqrt();
+                if !(cos > 0.0 && es.pdf_area > 0.0 && d2 > 0.0) {
+                    return None;
+                }
+                let le = radiance.eval(&scene.images, &TexCoord::new(es.uv, es.p));
+                let vertex = Vertex::endpoint(kind, es.p, es.n, le / (pmf * es.pdf_area), 0.0);
+                (
+                    vertex,
+                    -d / d2.sqrt(),
+                    le * (cos / (pmf * es.pdf_area * d2)),
+                    ShadowTarget::Point(es.p),
+                )
+            }
+            _ => {
+                let ls = light.sample_li(scene, pt.p, u_pick, u)?;
+                if ls.pdf <= 0.0 {
+                    return None;
+                }
+                let li = ls.li / (ls.pdf * pmf);
+                let p = match (infinite, ls.target) {
+                    (true, _) => ls.wi,
+                    (false, ShadowTarget::Point(p)) => p,
+                    (false, ShadowTarget::Infinity) => return None,
+                };
+                (Vertex::endpoint(kind, p, Vec3::ZERO, li, 0.0), ls.wi, li, ls.target)
+            }
+        };
+        vertex.mode = TransportMode::Importance;
+        vertex.pdf_fwd = self.pdf_light_origin(&vertex, pt);
+        Some((vertex, wi, li, target))
+    }
+
+    /// The power heuristic's weight of strategy (s, t) among all the
+    /// strategies that make its path (pbrt-v4's `MISWeight`, with the
+    /// ratios squared): each vertex's densities from the two sides are
+    /// updated for this connection, then the ratios of the path's density
+    /// under each other strategy to this one's are accumulated outward
+    /// from the connection. `sampled` is the vertex strategy s = 1 or
+    /// t = 1 drew in place of its subpath's first.
+    fn mis_weight(&self, work: &mut Subpaths, s: usize, t: usize, sampled: Option<Vertex>) -> f32 {
+        if s + t == 2 {
+            return 1.0;
+        }
+        let (light, camera) = (&mut work.light, &mut work.camera);
+        // What this strategy changes, to be put back.
+        let pushed = s == 1 && light.is_empty();
+        if pushed {
+            light.push(sampled.expect("s = 1 samples its light vertex"));
+        }
+        // The densities and delta flags this strategy changes, and the
+        // subpath endpoint its sampled vertex stands in for.
+        let light_changed =
+            [s.checked_sub(1), s.checked_sub(2)].map(|i| i.map(|i| (i, light[i].pdf_rev, light[i].delta)));
+        let camera_changed =
+            [t.checked_sub(1), t.checked_sub(2)].map(|i| i.map(|i| (i, camera[i].pdf_rev, camera[i].delta)));
+        let mut replaced = None;
+        if let Some(v) = sampled {
+            if s == 1 {
+                replaced = Some((true, std::mem::replace(&mut light[0], v)));
+            } else if t == 1 {
+                replaced = Some((false, std::mem::replace(&mut camera[0], v)));
+            }
+        }
+        let saved = Saved {
+            light_changed,
+            camera_changed,
+            replaced,
+            pushed,
+        };
+        // An emitter reached by the camera subpath, as a light vertex.
+        let pt_light = if s == 0 { self.as_light(&camera[t - 1]) } else { None };
+        if s == 0 && pt_light.is_none() {
+            // Emission that no light samples: no other strategy finds it.
+            saved.restore(light, camera);
+            return 1.0;
+        }
+        camera[t - 1].delta = false;
+        if s > 0 {
+            light[s - 1].delta = false;
+        }
+        camera[t - 1].pdf_rev = if s > 0 {
+            self.pdf(&light[s - 1], s.checked_sub(2).map(|i| &light[i]), &camera[t - 1])
+        } else {
+            self.pdf_light_origin(pt_light.as_ref().unwrap_or(&camera[t - 1]), &camera[t - 2])
+        };
+        if t >= 2 {
+            camera[t - 2].pdf_rev = match (&pt_light, s) {
+                (Some(l), 0) => self.pdf_light(l, &camera[t - 2]),
+                _ => self.pdf(&camera[t - 1], Some(&light[s - 1]), &camera[t - 2]),
+            };
+        }
+        if s > 0 {
+            light[s - 1].pdf_rev = self.pdf(&camera[t - 1], t.checked_sub(2).map(|i| &camera[i]), &light[s - 1]);
+        }
+        if s >= 2 {
+            light[s - 2].pdf_rev = self.pdf(&light[s - 1], Some(&camera[t - 1]), &light[s - 2]);
+        }
+        let remap = |x: f32| if x != 0.0 { x } else { 1.0 };
+        let mut sum = 0.0f32;
+        let mut ratio = 1.0f32;
+        for i in (1..t).rev() {
+            ratio *= remap(camera[i].pdf_rev) / remap(camera[i].pdf_fwd);
+            if !camera[i].delta && !camera[i - 1].delta {
+                sum += ratio * ratio;
+            }
+        }
+        ratio = 1.0;
+        for i in (0..s).rev() {
+            ratio *= remap(light[i].pdf_rev) / remap(light[i].pdf_fwd);
+            let delta_before = if i > 0 {
+                light[i - 1].delta
+            } else {
+                light[0].is_delta_light()
+            };
+            if !light[i].delta && !delta_before {
+                sum += ratio * ratio;
+            }
+        }
+        saved.restore(light, camera);
+        let w = 1.0 / (1.0 + sum);
+        if w.is_finite() { w } else { 0.0 }
+    }
+
+    /// Camera vertex `v` on an emitter, as the light vertex a light
+    /// subpath would have started there; `None` where no light is there.
+    fn as_light(&self, v: &Vertex) -> Option<Vertex> {
+        match v.kind {
+            Kind::Light { .. } => Some(*v),
+            Kind::Surface => {
+                let hit = v.hit.as_ref()?;
+                let light = hit.light?;
+                let kind = Kind::Light {
+                    light,
+                    infinite: false,
+                    delta: false,
+                };
+                let mut l = Vertex::endpoint(kind, v.p, hit.ng, v.beta, v.pdf_fwd);
+                l.pdf_rev = v.pdf_rev;
+                Some(l)
+            }
+            Kind::Camera => None,
+        }
+    }
+
+    /// Extends `path` from its last vertex along `ray` until it has
+    /// `max_vertices` vertices or ends; `pdf_dir` is the density of
+    /// `ray`'s direction at the last vertex.
+    #[allow(clippy::too_many_arguments)]
+    fn walk(
+        &self,
+        mut ray: Ray,
+        mut beta: Rgb,
+        mut pdf_dir: f32,
+        mode: TransportMode,
+        max_vertices: usize,
+        rng: &mut Pcg32,
+        path: &mut Vec<Vertex>,
+        rays: &mut u64,
+    ) {
+        let scene = self.scene;
+        while path.len() < max_vertices {
+            *rays += 1;
+            let Some(mut hit) = scene.intersect(&ray) else {
+                // A camera subpath that leaves the scene meets the
+                // environment, as a vertex on a light at infinity.
+                if mode == TransportMode::Radiance {
+                    if let Some(env) = scene.environment_light {
+                        let kind = Kind::Light {
+                            light: env,
+                            infinite: true,
+                            delta: false,
+                        };
+                        path.push(Vertex::endpoint(kind, ray.dir.normalize(), Vec3::ZERO, beta, pdf_dir));
+                    }
+                }
+                return;
+            };
+            scene.choose_any_material(&mut hit, ray.dir);
+            let m = &scene.materials[hit.material as usize];
+            let tc = TexCoord::at(&hit);
+            // A mask's cut-out part lets the path through unchanged, as the
+            // path tracer's and the light tracer's paths pass it.
+            if m.opacity.is_some() && rng.next_f32() >= m.opacity_at(&scene.images, &tc) {
+                ray = hit.spawn_ray(ray.dir);
+                continue;
+            }
+            let wo_world = -ray.dir.normalize();
+            let ng_wo = hit.ng.dot(wo_world);
+            let (bsdf, frame) = surface_bsdf(scene, &hit, wo_world);
+            if ng_wo == 0.0 || (!m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world)) {
+                return; // the back of a one-sided surface is black
+            }
+            let prev = path.len() - 1;
+            let mut v = Vertex {
+                kind: Kind::Surface,
+                p: hit.p,
+                ng: hit.ng,
+                ns: frame.n,
+                beta,
+                delta: false,
+                connectible: bsdf.has_smooth(),
+                pdf_fwd: 0.0,
+                pdf_rev: 0.0,
+                hit: Some(hit),
+                wo: wo_world,
+                mode,
+            };
+            v.pdf_fwd = self.convert(pdf_dir, &path[prev], &v);
+            path.push(v);
+            if path.len() >= max_vertices {
+                return;
+            }
+            let wo = frame.to_local(wo_world);
+            let (u_lobe, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
+            let Some(bs) = bsdf.sample(wo, u_lobe, u, mode) else {
+                return;
+            };
+            if bs.pdf <= 0.0 || bs.f == Rgb::ZERO || bs.wi.z == 0.0 || wo.z == 0.0 {
+                return;
+            }
+            let wi_world = frame.to_world(bs.wi);
+            let reflection = bs.wi.z * wo.z > 0.0;
+            if (hit.ng.dot(wi_world) > 0.0) != ((ng_wo > 0.0) == reflection) {
+                return; // the shading normal sent the path through the surface
+            }
+            let factor = match mode {
+                TransportMode::Radiance => frame.factor(wi_world),
+                TransportMode::Importance => {
+                    frame.factor(wo_world) * adjoint_shading_factor(hit.ng, wo_world, wo.z, wi_world, bs.wi.z)
+                }
+            };
+            beta *= bs.f * (factor * bs.wi.z.abs() / bs.pdf);
+            if beta == Rgb::ZERO || !beta.is_finite() {
+                return;
+            }
+            let this = path.len() - 1;
+            if bs.delta {
+                path[this].delta = true;
+                pdf_dir = 0.0;
+                path[prev].pdf_rev = 0.0;
+            } else {
+                pdf_dir = bs.pdf;
+                let pdf_back = bsdf.pdf(bs.wi, wo);
+                path[prev].pdf_rev = self.convert(pdf_back, &path[this], &path[prev]);
+            }
+            ray = hit.spawn_ray(wi_world);
+        }
+    }
+
+    /// A density per solid angle at `from` as a density per unit area at
+    /// `to` (per solid angle for a light at infinity; an orthographic
+    /// camera's density is already per unit area of its view plane).
+    fn convert(&self, pdf: f32, from: &Vertex, to: &Vertex) -> f32 {
+        if to.is_infinite_light() {
+            return pdf;
+        }
+        let (w, d2) = from.toward(to);
+        let cos = if to.on_surface() { to.ng.dot(w).abs() } else { 1.0 };
+        if from.kind == Kind::Camera && self.scene.camera.is_orthographic() {
+            return pdf * cos;
+        }
+        if from.is_infinite_light() {
+            return pdf * cos;
+        }
+        if d2 == 0.0 || !d2.is_finite() {
+            return 0.0;
+        }
+        pdf * cos / d2
+    }
+
+    /// The density with which `v`, reached from `prev`, samples `next`,
+    /// per unit area of `next`.
+    fn pdf(&self, v: &Vertex, prev: Option<&Vertex>, next: &Vertex) -> f32 {
+        match v.kind {
+            Kind::Light { .. } => self.pdf_light(v, next),
+            Kind::Camera => {
+                let (w, _) = v.toward(next);
+                self.convert(self.scene.camera.pdf_dir(w), v, next)
+            }
+            Kind::Surface => {
+                let (Some(hit), Some(prev)) = (&v.hit, prev) else {
+                    return 0.0;
+                };
+                let (bsdf, frame) = surface_bsdf(self.scene, hit, v.wo);
+                let (wp, _) = v.toward(prev);
+                let (wn, _) = v.toward(next);
+                let pdf = bsdf.pdf(frame.to_local(wp), frame.to_local(wn));
+                self.convert(pdf, v, next)
+            }
+        }
+    }
+
+    /// The density with which light vertex `v` emits toward `to`, per
+    /// unit area of `to`.
+    fn pdf_light(&self, v: &Vertex, to: &Vertex) -> f32 {
+        let Kind::Light { light, infinite, .. } = v.kind else {
+            return 0.0;
+        };
+        if infinite {
+            // The disk the light's rays leave from, seen along them.
+            let cos = if to.on_surface() { to.ng.dot(v.p).abs() } else { 1.0 };
+            return cos / (PI * self.bounds.1 * self.bounds.1);
+        }
+        let (w, d2) = v.toward(to);
+        let (_, pdf_dir) = pdf_le(self.scene, self.bounds, light, v.p, v.ng, w);
+        let cos = if to.on_surface() { to.ng.dot(w).abs() } else { 1.0 };
+        if d2 == 0.0 { 0.0 } else { pdf_dir * cos / d2 }
+    }
+
+    /// The density with which a light subpath starts at light vertex `v`
+    /// (the light's choice times its point's density; for a light at
+    /// infinity, of its direction), seen from `to`.
+    fn pdf_light_origin(&self, v: &Vertex, to: &Vertex) -> f32 {
+        let Kind::Light { light, infinite, .. } = v.kind else {
+            return 0.0;
+        };
+        let scene = self.scene;
+        let pmf = scene.light_distribution.pmf(light as usize);
+        if infinite {
+            return match &scene.lights[light as usize] {
+                Light::Environment => pmf * scene.background.pdf(v.p),
+                _ => pmf,
+            };
+        }
+        let (w, _) = v.toward(to);
+        let (pdf_pos, _) = pdf_le(scene, self.bounds, light, v.p, v.ng, w);
+        pmf * pdf_pos
+    }
+}
