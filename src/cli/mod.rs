@@ -224,8 +224,9 @@ struct RenderArgs {
     /// (Jensen's photon mapping), sppm (stochastic progressive photon
     /// mapping; --spp is then the number of iterations), volpath (media),
     /// light (light tracing: paths from the lights connected to the
-    /// camera; --spp is the number of light paths per pixel) or ao
-    /// (ambient occlusion).
+    /// camera; --spp is the number of light paths per pixel), bdpt
+    /// (bidirectional path tracing; --spp camera and light subpaths per
+    /// pixel) or ao (ambient occlusion).
     #[arg(long, value_name = "NAME", value_parser = IntegratorKind::NAMES)]
     integrator: Option<String>,
 

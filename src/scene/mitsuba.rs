@@ -138,6 +138,10 @@ const PLUGIN_TAGS: &[&str] = &[
     "volume",
 ];
 
+/// Mitsuba 0.6's bidirectional integrators, gone from Mitsuba 3, which
+/// trazo reads: `bdpt`, and the Metropolis samplers over it.
+const MITSUBA_06_INTEGRATORS: [&str; 3] = ["bdpt", "pssmlt", "mlt"];
+
 /// Every plugin Mitsuba 3.9.1 ships (its `plugins` folder, and the
 /// integrators its Python package registers), by name.
 const MITSUBA_PLUGINS: &[&str] = &[
@@ -620,12 +624,17 @@ impl Loader {
     /// An attribute that must be there. A plugin's `type` must also be one
     /// that Mitsuba 3 knows (a type Mitsuba knows and trazo does not is
     /// warned about where it is read; one Mitsuba does not know is an
-    /// error in Mitsuba too).
+    /// error in Mitsuba too), or one of Mitsuba 0.6's bidirectional
+    /// integrators, which trazo renders.
     fn required_attr(&mut self, f: &FileCtx, node: Node, name: &str) -> Result<String> {
         let value = self
             .attr(f, node, name)?
             .ok_or_else(|| self.err(f, node, format!("missing attribute `{name}`")))?;
-        if name == "type" && PLUGIN_TAGS.contains(&node.tag_name().name()) && !MITSUBA_PLUGINS.contains(&value.as_str())
+        let legacy = node.tag_name().name() == "integrator" && MITSUBA_06_INTEGRATORS.contains(&value.as_str());
+        if name == "type"
+            && PLUGIN_TAGS.contains(&node.tag_name().name())
+            && !MITSUBA_PLUGINS.contains(&value.as_str())
+            && !legacy
         {
             return Err(self.err(
                 f,
@@ -1072,6 +1081,17 @@ impl Loader {
             "path" | "direct" => {}
             "volpath" | "volpathmis" => s.integrator = IntegratorKind::VolPath,
             "ptracer" => s.integrator = IntegratorKind::Light,
+            // Mitsuba 0.6's bidirectional integrators: BDPT itself, and its
+            // Metropolis samplers, which converge to BDPT's image.
+            "bdpt" => s.integrator = IntegratorKind::Bdpt,
+            "pssmlt" | "mlt" => {
+                s.integrator = IntegratorKind::Bdpt;
+                self.warn(
+                    f,
+                    node,
+                    format!("integrator \"{ty}\" is rendered by \"bdpt\", the image its Metropolis sampling converges to"),
+                );
+            }
             other => self.warn(
                 f,
                 node,
@@ -1092,6 +1112,13 @@ impl Loader {
         }
         if let Some(d) = rr_depth {
             s.rr_depth = d.clamp(0, u32::MAX as i64) as u32;
+            if s.integrator == IntegratorKind::Bdpt {
+                self.warn(
+                    f,
+                    node,
+                    "\"rr_depth\" is ignored: trazo's bidirectional subpaths end at the depth, without Russian roulette (as pbrt-v4's)",
+                );
+            }
         }
         if let Some(hide) = self.boolean(f, &props, "hide_emitters", &mut used)? {
             self.desc.settings.hide_emitters = hide;
@@ -3985,6 +4012,21 @@ mod tests {
             "<boolean name=\"hide_emitters\" value=\"true\"/>",
         );
         assert!(parse(&hidden, Path::new("p.xml"), &[]).unwrap().settings.hide_emitters);
+    }
+
+    /// Mitsuba 0.6's `bdpt` is trazo's bidirectional path tracer, and its
+    /// Metropolis integrators are rendered by it, with a warning.
+    #[test]
+    fn bidirectional_integrators_are_bdpt() {
+        for (ty, warned) in [("bdpt", false), ("pssmlt", true), ("mlt", true)] {
+            let text = format!(
+                "<scene version=\"3.0.0\">\n    <integrator type=\"{ty}\">\n        <integer name=\"max_depth\" value=\"5\"/>\n    </integrator>\n</scene>"
+            );
+            let d = parse(&text, Path::new("b.xml"), &[]).unwrap();
+            assert_eq!((d.settings.integrator, d.settings.max_depth), (IntegratorKind::Bdpt, 5));
+            let w = d.warnings.join("\n");
+            assert_eq!(w.contains("b.xml:2:") && w.contains("Metropolis"), warned, "{w}");
+        }
     }
 
     /// File names resolve as in Mitsuba: against the main scene's folder

@@ -161,6 +161,30 @@ impl Parser {
             // pbrt-v4's LightPathIntegrator: light tracing, with the same
             // depth.
             s.integrator = IntegratorKind::Light;
+        } else if kind == "bdpt" || kind == "mlt" {
+            // pbrt-v4's BDPTIntegrator, with the same depth; its MLT
+            // converges to the same image by Metropolis sampling of the
+            // bidirectional strategies, which trazo does not do yet.
+            s.integrator = IntegratorKind::Bdpt;
+            if kind == "mlt" {
+                self.approximated(
+                    loc,
+                    "Integrator \"mlt\"".to_string(),
+                    "rendered by trazo's bidirectional path tracer, the image Metropolis sampling converges to, with the same depth",
+                );
+            }
+            for (name, how) in [
+                ("lightsampler", "trazo picks lights in proportion to their power"),
+                ("regularize", "paths are not regularised"),
+                ("visualizestrategies", "the strategies' images are not written"),
+                ("visualizeweights", "the strategies' images are not written"),
+            ] {
+                if let Some(prm) = p.find(name) {
+                    let l = prm.loc.clone();
+                    self.unsupported(&l, format!("\"{}\"", prm.written), how);
+                }
+            }
+            Self::use_all(p);
         } else if kind == "ambientocclusion" {
             // pbrt-v4's AOIntegrator. Its `cossample` false samples the
             // hemisphere uniformly: the same image, noisier; trazo samples
@@ -206,7 +230,7 @@ impl Parser {
             if let Some(seed) = seed {
                 s.seed = seed;
             }
-        } else if !matches!(kind, "path" | "volpath") {
+        } else if !matches!(kind, "path" | "volpath" | "bdpt" | "mlt") {
             self.approximated(
                 loc,
                 format!("Integrator \"{kind}\""),
