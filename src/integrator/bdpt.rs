@@ -68,9 +68,9 @@ enum Kind {
     Surface,
 }
 
-/// A vertex of a subpath.
+/// A vertex of a subpath (`'s`: the scene its BSDF reads).
 #[derive(Clone, Copy, Debug)]
-struct Vertex {
+struct Vertex<'s> {
     kind: Kind,
     /// Position (for a light at infinity, the direction toward it).
     p: Vec3,
@@ -92,16 +92,17 @@ struct Vertex {
     /// infinity).
     pdf_fwd: f32,
     pdf_rev: f32,
-    /// For surfaces: the hit and the unit direction toward the previous
-    /// vertex of its subpath.
+    /// For surfaces: the hit, its BSDF and shading frame, and the unit
+    /// direction toward the previous vertex of its subpath.
     hit: Option<SurfaceHit>,
+    bsdf: Option<(Bsdf<'s>, ShadingFrame)>,
     wo: Vec3,
     /// Radiance for camera subpaths, importance for light subpaths.
     mode: TransportMode,
 }
 
-impl Vertex {
-    fn endpoint(kind: Kind, p: Vec3, n: Vec3, beta: Rgb, pdf_fwd: f32) -> Vertex {
+impl<'s> Vertex<'s> {
+    fn endpoint(kind: Kind, p: Vec3, n: Vec3, beta: Rgb, pdf_fwd: f32) -> Vertex<'s> {
         Vertex {
             kind,
             p,
@@ -120,6 +121,7 @@ impl Vertex {
             pdf_fwd,
             pdf_rev: 0.0,
             hit: None,
+            bsdf: None,
             wo: Vec3::ZERO,
             mode: TransportMode::Radiance,
         }
@@ -165,11 +167,10 @@ fn surface_bsdf<'s>(scene: &'s Scene, hit: &SurfaceHit, wo: Vec3) -> (Bsdf<'s>, 
 /// direction `wi`, with a normal map's factor and, on light subpaths, the
 /// adjoint correction for shading normals; the geometry term's shading
 /// cosine at `v` is applied by the caller.
-fn vertex_f(scene: &Scene, v: &Vertex, wi_world: Vec3) -> Rgb {
-    let Some(hit) = &v.hit else {
+fn vertex_f(v: &Vertex, wi_world: Vec3) -> Rgb {
+    let (Some(hit), Some((bsdf, frame))) = (&v.hit, &v.bsdf) else {
         return Rgb::ZERO;
     };
-    let (bsdf, frame) = surface_bsdf(scene, hit, v.wo);
     let (wo, wi) = (frame.to_local(v.wo), frame.to_local(wi_world));
     // The geometric normal decides reflection or transmission.
     let front_o = hit.ng.dot(v.wo) > 0.0;
@@ -268,25 +269,25 @@ impl Progressive for Bdpt {
 
 /// The two subpaths of a sample.
 #[derive(Default)]
-struct Subpaths {
-    camera: Vec<Vertex>,
-    light: Vec<Vertex>,
+struct Subpaths<'s> {
+    camera: Vec<Vertex<'s>>,
+    light: Vec<Vertex<'s>>,
 }
 
 /// What [`Tracer::mis_weight`] changes in the subpaths, to be put back.
-struct Saved {
+struct Saved<'s> {
     /// (index, pdf_rev, delta) of the vertices whose values change.
     light_changed: [Option<(usize, f32, bool)>; 2],
     camera_changed: [Option<(usize, f32, bool)>; 2],
     /// The first vertex of the light (true) or camera subpath, which the
     /// strategy's sampled vertex replaced.
-    replaced: Option<(bool, Vertex)>,
+    replaced: Option<(bool, Vertex<'s>)>,
     /// Whether the sampled light vertex was pushed onto an empty subpath.
     pushed: bool,
 }
 
-impl Saved {
-    fn restore(self, light: &mut Vec<Vertex>, camera: &mut [Vertex]) {
+impl<'s> Saved<'s> {
+    fn restore(self, light: &mut Vec<Vertex<'s>>, camera: &mut [Vertex<'s>]) {
         for (i, pdf_rev, delta) in self.light_changed.into_iter().flatten() {
             (light[i].pdf_rev, light[i].delta) = (pdf_rev, delta);
         }
@@ -305,13 +306,13 @@ impl Saved {
 }
 
 /// What a sample needs of the scene.
-pub(crate) struct Tracer<'a> {
-    scene: &'a Scene,
+pub(crate) struct Tracer<'s> {
+    scene: &'s Scene,
     bounds: (Vec3, f32),
     max_depth: u32,
 }
 
-impl Tracer<'_> {
+impl<'s> Tracer<'s> {
     /// Pixel (x, y)'s sample: both subpaths, then every strategy, each
     /// contribution added to `out` where it lands on the film.
     #[allow(clippy::too_many_arguments)]
@@ -321,7 +322,7 @@ impl Tracer<'_> {
         y: u32,
         rng: &mut Pcg32,
         target: &SplatTarget,
-        work: &mut Subpaths,
+        work: &mut Subpaths<'s>,
         out: &mut Vec<(u32, Rgb)>,
         rays: &mut u64,
     ) {
@@ -360,7 +361,7 @@ impl Tracer<'_> {
     }
 
     /// The camera subpath through raster position `raster`.
-    fn camera_subpath(&self, raster: Vec2, u_lens: Vec2, rng: &mut Pcg32, path: &mut Vec<Vertex>, rays: &mut u64) {
+    fn camera_subpath(&self, raster: Vec2, u_lens: Vec2, rng: &mut Pcg32, path: &mut Vec<Vertex<'s>>, rays: &mut u64) {
         path.clear();
         let camera = &self.scene.camera;
         let ray = camera.generate_ray(raster, u_lens);
@@ -381,7 +382,7 @@ impl Tracer<'_> {
 
     /// The light subpath: a light chosen by power, a point and direction
     /// on it ([`Light::sample_le`]), then the walk.
-    fn light_subpath(&self, rng: &mut Pcg32, path: &mut Vec<Vertex>, rays: &mut u64) {
+    fn light_subpath(&self, rng: &mut Pcg32, path: &mut Vec<Vertex<'s>>, rays: &mut u64) {
         path.clear();
         let scene = self.scene;
         if scene.lights.is_empty() || scene.light_distribution.is_empty() || self.max_depth < 2 {
@@ -435,7 +436,7 @@ impl Tracer<'_> {
         &self,
         s: usize,
         t: usize,
-        work: &mut Subpaths,
+        work: &mut Subpaths<'s>,
         rng: &mut Pcg32,
         rays: &mut u64,
     ) -> Option<(Rgb, Option<Vec2>)> {
@@ -464,7 +465,7 @@ impl Tracer<'_> {
             }
             let hit = qs.hit.as_ref()?;
             let c = scene.camera.sample_wi(qs.p, u)?;
-            let l = qs.beta * vertex_f(scene, qs, c.wi) * (qs.ns.dot(c.wi).abs() * c.weight);
+            let l = qs.beta * vertex_f(qs, c.wi) * (qs.ns.dot(c.wi).abs() * c.weight);
             if l == Rgb::ZERO {
                 return None;
             }
@@ -486,7 +487,7 @@ impl Tracer<'_> {
             }
             let hit = pt.hit.as_ref()?;
             let (vertex, wi, li, shadow) = self.sample_light_vertex(pt, u_light, u_pick, u)?;
-            let l = pt.beta * vertex_f(scene, pt, wi) * li * pt.ns.dot(wi).abs();
+            let l = pt.beta * vertex_f(pt, wi) * li * pt.ns.dot(wi).abs();
             if l == Rgb::ZERO {
                 return None;
             }
@@ -508,7 +509,7 @@ impl Tracer<'_> {
             let (q_hit, p_hit) = (qs.hit.as_ref()?, pt.hit.as_ref()?);
             let (w, d2) = pt.toward(qs);
             let g = pt.ns.dot(w).abs() * qs.ns.dot(w).abs() / d2;
-            let l = qs.beta * vertex_f(scene, qs, -w) * vertex_f(scene, pt, w) * pt.beta * g;
+            let l = qs.beta * vertex_f(qs, -w) * vertex_f(pt, w) * pt.beta * g;
             if l == Rgb::ZERO || !l.is_finite() {
                 return None;
             }
@@ -537,7 +538,7 @@ impl Tracer<'_> {
         u_light: f32,
         u_pick: f32,
         u: Vec2,
-    ) -> Option<(Vertex, Vec3, Rgb, ShadowTarget)> {
+    ) -> Option<(Vertex<'s>, Vec3, Rgb, ShadowTarget)> {
         let scene = self.scene;
         if scene.light_distribution.is_empty() {
             return None;
@@ -602,7 +603,7 @@ impl Tracer<'_> {
     /// under each other strategy to this one's are accumulated outward
     /// from the connection. `sampled` is the vertex strategy s = 1 or
     /// t = 1 drew in place of its subpath's first.
-    fn mis_weight(&self, work: &mut Subpaths, s: usize, t: usize, sampled: Option<Vertex>) -> f32 {
+    fn mis_weight(&self, work: &mut Subpaths<'s>, s: usize, t: usize, sampled: Option<Vertex<'s>>) -> f32 {
         if s + t == 2 {
             return 1.0;
         }
@@ -688,7 +689,7 @@ impl Tracer<'_> {
 
     /// Camera vertex `v` on an emitter, as the light vertex a light
     /// subpath would have started there; `None` where no light is there.
-    fn as_light(&self, v: &Vertex) -> Option<Vertex> {
+    fn as_light(&self, v: &Vertex<'s>) -> Option<Vertex<'s>> {
         match v.kind {
             Kind::Light { .. } => Some(*v),
             Kind::Surface => {
@@ -719,7 +720,7 @@ impl Tracer<'_> {
         mode: TransportMode,
         max_vertices: usize,
         rng: &mut Pcg32,
-        path: &mut Vec<Vertex>,
+        path: &mut Vec<Vertex<'s>>,
         rays: &mut u64,
     ) {
         let scene = self.scene;
@@ -767,6 +768,7 @@ impl Tracer<'_> {
                 pdf_fwd: 0.0,
                 pdf_rev: 0.0,
                 hit: Some(hit),
+                bsdf: Some((bsdf, frame)),
                 wo: wo_world,
                 mode,
             };
@@ -843,10 +845,9 @@ impl Tracer<'_> {
                 self.convert(self.scene.camera.pdf_dir(w), v, next)
             }
             Kind::Surface => {
-                let (Some(hit), Some(prev)) = (&v.hit, prev) else {
+                let (Some((bsdf, frame)), Some(prev)) = (&v.bsdf, prev) else {
                     return 0.0;
                 };
-                let (bsdf, frame) = surface_bsdf(self.scene, hit, v.wo);
                 let (wp, _) = v.toward(prev);
                 let (wn, _) = v.toward(next);
                 let pdf = bsdf.pdf(frame.to_local(wp), frame.to_local(wn));
@@ -890,5 +891,120 @@ impl Tracer<'_> {
         let (w, _) = v.toward(to);
         let (pdf_pos, _) = pdf_le(scene, self.bounds, light, v.p, v.ng, w);
         pmf * pdf_pos
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::rng::Pcg32;
+
+    /// The camera subpaths of `scene` that reach an emitter are full paths
+    /// x₀ (on the light) … x_k (the lens); each is split every way into a
+    /// light subpath x₀ … x_{s−1} and a camera subpath x_k … x_s, their
+    /// vertices' densities from either side computed afresh, and the
+    /// weights [`Tracer::mis_weight`] gives the strategies that can make
+    /// the path (no connection at a delta or non-connectible vertex) must
+    /// sum to one. Returns how many paths were checked.
+    fn weights_sum_to_one<'s>(scene: &'s Scene, trials: u32) -> u32 {
+        let tracer = Tracer {
+            scene,
+            bounds: crate::light::scene_bounding_sphere(scene),
+            max_depth: 8,
+        };
+        let mut rng = Pcg32::new(11, 3);
+        let mut path = Vec::new();
+        let mut rays = 0;
+        let mut checked = 0;
+        let (w, h) = (scene.settings.width as f32, scene.settings.height as f32);
+        for _ in 0..trials {
+            let raster = Vec2::new(rng.next_f32() * w, rng.next_f32() * h);
+            let lens = Vec2::new(rng.next_f32(), rng.next_f32());
+            tracer.camera_subpath(raster, lens, &mut rng, &mut path, &mut rays);
+            for t in 3..=path.len() {
+                let Some(light_end) = tracer.as_light(&path[t - 1]) else {
+                    continue;
+                };
+                if !matches!(path[t - 1].kind, Kind::Surface) {
+                    continue;
+                }
+                // x₀ … x_k, x₀ on the light and x_k the lens.
+                let mut x: Vec<Vertex> = path[..t].iter().rev().copied().collect();
+                let k = x.len() - 1;
+                let as_light_vertex = |i: usize, x: &[Vertex<'s>]| if i == 0 { light_end } else { x[i] };
+                let mut from_light = vec![0.0f32; k + 1];
+                let mut from_camera = vec![0.0f32; k + 1];
+                from_light[0] = tracer.pdf_light_origin(&light_end, &x[1]);
+                from_light[1] = tracer.pdf_light(&light_end, &x[1]);
+                for i in 2..=k {
+                    let prev = as_light_vertex(i - 2, &x);
+                    from_light[i] = tracer.pdf(&x[i - 1], Some(&prev), &x[i]);
+                }
+                from_camera[k - 1] = tracer.pdf(&x[k], None, &x[k - 1]);
+                for i in (0..k - 1).rev() {
+                    from_camera[i] = tracer.pdf(&x[i + 1], Some(&x[i + 2]), &x[i]);
+                }
+                for v in x.iter_mut() {
+                    if v.delta {
+                        // A delta bounce stores no densities through it.
+                        v.pdf_fwd = 0.0;
+                    }
+                }
+                let mut sum = 0.0f64;
+                for s in 0..=k {
+                    let t = k + 1 - s;
+                    let valid = |i: usize| {
+                        let v = if i == 0 { &light_end } else { &x[i] };
+                        v.connectible && !v.delta
+                    };
+                    if s > 0 && !(valid(s - 1) && valid(s)) {
+                        continue;
+                    }
+                    let light: Vec<Vertex> = (0..s)
+                        .map(|i| {
+                            let mut v = as_light_vertex(i, &x);
+                            v.mode = TransportMode::Importance;
+                            (v.pdf_fwd, v.pdf_rev) = (from_light[i], from_camera[i]);
+                            v
+                        })
+                        .collect();
+                    let camera: Vec<Vertex> = (s..=k)
+                        .rev()
+                        .map(|i| {
+                            let mut v = x[i];
+                            (v.pdf_fwd, v.pdf_rev) = (from_camera[i], from_light[i]);
+                            v
+                        })
+                        .collect();
+                    let sampled = match (s, t) {
+                        (1, _) => Some(light[0]),
+                        (_, 1) => Some(camera[0]),
+                        _ => None,
+                    };
+                    let mut work = Subpaths { camera, light };
+                    sum += tracer.mis_weight(&mut work, s, t, sampled) as f64;
+                }
+                assert!((sum - 1.0).abs() < 1e-3, "path of {k} segments: weights sum to {sum}");
+                checked += 1;
+                x.clear();
+            }
+        }
+        checked
+    }
+
+    #[test]
+    fn weights_of_the_strategies_of_a_path_sum_to_one() {
+        let cornell = crate::scene::build(&crate::scene::builtin::cornell_box()).unwrap();
+        let n = weights_sum_to_one(&cornell, 5000);
+        assert!(n > 50, "only {n} paths reached the light");
+        // Glass (delta lobes) and a sphere light.
+        let caustic = crate::scene::load(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/caustic.toml"),
+            &[],
+        )
+        .unwrap();
+        let caustic = crate::scene::build(&caustic).unwrap();
+        let n = weights_sum_to_one(&caustic, 200_000);
+        assert!(n > 50, "only {n} paths reached the light");
     }
 }

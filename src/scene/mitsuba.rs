@@ -1089,7 +1089,9 @@ impl Loader {
                 self.warn(
                     f,
                     node,
-                    format!("integrator \"{ty}\" is rendered by \"bdpt\", the image its Metropolis sampling converges to"),
+                    format!(
+                        "integrator \"{ty}\" is rendered by \"bdpt\", the image its Metropolis sampling converges to"
+                    ),
                 );
             }
             other => self.warn(

@@ -127,7 +127,11 @@ WorldBegin"#,
     assert!(!w.contains("Integrator"), "{w}");
     let m = parse_str("Integrator \"mlt\" \"integer maxdepth\" 4\nWorldBegin").unwrap();
     assert_eq!((m.settings.integrator, m.settings.max_depth), (IntegratorKind::Bdpt, 5));
-    assert!(m.warnings.join("\n").contains("test.pbrt:1:1: Integrator \"mlt\" is approximated"));
+    assert!(
+        m.warnings
+            .join("\n")
+            .contains("test.pbrt:1:1: Integrator \"mlt\" is approximated")
+    );
     assert_eq!(d.settings.sampler, SamplerKind::Sobol);
     assert!(!w.contains("Sampler"), "ZSobol is read as trazo's Sobol sampler: {w}");
 
