@@ -343,7 +343,8 @@ struct CompareArgs {
 
     /// The contestants, comma-separated: whitted, path, path:uniform,
     /// path:cosine, path:bsdf, path:mis, photon, sppm, volpath (media by
-    /// tracking), volpath:march=STEP (by ray marching); a suffix +denoise,
+    /// tracking), volpath:march=STEP (by ray marching), light, bdpt, ao; a
+    /// suffix +denoise,
     /// +atrous or +oidn denoises a contestant's image (e.g. path:mis+denoise).
     #[arg(long, value_name = "LIST", default_value = "whitted,path:uniform,path:mis")]
     integrators: String,
