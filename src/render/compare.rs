@@ -403,7 +403,8 @@ mod tests {
         assert_eq!(Contestant::parse("photon").unwrap().integrator, IntegratorKind::Photon);
         assert_eq!(Contestant::parse("sppm").unwrap().label, "sppm");
         assert!(Contestant::parse("photon:mis").is_err());
-        assert!(Contestant::parse("bdpt").is_err());
+        assert_eq!(Contestant::parse("bdpt").unwrap().integrator, IntegratorKind::Bdpt);
+        assert!(Contestant::parse("mlt").is_err());
         let d = Contestant::parse("path:mis+denoise").unwrap();
         assert_eq!(
             (d.label.as_str(), d.denoise),
