@@ -59,9 +59,35 @@ pub struct RenderSettings {
     /// Ambient occlusion: how far a surface still occludes (infinite:
     /// any).
     pub ao_distance: f32,
+    /// Where the image is a window cut from a larger one; `width` and
+    /// `height` are then the window's size.
+    pub crop: Option<Crop>,
+}
+
+/// A crop window: the rendered image is the part of a `full_width` ×
+/// `full_height` image whose top-left pixel is (`x`, `y`), as pbrt-v4's
+/// `cropwindow` and `pixelbounds` and Mitsuba's `crop_offset_x/y`,
+/// `crop_width/height` cut it. The camera frames the full image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Crop {
+    /// Width of the full image, in pixels.
+    pub full_width: u32,
+    /// Height of the full image, in pixels.
+    pub full_height: u32,
+    /// Column of the window's top-left pixel in the full image.
+    pub x: u32,
+    /// Row of the window's top-left pixel in the full image.
+    pub y: u32,
 }
 
 impl RenderSettings {
+    /// The size of the whole image the camera frames: `width` × `height`,
+    /// or the full image a crop window is cut from.
+    pub fn full_size(&self) -> (u32, u32) {
+        self.crop
+            .map_or((self.width, self.height), |c| (c.full_width, c.full_height))
+    }
+
     /// Whether emission met by the `segment`-th segment of a camera path
     /// (1: the camera ray itself) is counted.
     #[inline]
@@ -90,6 +116,7 @@ impl Default for RenderSettings {
             march_step: None,
             hide_emitters: false,
             ao_distance: f32::INFINITY,
+            crop: None,
         }
     }
 }

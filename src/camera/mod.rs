@@ -89,6 +89,10 @@ pub struct Camera {
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
+    /// The corner of the crop window in the full image's raster (zero
+    /// without one): the window's raster positions plus it are the full
+    /// image's, which the projection maps.
+    offset: Vec2,
 }
 
 /// The perspective projection of pbrt-v4 (eq. 5.1): maps camera space to
@@ -136,8 +140,32 @@ impl Camera {
         width: u32,
         height: u32,
     ) -> Result<Camera, String> {
+        Self::from_transform_cropped(projection, camera_to_world, width, height, None)
+    }
+
+    /// [`Camera::from_transform`] framing a `width` × `height` image of
+    /// which it renders only the window `crop` = (x, y, crop width, crop
+    /// height) in pixels: its raster positions, [`Camera::sample_wi`]'s
+    /// and its importance (normalised over the window) are the window's.
+    pub fn from_transform_cropped(
+        projection: Projection,
+        camera_to_world: Transform,
+        width: u32,
+        height: u32,
+        crop: Option<(u32, u32, u32, u32)>,
+    ) -> Result<Camera, String> {
         if width == 0 || height == 0 {
             return Err("image size must be at least 1×1".into());
+        }
+        let (x0, y0, crop_width, crop_height) = crop.unwrap_or((0, 0, width, height));
+        if crop_width == 0
+            || crop_height == 0
+            || x0 as u64 + crop_width as u64 > width as u64
+            || y0 as u64 + crop_height as u64 > height as u64
+        {
+            return Err(format!(
+                "the crop window ({x0}, {y0}) + {crop_width}×{crop_height} does not lie within the {width}×{height} image"
+            ));
         }
         let aspect = width as f32 / height as f32;
         // Screen window: y ∈ [-1, 1] for perspective (scaled by the
@@ -171,7 +199,13 @@ impl Camera {
             });
         let forward = camera_to_world.vector(Vec3::Z).normalize();
         let corner = |x: f32, y: f32| raster_to_camera.m.project_point3(Vec3::new(x, y, 0.0));
-        let (c00, c10, c01) = (corner(0.0, 0.0), corner(width as f32, 0.0), corner(0.0, height as f32));
+        // The window's corners: the importance is normalised over it.
+        let (x0f, y0f) = (x0 as f32, y0 as f32);
+        let (c00, c10, c01) = (
+            corner(x0f, y0f),
+            corner(x0f + crop_width as f32, y0f),
+            corner(x0f, y0f + crop_height as f32),
+        );
         let image_area = match projection {
             // Directions are what a pinhole sees: the corners projected to z = 1.
             Projection::Perspective { .. } => {
@@ -193,8 +227,9 @@ impl Camera {
             image_area,
             lens_radius: 0.0,
             focus_distance: 1.0,
-            width,
-            height,
+            width: crop_width,
+            height: crop_height,
+            offset: Vec2::new(x0f, y0f),
         })
     }
 
@@ -244,6 +279,7 @@ impl Camera {
     }
 
     fn unclipped_ray(&self, film: Vec2, lens: Vec2) -> Ray {
+        let film = film + self.offset;
         if let (Some(([a, b, c], origin)), true) = (self.pinhole, self.lens_radius <= 0.0) {
             return Ray::new(origin, (a * film.x + b * film.y + c).normalize());
         }
@@ -329,6 +365,7 @@ impl Camera {
                 (raster, lens_world, 1.0)
             }
         };
+        let raster = Vec2::new(raster.x, raster.y) - self.offset;
         let (w, h) = (self.width as f32, self.height as f32);
         if !(raster.x >= 0.0 && raster.x < w && raster.y >= 0.0 && raster.y < h && cos > 0.0) {
             return None;
@@ -354,7 +391,7 @@ impl Camera {
             Projection::Orthographic { .. } => 1.0 / self.image_area,
         };
         weight.is_finite().then_some(CameraConnection {
-            raster: Vec2::new(raster.x, raster.y),
+            raster,
             origin: lens_point,
             wi,
             dist: visible,

@@ -439,6 +439,11 @@ impl SceneArgs {
                 desc
             }
         };
+        if desc.settings.crop.is_some() && (self.width.is_some() || self.height.is_some()) {
+            desc.settings.crop = None;
+            desc.warnings
+                .push("--width/--height set the size of the whole image: the scene's crop window is not used".into());
+        }
         let s = &mut desc.settings;
         if let Some(v) = self.width {
             s.width = v;

@@ -187,11 +187,11 @@ fn vertex_f(v: &Vertex, wi_world: Vec3) -> Rgb {
     }
 }
 
-/// The densities with which light `light` emits from point `p` (normal
-/// `n`, zero for points) in unit direction `w`: per unit area of the
-/// point, and per solid angle of the direction, as
-/// [`Light::sample_le`] draws them.
-fn pdf_le(scene: &Scene, bounds: (Vec3, f32), light: u32, p: Vec3, n: Vec3, w: Vec3) -> (f32, f32) {
+/// The densities with which light `light` emits from a point of normal
+/// `n` (zero for points and lights at infinity) in unit direction `w`
+/// (where the light travels): per unit area of the point, and per solid
+/// angle of the direction, as [`Light::sample_le`] draws them.
+fn pdf_le(scene: &Scene, bounds: (Vec3, f32), light: u32, n: Vec3, w: Vec3) -> (f32, f32) {
     let disk = 1.0 / (PI * bounds.1 * bounds.1);
     match &scene.lights[light as usize] {
         Light::Point { .. } => (1.0, pdf_sphere_uniform()),
@@ -208,14 +208,12 @@ fn pdf_le(scene: &Scene, bounds: (Vec3, f32), light: u32, p: Vec3, n: Vec3, w: V
         Light::Projector(proj) => (1.0, proj.pdf_emission(w)),
         Light::Directional { .. } => (disk, 1.0),
         Light::Area { emitter, area, .. } => {
-            let _ = p;
             let cos = n.dot(w);
             (
                 scene.geometry.emitter_pdf_area(*emitter, area, n),
                 if cos > 0.0 { cos / PI } else { 0.0 },
             )
         }
-        // `p` is the direction toward the light.
         Light::Environment => (disk, scene.background.pdf(-w)),
     }
 }
@@ -405,7 +403,7 @@ impl<'s> Tracer<'s> {
             (None, true) => (-w, Vec3::ZERO),
             (None, false) => (emitted.ray.origin, Vec3::ZERO),
         };
-        let (pdf_pos, pdf_dir) = pdf_le(scene, self.bounds, light, p, n, w);
+        let (pdf_pos, pdf_dir) = pdf_le(scene, self.bounds, light, n, w);
         let mut start = Vertex::endpoint(kind, p, n, Rgb::ZERO, pmf * pdf_pos);
         start.mode = TransportMode::Importance;
         if infinite {
@@ -868,7 +866,7 @@ impl<'s> Tracer<'s> {
             return cos / (PI * self.bounds.1 * self.bounds.1);
         }
         let (w, d2) = v.toward(to);
-        let (_, pdf_dir) = pdf_le(self.scene, self.bounds, light, v.p, v.ng, w);
+        let (_, pdf_dir) = pdf_le(self.scene, self.bounds, light, v.ng, w);
         let cos = if to.on_surface() { to.ng.dot(w).abs() } else { 1.0 };
         if d2 == 0.0 { 0.0 } else { pdf_dir * cos / d2 }
     }
@@ -889,7 +887,7 @@ impl<'s> Tracer<'s> {
             };
         }
         let (w, _) = v.toward(to);
-        let (pdf_pos, _) = pdf_le(scene, self.bounds, light, v.p, v.ng, w);
+        let (pdf_pos, _) = pdf_le(scene, self.bounds, light, v.ng, w);
         pmf * pdf_pos
     }
 }

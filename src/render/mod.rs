@@ -465,13 +465,19 @@ fn limit_component(l: Rgb, max: f32) -> Rgb {
 /// else by the filter's importance) and the ray through it.
 #[inline(always)]
 fn camera_sample(scene: &Scene, splatting: bool, sampler: &mut Sampler, (x, y, index): (u32, u32, u32)) -> (Vec2, Ray) {
+    // A crop window's pixels draw the numbers of the full image's pixels
+    // and find their positions there (the window's are those less its
+    // corner, exactly, and the camera adds it back, exactly): they come
+    // out as in the full image.
+    let (cx, cy) = scene.settings.crop.map_or((0, 0), |c| (c.x, c.y));
+    let (x, y) = (x + cx, y + cy);
     sampler.start_pixel_sample(x, y, index);
     let u = sampler.pixel_2d();
     let position = if splatting {
         Vec2::new(x as f32, y as f32) + u
     } else {
         Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + scene.settings.filter.sample(u)
-    };
+    } - Vec2::new(cx as f32, cy as f32);
     let lens = scene.camera.draw_lens(sampler);
     (position, scene.camera.generate_ray(position, lens))
 }

@@ -405,20 +405,28 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         ProjectionDesc::Perspective { fov } => Projection::Perspective { fov_y: fov },
         ProjectionDesc::Orthographic { size } => Projection::Orthographic { height: size },
     };
-    let camera = match cam.to_world {
-        Some(m) => {
-            let t = Transform::from_matrix(m)
-                .map_err(|e| Error::scene(cam.locs.key("to_world"), "camera.to_world", e.to_string()))?;
-            Camera::from_transform(projection, t, s.width, s.height)
-        }
-        None => Camera::look_at(projection, cam.from, cam.to, cam.up, s.width, s.height),
-    }
-    .map_err(|m| Error::scene(cam.locs.item.clone(), "camera", m))?
-    .with_thin_lens(
-        cam.aperture_radius,
-        cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
-    )
-    .with_clipping(cam.near_clip, cam.far_clip);
+    let camera_to_world = match cam.to_world {
+        Some(m) => Transform::from_matrix(m)
+            .map_err(|e| Error::scene(cam.locs.key("to_world"), "camera.to_world", e.to_string()))?,
+        None => Transform::look_at(cam.from, cam.to, cam.up).map_err(|_| {
+            Error::scene(
+                cam.locs.item.clone(),
+                "camera",
+                "the camera's `from`, `to` and `up` do not define a view (from = to, or up parallel to the view direction)",
+            )
+        })?,
+    };
+    let (full_width, full_height, window) = match s.crop {
+        Some(c) => (c.full_width, c.full_height, Some((c.x, c.y, s.width, s.height))),
+        None => (s.width, s.height, None),
+    };
+    let camera = Camera::from_transform_cropped(projection, camera_to_world, full_width, full_height, window)
+        .map_err(|m| Error::scene(cam.locs.item.clone(), "camera", m))?
+        .with_thin_lens(
+            cam.aperture_radius,
+            cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
+        )
+        .with_clipping(cam.near_clip, cam.far_clip);
     if matches!(s.integrator, IntegratorKind::Light | IntegratorKind::Bdpt) && !camera.connects() {
         return Err(Error::scene(
             cam.locs.item.clone(),

@@ -1181,7 +1181,7 @@ impl Loader {
         }
         let props = Self::props(node);
         let mut used = Vec::new();
-        let (w, h) = (self.desc.settings.width, self.desc.settings.height);
+        let (w, h) = self.desc.settings.full_size();
         let to_world = self
             .transform(f, &props, "to_world", &mut used)?
             .unwrap_or(Mat4::IDENTITY);
@@ -1269,14 +1269,34 @@ impl Loader {
         for key in ["pixel_format", "component_format", "file_format"] {
             let _ = self.string(f, &props, key, &mut used)?;
         }
-        for key in ["crop_offset_x", "crop_offset_y", "crop_width", "crop_height"] {
-            if self.integer(f, &props, key, &mut used)?.is_some() {
-                self.warn(
-                    f,
-                    node,
-                    format!("\"{key}\" is unsupported; the whole image is rendered"),
-                );
+        // A crop window: the image rendered is that part of the full one.
+        let (full_w, full_h) = (self.desc.settings.width, self.desc.settings.height);
+        let mut crop = [0i64, 0, full_w as i64, full_h as i64];
+        for (k, key) in ["crop_offset_x", "crop_offset_y", "crop_width", "crop_height"]
+            .iter()
+            .enumerate()
+        {
+            if let Some(v) = self.integer(f, &props, key, &mut used)? {
+                crop[k] = v;
             }
+        }
+        let [x, y, cw, ch] = crop;
+        if x < 0 || y < 0 || cw < 1 || ch < 1 || x + cw > full_w as i64 || y + ch > full_h as i64 {
+            return Err(self.err(
+                f,
+                node,
+                format!("the crop window ({x}, {y}) + {cw}×{ch} does not lie within the {full_w}×{full_h} film"),
+            ));
+        }
+        if [x, y, cw, ch] != [0, 0, full_w as i64, full_h as i64] {
+            let s = &mut self.desc.settings;
+            s.crop = Some(crate::settings::Crop {
+                full_width: full_w,
+                full_height: full_h,
+                x: x as u32,
+                y: y as u32,
+            });
+            (s.width, s.height) = (cw as u32, ch as u32);
         }
         if let Some(b) = self.boolean(f, &props, "sample_border", &mut used)? {
             if b {
@@ -4014,6 +4034,23 @@ mod tests {
             "<boolean name=\"hide_emitters\" value=\"true\"/>",
         );
         assert!(parse(&hidden, Path::new("p.xml"), &[]).unwrap().settings.hide_emitters);
+    }
+
+    /// The film's crop window: the image is that part of the full one, and
+    /// a window outside the film is an error at the film.
+    #[test]
+    fn film_crop_window() {
+        let text = |x: i32| {
+            format!(
+                "<scene version=\"3.0.0\">\n<sensor type=\"perspective\">\n<film type=\"hdrfilm\">\n<integer name=\"width\" value=\"64\"/><integer name=\"height\" value=\"48\"/>\n<integer name=\"crop_offset_x\" value=\"{x}\"/><integer name=\"crop_offset_y\" value=\"8\"/><integer name=\"crop_width\" value=\"32\"/><integer name=\"crop_height\" value=\"16\"/>\n</film>\n</sensor>\n</scene>"
+            )
+        };
+        let d = parse(&text(16), Path::new("c.xml"), &[]).unwrap();
+        assert_eq!((d.settings.width, d.settings.height), (32, 16));
+        assert_eq!(d.settings.full_size(), (64, 48));
+        assert_eq!(d.settings.crop.map(|c| (c.x, c.y)), Some((16, 8)));
+        let e = parse(&text(40), Path::new("c.xml"), &[]).unwrap_err().to_string();
+        assert!(e.starts_with("c.xml:3:") && e.contains("crop window"), "{e}");
     }
 
     /// Mitsuba 0.6's `bdpt` is trazo's bidirectional path tracer, and its

@@ -492,6 +492,33 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     if let Some(d) = t.number("ao_distance")? {
         s.ao_distance = d;
     }
+    if let Some(v) = t.value("crop") {
+        // [x, y, width, height] in pixels of the width × height image.
+        let c = t.numbers_of("crop", v, 4)?;
+        let (full_w, full_h) = (s.width as f64, s.height as f64);
+        let ok = c.iter().all(|x| x.fract() == 0.0 && *x >= 0.0)
+            && c[2] >= 1.0
+            && c[3] >= 1.0
+            && c[0] as f64 + c[2] as f64 <= full_w
+            && c[1] as f64 + c[3] as f64 <= full_h;
+        if !ok {
+            return Err(t.err_at(
+                "crop",
+                &v.span(),
+                format!(
+                    "must be [x, y, width, height], whole pixels inside the {}×{} image, got {c:?}",
+                    s.width, s.height
+                ),
+            ));
+        }
+        s.crop = Some(crate::settings::Crop {
+            full_width: s.width,
+            full_height: s.height,
+            x: c[0] as u32,
+            y: c[1] as u32,
+        });
+        (s.width, s.height) = (c[2] as u32, c[3] as u32);
+    }
     if let Some(n) = t.unsigned("photons", u32::MAX as u64)? {
         s.photon.photons = n as u32;
     }

@@ -72,11 +72,20 @@ fn light_tracing_agrees_with_the_path_tracer_through_every_camera() {
     ortho.camera.projection = ProjectionDesc::Orthographic { size: 2.2 };
     let mut filtered = small_cornell();
     filtered.settings.filter = Filter::from_name("gaussian").unwrap();
+    // A 32×32 window of a 48×40 image: the importance is the window's.
+    let mut cropped = small_cornell();
+    cropped.settings.crop = Some(trazo::settings::Crop {
+        full_width: 48,
+        full_height: 40,
+        x: 12,
+        y: 3,
+    });
     for (name, d) in [
         ("pinhole", pinhole),
         ("thin lens", lens),
         ("orthographic", ortho),
         ("gaussian filter", filtered),
+        ("crop window", cropped),
     ] {
         let light = blocks_over_seeds(&d, IntegratorKind::Light, 16);
         let path = blocks_over_seeds(&d, IntegratorKind::Path, 16);

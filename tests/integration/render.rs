@@ -1396,3 +1396,44 @@ fn ambient_occlusion_under_a_ceiling_matches_its_closed_form() {
         assert!(img.pixels.iter().all(|p| p.x == p.y && p.y == p.z));
     }
 }
+
+/// A crop window renders that part of the full image: with a one-pixel
+/// box filter its pixels are the full image's, to the bit (they draw the
+/// full image's pixels' random numbers), and the window comes out at its
+/// own size.
+#[test]
+fn a_crop_window_is_that_part_of_the_full_image() {
+    let mut d = trazo::scene::builtin::cornell_box();
+    d.settings.width = 40;
+    d.settings.height = 30;
+    d.settings.spp = 4;
+    d.settings.filter = trazo::settings::Filter::Box { radius: 0.5 };
+    let full = render(&trazo::scene::build(&d).unwrap(), &RenderOptions::default())
+        .unwrap()
+        .film
+        .to_image();
+    let mut c = d.clone();
+    c.settings.crop = Some(trazo::settings::Crop {
+        full_width: 40,
+        full_height: 30,
+        x: 7,
+        y: 11,
+    });
+    (c.settings.width, c.settings.height) = (20, 13);
+    let crop = render(&trazo::scene::build(&c).unwrap(), &RenderOptions::default())
+        .unwrap()
+        .film
+        .to_image();
+    assert_eq!((crop.width, crop.height), (20, 13));
+    for y in 0..13 {
+        for x in 0..20 {
+            assert_eq!(crop.get(x, y), full.get(x + 7, y + 11), "pixel ({x}, {y})");
+        }
+    }
+    // A window that does not fit is refused, naming the camera.
+    c.settings.width = 40;
+    let e = trazo::scene::build(&c)
+        .expect_err("a window beyond the image")
+        .to_string();
+    assert!(e.contains("crop window"), "{e}");
+}

@@ -8,7 +8,7 @@ use super::{Parser, world_from_camera};
 use crate::error::{Error, Result, SourceLoc};
 use crate::sampling::SamplerKind;
 use crate::scene::desc::*;
-use crate::settings::{Filter, IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, PathSampling};
+use crate::settings::{Crop, Filter, IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, PathSampling};
 
 impl Parser {
     pub(super) fn film(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {
@@ -73,6 +73,82 @@ impl Parser {
                 self.unsupported(&l, "\"float whitebalance\"", "no white balancing is applied");
             }
         }
+        self.crop_window(p)
+    }
+
+    /// The film's `pixelbounds` (pixels x0 x1 y0 y1) or `cropwindow`
+    /// (fractions of the image, x0 x1 y0 y1, their pixels rounded up), as
+    /// pbrt-v4's `FilmBaseParameters` reads them: the image rendered is
+    /// that window of the full resolution.
+    fn crop_window(&mut self, p: &ParamList) -> Result<()> {
+        let (full_w, full_h) = (self.desc.settings.width, self.desc.settings.height);
+        let bounds = if let Some((b, prm)) = p.ints("pixelbounds")? {
+            let [x0, x1, y0, y1] = b[..] else {
+                return Err(prm.err(format!("needs 4 values (x0 x1 y0 y1), got {}", b.len())));
+            };
+            // Clamped to the image, as pbrt-v4 does (with a warning).
+            let clamp = |v: i64, n: u32| v.clamp(0, n as i64) as u32;
+            let b = (
+                clamp(x0, full_w),
+                clamp(x1, full_w),
+                clamp(y0, full_h),
+                clamp(y1, full_h),
+            );
+            if (b.0 as i64, b.1 as i64, b.2 as i64, b.3 as i64) != (x0, x1, y0, y1) {
+                let l = prm.loc.clone();
+                self.approximated(&l, "\"integer pixelbounds\" beyond the image", "clamped to the image");
+            }
+            if let Some((_, c)) = p.floats("cropwindow")? {
+                let l = c.loc.clone();
+                self.unsupported(
+                    &l,
+                    "\"float cropwindow\" with \"pixelbounds\"",
+                    "pixelbounds is used, as in pbrt-v4",
+                );
+            }
+            Some((b, prm.loc.clone()))
+        } else if let Some((c, prm)) = p.floats("cropwindow")? {
+            let [a, b, c0, c1] = c[..] else {
+                return Err(prm.err(format!("needs 4 values (x0 x1 y0 y1), got {}", c.len())));
+            };
+            if [a, b, c0, c1].iter().any(|v| !v.is_finite()) {
+                return Err(prm.err("values must be finite numbers"));
+            }
+            let frac = |v: f32| v.clamp(0.0, 1.0);
+            let px = |f: f32, n: u32| (n as f64 * frac(f) as f64).ceil() as u32;
+            Some((
+                (
+                    px(a.min(b), full_w),
+                    px(a.max(b), full_w),
+                    px(c0.min(c1), full_h),
+                    px(c0.max(c1), full_h),
+                ),
+                prm.loc.clone(),
+            ))
+        } else {
+            None
+        };
+        let Some(((x0, x1, y0, y1), loc)) = bounds else {
+            return Ok(());
+        };
+        if x1 <= x0 || y1 <= y0 {
+            return Err(Error::scene(
+                Some(loc),
+                "Film",
+                format!("the crop window is empty: pixels x {x0}..{x1}, y {y0}..{y1}"),
+            ));
+        }
+        if (x0, x1, y0, y1) == (0, full_w, 0, full_h) {
+            return Ok(());
+        }
+        let s = &mut self.desc.settings;
+        s.crop = Some(Crop {
+            full_width: full_w,
+            full_height: full_h,
+            x: x0,
+            y: y0,
+        });
+        (s.width, s.height) = (x1 - x0, y1 - y0);
         Ok(())
     }
 
@@ -316,7 +392,8 @@ impl Parser {
         let cam = self.camera.clone();
         let p = &cam.params;
         let at = cam.loc.clone();
-        let (w, h) = (self.desc.settings.width as f32, self.desc.settings.height as f32);
+        let (w, h) = self.desc.settings.full_size();
+        let (w, h) = (w as f32, h as f32);
         let mut locs = Locs::at(at.clone());
         locs.keys
             .push(("to_world".into(), at.clone().unwrap_or_else(|| self.desc_loc())));

@@ -2017,3 +2017,37 @@ Shape "sphere""#,
         }
     );
 }
+
+/// pbrt-v4's `cropwindow` (fractions, pixels rounded up) and `pixelbounds`
+/// cut a window from the full resolution, which the camera still frames.
+#[test]
+fn film_crop_windows() {
+    let d = parse_str(
+        "Film \"rgb\" \"integer xresolution\" 100 \"integer yresolution\" 50 \"float cropwindow\" [0.25 0.755 0 0.5]\nWorldBegin",
+    )
+    .unwrap();
+    let s = &d.settings;
+    assert_eq!((s.width, s.height), (51, 25));
+    assert_eq!(
+        s.crop,
+        Some(crate::settings::Crop {
+            full_width: 100,
+            full_height: 50,
+            x: 25,
+            y: 0
+        })
+    );
+    let d = parse_str(
+        "Film \"rgb\" \"integer xresolution\" 100 \"integer yresolution\" 50 \"integer pixelbounds\" [10 30 5 45]\nWorldBegin",
+    )
+    .unwrap();
+    assert_eq!(
+        (d.settings.width, d.settings.height, d.settings.crop.unwrap().x),
+        (20, 40, 10)
+    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let e = parse_str("Film \"rgb\" \"float cropwindow\" [0.5 0.5 0 1]\nWorldBegin")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("test.pbrt:1:") && e.contains("empty"), "{e}");
+}
