@@ -62,6 +62,10 @@ pub struct RenderSettings {
     /// Where the image is a window cut from a larger one; `width` and
     /// `height` are then the window's size.
     pub crop: Option<Crop>,
+    /// Bidirectional path tracing also records each strategy's image,
+    /// weighted and unweighted (pbrt-v4's `visualizeweights` and
+    /// `visualizestrategies`).
+    pub bdpt_strategies: bool,
 }
 
 /// A crop window: the rendered image is the part of a `full_width` ×
@@ -117,6 +121,7 @@ impl Default for RenderSettings {
             hide_emitters: false,
             ao_distance: f32::INFINITY,
             crop: None,
+            bdpt_strategies: false,
         }
     }
 }

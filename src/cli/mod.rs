@@ -251,6 +251,13 @@ struct RenderArgs {
     #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = Aov::NAMES)]
     aov: Vec<String>,
 
+    /// With --integrator bdpt, also write each strategy's image for paths
+    /// of up to 5 segments, as pbrt-v4 does: OUTPUT-NAME.bdpt_dBB_sSS_tTT.exr
+    /// (weighted by multiple importance: they sum to the image) and
+    /// …_unweighted.exr (the strategy alone), BB the bounces.
+    #[arg(long)]
+    bdpt_strategies: bool,
+
     /// Stop after this many seconds (from the start of the command) and
     /// write the image of the passes completed; without --spp, render the
     /// scene file's samples per pixel if it states them, else as many as
@@ -569,6 +576,16 @@ fn sibling_path(output: &Path, tag: &str) -> PathBuf {
     output.with_file_name(format!("{stem}.{tag}{ext}"))
 }
 
+/// `out.png` → `out.NAME.exr`, for an image an algorithm makes besides
+/// the film ([`crate::render::RenderOutput::extra`]).
+fn extra_path(output: &Path, name: &str) -> PathBuf {
+    let stem = output
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    output.with_file_name(format!("{stem}.{name}.exr"))
+}
+
 /// `out.png` → `out.albedo.exr`.
 fn aov_path(output: &Path, aov: Aov) -> PathBuf {
     let stem = output
@@ -678,6 +695,18 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     if let Some(v) = &args.sampling {
         desc.settings.sampling = PathSampling::from_name(v).expect("clap checked the value");
     }
+    if args.bdpt_strategies {
+        if desc.settings.integrator != IntegratorKind::Bdpt {
+            return Err(after_loading(
+                Error::Invalid(format!(
+                    "--bdpt-strategies needs the bdpt integrator (the scene's is {}): add --integrator bdpt",
+                    desc.settings.integrator.name()
+                )),
+                &desc,
+            ));
+        }
+        desc.settings.bdpt_strategies = true;
+    }
     // SPPM's state is not a film of samples, and light tracing's and
     // bidirectional path tracing's splats are kept per iteration: none
     // has checkpoints.
@@ -785,6 +814,9 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         aovs: &aovs,
     };
     let (image, denoise_note) = images.write(&out.film)?;
+    for (name, film) in &out.extra {
+        write_image(&extra_path(&output, name), &film.to_image(), s.tonemap, 0.0)?;
+    }
     if let Some(d) = display {
         // The viewer ends with the image written (denoised, if it was).
         d.finish(display_frame(&out.film, &image, s.exposure, &aovs));
@@ -875,6 +907,14 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         );
         if let Some(note) = denoise_note {
             eprintln!("{note}");
+        }
+        if let (Some((first, _)), Some((last, _))) = (out.extra.first(), out.extra.last()) {
+            eprintln!(
+                "{} images of the strategies: {} … {}",
+                out.extra.len(),
+                extra_path(&output, first).display(),
+                extra_path(&output, last).display()
+            );
         }
         if out.stopped.is_some() && resumable {
             eprintln!(

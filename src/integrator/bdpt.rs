@@ -35,7 +35,7 @@
 //! iteration traces one camera subpath and one light subpath per pixel.
 
 use super::adjoint_shading_factor;
-use super::light::{SplatImage, SplatTarget};
+use super::light::{SplatImage, SplatTarget, Splats};
 use super::{Progressive, Work};
 use crate::color::Rgb;
 use crate::film::Film;
@@ -46,7 +46,7 @@ use crate::sampling::rng::Pcg32;
 use crate::sampling::warp::{pdf_cone_uniform, pdf_sphere_uniform};
 use crate::scene::Scene;
 use crate::texture::TexCoord;
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 use std::f32::consts::PI;
 use std::sync::atomic::AtomicBool;
 
@@ -218,19 +218,45 @@ fn pdf_le(scene: &Scene, bounds: (Vec3, f32), light: u32, n: Vec3, w: Vec3) -> (
     }
 }
 
+/// The longest paths, in segments, whose strategies get images of their
+/// own ([`crate::settings::RenderSettings::bdpt_strategies`]): two images
+/// for each of the 19 strategies up to 5 segments, as many as memory
+/// comfortably holds at film sizes.
+pub const MAX_STRATEGY_SEGMENTS: u32 = 5;
+
+/// The index of strategy (s, t), a path of k = s + t − 1 segments, among
+/// those with their own image, in order of k then s: one for k = 1 ((0, 2);
+/// (1, 1) is not used), k + 1 for each longer k.
+fn strategy_index(s: usize, t: usize) -> usize {
+    let k = s + t - 1;
+    if k == 1 { 0 } else { (k - 1) * (k + 2) / 2 - 1 + s }
+}
+
 /// The bidirectional path tracer: its settings and the image of its
-/// iterations.
+/// iterations (and of each strategy's, when asked for).
 pub struct Bdpt {
     max_depth: u32,
     image: SplatImage,
+    /// Per strategy up to [`MAX_STRATEGY_SEGMENTS`] (`strategy_index`),
+    /// the sums of its weighted and of its unweighted contributions.
+    strategies: Option<Vec<[Vec<DVec3>; 2]>>,
 }
 
 impl Bdpt {
     /// Nothing traced yet; `aovs` asks for the auxiliary sums.
     pub fn new(scene: &Scene, aovs: bool) -> Bdpt {
+        let s = &scene.settings;
+        let pixels = s.width as usize * s.height as usize;
+        let longest = s.max_depth.min(MAX_STRATEGY_SEGMENTS) as usize;
         Bdpt {
-            max_depth: scene.settings.max_depth,
+            max_depth: s.max_depth,
             image: SplatImage::new(scene, aovs),
+            strategies: (s.bdpt_strategies && longest > 0).then(|| {
+                let count = strategy_index(0, longest + 2);
+                (0..count)
+                    .map(|_| [vec![DVec3::ZERO; pixels], vec![DVec3::ZERO; pixels]])
+                    .collect()
+            }),
         }
     }
 }
@@ -246,12 +272,19 @@ impl Progressive for Bdpt {
             max_depth: self.max_depth,
         };
         let width = scene.settings.width;
+        let per_strategy = self.strategies.is_some();
+        let strategies = &mut self.strategies;
         let rays = self.image.iterate(
             scene,
             STREAM,
             cancel,
             |i, rng, target, work: &mut Subpaths, splats, rays| {
-                tracer.sample(i % width, i / width, rng, target, work, splats, rays);
+                tracer.sample(i % width, i / width, rng, target, work, splats, per_strategy, rays);
+            },
+            &mut |image, px, l| {
+                if let Some(s) = strategies.as_mut() {
+                    s[image as usize / 2][image as usize % 2][px as usize] += l.as_dvec3();
+                }
             },
         )?;
         Some(Work {
@@ -262,6 +295,33 @@ impl Progressive for Bdpt {
 
     fn film(&self) -> Film {
         self.image.film()
+    }
+
+    /// Each strategy's image up to [`MAX_STRATEGY_SEGMENTS`], weighted
+    /// and unweighted, named as pbrt-v4 names them
+    /// (`bdpt_d{bounces}_s{s}_t{t}`, `…_unweighted`): the weighted images
+    /// of all strategies sum to the image (for paths of that length); the
+    /// unweighted images of one path length each estimate the light of
+    /// those paths, by one strategy alone.
+    fn extra_images(&self) -> Vec<(String, Film)> {
+        let Some(strategies) = &self.strategies else {
+            return Vec::new();
+        };
+        let mut out = Vec::new();
+        let longest = self.max_depth.min(MAX_STRATEGY_SEGMENTS) as usize;
+        for k in 1..=longest {
+            for s in 0..=k {
+                let t = k + 1 - s;
+                if s == 1 && t == 1 {
+                    continue;
+                }
+                let [weighted, unweighted] = &strategies[strategy_index(s, t)];
+                let name = format!("bdpt_d{:02}_s{s:02}_t{t:02}", k - 1);
+                out.push((name.clone(), self.image.film_of(weighted)));
+                out.push((format!("{name}_unweighted"), self.image.film_of(unweighted)));
+            }
+        }
+        out
     }
 }
 
@@ -312,7 +372,8 @@ pub(crate) struct Tracer<'s> {
 
 impl<'s> Tracer<'s> {
     /// Pixel (x, y)'s sample: both subpaths, then every strategy, each
-    /// contribution added to `out` where it lands on the film.
+    /// contribution added to `out` where it lands on the film (and with
+    /// `per_strategy`, to its strategy's images).
     #[allow(clippy::too_many_arguments)]
     fn sample(
         &self,
@@ -321,7 +382,8 @@ impl<'s> Tracer<'s> {
         rng: &mut Pcg32,
         target: &SplatTarget,
         work: &mut Subpaths<'s>,
-        out: &mut Vec<(u32, Rgb)>,
+        out: &mut Splats,
+        per_strategy: bool,
         rays: &mut u64,
     ) {
         let scene = self.scene;
@@ -342,19 +404,26 @@ impl<'s> Tracer<'s> {
                 if !scene.settings.shows_emission(segments as u32) && s + t == 2 {
                     continue;
                 }
-                if let Some((l, splat_at)) = self.connect(s, t, work, rng, rays) {
+                if let Some((unweighted, w, splat_at)) = self.connect(s, t, work, rng, rays) {
+                    let l = unweighted * w;
                     if !l.is_finite() || l == Rgb::ZERO {
                         continue;
                     }
                     match splat_at {
-                        Some(r) => target.add_splat(r, l, out),
+                        Some(r) => target.add_splat(r, l, &mut out.image),
                         None => sum += l,
+                    }
+                    if per_strategy && segments <= MAX_STRATEGY_SEGMENTS as usize {
+                        let image = 2 * strategy_index(s, t) as u32;
+                        let at = splat_at.unwrap_or(raster);
+                        target.splat_with(at, l, |px, v| out.extra.push((image, px, v)));
+                        target.splat_with(at, unweighted, |px, v| out.extra.push((image + 1, px, v)));
                     }
                 }
             }
         }
         if sum != Rgb::ZERO {
-            target.add_splat(raster, sum, out);
+            target.add_splat(raster, sum, &mut out.image);
         }
     }
 
@@ -428,7 +497,7 @@ impl<'s> Tracer<'s> {
     }
 
     /// Strategy (s, t) of the sample's subpaths: the unweighted
-    /// contribution times its weight, and for t = 1 the raster position it
+    /// contribution, its weight, and for t = 1 the raster position it
     /// lands on; `None` where the strategy makes no path.
     fn connect(
         &self,
@@ -437,7 +506,7 @@ impl<'s> Tracer<'s> {
         work: &mut Subpaths<'s>,
         rng: &mut Pcg32,
         rays: &mut u64,
-    ) -> Option<(Rgb, Option<Vec2>)> {
+    ) -> Option<(Rgb, f32, Option<Vec2>)> {
         let scene = self.scene;
         let mut sampled = None;
         let mut raster = None;
@@ -521,7 +590,7 @@ impl<'s> Tracer<'s> {
         if l == Rgb::ZERO {
             return None;
         }
-        Some((l * self.mis_weight(work, s, t, sampled), raster))
+        Some((l, self.mis_weight(work, s, t, sampled), raster))
     }
 
     /// A light point for camera vertex `pt` (strategy s = 1): a light

@@ -147,17 +147,20 @@ impl SplatImage {
     /// reused from path to path), with random numbers from (seed, `stream`, iteration, i)
     /// alone, in fixed chunks whose splats are added in chunk order, so
     /// that the image is the same for any number of threads; given up
-    /// (`None`) soon after `cancel` is set. Returns the rays traced.
+    /// (`None`) soon after `cancel` is set. Splats to other images than
+    /// this one (`splats.extra`: image, pixel, value) go to `extra`, in
+    /// the same order. Returns the rays traced.
     pub(crate) fn iterate<S, F>(
         &mut self,
         scene: &Scene,
         stream: u64,
         cancel: Option<&AtomicBool>,
         trace: F,
+        extra: &mut dyn FnMut(u32, u32, Rgb),
     ) -> Option<u64>
     where
         S: Default,
-        F: Fn(u32, &mut Pcg32, &SplatTarget, &mut S, &mut Vec<(u32, Rgb)>, &mut u64) + Sync,
+        F: Fn(u32, &mut Pcg32, &SplatTarget, &mut S, &mut Splats, &mut u64) + Sync,
     {
         let target = &self.target;
         let paths = target.width * target.height;
@@ -169,10 +172,10 @@ impl SplatImage {
         // however large the image.
         let chunks = paths.div_ceil(CHUNK);
         for batch in (0..chunks).step_by(BATCH as usize) {
-            let parts: Vec<(Vec<(u32, Rgb)>, u64)> = (batch..(batch + BATCH).min(chunks))
+            let parts: Vec<(Splats, u64)> = (batch..(batch + BATCH).min(chunks))
                 .into_par_iter()
                 .map(|c| {
-                    let (mut splats, mut rays) = (Vec::new(), 0u64);
+                    let (mut splats, mut rays) = (Splats::default(), 0u64);
                     if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                         return (splats, rays);
                     }
@@ -189,8 +192,11 @@ impl SplatImage {
             }
             for (splats, r) in parts {
                 rays += r;
-                for (px, l) in splats {
+                for (px, l) in splats.image {
                     this[px as usize] += l.as_dvec3();
+                }
+                for (image, px, l) in splats.extra {
+                    extra(image, px, l);
                 }
             }
         }
@@ -215,6 +221,25 @@ impl SplatImage {
         Some(rays)
     }
 
+    /// The film of per-pixel sums `sums` of splats over the iterations
+    /// (an image other than this one, of the same size), normalised as
+    /// this one's: the mean over iterations, divided by the share of the
+    /// filter inside the image.
+    pub(crate) fn film_of(&self, sums: &[DVec3]) -> Film {
+        let mut film = Film::new(self.target.width, self.target.height);
+        let k = self.iterations as f64;
+        let w = self.target.width as usize;
+        for (i, (pixel, sum)) in film.pixels.iter_mut().zip(sums).enumerate() {
+            let share = self.inside.0[i % w] * self.inside.1[i / w];
+            *pixel = FilmPixel::default().plus(&PixelSum {
+                rgb: *sum,
+                weight: k * share,
+                lum_sq: 0.0,
+            });
+        }
+        film
+    }
+
     /// Each pixel is the mean over iterations of its splats.
     pub(crate) fn film(&self) -> Film {
         let mut film = Film::new(self.target.width, self.target.height);
@@ -235,6 +260,14 @@ impl SplatImage {
     }
 }
 
+/// What a chunk of paths splats: onto the image, and onto other images
+/// (image, pixel, value).
+#[derive(Default)]
+pub(crate) struct Splats {
+    pub image: Vec<(u32, Rgb)>,
+    pub extra: Vec<(u32, u32, Rgb)>,
+}
+
 /// The image's pixels as splats reach them: its size and the filter.
 pub(crate) struct SplatTarget {
     width: u32,
@@ -247,11 +280,16 @@ impl SplatTarget {
     /// Adds contribution `l` at raster position `raster`: into its pixel,
     /// or spread by the filter's weights over the pixels it covers.
     pub(crate) fn add_splat(&self, raster: Vec2, l: Rgb, out: &mut Vec<(u32, Rgb)>) {
+        self.splat_with(raster, l, |px, v| out.push((px, v)));
+    }
+
+    /// [`SplatTarget::add_splat`], giving each (pixel, value) to `emit`.
+    pub(crate) fn splat_with(&self, raster: Vec2, l: Rgb, mut emit: impl FnMut(u32, Rgb)) {
         let (w, h) = (self.width, self.height);
         match &self.splat {
             None => {
                 let (x, y) = ((raster.x as u32).min(w - 1), (raster.y as u32).min(h - 1));
-                out.push((y * w + x, l));
+                emit(y * w + x, l);
             }
             Some(splat) => {
                 let (mut wx, mut wy) = ([0.0; MAX_TAPS], [0.0; MAX_TAPS]);
@@ -260,7 +298,7 @@ impl SplatTarget {
                 for (dy, fy) in ys.iter().enumerate() {
                     for (dx, fx) in xs.iter().enumerate() {
                         if fx * fy != 0.0 {
-                            out.push(((y0 + dy as u32) * w + x0 + dx as u32, l * (fx * fy)));
+                            emit((y0 + dy as u32) * w + x0 + dx as u32, l * (fx * fy));
                         }
                     }
                 }
@@ -277,11 +315,15 @@ impl Progressive for LightTracer {
     fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work> {
         let bounds = crate::light::scene_bounding_sphere(scene);
         let max_depth = self.max_depth;
-        let result = self
-            .image
-            .iterate(scene, STREAM, cancel, |_, rng, target, _: &mut (), splats, rays| {
-                trace_path(scene, max_depth, target, bounds, rng, splats, rays)
-            });
+        let result = self.image.iterate(
+            scene,
+            STREAM,
+            cancel,
+            |_, rng, target, _: &mut (), splats, rays| {
+                trace_path(scene, max_depth, target, bounds, rng, &mut splats.image, rays)
+            },
+            &mut |_, _, _| {},
+        );
         result.map(|rays| Work {
             rays,
             ..Work::default()

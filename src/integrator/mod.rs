@@ -84,6 +84,12 @@ pub trait Progressive {
     /// The image of the iterations so far (with the auxiliary sums, when
     /// they are recorded).
     fn film(&self) -> Film;
+
+    /// Images the algorithm makes besides its film, by name (BDPT's
+    /// per-strategy images, when asked for).
+    fn extra_images(&self) -> Vec<(String, Film)> {
+        Vec::new()
+    }
 }
 
 /// What runs an algorithm: the renderer's scheduling, which [`drive`] hands

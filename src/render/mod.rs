@@ -146,6 +146,9 @@ pub struct RenderOutput {
     /// Why the render stopped before the samples per pixel asked for, if it
     /// did; the film then holds `stats.spp` samples per pixel.
     pub stopped: Option<Stop>,
+    /// Images the algorithm made besides the film, by name
+    /// ([`Progressive::extra_images`]).
+    pub extra: Vec<(String, Film)>,
 }
 
 /// Why a render stopped early.
@@ -214,6 +217,7 @@ pub fn render_controlled(scene: &Scene, options: &RenderOptions, control: &mut C
                 film: Film::new(scene.settings.width, scene.settings.height),
                 stats: RenderStats::default(),
                 stopped: Some(Stop::Interrupted),
+                extra: Vec::new(),
             })
         })
     })?
@@ -731,7 +735,12 @@ fn render_passes<I: Integrator>(
     }
     progress.finish();
     stats.seconds = earlier_seconds + start.elapsed().as_secs_f64();
-    RenderOutput { film, stats, stopped }
+    RenderOutput {
+        film,
+        stats,
+        stopped,
+        extra: Vec::new(),
+    }
 }
 
 /// Runs `algorithm`'s iterations: the scene's `spp` of them, or as many as
@@ -784,10 +793,16 @@ fn render_iterations<P: Progressive>(
     }
     progress.finish();
     let film = algorithm.film();
+    let extra = algorithm.extra_images();
     stats.samples = s.width as u64 * s.height as u64 * iterations as u64;
     stats.spp = iterations;
     stats.seconds = start.elapsed().as_secs_f64();
-    RenderOutput { film, stats, stopped }
+    RenderOutput {
+        film,
+        stats,
+        stopped,
+        extra,
+    }
 }
 
 /// The steps of a progress bar that counts time.

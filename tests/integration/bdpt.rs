@@ -234,3 +234,66 @@ fn bdpt_refuses_an_orthographic_camera_with_a_lens() {
         "{e}"
     );
 }
+
+/// The strategies' images (pbrt-v4's `visualizeweights` and
+/// `visualizestrategies`): the weighted ones sum to the image, and the
+/// unweighted images of one path length estimate the same light, each by
+/// one strategy alone: direct light by next-event estimation (1, 2) and by
+/// light tracing (2, 1) agree over 8 seeds within five standard errors.
+#[test]
+fn the_strategies_images_sum_to_the_image_and_each_estimates_its_paths() {
+    let mut d = small_cornell();
+    d.settings.integrator = IntegratorKind::Bdpt;
+    d.settings.bdpt_strategies = true;
+    d.settings.max_depth = 4;
+    d.settings.spp = 16;
+    let (mut direct_nee, mut direct_light) = (Vec::new(), Vec::new());
+    for seed in 0..8 {
+        d.settings.seed = seed;
+        let out = render(&trazo::scene::build(&d).unwrap(), &RenderOptions::default()).unwrap();
+        // Up to 4 segments: 1 + 3 + 4 + 5 strategies, two images each.
+        assert_eq!(out.extra.len(), 26);
+        let image = out.film.to_image();
+        let images: Vec<_> = out
+            .extra
+            .iter()
+            .map(|(name, f)| (name.as_str(), f.to_image()))
+            .collect();
+        for i in 0..image.pixels.len() {
+            let sum = images
+                .iter()
+                .filter(|(n, _)| !n.ends_with("_unweighted"))
+                .fold(trazo::Rgb::ZERO, |acc, (_, im)| acc + im.pixels[i]);
+            let p = image.pixels[i];
+            assert!(
+                (sum - p).abs().max_element() <= 1e-4 * (1.0 + p.max_element()),
+                "pixel {i}: strategies sum to {sum}, the image is {p}"
+            );
+        }
+        let mean_of = |name: &str| {
+            let (_, im) = images.iter().find(|(n, _)| *n == name).unwrap();
+            luminance(im.mean()) as f64
+        };
+        direct_nee.push(mean_of("bdpt_d01_s01_t02_unweighted"));
+        direct_light.push(mean_of("bdpt_d01_s02_t01_unweighted"));
+        if seed == 0 {
+            let has = |name: &str| images.iter().any(|(n, _)| *n == name);
+            assert!(has("bdpt_d00_s00_t02") && has("bdpt_d03_s04_t01_unweighted") && has("bdpt_d03_s00_t05"));
+            assert!(!has("bdpt_d00_s01_t01") && !images.iter().any(|(n, _)| n.starts_with("bdpt_d04")));
+        }
+    }
+    let stats = |v: &[f64]| {
+        let n = v.len() as f64;
+        let m = v.iter().sum::<f64>() / n;
+        (
+            m,
+            (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt(),
+        )
+    };
+    let ((a, sa), (b, sb)) = (stats(&direct_nee), stats(&direct_light));
+    let z = (a - b) / (sa * sa + sb * sb).sqrt();
+    assert!(
+        a > 0.01 && z.abs() < 5.0,
+        "direct light: NEE {a} ± {sa}, light tracing {b} ± {sb} (z = {z:.2})"
+    );
+}

@@ -919,3 +919,50 @@ fn defines_on_the_built_in_scene_are_named() {
         "{err}"
     );
 }
+
+/// `--bdpt-strategies` writes each strategy's image beside the output,
+/// named as pbrt-v4 names them; without the bdpt integrator it is an error
+/// (exit 2) that says what to add.
+#[test]
+fn bdpt_strategies_write_one_image_per_strategy() {
+    let e = fails(&[
+        "render",
+        "--bdpt-strategies",
+        "--spp",
+        "1",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "-o",
+        "x.png",
+    ]);
+    assert!(e.contains("--integrator bdpt"), "{e}");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("box.exr");
+    trazo()
+        .args([
+            "render",
+            "--integrator",
+            "bdpt",
+            "--bdpt-strategies",
+            "--max-depth",
+            "3",
+        ])
+        .args(["--spp", "2", "--width", "16", "--height", "16", "-o"])
+        .arg(&out)
+        .assert()
+        .success();
+    // Up to 3 segments: (0, 2); (0, 3), (1, 2), (2, 1); (0, 4) … (3, 1).
+    let mut names: Vec<String> = fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".bdpt_"))
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 16, "{names:?}");
+    assert!(
+        names.contains(&"box.bdpt_d02_s03_t01_unweighted.exr".to_string()),
+        "{names:?}"
+    );
+}

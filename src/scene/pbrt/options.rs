@@ -249,11 +249,16 @@ impl Parser {
                     "rendered by trazo's bidirectional path tracer, the image Metropolis sampling converges to, with the same depth",
                 );
             }
+            // Either asks for the strategies' images; trazo writes both
+            // kinds (`trazo render --bdpt-strategies` names them).
+            for name in ["visualizestrategies", "visualizeweights"] {
+                if p.bool(name, false)? {
+                    self.desc.settings.bdpt_strategies = true;
+                }
+            }
             for (name, how) in [
                 ("lightsampler", "trazo picks lights in proportion to their power"),
                 ("regularize", "paths are not regularised"),
-                ("visualizestrategies", "the strategies' images are not written"),
-                ("visualizeweights", "the strategies' images are not written"),
             ] {
                 if let Some(prm) = p.find(name) {
                     let l = prm.loc.clone();

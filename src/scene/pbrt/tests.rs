@@ -125,6 +125,9 @@ WorldBegin"#,
     // pbrt-v4's BDPT is trazo's, with its depth; its MLT is rendered by it.
     assert_eq!(d.settings.integrator, IntegratorKind::Bdpt);
     assert!(!w.contains("Integrator"), "{w}");
+    assert!(!d.settings.bdpt_strategies);
+    let v = parse_str("Integrator \"bdpt\" \"bool visualizeweights\" true\nWorldBegin").unwrap();
+    assert!(v.settings.bdpt_strategies && v.warnings.is_empty(), "{:?}", v.warnings);
     let m = parse_str("Integrator \"mlt\" \"integer maxdepth\" 4\nWorldBegin").unwrap();
     assert_eq!((m.settings.integrator, m.settings.max_depth), (IntegratorKind::Bdpt, 5));
     assert!(
