@@ -2,7 +2,7 @@
 //! expectation through every camera, under every kind of light and over
 //! delta and glossy BSDFs; determinism across thread counts.
 
-use super::light::{blocks_over_seeds, small_cornell};
+use super::light::{blocks_over_seeds, every_camera, small_cornell};
 use std::path::Path;
 use trazo::color::luminance;
 use trazo::render::{RenderOptions, render};
@@ -37,33 +37,10 @@ fn agrees_with_the_path_tracer(name: &str, d: &SceneDesc) {
     eprintln!("{name}: largest |z| over {} blocks {worst:.2}", bdpt.len());
 }
 
-/// The Cornell box through a pinhole, a thin lens focused on the back
-/// wall, an orthographic camera, and with a Gaussian filter (whose splats
-/// spread over 5×5 pixels, as light tracing's do).
+/// The Cornell box through every camera (`every_camera`).
 #[test]
 fn bdpt_agrees_with_the_path_tracer_through_every_camera() {
-    let pinhole = small_cornell();
-    let mut lens = small_cornell();
-    lens.camera.aperture_radius = 0.15;
-    let mut ortho = small_cornell();
-    ortho.camera.projection = ProjectionDesc::Orthographic { size: 2.2 };
-    let mut filtered = small_cornell();
-    filtered.settings.filter = Filter::from_name("gaussian").unwrap();
-    // A 32×32 window of a 48×40 image: the importance is the window's.
-    let mut cropped = small_cornell();
-    cropped.settings.crop = Some(trazo::settings::Crop {
-        full_width: 48,
-        full_height: 40,
-        x: 12,
-        y: 3,
-    });
-    for (name, d) in [
-        ("pinhole", pinhole),
-        ("thin lens", lens),
-        ("orthographic", ortho),
-        ("gaussian filter", filtered),
-        ("crop window", cropped),
-    ] {
+    for (name, d) in every_camera() {
         agrees_with_the_path_tracer(name, &d);
     }
 }

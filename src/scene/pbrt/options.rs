@@ -256,15 +256,6 @@ impl Parser {
                     self.desc.settings.bdpt_strategies = true;
                 }
             }
-            for (name, how) in [
-                ("lightsampler", "trazo picks lights in proportion to their power"),
-                ("regularize", "paths are not regularised"),
-            ] {
-                if let Some(prm) = p.find(name) {
-                    let l = prm.loc.clone();
-                    self.unsupported(&l, format!("\"{}\"", prm.written), how);
-                }
-            }
             Self::use_all(p);
         } else if kind == "ambientocclusion" {
             // pbrt-v4's AOIntegrator. Its `cossample` false samples the
@@ -319,7 +310,7 @@ impl Parser {
             );
             Self::use_all(p);
         }
-        if matches!(kind, "path" | "volpath") {
+        if matches!(kind, "path" | "volpath" | "bdpt") {
             // Light sampling and regularisation change noise, not the
             // expected image.
             for (name, how) in [
