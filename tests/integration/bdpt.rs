@@ -1,13 +1,14 @@
 //! Bidirectional path tracing against the path tracer: the same image in
 //! expectation through every camera, under every kind of light and over
-//! delta and glossy BSDFs; determinism across thread counts.
+//! delta and glossy BSDFs; the strategies' images. (Determinism across
+//! thread counts: light.rs.)
 
 use super::light::{blocks_over_seeds, every_camera, small_cornell};
 use std::path::Path;
 use trazo::color::luminance;
 use trazo::render::{RenderOptions, render};
 use trazo::scene::desc::*;
-use trazo::settings::{Filter, IntegratorKind};
+use trazo::settings::IntegratorKind;
 
 /// Every block of `d` rendered by BDPT agrees with the path tracer's
 /// within five standard errors of their difference (16 seeds each), and
@@ -166,50 +167,6 @@ fn bdpt_agrees_with_the_path_tracer_over_delta_bsdfs() {
     let scene = trazo::scene::build(&d).unwrap();
     assert_eq!(scene.lights.len(), 2, "sphere and sky");
     agrees_with_the_path_tracer("sphere and sky, delta BSDFs", &d);
-}
-
-/// Bidirectional samples are traced in fixed chunks whose splats are added
-/// in order: one thread or two, the same film to the bit.
-#[test]
-fn bdpt_does_not_depend_on_the_thread_count() {
-    let mut d = small_cornell();
-    d.settings.width = 24;
-    d.settings.height = 20;
-    d.settings.spp = 2;
-    d.settings.integrator = IntegratorKind::Bdpt;
-    d.settings.filter = Filter::from_name("tent").unwrap();
-    let scene = trazo::scene::build(&d).unwrap();
-    let films: Vec<_> = [1usize, 2]
-        .iter()
-        .map(|&t| {
-            let options = RenderOptions {
-                threads: Some(t),
-                aovs: true,
-                ..RenderOptions::default()
-            };
-            render(&scene, &options).unwrap().film
-        })
-        .collect();
-    assert_eq!(films[0], films[1]);
-    assert!(luminance(films[0].to_image().mean()) > 0.01);
-}
-
-/// Like light tracing, BDPT cannot connect to an orthographic camera with
-/// a lens: the scene is refused, naming the camera and the integrator.
-#[test]
-fn bdpt_refuses_an_orthographic_camera_with_a_lens() {
-    let mut d = small_cornell();
-    d.settings.integrator = IntegratorKind::Bdpt;
-    d.camera.projection = ProjectionDesc::Orthographic { size: 2.0 };
-    d.camera.aperture_radius = 0.1;
-    let Err(e) = trazo::scene::build(&d) else {
-        panic!("an orthographic camera with a lens was accepted");
-    };
-    let e = e.to_string();
-    assert!(
-        e.contains("camera") && e.contains("orthographic") && e.contains("bdpt"),
-        "{e}"
-    );
 }
 
 /// The strategies' images (pbrt-v4's `visualizeweights` and

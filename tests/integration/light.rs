@@ -117,45 +117,53 @@ fn light_tracing_agrees_with_the_path_tracer_through_every_camera() {
     }
 }
 
-/// Light paths are traced in fixed chunks and their splats added in
-/// order: one thread or two, the same film to the bit (auxiliary sums
-/// included).
+/// Light paths (and BDPT's pairs of subpaths) are traced in fixed chunks
+/// and their splats added in order: one thread or two, the same film to
+/// the bit (auxiliary sums included).
 #[test]
-fn light_tracing_does_not_depend_on_the_thread_count() {
-    let mut d = small_cornell();
-    d.settings.width = 24;
-    d.settings.height = 20;
-    d.settings.spp = 3;
-    d.settings.integrator = IntegratorKind::Light;
-    d.settings.filter = Filter::from_name("tent").unwrap();
-    let scene = trazo::scene::build(&d).unwrap();
-    let films: Vec<_> = [1usize, 2]
-        .iter()
-        .map(|&t| {
-            let options = RenderOptions {
-                threads: Some(t),
-                aovs: true,
-                ..RenderOptions::default()
-            };
-            render(&scene, &options).unwrap().film
-        })
-        .collect();
-    assert_eq!(films[0], films[1]);
-    assert!(films[0].aovs.is_some());
-    assert!(luminance(films[0].to_image().mean()) > 0.01);
+fn splatting_integrators_do_not_depend_on_the_thread_count() {
+    for integrator in [IntegratorKind::Light, IntegratorKind::Bdpt] {
+        let mut d = small_cornell();
+        d.settings.width = 24;
+        d.settings.height = 20;
+        d.settings.spp = 2;
+        d.settings.integrator = integrator;
+        d.settings.filter = Filter::from_name("tent").unwrap();
+        let scene = trazo::scene::build(&d).unwrap();
+        let films: Vec<_> = [1usize, 2]
+            .iter()
+            .map(|&t| {
+                let options = RenderOptions {
+                    threads: Some(t),
+                    aovs: true,
+                    ..RenderOptions::default()
+                };
+                render(&scene, &options).unwrap().film
+            })
+            .collect();
+        assert_eq!(films[0], films[1], "{}", integrator.name());
+        assert!(films[0].aovs.is_some());
+        assert!(luminance(films[0].to_image().mean()) > 0.01);
+    }
 }
 
 /// A thin lens over an orthographic projection focuses nowhere, so light
-/// cannot be connected to it: the scene is refused, naming the camera.
+/// cannot be connected to it: the scene is refused, naming the camera and
+/// the integrator.
 #[test]
-fn light_tracing_refuses_an_orthographic_camera_with_a_lens() {
-    let mut d = small_cornell();
-    d.settings.integrator = IntegratorKind::Light;
-    d.camera.projection = ProjectionDesc::Orthographic { size: 2.0 };
-    d.camera.aperture_radius = 0.1;
-    let Err(e) = trazo::scene::build(&d) else {
-        panic!("an orthographic camera with a lens was accepted");
-    };
-    let e = e.to_string();
-    assert!(e.contains("camera") && e.contains("orthographic"), "{e}");
+fn splatting_integrators_refuse_an_orthographic_camera_with_a_lens() {
+    for integrator in [IntegratorKind::Light, IntegratorKind::Bdpt] {
+        let mut d = small_cornell();
+        d.settings.integrator = integrator;
+        d.camera.projection = ProjectionDesc::Orthographic { size: 2.0 };
+        d.camera.aperture_radius = 0.1;
+        let Err(e) = trazo::scene::build(&d) else {
+            panic!("an orthographic camera with a lens was accepted");
+        };
+        let e = e.to_string();
+        assert!(
+            e.contains("camera") && e.contains("orthographic") && e.contains(integrator.name()),
+            "{e}"
+        );
+    }
 }
