@@ -813,7 +813,7 @@ impl<'s> Tracer<'s> {
             let tc = TexCoord::at(&hit);
             // A mask's cut-out part lets the path through unchanged, as the
             // path tracer's and the light tracer's paths pass it.
-            if m.opacity.is_some() && rng.next_f32() >= m.opacity_at(&scene.images, &tc) {
+            if m.cut_out(&scene.images, &tc, || rng.next_f32()) {
                 ray = hit.spawn_ray(ray.dir);
                 continue;
             }

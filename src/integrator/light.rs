@@ -386,7 +386,7 @@ fn trace_path(
         let tc = TexCoord::at(&hit);
         // A mask's cut-out part lets the light through unchanged, as
         // the path tracer's camera paths pass it.
-        if m.opacity.is_some() && rng.next_f32() >= m.opacity_at(&scene.images, &tc) {
+        if m.cut_out(&scene.images, &tc, || rng.next_f32()) {
             ray = hit.spawn_ray(ray.dir);
             segments += 1;
             continue;

@@ -123,7 +123,7 @@ impl Integrator for PathTracer {
             // goes on unchanged (a bounce, as Mitsuba's path counts it).
             // Shadow rays do not see through masks (nor do Mitsuba's), so
             // only this way finds the light behind them: weight 1.
-            if m.opacity.is_some() && sampler.next_1d() >= m.opacity_at(&scene.images, &tc) {
+            if m.cut_out(&scene.images, &tc, || sampler.next_1d()) {
                 prev_delta = true;
                 ray = hit.spawn_ray(ray.dir);
                 depth += 1;

@@ -313,7 +313,7 @@ impl Integrator for VolPathTracer {
             // A surface that is not there, or a mask's cut-out part
             // (chosen with probability 1 − α): the path goes on unchanged,
             // no bounce.
-            let cut_out = m.opacity.is_some() && sampler.next_1d() >= m.opacity_at(&scene.images, &TexCoord::at(&hit));
+            let cut_out = m.cut_out(&scene.images, &TexCoord::at(&hit), || sampler.next_1d());
             if cut_out || matches!(m.kind, MaterialKind::Thin { eta, .. } if eta == 1.0) {
                 medium = cross(medium, dir);
                 ray = hit.spawn_ray(dir);

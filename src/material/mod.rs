@@ -527,6 +527,15 @@ impl Material {
         all
     }
 
+    /// Whether a path passes through the cut-out part of a mask here:
+    /// with probability 1 − α, from the number `draw` gives, which is drawn
+    /// only where the material has a mask (paths elsewhere keep their
+    /// random numbers).
+    #[inline]
+    pub fn cut_out(&self, images: &[ImageTexture], tc: &TexCoord, draw: impl FnOnce() -> f32) -> bool {
+        self.opacity.is_some() && draw() >= self.opacity_at(images, tc)
+    }
+
     /// The opacity at a point (1 where the material has no mask).
     #[inline]
     pub fn opacity_at(&self, images: &[ImageTexture], tc: &TexCoord) -> f32 {
