@@ -66,6 +66,37 @@ pub struct RenderSettings {
     /// weighted and unweighted (pbrt-v4's `visualizeweights` and
     /// `visualizestrategies`).
     pub bdpt_strategies: bool,
+    /// Metropolis light transport's parameters.
+    pub mlt: MltSettings,
+}
+
+/// Metropolis light transport's parameters (`--integrator mlt` and
+/// `pssmlt`), with pbrt-v4's defaults. The samples per pixel are the
+/// mutations per pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MltSettings {
+    /// Paths drawn independently to estimate the image's brightness and
+    /// to start the chains from (pbrt's `bootstrapsamples`).
+    pub bootstrap: u32,
+    /// Markov chains run side by side (pbrt's `chains`).
+    pub chains: u32,
+    /// Probability that a mutation draws a new path independently of the
+    /// current one (pbrt's `largestepprobability`).
+    pub large_step_probability: f32,
+    /// Standard deviation of a small step's perturbation of each primary
+    /// sample (pbrt's `sigma`).
+    pub sigma: f32,
+}
+
+impl Default for MltSettings {
+    fn default() -> Self {
+        MltSettings {
+            bootstrap: 100_000,
+            chains: 1000,
+            large_step_probability: 0.3,
+            sigma: 0.01,
+        }
+    }
 }
 
 /// A crop window: the rendered image is the part of a `full_width` ×
@@ -122,6 +153,7 @@ impl Default for RenderSettings {
             ao_distance: f32::INFINITY,
             crop: None,
             bdpt_strategies: false,
+            mlt: MltSettings::default(),
         }
     }
 }
@@ -130,6 +162,11 @@ impl Default for RenderSettings {
 pub const MAX_IMAGE_SIDE: u32 = 65_536;
 /// Largest accepted image, in pixels (about 268 megapixels).
 pub const MAX_IMAGE_PIXELS: u64 = 1 << 28;
+/// Most bootstrap paths Metropolis light transport draws (over all path
+/// lengths): each keeps a weight.
+pub const MAX_MLT_BOOTSTRAP: u64 = 1 << 26;
+/// Most Markov chains: each keeps its state.
+pub const MAX_MLT_CHAINS: u32 = 1 << 20;
 /// Largest accepted samples per pixel.
 pub const MAX_SPP: u32 = 1 << 24;
 /// Largest accepted recursion depth.
@@ -154,6 +191,12 @@ pub enum IntegratorKind {
     /// Bidirectional path tracing: subpaths from the camera and from a
     /// light, joined every way and weighted by multiple importance.
     Bdpt,
+    /// Multiplexed Metropolis light transport (Hachisuka et al. 2014, as
+    /// pbrt-v4's `mlt`): Markov chains over bidirectional strategies.
+    Mlt,
+    /// Primary-sample-space Metropolis light transport (Kelemen et al.
+    /// 2002) over whole bidirectional samples.
+    Pssmlt,
     /// Ambient occlusion: the share of the hemisphere open within a
     /// distance.
     AmbientOcclusion,
@@ -161,7 +204,9 @@ pub enum IntegratorKind {
 
 impl IntegratorKind {
     /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 8] = ["whitted", "path", "photon", "sppm", "volpath", "light", "bdpt", "ao"];
+    pub const NAMES: [&'static str; 10] = [
+        "whitted", "path", "photon", "sppm", "volpath", "light", "bdpt", "mlt", "pssmlt", "ao",
+    ];
 
     /// Parses one of [`IntegratorKind::NAMES`].
     pub fn from_name(s: &str) -> Option<IntegratorKind> {
@@ -173,9 +218,20 @@ impl IntegratorKind {
             "volpath" => Some(IntegratorKind::VolPath),
             "light" => Some(IntegratorKind::Light),
             "bdpt" => Some(IntegratorKind::Bdpt),
+            "mlt" => Some(IntegratorKind::Mlt),
+            "pssmlt" => Some(IntegratorKind::Pssmlt),
             "ao" => Some(IntegratorKind::AmbientOcclusion),
             _ => None,
         }
+    }
+
+    /// Whether the integrator joins paths from the lights to the camera
+    /// (and so splats onto the image rather than sampling its pixels).
+    pub fn splats_light_paths(&self) -> bool {
+        matches!(
+            self,
+            IntegratorKind::Light | IntegratorKind::Bdpt | IntegratorKind::Mlt | IntegratorKind::Pssmlt
+        )
     }
 
     /// This integrator's name.
@@ -188,6 +244,8 @@ impl IntegratorKind {
             IntegratorKind::VolPath => "volpath",
             IntegratorKind::Light => "light",
             IntegratorKind::Bdpt => "bdpt",
+            IntegratorKind::Mlt => "mlt",
+            IntegratorKind::Pssmlt => "pssmlt",
             IntegratorKind::AmbientOcclusion => "ao",
         }
     }

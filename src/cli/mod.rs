@@ -226,7 +226,10 @@ struct RenderArgs {
     /// light (light tracing: paths from the lights connected to the
     /// camera; --spp is the number of light paths per pixel), bdpt
     /// (bidirectional path tracing; --spp camera and light subpaths per
-    /// pixel) or ao (ambient occlusion).
+    /// pixel), mlt (multiplexed Metropolis light transport over BDPT's
+    /// strategies, as pbrt-v4's mlt; --spp mutations per pixel), pssmlt
+    /// (primary-sample-space Metropolis over whole BDPT samples) or ao
+    /// (ambient occlusion).
     #[arg(long, value_name = "NAME", value_parser = IntegratorKind::NAMES)]
     integrator: Option<String>,
 
@@ -350,8 +353,8 @@ struct CompareArgs {
 
     /// The contestants, comma-separated: whitted, path, path:uniform,
     /// path:cosine, path:bsdf, path:mis, photon, sppm, volpath (media by
-    /// tracking), volpath:march=STEP (by ray marching), light, bdpt, ao; a
-    /// suffix +denoise,
+    /// tracking), volpath:march=STEP (by ray marching), light, bdpt, mlt,
+    /// pssmlt, ao; a suffix +denoise,
     /// +atrous or +oidn denoises a contestant's image (e.g. path:mis+denoise).
     #[arg(long, value_name = "LIST", default_value = "whitted,path:uniform,path:mis")]
     integrators: String,
@@ -714,6 +717,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         IntegratorKind::Sppm => Some(crate::integrator::photon::sppm::NOT_RESUMABLE),
         IntegratorKind::Light => Some(crate::integrator::light::NOT_RESUMABLE),
         IntegratorKind::Bdpt => Some(crate::integrator::bdpt::NOT_RESUMABLE),
+        IntegratorKind::Mlt | IntegratorKind::Pssmlt => Some(crate::integrator::mlt::NOT_RESUMABLE),
         _ => None,
     };
     let resumable = not_resumable.is_none();

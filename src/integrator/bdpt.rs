@@ -35,14 +35,14 @@
 //! iteration traces one camera subpath and one light subpath per pixel.
 
 use super::adjoint_shading_factor;
-use super::light::{SplatImage, SplatTarget, Splats};
+use super::light::SplatImage;
 use super::{Progressive, Work};
 use crate::color::Rgb;
 use crate::film::Film;
 use crate::geometry::{Ray, SurfaceHit};
 use crate::light::{Light, ShadowTarget};
 use crate::material::{Bsdf, ShadingFrame, TransportMode};
-use crate::sampling::rng::Pcg32;
+use crate::sampling::Uniforms;
 use crate::sampling::warp::{pdf_cone_uniform, pdf_sphere_uniform};
 use crate::scene::Scene;
 use crate::texture::TexCoord;
@@ -55,6 +55,14 @@ pub const NOT_RESUMABLE: &str = "bidirectional path tracing renders cannot be ch
 
 /// Separates bidirectional path tracing's random numbers from the others'.
 const STREAM: u64 = 0x6264_7074;
+
+/// The streams of a sample's numbers (see [`Uniforms::start_stream`]):
+/// the camera subpath's, the light subpath's, the connections'.
+pub(crate) const CAMERA_STREAM: u32 = 0;
+pub(crate) const LIGHT_STREAM: u32 = 1;
+pub(crate) const CONNECTION_STREAM: u32 = 2;
+/// How many streams a sample draws from.
+pub(crate) const STREAMS: u32 = 3;
 
 /// What a path vertex lies on.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -266,11 +274,7 @@ impl Progressive for Bdpt {
 
     /// One camera subpath and one light subpath per pixel.
     fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work> {
-        let tracer = Tracer {
-            scene,
-            bounds: crate::light::scene_bounding_sphere(scene),
-            max_depth: self.max_depth,
-        };
+        let tracer = Tracer::new(scene, self.max_depth);
         let width = scene.settings.width;
         let per_strategy = self.strategies.is_some();
         let strategies = &mut self.strategies;
@@ -278,8 +282,27 @@ impl Progressive for Bdpt {
             scene,
             STREAM,
             cancel,
-            |i, rng, target, work: &mut Subpaths, splats, rays| {
-                tracer.sample(i % width, i / width, rng, target, work, splats, per_strategy, rays);
+            |i, rng, target, work: &mut Subpaths, out, rays| {
+                let (x, y) = (i % width, i / width);
+                let raster = Vec2::new(x as f32 + rng.next_f32(), y as f32 + rng.next_f32());
+                // Contributions at the camera sample's raster position are
+                // summed into one splat.
+                let mut sum = Rgb::ZERO;
+                tracer.sample(raster, rng, work, rays, |s, t, at, l, unweighted| {
+                    match at {
+                        Some(r) => target.add_splat(r, l, &mut out.image),
+                        None => sum += l,
+                    }
+                    if per_strategy && s + t - 1 <= MAX_STRATEGY_SEGMENTS as usize {
+                        let image = 2 * strategy_index(s, t) as u32;
+                        let at = at.unwrap_or(raster);
+                        target.splat_with(at, l, |px, v| out.extra.push((image, px, v)));
+                        target.splat_with(at, unweighted, |px, v| out.extra.push((image + 1, px, v)));
+                    }
+                });
+                if sum != Rgb::ZERO {
+                    target.add_splat(raster, sum, &mut out.image);
+                }
             },
             &mut |image, px, l| {
                 if let Some(s) = strategies.as_mut() {
@@ -327,7 +350,7 @@ impl Progressive for Bdpt {
 
 /// The two subpaths of a sample.
 #[derive(Default)]
-struct Subpaths<'s> {
+pub(crate) struct Subpaths<'s> {
     camera: Vec<Vertex<'s>>,
     light: Vec<Vertex<'s>>,
 }
@@ -371,27 +394,35 @@ pub(crate) struct Tracer<'s> {
 }
 
 impl<'s> Tracer<'s> {
-    /// Pixel (x, y)'s sample: both subpaths, then every strategy, each
-    /// contribution added to `out` where it lands on the film (and with
-    /// `per_strategy`, to its strategy's images).
-    #[allow(clippy::too_many_arguments)]
-    fn sample(
+    /// The subpaths and connections of the scene for `max_depth` segments.
+    pub(crate) fn new(scene: &'s Scene, max_depth: u32) -> Tracer<'s> {
+        Tracer {
+            scene,
+            bounds: crate::light::scene_bounding_sphere(scene),
+            max_depth,
+        }
+    }
+
+    /// The sample through raster position `raster` (drawn from `rng`'s
+    /// camera stream): both subpaths, then every strategy (s, t), each
+    /// contribution handed to `each(s, t, at, weighted, unweighted)`, `at`
+    /// the raster position it lands on where that is not `raster`
+    /// (t = 1).
+    pub(crate) fn sample<R: Uniforms>(
         &self,
-        x: u32,
-        y: u32,
-        rng: &mut Pcg32,
-        target: &SplatTarget,
+        raster: Vec2,
+        rng: &mut R,
         work: &mut Subpaths<'s>,
-        out: &mut Splats,
-        per_strategy: bool,
         rays: &mut u64,
+        mut each: impl FnMut(usize, usize, Option<Vec2>, Rgb, Rgb),
     ) {
         let scene = self.scene;
-        let raster = Vec2::new(x as f32 + rng.next_f32(), y as f32 + rng.next_f32());
         let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
-        self.camera_subpath(raster, u_lens, rng, &mut work.camera, rays);
-        self.light_subpath(rng, &mut work.light, rays);
-        let mut sum = Rgb::ZERO;
+        self.camera_subpath(raster, u_lens, self.max_depth as usize + 1, rng, &mut work.camera, rays);
+        rng.start_stream(LIGHT_STREAM);
+        let light_vertices = if self.max_depth < 2 { 0 } else { self.max_depth as usize };
+        self.light_subpath(rng, light_vertices, &mut work.light, rays);
+        rng.start_stream(CONNECTION_STREAM);
         let (nc, nl) = (work.camera.len(), work.light.len());
         for t in 1..=nc {
             // s = 1 samples its own light vertex: it needs none from the
@@ -404,31 +435,73 @@ impl<'s> Tracer<'s> {
                 if !scene.settings.shows_emission(segments as u32) && s + t == 2 {
                     continue;
                 }
-                if let Some((unweighted, w, splat_at)) = self.connect(s, t, work, rng, rays) {
+                if let Some((unweighted, w, at)) = self.connect(s, t, work, rng, rays) {
                     let l = unweighted * w;
-                    if !l.is_finite() || l == Rgb::ZERO {
-                        continue;
-                    }
-                    match splat_at {
-                        Some(r) => target.add_splat(r, l, &mut out.image),
-                        None => sum += l,
-                    }
-                    if per_strategy && segments <= MAX_STRATEGY_SEGMENTS as usize {
-                        let image = 2 * strategy_index(s, t) as u32;
-                        let at = splat_at.unwrap_or(raster);
-                        target.splat_with(at, l, |px, v| out.extra.push((image, px, v)));
-                        target.splat_with(at, unweighted, |px, v| out.extra.push((image + 1, px, v)));
+                    if l.is_finite() && l != Rgb::ZERO {
+                        each(s, t, at, l, unweighted);
                     }
                 }
             }
         }
-        if sum != Rgb::ZERO {
-            target.add_splat(raster, sum, &mut out.image);
+    }
+
+    /// Strategy (s, t) alone, for paths of `segments` segments (s + t =
+    /// segments + 1), as multiplexed Metropolis light transport draws it
+    /// (Hachisuka et al. 2014): the camera subpath of exactly t vertices
+    /// through a raster position drawn over the whole image, the light
+    /// subpath of exactly s, the connection. The first number of the
+    /// camera stream chooses the strategy among the `segments + 1`
+    /// (uniformly, so the contribution is multiplied by their number);
+    /// paths of one segment (an emitter seen directly) have only (0, 2).
+    /// The raster position where the contribution lands, and the
+    /// contribution; `None` where the strategy makes no path.
+    pub(crate) fn strategy<R: Uniforms>(
+        &self,
+        segments: usize,
+        rng: &mut R,
+        work: &mut Subpaths<'s>,
+        rays: &mut u64,
+    ) -> Option<(Vec2, Rgb)> {
+        let scene = self.scene;
+        rng.start_stream(CAMERA_STREAM);
+        let (s, t, strategies) = if segments <= 1 {
+            (0, 2, 1)
+        } else {
+            let n = segments + 1;
+            let s = ((rng.next_f32() * n as f32) as usize).min(n - 1);
+            (s, n - s, n)
+        };
+        let (width, height) = (scene.settings.width as f32, scene.settings.height as f32);
+        let raster = Vec2::new(rng.next_f32() * width, rng.next_f32() * height);
+        let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
+        self.camera_subpath(raster, u_lens, t, rng, &mut work.camera, rays);
+        if work.camera.len() != t {
+            return None;
         }
+        rng.start_stream(LIGHT_STREAM);
+        self.light_subpath(rng, if s >= 2 { s } else { 0 }, &mut work.light, rays);
+        if s >= 2 && work.light.len() != s {
+            return None;
+        }
+        rng.start_stream(CONNECTION_STREAM);
+        if segments <= 1 && !scene.settings.shows_emission(1) {
+            return None;
+        }
+        let (unweighted, w, at) = self.connect(s, t, work, rng, rays)?;
+        let l = unweighted * (w * strategies as f32);
+        (l.is_finite() && l != Rgb::ZERO).then(|| (at.unwrap_or(raster), l))
     }
 
     /// The camera subpath through raster position `raster`.
-    fn camera_subpath(&self, raster: Vec2, u_lens: Vec2, rng: &mut Pcg32, path: &mut Vec<Vertex<'s>>, rays: &mut u64) {
+    fn camera_subpath<R: Uniforms>(
+        &self,
+        raster: Vec2,
+        u_lens: Vec2,
+        max_vertices: usize,
+        rng: &mut R,
+        path: &mut Vec<Vertex<'s>>,
+        rays: &mut u64,
+    ) {
         path.clear();
         let camera = &self.scene.camera;
         let ray = camera.generate_ray(raster, u_lens);
@@ -440,19 +513,20 @@ impl<'s> Tracer<'s> {
             Rgb::ONE,
             pdf_dir,
             TransportMode::Radiance,
-            self.max_depth as usize + 1,
+            max_vertices,
             rng,
             path,
             rays,
         );
     }
 
-    /// The light subpath: a light chosen by power, a point and direction
-    /// on it ([`Light::sample_le`]), then the walk.
-    fn light_subpath(&self, rng: &mut Pcg32, path: &mut Vec<Vertex<'s>>, rays: &mut u64) {
+    /// The light subpath of up to `max_vertices` vertices: a light chosen
+    /// by power, a point and direction on it ([`Light::sample_le`]), then
+    /// the walk.
+    fn light_subpath<R: Uniforms>(&self, rng: &mut R, max_vertices: usize, path: &mut Vec<Vertex<'s>>, rays: &mut u64) {
         path.clear();
         let scene = self.scene;
-        if scene.lights.is_empty() || scene.light_distribution.is_empty() || self.max_depth < 2 {
+        if scene.lights.is_empty() || scene.light_distribution.is_empty() || max_vertices == 0 {
             return;
         }
         let Some((emitted, light, pmf)) = crate::light::sample_scene_emission(scene, self.bounds, rng) else {
@@ -484,7 +558,7 @@ impl<'s> Tracer<'s> {
             beta,
             pdf_dir,
             TransportMode::Importance,
-            self.max_depth as usize,
+            max_vertices,
             rng,
             path,
             rays,
@@ -499,12 +573,12 @@ impl<'s> Tracer<'s> {
     /// Strategy (s, t) of the sample's subpaths: the unweighted
     /// contribution, its weight, and for t = 1 the raster position it
     /// lands on; `None` where the strategy makes no path.
-    fn connect(
+    fn connect<R: Uniforms>(
         &self,
         s: usize,
         t: usize,
         work: &mut Subpaths<'s>,
-        rng: &mut Pcg32,
+        rng: &mut R,
         rays: &mut u64,
     ) -> Option<(Rgb, f32, Option<Vec2>)> {
         let scene = self.scene;
@@ -779,14 +853,14 @@ impl<'s> Tracer<'s> {
     /// `max_vertices` vertices or ends; `pdf_dir` is the density of
     /// `ray`'s direction at the last vertex.
     #[allow(clippy::too_many_arguments)]
-    fn walk(
+    fn walk<R: Uniforms>(
         &self,
         mut ray: Ray,
         mut beta: Rgb,
         mut pdf_dir: f32,
         mode: TransportMode,
         max_vertices: usize,
-        rng: &mut Pcg32,
+        rng: &mut R,
         path: &mut Vec<Vertex<'s>>,
         rays: &mut u64,
     ) {
@@ -974,11 +1048,7 @@ mod tests {
     /// the path (no connection at a delta or non-connectible vertex) must
     /// sum to one. Returns how many paths were checked.
     fn weights_sum_to_one<'s>(scene: &'s Scene, trials: u32) -> u32 {
-        let tracer = Tracer {
-            scene,
-            bounds: crate::light::scene_bounding_sphere(scene),
-            max_depth: 8,
-        };
+        let tracer = Tracer::new(scene, 8);
         let mut rng = Pcg32::new(11, 3);
         let mut path = Vec::new();
         let mut rays = 0;
@@ -987,7 +1057,7 @@ mod tests {
         for _ in 0..trials {
             let raster = Vec2::new(rng.next_f32() * w, rng.next_f32() * h);
             let lens = Vec2::new(rng.next_f32(), rng.next_f32());
-            tracer.camera_subpath(raster, lens, &mut rng, &mut path, &mut rays);
+            tracer.camera_subpath(raster, lens, 9, &mut rng, &mut path, &mut rays);
             for t in 3..=path.len() {
                 let Some(light_end) = tracer.as_light(&path[t - 1]) else {
                     continue;

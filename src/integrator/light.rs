@@ -165,7 +165,7 @@ impl SplatImage {
         let target = &self.target;
         let paths = target.width * target.height;
         let (seed, iteration) = (scene.settings.seed, self.iterations as u64);
-        let mut this = vec![DVec3::ZERO; self.sums.len()];
+        let mut this = self.blank();
         let mut rays = 0;
         // Chunks in batches, each batch's splats added in chunk order
         // before the next is traced: the splats held at once stay bounded
@@ -192,15 +192,29 @@ impl SplatImage {
             }
             for (splats, r) in parts {
                 rays += r;
-                for (px, l) in splats.image {
-                    this[px as usize] += l.as_dvec3();
-                }
-                for (image, px, l) in splats.extra {
-                    extra(image, px, l);
-                }
+                gather(&mut this, splats, extra);
             }
         }
-        for ((sum, sq), l) in self.sums.iter_mut().zip(&mut self.lum_sq).zip(&this) {
+        Some(rays + self.end_iteration(scene, stream, &this))
+    }
+
+    /// Where splats land.
+    pub(crate) fn target(&self) -> &SplatTarget {
+        &self.target
+    }
+
+    /// A zero image to gather one iteration's splats in.
+    pub(crate) fn blank(&self) -> Vec<DVec3> {
+        vec![DVec3::ZERO; self.sums.len()]
+    }
+
+    /// Adds iteration image `this` (an estimate of the image by itself) to
+    /// the sums, with the auxiliary images' camera rays (random numbers
+    /// from seed, `stream` + 1, iteration and pixel); returns those rays.
+    pub(crate) fn end_iteration(&mut self, scene: &Scene, stream: u64, this: &[DVec3]) -> u64 {
+        let (seed, iteration) = (scene.settings.seed, self.iterations as u64);
+        let mut rays = 0;
+        for ((sum, sq), l) in self.sums.iter_mut().zip(&mut self.lum_sq).zip(this) {
             *sum += *l;
             let y = luminance(l.as_vec3()) as f64;
             *sq += y * y;
@@ -215,10 +229,10 @@ impl SplatImage {
                     sum.add(&camera_aov(scene, &scene.camera.generate_ray(film, lens)));
                 }
             });
-            rays += paths as u64;
+            rays += (self.target.width * self.target.height) as u64;
         }
         self.iterations += 1;
-        Some(rays)
+        rays
     }
 
     /// The film of per-pixel sums `sums` of splats over the iterations
@@ -257,6 +271,17 @@ impl SplatImage {
             film.aovs = Some(aovs.iter().map(|a| FilmAov::default().plus(a)).collect());
         }
         film
+    }
+}
+
+/// Adds `splats` to iteration image `this` in their order, and hands
+/// those to other images to `extra`.
+pub(crate) fn gather(this: &mut [DVec3], splats: Splats, extra: &mut dyn FnMut(u32, u32, Rgb)) {
+    for (px, l) in splats.image {
+        this[px as usize] += l.as_dvec3();
+    }
+    for (image, px, l) in splats.extra {
+        extra(image, px, l);
     }
 }
 

@@ -16,6 +16,7 @@ pub mod ao;
 pub mod aov;
 pub mod bdpt;
 pub mod light;
+pub mod mlt;
 pub mod path;
 pub mod photon;
 pub mod volpath;
@@ -24,6 +25,7 @@ pub mod whitted;
 pub use ao::AmbientOcclusion;
 pub use bdpt::Bdpt;
 pub use light::LightTracer;
+pub use mlt::Metropolis;
 pub use path::PathTracer;
 pub use photon::PhotonMapper;
 pub use volpath::VolPathTracer;
@@ -136,6 +138,8 @@ pub fn drive<D: Driver>(scene: &Scene, aovs: bool, cancel: Option<&AtomicBool>, 
         IntegratorKind::Sppm => driver.iterations(photon::sppm::Sppm::new(scene, aovs)),
         IntegratorKind::Light => driver.iterations(LightTracer::new(scene, aovs)),
         IntegratorKind::Bdpt => driver.iterations(Bdpt::new(scene, aovs)),
+        IntegratorKind::Mlt => driver.iterations(Metropolis::new(scene, true, aovs)),
+        IntegratorKind::Pssmlt => driver.iterations(Metropolis::new(scene, false, aovs)),
         IntegratorKind::AmbientOcclusion => driver.camera_passes(
             &AmbientOcclusion {
                 max_distance: s.ao_distance,

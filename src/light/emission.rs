@@ -27,7 +27,7 @@ use super::Light;
 use crate::color::Rgb;
 use crate::geometry::Ray;
 use crate::material::Frame;
-use crate::sampling::rng::Pcg32;
+use crate::sampling::Uniforms;
 use crate::sampling::warp::{
     pdf_cone_uniform, pdf_sphere_uniform, sample_cone_uniform, sample_disk_concentric, sample_hemisphere_cosine,
     sample_sphere_uniform,
@@ -82,10 +82,10 @@ const EMITTER_OFFSET: f32 = 3e-5;
 /// its power, then a point and direction on it ([`Light::sample_le`]), with
 /// the light's index and the probability of that choice; `None` when the
 /// sample carries no light. Draws six numbers from `rng`, in that order.
-pub fn sample_scene_emission(
+pub fn sample_scene_emission<R: Uniforms>(
     scene: &Scene,
     bounds: (Vec3, f32),
-    rng: &mut Pcg32,
+    rng: &mut R,
 ) -> Option<(EmissionSample, usize, f32)> {
     let (light_index, pmf, _) = scene.light_distribution.sample(rng.next_f32());
     if pmf <= 0.0 {

@@ -404,7 +404,8 @@ mod tests {
         assert_eq!(Contestant::parse("sppm").unwrap().label, "sppm");
         assert!(Contestant::parse("photon:mis").is_err());
         assert_eq!(Contestant::parse("bdpt").unwrap().integrator, IntegratorKind::Bdpt);
-        assert!(Contestant::parse("mlt").is_err());
+        assert_eq!(Contestant::parse("mlt").unwrap().integrator, IntegratorKind::Mlt);
+        assert!(Contestant::parse("vcm").is_err());
         let d = Contestant::parse("path:mis+denoise").unwrap();
         assert_eq!(
             (d.label.as_str(), d.denoise),

@@ -4,11 +4,13 @@
 pub mod chi2;
 pub mod distribution;
 pub mod erf;
+pub mod primary;
 pub mod rng;
 pub mod sampler;
 pub mod sobol;
 pub mod warp;
 
 pub use distribution::{BilinearDistribution2D, Distribution1D, Distribution2D};
+pub use primary::{PrimarySamples, Uniforms};
 pub use rng::Pcg32;
 pub use sampler::{Sampler, SamplerKind};

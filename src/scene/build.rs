@@ -427,7 +427,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
         )
         .with_clipping(cam.near_clip, cam.far_clip);
-    if matches!(s.integrator, IntegratorKind::Light | IntegratorKind::Bdpt) && !camera.connects() {
+    if s.integrator.splats_light_paths() && !camera.connects() {
         return Err(Error::scene(
             cam.locs.item.clone(),
             "camera",
@@ -513,10 +513,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         ));
     }
     if desc.settings.max_component_value.is_finite()
-        && matches!(
-            desc.settings.integrator,
-            IntegratorKind::Sppm | IntegratorKind::Light | IntegratorKind::Bdpt
-        )
+        && (desc.settings.integrator == IntegratorKind::Sppm || desc.settings.integrator.splats_light_paths())
     {
         let at = desc
             .settings_locs
@@ -530,17 +527,12 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             desc.settings.integrator.name()
         ));
     }
-    let path_tracers = [
-        IntegratorKind::Path,
-        IntegratorKind::VolPath,
-        IntegratorKind::Light,
-        IntegratorKind::Bdpt,
-    ];
+    let path_tracers = [IntegratorKind::Path, IntegratorKind::VolPath];
     if let Some(m) = desc.materials.iter().find(|m| m.opacity.is_some())
-        && !path_tracers.contains(&desc.settings.integrator)
+        && !(path_tracers.contains(&desc.settings.integrator) || desc.settings.integrator.splats_light_paths())
     {
         warnings.push(format!(
-            "{}material \"{}\" has an opacity mask, which only \"path\", \"volpath\", \"light\" and \"bdpt\" render; \"{}\" renders it opaque",
+            "{}material \"{}\" has an opacity mask, which only \"path\", \"volpath\", \"light\", \"bdpt\", \"mlt\" and \"pssmlt\" render; \"{}\" renders it opaque",
             m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default(),
             m.name,
             desc.settings.integrator.name()

@@ -12,7 +12,8 @@ use crate::geometry::{Transform, TriangleMesh};
 use crate::light::SpotProfile;
 pub use crate::material::MicrofacetDistribution;
 use crate::settings::{
-    Filter, MAX_DEPTH, MAX_GATHER, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, RenderSettings,
+    Filter, MAX_DEPTH, MAX_GATHER, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_MLT_BOOTSTRAP, MAX_MLT_CHAINS, MAX_PHOTONS,
+    MAX_SPP, RenderSettings,
 };
 pub use crate::texture::{ImageFilter, WrapMode};
 use glam::{Mat4, Vec2, Vec3};
@@ -1621,6 +1622,37 @@ impl SceneDesc {
         }
         if s.max_depth > MAX_DEPTH {
             return Err(c.err("max_depth", format!("must be at most {MAX_DEPTH}, got {}", s.max_depth)));
+        }
+        let m = &s.mlt;
+        // Multiplexed MLT draws bootstrap samples for every path length.
+        let lengths = s.max_depth.max(1) as u64;
+        if m.bootstrap == 0 || m.bootstrap as u64 * lengths > MAX_MLT_BOOTSTRAP {
+            return Err(c.err(
+                "mlt_bootstrap",
+                format!(
+                    "must be between 1 and {} (at most {MAX_MLT_BOOTSTRAP} paths over the {lengths} path lengths), got {}",
+                    MAX_MLT_BOOTSTRAP / lengths,
+                    m.bootstrap
+                ),
+            ));
+        }
+        if m.chains == 0 || m.chains > MAX_MLT_CHAINS {
+            return Err(c.err(
+                "mlt_chains",
+                format!("must be between 1 and {MAX_MLT_CHAINS}, got {}", m.chains),
+            ));
+        }
+        if !(0.0..=1.0).contains(&m.large_step_probability) {
+            return Err(c.err(
+                "mlt_large_step",
+                format!(
+                    "must be a probability between 0 and 1, got {}",
+                    m.large_step_probability
+                ),
+            ));
+        }
+        if !(m.sigma > 0.0 && m.sigma.is_finite()) {
+            return Err(c.err("mlt_sigma", format!("must be a positive number, got {}", m.sigma)));
         }
         c.finite("exposure", s.exposure)?;
         if s.max_component_value.is_nan() || s.max_component_value <= 0.0 {

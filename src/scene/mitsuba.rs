@@ -1082,16 +1082,15 @@ impl Loader {
             "volpath" | "volpathmis" => s.integrator = IntegratorKind::VolPath,
             "ptracer" => s.integrator = IntegratorKind::Light,
             // Mitsuba 0.6's bidirectional integrators: BDPT itself, and its
-            // Metropolis samplers, which converge to BDPT's image.
+            // Metropolis samplers over it.
             "bdpt" => s.integrator = IntegratorKind::Bdpt,
-            "pssmlt" | "mlt" => {
-                s.integrator = IntegratorKind::Bdpt;
+            "pssmlt" => s.integrator = IntegratorKind::Pssmlt,
+            "mlt" => {
+                s.integrator = IntegratorKind::Mlt;
                 self.warn(
                     f,
                     node,
-                    format!(
-                        "integrator \"{ty}\" is rendered by \"bdpt\", the image its Metropolis sampling converges to"
-                    ),
+                    "integrator \"mlt\" (Veach's path-space mutations) is rendered by trazo's \"mlt\", Metropolis sampling in primary sample space over the bidirectional strategies, which converges to the same image",
                 );
             }
             other => self.warn(
@@ -1102,6 +1101,9 @@ impl Loader {
         }
         let max_depth = self.integer(f, &props, "max_depth", &mut used)?;
         let rr_depth = self.integer(f, &props, "rr_depth", &mut used)?;
+        if matches!(ty.as_str(), "pssmlt" | "mlt") {
+            self.read_metropolis(f, node, &props, &mut used)?;
+        }
         let s = &mut self.desc.settings;
         if ty == "direct" {
             s.max_depth = 2;
@@ -1114,7 +1116,7 @@ impl Loader {
         }
         if let Some(d) = rr_depth {
             s.rr_depth = d.clamp(0, u32::MAX as i64) as u32;
-            if s.integrator == IntegratorKind::Bdpt {
+            if s.integrator.splats_light_paths() && s.integrator != IntegratorKind::Light {
                 self.warn(
                     f,
                     node,
@@ -1143,6 +1145,33 @@ impl Loader {
             }
         }
         self.unused(f, node, &props, &used);
+        Ok(())
+    }
+
+    /// Mitsuba 0.6's Metropolis parameters, in its spelling or Mitsuba
+    /// 3's: `luminanceSamples` (the bootstrap paths) and `pLarge` (the
+    /// large-step probability). The others (`bidirectional`, `twoStage`,
+    /// `directSamples`, the path-space mutations) are left to the warning
+    /// on unused properties: trazo's chains always run over the
+    /// bidirectional sampler.
+    fn read_metropolis(&mut self, f: &FileCtx, node: Node, props: &[Node], used: &mut Vec<String>) -> Result<()> {
+        let at = |name: &str| Self::find(props, name, &mut Vec::new()).unwrap_or(node);
+        for name in ["luminanceSamples", "luminance_samples"] {
+            if let Some(v) = self.integer(f, props, name, used)? {
+                if !(1..=MAX_SPP as i64).contains(&v) {
+                    return Err(self.err(f, at(name), format!("must be between 1 and {MAX_SPP}, got {v}")));
+                }
+                self.desc.settings.mlt.bootstrap = v as u32;
+            }
+        }
+        for name in ["pLarge", "p_large"] {
+            if let Some(v) = self.float(f, props, name, used)? {
+                if !(0.0..=1.0).contains(&v) {
+                    return Err(self.err(f, at(name), format!("must be a probability between 0 and 1, got {v}")));
+                }
+                self.desc.settings.mlt.large_step_probability = v;
+            }
+        }
         Ok(())
     }
 
@@ -4053,19 +4082,36 @@ mod tests {
         assert!(e.starts_with("c.xml:3:") && e.contains("crop window"), "{e}");
     }
 
-    /// Mitsuba 0.6's `bdpt` is trazo's bidirectional path tracer, and its
-    /// Metropolis integrators are rendered by it, with a warning.
+    /// Mitsuba 0.6's `bdpt` and `pssmlt` are trazo's; its path-space
+    /// `mlt` is rendered by trazo's multiplexed MLT, with a warning. The
+    /// Metropolis parameters carry over, and out of range they are errors.
     #[test]
-    fn bidirectional_integrators_are_bdpt() {
-        for (ty, warned) in [("bdpt", false), ("pssmlt", true), ("mlt", true)] {
+    fn bidirectional_integrators_are_read() {
+        for (ty, kind, warned) in [
+            ("bdpt", IntegratorKind::Bdpt, false),
+            ("pssmlt", IntegratorKind::Pssmlt, false),
+            ("mlt", IntegratorKind::Mlt, true),
+        ] {
             let text = format!(
                 "<scene version=\"3.0.0\">\n    <integrator type=\"{ty}\">\n        <integer name=\"max_depth\" value=\"5\"/>\n    </integrator>\n</scene>"
             );
             let d = parse(&text, Path::new("b.xml"), &[]).unwrap();
-            assert_eq!((d.settings.integrator, d.settings.max_depth), (IntegratorKind::Bdpt, 5));
+            assert_eq!((d.settings.integrator, d.settings.max_depth), (kind, 5));
             let w = d.warnings.join("\n");
-            assert_eq!(w.contains("b.xml:2:") && w.contains("Metropolis"), warned, "{w}");
+            assert_eq!(w.contains("b.xml:2:") && w.contains("path-space"), warned, "{w}");
         }
+        let text = |p: &str| {
+            format!(
+                "<scene version=\"0.6.0\">\n<integrator type=\"pssmlt\">\n<integer name=\"luminanceSamples\" value=\"5000\"/>\n<float name=\"pLarge\" value=\"{p}\"/>\n</integrator>\n</scene>"
+            )
+        };
+        let d = parse(&text("0.5"), Path::new("b.xml"), &[]).unwrap();
+        assert_eq!(
+            (d.settings.mlt.bootstrap, d.settings.mlt.large_step_probability),
+            (5000, 0.5)
+        );
+        let e = parse(&text("1.5"), Path::new("b.xml"), &[]).unwrap_err().to_string();
+        assert!(e.starts_with("b.xml:4:") && e.contains("probability"), "{e}");
     }
 
     /// File names resolve as in Mitsuba: against the main scene's folder

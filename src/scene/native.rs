@@ -492,6 +492,18 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     if let Some(d) = t.number("ao_distance")? {
         s.ao_distance = d;
     }
+    if let Some(n) = t.unsigned("mlt_bootstrap", u32::MAX as u64)? {
+        s.mlt.bootstrap = n as u32;
+    }
+    if let Some(n) = t.unsigned("mlt_chains", u32::MAX as u64)? {
+        s.mlt.chains = n as u32;
+    }
+    if let Some(p) = t.number("mlt_large_step")? {
+        s.mlt.large_step_probability = p;
+    }
+    if let Some(sigma) = t.number("mlt_sigma")? {
+        s.mlt.sigma = sigma;
+    }
     if let Some(v) = t.value("crop") {
         // [x, y, width, height] in pixels of the width × height image.
         let c = t.numbers_of("crop", v, 4)?;
@@ -1450,6 +1462,36 @@ material = "red"
             e.starts_with("test.toml:6:") && e.contains("ao_distance") && e.contains("positive"),
             "{e}"
         );
+    }
+
+    /// The Metropolis parameters are read, and out of range name their key
+    /// and line (a bootstrap too large for the path lengths included: its
+    /// weights would be a giant allocation).
+    #[test]
+    fn metropolis_parameters_are_read_and_checked() {
+        let with = |keys: &str| MINIMAL.replace("spp = 4", &format!("spp = 4\nintegrator = \"mlt\"\n{keys}"));
+        let d = parse_str(&with(
+            "mlt_bootstrap = 500\nmlt_chains = 7\nmlt_large_step = 0.5\nmlt_sigma = 0.02",
+        ))
+        .unwrap();
+        let m = d.settings.mlt;
+        assert_eq!(
+            (m.bootstrap, m.chains, m.large_step_probability, m.sigma),
+            (500, 7, 0.5, 0.02)
+        );
+        for (keys, key, line) in [
+            ("mlt_bootstrap = 0", "mlt_bootstrap", 7),
+            ("max_depth = 64\nmlt_bootstrap = 2000000", "mlt_bootstrap", 8),
+            ("mlt_chains = 0", "mlt_chains", 7),
+            ("mlt_large_step = 1.5", "mlt_large_step", 7),
+            ("mlt_sigma = 0", "mlt_sigma", 7),
+        ] {
+            let e = error_of(&with(keys));
+            assert!(
+                e.starts_with(&format!("test.toml:{line}:")) && e.contains(key),
+                "{keys}: {e}"
+            );
+        }
     }
 
     #[test]

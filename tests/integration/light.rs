@@ -117,18 +117,28 @@ fn light_tracing_agrees_with_the_path_tracer_through_every_camera() {
     }
 }
 
-/// Light paths (and BDPT's pairs of subpaths) are traced in fixed chunks
-/// and their splats added in order: one thread or two, the same film to
-/// the bit (auxiliary sums included).
+/// Every integrator that splats light paths onto the image.
+const SPLATTING: [IntegratorKind; 4] = [
+    IntegratorKind::Light,
+    IntegratorKind::Bdpt,
+    IntegratorKind::Mlt,
+    IntegratorKind::Pssmlt,
+];
+
+/// Light paths (BDPT's pairs of subpaths, Metropolis chains) are traced in
+/// fixed chunks and their splats added in order: one thread or two, the
+/// same film to the bit (auxiliary sums included).
 #[test]
 fn splatting_integrators_do_not_depend_on_the_thread_count() {
-    for integrator in [IntegratorKind::Light, IntegratorKind::Bdpt] {
+    for integrator in SPLATTING {
         let mut d = small_cornell();
         d.settings.width = 24;
         d.settings.height = 20;
         d.settings.spp = 2;
         d.settings.integrator = integrator;
         d.settings.filter = Filter::from_name("tent").unwrap();
+        d.settings.mlt.bootstrap = 2000;
+        d.settings.mlt.chains = 50;
         let scene = trazo::scene::build(&d).unwrap();
         let films: Vec<_> = [1usize, 2]
             .iter()
@@ -152,7 +162,7 @@ fn splatting_integrators_do_not_depend_on_the_thread_count() {
 /// the integrator.
 #[test]
 fn splatting_integrators_refuse_an_orthographic_camera_with_a_lens() {
-    for integrator in [IntegratorKind::Light, IntegratorKind::Bdpt] {
+    for integrator in SPLATTING {
         let mut d = small_cornell();
         d.settings.integrator = integrator;
         d.camera.projection = ProjectionDesc::Orthographic { size: 2.0 };

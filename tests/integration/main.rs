@@ -15,6 +15,7 @@ mod long_renders;
 mod malformed;
 mod media;
 mod mitsuba;
+mod mlt;
 mod path;
 mod pbrt;
 mod pbrt_refs;

@@ -338,6 +338,9 @@ struct Parser {
     /// Whether the integrator asked for is `volpath` (pbrt's default),
     /// which renders media if the scene has any.
     volpath: bool,
+    /// `Integrator "mlt"`'s mutations per pixel, which stand for the
+    /// sampler's samples per pixel wherever the sampler is declared.
+    mlt_mutations: Option<u32>,
 }
 
 fn det3(m: &Mat4) -> f32 {
@@ -398,6 +401,7 @@ impl Parser {
             media_names: HashMap::new(),
             unsupported_media: HashSet::new(),
             volpath: true,
+            mlt_mutations: None,
         }
     }
 
@@ -1331,6 +1335,9 @@ impl Parser {
         // pbrt's volpath is its path tracer where there are no media.
         if self.volpath && !self.desc.media.is_empty() {
             self.desc.settings.integrator = IntegratorKind::VolPath;
+        }
+        if let Some(m) = self.mlt_mutations {
+            self.desc.settings.spp = m;
         }
         self.summarise_repeats();
         self.desc.validate()

@@ -237,18 +237,51 @@ impl Parser {
             // pbrt-v4's LightPathIntegrator: light tracing, with the same
             // depth.
             s.integrator = IntegratorKind::Light;
-        } else if kind == "bdpt" || kind == "mlt" {
-            // pbrt-v4's BDPTIntegrator, with the same depth; its MLT
-            // converges to the same image by Metropolis sampling of the
-            // bidirectional strategies, which trazo does not do yet.
-            s.integrator = IntegratorKind::Bdpt;
-            if kind == "mlt" {
-                self.approximated(
-                    loc,
-                    "Integrator \"mlt\"".to_string(),
-                    "rendered by trazo's bidirectional path tracer, the image Metropolis sampling converges to, with the same depth",
-                );
+        } else if kind == "mlt" {
+            // pbrt-v4's MLTIntegrator: multiplexed Metropolis light
+            // transport over the bidirectional strategies, its samples per
+            // pixel the mutations per pixel.
+            s.integrator = IntegratorKind::Mlt;
+            let counts = [
+                ("bootstrapsamples", 100_000i64),
+                ("chains", 1000),
+                ("mutationsperpixel", 100),
+            ];
+            let mut values = [0u32; 3];
+            for ((name, default), value) in counts.into_iter().zip(&mut values) {
+                *value = match p.int_opt(name)? {
+                    Some((v, prm)) if !(1..=MAX_SPP as i64).contains(&v) => {
+                        return Err(prm.err(format!("must be between 1 and {MAX_SPP}, got {v}")));
+                    }
+                    Some((v, _)) => v as u32,
+                    None => default as u32,
+                };
             }
+            let large_step = match p.float_opt("largestepprobability")? {
+                Some((v, prm)) if !(0.0..=1.0).contains(&v) => {
+                    return Err(prm.err(format!("must be a probability between 0 and 1, got {v}")));
+                }
+                Some((v, _)) => v,
+                None => 0.3,
+            };
+            let sigma = match p.float_opt("sigma")? {
+                Some((v, prm)) if !(v > 0.0 && v.is_finite()) => {
+                    return Err(prm.err(format!("must be a positive number, got {v}")));
+                }
+                Some((v, _)) => v,
+                None => 0.01,
+            };
+            let s = &mut self.desc.settings;
+            s.mlt = crate::settings::MltSettings {
+                bootstrap: values[0],
+                chains: values[1],
+                large_step_probability: large_step,
+                sigma,
+            };
+            self.mlt_mutations = Some(values[2]);
+        } else if kind == "bdpt" {
+            // pbrt-v4's BDPTIntegrator, with the same depth.
+            s.integrator = IntegratorKind::Bdpt;
             // Either asks for the strategies' images; trazo writes both
             // kinds (`trazo render --bdpt-strategies` names them).
             for name in ["visualizestrategies", "visualizeweights"] {
@@ -310,7 +343,7 @@ impl Parser {
             );
             Self::use_all(p);
         }
-        if matches!(kind, "path" | "volpath" | "bdpt") {
+        if matches!(kind, "path" | "volpath" | "bdpt" | "mlt") {
             // Light sampling and regularisation change noise, not the
             // expected image.
             for (name, how) in [

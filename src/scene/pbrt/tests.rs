@@ -122,18 +122,34 @@ WorldBegin"#,
         }
     );
     let w = d.warnings.join("\n");
-    // pbrt-v4's BDPT is trazo's, with its depth; its MLT is rendered by it.
+    // pbrt-v4's BDPT is trazo's, with its depth.
     assert_eq!(d.settings.integrator, IntegratorKind::Bdpt);
     assert!(!w.contains("Integrator"), "{w}");
     assert!(!d.settings.bdpt_strategies);
     let v = parse_str("Integrator \"bdpt\" \"bool visualizeweights\" true\nWorldBegin").unwrap();
     assert!(v.settings.bdpt_strategies && v.warnings.is_empty(), "{:?}", v.warnings);
-    let m = parse_str("Integrator \"mlt\" \"integer maxdepth\" 4\nWorldBegin").unwrap();
-    assert_eq!((m.settings.integrator, m.settings.max_depth), (IntegratorKind::Bdpt, 5));
+    // Its MLT is trazo's multiplexed MLT, its mutations per pixel the
+    // samples per pixel wherever the sampler is declared.
+    let m = parse_str(
+        "Integrator \"mlt\" \"integer maxdepth\" 4 \"integer bootstrapsamples\" 500 \"integer chains\" 20\n\
+         \"integer mutationsperpixel\" 7 \"float largestepprobability\" 0.5 \"float sigma\" 0.02\n\
+         Sampler \"halton\" \"integer pixelsamples\" 64\nWorldBegin",
+    )
+    .unwrap();
+    assert_eq!((m.settings.integrator, m.settings.max_depth), (IntegratorKind::Mlt, 5));
+    assert_eq!(m.settings.spp, 7);
+    let mlt = m.settings.mlt;
+    assert_eq!(
+        (mlt.bootstrap, mlt.chains, mlt.large_step_probability, mlt.sigma),
+        (500, 20, 0.5, 0.02)
+    );
+    assert!(!m.warnings.join("\n").contains("Integrator"), "{:?}", m.warnings);
+    let e = parse_str("Integrator \"mlt\" \"float sigma\" -1\nWorldBegin")
+        .unwrap_err()
+        .to_string();
     assert!(
-        m.warnings
-            .join("\n")
-            .contains("test.pbrt:1:1: Integrator \"mlt\" is approximated")
+        e.contains("test.pbrt:1:") && e.contains("sigma") && e.contains("positive"),
+        "{e}"
     );
     assert_eq!(d.settings.sampler, SamplerKind::Sobol);
     assert!(!w.contains("Sampler"), "ZSobol is read as trazo's Sobol sampler: {w}");
