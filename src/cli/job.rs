@@ -165,12 +165,13 @@ impl Job {
     }
 
     /// The checkpoint of this job at the end of a pass.
-    pub(super) fn checkpoint(&self, film: &Film, stats: &RenderStats) -> Checkpoint {
+    pub(super) fn checkpoint(&self, film: &Film, stats: &RenderStats, state: &[u8]) -> Checkpoint {
         Checkpoint {
             job: self.entries.clone(),
             target_spp: self.target_spp,
             film: film.clone(),
             stats: stats.clone(),
+            state: state.to_vec(),
         }
     }
 

@@ -710,14 +710,12 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         }
         desc.settings.bdpt_strategies = true;
     }
-    // SPPM's state is not a film of samples, and light tracing's and
-    // bidirectional path tracing's splats are kept per iteration: none
-    // has checkpoints.
+    // SPPM's state (per-pixel radii and photon statistics) has no
+    // checkpoints; the splatting algorithms' states do (their sums, MLT's
+    // chains), but each of their iterations renders the whole image, so
+    // none is sharded.
     let not_resumable = match desc.settings.integrator {
         IntegratorKind::Sppm => Some(crate::integrator::photon::sppm::NOT_RESUMABLE),
-        IntegratorKind::Light => Some(crate::integrator::light::NOT_RESUMABLE),
-        IntegratorKind::Bdpt => Some(crate::integrator::bdpt::NOT_RESUMABLE),
-        IntegratorKind::Mlt | IntegratorKind::Pssmlt => Some(crate::integrator::mlt::NOT_RESUMABLE),
         _ => None,
     };
     let resumable = not_resumable.is_none();
@@ -726,6 +724,12 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         args.checkpoint_every.is_some() || resume.is_some() || args.shard.is_some(),
     ) {
         return Err(after_loading(Error::Invalid(why.into()), &desc));
+    }
+    if desc.settings.integrator.splats_light_paths() && args.shard.is_some() {
+        return Err(after_loading(
+            Error::Invalid(crate::integrator::NOT_SHARDABLE.into()),
+            &desc,
+        ));
     }
     let limits = scene::BuildLimits {
         max_memory: Some(args.max_memory.unwrap_or_else(scene::memory::default_limit)),
@@ -762,8 +766,8 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         shard: args.shard,
         ..args.scene.options()
     };
-    let mut save = |film: &Film, stats: &RenderStats| {
-        if let Err(e) = job.checkpoint(film, stats).write(&checkpoint_file) {
+    let mut save = |film: &Film, stats: &RenderStats, state: &[u8]| {
+        if let Err(e) = job.checkpoint(film, stats, state).write(&checkpoint_file) {
             eprintln!("warning: {e}");
         }
     };
@@ -783,8 +787,13 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             last_frame = Some(Instant::now());
         }
     };
+    let (resume, resume_state) = match resume {
+        Some((_, c)) => (Some((c.film, c.stats)), c.state),
+        None => (None, Vec::new()),
+    };
     let mut control = Control {
-        resume: resume.map(|(_, c)| (c.film, c.stats)),
+        resume,
+        resume_state,
         cancel: Some(interrupt.as_ref()),
         deadline: args.time_limit.map(|t| started + Duration::from_secs_f64(t)),
         checkpoint_every: args.checkpoint_every.map(Duration::from_secs_f64),
@@ -800,7 +809,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         return Ok(ExitCode::from(EXIT_INTERRUPTED));
     }
     if let Some(shard) = args.shard {
-        job.checkpoint(&out.film, st).write(&output)?;
+        job.checkpoint(&out.film, st, &[]).write(&output)?;
         if let Some(d) = display {
             d.finish(display_frame(&out.film, &out.film.to_image(), s.exposure, &aovs));
         }
@@ -826,7 +835,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         d.finish(display_frame(&out.film, &image, s.exposure, &aovs));
     }
     match out.stopped {
-        Some(_) if resumable => job.checkpoint(&out.film, st).write(&checkpoint_file)?,
+        Some(_) if resumable => job.checkpoint(&out.film, st, &out.state).write(&checkpoint_file)?,
         _ => {
             // The render is complete (or cannot be continued): a
             // checkpoint of an earlier render to this output is stale.

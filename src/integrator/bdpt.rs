@@ -36,6 +36,7 @@
 
 use super::adjoint_shading_factor;
 use super::light::SplatImage;
+use super::state::{StateReader, StateWriter};
 use super::{Progressive, Work};
 use crate::color::Rgb;
 use crate::film::Film;
@@ -49,9 +50,6 @@ use crate::texture::TexCoord;
 use glam::{DVec3, Vec2, Vec3};
 use std::f32::consts::PI;
 use std::sync::atomic::AtomicBool;
-
-/// Why bidirectional renders refuse checkpoints.
-pub const NOT_RESUMABLE: &str = "bidirectional path tracing renders cannot be checkpointed, resumed or sharded yet (its image is a sum of splats over whole iterations): drop --checkpoint-every/--resume/--shard, or use --integrator path";
 
 /// Separates bidirectional path tracing's random numbers from the others'.
 const STREAM: u64 = 0x6264_7074;
@@ -270,7 +268,7 @@ impl Bdpt {
 }
 
 impl Progressive for Bdpt {
-    const NOT_RESUMABLE: &'static str = NOT_RESUMABLE;
+    const NOT_RESUMABLE: Option<&'static str> = None;
 
     /// One camera subpath and one light subpath per pixel.
     fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work> {
@@ -345,6 +343,38 @@ impl Progressive for Bdpt {
             }
         }
         out
+    }
+
+    /// The image's sums and, when recorded, each strategy's.
+    fn state(&self) -> Option<Vec<u8>> {
+        let mut w = StateWriter::default();
+        self.image.write_state(&mut w);
+        let strategies = self.strategies.as_deref().unwrap_or_default();
+        w.u64(strategies.len() as u64);
+        for pair in strategies {
+            for image in pair {
+                w.dvec3s(image);
+            }
+        }
+        Some(w.0)
+    }
+
+    fn restore(&mut self, _scene: &Scene, state: &[u8]) -> Result<(), String> {
+        let mut r = StateReader::new(state);
+        self.image.read_state(&mut r)?;
+        let count = self.strategies.as_ref().map_or(0, Vec::len);
+        if r.count(16)? != count {
+            return Err("the saved state and the render disagree on the strategies' images".into());
+        }
+        if let Some(strategies) = &mut self.strategies {
+            for pair in strategies.iter_mut() {
+                for image in pair.iter_mut() {
+                    let n = image.len();
+                    *image = r.dvec3s(n)?;
+                }
+            }
+        }
+        r.finish()
     }
 }
 

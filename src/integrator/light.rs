@@ -35,6 +35,7 @@ use crate::film::{AovSum, Film, FilmAov, FilmPixel, PixelSum};
 use crate::geometry::Ray;
 use crate::geometry::interaction::SHADOW_EPSILON;
 use crate::integrator::aov::camera_aov;
+use crate::integrator::state::{StateReader, StateWriter};
 use crate::integrator::{Progressive, Work, adjoint_shading_factor};
 use crate::material::TransportMode;
 use crate::sampling::rng::{Pcg32, hash_u64s};
@@ -43,9 +44,6 @@ use crate::texture::TexCoord;
 use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
-
-/// Why light tracing refuses checkpoints.
-pub const NOT_RESUMABLE: &str = "light tracing renders cannot be checkpointed, resumed or sharded yet (its image is a sum of splats over whole iterations): drop --checkpoint-every/--resume/--shard, or use --integrator path";
 
 /// Paths per work unit.
 const CHUNK: u32 = 4096;
@@ -198,6 +196,64 @@ impl SplatImage {
         Some(rays + self.end_iteration(scene, stream, &this))
     }
 
+    /// Writes the sums and the number of iterations (for checkpoints).
+    pub(crate) fn write_state(&self, w: &mut StateWriter) {
+        w.u32(self.iterations);
+        w.dvec3s(&self.sums);
+        w.f64s(&self.lum_sq);
+        match &self.aovs {
+            None => w.u32(0),
+            Some(aovs) => {
+                w.u32(1);
+                w.u64(aovs.len() as u64);
+                for a in aovs {
+                    for v in [a.albedo.x, a.albedo.y, a.albedo.z, a.normal.x, a.normal.y, a.normal.z] {
+                        w.f64(v);
+                    }
+                    for v in [a.depth, a.count, a.steps] {
+                        w.f64(v);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Reads what [`SplatImage::write_state`] wrote, for an image of this
+    /// size and the same auxiliary sums.
+    pub(crate) fn read_state(&mut self, r: &mut StateReader) -> Result<(), String> {
+        let n = self.sums.len();
+        self.iterations = r.u32()?;
+        self.sums = r.dvec3s(n)?;
+        self.lum_sq = r.f64s(n)?;
+        let has_aovs = r.u32()? == 1;
+        if has_aovs != self.aovs.is_some() {
+            return Err("the saved state and the render disagree on auxiliary images".into());
+        }
+        if let Some(aovs) = &mut self.aovs {
+            if r.count(9 * 8)? != n {
+                return Err("the saved auxiliary images are of another size".into());
+            }
+            for a in aovs.iter_mut() {
+                let mut v = [0.0; 9];
+                for x in &mut v {
+                    *x = r.f64()?;
+                }
+                *a = AovSum {
+                    albedo: DVec3::new(v[0], v[1], v[2]),
+                    normal: DVec3::new(v[3], v[4], v[5]),
+                    depth: v[6],
+                    count: v[7],
+                    steps: v[8],
+                };
+            }
+        }
+        let finite = self.sums.iter().all(|s| s.is_finite()) && self.lum_sq.iter().all(|s| s.is_finite());
+        if !finite {
+            return Err("a saved sum is not a finite number".into());
+        }
+        Ok(())
+    }
+
     /// Where splats land.
     pub(crate) fn target(&self) -> &SplatTarget {
         &self.target
@@ -333,7 +389,7 @@ impl SplatTarget {
 }
 
 impl Progressive for LightTracer {
-    const NOT_RESUMABLE: &'static str = NOT_RESUMABLE;
+    const NOT_RESUMABLE: Option<&'static str> = None;
 
     /// One path per pixel, given up (and the whole iteration with it) soon
     /// after `cancel` is set.
@@ -357,6 +413,18 @@ impl Progressive for LightTracer {
 
     fn film(&self) -> Film {
         self.image.film()
+    }
+
+    fn state(&self) -> Option<Vec<u8>> {
+        let mut w = StateWriter::default();
+        self.image.write_state(&mut w);
+        Some(w.0)
+    }
+
+    fn restore(&mut self, _scene: &Scene, state: &[u8]) -> Result<(), String> {
+        let mut r = StateReader::new(state);
+        self.image.read_state(&mut r)?;
+        r.finish()
     }
 }
 

@@ -33,9 +33,11 @@
 
 use super::bdpt::{CAMERA_STREAM, STREAMS, Subpaths, Tracer};
 use super::light::{SplatImage, Splats, gather};
+use super::state::{StateReader, StateWriter};
 use super::{Progressive, Work};
 use crate::color::{Rgb, luminance};
 use crate::film::Film;
+use crate::sampling::primary::Coordinate;
 use crate::sampling::rng::{ONE_MINUS_EPSILON, Pcg32, hash_u64s};
 use crate::sampling::{Distribution1D, PrimarySamples, Uniforms};
 use crate::scene::Scene;
@@ -43,9 +45,6 @@ use crate::settings::MltSettings;
 use glam::Vec2;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
-
-/// Why Metropolis renders refuse checkpoints.
-pub const NOT_RESUMABLE: &str = "Metropolis light transport renders cannot be checkpointed, resumed or sharded yet (their state is the chains' and the image a sum of splats over whole iterations): drop --checkpoint-every/--resume/--shard, or use --integrator path";
 
 /// Separates Metropolis light transport's random numbers from the others'.
 const STREAM: u64 = 0x6d6c_7400;
@@ -62,6 +61,7 @@ const BOOTSTRAP_CHUNK: usize = 1024;
 type Splat = (Vec2, Rgb);
 
 /// One Markov chain.
+#[derive(Clone)]
 struct Chain {
     samples: PrimarySamples,
     /// Draws the acceptances.
@@ -238,7 +238,7 @@ impl Metropolis {
 }
 
 impl Progressive for Metropolis {
-    const NOT_RESUMABLE: &'static str = NOT_RESUMABLE;
+    const NOT_RESUMABLE: Option<&'static str> = None;
 
     /// As many mutations as the image has pixels, spread evenly over the
     /// chains (bootstrapping them first).
@@ -251,6 +251,9 @@ impl Progressive for Metropolis {
             unreachable!("bootstrapped above");
         };
         let brightness = *brightness;
+        // An iteration given up leaves the state as it was before it, so
+        // that a checkpoint written then continues exactly.
+        let before = cancel.is_some().then(|| chains.clone());
         let tracer = Tracer::new(scene, self.max_depth);
         let target = self.image.target();
         let mut this = self.image.blank();
@@ -308,6 +311,9 @@ impl Progressive for Metropolis {
                 })
                 .collect();
             if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                if let Some(before) = before {
+                    *chains = before;
+                }
                 return None;
             }
             for (splats, r) in parts {
@@ -324,5 +330,102 @@ impl Progressive for Metropolis {
 
     fn film(&self) -> Film {
         self.image.film()
+    }
+
+    /// The image's sums, the brightness, and every chain: its state in
+    /// primary sample space, its generators and its current contribution.
+    fn state(&self) -> Option<Vec<u8>> {
+        let mut w = StateWriter::default();
+        self.image.write_state(&mut w);
+        let Some((brightness, chains)) = &self.chains else {
+            w.u32(0);
+            return Some(w.0);
+        };
+        w.u32(1);
+        w.f32(*brightness);
+        w.u64(chains.len() as u64);
+        for c in chains {
+            let p = &c.samples;
+            for (state, inc) in [p.rng.parts(), c.rng.parts()] {
+                w.u64(state);
+                w.u64(inc);
+            }
+            w.u64(p.iteration);
+            w.u32(u32::from(p.large_step));
+            w.u64(p.last_large_step);
+            w.u64(p.coordinates.len() as u64);
+            for x in &p.coordinates {
+                w.f32(x.value);
+                w.u64(x.modified);
+            }
+            w.u64(c.segments as u64);
+            w.f32(c.importance);
+            w.u64(c.current.len() as u64);
+            for (at, l) in &c.current {
+                for v in [at.x, at.y, l.x, l.y, l.z] {
+                    w.f32(v);
+                }
+            }
+        }
+        Some(w.0)
+    }
+
+    fn restore(&mut self, scene: &Scene, state: &[u8]) -> Result<(), String> {
+        let mut r = StateReader::new(state);
+        self.image.read_state(&mut r)?;
+        if r.u32()? == 0 {
+            self.chains = None;
+            return r.finish();
+        }
+        let brightness = r.f32()?;
+        let count = r.count(64)?;
+        let mut chains = Vec::with_capacity(count);
+        let generator = |r: &mut StateReader| -> Result<Pcg32, String> {
+            let (state, inc) = (r.u64()?, r.u64()?);
+            Pcg32::from_parts(state, inc).ok_or_else(|| "a saved generator is invalid".to_string())
+        };
+        for i in 0..count {
+            let mut samples = self.samples_of(scene, 0);
+            samples.rng = generator(&mut r)?;
+            let rng = generator(&mut r)?;
+            samples.iteration = r.u64()?;
+            samples.large_step = r.u32()? == 1;
+            samples.last_large_step = r.u64()?;
+            let n = r.count(12)?;
+            samples.coordinates = (0..n)
+                .map(|_| {
+                    let (value, modified) = (r.f32()?, r.u64()?);
+                    if !(0.0..1.0).contains(&value) {
+                        return Err(format!("chain {i}: a saved primary sample is outside [0, 1)"));
+                    }
+                    Ok(Coordinate {
+                        value,
+                        modified,
+                        backup: (value, modified),
+                    })
+                })
+                .collect::<Result<_, String>>()?;
+            let segments = r.u64()? as usize;
+            if segments > self.max_depth as usize || (segments == 0) == self.multiplexed {
+                return Err(format!("chain {i} renders paths of a length this render does not"));
+            }
+            let importance = r.f32()?;
+            let n = r.count(20)?;
+            let current = (0..n)
+                .map(|_| {
+                    let v = [r.f32()?, r.f32()?, r.f32()?, r.f32()?, r.f32()?];
+                    Ok((Vec2::new(v[0], v[1]), Rgb::new(v[2], v[3], v[4])))
+                })
+                .collect::<Result<_, String>>()?;
+            chains.push(Chain {
+                samples,
+                rng,
+                segments,
+                current,
+                importance,
+            });
+        }
+        self.chains = Some((brightness, chains));
+        r.finish()
     }
 }

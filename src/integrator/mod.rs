@@ -19,6 +19,7 @@ pub mod light;
 pub mod mlt;
 pub mod path;
 pub mod photon;
+pub(crate) mod state;
 pub mod volpath;
 pub mod whitted;
 
@@ -72,12 +73,16 @@ pub struct Work {
     pub photon_seconds: f64,
 }
 
+/// Why a progressive algorithm's render cannot be split into shards.
+pub const NOT_SHARDABLE: &str = "progressive algorithms (sppm, light, bdpt, mlt, pssmlt) cannot be sharded (each iteration renders the whole image): drop --shard, or use --integrator path";
+
 /// An algorithm that renders in iterations over the whole image, whose
 /// state is not a film of samples (SPPM: every pixel's radius, photon count
 /// and flux). The driver decides when to iterate and when to stop.
 pub trait Progressive {
-    /// Why this algorithm's renders cannot be checkpointed or resumed.
-    const NOT_RESUMABLE: &'static str;
+    /// Why this algorithm's renders cannot be checkpointed or resumed;
+    /// `None` where they can ([`Progressive::state`]).
+    const NOT_RESUMABLE: Option<&'static str>;
 
     /// Runs one more iteration. `None` when `cancel` was set during it: the
     /// iteration is dropped and the state is that of the iterations before.
@@ -91,6 +96,19 @@ pub trait Progressive {
     /// per-strategy images, when asked for).
     fn extra_images(&self) -> Vec<(String, Film)> {
         Vec::new()
+    }
+
+    /// The state after the iterations so far, from which
+    /// [`Progressive::restore`] continues exactly as if the render had not
+    /// stopped; `None` where the algorithm cannot be resumed.
+    fn state(&self) -> Option<Vec<u8>> {
+        None
+    }
+
+    /// Continues from a state [`Progressive::state`] wrote for this scene
+    /// (a reason where it does not fit).
+    fn restore(&mut self, _scene: &Scene, _state: &[u8]) -> Result<(), String> {
+        Err(Self::NOT_RESUMABLE.unwrap_or("this algorithm cannot be resumed").into())
     }
 }
 

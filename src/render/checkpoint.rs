@@ -22,8 +22,10 @@
 //! width·height pixels: Σw·L (3 × i128), Σw, Σw·Y² (i128), in units of 2⁻⁵⁰
 //! if AOVs, width·height: Σalbedo (3 × i128), Σnormal (3 × i128), Σdepth, count,
 //! Σsteps (i128 each)
+//! state: length u64, then that many bytes (a progressive algorithm's
+//! state, `Progressive::state`; empty for camera passes)
 //! (version 1 held the same sums as f64, which are read and converted;
-//! versions 1 and 2 had no Σsteps, read as 0)
+//! versions 1 and 2 had no Σsteps, read as 0; versions 1–3 no state)
 //! FNV-1a 64 of everything above: u64
 //! ```
 //!
@@ -42,7 +44,7 @@ use std::path::{Path, PathBuf};
 /// The first bytes of every checkpoint.
 pub const MAGIC: &[u8; 8] = b"TRAZOCKP";
 /// The version of the layout this code reads and writes.
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 /// Largest job description accepted when reading, in bytes: room for the
 /// settings and some hundred thousand recorded scene files.
 const MAX_JOB_BYTES: usize = 32 << 20;
@@ -62,6 +64,10 @@ pub struct Checkpoint {
     pub film: Film,
     /// Statistics up to this point (`spp` is the samples per pixel done).
     pub stats: RenderStats,
+    /// A progressive algorithm's state (light tracing, BDPT, MLT: their
+    /// sums and chains), from which it continues; empty for camera passes,
+    /// whose state is the film.
+    pub state: Vec<u8>,
 }
 
 /// The checkpoint that belongs to an output image: `OUT.trazo-checkpoint`
@@ -122,6 +128,8 @@ impl Checkpoint {
                 }
             }
         }
+        put_u64(&mut b, self.state.len() as u64);
+        b.extend_from_slice(&self.state);
         let sum = fnv1a(&b);
         put_u64(&mut b, sum);
         b
@@ -202,7 +210,13 @@ impl Checkpoint {
         // Before version 3 the auxiliary sums had no steps.
         let (pixel_bytes, aov_bytes) = (5 * word, if version < 3 { 8 } else { 9 } * word);
         let need = n as u128 * (pixel_bytes + if aovs { aov_bytes } else { 0 }) as u128;
-        if need != r.remaining() as u128 {
+        let has_state = version >= 4;
+        let sums_fit = if has_state {
+            need + 8 <= r.remaining() as u128
+        } else {
+            need == r.remaining() as u128
+        };
+        if !sums_fit {
             return Err(format!(
                 "{width}×{height} pixels need {need} bytes of sums, the file has {}",
                 r.remaining()
@@ -261,6 +275,18 @@ impl Checkpoint {
         } else {
             None
         };
+        let state = if has_state {
+            let len = r.u64()?;
+            if len != r.remaining() as u64 {
+                return Err(format!(
+                    "the algorithm's state should be {len} bytes, the file has {}",
+                    r.remaining()
+                ));
+            }
+            r.take(len as usize)?.to_vec()
+        } else {
+            Vec::new()
+        };
         stats.threads = 0;
         Ok(Checkpoint {
             job,
@@ -272,6 +298,7 @@ impl Checkpoint {
                 aovs,
             },
             stats,
+            state,
         })
     }
 
@@ -284,8 +311,10 @@ impl Checkpoint {
 
     /// Reads and checks a checkpoint file.
     pub fn read(path: &Path) -> Result<Checkpoint> {
-        // The largest checkpoint: the largest image with AOVs.
-        let limit = MAX_IMAGE_PIXELS * (PIXEL_BYTES + AOV_BYTES) as u64 + (4 << 20);
+        // The largest checkpoint: the largest image with AOVs, and a
+        // progressive algorithm's state (its sums, BDPT's strategies'
+        // images: up to 2 KiB a pixel; MLT's chains).
+        let limit = MAX_IMAGE_PIXELS * (PIXEL_BYTES + AOV_BYTES + 2048) as u64 + (256 << 20);
         let bytes = crate::files::read_limited(path, limit)
             .map_err(|e| Error::file(path, format!("cannot read checkpoint: {e}")))?;
         Checkpoint::from_bytes(&bytes).map_err(|e| Error::file(path, format!("invalid checkpoint: {e}")))
@@ -396,6 +425,7 @@ mod tests {
                 spp: 1,
                 ..RenderStats::default()
             },
+            state: vec![7, 0, 255],
         }
     }
 
@@ -408,7 +438,21 @@ mod tests {
         assert_eq!(back.job_value("scene"), Some("/tmp/a b/scène.toml"));
         let mut plain = sample();
         plain.film.aovs = None;
+        plain.state.clear();
         assert_eq!(Checkpoint::from_bytes(&plain.to_bytes()).unwrap(), plain);
+    }
+
+    /// The state's length must match what the file holds.
+    #[test]
+    fn a_state_of_the_wrong_length_is_refused() {
+        let mut bytes = sample().to_bytes();
+        bytes.truncate(bytes.len() - 8);
+        let at = bytes.len() - 3 - 8;
+        bytes[at] = 4;
+        let sum = fnv1a(&bytes);
+        put_u64(&mut bytes, sum);
+        let e = Checkpoint::from_bytes(&bytes).unwrap_err();
+        assert!(e.contains("state should be 4 bytes"), "{e}");
     }
 
     #[test]
@@ -501,6 +545,7 @@ mod tests {
         let sum = fnv1a(&b);
         put_u64(&mut b, sum);
         let c = Checkpoint::from_bytes(&b).unwrap();
+        assert!(c.state.is_empty());
         let a = c.film.aovs.as_ref().unwrap()[0].sum();
         assert_eq!((a.depth, a.count, a.steps), (7.5, 1.0, 0.0));
         assert_eq!(c.film.pixels[0].value(), crate::Rgb::splat(0.5));

@@ -149,6 +149,10 @@ pub struct RenderOutput {
     /// Images the algorithm made besides the film, by name
     /// ([`Progressive::extra_images`]).
     pub extra: Vec<(String, Film)>,
+    /// A progressive algorithm's state at the end, from which a render
+    /// stopped early continues ([`Progressive::state`]); empty for camera
+    /// passes, whose state is the film.
+    pub state: Vec<u8>,
 }
 
 /// Why a render stopped early.
@@ -160,8 +164,13 @@ pub enum Stop {
     TimeLimit,
 }
 
-/// Saves a render's state at a pass boundary (see [`Control::on_checkpoint`]).
+/// Shows a render's film after a pass (see [`Control::on_pass`]).
 pub type CheckpointFn<'a> = dyn FnMut(&Film, &RenderStats) + Send + 'a;
+
+/// Saves a render's state at a pass boundary: its film, statistics and a
+/// progressive algorithm's state (empty for camera passes; see
+/// [`Control::on_checkpoint`]).
+pub type SaveFn<'a> = dyn FnMut(&Film, &RenderStats, &[u8]) + Send + 'a;
 
 /// What a long render does besides rendering: where it starts, when it
 /// stops early, and when it saves its state.
@@ -171,6 +180,9 @@ pub struct Control<'a> {
     /// instead of an empty film. `stats.spp` must be a pass boundary of the
     /// schedule for the scene's samples per pixel ([`pass_schedule`]).
     pub resume: Option<(Film, RenderStats)>,
+    /// With `resume`, a progressive algorithm's saved state
+    /// ([`Progressive::state`]; light tracing, BDPT, MLT).
+    pub resume_state: Vec<u8>,
     /// When set (by a signal handler, say), the pass in flight is abandoned
     /// within a tile row and the render returns the film of whole passes.
     pub cancel: Option<&'a AtomicBool>,
@@ -181,7 +193,7 @@ pub struct Control<'a> {
     /// since the last call (or the start).
     pub checkpoint_every: Option<Duration>,
     /// Saves the state at a pass boundary (writes a checkpoint file).
-    pub on_checkpoint: Option<&'a mut CheckpointFn<'a>>,
+    pub on_checkpoint: Option<&'a mut SaveFn<'a>>,
     /// Called after every pass with the film so far (a live preview).
     pub on_pass: Option<&'a mut CheckpointFn<'a>>,
 }
@@ -218,6 +230,7 @@ pub fn render_controlled(scene: &Scene, options: &RenderOptions, control: &mut C
                 stats: RenderStats::default(),
                 stopped: Some(Stop::Interrupted),
                 extra: Vec::new(),
+                state: Vec::new(),
             })
         })
     })?
@@ -307,18 +320,19 @@ impl crate::integrator::Driver for RenderDriver<'_, '_> {
         Ok(out)
     }
 
-    /// The iterations, which cannot be checkpointed, resumed or shared out.
+    /// The iterations: checkpointed and resumed where the algorithm can
+    /// be, never shared out.
     fn iterations<P: Progressive>(self, algorithm: P) -> Result<RenderOutput> {
-        if self.control.resume.is_some() || self.control.checkpoint_every.is_some() || self.options.shard.is_some() {
-            return Err(Error::Invalid(P::NOT_RESUMABLE.into()));
+        if let Some(why) = P::NOT_RESUMABLE {
+            if self.control.resume.is_some() || self.control.checkpoint_every.is_some() || self.options.shard.is_some()
+            {
+                return Err(Error::Invalid(why.into()));
+            }
         }
-        Ok(render_iterations(
-            self.scene,
-            algorithm,
-            self.options,
-            self.control.cancel,
-            self.control.deadline,
-        ))
+        if self.options.shard.is_some() {
+            return Err(Error::Invalid(crate::integrator::NOT_SHARDABLE.into()));
+        }
+        render_iterations(self.scene, algorithm, self.options, self.control)
     }
 }
 
@@ -727,7 +741,7 @@ fn render_passes<I: Integrator>(
             }
             if let (Some(every), Some(save)) = (control.checkpoint_every, control.on_checkpoint.as_mut()) {
                 if last_checkpoint.elapsed() >= every {
-                    save(&film, &stats);
+                    save(&film, &stats, &[]);
                     last_checkpoint = Instant::now();
                 }
             }
@@ -740,6 +754,7 @@ fn render_passes<I: Integrator>(
         stats,
         stopped,
         extra: Vec::new(),
+        state: Vec::new(),
     }
 }
 
@@ -752,29 +767,60 @@ fn render_iterations<P: Progressive>(
     scene: &Scene,
     mut algorithm: P,
     options: &RenderOptions,
-    cancel: Option<&AtomicBool>,
-    deadline: Option<Instant>,
-) -> RenderOutput {
+    control: &mut Control,
+) -> Result<RenderOutput> {
     let s = &scene.settings;
+    let (cancel, deadline) = (control.cancel, control.deadline);
     let start = Instant::now();
-    let mut stats = RenderStats {
-        threads: rayon::current_num_threads(),
-        ..RenderStats::default()
-    };
-    let mut iterations = 0u32;
+    let mut stats = RenderStats::default();
+    if let Some((film, saved)) = &control.resume {
+        if (film.width, film.height) != (s.width, s.height) || saved.spp > s.spp || options.time_limit.is_some() {
+            return Err(Error::Invalid(format!(
+                "cannot resume: the saved render ({}×{}, {} of {} iterations) does not continue this one{}",
+                film.width,
+                film.height,
+                saved.spp,
+                s.spp,
+                if options.time_limit.is_some() {
+                    " under a time limit"
+                } else {
+                    ""
+                }
+            )));
+        }
+        algorithm
+            .restore(scene, &control.resume_state)
+            .map_err(|e| Error::Invalid(format!("cannot resume: {e}")))?;
+        stats = saved.clone();
+    }
+    stats.threads = rayon::current_num_threads();
+    let earlier_seconds = stats.seconds;
+    let mut iterations = stats.spp;
     let time_budget = options
         .time_limit
         .or_else(|| deadline.map(|d| d.saturating_duration_since(start)));
-    let progress = Progress::new(options.progress, s.spp as u64, 0, time_budget.map(|b| (start, b)));
+    let progress = Progress::new(
+        options.progress,
+        s.spp as u64,
+        iterations as u64,
+        time_budget.map(|b| (start, b)),
+    );
     let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
     let mut stopped = None;
+    let mut last_checkpoint = Instant::now();
+    let first = iterations;
+    let finish = |stats: &mut RenderStats, iterations: u32| {
+        stats.samples = s.width as u64 * s.height as u64 * iterations as u64;
+        stats.spp = iterations;
+        stats.seconds = earlier_seconds + start.elapsed().as_secs_f64();
+    };
     while iterations < s.spp {
         if cancelled() {
             stopped = Some(Stop::Interrupted);
             break;
         }
         // The deadline never stops the first iteration: there is always an image.
-        if iterations > 0 && deadline.is_some_and(|d| Instant::now() >= d) {
+        if iterations > first && deadline.is_some_and(|d| Instant::now() >= d) {
             stopped = Some(Stop::TimeLimit);
             break;
         }
@@ -790,19 +836,31 @@ fn render_iterations<P: Progressive>(
         if options.time_limit.is_some_and(|limit| start.elapsed() >= limit) {
             break;
         }
+        if iterations < s.spp {
+            if let (Some(every), Some(save)) = (control.checkpoint_every, control.on_checkpoint.as_mut()) {
+                if last_checkpoint.elapsed() >= every {
+                    if let Some(state) = algorithm.state() {
+                        finish(&mut stats, iterations);
+                        save(&algorithm.film(), &stats, &state);
+                    }
+                    last_checkpoint = Instant::now();
+                }
+            }
+        }
     }
     progress.finish();
-    let film = algorithm.film();
-    let extra = algorithm.extra_images();
-    stats.samples = s.width as u64 * s.height as u64 * iterations as u64;
-    stats.spp = iterations;
-    stats.seconds = start.elapsed().as_secs_f64();
-    RenderOutput {
-        film,
+    finish(&mut stats, iterations);
+    Ok(RenderOutput {
+        film: algorithm.film(),
+        extra: algorithm.extra_images(),
+        state: if stopped.is_some() {
+            algorithm.state().unwrap_or_default()
+        } else {
+            Vec::new()
+        },
         stats,
         stopped,
-        extra,
-    }
+    })
 }
 
 /// The steps of a progress bar that counts time.

@@ -32,13 +32,13 @@ impl Uniforms for Pcg32 {
 }
 
 /// One coordinate of the primary sample vector.
-#[derive(Clone, Copy, Debug, Default)]
-struct Coordinate {
-    value: f32,
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Coordinate {
+    pub(crate) value: f32,
     /// The iteration that last changed the value.
-    modified: u64,
+    pub(crate) modified: u64,
     /// The value and iteration before the current proposal changed them.
-    backup: (f32, u64),
+    pub(crate) backup: (f32, u64),
 }
 
 /// A Markov chain's state in primary sample space and its mutations:
@@ -50,14 +50,14 @@ struct Coordinate {
 /// step is drawn afresh.
 #[derive(Clone, Debug)]
 pub struct PrimarySamples {
-    rng: Pcg32,
+    pub(crate) rng: Pcg32,
     sigma: f32,
     large_step_probability: f32,
     streams: u32,
-    coordinates: Vec<Coordinate>,
-    iteration: u64,
-    large_step: bool,
-    last_large_step: u64,
+    pub(crate) coordinates: Vec<Coordinate>,
+    pub(crate) iteration: u64,
+    pub(crate) large_step: bool,
+    pub(crate) last_large_step: u64,
     stream: u32,
     next: u32,
 }

@@ -27,6 +27,18 @@ impl Pcg32 {
         r
     }
 
+    /// The generator's state and stream increment, from which
+    /// [`Pcg32::from_parts`] makes it again (for checkpoints).
+    pub fn parts(&self) -> (u64, u64) {
+        (self.state, self.inc)
+    }
+
+    /// The generator [`Pcg32::parts`] described; `None` for an increment no
+    /// generator has (even).
+    pub fn from_parts(state: u64, inc: u64) -> Option<Pcg32> {
+        (inc & 1 == 1).then_some(Pcg32 { state, inc })
+    }
+
     /// The next 32 random bits.
     #[inline]
     pub fn next_u32(&mut self) -> u32 {

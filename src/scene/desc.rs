@@ -12,8 +12,8 @@ use crate::geometry::{Transform, TriangleMesh};
 use crate::light::SpotProfile;
 pub use crate::material::MicrofacetDistribution;
 use crate::settings::{
-    Filter, MAX_DEPTH, MAX_GATHER, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_MLT_BOOTSTRAP, MAX_MLT_CHAINS, MAX_PHOTONS,
-    MAX_SPP, RenderSettings,
+    Filter, IntegratorKind, MAX_DEPTH, MAX_GATHER, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_MLT_BOOTSTRAP, MAX_MLT_CHAINS,
+    MAX_PHOTONS, MAX_SPP, RenderSettings,
 };
 pub use crate::texture::{ImageFilter, WrapMode};
 use glam::{Mat4, Vec2, Vec3};
@@ -1625,12 +1625,16 @@ impl SceneDesc {
         }
         let m = &s.mlt;
         // Multiplexed MLT draws bootstrap samples for every path length.
-        let lengths = s.max_depth.max(1) as u64;
+        let lengths = if s.integrator == IntegratorKind::Mlt {
+            s.max_depth.max(1) as u64
+        } else {
+            1
+        };
         if m.bootstrap == 0 || m.bootstrap as u64 * lengths > MAX_MLT_BOOTSTRAP {
             return Err(c.err(
                 "mlt_bootstrap",
                 format!(
-                    "must be between 1 and {} (at most {MAX_MLT_BOOTSTRAP} paths over the {lengths} path lengths), got {}",
+                    "must be between 1 and {} (at most {MAX_MLT_BOOTSTRAP} paths over the {lengths} path lengths of max_depth), got {}",
                     MAX_MLT_BOOTSTRAP / lengths,
                     m.bootstrap
                 ),

@@ -1086,11 +1086,13 @@ impl Loader {
             "bdpt" => s.integrator = IntegratorKind::Bdpt,
             "pssmlt" => s.integrator = IntegratorKind::Pssmlt,
             "mlt" => {
-                s.integrator = IntegratorKind::Mlt;
+                // Veach's MLT mutates whole paths of any length, as PSSMLT's
+                // chains over whole bidirectional samples move.
+                s.integrator = IntegratorKind::Pssmlt;
                 self.warn(
                     f,
                     node,
-                    "integrator \"mlt\" (Veach's path-space mutations) is rendered by trazo's \"mlt\", Metropolis sampling in primary sample space over the bidirectional strategies, which converges to the same image",
+                    "integrator \"mlt\" (Veach's path-space mutations) is rendered by trazo's \"pssmlt\", Metropolis sampling in primary sample space over whole bidirectional samples, which converges to the same image",
                 );
             }
             other => self.warn(
@@ -4083,14 +4085,14 @@ mod tests {
     }
 
     /// Mitsuba 0.6's `bdpt` and `pssmlt` are trazo's; its path-space
-    /// `mlt` is rendered by trazo's multiplexed MLT, with a warning. The
+    /// `mlt` is rendered by trazo's PSSMLT, with a warning. The
     /// Metropolis parameters carry over, and out of range they are errors.
     #[test]
     fn bidirectional_integrators_are_read() {
         for (ty, kind, warned) in [
             ("bdpt", IntegratorKind::Bdpt, false),
             ("pssmlt", IntegratorKind::Pssmlt, false),
-            ("mlt", IntegratorKind::Mlt, true),
+            ("mlt", IntegratorKind::Pssmlt, true),
         ] {
             let text = format!(
                 "<scene version=\"3.0.0\">\n    <integrator type=\"{ty}\">\n        <integer name=\"max_depth\" value=\"5\"/>\n    </integrator>\n</scene>"

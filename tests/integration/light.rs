@@ -177,3 +177,88 @@ fn splatting_integrators_refuse_an_orthographic_camera_with_a_lens() {
         );
     }
 }
+
+/// A splatting render interrupted after an iteration, its state saved in
+/// a checkpoint's bytes and resumed on another number of threads, ends
+/// with the same film (auxiliary sums and BDPT's strategies' images
+/// included), bit for bit, as one that never stopped: the sums, MLT's
+/// brightness and chains (their states in primary sample space, their
+/// generators, their current paths) are all saved.
+#[test]
+fn splatting_renders_resume_exactly() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use trazo::render::checkpoint::Checkpoint;
+    use trazo::render::{Control, Stop, render_controlled};
+    for integrator in SPLATTING {
+        let mut d = small_cornell();
+        (d.settings.width, d.settings.height, d.settings.spp) = (20, 16, 5);
+        d.settings.integrator = integrator;
+        d.settings.bdpt_strategies = integrator == IntegratorKind::Bdpt;
+        d.settings.mlt.bootstrap = 2000;
+        d.settings.mlt.chains = 40;
+        let scene = trazo::scene::build(&d).unwrap();
+        let options = |threads| RenderOptions {
+            aovs: true,
+            threads: Some(threads),
+            ..RenderOptions::default()
+        };
+        let whole = render(&scene, &options(2)).unwrap();
+        let cancel = AtomicBool::new(false);
+        let mut saved = None;
+        let mut save = |f: &trazo::film::Film, st: &trazo::render::RenderStats, state: &[u8]| {
+            if st.spp == 2 {
+                saved = Some((f.clone(), st.clone(), state.to_vec()));
+                cancel.store(true, Ordering::Relaxed);
+            }
+        };
+        let mut control = Control {
+            cancel: Some(&cancel),
+            checkpoint_every: Some(std::time::Duration::ZERO),
+            on_checkpoint: Some(&mut save),
+            ..Control::default()
+        };
+        let partial = render_controlled(&scene, &options(2), &mut control).unwrap();
+        drop(control);
+        let name = integrator.name();
+        assert_eq!(
+            (partial.stopped, partial.stats.spp),
+            (Some(Stop::Interrupted), 2),
+            "{name}"
+        );
+        let (film, stats, state) = saved.expect("a checkpoint after the second iteration");
+        assert!(!state.is_empty(), "{name}");
+        // The state the render ended with is the one saved after its last
+        // iteration (what the command line writes on an interrupt).
+        assert!(partial.state == state, "{name}");
+        let checkpoint = Checkpoint {
+            job: Vec::new(),
+            target_spp: 5,
+            film,
+            stats,
+            state,
+        };
+        let back = Checkpoint::from_bytes(&checkpoint.to_bytes()).unwrap();
+        let mut control = Control {
+            resume: Some((back.film, back.stats)),
+            resume_state: back.state.clone(),
+            ..Control::default()
+        };
+        let resumed = render_controlled(&scene, &options(1), &mut control).unwrap();
+        assert_eq!((resumed.stopped, resumed.stats.spp), (None, 5), "{name}");
+        assert!(resumed.film == whole.film, "{name}: the resumed film differs");
+        assert_eq!(resumed.extra.len(), whole.extra.len());
+        for ((a, fa), (b, fb)) in resumed.extra.iter().zip(&whole.extra) {
+            assert!(a == b && fa == fb, "{name}: {a} differs");
+        }
+        // A state cut short is refused with a reason, not trusted.
+        let mut control = Control {
+            resume: Some((checkpoint.film.clone(), checkpoint.stats.clone())),
+            resume_state: back.state[..back.state.len() - 1].to_vec(),
+            ..Control::default()
+        };
+        let e = render_controlled(&scene, &options(1), &mut control)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("cannot resume") && e.contains("state"), "{name}: {e}");
+    }
+}

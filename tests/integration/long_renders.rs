@@ -115,6 +115,61 @@ fn ctrl_c_keeps_the_passes_done_and_resume_finishes_them_identically() {
     resume_matches_uninterrupted(&checkpoint, &part, &full, "rendered 64×48 at 256 spp");
 }
 
+/// The same for Metropolis light transport, whose state is its chains,
+/// and BDPT, whose state is its sums: Ctrl-C keeps the iterations done
+/// and `--resume` finishes them identically; a shard is refused.
+#[cfg(unix)]
+#[test]
+fn ctrl_c_and_resume_work_for_splatting_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    for integrator in ["mlt", "bdpt"] {
+        let full = dir.path().join(format!("{integrator}-full.pfm"));
+        let common = [
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--spp",
+            "400",
+            "--seed",
+            "3",
+            "-q",
+            "--integrator",
+            integrator,
+        ];
+        let out = trazo().args(["render", "-o", s(&full)]).args(common).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let part = dir.path().join(format!("{integrator}-part.pfm"));
+        let checkpoint = dir.path().join(format!("{integrator}-part.pfm.trazo-checkpoint"));
+        let mut child = spawn(&[&["render", "-o", s(&part), "--checkpoint-every", "0"], &common[..]].concat());
+        wait_for(&checkpoint, &mut child);
+        signal(&child, "-INT");
+        let (code, err) = finish(child, Duration::from_secs(20));
+        assert_eq!(code, Some(130), "{err}");
+        let c = Checkpoint::read(&checkpoint).unwrap();
+        assert!(
+            (1..400).contains(&c.stats.spp) && !c.state.is_empty(),
+            "{}",
+            c.stats.spp
+        );
+        resume_matches_uninterrupted(&checkpoint, &part, &full, "rendered 64×48 at 400 spp");
+        let o = trazo()
+            .args([
+                "render",
+                "-o",
+                s(&dir.path().join("shard.trazo-part")),
+                "--shard",
+                "1/2",
+            ])
+            .args(common)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains("cannot be sharded"), "{err}");
+    }
+}
+
 /// Resumes from `checkpoint` (writing `part`), expects `finished` in the
 /// report, an image byte-identical to the uninterrupted render `full`, and
 /// the checkpoint removed.

@@ -987,7 +987,7 @@ fn splatted_filters_stay_deterministic_and_agree_with_importance_sampling() {
 fn films_by_pass(scene: &trazo::scene::Scene, aovs: bool) -> Vec<(u32, trazo::film::Film)> {
     use trazo::render::{Control, render_controlled};
     let mut films = Vec::new();
-    let mut save = |f: &trazo::film::Film, st: &trazo::render::RenderStats| films.push((st.spp, f.clone()));
+    let mut save = |f: &trazo::film::Film, st: &trazo::render::RenderStats, _: &[u8]| films.push((st.spp, f.clone()));
     let options = RenderOptions {
         aovs,
         ..RenderOptions::default()
@@ -1021,7 +1021,7 @@ fn a_resumed_render_equals_an_uninterrupted_one() {
     for stop_at in [1u32, 8, 32] {
         let cancel = AtomicBool::new(false);
         let mut saved = None;
-        let mut save = |f: &trazo::film::Film, st: &trazo::render::RenderStats| {
+        let mut save = |f: &trazo::film::Film, st: &trazo::render::RenderStats, _: &[u8]| {
             if st.spp >= stop_at {
                 saved = Some((f.clone(), st.clone()));
                 cancel.store(true, Ordering::Relaxed);
@@ -1051,6 +1051,7 @@ fn a_resumed_render_equals_an_uninterrupted_one() {
             target_spp: 37,
             film,
             stats,
+            state: Vec::new(),
         };
         let back = Checkpoint::from_bytes(&checkpoint.to_bytes()).unwrap();
         let options = RenderOptions {
@@ -1107,7 +1108,7 @@ fn an_interrupt_mid_pass_keeps_whole_passes() {
             std::thread::sleep(std::time::Duration::from_millis(20));
             cancel.store(true, Ordering::Relaxed);
         });
-        let mut done = |_: &trazo::film::Film, _: &trazo::render::RenderStats| {
+        let mut done = |_: &trazo::film::Film, _: &trazo::render::RenderStats, _: &[u8]| {
             first_pass_done.store(true, Ordering::Relaxed);
         };
         let mut control = Control {

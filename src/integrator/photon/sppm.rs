@@ -114,7 +114,7 @@ impl Sppm {
 }
 
 impl Progressive for Sppm {
-    const NOT_RESUMABLE: &'static str = NOT_RESUMABLE;
+    const NOT_RESUMABLE: Option<&'static str> = Some(NOT_RESUMABLE);
 
     /// One iteration: the photon pass (given up soon after `cancel` is
     /// set, and then the whole iteration), then every pixel's camera sample
