@@ -158,8 +158,10 @@ impl Metropolis {
     /// independently). `None` when cancelled.
     fn bootstrap(&self, scene: &Scene, cancel: Option<&AtomicBool>, rays: &mut u64) -> Option<(f32, Vec<Chain>)> {
         let tracer = Tracer::new(scene, self.max_depth);
-        let lengths = if self.multiplexed { self.max_depth.max(1) } else { 1 } as usize;
-        let count = self.settings.bootstrap.max(1) as usize * lengths;
+        // No path length at all (max_depth 0): nothing is bootstrapped,
+        // the image stays black.
+        let lengths = if self.multiplexed { self.max_depth as usize } else { 1 };
+        let count = self.settings.bootstrap as usize * lengths;
         let parts: Vec<(Vec<f32>, u64)> = (0..count.div_ceil(BOOTSTRAP_CHUNK))
             .into_par_iter()
             .map(|chunk| {

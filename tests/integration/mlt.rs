@@ -144,21 +144,27 @@ fn every_mutation_adds_the_same_luminance() {
     assert!((a - b).abs() < 1e-4 * a, "{a} against {b}");
 }
 
-/// A scene with no light: the bootstrap finds nothing, the chains do not
-/// start, the image is black.
+/// A scene with no light, or paths of no segment (max_depth 0): the
+/// bootstrap finds nothing, the chains do not start, the image is black.
 #[test]
 fn a_scene_without_light_renders_black() {
     for integrator in [IntegratorKind::Mlt, IntegratorKind::Pssmlt] {
-        let mut d = small_cornell();
-        d.settings.integrator = integrator;
-        d.settings.mlt.bootstrap = 1000;
-        d.settings.spp = 2;
-        for m in &mut d.materials {
-            m.emission = ColorSource::Rgb(glam::Vec3::ZERO);
+        for dark in [true, false] {
+            let mut d = small_cornell();
+            d.settings.integrator = integrator;
+            d.settings.mlt.bootstrap = 1000;
+            d.settings.spp = 2;
+            if dark {
+                for m in &mut d.materials {
+                    m.emission = ColorSource::Rgb(glam::Vec3::ZERO);
+                }
+                d.lights.clear();
+            } else {
+                d.settings.max_depth = 0;
+            }
+            let scene = trazo::scene::build(&d).unwrap();
+            let out = render(&scene, &RenderOptions::default()).unwrap();
+            assert_eq!(out.film.to_image().mean(), glam::Vec3::ZERO, "{}", integrator.name());
         }
-        d.lights.clear();
-        let scene = trazo::scene::build(&d).unwrap();
-        let out = render(&scene, &RenderOptions::default()).unwrap();
-        assert_eq!(out.film.to_image().mean(), glam::Vec3::ZERO, "{}", integrator.name());
     }
 }
