@@ -710,22 +710,11 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         }
         desc.settings.bdpt_strategies = true;
     }
-    // SPPM's state (per-pixel radii and photon statistics) has no
-    // checkpoints; the splatting algorithms' states do (their sums, MLT's
-    // chains), but each of their iterations renders the whole image, so
-    // none is sharded.
-    let not_resumable = match desc.settings.integrator {
-        IntegratorKind::Sppm => Some(crate::integrator::photon::sppm::NOT_RESUMABLE),
-        _ => None,
-    };
-    let resumable = not_resumable.is_none();
-    if let (Some(why), true) = (
-        not_resumable,
-        args.checkpoint_every.is_some() || resume.is_some() || args.shard.is_some(),
-    ) {
-        return Err(after_loading(Error::Invalid(why.into()), &desc));
-    }
-    if desc.settings.integrator.splats_light_paths() && args.shard.is_some() {
+    // The progressive algorithms' states are checkpointed (SPPM's
+    // per-pixel statistics, the splat sums, MLT's chains), but each of
+    // their iterations renders the whole image: none is sharded.
+    let progressive = desc.settings.integrator == IntegratorKind::Sppm || desc.settings.integrator.splats_light_paths();
+    if progressive && args.shard.is_some() {
         return Err(after_loading(
             Error::Invalid(crate::integrator::NOT_SHARDABLE.into()),
             &desc,
@@ -835,7 +824,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         d.finish(display_frame(&out.film, &image, s.exposure, &aovs));
     }
     match out.stopped {
-        Some(_) if resumable => job.checkpoint(&out.film, st, &out.state).write(&checkpoint_file)?,
+        Some(_) => job.checkpoint(&out.film, st, &out.state).write(&checkpoint_file)?,
         _ => {
             // The render is complete (or cannot be continued): a
             // checkpoint of an earlier render to this output is stale.
@@ -929,7 +918,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
                 extra_path(&output, last).display()
             );
         }
-        if out.stopped.is_some() && resumable {
+        if out.stopped.is_some() {
             eprintln!(
                 "checkpoint → {} (continue with: trazo render --resume {})",
                 checkpoint_file.display(),

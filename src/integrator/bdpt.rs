@@ -268,8 +268,6 @@ impl Bdpt {
 }
 
 impl Progressive for Bdpt {
-    const NOT_RESUMABLE: Option<&'static str> = None;
-
     /// One camera subpath and one light subpath per pixel.
     fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work> {
         let tracer = Tracer::new(scene, self.max_depth);
@@ -346,7 +344,7 @@ impl Progressive for Bdpt {
     }
 
     /// The image's sums and, when recorded, each strategy's.
-    fn state(&self) -> Option<Vec<u8>> {
+    fn state(&self) -> Vec<u8> {
         let mut w = StateWriter::default();
         self.image.write_state(&mut w);
         let strategies = self.strategies.as_deref().unwrap_or_default();
@@ -356,7 +354,7 @@ impl Progressive for Bdpt {
                 w.dvec3s(image);
             }
         }
-        Some(w.0)
+        w.0
     }
 
     fn restore(&mut self, _scene: &Scene, state: &[u8]) -> Result<(), String> {

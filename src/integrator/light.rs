@@ -389,8 +389,6 @@ impl SplatTarget {
 }
 
 impl Progressive for LightTracer {
-    const NOT_RESUMABLE: Option<&'static str> = None;
-
     /// One path per pixel, given up (and the whole iteration with it) soon
     /// after `cancel` is set.
     fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work> {
@@ -415,10 +413,10 @@ impl Progressive for LightTracer {
         self.image.film()
     }
 
-    fn state(&self) -> Option<Vec<u8>> {
+    fn state(&self) -> Vec<u8> {
         let mut w = StateWriter::default();
         self.image.write_state(&mut w);
-        Some(w.0)
+        w.0
     }
 
     fn restore(&mut self, _scene: &Scene, state: &[u8]) -> Result<(), String> {

@@ -240,8 +240,6 @@ impl Metropolis {
 }
 
 impl Progressive for Metropolis {
-    const NOT_RESUMABLE: Option<&'static str> = None;
-
     /// As many mutations as the image has pixels, spread evenly over the
     /// chains (bootstrapping them first).
     fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work> {
@@ -336,12 +334,12 @@ impl Progressive for Metropolis {
 
     /// The image's sums, the brightness, and every chain: its state in
     /// primary sample space, its generators and its current contribution.
-    fn state(&self) -> Option<Vec<u8>> {
+    fn state(&self) -> Vec<u8> {
         let mut w = StateWriter::default();
         self.image.write_state(&mut w);
         let Some((brightness, chains)) = &self.chains else {
             w.u32(0);
-            return Some(w.0);
+            return w.0;
         };
         w.u32(1);
         w.f32(*brightness);
@@ -369,7 +367,7 @@ impl Progressive for Metropolis {
                 }
             }
         }
-        Some(w.0)
+        w.0
     }
 
     fn restore(&mut self, scene: &Scene, state: &[u8]) -> Result<(), String> {

@@ -80,10 +80,6 @@ pub const NOT_SHARDABLE: &str = "progressive algorithms (sppm, light, bdpt, mlt,
 /// state is not a film of samples (SPPM: every pixel's radius, photon count
 /// and flux). The driver decides when to iterate and when to stop.
 pub trait Progressive {
-    /// Why this algorithm's renders cannot be checkpointed or resumed;
-    /// `None` where they can ([`Progressive::state`]).
-    const NOT_RESUMABLE: Option<&'static str>;
-
     /// Runs one more iteration. `None` when `cancel` was set during it: the
     /// iteration is dropped and the state is that of the iterations before.
     fn iterate(&mut self, scene: &Scene, cancel: Option<&AtomicBool>) -> Option<Work>;
@@ -98,18 +94,14 @@ pub trait Progressive {
         Vec::new()
     }
 
-    /// The state after the iterations so far, from which
-    /// [`Progressive::restore`] continues exactly as if the render had not
-    /// stopped; `None` where the algorithm cannot be resumed.
-    fn state(&self) -> Option<Vec<u8>> {
-        None
-    }
+    /// The state after the iterations so far (for checkpoints), from
+    /// which [`Progressive::restore`] continues exactly as if the render
+    /// had not stopped.
+    fn state(&self) -> Vec<u8>;
 
     /// Continues from a state [`Progressive::state`] wrote for this scene
     /// (a reason where it does not fit).
-    fn restore(&mut self, _scene: &Scene, _state: &[u8]) -> Result<(), String> {
-        Err(Self::NOT_RESUMABLE.unwrap_or("this algorithm cannot be resumed").into())
-    }
+    fn restore(&mut self, scene: &Scene, state: &[u8]) -> Result<(), String>;
 }
 
 /// What runs an algorithm: the renderer's scheduling, which [`drive`] hands

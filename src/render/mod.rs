@@ -320,15 +320,9 @@ impl crate::integrator::Driver for RenderDriver<'_, '_> {
         Ok(out)
     }
 
-    /// The iterations: checkpointed and resumed where the algorithm can
-    /// be, never shared out.
+    /// The iterations: checkpointed and resumed by the algorithm's state,
+    /// never shared out.
     fn iterations<P: Progressive>(self, algorithm: P) -> Result<RenderOutput> {
-        if let Some(why) = P::NOT_RESUMABLE {
-            if self.control.resume.is_some() || self.control.checkpoint_every.is_some() || self.options.shard.is_some()
-            {
-                return Err(Error::Invalid(why.into()));
-            }
-        }
         if self.options.shard.is_some() {
             return Err(Error::Invalid(crate::integrator::NOT_SHARDABLE.into()));
         }
@@ -839,10 +833,8 @@ fn render_iterations<P: Progressive>(
         if iterations < s.spp {
             if let (Some(every), Some(save)) = (control.checkpoint_every, control.on_checkpoint.as_mut()) {
                 if last_checkpoint.elapsed() >= every {
-                    if let Some(state) = algorithm.state() {
-                        finish(&mut stats, iterations);
-                        save(&algorithm.film(), &stats, &state);
-                    }
+                    finish(&mut stats, iterations);
+                    save(&algorithm.film(), &stats, &algorithm.state());
                     last_checkpoint = Instant::now();
                 }
             }
@@ -854,7 +846,7 @@ fn render_iterations<P: Progressive>(
         film: algorithm.film(),
         extra: algorithm.extra_images(),
         state: if stopped.is_some() {
-            algorithm.state().unwrap_or_default()
+            algorithm.state()
         } else {
             Vec::new()
         },

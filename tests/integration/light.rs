@@ -178,18 +178,19 @@ fn splatting_integrators_refuse_an_orthographic_camera_with_a_lens() {
     }
 }
 
-/// A splatting render interrupted after an iteration, its state saved in
-/// a checkpoint's bytes and resumed on another number of threads, ends
+/// A progressive render interrupted after an iteration, its state saved
+/// in a checkpoint's bytes and resumed on another number of threads, ends
 /// with the same film (auxiliary sums and BDPT's strategies' images
 /// included), bit for bit, as one that never stopped: the sums, MLT's
 /// brightness and chains (their states in primary sample space, their
-/// generators, their current paths) are all saved.
+/// generators, their current paths), SPPM's per-pixel statistics are all
+/// saved.
 #[test]
-fn splatting_renders_resume_exactly() {
+fn progressive_renders_resume_exactly() {
     use std::sync::atomic::{AtomicBool, Ordering};
     use trazo::render::checkpoint::Checkpoint;
     use trazo::render::{Control, Stop, render_controlled};
-    for integrator in SPLATTING {
+    for integrator in SPLATTING.into_iter().chain([IntegratorKind::Sppm]) {
         let mut d = small_cornell();
         (d.settings.width, d.settings.height, d.settings.spp) = (20, 16, 5);
         d.settings.integrator = integrator;

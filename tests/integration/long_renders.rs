@@ -116,13 +116,14 @@ fn ctrl_c_keeps_the_passes_done_and_resume_finishes_them_identically() {
 }
 
 /// The same for Metropolis light transport, whose state is its chains,
-/// and BDPT, whose state is its sums: Ctrl-C keeps the iterations done
-/// and `--resume` finishes them identically; a shard is refused.
+/// BDPT, whose state is its sums, and SPPM, whose state is every pixel's
+/// statistics: Ctrl-C keeps the iterations done and `--resume` finishes
+/// them identically; a shard is refused.
 #[cfg(unix)]
 #[test]
-fn ctrl_c_and_resume_work_for_splatting_renders() {
+fn ctrl_c_and_resume_work_for_progressive_renders() {
     let dir = tempfile::tempdir().unwrap();
-    for integrator in ["mlt", "bdpt"] {
+    for integrator in ["mlt", "bdpt", "sppm"] {
         let full = dir.path().join(format!("{integrator}-full.pfm"));
         let common = [
             "--width",
@@ -767,11 +768,12 @@ fn photon_mapping_stops_on_ctrl_c_and_resumes_identically() {
 
 /// SPPM obeys Ctrl-C and the time limit between iterations: the image is
 /// that of whole iterations (the same as a render asked for that many),
-/// the status that of the path tracer; it cannot be checkpointed, which is
-/// refused up front (status 2), and no checkpoint is left behind.
+/// the status that of the path tracer, and a checkpoint is left to resume
+/// from (resuming: `ctrl_c_and_resume_work_for_progressive_renders`);
+/// shards are refused up front (status 2).
 #[cfg(unix)]
 #[test]
-fn sppm_stops_after_whole_iterations_and_refuses_checkpoints() {
+fn sppm_stops_after_whole_iterations() {
     let dir = tempfile::tempdir().unwrap();
     let part = dir.path().join("part.pfm");
     let common = [
@@ -806,8 +808,8 @@ fn sppm_stops_after_whole_iterations_and_refuses_checkpoints() {
         .and_then(|n| n.parse().ok())
         .unwrap_or_else(|| panic!("{err}"));
     assert!(done >= 1, "{err}");
-    assert!(!err.contains("--resume"), "{err}");
-    assert!(!dir.path().join("part.pfm.trazo-checkpoint").exists());
+    assert!(err.contains("--resume"), "{err}");
+    assert!(dir.path().join("part.pfm.trazo-checkpoint").exists());
     let whole = dir.path().join("whole.pfm");
     let o = trazo()
         .args(["render", "-q", "-o", s(&whole), "--spp", &done.to_string()])
@@ -833,17 +835,17 @@ fn sppm_stops_after_whole_iterations_and_refuses_checkpoints() {
     assert!(o.status.success(), "{err}");
     assert!(start.elapsed() < Duration::from_secs(8), "{:?}", start.elapsed());
     assert!(err.contains("time limit reached: rendered 32×24 at "), "{err}");
-    assert!(timed.exists() && !dir.path().join("timed.png.trazo-checkpoint").exists());
+    assert!(timed.exists() && dir.path().join("timed.png.trazo-checkpoint").exists());
 
-    // Checkpoints are refused before anything is rendered.
+    // Shards are refused before anything is rendered.
     let o = trazo()
-        .args(["render", "-o", s(&dir.path().join("c.png")), "--checkpoint-every", "5"])
+        .args(["render", "-o", s(&dir.path().join("c.trazo-part")), "--shard", "1/2"])
         .args(common)
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.contains("SPPM renders cannot be checkpointed"), "{err}");
+    assert!(err.contains("cannot be sharded"), "{err}");
     assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(!dir.path().join("c.png").exists());
+    assert!(!dir.path().join("c.trazo-part").exists());
 }

@@ -44,6 +44,7 @@ use super::{PhotonMap, camera_segment, same_surface};
 use crate::color::Rgb;
 use crate::film::{AovSum, Film, FilmAov, FilmPixel, PixelSum};
 use crate::integrator::aov::camera_aov;
+use crate::integrator::state::{StateReader, StateWriter};
 use crate::integrator::{Progressive, Work};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
@@ -67,9 +68,6 @@ struct PixelState {
     /// Auxiliary values, when requested.
     aov: AovSum,
 }
-
-/// Why SPPM refuses checkpoints.
-pub const NOT_RESUMABLE: &str = "SPPM renders cannot be checkpointed, resumed or sharded (its state is per-pixel radii and photon statistics, not a film): drop --checkpoint-every/--resume/--shard, or use --integrator photon or path";
 
 /// SPPM's state between iterations: every pixel's statistics. The
 /// renderer runs `spp` iterations (or as many as its time limit or
@@ -114,8 +112,6 @@ impl Sppm {
 }
 
 impl Progressive for Sppm {
-    const NOT_RESUMABLE: Option<&'static str> = Some(NOT_RESUMABLE);
-
     /// One iteration: the photon pass (given up soon after `cancel` is
     /// set, and then the whole iteration), then every pixel's camera sample
     /// and update.
@@ -188,6 +184,72 @@ impl Progressive for Sppm {
             film.aovs = Some(self.pixels.iter().map(|px| FilmAov::default().plus(&px.aov)).collect());
         }
         film
+    }
+
+    /// The iterations done, the photons per iteration, and every pixel's
+    /// radius, photon count, flux and direct light (and auxiliary sums).
+    fn state(&self) -> Vec<u8> {
+        let mut w = StateWriter::default();
+        w.u32(self.iterations);
+        w.u32(self.photons);
+        w.u32(u32::from(self.aovs));
+        w.u64(self.pixels.len() as u64);
+        for px in &self.pixels {
+            w.f32(px.r2);
+            w.f64(px.n);
+            for v in [px.tau, px.direct] {
+                for c in v.to_array() {
+                    w.f64(c);
+                }
+            }
+            if self.aovs {
+                let a = &px.aov;
+                for v in [a.albedo.x, a.albedo.y, a.albedo.z, a.normal.x, a.normal.y, a.normal.z] {
+                    w.f64(v);
+                }
+                for v in [a.depth, a.count, a.steps] {
+                    w.f64(v);
+                }
+            }
+        }
+        w.0
+    }
+
+    fn restore(&mut self, _scene: &Scene, state: &[u8]) -> Result<(), String> {
+        let mut r = StateReader::new(state);
+        let iterations = r.u32()?;
+        if r.u32()? != self.photons || (r.u32()? == 1) != self.aovs {
+            return Err("the saved state is of another number of photons or auxiliary images".into());
+        }
+        let per_pixel = 4 + 8 * 7 + if self.aovs { 9 * 8 } else { 0 };
+        if r.count(per_pixel)? != self.pixels.len() {
+            return Err("the saved state is of another image size".into());
+        }
+        for px in &mut self.pixels {
+            px.r2 = r.f32()?;
+            px.n = r.f64()?;
+            px.tau = DVec3::new(r.f64()?, r.f64()?, r.f64()?);
+            px.direct = DVec3::new(r.f64()?, r.f64()?, r.f64()?);
+            if self.aovs {
+                let mut v = [0.0; 9];
+                for x in &mut v {
+                    *x = r.f64()?;
+                }
+                px.aov = AovSum {
+                    albedo: DVec3::new(v[0], v[1], v[2]),
+                    normal: DVec3::new(v[3], v[4], v[5]),
+                    depth: v[6],
+                    count: v[7],
+                    steps: v[8],
+                };
+            }
+            let finite = px.r2.is_finite() && px.n.is_finite() && px.tau.is_finite() && px.direct.is_finite();
+            if !finite || px.r2 < 0.0 {
+                return Err("a saved pixel's statistics are not finite".into());
+            }
+        }
+        self.iterations = iterations;
+        r.finish()
     }
 }
 
