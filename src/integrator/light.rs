@@ -207,12 +207,7 @@ impl SplatImage {
                 w.u32(1);
                 w.u64(aovs.len() as u64);
                 for a in aovs {
-                    for v in [a.albedo.x, a.albedo.y, a.albedo.z, a.normal.x, a.normal.y, a.normal.z] {
-                        w.f64(v);
-                    }
-                    for v in [a.depth, a.count, a.steps] {
-                        w.f64(v);
-                    }
+                    w.aov(a);
                 }
             }
         }
@@ -234,17 +229,7 @@ impl SplatImage {
                 return Err("the saved auxiliary images are of another size".into());
             }
             for a in aovs.iter_mut() {
-                let mut v = [0.0; 9];
-                for x in &mut v {
-                    *x = r.f64()?;
-                }
-                *a = AovSum {
-                    albedo: DVec3::new(v[0], v[1], v[2]),
-                    normal: DVec3::new(v[3], v[4], v[5]),
-                    depth: v[6],
-                    count: v[7],
-                    steps: v[8],
-                };
+                *a = r.aov()?;
             }
         }
         let finite = self.sums.iter().all(|s| s.is_finite()) && self.lum_sq.iter().all(|s| s.is_finite());

@@ -3,6 +3,7 @@
 //! bytes that remain before anything is allocated, so that a damaged file
 //! is refused with a reason rather than trusted.
 
+use crate::film::AovSum;
 use glam::DVec3;
 
 /// Writes a state.
@@ -31,6 +32,16 @@ impl StateWriter {
         self.u64(v.len() as u64);
         for &x in v {
             self.f64(x);
+        }
+    }
+
+    /// An auxiliary sum's nine numbers.
+    pub fn aov(&mut self, a: &AovSum) {
+        for v in [a.albedo.x, a.albedo.y, a.albedo.z, a.normal.x, a.normal.y, a.normal.z] {
+            self.f64(v);
+        }
+        for v in [a.depth, a.count, a.steps] {
+            self.f64(v);
         }
     }
 
@@ -80,6 +91,21 @@ impl<'a> StateReader<'a> {
 
     pub fn f64(&mut self) -> Result<f64, String> {
         Ok(f64::from_bits(self.u64()?))
+    }
+
+    /// An auxiliary sum written by [`StateWriter::aov`].
+    pub fn aov(&mut self) -> Result<AovSum, String> {
+        let mut v = [0.0; 9];
+        for x in &mut v {
+            *x = self.f64()?;
+        }
+        Ok(AovSum {
+            albedo: DVec3::new(v[0], v[1], v[2]),
+            normal: DVec3::new(v[3], v[4], v[5]),
+            depth: v[6],
+            count: v[7],
+            steps: v[8],
+        })
     }
 
     /// A count of items of `item_bytes` bytes each, refused if the bytes

@@ -245,8 +245,11 @@ fn run_contestant(
     };
     let out = render(scene, &opts)?;
     let mut seconds = out.stats.seconds;
+    // SPPM's iterations are not independent estimates (each shrinks the
+    // radii), nor are MLT's (the chains go on from one to the next): the
+    // spread between their iterations says nothing of the error.
     let mut mean_standard_error = match c.integrator {
-        IntegratorKind::Sppm => None,
+        IntegratorKind::Sppm | IntegratorKind::Mlt | IntegratorKind::Pssmlt => None,
         _ => Some(out.film.mean_standard_error()),
     };
     let image = match c.denoise {

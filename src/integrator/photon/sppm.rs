@@ -203,13 +203,7 @@ impl Progressive for Sppm {
                 }
             }
             if self.aovs {
-                let a = &px.aov;
-                for v in [a.albedo.x, a.albedo.y, a.albedo.z, a.normal.x, a.normal.y, a.normal.z] {
-                    w.f64(v);
-                }
-                for v in [a.depth, a.count, a.steps] {
-                    w.f64(v);
-                }
+                w.aov(&px.aov);
             }
         }
         w.0
@@ -231,17 +225,7 @@ impl Progressive for Sppm {
             px.tau = DVec3::new(r.f64()?, r.f64()?, r.f64()?);
             px.direct = DVec3::new(r.f64()?, r.f64()?, r.f64()?);
             if self.aovs {
-                let mut v = [0.0; 9];
-                for x in &mut v {
-                    *x = r.f64()?;
-                }
-                px.aov = AovSum {
-                    albedo: DVec3::new(v[0], v[1], v[2]),
-                    normal: DVec3::new(v[3], v[4], v[5]),
-                    depth: v[6],
-                    count: v[7],
-                    steps: v[8],
-                };
+                px.aov = r.aov()?;
             }
             let finite = px.r2.is_finite() && px.n.is_finite() && px.tau.is_finite() && px.direct.is_finite();
             if !finite || px.r2 < 0.0 {
