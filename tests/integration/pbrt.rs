@@ -479,3 +479,42 @@ Shape "plymesh" "string filename" "floor.ply{ext}"
     render("packed.pbrt.gz", None);
     assert!(root.join("packed.png").is_file());
 }
+
+/// An `rgbgrid` whose σa and σs are a `uniformgrid`'s density times its
+/// σa and σs renders the same image (the same random numbers, σt equal up
+/// to rounding), empty voxels included: a wrong albedo at the empty voxels'
+/// edges, or σa and σs swapped, shows in the mean.
+#[test]
+fn an_rgb_grid_renders_as_the_uniform_grid_it_equals() {
+    let density = [0.0f32, 2.0, 0.5, 0.0, 1.5, 3.0, 0.0, 1.0];
+    let times = |k: f32| {
+        density
+            .iter()
+            .map(|d| format!("{0} {0} {0}", d * k))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let scene = |medium: String| {
+        format!(
+            "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 30\nFilm \"rgb\" \"integer xresolution\" 24 \"integer yresolution\" 24\n\
+             Sampler \"independent\" \"integer pixelsamples\" 64\nIntegrator \"volpath\" \"integer maxdepth\" 6\nWorldBegin\n{medium}\n\
+             LightSource \"point\" \"point3 from\" [2 3 4] \"float scale\" 40\n\
+             AttributeBegin\nMediumInterface \"smoke\" \"\"\nMaterial \"interface\"\nShape \"sphere\"\nAttributeEnd\n"
+        )
+    };
+    let common = "\"integer nx\" 2 \"integer ny\" 2 \"integer nz\" 2 \"point3 p0\" [-1 -1 -1] \"point3 p1\" [1 1 1]";
+    let uniform = scene(format!(
+        "MakeNamedMedium \"smoke\" \"string type\" \"uniformgrid\" {common} \"float density\" [{}] \"rgb sigma_a\" [0.5 0.5 0.5] \"rgb sigma_s\" [1.5 1.5 1.5]",
+        density.map(|d| d.to_string()).join(" ")
+    ));
+    let rgb = scene(format!(
+        "MakeNamedMedium \"smoke\" \"string type\" \"rgbgrid\" {common} \"rgb sigma_a\" [{}] \"rgb sigma_s\" [{}]",
+        times(0.5),
+        times(1.5)
+    ));
+    let (a, b) = (render_desc(&parse(&uniform)), render_desc(&parse(&rgb)));
+    let mean = |f: &Film| luminance(region_mean(f, (0, 24), (0, 24)));
+    let (ma, mb) = (mean(&a), mean(&b));
+    assert!(ma > 0.01, "{ma}");
+    assert!((ma - mb).abs() < 0.002 * ma, "uniformgrid {ma}, rgbgrid {mb}");
+}

@@ -1,11 +1,17 @@
 //! pbrt-v4's participating media: `MakeNamedMedium` (`homogeneous`,
-//! `uniformgrid`), `MediumInterface` and the camera's medium.
+//! `uniformgrid`, `rgbgrid`), `MediumInterface` and the camera's medium.
 //!
 //! pbrt gives σa and σs (both defaulting to 1, times `scale`); trazo's
 //! media hold σt and the albedo, so σt = (σa + σs)·scale·density and the
 //! albedo σs/(σa + σs). A `uniformgrid`'s density spans [p0, p1] in the
 //! medium's space (the CTM at `MakeNamedMedium`) and fades to zero past its
-//! outermost voxel centres, as pbrt-v4's `SampledGrid` reads it.
+//! outermost voxel centres, as pbrt-v4's `SampledGrid` reads it. An
+//! `rgbgrid` gives σa, σs and Le per voxel (RGB): trazo's grids of σt and
+//! of the albedo follow from them voxel by voxel, and its emission grid is
+//! Le (the source term σa·Le, as pbrt's). pbrt interpolates σa and σs and
+//! divides; trazo interpolates σt and the albedo: the same where a voxel's
+//! neighbours share their albedo (an empty voxel takes the grid's mean
+//! albedo).
 
 use super::Parser;
 use super::materials::ColorUse;
@@ -50,12 +56,15 @@ impl Parser {
                 ));
             }
         };
+        if ty == "rgbgrid" {
+            return self.rgb_grid_medium(name, p, loc);
+        }
         if !matches!(ty.as_str(), "homogeneous" | "uniformgrid") {
             Self::use_all(p);
             self.unsupported(
                 loc,
                 format!("{what} of type \"{ty}\""),
-                "the medium is not rendered: shapes it fills are empty (trazo reads \"homogeneous\" and \"uniformgrid\")",
+                "the medium is not rendered: shapes it fills are empty (trazo reads \"homogeneous\", \"uniformgrid\" and \"rgbgrid\")",
             );
             self.unsupported_media.insert(name.to_string());
             return Ok(());
@@ -85,16 +94,11 @@ impl Parser {
         let (sigma_t_field, scale) = if ty == "homogeneous" {
             (FieldDesc::Constant(sigma_t), Rgb::splat(scale))
         } else {
-            let dim = |k: &str| -> Result<usize> {
-                match p.int_opt(k)? {
-                    Some((n, prm)) if !(1..=1 << 12).contains(&n) => {
-                        Err(prm.err(format!("must be between 1 and 4096, got {n}")))
-                    }
-                    Some((n, _)) => Ok(n as usize),
-                    None => Ok(1),
-                }
-            };
-            let res = [dim("nx")?, dim("ny")?, dim("nz")?];
+            let res = [
+                self.grid_dim(p, "nx")?,
+                self.grid_dim(p, "ny")?,
+                self.grid_dim(p, "nz")?,
+            ];
             let Some((density, prm)) = p.floats("density")? else {
                 return Err(crate::error::Error::scene(
                     Some(loc.clone()),
@@ -139,20 +143,154 @@ impl Parser {
             );
         }
         Self::use_all(p);
-        let desc_name = format!("medium:{name}");
-        self.desc.media.retain(|m| m.name != desc_name);
-        self.desc.media.push(MediumDesc {
-            name: desc_name.clone(),
+        let medium = MediumDesc {
+            name: format!("medium:{name}"),
             sigma_t: sigma_t_field,
             albedo: FieldDesc::Constant(albedo),
             emission,
             scale,
             g,
             locs: Locs::at(Some(loc.clone())),
-        });
+        };
+        self.add_medium(name, medium);
+        Ok(())
+    }
+
+    /// `MakeNamedMedium "name" "string type" "rgbgrid"`: RGB grids of
+    /// `sigma_a`, `sigma_s` (each 1 where not given) and `Le`, `nx`×`ny`×`nz`
+    /// voxels over [`p0`, `p1`], times `scale` and `Lescale`.
+    fn rgb_grid_medium(&mut self, name: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {
+        let what = format!("MakeNamedMedium \"{name}\"");
+        let res = [
+            self.grid_dim(p, "nx")?,
+            self.grid_dim(p, "ny")?,
+            self.grid_dim(p, "nz")?,
+        ];
+        let voxels = res[0] * res[1] * res[2];
+        let grid_of = |key: &str| -> Result<Option<Vec<Vec3>>> {
+            match p.vec3s(key, &["rgb"])? {
+                Some((v, prm)) if v.len() != voxels || prm.nums().len() != 3 * voxels => Err(prm.err(format!(
+                    "a {}×{}×{} grid needs {voxels} RGB values ({} numbers), got {} numbers",
+                    res[0],
+                    res[1],
+                    res[2],
+                    3 * voxels,
+                    prm.nums().len()
+                ))),
+                Some((v, _)) => Ok(Some(v)),
+                None => Ok(None),
+            }
+        };
+        let (sigma_a, sigma_s, le) = (grid_of("sigma_a")?, grid_of("sigma_s")?, grid_of("Le")?);
+        let mut sigma_t = Vec::with_capacity(3 * voxels);
+        let (mut sum_s, mut sum_t) = (Vec3::ZERO, Vec3::ZERO);
+        for i in 0..voxels {
+            let a = sigma_a.as_ref().map_or(Vec3::ONE, |g| g[i]);
+            let s = sigma_s.as_ref().map_or(Vec3::ONE, |g| g[i]);
+            if !(a.is_finite() && s.is_finite() && a.cmpge(Vec3::ZERO).all() && s.cmpge(Vec3::ZERO).all()) {
+                return Err(crate::error::Error::scene(
+                    Some(loc.clone()),
+                    what,
+                    format!("voxel {i}: sigma_a {a} and sigma_s {s} must be finite and non-negative"),
+                ));
+            }
+            sigma_t.extend((a + s).to_array());
+            (sum_s, sum_t) = (sum_s + s, sum_t + a + s);
+        }
+        // An empty voxel's albedo is that of the whole grid, so that
+        // interpolating toward it does not darken its neighbours (their σs
+        // fades with σt, as pbrt's interpolated σs does).
+        let ratio = |s: Vec3, t: Vec3| Vec3::select(t.cmpgt(Vec3::ZERO), s / t, Vec3::ZERO);
+        let mean_albedo = ratio(sum_s, sum_t);
+        let albedo: Vec<f32> = (0..voxels)
+            .flat_map(|i| {
+                let t = Vec3::from_slice(&sigma_t[3 * i..3 * i + 3]);
+                let s = sigma_s.as_ref().map_or(Vec3::ONE, |g| g[i]);
+                Vec3::select(t.cmpgt(Vec3::ZERO), ratio(s, t), mean_albedo).to_array()
+            })
+            .collect();
+        let scale = p.float("scale", 1.0)?;
+        let le_scale = p.float("Lescale", 1.0)?;
+        let g = match p.float_opt("g")? {
+            Some((g, prm)) if !(g > -1.0 && g < 1.0) => {
+                return Err(prm.err(format!("must lie strictly between -1 and 1, got {g}")));
+            }
+            Some((g, _)) => g,
+            None => 0.0,
+        };
+        let p0 = p.point3("p0", Vec3::ZERO)?;
+        let p1 = p.point3("p1", Vec3::ONE)?;
+        if !(p1 - p0).cmpgt(Vec3::ZERO).all() {
+            return Err(crate::error::Error::scene(
+                Some(loc.clone()),
+                what,
+                format!("\"point3 p1\" {p1} must exceed \"point3 p0\" {p0} on every axis"),
+            ));
+        }
+        let to_world = vec![TransformOp::Matrix(
+            self.gs.ctm * Mat4::from_translation(p0) * Mat4::from_scale(p1 - p0),
+        )];
+        // σt and Le fade to zero past the outermost voxel centres, as pbrt's
+        // grids do; the albedo keeps its edge values (σs fades with σt).
+        let field = |data: Vec<f32>, edge: GridEdge| -> Result<FieldDesc> {
+            let mut grid = VoxelGrid::new(res, 3, data)
+                .map_err(|e| crate::error::Error::scene(Some(loc.clone()), what.clone(), e))?;
+            grid.edge = edge;
+            Ok(FieldDesc::Grid {
+                source: GridSource::Data(Arc::new(grid)),
+                to_world: to_world.clone(),
+                use_file_bounds: false,
+            })
+        };
+        let emission = match le {
+            Some(le) if le.iter().any(|c| *c != Vec3::ZERO) => {
+                if le.iter().any(|c| !(c.is_finite() && c.cmpge(Vec3::ZERO).all())) {
+                    return Err(crate::error::Error::scene(
+                        Some(loc.clone()),
+                        what,
+                        "\"rgb Le\" must be finite and non-negative",
+                    ));
+                }
+                Some(field(
+                    le.iter().flat_map(|c| (*c * le_scale).to_array()).collect(),
+                    GridEdge::Zero,
+                )?)
+            }
+            _ => None,
+        };
+        let medium = MediumDesc {
+            name: format!("medium:{name}"),
+            sigma_t: field(sigma_t, GridEdge::Zero)?,
+            albedo: field(albedo, GridEdge::Clamp)?,
+            emission,
+            scale: Rgb::splat(scale),
+            g,
+            locs: Locs::at(Some(loc.clone())),
+        };
+        Self::use_all(p);
+        self.add_medium(name, medium);
+        Ok(())
+    }
+
+    /// A grid's voxel count along one axis (`nx`, `ny`, `nz`; 1 if not
+    /// given).
+    fn grid_dim(&self, p: &ParamList, key: &str) -> Result<usize> {
+        match p.int_opt(key)? {
+            Some((n, prm)) if !(1..=1 << 12).contains(&n) => {
+                Err(prm.err(format!("must be between 1 and 4096, got {n}")))
+            }
+            Some((n, _)) => Ok(n as usize),
+            None => Ok(1),
+        }
+    }
+
+    /// Defines medium `name` (replacing one of that name).
+    fn add_medium(&mut self, name: &str, medium: MediumDesc) {
+        let desc_name = medium.name.clone();
+        self.desc.media.retain(|m| m.name != desc_name);
+        self.desc.media.push(medium);
         self.unsupported_media.remove(name);
         self.media_names.insert(name.to_string(), desc_name);
-        Ok(())
     }
 
     /// A medium name of `MediumInterface` as a description's name (`None`:

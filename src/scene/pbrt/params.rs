@@ -66,7 +66,7 @@ impl Param {
         Error::scene(Some(self.loc.clone()), self.written.clone(), message)
     }
 
-    fn nums(&self) -> &[f32] {
+    pub(crate) fn nums(&self) -> &[f32] {
         match &self.values {
             Values::Nums(v) => v,
             _ => &[],

@@ -2070,3 +2070,51 @@ fn film_crop_windows() {
         .to_string();
     assert!(e.contains("test.pbrt:1:") && e.contains("empty"), "{e}");
 }
+
+/// `rgbgrid` media: σt and the albedo per voxel from σa and σs (1 where not
+/// given), an empty voxel taking the grid's mean albedo, Le times Lescale
+/// as the emission grid; a grid of the wrong size is an error naming the
+/// parameter.
+#[test]
+fn rgb_grid_media_are_read() {
+    let d = parse_str(
+        r#"MakeNamedMedium "smoke" "string type" "rgbgrid" "integer nx" 2 "integer ny" 1 "integer nz" 1
+  "rgb sigma_a" [0 0 0 1 2 3] "rgb sigma_s" [0 0 0 1 1 1] "rgb Le" [0 0 0 0.5 0.5 0.25]
+  "float Lescale" 2 "float scale" 3 "float g" 0.5 "point3 p0" [-1 -1 -1] "point3 p1" [1 1 1]
+WorldBegin
+MediumInterface "smoke" ""
+Shape "sphere"
+"#,
+    )
+    .unwrap();
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let m = &d.media[0];
+    let data = |f: &FieldDesc| match f {
+        FieldDesc::Grid {
+            source: GridSource::Data(g),
+            ..
+        } => (g.channels, g.data.clone()),
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(data(&m.sigma_t), (3, vec![0.0, 0.0, 0.0, 2.0, 3.0, 4.0]));
+    let (_, albedo) = data(&m.albedo);
+    let expected = [0.5, 1.0 / 3.0, 0.25, 0.5, 1.0 / 3.0, 0.25];
+    assert!(
+        albedo.iter().zip(expected).all(|(a, b)| (a - b).abs() < 1e-6),
+        "{albedo:?}"
+    );
+    assert_eq!(
+        data(m.emission.as_ref().unwrap()),
+        (3, vec![0.0, 0.0, 0.0, 1.0, 1.0, 0.5])
+    );
+    assert_eq!((m.scale, m.g), (Rgb::splat(3.0), 0.5));
+    let e = parse_str(
+        "MakeNamedMedium \"m\" \"string type\" \"rgbgrid\" \"integer nx\" 2\n  \"rgb sigma_s\" [1 1 1]\nWorldBegin",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("test.pbrt:2:") && e.contains("sigma_s") && e.contains("2 RGB values"),
+        "{e}"
+    );
+}
