@@ -80,13 +80,7 @@ impl Parser {
         let sigma_a = self.medium_color(p, "sigma_a", Rgb::ONE)?;
         let sigma_s = self.medium_color(p, "sigma_s", Rgb::ONE)?;
         let scale = p.float("scale", 1.0)?;
-        let g = match p.float_opt("g")? {
-            Some((g, prm)) if !(g > -1.0 && g < 1.0) => {
-                return Err(prm.err(format!("must lie strictly between -1 and 1, got {g}")));
-            }
-            Some((g, _)) => g,
-            None => 0.0,
-        };
+        let g = Self::phase_g(p)?;
         let le = self.medium_color(p, "Le", Rgb::ZERO)?;
         let le_scale = p.float("Lescale", 1.0)?;
         let sigma_t = sigma_a + sigma_s;
@@ -115,16 +109,7 @@ impl Parser {
                     self.unsupported(&l, format!("\"{written}\""), "a grid medium's emission is not rendered");
                 }
             }
-            let p0 = p.point3("p0", Vec3::ZERO)?;
-            let p1 = p.point3("p1", Vec3::ONE)?;
-            if !(p1 - p0).cmpgt(Vec3::ZERO).all() {
-                return Err(crate::error::Error::scene(
-                    Some(loc.clone()),
-                    what,
-                    format!("\"point3 p1\" {p1} must exceed \"point3 p0\" {p0} on every axis"),
-                ));
-            }
-            let unit_to_world = self.gs.ctm * Mat4::from_translation(p0) * Mat4::from_scale(p1 - p0);
+            let unit_to_world = self.grid_box(p, loc, &what)?;
             (
                 FieldDesc::Grid {
                     source: GridSource::Data(Arc::new(grid)),
@@ -211,25 +196,8 @@ impl Parser {
             .collect();
         let scale = p.float("scale", 1.0)?;
         let le_scale = p.float("Lescale", 1.0)?;
-        let g = match p.float_opt("g")? {
-            Some((g, prm)) if !(g > -1.0 && g < 1.0) => {
-                return Err(prm.err(format!("must lie strictly between -1 and 1, got {g}")));
-            }
-            Some((g, _)) => g,
-            None => 0.0,
-        };
-        let p0 = p.point3("p0", Vec3::ZERO)?;
-        let p1 = p.point3("p1", Vec3::ONE)?;
-        if !(p1 - p0).cmpgt(Vec3::ZERO).all() {
-            return Err(crate::error::Error::scene(
-                Some(loc.clone()),
-                what,
-                format!("\"point3 p1\" {p1} must exceed \"point3 p0\" {p0} on every axis"),
-            ));
-        }
-        let to_world = vec![TransformOp::Matrix(
-            self.gs.ctm * Mat4::from_translation(p0) * Mat4::from_scale(p1 - p0),
-        )];
+        let g = Self::phase_g(p)?;
+        let to_world = vec![TransformOp::Matrix(self.grid_box(p, loc, &what)?)];
         // σt and Le fade to zero past the outermost voxel centres, as pbrt's
         // grids do; the albedo keeps its edge values (σs fades with σt).
         let field = |data: Vec<f32>, edge: GridEdge| -> Result<FieldDesc> {
@@ -282,6 +250,32 @@ impl Parser {
             Some((n, _)) => Ok(n as usize),
             None => Ok(1),
         }
+    }
+
+    /// The Henyey–Greenstein `g` (0 if not given), strictly inside (−1, 1).
+    fn phase_g(p: &ParamList) -> Result<f32> {
+        match p.float_opt("g")? {
+            Some((g, prm)) if !(g > -1.0 && g < 1.0) => {
+                Err(prm.err(format!("must lie strictly between -1 and 1, got {g}")))
+            }
+            Some((g, _)) => Ok(g),
+            None => Ok(0.0),
+        }
+    }
+
+    /// A grid medium's box [`p0`, `p1`] in the medium's space (the current
+    /// transform): the map from the unit cube to the world.
+    fn grid_box(&self, p: &ParamList, loc: &SourceLoc, what: &str) -> Result<Mat4> {
+        let p0 = p.point3("p0", Vec3::ZERO)?;
+        let p1 = p.point3("p1", Vec3::ONE)?;
+        if !(p1 - p0).cmpgt(Vec3::ZERO).all() {
+            return Err(crate::error::Error::scene(
+                Some(loc.clone()),
+                what,
+                format!("\"point3 p1\" {p1} must exceed \"point3 p0\" {p0} on every axis"),
+            ));
+        }
+        Ok(self.gs.ctm * Mat4::from_translation(p0) * Mat4::from_scale(p1 - p0))
     }
 
     /// Defines medium `name` (replacing one of that name).
