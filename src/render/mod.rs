@@ -181,7 +181,7 @@ pub struct Control<'a> {
     /// schedule for the scene's samples per pixel ([`pass_schedule`]).
     pub resume: Option<(Film, RenderStats)>,
     /// With `resume`, a progressive algorithm's saved state
-    /// ([`Progressive::state`]; light tracing, BDPT, MLT).
+    /// ([`Progressive::state`]: SPPM, light tracing, BDPT, MLT).
     pub resume_state: Vec<u8>,
     /// When set (by a signal handler, say), the pass in flight is abandoned
     /// within a tile row and the render returns the film of whole passes.
