@@ -15,7 +15,8 @@ use crate::render::{Control, RenderOptions, RenderStats, Shard, Stop, render_con
 use crate::sampling::SamplerKind;
 use crate::scene::{self, SceneDesc, builtin};
 use crate::settings::{
-    IntegratorKind, MAX_DEPTH, MAX_GATHER, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, PathSampling, PhotonKernel, Tonemap,
+    IntegratorKind, MAX_DEPTH, MAX_GATHER, MAX_IMAGE_SIDE, MAX_MLT_BOOTSTRAP, MAX_MLT_CHAINS, MAX_PHOTONS, MAX_SPP,
+    PathSampling, PhotonKernel, Tonemap,
 };
 use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
@@ -181,6 +182,25 @@ struct SceneArgs {
     #[arg(long, value_name = "NAME", value_parser = PhotonKernel::NAMES)]
     photon_kernel: Option<String>,
 
+    /// Metropolis light transport: bootstrap paths that estimate the
+    /// image's brightness and start the chains (per path length for mlt).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=(MAX_MLT_BOOTSTRAP as i64)))]
+    mlt_bootstrap: Option<u32>,
+
+    /// Metropolis light transport: Markov chains (at most one per pixel).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=(MAX_MLT_CHAINS as i64)))]
+    mlt_chains: Option<u32>,
+
+    /// Metropolis light transport: probability that a mutation draws a new
+    /// path independently of the current one (0–1).
+    #[arg(long, value_name = "P")]
+    mlt_large_step: Option<f32>,
+
+    /// Metropolis light transport: deviation of a small step's
+    /// perturbation of each random number.
+    #[arg(long, value_name = "S")]
+    mlt_sigma: Option<f32>,
+
     /// Set a scene parameter: a Mitsuba `$name` default (may be repeated).
     #[arg(short = 'D', value_name = "NAME=VALUE", value_parser = parse_define)]
     defines: Vec<(String, String)>,
@@ -291,6 +311,7 @@ struct RenderArgs {
         "scene", "width", "height", "max_depth", "march_step", "seed", "sampler", "tonemap", "exposure", "defines",
         "output", "spp", "integrator", "sampling", "aov", "denoise", "photons", "caustic_photons",
         "sppm_photons", "photon_gather", "photon_radius", "final_gather", "photon_kernel", "restart", "shard",
+        "mlt_bootstrap", "mlt_chains", "mlt_large_step", "mlt_sigma",
     ])]
     resume: Option<PathBuf>,
 
@@ -504,6 +525,28 @@ impl SceneArgs {
         }
         if let Some(v) = &self.photon_kernel {
             s.photon.kernel = PhotonKernel::from_name(v).expect("clap checked the value");
+        }
+        if let Some(v) = self.mlt_bootstrap {
+            s.mlt.bootstrap = v;
+        }
+        if let Some(v) = self.mlt_chains {
+            s.mlt.chains = v;
+        }
+        if let Some(v) = self.mlt_large_step {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(Error::Invalid(format!(
+                    "--mlt-large-step must be a probability between 0 and 1, got {v}"
+                )));
+            }
+            s.mlt.large_step_probability = v;
+        }
+        if let Some(v) = self.mlt_sigma {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(Error::Invalid(format!(
+                    "--mlt-sigma must be a positive number, got {v}"
+                )));
+            }
+            s.mlt.sigma = v;
         }
         Ok(desc)
     }

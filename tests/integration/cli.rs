@@ -966,3 +966,54 @@ fn bdpt_strategies_write_one_image_per_strategy() {
         "{names:?}"
     );
 }
+
+/// The Metropolis parameters on the command line: they change the render
+/// (a different bootstrap, a different image) and are checked, an absurd
+/// value being an error (exit 2) that names the flag.
+#[test]
+fn metropolis_flags_are_read_and_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let render = |name: &str, flags: &[&str]| {
+        let out = dir.path().join(name);
+        trazo()
+            .args([
+                "render",
+                "--integrator",
+                "mlt",
+                "--spp",
+                "2",
+                "--width",
+                "8",
+                "--height",
+                "8",
+                "-q",
+            ])
+            .args(flags)
+            .arg("-o")
+            .arg(&out)
+            .assert()
+            .success();
+        fs::read(out).unwrap()
+    };
+    let a = render("a.pfm", &["--mlt-bootstrap", "500", "--mlt-chains", "8"]);
+    let b = render("b.pfm", &["--mlt-bootstrap", "500", "--mlt-chains", "8"]);
+    let c = render(
+        "c.pfm",
+        &["--mlt-bootstrap", "700", "--mlt-chains", "8", "--mlt-large-step", "0.5"],
+    );
+    assert!(a == b && a != c);
+    for (flags, word) in [
+        (["--mlt-large-step", "1.5"], "--mlt-large-step"),
+        (["--mlt-sigma", "0"], "--mlt-sigma"),
+    ] {
+        let e = fails(&[&["render", "--integrator", "mlt", "-o", "x.pfm"][..], &flags[..]].concat());
+        assert!(e.contains(word), "{e}");
+    }
+    // Out of the flag's range: clap's error (status 2) names it.
+    let o = trazo()
+        .args(["render", "--integrator", "mlt", "--mlt-chains", "0", "-o", "x.pfm"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.code() == Some(2) && err.contains("--mlt-chains"), "{err}");
+}
