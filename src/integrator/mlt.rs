@@ -149,6 +149,24 @@ impl Metropolis {
         }
     }
 
+    /// Bootstrap sample `i`: its state in primary sample space, the path
+    /// length it renders, and its luminance c (its contributions in
+    /// `out`). A chain started from sample `i` finds the same again.
+    fn first_state<'s>(
+        &self,
+        tracer: &Tracer<'s>,
+        scene: &Scene,
+        i: usize,
+        work: &mut Subpaths<'s>,
+        rays: &mut u64,
+        out: &mut Vec<Splat>,
+    ) -> (PrimarySamples, usize, f32) {
+        let mut samples = self.samples_of(scene, i);
+        let segments = self.segments_of(i);
+        let c = Self::evaluate(tracer, scene, segments, &mut samples, work, rays, out);
+        (samples, segments, c)
+    }
+
     /// Estimates the brightness b from the bootstrap samples and starts
     /// the chains from states drawn among them in proportion to c, by
     /// systematic resampling (one draw in each of as many equal parts of
@@ -171,17 +189,7 @@ impl Metropolis {
                     return (weights, rays);
                 }
                 for i in chunk * BOOTSTRAP_CHUNK..((chunk + 1) * BOOTSTRAP_CHUNK).min(count) {
-                    let mut samples = self.samples_of(scene, i);
-                    let segments = self.segments_of(i);
-                    weights.push(Self::evaluate(
-                        &tracer,
-                        scene,
-                        segments,
-                        &mut samples,
-                        &mut work,
-                        &mut rays,
-                        &mut out,
-                    ));
+                    weights.push(self.first_state(&tracer, scene, i, &mut work, &mut rays, &mut out).2);
                 }
                 (weights, rays)
             })
@@ -208,18 +216,9 @@ impl Metropolis {
                 let mut rng = Pcg32::new(hash_u64s(&[scene.settings.seed, STREAM + 1, j as u64]), 0);
                 let u = (j as f32 + rng.next_f32()) / chains as f32;
                 let (index, _, _) = starts.sample(u.min(ONE_MINUS_EPSILON));
-                let mut samples = self.samples_of(scene, index);
-                let segments = self.segments_of(index);
                 let (mut work, mut current, mut rays) = (Subpaths::default(), Vec::new(), 0u64);
-                let importance = Self::evaluate(
-                    &tracer,
-                    scene,
-                    segments,
-                    &mut samples,
-                    &mut work,
-                    &mut rays,
-                    &mut current,
-                );
+                let (samples, segments, importance) =
+                    self.first_state(&tracer, scene, index, &mut work, &mut rays, &mut current);
                 let chain = Chain {
                     samples,
                     rng,
