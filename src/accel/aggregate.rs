@@ -1002,18 +1002,21 @@ impl Aggregate {
 
     /// A point on an emitter: uniform by area for meshes and untransformed
     /// shapes; for a transformed shape, uniform in object space with the
-    /// density corrected by the transform's local area scaling.
+    /// density corrected by the transform's local area scaling. `uv` asks
+    /// for its surface coordinates (a textured emitter); where it does
+    /// not, a curved shape's are left zero.
     pub fn sample_emitter(
         &self,
         emitter: EmitterRef,
         area: &EmitterArea,
         u_pick: f32,
         u: Vec2,
+        uv: bool,
     ) -> Option<EmitterSample> {
         match emitter {
             EmitterRef::Shape(i) => {
                 let s = &self.shapes[i as usize];
-                let mut a = s.shape.sample_area(u)?;
+                let mut a = s.shape.sample_area(u, uv)?;
                 if s.flip_normals {
                     a.n = -a.n;
                 }
@@ -1519,7 +1522,7 @@ mod tests {
         let mut inv_pdf_sum = 0.0f64;
         for _ in 0..n {
             let s = g
-                .sample_emitter(e, &area, r.next_f32(), Vec2::new(r.next_f32(), r.next_f32()))
+                .sample_emitter(e, &area, r.next_f32(), Vec2::new(r.next_f32(), r.next_f32()), true)
                 .unwrap();
             let back = g.emitter_pdf_area(e, &area, s.n);
             assert!(
@@ -1568,7 +1571,7 @@ mod tests {
             let area = g.emitter_area(e);
             let world_area = 4.0 * normal_and_area_scale(&t, Vec3::Z).1;
             assert!((area.total - world_area).abs() < 1e-5 * world_area);
-            let s = g.sample_emitter(e, &area, 0.5, Vec2::new(0.3, 0.6)).unwrap();
+            let s = g.sample_emitter(e, &area, 0.5, Vec2::new(0.3, 0.6), true).unwrap();
             assert!(close(s.n, n_expected) && (s.pdf_area * world_area - 1.0).abs() < 1e-5);
         }
     }

@@ -310,14 +310,18 @@ impl Shape {
     }
 
     /// A point uniformly distributed over the surface by area (density
-    /// 1/area); `None` for the plane, which has no finite area.
-    pub fn sample_area(&self, u: Vec2) -> Option<AreaSample> {
+    /// 1/area); `None` for the plane, which has no finite area. Its
+    /// surface coordinates are found where `uv` asks for them (a textured
+    /// emitter), and left zero elsewhere: for curved shapes they take
+    /// inverse trigonometric functions.
+    pub fn sample_area(&self, u: Vec2, uv: bool) -> Option<AreaSample> {
         let mut s = self.sample_area_point(u)?;
         s.uv = match self {
             // The sample is corner + u.x·edge_u + u.y·edge_v: its surface
             // coordinates are u itself (no need to project it back).
             Shape::Rectangle(_) => u,
-            _ => self.surface(s.p).uv,
+            _ if uv => self.surface(s.p).uv,
+            _ => Vec2::ZERO,
         };
         Some(s)
     }
@@ -1090,7 +1094,7 @@ mod tests {
         for s in shapes {
             for _ in 0..500 {
                 let u = Vec2::new(rng.next_f32(), rng.next_f32());
-                let a = s.sample_area(u).unwrap();
+                let a = s.sample_area(u, true).unwrap();
                 // A ray from just outside along −n must hit the shape at the sample.
                 let r = Ray::new(a.p + a.n * 1e-2, -a.n);
                 let t = s.intersect(&r).expect("sample not on surface");
@@ -1106,7 +1110,7 @@ mod tests {
             Vec3::new(2.0, 0.5, 0.0),
             Vec3::new(0.7, 0.0, 1.5),
         ));
-        let a = sheared.sample_area(Vec2::new(0.25, 0.8)).unwrap();
+        let a = sheared.sample_area(Vec2::new(0.25, 0.8), true).unwrap();
         assert!((sheared.surface(a.p).uv - Vec2::new(0.25, 0.8)).length() < 1e-5);
     }
 
@@ -1121,7 +1125,7 @@ mod tests {
         let mut counts = [0f64; 3];
         let n = 60_000;
         for _ in 0..n {
-            let a = c.sample_area(Vec2::new(rng.next_f32(), rng.next_f32())).unwrap();
+            let a = c.sample_area(Vec2::new(rng.next_f32(), rng.next_f32()), true).unwrap();
             counts[a.n.abs().max_position()] += 1.0;
         }
         let areas = [8.0, 4.0, 2.0];

@@ -733,7 +733,7 @@ impl<'s> Tracer<'s> {
                 radiance,
                 ..
             } => {
-                let es = scene.geometry.sample_emitter(*emitter, area, u_pick, u)?;
+                let es = scene.geometry.sample_emitter(*emitter, area, u_pick, u, radiance.reads_uv())?;
                 let d = pt.p - es.p;
                 let d2 = d.length_squared();
                 let cos = es.n.dot(d) / d2.sqrt();

@@ -562,14 +562,11 @@ impl Light {
                 } else {
                     match sphere.and_then(|(c, r)| sample_sphere_cone(c, r, p, u)) {
                         Some((lp, ln, pdf)) => {
-                            let uv = match radiance {
-                                Texture::Constant(_) => Vec2::ZERO,
-                                _ => sphere_uv(ln),
-                            };
+                            let uv = if radiance.reads_uv() { sphere_uv(ln) } else { Vec2::ZERO };
                             (lp, ln, uv, Some(pdf), 0.0)
                         }
                         None => {
-                            let s = scene.geometry.sample_emitter(*emitter, area, u_pick, u)?;
+                            let s = scene.geometry.sample_emitter(*emitter, area, u_pick, u, radiance.reads_uv())?;
                             if s.pdf_area.is_nan() || s.pdf_area <= 0.0 {
                                 return None;
                             }
