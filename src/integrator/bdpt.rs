@@ -23,7 +23,9 @@
 //! estimate is unbiased whatever the weights are.
 //!
 //! Conventions are pbrt-v4's `BDPTIntegrator`: no Russian roulette in the
-//! subpaths; delta bounces store zero densities, which the weights skip;
+//! subpaths; a delta bounce's density is one per unit solid angle (as
+//! Georgiev's VCM counts it, so that the segment's cos/d² stays in the
+//! weights), and no strategy joins at a delta vertex;
 //! the strategy (1, 1), a light point seen by the lens, is not used (the
 //! camera subpath's s = 0 finds it); the geometry term uses shading
 //! normals, with the adjoint BSDF's correction for them on light subpaths
@@ -974,9 +976,16 @@ impl<'s> Tracer<'s> {
             }
             let this = path.len() - 1;
             if bs.delta {
+                // A Dirac density, taken as one per unit solid angle, so
+                // that its conversion to area (cos/d² at the vertex it
+                // reaches) still enters the ratios, as Georgiev's
+                // implementation of VCM counts it; taken as one per unit
+                // area (pbrt-v4's remap of a zero), every path through a
+                // delta vertex is weighed without the geometry of the
+                // segment beyond it.
                 path[this].delta = true;
-                pdf_dir = 0.0;
-                path[prev].pdf_rev = 0.0;
+                pdf_dir = 1.0;
+                path[prev].pdf_rev = self.convert(1.0, &path[this], &path[prev]);
             } else {
                 pdf_dir = bs.pdf;
                 let pdf_back = bsdf.pdf(bs.wi, wo);
@@ -1104,19 +1113,20 @@ mod tests {
                 let mut from_camera = vec![0.0f32; k + 1];
                 from_light[0] = tracer.pdf_light_origin(&light_end, &x[1]);
                 from_light[1] = tracer.pdf_light(&light_end, &x[1]);
+                // Through a delta bounce, a unit density per solid angle.
                 for i in 2..=k {
                     let prev = as_light_vertex(i - 2, &x);
-                    from_light[i] = tracer.pdf(&x[i - 1], Some(&prev), &x[i]);
+                    from_light[i] = match x[i - 1].delta {
+                        true => tracer.convert(1.0, &x[i - 1], &x[i]),
+                        false => tracer.pdf(&x[i - 1], Some(&prev), &x[i]),
+                    };
                 }
                 from_camera[k - 1] = tracer.pdf(&x[k], None, &x[k - 1]);
                 for i in (0..k - 1).rev() {
-                    from_camera[i] = tracer.pdf(&x[i + 1], Some(&x[i + 2]), &x[i]);
-                }
-                for v in x.iter_mut() {
-                    if v.delta {
-                        // A delta bounce stores no densities through it.
-                        v.pdf_fwd = 0.0;
-                    }
+                    from_camera[i] = match x[i + 1].delta {
+                        true => tracer.convert(1.0, &x[i + 1], &as_light_vertex(i, &x)),
+                        false => tracer.pdf(&x[i + 1], Some(&x[i + 2]), &x[i]),
+                    };
                 }
                 let mut sum = 0.0f64;
                 for s in 0..=k {
