@@ -197,6 +197,10 @@ pub enum IntegratorKind {
     /// Primary-sample-space Metropolis light transport (Kelemen et al.
     /// 2002) over whole bidirectional samples.
     Pssmlt,
+    /// Vertex connection and merging (Georgiev et al. 2012): the
+    /// bidirectional connections and photon merging under one multiple
+    /// importance sampling.
+    Vcm,
     /// Ambient occlusion: the share of the hemisphere open within a
     /// distance.
     AmbientOcclusion,
@@ -204,8 +208,8 @@ pub enum IntegratorKind {
 
 impl IntegratorKind {
     /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 10] = [
-        "whitted", "path", "photon", "sppm", "volpath", "light", "bdpt", "mlt", "pssmlt", "ao",
+    pub const NAMES: [&'static str; 11] = [
+        "whitted", "path", "photon", "sppm", "volpath", "light", "bdpt", "mlt", "pssmlt", "vcm", "ao",
     ];
 
     /// Parses one of [`IntegratorKind::NAMES`].
@@ -220,6 +224,7 @@ impl IntegratorKind {
             "bdpt" => Some(IntegratorKind::Bdpt),
             "mlt" => Some(IntegratorKind::Mlt),
             "pssmlt" => Some(IntegratorKind::Pssmlt),
+            "vcm" => Some(IntegratorKind::Vcm),
             "ao" => Some(IntegratorKind::AmbientOcclusion),
             _ => None,
         }
@@ -230,7 +235,11 @@ impl IntegratorKind {
     pub fn splats_light_paths(&self) -> bool {
         matches!(
             self,
-            IntegratorKind::Light | IntegratorKind::Bdpt | IntegratorKind::Mlt | IntegratorKind::Pssmlt
+            IntegratorKind::Light
+                | IntegratorKind::Bdpt
+                | IntegratorKind::Mlt
+                | IntegratorKind::Pssmlt
+                | IntegratorKind::Vcm
         )
     }
 
@@ -246,6 +255,7 @@ impl IntegratorKind {
             IntegratorKind::Bdpt => "bdpt",
             IntegratorKind::Mlt => "mlt",
             IntegratorKind::Pssmlt => "pssmlt",
+            IntegratorKind::Vcm => "vcm",
             IntegratorKind::AmbientOcclusion => "ao",
         }
     }

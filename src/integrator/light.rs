@@ -46,7 +46,7 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Paths per work unit.
-const CHUNK: u32 = 4096;
+pub(crate) const CHUNK: u32 = 4096;
 
 /// Work units traced before their splats are added to the image.
 const BATCH: u32 = 64;
@@ -237,6 +237,11 @@ impl SplatImage {
             return Err("a saved sum is not a finite number".into());
         }
         Ok(())
+    }
+
+    /// The iterations added so far.
+    pub(crate) fn iterations(&self) -> u32 {
+        self.iterations
     }
 
     /// Where splats land.

@@ -25,6 +25,7 @@ pub mod whitted;
 
 pub use ao::AmbientOcclusion;
 pub use bdpt::Bdpt;
+pub use bdpt::vcm::Vcm;
 pub use light::LightTracer;
 pub use mlt::Metropolis;
 pub use path::PathTracer;
@@ -74,7 +75,7 @@ pub struct Work {
 }
 
 /// Why a progressive algorithm's render cannot be split into shards.
-pub const NOT_SHARDABLE: &str = "progressive algorithms (sppm, light, bdpt, mlt, pssmlt) cannot be sharded (each iteration renders the whole image): drop --shard, or use --integrator path";
+pub const NOT_SHARDABLE: &str = "progressive algorithms (sppm, light, bdpt, mlt, pssmlt, vcm) cannot be sharded (each iteration renders the whole image): drop --shard, or use --integrator path";
 
 /// An algorithm that renders in iterations over the whole image, whose
 /// state is not a film of samples (SPPM: every pixel's radius, photon count
@@ -150,6 +151,7 @@ pub fn drive<D: Driver>(scene: &Scene, aovs: bool, cancel: Option<&AtomicBool>, 
         IntegratorKind::Bdpt => driver.iterations(Bdpt::new(scene, aovs)),
         IntegratorKind::Mlt => driver.iterations(Metropolis::new(scene, true, aovs)),
         IntegratorKind::Pssmlt => driver.iterations(Metropolis::new(scene, false, aovs)),
+        IntegratorKind::Vcm => driver.iterations(Vcm::new(scene, aovs)),
         IntegratorKind::AmbientOcclusion => driver.camera_passes(
             &AmbientOcclusion {
                 max_distance: s.ao_distance,

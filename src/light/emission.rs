@@ -158,7 +158,9 @@ impl Light {
                 area,
                 ..
             } => {
-                let s = scene.geometry.sample_emitter(*emitter, area, u_pick, u_pos, radiance.reads_uv())?;
+                let s = scene
+                    .geometry
+                    .sample_emitter(*emitter, area, u_pick, u_pos, radiance.reads_uv())?;
                 if !(s.pdf_area.is_finite() && s.pdf_area > 0.0) {
                     return None;
                 }

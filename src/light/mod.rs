@@ -566,7 +566,9 @@ impl Light {
                             (lp, ln, uv, Some(pdf), 0.0)
                         }
                         None => {
-                            let s = scene.geometry.sample_emitter(*emitter, area, u_pick, u, radiance.reads_uv())?;
+                            let s = scene
+                                .geometry
+                                .sample_emitter(*emitter, area, u_pick, u, radiance.reads_uv())?;
                             if s.pdf_area.is_nan() || s.pdf_area <= 0.0 {
                                 return None;
                             }

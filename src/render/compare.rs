@@ -408,7 +408,8 @@ mod tests {
         assert!(Contestant::parse("photon:mis").is_err());
         assert_eq!(Contestant::parse("bdpt").unwrap().integrator, IntegratorKind::Bdpt);
         assert_eq!(Contestant::parse("mlt").unwrap().integrator, IntegratorKind::Mlt);
-        assert!(Contestant::parse("vcm").is_err());
+        assert_eq!(Contestant::parse("vcm").unwrap().integrator, IntegratorKind::Vcm);
+        assert!(Contestant::parse("upbp").is_err());
         let d = Contestant::parse("path:mis+denoise").unwrap();
         assert_eq!(
             (d.label.as_str(), d.denoise),

@@ -4,7 +4,7 @@
 
 use super::Scene;
 use super::desc::*;
-use super::memory::{BYTES_PER_TEXEL, MemoryEstimate, mesh_bytes, photon_bytes, top_level_bytes};
+use super::memory::{BYTES_PER_TEXEL, MemoryEstimate, light_vertex_bytes, mesh_bytes, photon_bytes, top_level_bytes};
 use crate::accel::aggregate::{Aggregate, EmitterRef, MeshInstance, MeshObject, ShapeInstance};
 use crate::camera::{Camera, Projection};
 use crate::color::Rgb;
@@ -59,6 +59,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             0 => st.width as u64 * st.height as u64,
             n => n as u64,
         }),
+        IntegratorKind::Vcm => light_vertex_bytes(st.width as u64 * st.height as u64, st.max_depth),
         _ => 0,
     };
     memory.check(limits.max_memory)?;

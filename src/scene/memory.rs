@@ -127,6 +127,19 @@ pub fn photon_bytes(emitted: u64) -> u64 {
     emitted.saturating_mul(STORED_PER_EMITTED * BYTES_PER_PHOTON)
 }
 
+/// Bytes of vertex merging's stored light vertices for `paths` light
+/// subpaths of at most `max_depth` segments (each stores its surface
+/// vertices but the last; counted as photon maps count stored photons,
+/// at most [`STORED_PER_EMITTED`] a path, each held twice while the tree
+/// is built).
+pub fn light_vertex_bytes(paths: u64, max_depth: u32) -> u64 {
+    let per_path = (max_depth.saturating_sub(1) as u64).min(STORED_PER_EMITTED);
+    paths.saturating_mul(per_path * 2 * BYTES_PER_LIGHT_VERTEX)
+}
+
+/// A stored light vertex of vertex merging, with its kd-tree axis.
+pub const BYTES_PER_LIGHT_VERTEX: u64 = 81;
+
 /// Bytes of a mesh of `triangles` triangles and `vertices` vertices, with
 /// its BVH.
 pub fn mesh_bytes(triangles: u64, vertices: u64) -> u64 {

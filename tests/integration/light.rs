@@ -118,11 +118,12 @@ fn light_tracing_agrees_with_the_path_tracer_through_every_camera() {
 }
 
 /// Every integrator that splats light paths onto the image.
-const SPLATTING: [IntegratorKind; 4] = [
+const SPLATTING: [IntegratorKind; 5] = [
     IntegratorKind::Light,
     IntegratorKind::Bdpt,
     IntegratorKind::Mlt,
     IntegratorKind::Pssmlt,
+    IntegratorKind::Vcm,
 ];
 
 /// Light paths (BDPT's pairs of subpaths, Metropolis chains) are traced in

@@ -123,7 +123,7 @@ fn ctrl_c_keeps_the_passes_done_and_resume_finishes_them_identically() {
 #[test]
 fn ctrl_c_and_resume_work_for_progressive_renders() {
     let dir = tempfile::tempdir().unwrap();
-    for integrator in ["mlt", "bdpt", "sppm"] {
+    for integrator in ["mlt", "bdpt", "sppm", "vcm"] {
         let full = dir.path().join(format!("{integrator}-full.pfm"));
         let common = [
             "--width",

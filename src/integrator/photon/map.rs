@@ -89,11 +89,35 @@ pub fn oct_decode(e: u32) -> Vec3 {
     v.normalize()
 }
 
-/// Photons in a balanced kd-tree.
-#[derive(Clone, Debug, Default)]
-pub struct PhotonMap {
-    photons: Vec<Photon>,
+/// What a [`PhotonMap`] stores: anything with a position. Photon mapping
+/// stores [`Photon`]s; vertex merging stores light-path vertices with the
+/// quantities its weights need.
+pub trait Located: Send {
+    /// Where it lies.
+    fn position(&self) -> Vec3;
+}
+
+impl Located for Photon {
+    #[inline]
+    fn position(&self) -> Vec3 {
+        self.p
+    }
+}
+
+/// Photons (or other [`Located`] records) in a balanced kd-tree.
+#[derive(Clone, Debug)]
+pub struct PhotonMap<P = Photon> {
+    photons: Vec<P>,
     axes: Vec<u8>,
+}
+
+impl<P> Default for PhotonMap<P> {
+    fn default() -> Self {
+        PhotonMap {
+            photons: Vec::new(),
+            axes: Vec::new(),
+        }
+    }
 }
 
 /// Subtrees larger than this are built on another thread.
@@ -102,9 +126,9 @@ const PARALLEL_BUILD: usize = 1 << 14;
 /// Deepest traversal stack: a balanced tree of 2³² photons is 32 deep.
 const STACK: usize = 64;
 
-impl PhotonMap {
+impl<P: Located> PhotonMap<P> {
     /// Builds the tree; the photons are reordered.
-    pub fn build(mut photons: Vec<Photon>) -> PhotonMap {
+    pub fn build(mut photons: Vec<P>) -> PhotonMap<P> {
         assert!(photons.len() < u32::MAX as usize, "too many photons for one map");
         let mut axes = vec![0u8; photons.len()];
         build_range(&mut photons, &mut axes);
@@ -122,18 +146,18 @@ impl PhotonMap {
     }
 
     /// The photons, in tree order.
-    pub fn photons(&self) -> &[Photon] {
+    pub fn photons(&self) -> &[P] {
         &self.photons
     }
 
     /// Bytes held by the map.
     pub fn bytes(&self) -> usize {
-        self.photons.len() * (std::mem::size_of::<Photon>() + 1)
+        self.photons.len() * (std::mem::size_of::<P>() + 1)
     }
 
     /// Calls `visit(photon, d²)` for every photon within distance √`r2` of `p`.
     #[inline]
-    pub fn for_each_within(&self, p: Vec3, r2: f32, mut visit: impl FnMut(&Photon, f32)) {
+    pub fn for_each_within(&self, p: Vec3, r2: f32, mut visit: impl FnMut(&P, f32)) {
         self.traverse(p, r2, |ph, d2, _| {
             visit(ph, d2);
             r2
@@ -166,14 +190,14 @@ impl PhotonMap {
 
     /// The photon at `index` (an index reported by [`Nearest::iter`]).
     #[inline]
-    pub fn photon(&self, index: u32) -> &Photon {
+    pub fn photon(&self, index: u32) -> &P {
         &self.photons[index as usize]
     }
 
     /// Visits the photons within √`r2` of `p`; `visit` returns the (possibly
     /// smaller) squared radius that the search continues with.
     #[inline]
-    fn traverse(&self, p: Vec3, mut r2: f32, mut visit: impl FnMut(&Photon, f32, u32) -> f32) {
+    fn traverse(&self, p: Vec3, mut r2: f32, mut visit: impl FnMut(&P, f32, u32) -> f32) {
         if self.photons.is_empty() || r2.is_nan() {
             return;
         }
@@ -189,7 +213,8 @@ impl PhotonMap {
             while lo < hi {
                 let mid = lo + (hi - lo) / 2;
                 let ph = &self.photons[mid as usize];
-                let d2 = (ph.p - p).length_squared();
+                let at = ph.position();
+                let d2 = (at - p).length_squared();
                 if d2 <= r2 {
                     r2 = visit(ph, d2, mid);
                 }
@@ -197,7 +222,7 @@ impl PhotonMap {
                     break;
                 }
                 let axis = self.axes[mid as usize] as usize;
-                let delta = p[axis] - ph.p[axis];
+                let delta = p[axis] - at[axis];
                 let (near, far) = if delta < 0.0 {
                     ((lo, mid), (mid + 1, hi))
                 } else {
@@ -276,15 +301,15 @@ fn sift_down(heap: &mut [(f32, u32)], mut i: usize) {
     }
 }
 
-fn build_range(photons: &mut [Photon], axes: &mut [u8]) {
+fn build_range<P: Located>(photons: &mut [P], axes: &mut [u8]) {
     let n = photons.len();
     if n <= 1 {
         return;
     }
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     for ph in photons.iter() {
-        lo = lo.min(ph.p);
-        hi = hi.max(ph.p);
+        lo = lo.min(ph.position());
+        hi = hi.max(ph.position());
     }
     let e = hi - lo;
     let axis = if e.x >= e.y && e.x >= e.z {
@@ -295,7 +320,7 @@ fn build_range(photons: &mut [Photon], axes: &mut [u8]) {
         2
     };
     let mid = n / 2;
-    photons.select_nth_unstable_by(mid, |a, b| a.p[axis].total_cmp(&b.p[axis]));
+    photons.select_nth_unstable_by(mid, |a, b| a.position()[axis].total_cmp(&b.position()[axis]));
     axes[mid] = axis as u8;
     let (left, rest) = photons.split_at_mut(mid);
     let (left_axes, rest_axes) = axes.split_at_mut(mid);
@@ -384,7 +409,7 @@ mod tests {
     #[test]
     fn empty_and_tiny_maps() {
         let mut found = Nearest::default();
-        let empty = PhotonMap::build(Vec::new());
+        let empty: PhotonMap = PhotonMap::build(Vec::new());
         assert_eq!(empty.nearest(Vec3::ZERO, 5, f32::INFINITY, &mut found), None);
         let one = PhotonMap::build(vec![Photon::new(Vec3::X, Rgb::ONE, Vec3::Y, Vec3::Y)]);
         assert_eq!(one.nearest(Vec3::ZERO, 5, f32::INFINITY, &mut found), Some(1.0));

@@ -36,6 +36,8 @@
 //! are), or, for t = 1, where the connection reaches the film. An
 //! iteration traces one camera subpath and one light subpath per pixel.
 
+pub mod vcm;
+
 use super::adjoint_shading_factor;
 use super::light::SplatImage;
 use super::state::{StateReader, StateWriter};
@@ -161,6 +163,28 @@ impl<'s> Vertex<'s> {
         let d = to.p - self.p;
         let d2 = d.length_squared();
         (d / d2.sqrt(), d2)
+    }
+}
+
+/// A density in the weights' ratios: the zero a delta bounce stores
+/// stands for a Dirac factor that every strategy able to make the path
+/// shares, so it counts as one (pbrt-v4's `remap0`).
+fn remap(pdf: f32) -> f32 {
+    if pdf != 0.0 { pdf } else { 1.0 }
+}
+
+fn sq(x: f32) -> f32 {
+    x * x
+}
+
+/// Whether the vertex before light-subpath vertex `i` scattered by a
+/// delta lobe (for the light's own vertex: whether the light is a delta
+/// one), which rules out a connection between the two.
+fn delta_before(light: &[Vertex], i: usize) -> bool {
+    if i > 0 {
+        light[i - 1].delta
+    } else {
+        light[0].is_delta_light()
     }
 }
 
@@ -383,6 +407,9 @@ impl Progressive for Bdpt {
 pub(crate) struct Subpaths<'s> {
     camera: Vec<Vertex<'s>>,
     light: Vec<Vertex<'s>>,
+    /// The light subpath's vertices kept for merging (vertex connection
+    /// and merging).
+    stored: Vec<vcm::LightVertex>,
 }
 
 /// What [`Tracer::mis_weight`] changes in the subpaths, to be put back.
@@ -421,6 +448,11 @@ pub(crate) struct Tracer<'s> {
     scene: &'s Scene,
     bounds: (Vec3, f32),
     max_depth: u32,
+    /// Vertex merging's factor η = π r² N (Georgiev et al. 2012, eq. 11:
+    /// the density of merging at a vertex is that of reaching it from
+    /// both sides times η, for N light paths merged within radius r);
+    /// zero where paths are only connected (BDPT, MLT).
+    merge_eta: f32,
 }
 
 impl<'s> Tracer<'s> {
@@ -430,7 +462,16 @@ impl<'s> Tracer<'s> {
             scene,
             bounds: crate::light::scene_bounding_sphere(scene),
             max_depth,
+            merge_eta: 0.0,
         }
+    }
+
+    /// The tracer of vertex connection and merging: the weights count
+    /// merging at every vertex where it can happen, with factor `eta`
+    /// (π r² times the light paths merged).
+    pub(crate) fn merging(mut self, eta: f32) -> Tracer<'s> {
+        self.merge_eta = eta;
+        self
     }
 
     /// The sample through raster position `raster` (drawn from `rng`'s
@@ -735,7 +776,9 @@ impl<'s> Tracer<'s> {
                 radiance,
                 ..
             } => {
-                let es = scene.geometry.sample_emitter(*emitter, area, u_pick, u, radiance.reads_uv())?;
+                let es = scene
+                    .geometry
+                    .sample_emitter(*emitter, area, u_pick, u, radiance.reads_uv())?;
                 let d = pt.p - es.p;
                 let d2 = d.length_squared();
                 let cos = es.n.dot(d) / d2.sqrt();
@@ -835,7 +878,7 @@ impl<'s> Tracer<'s> {
         if s >= 2 {
             light[s - 2].pdf_rev = self.pdf(&light[s - 1], Some(&camera[t - 1]), &light[s - 2]);
         }
-        let remap = |x: f32| if x != 0.0 { x } else { 1.0 };
+        let eta = self.merge_eta;
         let mut sum = 0.0f32;
         let mut ratio = 1.0f32;
         for i in (1..t).rev() {
@@ -843,17 +886,20 @@ impl<'s> Tracer<'s> {
             if !camera[i].delta && !camera[i - 1].delta {
                 sum += ratio * ratio;
             }
+            // Merging at a surface vertex (not at the emitter an s = 0
+            // path ends on).
+            if eta > 0.0 && !camera[i].delta && !(s == 0 && i == t - 1) {
+                sum += sq(ratio * remap(camera[i].pdf_fwd) * eta);
+            }
         }
         ratio = 1.0;
         for i in (0..s).rev() {
             ratio *= remap(light[i].pdf_rev) / remap(light[i].pdf_fwd);
-            let delta_before = if i > 0 {
-                light[i - 1].delta
-            } else {
-                light[0].is_delta_light()
-            };
-            if !light[i].delta && !delta_before {
+            if !light[i].delta && !delta_before(light, i) {
                 sum += ratio * ratio;
+            }
+            if eta > 0.0 && i > 0 && !light[i].delta {
+                sum += sq(ratio * remap(light[i].pdf_fwd) * eta);
             }
         }
         saved.restore(light, camera);
@@ -1087,8 +1133,12 @@ mod tests {
     /// weights [`Tracer::mis_weight`] gives the strategies that can make
     /// the path (no connection at a delta or non-connectible vertex) must
     /// sum to one. Returns how many paths were checked.
-    fn weights_sum_to_one<'s>(scene: &'s Scene, trials: u32) -> u32 {
-        let tracer = Tracer::new(scene, 8);
+    ///
+    /// With `eta` > 0 the strategies are vertex connection and merging's:
+    /// merges at every vertex with a non-delta lobe join the connections,
+    /// the merged light vertex lying exactly at the camera's.
+    fn weights_sum_to_one<'s>(scene: &'s Scene, trials: u32, eta: f32) -> u32 {
+        let tracer = Tracer::new(scene, 8).merging(eta);
         let mut rng = Pcg32::new(11, 3);
         let mut path = Vec::new();
         let mut rays = 0;
@@ -1159,8 +1209,45 @@ mod tests {
                         (_, 1) => Some(camera[0]),
                         _ => None,
                     };
-                    let mut work = Subpaths { camera, light };
+                    let mut work = Subpaths {
+                        camera,
+                        light,
+                        stored: Vec::new(),
+                    };
                     sum += tracer.mis_weight(&mut work, s, t, sampled) as f64;
+                }
+                // Merges at x_i: the light subpath x₀ … x_i, the camera
+                // subpath x_k … x_i.
+                for i in 1..k {
+                    if eta == 0.0 || x[i].delta || !x[i].connectible {
+                        continue;
+                    }
+                    let light: Vec<Vertex> = (0..=i)
+                        .map(|j| {
+                            let mut v = as_light_vertex(j, &x);
+                            v.mode = TransportMode::Importance;
+                            (v.pdf_fwd, v.pdf_rev) = (from_light[j], from_camera[j]);
+                            if j > 0 {
+                                v.wo = v.toward(&as_light_vertex(j - 1, &x)).0;
+                            }
+                            v
+                        })
+                        .collect();
+                    let mut stored = Vec::new();
+                    tracer.light_vertices(&light, &mut stored);
+                    let y = stored.last().expect("x_i has a non-delta lobe");
+                    let camera: Vec<Vertex> = (i..=k)
+                        .rev()
+                        .map(|j| {
+                            let mut v = x[j];
+                            (v.pdf_fwd, v.pdf_rev) = (from_camera[j], from_light[j]);
+                            v
+                        })
+                        .collect();
+                    let (_, frame) = x[i].bsdf.unwrap();
+                    let site = tracer.merge_site(&camera, camera.len()).unwrap();
+                    let w = tracer.merge_weight(&camera, &site, y, frame.to_local(light[i].wo));
+                    sum += w as f64;
                 }
                 assert!((sum - 1.0).abs() < 1e-3, "path of {k} segments: weights sum to {sum}");
                 checked += 1;
@@ -1173,7 +1260,7 @@ mod tests {
     #[test]
     fn weights_of_the_strategies_of_a_path_sum_to_one() {
         let cornell = crate::scene::build(&crate::scene::builtin::cornell_box()).unwrap();
-        let n = weights_sum_to_one(&cornell, 5000);
+        let n = weights_sum_to_one(&cornell, 5000, 0.0);
         assert!(n > 50, "only {n} paths reached the light");
         // Glass (delta lobes) and a sphere light.
         let caustic = crate::scene::load(
@@ -1182,7 +1269,27 @@ mod tests {
         )
         .unwrap();
         let caustic = crate::scene::build(&caustic).unwrap();
-        let n = weights_sum_to_one(&caustic, 200_000);
+        let n = weights_sum_to_one(&caustic, 200_000, 0.0);
         assert!(n > 50, "only {n} paths reached the light");
+    }
+
+    /// Vertex connection and merging: connections and merges together,
+    /// for merging factors η from much smaller to much larger than the
+    /// densities' products.
+    #[test]
+    fn weights_with_merging_sum_to_one() {
+        let cornell = crate::scene::build(&crate::scene::builtin::cornell_box()).unwrap();
+        let caustic = crate::scene::load(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/caustic.toml"),
+            &[],
+        )
+        .unwrap();
+        let caustic = crate::scene::build(&caustic).unwrap();
+        for eta in [1e-4, 1.0, 1e3] {
+            let n = weights_sum_to_one(&cornell, 2000, eta);
+            assert!(n > 20, "only {n} paths reached the light");
+            let n = weights_sum_to_one(&caustic, 100_000, eta);
+            assert!(n > 20, "only {n} paths reached the light");
+        }
     }
 }
