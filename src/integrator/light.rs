@@ -239,6 +239,21 @@ impl SplatImage {
         Ok(())
     }
 
+    /// The sums alone as a saved state (for an algorithm whose state is
+    /// its image).
+    pub(crate) fn state(&self) -> Vec<u8> {
+        let mut w = StateWriter::default();
+        self.write_state(&mut w);
+        w.0
+    }
+
+    /// Reads what [`SplatImage::state`] wrote.
+    pub(crate) fn restore(&mut self, state: &[u8]) -> Result<(), String> {
+        let mut r = StateReader::new(state);
+        self.read_state(&mut r)?;
+        r.finish()
+    }
+
     /// The iterations added so far.
     pub(crate) fn iterations(&self) -> u32 {
         self.iterations
@@ -404,15 +419,11 @@ impl Progressive for LightTracer {
     }
 
     fn state(&self) -> Vec<u8> {
-        let mut w = StateWriter::default();
-        self.image.write_state(&mut w);
-        w.0
+        self.image.state()
     }
 
     fn restore(&mut self, _scene: &Scene, state: &[u8]) -> Result<(), String> {
-        let mut r = StateReader::new(state);
-        self.image.read_state(&mut r)?;
-        r.finish()
+        self.image.restore(state)
     }
 }
 

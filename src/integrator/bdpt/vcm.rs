@@ -40,7 +40,6 @@ use crate::film::Film;
 use crate::integrator::light::{CHUNK, SplatImage};
 use crate::integrator::photon::map::Located;
 use crate::integrator::photon::{PhotonMap, same_surface};
-use crate::integrator::state::{StateReader, StateWriter};
 use crate::integrator::{Progressive, Work};
 use crate::sampling::Uniforms;
 use crate::sampling::rng::{Pcg32, hash_u64s};
@@ -441,15 +440,11 @@ impl Progressive for Vcm {
     /// The image's sums: the radius follows from their iterations, and
     /// the last iteration's light vertices are traced again on restoring.
     fn state(&self) -> Vec<u8> {
-        let mut w = StateWriter::default();
-        self.image.write_state(&mut w);
-        w.0
+        self.image.state()
     }
 
     fn restore(&mut self, scene: &Scene, state: &[u8]) -> Result<(), String> {
-        let mut r = StateReader::new(state);
-        self.image.read_state(&mut r)?;
-        r.finish()?;
+        self.image.restore(state)?;
         let k = self.image.iterations();
         self.previous = match k {
             0 => PhotonMap::default(),
