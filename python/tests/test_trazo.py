@@ -86,8 +86,8 @@ def test_errors_name_the_file_line_and_key(tmp_path):
         trazo.load(bad)
     with pytest.raises(trazo.TrazoError, match="missing.xml"):
         trazo.load(tmp_path / "missing.xml")
-    with pytest.raises(trazo.TrazoError, match="unknown integrator \"vcm\""):
-        trazo.render(trazo.load(), integrator="vcm", spp=1, width=4, height=4)
+    with pytest.raises(trazo.TrazoError, match="unknown integrator \"upbp\""):
+        trazo.render(trazo.load(), integrator="upbp", spp=1, width=4, height=4)
     with pytest.raises(trazo.TrazoError, match="spp must be"):
         trazo.render(trazo.load(), spp=0)
     with pytest.raises(trazo.TrazoError, match="finite"):

@@ -4,14 +4,18 @@
 //! "unified path sampling"): bidirectional path tracing and photon
 //! mapping under one multiple importance sampling.
 //!
-//! Each iteration first traces N light subpaths (N the pixels) and stores
-//! their surface vertices with a non-delta lobe in a kd-tree: the photons.
-//! Then every pixel traces a camera subpath and a light subpath of its own
-//! and makes every bidirectional strategy as [`super::Bdpt`] does, and at
-//! each camera vertex with a non-delta lobe also *merges*: every stored
-//! light vertex y within radius r of camera vertex x is taken as if the
-//! light subpath had reached x, its throughput times the BSDF at x over
-//! π r² N (photon density estimation with a box kernel).
+//! In each iteration every pixel traces a camera subpath and a light
+//! subpath and makes every bidirectional strategy as [`super::Bdpt`] does;
+//! at each camera vertex with a non-delta lobe it also *merges*: every
+//! light vertex y that the previous iteration's N light subpaths (N the
+//! pixels) left on a surface with a non-delta lobe, within radius r of
+//! camera vertex x, is taken as if the light subpath had reached x, its
+//! throughput times the BSDF at x over π r² N (photon density estimation
+//! with a box kernel). The previous iteration's light subpaths are
+//! independent of this one's camera subpaths, as merging needs, and so
+//! each light subpath serves the connections of its pixel and, stored in
+//! a kd-tree, the merges of the next iteration; the first iteration is
+//! BDPT alone.
 //!
 //! Merging at x is one more way to sample a path, of density (eq. 11)
 //! p_VM = p_light(x) · p_camera(x) · π r² N, where p_light(x) and
@@ -29,10 +33,6 @@
 //! (Knaus and Zwicker 2011), so the bias of merging vanishes and the
 //! image converges; r₁ and α are photon mapping's (`photon_radius`, by
 //! default two pixel footprints, and `sppm_alpha`).
-//!
-//! Connections use a light subpath traced for the pixel, not one of the
-//! stored ones: both give an unbiased connection estimate, and so no
-//! iteration holds every subpath's BSDFs at once.
 
 use super::{Kind, LIGHT_STREAM, STREAM, Subpaths, Tracer, Vertex, delta_before, remap, sq, vertex_f};
 use crate::color::Rgb;
@@ -68,7 +68,7 @@ pub(crate) struct LightVertex {
     /// Segments from the light to here.
     segments: u32,
     /// Density of this vertex sampled from the light's side, per unit
-    /// area (zero after a delta bounce).
+    /// area (after a delta bounce, the Dirac's cos/d²).
     pdf_fwd: f32,
     /// The previous vertex's density from the light's side; the factor
     /// turning a density per solid angle here toward it into one per its
