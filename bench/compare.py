@@ -429,6 +429,8 @@ def main():
                     help="--suite: only render (and cache) the converged references, untimed; no table")
     ap.add_argument("--scenes", help="--suite: only these scenes, comma-separated (names of bench/suite/*.xml)")
     ap.add_argument("--repeat", type=int, help="each time the best of this many runs (default 3; --suite: 1)")
+    ap.add_argument("--seeds", type=int,
+                    help="--suite: render each scene with this many seeds; errors are their median (default 4)")
     args = ap.parse_args()
     if args.suite:
         import suite

@@ -15,11 +15,17 @@ For each scene:
   passes (at most 256 spp each, their own seeds, summed), the timed region
   ending when each pass has been converted to a NumPy array (Dr.Jit's kernels
   run asynchronously);
-- each renderer's best time of --repeat runs, the renderers taking turns;
+- each renderer rendering the scene with --seeds seeds (default 4), each
+  --repeat times, the renderers taking turns; its time is the best of these
+  runs;
 - errors: relative MSE against the reference, the formula of `trazo diff`
   (src/film/metrics.rs: the mean over pixels and channels of
   (a - b)^2 / (b^2 + 0.01)), computed here at full precision because `trazo
-  diff` prints six decimals (its figure is kept in the JSON beside ours);
+  diff` prints six decimals (its figure is kept in the JSON beside ours),
+  the median over the seeds: on scenes whose error comes from rare bright
+  paths (caustics, small lights, media) one seed's error varies by 2x from
+  seed to seed and now and then by 50x (one firefly), so that a single seed,
+  or the mean of a few, can decide the comparison either way;
 - the time at equal error, (t_trazo * err_trazo) / (t_mitsuba * err_mitsuba):
   the ratio of the times the two would take to reach the same error, as the
   error of an unbiased renderer falls as 1 / time. Below 1: trazo is faster.
@@ -58,11 +64,13 @@ ORDER = [
     "media-smoke",
 ]
 
-# Seeds: the timed Mitsuba passes use 0, 1, ...; the warm-up and the
+# Seeds: the timed Mitsuba passes of seed k use k * SEED_STRIDE, +1, ...
+# (trazo takes `--seed k`); the warm-up and the
 # reference their own ranges, so that no timed image shares samples with
 # the reference it is measured against.
 WARMUP_SEED = 1_000_000
 REFERENCE_SEED = 2_000_000
+SEED_STRIDE = 1_000
 
 REL_MSE_EPSILON = 1e-2  # as src/film/metrics.rs
 
@@ -252,9 +260,9 @@ def reference(args, name, path, variants, work):
 # --- trazo ---------------------------------------------------------------
 
 
-def trazo_run(args, path, out):
+def trazo_run(args, path, out, seed):
     cmd = [args.trazo, "render", path, "-o", out, "--spp", str(args.spp), "--width", str(args.res),
-           "--height", str(args.res)]
+           "--height", str(args.res), "--seed", str(seed)]
     start = time.perf_counter()
     r = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.perf_counter() - start
@@ -302,6 +310,9 @@ def main(args):
     args.spp = args.spp or 256
     args.reference_spp = args.reference_spp or 16384
     args.repeat = args.repeat or 1
+    args.seeds = args.seeds or 4
+    if args.seeds > 100:
+        raise SystemExit("bench/compare --suite: --seeds is at most 100")
     names = scene_names()
     if args.scenes:
         wanted = [s.strip().removesuffix(".xml") for s in args.scenes.split(",") if s.strip()]
@@ -323,6 +334,7 @@ def main(args):
         "mitsuba": {"version": mitsuba.__version__, "timed_variant": timed_variant},
         "machine": {"cores": os.cpu_count(), "platform": platform.platform(), "python": platform.python_version()},
         "settings": {"res": args.res, "spp": args.spp, "reference_spp": args.reference_spp, "repeat": args.repeat,
+                     "seeds": args.seeds,
                      "max_pass_spp": MAX_PASS, "trazo_time": "the render time trazo prints (without scene loading and BVH build)",
                      "mitsuba_time": "load_file excluded; after a warm-up render of each pass size; timed passes including conversion to NumPy"},
         "scenes": [],
@@ -340,40 +352,50 @@ def main(args):
             entry["reference"] = dict(record, path=os.path.relpath(ref, args.root))
             if args.references_only:
                 continue
-            print(f"{name}: timing trazo and Mitsuba {timed_variant}, {args.spp} spp, best of {args.repeat}...",
-                  file=sys.stderr, flush=True)
-            t_out = os.path.join(work, f"{name}.trazo.exr")
-            m_out = os.path.join(work, f"{name}.{timed_variant}.exr")
+            print(f"{name}: timing trazo and Mitsuba {timed_variant}, {args.spp} spp, {args.seeds} seeds, "
+                  f"best of {args.seeds * args.repeat}...", file=sys.stderr, flush=True)
             t_runs, m_runs = [], []
             t_fail = m_fail = None
-            for _ in range(args.repeat):
-                if t_fail is None:
-                    run, t_fail = trazo_run(args, path, t_out)
-                    if run:
-                        t_runs.append(run)
-                if m_fail is None:
-                    spec = {"mode": "time", "variant": timed_variant, "scene": path, "res": args.res,
-                            "spp": args.spp, "seed": 0, "out": m_out}
-                    run, m_fail = run_worker(spec, work)
-                    if run:
-                        m_runs.append(run)
+            t_images, m_images = {}, {}
+            for seed in range(args.seeds):
+                t_out = os.path.join(work, f"{name}.trazo.{seed}.exr")
+                m_out = os.path.join(work, f"{name}.{timed_variant}.{seed}.exr")
+                for _ in range(args.repeat):
+                    if t_fail is None:
+                        run, t_fail = trazo_run(args, path, t_out, seed)
+                        if run:
+                            t_runs.append(dict(run, seed=seed))
+                            t_images[seed] = t_out
+                    if m_fail is None:
+                        spec = {"mode": "time", "variant": timed_variant, "scene": path, "res": args.res,
+                                "spp": args.spp, "seed": seed * SEED_STRIDE, "out": m_out}
+                        run, m_fail = run_worker(spec, work)
+                        if run:
+                            m_runs.append(dict(run, seed=seed))
+                            m_images[seed] = m_out
             reference_image = read_exr(ref)
-            for key, runs, fail, image, times in [
-                ("trazo", t_runs, t_fail, t_out, lambda r: r["render_s"]),
-                ("mitsuba", m_runs, m_fail, m_out, lambda r: r["render_s"]),
+            for key, runs, fail, images in [
+                ("trazo", t_runs, t_fail, t_images),
+                ("mitsuba", m_runs, m_fail, m_images),
             ]:
                 side = {"runs": runs}
                 if fail or not runs:
                     side["failed"] = fail
                 else:
-                    side["best_s"] = min(times(r) for r in runs)
-                    img = read_exr(image)
-                    side["relmse"] = relative_mse(img, reference_image)
-                    side["trazo_diff"] = trazo_diff(args, image, ref)
-                    side["mean"] = img.reshape(-1, 3).mean(0).tolist()
-                    side["reference_mean"] = reference_image.reshape(-1, 3).mean(0).tolist()
-                    if not np.all(np.isfinite(img)):
-                        side["non_finite_pixels"] = int(np.sum(~np.isfinite(img)))
+                    side["best_s"] = min(r["render_s"] for r in runs)
+                    per_seed = []
+                    for seed in sorted(images):
+                        img = read_exr(images[seed])
+                        per_seed.append(relative_mse(img, reference_image))
+                        if seed == 0:
+                            side["trazo_diff"] = trazo_diff(args, images[seed], ref)
+                            side["mean"] = img.reshape(-1, 3).mean(0).tolist()
+                            side["reference_mean"] = reference_image.reshape(-1, 3).mean(0).tolist()
+                        if not np.all(np.isfinite(img)):
+                            side["non_finite_pixels"] = side.get("non_finite_pixels", 0) + int(np.sum(~np.isfinite(img)))
+                    side["relmse_per_seed"] = per_seed
+                    side["relmse"] = float(np.median(per_seed))
+                    side["relmse_mean"] = float(np.mean(per_seed))
                 entry[key] = side
             entry["warnings"] = t_runs[0]["warnings"] if t_runs else []
             t, m = entry["trazo"], entry["mitsuba"]
@@ -408,6 +430,20 @@ def main(args):
     print(f"\nwritten: {os.path.relpath(stem, args.root)}.md, .json")
 
 
+def uncertainty(t, m, ratio):
+    """' ± x': the standard error of the time at equal error from the
+    spread of both renderers' per-seed errors (times taken as exact), by
+    resampling the seeds (bootstrap, a fixed generator); '' with fewer
+    than three seeds."""
+    a = np.array(t.get("relmse_per_seed", []))
+    b = np.array(m.get("relmse_per_seed", []))
+    if len(a) < 3 or len(b) < 3:
+        return ""
+    rng = np.random.default_rng(1)
+    draws = [np.median(rng.choice(a, len(a))) / np.median(rng.choice(b, len(b))) for _ in range(1000)]
+    return f" ± {ratio * np.std(draws) / (np.median(a) / np.median(b)):.2f}"
+
+
 def table(args, report, variant):
     s = report["settings"]
     tr = report["trazo"]
@@ -416,14 +452,16 @@ def table(args, report, variant):
         "",
         f"trazo {tr['commit'][:10]}{' (sources differ from it)' if tr['dirty'] else ''}; Mitsuba "
         f"{report['mitsuba']['version']} `{variant}`; {report['machine']['cores']} cores; "
-        f"{s['res']}×{s['res']} pixels, {s['spp']} spp; each time the best of {s['repeat']}, the renderers taking turns.",
+        f"{s['res']}×{s['res']} pixels, {s['spp']} spp; each renderer {s.get('seeds', 1)} seeds × {s['repeat']} runs, taking turns; "
+        f"time: the best run; error: the median over the seeds.",
         "",
         f"Times: trazo's own render time (scene loading and BVH build not counted); Mitsuba's renders after "
         f"loading the scene and a warm-up render, in passes of at most {MAX_PASS} spp, each converted to a NumPy "
         f"array inside the timed region. Error: relative MSE (the formula of `trazo diff`) against Mitsuba at "
         f"{s['reference_spp']} spp (reference noise: its own relative MSE, from its two halves). Equal error: "
         f"(t_trazo · err_trazo) / (t_Mitsuba · err_Mitsuba), the ratio of the times to reach the same error; "
-        f"below 1, trazo is faster. Mean: the image's mean over channels against the reference's.",
+        f"below 1, trazo is faster; ± is its standard error from the spread of the errors over the seeds. "
+        f"Mean: seed 0's image's mean over channels against the reference's.",
         "",
         "| scene | trazo time | Mitsuba time | trazo rel. MSE | Mitsuba rel. MSE | reference noise | trazo mean / ref. | Mitsuba mean / ref. | time at equal error, trazo / Mitsuba |",
         "|---|---|---|---|---|---|---|---|---|",
@@ -449,7 +487,7 @@ def table(args, report, variant):
             fmt_t(t.get("best_s")) if "failed" not in t else f"failed: {t['failed']}",
             fmt_t(m.get("best_s")) if "failed" not in m else f"failed: {m['failed']}",
             fmt_e(t.get("relmse")), fmt_e(m.get("relmse")), fmt_e(noise), mean_ratio(t), mean_ratio(m),
-            f"{ratio:.3f}" if ratio is not None else "–",
+            (f"{ratio:.3f}" + uncertainty(t, m, ratio)) if ratio is not None else "–",
         ]
         lines.append("| " + " | ".join(cells) + " |")
         if ratio is not None:
