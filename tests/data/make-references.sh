@@ -14,3 +14,8 @@ trazo="$root/target/release/trazo"
 "$trazo" render -q --width 64 --height 64 --spp 8192 --seed 103 -o "$here/cornell-64-ref.exr"
 # The caustic scene, 64×48, path traced with next-event estimation and MIS.
 "$trazo" render -q "$root/scenes/caustic.toml" --integrator path --width 64 --height 48 --spp 131072 --seed 102 -o "$here/caustic-64-ref.exr"
+# Veach's door, 40×30, by bidirectional path tracing (the path tracer would
+# take days): the equal-time tests of tests/integration/equal_time.rs.
+"$trazo" render -q "$root/scenes/door.toml" --integrator bdpt --width 40 --height 30 --spp 16384 --seed 104 -o "$here/door-40-ref.exr"
+# The caustic box, 32×32, path traced (none of the integrators compared there).
+"$trazo" render -q "$root/scenes/caustic-box.toml" --integrator path --width 32 --height 32 --spp 131072 --seed 105 -o "$here/caustic-box-32-ref.exr"

@@ -7,6 +7,7 @@ mod bench_rays;
 mod cli;
 mod denoise;
 mod display;
+mod equal_time;
 mod farm;
 mod fuzz_regressions;
 mod gltf;
