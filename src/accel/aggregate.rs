@@ -932,19 +932,23 @@ impl Aggregate {
     }
 
     /// The density, per unit world area, with which [`Aggregate::sample_emitter`]
-    /// picks a point of the emitter whose world normal there is `n`.
-    pub fn emitter_pdf_area(&self, emitter: EmitterRef, area: &EmitterArea, n: Vec3) -> f32 {
+    /// picks the point `p` of the emitter, whose world normal there is `n`.
+    pub fn emitter_pdf_area(&self, emitter: EmitterRef, area: &EmitterArea, p: Vec3, n: Vec3) -> f32 {
         let total = area.total.max(f32::MIN_POSITIVE);
         match emitter {
-            EmitterRef::Shape(i) => match &self.shapes[i as usize].transform {
-                None => 1.0 / total,
-                Some(t) => {
-                    // Area scale |det M|·|M⁻ᵀ n_obj| = |det M| / |Mᵀ n_world|.
-                    let mt_n = t.m.transpose().transform_vector3(n).length();
-                    let det = glam::Mat3::from_mat4(t.m).determinant().abs();
-                    mt_n / (det * total)
+            EmitterRef::Shape(i) => {
+                let s = &self.shapes[i as usize];
+                match &s.transform {
+                    None => s.shape.relative_area_density(p) / total,
+                    Some(t) => {
+                        let relative = s.shape.relative_area_density(t.inv_point(p));
+                        // Area scale |det M|·|M⁻ᵀ n_obj| = |det M| / |Mᵀ n_world|.
+                        let mt_n = t.m.transpose().transform_vector3(n).length();
+                        let det = glam::Mat3::from_mat4(t.m).determinant().abs();
+                        relative * mt_n / (det * total)
+                    }
                 }
-            },
+            }
             EmitterRef::MeshObject(_) | EmitterRef::Instance(_) => 1.0 / total,
         }
     }
@@ -1020,7 +1024,7 @@ impl Aggregate {
                 if s.flip_normals {
                     a.n = -a.n;
                 }
-                let pdf_obj = 1.0 / area.total;
+                let pdf_obj = s.shape.relative_area_density(a.p) / area.total;
                 match &s.transform {
                     None => Some(EmitterSample {
                         p: a.p,
@@ -1524,7 +1528,7 @@ mod tests {
             let s = g
                 .sample_emitter(e, &area, r.next_f32(), Vec2::new(r.next_f32(), r.next_f32()), true)
                 .unwrap();
-            let back = g.emitter_pdf_area(e, &area, s.n);
+            let back = g.emitter_pdf_area(e, &area, s.p, s.n);
             assert!(
                 (back - s.pdf_area).abs() < 1e-4 * s.pdf_area,
                 "{back} vs {}",

@@ -127,6 +127,8 @@ pub enum Shape {
     /// A sphere, cylinder, cone, paraboloid or hyperboloid cut to heights
     /// and angles, or a disk with a hole.
     Quadric(super::quadric::Quadric),
+    /// A bilinear patch through four corners (pbrt-v4's `bilinearmesh`).
+    Bilinear(super::bilinear::BilinearPatch),
 }
 
 /// The surface of a shape at a point, in the shape's object space.
@@ -194,6 +196,7 @@ impl Shape {
             Shape::Sdf(ref f) => Some(f.bounds()),
             Shape::Implicit(ref f) => Some(f.bounds()),
             Shape::Quadric(ref q) => Some(q.bounds()),
+            Shape::Bilinear(ref b) => Some(b.bounds()),
         }
     }
 
@@ -211,6 +214,7 @@ impl Shape {
             Shape::Sdf(f) => f.intersect(ray),
             Shape::Implicit(f) => f.intersect(ray),
             Shape::Quadric(q) => q.intersect(ray),
+            Shape::Bilinear(b) => b.intersect(ray),
         }
     }
 
@@ -271,6 +275,7 @@ impl Shape {
             Shape::Sdf(f) => f.surface(p),
             Shape::Implicit(f) => f.surface(p),
             Shape::Quadric(q) => q.surface(p),
+            Shape::Bilinear(b) => b.surface(p),
         }
     }
 
@@ -296,6 +301,7 @@ impl Shape {
             // Not an emitter (nor in Mitsuba): the scene reader refuses one.
             Shape::SdfGrid(_) | Shape::Sdf(_) | Shape::Implicit(_) => 0.0,
             Shape::Quadric(q) => q.area(),
+            Shape::Bilinear(b) => b.area(),
         }
     }
 
@@ -309,8 +315,10 @@ impl Shape {
         }
     }
 
-    /// A point uniformly distributed over the surface by area (density
-    /// 1/area); `None` for the plane, which has no finite area. Its
+    /// A point distributed over the surface by area: uniformly (density
+    /// 1/area) but on a curved bilinear patch, whose density is
+    /// [`Shape::relative_area_density`]/area; `None` for the plane, which
+    /// has no finite area. Its
     /// surface coordinates are found where `uv` asks for them (a textured
     /// emitter), and left zero elsewhere: for curved shapes they take
     /// inverse trigonometric functions.
@@ -326,10 +334,22 @@ impl Shape {
         Some(s)
     }
 
+    /// The density with which [`Shape::sample_area`] draws the point `p`
+    /// of the surface, relative to the uniform one, 1/area: 1 but for a
+    /// bilinear patch.
+    #[inline]
+    pub fn relative_area_density(&self, p: Vec3) -> f32 {
+        match self {
+            Shape::Bilinear(b) => b.density_at(p) * b.area(),
+            _ => 1.0,
+        }
+    }
+
     fn sample_area_point(&self, u: Vec2) -> Option<AreaSample> {
         match *self {
             Shape::SdfGrid(_) | Shape::Sdf(_) | Shape::Implicit(_) => None,
             Shape::Quadric(q) => q.sample_area(u),
+            Shape::Bilinear(b) => b.sample_area(u),
             Shape::Sphere(s) => {
                 let n = sample_sphere_uniform(u);
                 Some(AreaSample {

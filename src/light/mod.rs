@@ -612,7 +612,7 @@ impl Light {
                 if cos_light <= 0.0 {
                     return 0.0;
                 }
-                scene.geometry.emitter_pdf_area(*emitter, area, hit.ng) * d.length_squared() / cos_light
+                scene.geometry.emitter_pdf_area(*emitter, area, hit.p, hit.ng) * d.length_squared() / cos_light
             }
             _ => 0.0,
         }

@@ -242,6 +242,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             ShapeKind::Sdf(f) => Some(Shape::Sdf(f.clone())),
             ShapeKind::Implicit(f) => Some(Shape::Implicit(f.clone())),
             ShapeKind::Quadric(q) => Some(Shape::Quadric(*q)),
+            ShapeKind::Bilinear(b) => Some(Shape::Bilinear(*b)),
             ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_) => None,
         };
         if let Some(shape) = analytic {

@@ -740,6 +740,8 @@ pub enum ShapeKind {
     /// A quadric cut to heights and angles about its z axis (before its
     /// transform).
     Quadric(crate::geometry::quadric::Quadric),
+    /// A bilinear patch through four corners (before its transform).
+    Bilinear(crate::geometry::bilinear::BilinearPatch),
     /// A named mesh from the scene's meshes.
     Mesh(String),
     /// A mesh given with the shape itself.
@@ -1549,7 +1551,16 @@ impl SceneDesc {
                     }
                 }
                 ShapeKind::InlineMesh(src) => validate_mesh_source(&c, src)?,
-                ShapeKind::SdfGrid(_) | ShapeKind::Sdf(_) | ShapeKind::Implicit(_) | ShapeKind::Quadric(_) => {
+                ShapeKind::Bilinear(b) if !b.p.iter().all(|p| p.is_finite()) => {
+                    for (p, key) in b.p.iter().zip(["p00", "p10", "p01", "p11"]) {
+                        c.vec3(key, p.as_vec3())?;
+                    }
+                }
+                ShapeKind::SdfGrid(_)
+                | ShapeKind::Sdf(_)
+                | ShapeKind::Implicit(_)
+                | ShapeKind::Quadric(_)
+                | ShapeKind::Bilinear(_) => {
                     let emits = s.material.as_ref().is_some_and(|name| {
                         self.materials
                             .iter()
@@ -1558,6 +1569,8 @@ impl SceneDesc {
                     let why = match &s.kind {
                         ShapeKind::Quadric(q) if q.area() > 0.0 => None,
                         ShapeKind::Quadric(_) => Some("a quadric without area (degenerate) cannot emit light"),
+                        ShapeKind::Bilinear(b) if b.area() > 0.0 => None,
+                        ShapeKind::Bilinear(_) => Some("a bilinear patch without area (degenerate) cannot emit light"),
                         _ => Some(
                             "a distance function or implicit surface cannot emit light (nor in Mitsuba): it has no area to sample",
                         ),

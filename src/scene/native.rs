@@ -1014,6 +1014,7 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
         "cone",
         "paraboloid",
         "hyperboloid",
+        "bilinear",
         "sdf",
         "sdfgrid",
         "implicit",
@@ -1058,6 +1059,14 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
             t.vec3("p2")?.unwrap_or(Vec3::ONE),
             t.number_or("phimax", 360.0)?,
         ))?,
+        "bilinear" => {
+            let mut corners = [Vec3::ZERO; 4];
+            for (corner, key) in corners.iter_mut().zip(["p00", "p10", "p01", "p11"]) {
+                *corner = t.required(key, t.vec3(key)?)?;
+            }
+            let [p00, p10, p01, p11] = corners;
+            ShapeKind::Bilinear(crate::geometry::bilinear::BilinearPatch::new(p00, p10, p01, p11))
+        }
         "plane" => ShapeKind::Plane {
             point: t.vec3("point")?.unwrap_or(Vec3::ZERO),
             normal: t.vec3("normal")?.unwrap_or(Vec3::Y),

@@ -60,6 +60,14 @@ const CASES: &[(&str, Expect)] = &[
     ("native/wrong-type.toml", Error(&["shape[0].radius", "number"])),
     ("native/nan-radius.toml", Error(&["shape[0].radius", "finite"])),
     ("native/infinite-center.toml", Error(&["shape[0].center", "finite"])),
+    (
+        "native/bilinear-missing-corner.toml",
+        Error(&["bilinear-missing-corner.toml:11:1", "shape[0].p11", "missing required key"]),
+    ),
+    (
+        "native/bilinear-nan-corner.toml",
+        Error(&["bilinear-nan-corner.toml:16:7", "shape[0].p11", "finite"]),
+    ),
     ("native/overflowing-number.toml", Error(&["shape[0].radius", "finite"])),
     ("native/negative-radius.toml", Error(&["shape[0].radius", "positive"])),
     ("native/zero-radius.toml", Error(&["shape[0].radius", "positive"])),

@@ -219,11 +219,11 @@ fn vertex_f(v: &Vertex, wi_world: Vec3) -> Rgb {
     }
 }
 
-/// The densities with which light `light` emits from a point of normal
+/// The densities with which light `light` emits from point `p` of normal
 /// `n` (zero for points and lights at infinity) in unit direction `w`
 /// (where the light travels): per unit area of the point, and per solid
 /// angle of the direction, as [`Light::sample_le`] draws them.
-fn pdf_le(scene: &Scene, bounds: (Vec3, f32), light: u32, n: Vec3, w: Vec3) -> (f32, f32) {
+fn pdf_le(scene: &Scene, bounds: (Vec3, f32), light: u32, p: Vec3, n: Vec3, w: Vec3) -> (f32, f32) {
     let disk = 1.0 / (PI * bounds.1 * bounds.1);
     match &scene.lights[light as usize] {
         Light::Point { .. } => (1.0, pdf_sphere_uniform()),
@@ -242,7 +242,7 @@ fn pdf_le(scene: &Scene, bounds: (Vec3, f32), light: u32, n: Vec3, w: Vec3) -> (
         Light::Area { emitter, area, .. } => {
             let cos = n.dot(w);
             (
-                scene.geometry.emitter_pdf_area(*emitter, area, n),
+                scene.geometry.emitter_pdf_area(*emitter, area, p, n),
                 if cos > 0.0 { cos / PI } else { 0.0 },
             )
         }
@@ -620,7 +620,7 @@ impl<'s> Tracer<'s> {
             (None, true) => (-w, Vec3::ZERO),
             (None, false) => (emitted.ray.origin, Vec3::ZERO),
         };
-        let (pdf_pos, pdf_dir) = pdf_le(scene, self.bounds, light, n, w);
+        let (pdf_pos, pdf_dir) = pdf_le(scene, self.bounds, light, p, n, w);
         let mut start = Vertex::endpoint(kind, p, n, Rgb::ZERO, pmf * pdf_pos);
         start.mode = TransportMode::Importance;
         if infinite {
@@ -1095,7 +1095,7 @@ impl<'s> Tracer<'s> {
             return cos / (PI * self.bounds.1 * self.bounds.1);
         }
         let (w, d2) = v.toward(to);
-        let (_, pdf_dir) = pdf_le(self.scene, self.bounds, light, v.ng, w);
+        let (_, pdf_dir) = pdf_le(self.scene, self.bounds, light, v.p, v.ng, w);
         let cos = if to.on_surface() { to.ng.dot(w).abs() } else { 1.0 };
         if d2 == 0.0 { 0.0 } else { pdf_dir * cos / d2 }
     }
@@ -1116,7 +1116,7 @@ impl<'s> Tracer<'s> {
             };
         }
         let (w, _) = v.toward(to);
-        let (pdf_pos, _) = pdf_le(scene, self.bounds, light, v.ng, w);
+        let (pdf_pos, _) = pdf_le(scene, self.bounds, light, v.p, v.ng, w);
         pmf * pdf_pos
     }
 }

@@ -17,6 +17,9 @@ impl Parser {
         let mut locs = Locs::at(Some(loc.clone()));
         locs.keys.push(("transform".into(), loc.clone()));
         let what = format!("Shape \"{kind}\"");
+        // A bilinearmesh of bent patches is a shape per patch: those after
+        // the first.
+        let mut extra_patches = Vec::new();
         let (shape, analytic) = match kind {
             "sphere" => {
                 let r = p.float_opt("radius")?;
@@ -118,7 +121,39 @@ impl Parser {
             }
             "bilinearmesh" => {
                 let mesh = self.mesh(p, &loc, "bilinearmesh", 4, &mut locs)?;
-                (ShapeKind::InlineMesh(MeshSource::Inline(mesh)), false)
+                // Each patch v00 v10 v01 v11 is the triangle pair
+                // [v00 v10 v11], [v00 v11 v01] of `mesh`. Flat patches
+                // stay those triangles; where one is bent, every patch of
+                // the mesh is an exact bilinear patch.
+                let patches: Vec<[u32; 4]> = mesh
+                    .indices
+                    .chunks_exact(2)
+                    .map(|f| [f[0][0], f[0][1], f[1][2], f[0][2]])
+                    .collect();
+                let corners = |c: &[u32; 4]| c.map(|i| mesh.positions[i as usize]);
+                if patches.iter().all(|c| is_planar(corners(c))) {
+                    (ShapeKind::InlineMesh(MeshSource::Inline(mesh)), false)
+                } else {
+                    if !mesh.normals.is_empty() {
+                        self.unsupported(
+                            &loc,
+                            "\"normal N\" of a bilinearmesh with non-planar patches",
+                            "the patches shade with their true normals",
+                        );
+                    }
+                    let mut kinds = patches.iter().map(|c| {
+                        let [p00, p10, p01, p11] = corners(c);
+                        let patch = crate::geometry::bilinear::BilinearPatch::new(p00, p10, p01, p11);
+                        ShapeKind::Bilinear(if mesh.uvs.is_empty() {
+                            patch
+                        } else {
+                            patch.with_uvs(c.map(|i| mesh.uvs[i as usize]))
+                        })
+                    });
+                    let first = kinds.next().expect("a bilinearmesh has a patch");
+                    extra_patches = kinds.collect();
+                    (first, false)
+                }
             }
             "plymesh" => {
                 let Some((file, prm)) = p.string("filename")? else {
@@ -196,13 +231,19 @@ impl Parser {
             media: self.current_media(),
             locs,
         };
-        self.add_shape(PendingShape {
-            desc,
-            analytic,
-            reverse: self.gs.reverse_orientation,
-            mat: self.gs.material.clone(),
-            emission,
-        });
+        for kind in std::iter::once(None).chain(extra_patches.into_iter().map(Some)) {
+            let mut desc = desc.clone();
+            if let Some(kind) = kind {
+                desc.kind = kind;
+            }
+            self.add_shape(PendingShape {
+                desc,
+                analytic,
+                reverse: self.gs.reverse_orientation,
+                mat: self.gs.material.clone(),
+                emission: emission.clone(),
+            });
+        }
         Ok(())
     }
 
@@ -301,20 +342,11 @@ impl Parser {
             indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
         } else {
             let mut faces = Vec::with_capacity(indices.len() / 2);
-            let mut bent = false;
             for c in indices.chunks_exact(4) {
                 let [a, b, cc, d] = [c[0], c[1], c[2], c[3]];
                 // The patch's corners in order around it are v00 v10 v11 v01.
                 faces.push([a, b, d]);
                 faces.push([a, d, cc]);
-                bent |= !is_planar([a, b, cc, d].map(|i| positions[i as usize]));
-            }
-            if bent {
-                self.approximated(
-                    loc,
-                    "Shape \"bilinearmesh\" with non-planar patches",
-                    "each patch is split into two flat triangles",
-                );
             }
             faces
         };

@@ -2,7 +2,7 @@
 //! errors and warnings of malformed or unsupported input.
 
 use super::*;
-use glam::{Vec2, Vec4};
+use glam::{Vec2, Vec3, Vec4};
 
 fn parse_str(s: &str) -> Result<SceneDesc> {
     parse(s, Path::new("test.pbrt"))
@@ -626,7 +626,8 @@ fn meshes() {
   "normal N" [0 0 1 0 0 1 0 0 1 0 0 1] "point2 uv" [0 0 1 0 0 1 1 1]
 Shape "trianglemesh" "point3 P" [0 0 0  1 0 0  0 1 0]
 Shape "bilinearmesh" "point3 P" [0 0 0  1 0 0  0 1 0  1 1 0]
-Shape "bilinearmesh" "point3 P" [0 0 0  1 0 0  0 1 0  1 1 1] "integer indices" [0 1 2 3]
+Shape "bilinearmesh" "point3 P" [0 0 0  1 0 0  0 1 0  1 1 1  2 0 0  2 1 0] "integer indices" [0 1 2 3  1 4 3 5]
+  "point2 uv" [0 0  1 0  0 1  1 1  2 0  2 1]
 Shape "plymesh" "string filename" "models/bunny.ply""#,
     );
     let mesh = |i: usize| match &d.shapes[i].kind {
@@ -646,13 +647,24 @@ Shape "plymesh" "string filename" "models/bunny.ply""#,
         let [a, b, c] = q.vertices(i);
         assert!((b - a).cross(c - a).z > 0.0);
     }
+    // A mesh with a bent patch is a bilinear patch per patch, with the
+    // corners and texture coordinates in pbrt-v4's order.
+    let patch = |i: usize| match &d.shapes[i].kind {
+        ShapeKind::Bilinear(b) => *b,
+        k => panic!("{k:?}"),
+    };
+    let (first, second) = (patch(3), patch(4));
+    assert_eq!(first.p.map(|p| p.as_vec3()), [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::ONE]);
+    assert_eq!(second.p[3].as_vec3(), Vec3::new(2.0, 1.0, 0.0));
     assert_eq!(
-        d.shapes[4].kind,
+        second.uvs,
+        [Vec2::X, Vec2::new(2.0, 0.0), Vec2::ONE, Vec2::new(2.0, 1.0)]
+    );
+    assert_eq!(
+        d.shapes[5].kind,
         ShapeKind::InlineMesh(MeshSource::File(PathBuf::from("models/bunny.ply")))
     );
-    // Only the bent patch is approximated.
-    assert_eq!(d.warnings.len(), 1, "{:?}", d.warnings);
-    assert!(d.warnings[0].starts_with("test.pbrt:6:1: Shape \"bilinearmesh\" with non-planar patches is approximated"));
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
 }
 
 #[test]
