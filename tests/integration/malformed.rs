@@ -62,7 +62,11 @@ const CASES: &[(&str, Expect)] = &[
     ("native/infinite-center.toml", Error(&["shape[0].center", "finite"])),
     (
         "native/bilinear-missing-corner.toml",
-        Error(&["bilinear-missing-corner.toml:11:1", "shape[0].p11", "missing required key"]),
+        Error(&[
+            "bilinear-missing-corner.toml:11:1",
+            "shape[0].p11",
+            "missing required key",
+        ]),
     ),
     (
         "native/bilinear-nan-corner.toml",

@@ -422,8 +422,13 @@ fn bent_bilinear_patch_lights_are_sampled_by_their_density() {
             "{what}: MIS {a} ± {ea}, BSDF sampling {b} ± {eb}"
         );
     };
-    // Facing down (∂S/∂u × ∂S/∂v points to −y), strongly bent.
-    let lamp = "[[shape]]\ntype = \"bilinear\"\np00 = [-0.8, 1.0, -0.6]\np10 = [0.9, 1.6, -0.5]\np01 = [-0.6, 1.8, 0.7]\np11 = [0.7, 0.9, 0.6]";
+    // A steep saddle y = 1 + 2.5·x·z over [−0.6, 0.6]², facing down
+    // (∂S/∂u × ∂S/∂v points to −y), two corners 0.1 above the floor, whose
+    // area factor at the centre is 0.35 of that at its corners. (A uniform
+    // density reported for pbrt-v4's draw makes MIS 2 % bright here, within
+    // this test's noise; accel::aggregate's unit test
+    // `bilinear_emitters_report_the_density_they_draw_with` sees it.)
+    let lamp = "[[shape]]\ntype = \"bilinear\"\np00 = [-0.6, 1.9, -0.6]\np10 = [0.6, 0.1, -0.6]\np01 = [-0.6, 0.1, 0.6]\np11 = [0.6, 1.9, 0.6]";
     check(&lit_by(lamp, "mis"), &lit_by(lamp, "bsdf"), "TOML patch");
     let scene = r#"Integrator "path" "integer maxdepth" 2 "bool regularize" false
 Sampler "independent" "integer pixelsamples" 256
