@@ -46,6 +46,10 @@ pub struct RenderSettings {
     /// samples are scaled down to it (pbrt-v4's film `maxcomponentvalue`,
     /// which trades fireflies for bias); infinite: no limit.
     pub max_component_value: f32,
+    /// The colour temperature, in kelvin, of the illuminant the image is
+    /// balanced for (pbrt-v4's film `whitebalance`: its white becomes
+    /// sRGB's, `color::white_balance`); 0: none.
+    pub white_balance: f32,
     /// Photon mapping and SPPM parameters.
     pub photon: PhotonSettings,
     /// The volumetric path tracer's estimator: `None`, delta and ratio
@@ -147,6 +151,7 @@ impl Default for RenderSettings {
             tonemap: Tonemap::default(),
             exposure: 0.0,
             max_component_value: f32::INFINITY,
+            white_balance: 0.0,
             photon: PhotonSettings::default(),
             march_step: None,
             hide_emitters: false,

@@ -308,6 +308,16 @@ pub(super) fn run_merge(args: MergeArgs) -> Result<()> {
         stats.spp += s.spp;
     }
     let (tonemap, exposure) = image_settings(&parts[0])?;
+    // Part files from before white balance existed have none.
+    let white_balance = match first.job_value("white_balance") {
+        None => 0.0,
+        Some(v) => v
+            .parse::<f32>()
+            .ok()
+            .filter(|k| *k == 0.0 || crate::color::white_balance::WHITE_BALANCE_RANGE.contains(k))
+            .ok_or_else(|| Error::file(&parts[0].path, format!("invalid part file: white balance {v}")))?,
+    };
+    film.output_transform = crate::color::white_balance::white_balance(white_balance);
     let flag = |name: &str| {
         first
             .job_values("arg")

@@ -145,6 +145,7 @@ impl Job {
             entries.push(("shard".into(), format!("{}/{}", shard.index + 1, shard.count)));
             entries.push(("tonemap".into(), scene.settings.tonemap.name().into()));
             entries.push(("exposure".into(), scene.settings.exposure.to_string()));
+            entries.push(("white_balance".into(), scene.settings.white_balance.to_string()));
         }
         // The hash first: a path may hold spaces.
         let mut listed: Vec<(String, String)> = files

@@ -5,6 +5,7 @@
 //! unless they come from an 8-bit image, which is decoded from sRGB.
 
 pub mod spectrum;
+pub mod white_balance;
 
 /// A linear RGB triple. An alias of `glam::Vec3`, so that colour arithmetic
 /// is the vector arithmetic that glam already provides.

@@ -127,6 +127,24 @@ fn cie_at(lambda: f64) -> [f64; 4] {
     std::array::from_fn(|k| a[k] + t * (b[k] - a[k]))
 }
 
+/// The chromaticity (x, y) of a blackbody at `kelvin`: Planck's law
+/// integrated against the colour-matching functions of the tables.
+pub fn blackbody_xy(kelvin: f64) -> (f64, f64) {
+    // Second radiation constant hc/k in nm·K.
+    const C2: f64 = 1.438_776_9e7;
+    let mut xyz = [0.0f64; 3];
+    for i in 0..STEPS {
+        let lambda = LAMBDA_MIN + (i as f64 / (STEPS - 1) as f64) * (LAMBDA_MAX - LAMBDA_MIN);
+        let b = 1.0 / (lambda.powi(5) * (C2 / (lambda * kelvin)).exp_m1());
+        let [x, y, z, _] = cie_at(lambda);
+        xyz[0] += x * b;
+        xyz[1] += y * b;
+        xyz[2] += z * b;
+    }
+    let sum = xyz[0] + xyz[1] + xyz[2];
+    (xyz[0] / sum, xyz[1] / sum)
+}
+
 /// How a sampled spectrum is used, which decides its conversion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SpectrumUse {

@@ -358,6 +358,11 @@ pub struct Film {
     pub pixels: Vec<FilmPixel>,
     /// Auxiliary sums, when requested.
     pub aovs: Option<Vec<FilmAov>>,
+    /// The colour matrix applied to the pixels' estimates when they are
+    /// read ([`Film::to_image`]), after all sums (white balance); the sums
+    /// themselves, which checkpoints and shards hold and merge, stay as
+    /// rendered.
+    pub output_transform: Option<glam::Mat3>,
 }
 
 impl Film {
@@ -368,6 +373,7 @@ impl Film {
             height,
             pixels: vec![FilmPixel::default(); width as usize * height as usize],
             aovs: None,
+            output_transform: None,
         }
     }
 
@@ -400,7 +406,10 @@ impl Film {
         Image {
             width: self.width,
             height: self.height,
-            pixels: self.pixels.iter().map(FilmPixel::value).collect(),
+            pixels: match self.output_transform {
+                None => self.pixels.iter().map(FilmPixel::value).collect(),
+                Some(m) => self.pixels.iter().map(|p| m * p.value()).collect(),
+            },
         }
     }
 

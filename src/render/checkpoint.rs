@@ -296,6 +296,8 @@ impl Checkpoint {
                 height,
                 pixels,
                 aovs,
+                // The sums as rendered: the colour matrix is the scene's.
+                output_transform: None,
             },
             stats,
             state,

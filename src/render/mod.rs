@@ -217,7 +217,7 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Result<RenderOutput> {
 /// ([`crate::integrator::drive`]).
 pub fn render_controlled(scene: &Scene, options: &RenderOptions, control: &mut Control) -> Result<RenderOutput> {
     let cancel = control.cancel;
-    in_thread_pool(options, || {
+    let mut out = in_thread_pool(options, || {
         let driver = RenderDriver {
             scene,
             options,
@@ -233,7 +233,15 @@ pub fn render_controlled(scene: &Scene, options: &RenderOptions, control: &mut C
                 state: Vec::new(),
             })
         })
-    })?
+    })??;
+    // White balance applies to the finished estimates, as pbrt-v4's film
+    // applies it when a pixel is read.
+    let balance = crate::color::white_balance::white_balance(scene.settings.white_balance);
+    out.film.output_transform = balance;
+    for (_, film) in &mut out.extra {
+        film.output_transform = balance;
+    }
+    Ok(out)
 }
 
 /// Renders `scene` with a given integrator.

@@ -1672,6 +1672,18 @@ impl SceneDesc {
             return Err(c.err("mlt_sigma", format!("must be a positive number, got {}", m.sigma)));
         }
         c.finite("exposure", s.exposure)?;
+        let wb = crate::color::white_balance::WHITE_BALANCE_RANGE;
+        if s.white_balance != 0.0 && !wb.contains(&s.white_balance) {
+            return Err(c.err(
+                "white_balance",
+                format!(
+                    "must be 0 (none) or a colour temperature from {} to {} K, got {}",
+                    wb.start(),
+                    wb.end(),
+                    s.white_balance
+                ),
+            ));
+        }
         if s.max_component_value.is_nan() || s.max_component_value <= 0.0 {
             return Err(c.err(
                 "max_component_value",

@@ -486,6 +486,9 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     if let Some(m) = t.number("max_component_value")? {
         s.max_component_value = m;
     }
+    if let Some(k) = t.number("white_balance")? {
+        s.white_balance = k;
+    }
     if let Some(h) = t.boolean("hide_emitters")? {
         s.hide_emitters = h;
     }

@@ -122,11 +122,16 @@ const RENDER: [&str; 8] = [
     "albedo,depth",
 ];
 
-/// scenes/materials.toml with a Gaussian filter, written into `dir`.
+/// scenes/materials.toml with a Gaussian filter and a white balance (which
+/// `trazo merge` must apply as the whole render does), written into `dir`.
 fn scene_in(dir: &Path) -> String {
     let text = std::fs::read_to_string(format!("{}/scenes/materials.toml", env!("CARGO_MANIFEST_DIR"))).unwrap();
     let text = text
-        .replacen("[render]\n", "[render]\nfilter = \"gaussian\"\n", 1)
+        .replacen(
+            "[render]\n",
+            "[render]\nfilter = \"gaussian\"\nwhite_balance = 4500\n",
+            1,
+        )
         .replace(
             "\"textures/",
             &format!("\"{}/scenes/textures/", env!("CARGO_MANIFEST_DIR")),

@@ -343,6 +343,47 @@ fn the_largest_component_of_a_sample_is_limited_after_exposure() {
     assert!(e.contains("max_component_value") && e.contains("positive"), "{e}");
 }
 
+/// pbrt-v4's `whitebalance`: a grey background seen directly comes out as
+/// the balance matrix times its colour, through TOML and the pbrt-v4
+/// reader; a temperature outside the range is refused.
+#[test]
+fn white_balance_applies_the_balance_matrix_to_the_image() {
+    let grey = Rgb::new(0.5, 0.5, 0.5);
+    for kelvin in [3000.0f32, 6504.0, 12000.0] {
+        let text =
+            format!("[render]\nwidth = 4\nheight = 4\nspp = 2\nwhite_balance = {kelvin}\n[world]\nbackground = 0.5\n");
+        let d = trazo::scene::native::parse(&text, std::path::Path::new("wb.toml")).unwrap();
+        let image = render_desc(&d, None).to_image();
+        let want = trazo::color::white_balance::white_balance(kelvin).unwrap() * grey;
+        for p in &image.pixels {
+            assert!((*p - want).abs().max_element() < 1e-6, "{kelvin} K: {p} vs {want}");
+        }
+        if kelvin == 3000.0 {
+            assert!(
+                want.z > 1.5 * want.x,
+                "a warm illuminant's balance turns grey blue: {want}"
+            );
+        }
+    }
+    let pbrt = "Film \"rgb\" \"float whitebalance\" 5000\nWorldBegin\n";
+    let d = trazo::scene::pbrt::parse(pbrt, std::path::Path::new("wb.pbrt")).unwrap();
+    assert_eq!(d.settings.white_balance, 5000.0);
+    assert!(
+        !d.warnings.iter().any(|w| w.contains("whitebalance")),
+        "{:?}",
+        d.warnings
+    );
+    let bad = "Film \"rgb\" \"float whitebalance\" -10\nWorldBegin\n";
+    let Err(e) = trazo::scene::pbrt::parse(bad, std::path::Path::new("wb.pbrt")) else {
+        panic!("a negative temperature is refused")
+    };
+    let e = e.to_string();
+    assert!(
+        e.contains("wb.pbrt:1:12") && e.contains("white_balance") && e.contains("1000 to 25000 K"),
+        "{e}"
+    );
+}
+
 fn random_aggregate(seed: u64) -> Aggregate {
     let mut r = Pcg32::new(seed, 0);
     let mut v = || r.next_f32();

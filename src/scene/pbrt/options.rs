@@ -68,10 +68,11 @@ impl Parser {
             }
         }
         if let Some((wb, prm)) = p.float_opt("whitebalance")? {
-            if wb != 0.0 {
-                let l = prm.loc.clone();
-                self.unsupported(&l, "\"float whitebalance\"", "no white balancing is applied");
-            }
+            self.desc
+                .settings_locs
+                .keys
+                .push(("white_balance".into(), prm.loc.clone()));
+            self.desc.settings.white_balance = wb;
         }
         self.crop_window(p)
     }
