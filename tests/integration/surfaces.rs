@@ -311,6 +311,45 @@ material = "lamp"
     )
 }
 
+/// A floor lit only by `lamp` (pbrt-v4 shape lines, emitting 4 from both
+/// sides, after `transform` lines), read by the pbrt-v4 reader and rendered
+/// with `sampling`; no warning may name the lamp's shape `kind`.
+fn pbrt_lit_by(transform: &str, lamp: &str, kind: &str, sampling: &str) -> Film {
+    let scene = format!(
+        r#"Integrator "path" "integer maxdepth" 2 "bool regularize" false
+Sampler "independent" "integer pixelsamples" 256
+Film "rgb" "integer xresolution" 20 "integer yresolution" 20 "string filename" "x.exr"
+LookAt 0 -4 3  0 0 0  0 0 1
+Camera "perspective" "float fov" 50
+WorldBegin
+Material "diffuse" "rgb reflectance" [0.8 0.8 0.8]
+Shape "trianglemesh" "point3 P" [-20 -20 0 20 -20 0 20 20 0 -20 20 0] "integer indices" [0 1 2 0 2 3]
+AttributeBegin
+AreaLightSource "diffuse" "rgb L" [4 4 4] "bool twosided" true
+{transform}
+{lamp}
+AttributeEnd
+"#
+    );
+    let mut d = trazo::scene::pbrt::parse(&scene, Path::new("test.pbrt")).unwrap();
+    assert!(!d.warnings.iter().any(|w| w.contains(kind)), "{:?}", d.warnings);
+    d.settings.sampling = trazo::settings::PathSampling::from_name(sampling).unwrap();
+    let s = trazo::scene::build(&d).unwrap();
+    render(&s, &RenderOptions::default()).unwrap().film
+}
+
+/// The floor's mean under MIS and under BSDF sampling alone agree within
+/// 4.5 standard errors of their difference (and the floor is lit).
+fn check_mis_agrees(mis: &Film, bsdf: &Film, what: &str) {
+    let (a, ea) = mean_and_error(mis);
+    let (b, eb) = mean_and_error(bsdf);
+    assert!(a > 0.01, "{what}: the floor is lit ({a})");
+    assert!(
+        (a - b).abs() <= 4.5 * (ea * ea + eb * eb).sqrt(),
+        "{what}: MIS {a} ± {ea}, BSDF sampling {b} ± {eb}"
+    );
+}
+
 #[test]
 fn cut_quadric_lights_are_sampled_by_their_area() {
     // A dome open towards the floor, cut by phimax, emitting from its
@@ -321,17 +360,7 @@ fn cut_quadric_lights_are_sampled_by_their_area() {
         r#"Shape "cylinder" "float radius" 0.4 "float zmin" -0.5 "float zmax" 0.5 "float phimax" 240"#,
         r#"Shape "disk" "float radius" 0.8 "float innerradius" 0.3 "float phimax" 270 "float height" 0"#,
     ];
-    let check = |mis: &Film, bsdf: &Film, what: &str| {
-        let (a, ea) = mean_and_error(mis);
-        let (b, eb) = mean_and_error(bsdf);
-        assert!(a > 0.01, "{what}: the floor is lit ({a})");
-        let allowed = 4.5 * (ea * ea + eb * eb).sqrt();
-        assert!(
-            (a - b).abs() <= allowed,
-            "{what}: MIS {a} ± {ea}, BSDF sampling {b} ± {eb}"
-        );
-    };
-    check(&lit_by(sphere, "mis"), &lit_by(sphere, "bsdf"), "cut sphere");
+    check_mis_agrees(&lit_by(sphere, "mis"), &lit_by(sphere, "bsdf"), "cut sphere");
     // A cone, a paraboloid and a hyperboloid, cut by phimax, tilted above
     // the floor, emitting from their outsides.
     let tilted = "transform = [{ rotate = { axis = [1, 0, 0], angle = 120 } }, { translate = [0, 1.4, 0] }]";
@@ -347,35 +376,18 @@ fn cut_quadric_lights_are_sampled_by_their_area() {
         ),
     ] {
         let lamp = format!("[[shape]]\n{shape}\n{tilted}");
-        check(&lit_by(&lamp, "mis"), &lit_by(&lamp, "bsdf"), what);
+        check_mis_agrees(&lit_by(&lamp, "mis"), &lit_by(&lamp, "bsdf"), what);
     }
-    for (i, shape) in pbrt_lamps.iter().enumerate() {
-        let scene = || {
-            format!(
-                r#"Integrator "path" "integer maxdepth" 2 "bool regularize" false
-Sampler "independent" "integer pixelsamples" 256
-Film "rgb" "integer xresolution" 20 "integer yresolution" 20 "string filename" "x.exr"
-LookAt 0 -4 3  0 0 0  0 0 1
-Camera "perspective" "float fov" 50
-WorldBegin
-Material "diffuse" "rgb reflectance" [0.8 0.8 0.8]
-Shape "trianglemesh" "point3 P" [-20 -20 0 20 -20 0 20 20 0 -20 20 0] "integer indices" [0 1 2 0 2 3]
-AttributeBegin
-AreaLightSource "diffuse" "rgb L" [4 4 4] "bool twosided" true
-Translate 0 0 1.2
-Rotate 150 1 0 0
-{shape}
-AttributeEnd
-"#
-            )
-        };
-        let film = |sampling: &str| {
-            let mut d = trazo::scene::pbrt::parse(&scene(), Path::new("test.pbrt")).unwrap();
-            d.settings.sampling = trazo::settings::PathSampling::from_name(sampling).unwrap();
-            let s = trazo::scene::build(&d).unwrap();
-            render(&s, &RenderOptions::default()).unwrap().film
-        };
-        check(&film("mis"), &film("bsdf"), &format!("pbrt lamp {i}"));
+    let tilt = "Translate 0 0 1.2\nRotate 150 1 0 0";
+    for (i, (kind, shape)) in [("cylinder", pbrt_lamps[0]), ("disk", pbrt_lamps[1])]
+        .into_iter()
+        .enumerate()
+    {
+        check_mis_agrees(
+            &pbrt_lit_by(tilt, shape, kind, "mis"),
+            &pbrt_lit_by(tilt, shape, kind, "bsdf"),
+            &format!("pbrt lamp {i}"),
+        );
     }
 }
 
@@ -413,15 +425,6 @@ transform = [{ rotate = { axis = [0, 1, 0], angle = 30 } }]
 /// `AreaLightSource`.
 #[test]
 fn bent_bilinear_patch_lights_are_sampled_by_their_density() {
-    let check = |mis: &Film, bsdf: &Film, what: &str| {
-        let (a, ea) = mean_and_error(mis);
-        let (b, eb) = mean_and_error(bsdf);
-        assert!(a > 0.01, "{what}: the floor is lit ({a})");
-        assert!(
-            (a - b).abs() <= 4.5 * (ea * ea + eb * eb).sqrt(),
-            "{what}: MIS {a} ± {ea}, BSDF sampling {b} ± {eb}"
-        );
-    };
     // A steep saddle y = 1 + 2.5·x·z over [−0.6, 0.6]², facing down
     // (∂S/∂u × ∂S/∂v points to −y), two corners 0.1 above the floor, whose
     // area factor at the centre is 0.35 of that at its corners. (A uniform
@@ -429,31 +432,12 @@ fn bent_bilinear_patch_lights_are_sampled_by_their_density() {
     // this test's noise; accel::aggregate's unit test
     // `bilinear_emitters_report_the_density_they_draw_with` sees it.)
     let lamp = "[[shape]]\ntype = \"bilinear\"\np00 = [-0.6, 1.9, -0.6]\np10 = [0.6, 0.1, -0.6]\np01 = [-0.6, 0.1, 0.6]\np11 = [0.6, 1.9, 0.6]";
-    check(&lit_by(lamp, "mis"), &lit_by(lamp, "bsdf"), "TOML patch");
-    let scene = r#"Integrator "path" "integer maxdepth" 2 "bool regularize" false
-Sampler "independent" "integer pixelsamples" 256
-Film "rgb" "integer xresolution" 20 "integer yresolution" 20 "string filename" "x.exr"
-LookAt 0 -4 3  0 0 0  0 0 1
-Camera "perspective" "float fov" 50
-WorldBegin
-Material "diffuse" "rgb reflectance" [0.8 0.8 0.8]
-Shape "trianglemesh" "point3 P" [-20 -20 0 20 -20 0 20 20 0 -20 20 0] "integer indices" [0 1 2 0 2 3]
-AttributeBegin
-AreaLightSource "diffuse" "rgb L" [4 4 4] "bool twosided" true
-Shape "bilinearmesh" "point3 P" [-1 -0.5 1.4  0 -0.5 1  -1 0.5 1  0 0.5 1.6  1 -0.5 1.5  1 0.5 0.9]
-  "integer indices" [0 1 2 3  1 4 3 5]
-AttributeEnd
-"#;
-    let film = |sampling: &str| {
-        let mut d = trazo::scene::pbrt::parse(scene, Path::new("test.pbrt")).unwrap();
-        assert!(
-            !d.warnings.iter().any(|w| w.contains("bilinearmesh")),
-            "{:?}",
-            d.warnings
-        );
-        d.settings.sampling = trazo::settings::PathSampling::from_name(sampling).unwrap();
-        let s = trazo::scene::build(&d).unwrap();
-        render(&s, &RenderOptions::default()).unwrap().film
-    };
-    check(&film("mis"), &film("bsdf"), "pbrt bilinearmesh");
+    check_mis_agrees(&lit_by(lamp, "mis"), &lit_by(lamp, "bsdf"), "TOML patch");
+    let mesh = r#"Shape "bilinearmesh" "point3 P" [-1 -0.5 1.4  0 -0.5 1  -1 0.5 1  0 0.5 1.6  1 -0.5 1.5  1 0.5 0.9]
+  "integer indices" [0 1 2 3  1 4 3 5]"#;
+    check_mis_agrees(
+        &pbrt_lit_by("", mesh, "bilinearmesh", "mis"),
+        &pbrt_lit_by("", mesh, "bilinearmesh", "bsdf"),
+        "pbrt bilinearmesh",
+    );
 }
