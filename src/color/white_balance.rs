@@ -58,6 +58,11 @@ fn xyz_of((x, y): (f64, f64)) -> DVec3 {
     DVec3::new(x / y, 1.0, (1.0 - x - y) / y)
 }
 
+/// Linear sRGB of the colour of chromaticity (x, y) at luminance Y = 1.
+pub fn rgb_of_chromaticity(xy: (f64, f64)) -> glam::Vec3 {
+    (xyz_from_rgb().inverse() * xyz_of(xy)).as_vec3()
+}
+
 /// The matrix taking linear sRGB rendered under an illuminant of `kelvin`
 /// to linear sRGB balanced for D65; `None` for 0 (no white balance).
 pub fn white_balance(kelvin: f32) -> Option<Mat3> {

@@ -129,14 +129,16 @@ pub fn metal_of(name: &str) -> Option<(&str, bool)> {
 
 /// The colour of a named illuminant spectrum used as an emitter's
 /// spectrum, normalised to luminance 1 as pbrt-v4 normalises emitters.
-/// D65 is sRGB's white; illuminant A is a 2856 K blackbody; D50 is close
-/// to a 5003 K blackbody. Returns `None` for names that are not
-/// illuminants, and `(colour, exact)` otherwise.
+/// D65 is sRGB's white; illuminant A is a 2856 K blackbody; D50 is CIE
+/// daylight of 5000 K (nominal; 5003 K on today's temperature scale), whose
+/// chromaticity the CIE daylight locus gives. Returns `None` for names that
+/// are not illuminants, and `(colour, exact)` otherwise.
 pub fn illuminant_rgb(name: &str) -> Option<(Rgb, bool)> {
+    use crate::color::white_balance::{illuminant_xy, rgb_of_chromaticity};
     match name {
         "stdillum-D65" => Some((Rgb::ONE, true)),
         "stdillum-A" => Some((blackbody_rgb(2856.0), true)),
-        "stdillum-D50" => Some((blackbody_rgb(5003.0), false)),
+        "stdillum-D50" => Some((rgb_of_chromaticity(illuminant_xy(5000.0)), true)),
         n if n.starts_with("stdillum-") || n.starts_with("illum-") => Some((Rgb::ONE, false)),
         _ => None,
     }
@@ -268,6 +270,12 @@ mod tests {
         assert_eq!(metal_of("metal-CuZn-k"), Some(("CuZn", false)));
         assert_eq!(metal_of("glass-BK7"), None);
         assert_eq!(illuminant_rgb("stdillum-D65"), Some((Rgb::ONE, true)));
+        // D50's published chromaticity (CIE 15:2004), (0.34567, 0.35850),
+        // in linear sRGB at luminance 1.
+        let (d50, exact) = illuminant_rgb("stdillum-D50").unwrap();
+        let want = crate::color::white_balance::rgb_of_chromaticity((0.34567, 0.35850));
+        assert!(exact && (d50 - want).abs().max_element() < 2e-3, "{d50} vs {want}");
+        assert!((luminance(d50) - 1.0).abs() < 1e-3);
         assert!(illuminant_rgb("metal-Au-k").is_none());
     }
 }
