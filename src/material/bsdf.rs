@@ -92,6 +92,8 @@ pub enum DirectionSampling {
 pub enum Bsdf<'a> {
     /// Lambertian diffuse reflection.
     Lambert(LambertBsdf),
+    /// Lambertian reflection and transmission.
+    DiffuseTransmission(super::diffuse_transmission::DiffuseTransmissionBsdf),
     /// The classical material: diffuse + Phong + mirror + glass lobes.
     Classic(ClassicBsdf),
     /// Smooth or rough (GGX) metal.
@@ -115,6 +117,7 @@ macro_rules! dispatch {
     ($self:expr, $b:ident => $e:expr) => {
         match $self {
             Bsdf::Lambert($b) => $e,
+            Bsdf::DiffuseTransmission($b) => $e,
             Bsdf::Classic($b) => $e,
             Bsdf::Conductor($b) => $e,
             Bsdf::Dielectric($b) => $e,
@@ -177,6 +180,7 @@ impl Bsdf<'_> {
     pub fn has_smooth_transmission(&self) -> bool {
         match self {
             Bsdf::Dielectric(d) => d.has_smooth(),
+            Bsdf::DiffuseTransmission(_) => true,
             Bsdf::Principled(p) => p.transmits(),
             Bsdf::Blend(b) => b.has_smooth_transmission(),
             _ => false,
@@ -187,7 +191,7 @@ impl Bsdf<'_> {
     #[inline]
     pub fn transmits(&self) -> bool {
         match self {
-            Bsdf::Dielectric(_) | Bsdf::Thin(_) => true,
+            Bsdf::Dielectric(_) | Bsdf::Thin(_) | Bsdf::DiffuseTransmission(_) => true,
             Bsdf::Classic(c) => c.kt != Rgb::ZERO,
             Bsdf::Principled(p) => p.transmits(),
             Bsdf::Blend(b) => b.transmits(),

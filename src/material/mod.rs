@@ -21,6 +21,7 @@ pub mod bsdf;
 pub mod classic;
 pub mod conductor;
 pub mod dielectric;
+pub mod diffuse_transmission;
 pub mod frame;
 pub mod lambert;
 pub mod layered;
@@ -70,6 +71,14 @@ pub enum MaterialKind {
     Diffuse {
         /// Albedo.
         reflectance: Texture,
+    },
+    /// Lambertian reflection and Lambertian transmission (pbrt-v4's
+    /// `diffusetransmission`, Mitsuba's `difftrans`).
+    DiffuseTransmission {
+        /// Reflectance R.
+        reflectance: Texture,
+        /// Transmittance T.
+        transmittance: Texture,
     },
     /// A metal (or an ideal mirror), smooth or rough.
     Conductor {
@@ -504,6 +513,10 @@ impl Material {
         let textures: &[&Texture] = match &self.kind {
             MaterialKind::Classic { diffuse, specular, .. } => &[diffuse, specular],
             MaterialKind::Diffuse { reflectance } => &[reflectance],
+            MaterialKind::DiffuseTransmission {
+                reflectance,
+                transmittance,
+            } => &[reflectance, transmittance],
             MaterialKind::Plastic { diffuse, .. }
             | MaterialKind::Layered {
                 base: LayerBaseKind::Diffuse(diffuse),
@@ -647,6 +660,10 @@ impl Material {
                 kd: reflectance.eval(images, tc),
                 ..zero
             },
+            MaterialKind::DiffuseTransmission { reflectance, .. } => ClassicParams {
+                kd: reflectance.eval(images, tc),
+                ..zero
+            },
             MaterialKind::Conductor {
                 fresnel,
                 tint,
@@ -783,6 +800,13 @@ impl Material {
                 Bsdf::Classic(ClassicBsdf::new(c.kd, c.ks, c.shininess, c.kr, c.kt, c.ior))
             }
             MaterialKind::Diffuse { reflectance } => diffuse_bsdf(reflectance, images, tc),
+            MaterialKind::DiffuseTransmission {
+                reflectance,
+                transmittance,
+            } => Bsdf::DiffuseTransmission(diffuse_transmission::DiffuseTransmissionBsdf {
+                reflectance: reflectance.eval(images, tc),
+                transmittance: transmittance.eval(images, tc),
+            }),
             MaterialKind::Conductor {
                 fresnel,
                 tint,

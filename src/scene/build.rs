@@ -788,6 +788,21 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             bump_map: None,
             roughness_map: None,
         },
+        MaterialKindDesc::DiffuseTransmission {
+            reflectance,
+            transmittance,
+        } => Material {
+            kind: MaterialKind::DiffuseTransmission {
+                reflectance: color(reflectance),
+                transmittance: color(transmittance),
+            },
+            emission: Texture::Constant(Rgb::ZERO),
+            two_sided: true,
+            opacity: None,
+            normal_map: None,
+            bump_map: None,
+            roughness_map: None,
+        },
         MaterialKindDesc::Conductor {
             fresnel,
             tint,

@@ -260,6 +260,13 @@ pub enum MaterialKindDesc {
         /// Albedo.
         reflectance: ColorSource,
     },
+    /// Lambertian reflection and transmission.
+    DiffuseTransmission {
+        /// Reflectance R.
+        reflectance: ColorSource,
+        /// Transmittance T.
+        transmittance: ColorSource,
+    },
     /// Metal or mirror.
     Conductor {
         /// Reflectance.
@@ -1158,6 +1165,13 @@ impl SceneDesc {
                     ior("ior", cl.ior)?;
                 }
                 MaterialKindDesc::Diffuse { reflectance } => texture("reflectance", reflectance)?,
+                MaterialKindDesc::DiffuseTransmission {
+                    reflectance,
+                    transmittance,
+                } => {
+                    texture("reflectance", reflectance)?;
+                    texture("transmittance", transmittance)?;
+                }
                 MaterialKindDesc::Conductor {
                     fresnel,
                     tint,

@@ -657,9 +657,10 @@ fn read_texture(t: &Table) -> Result<TextureDesc> {
 }
 
 /// The material types of the native format.
-pub const MATERIAL_TYPES: [&str; 10] = [
+pub const MATERIAL_TYPES: [&str; 11] = [
     "classic",
     "diffuse",
+    "diffusetransmission",
     "mirror",
     "conductor",
     "dielectric",
@@ -689,6 +690,14 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
             reflectance: t
                 .color_source("reflectance")?
                 .unwrap_or(ColorSource::Rgb(Rgb::splat(0.5))),
+        },
+        "diffusetransmission" => MaterialKindDesc::DiffuseTransmission {
+            reflectance: t
+                .color_source("reflectance")?
+                .unwrap_or(ColorSource::Rgb(Rgb::splat(0.25))),
+            transmittance: t
+                .color_source("transmittance")?
+                .unwrap_or(ColorSource::Rgb(Rgb::splat(0.25))),
         },
         "mirror" => MaterialKindDesc::Conductor {
             fresnel: ConductorDesc::Mirror(t.color("reflectance")?.unwrap_or(Rgb::ONE)),

@@ -551,17 +551,37 @@ impl Parser {
             }
             "diffusetransmission" => {
                 let reflectance = self.albedo(p, "reflectance", 0.25, "reflectance", &mut def)?;
-                if let Some((v, prm)) = p.spectrum("transmittance")? {
-                    if let Some(ColorSource::Texture(t)) = self.color_value(v, prm, ColorUse::Albedo)? {
-                        def.tex_refs.push((t, prm.loc.clone()));
+                let transmittance = self.albedo(p, "transmittance", 0.25, "transmittance", &mut def)?;
+                // pbrt-v4 multiplies both by `scale` and clamps them to [0, 1].
+                let scale = match self.float_param(p, "scale", 1.0)? {
+                    Some((s, _)) if s.is_finite() && s >= 0.0 => s,
+                    Some((s, l)) => {
+                        return Err(Error::scene(
+                            Some(l),
+                            "scale",
+                            format!("must be a non-negative number, got {s}"),
+                        ));
                     }
+                    None => 1.0,
+                };
+                let scaled = |this: &mut Self, c: ColorSource| match c {
+                    ColorSource::Rgb(rgb) => ColorSource::Rgb((rgb * scale).clamp(Rgb::ZERO, Rgb::ONE)),
+                    other if scale == 1.0 => other,
+                    other => {
+                        this.approximated(
+                            loc,
+                            format!("{what} \"scale\" {scale} over a texture"),
+                            "the texture is not scaled",
+                        );
+                        other
+                    }
+                };
+                let reflectance = scaled(self, reflectance);
+                let transmittance = scaled(self, transmittance);
+                MaterialKindDesc::DiffuseTransmission {
+                    reflectance,
+                    transmittance,
                 }
-                self.approximated(
-                    loc,
-                    &what,
-                    "rendered as diffuse reflection only; the transmitted light is lost",
-                );
-                MaterialKindDesc::Diffuse { reflectance }
             }
             "subsurface" => {
                 let diffuse = self.albedo(p, "reflectance", 0.5, "diffuse", &mut def)?;
