@@ -392,6 +392,20 @@ fn diffuse_bsdf<'a>(reflectance: &Texture, images: &[ImageTexture], tc: &TexCoor
 }
 
 impl Material {
+    /// A material of this kind that emits nothing, is two-sided, opaque and
+    /// without normal, bump or roughness maps (a scene's reader adds those).
+    pub fn plain(kind: MaterialKind) -> Material {
+        Material {
+            kind,
+            emission: Texture::Constant(Rgb::ZERO),
+            two_sided: true,
+            opacity: None,
+            normal_map: None,
+            bump_map: None,
+            roughness_map: None,
+        }
+    }
+
     /// A classical material; a [`MaterialKind::Diffuse`] one where only
     /// the diffuse colour is not zero.
     pub fn new_classic(
@@ -410,15 +424,7 @@ impl Material {
         // to sample (no light sampling at a black lamp, say).
         let zero = Texture::Constant(Rgb::ZERO);
         if diffuse != zero && specular == zero && reflectivity == Rgb::ZERO && transmission == Rgb::ZERO {
-            return Material {
-                kind: MaterialKind::Diffuse { reflectance: diffuse },
-                emission: Texture::Constant(Rgb::ZERO),
-                two_sided: true,
-                opacity: None,
-                normal_map: None,
-                bump_map: None,
-                roughness_map: None,
-            };
+            return Material::plain(MaterialKind::Diffuse { reflectance: diffuse });
         }
         Material {
             kind: MaterialKind::Classic {

@@ -777,54 +777,30 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             c.transmission,
             c.ior,
         ),
-        MaterialKindDesc::Diffuse { reflectance } => Material {
-            kind: MaterialKind::Diffuse {
-                reflectance: color(reflectance),
-            },
-            emission: Texture::Constant(Rgb::ZERO),
-            two_sided: true,
-            opacity: None,
-            normal_map: None,
-            bump_map: None,
-            roughness_map: None,
-        },
+        MaterialKindDesc::Diffuse { reflectance } => Material::plain(MaterialKind::Diffuse {
+            reflectance: color(reflectance),
+        }),
         MaterialKindDesc::DiffuseTransmission {
             reflectance,
             transmittance,
-        } => Material {
-            kind: MaterialKind::DiffuseTransmission {
-                reflectance: color(reflectance),
-                transmittance: color(transmittance),
-            },
-            emission: Texture::Constant(Rgb::ZERO),
-            two_sided: true,
-            opacity: None,
-            normal_map: None,
-            bump_map: None,
-            roughness_map: None,
-        },
+        } => Material::plain(MaterialKind::DiffuseTransmission {
+            reflectance: color(reflectance),
+            transmittance: color(transmittance),
+        }),
         MaterialKindDesc::Conductor {
             fresnel,
             tint,
             roughness,
             distribution,
-        } => Material {
-            kind: MaterialKind::Conductor {
-                fresnel: match fresnel {
-                    ConductorDesc::Complex { eta, k } => ConductorFresnel::Complex { eta: *eta, k: *k },
-                    ConductorDesc::Reflectance(r) => ConductorFresnel::Schlick(*r),
-                    ConductorDesc::Mirror(r) => ConductorFresnel::Constant(*r),
-                },
-                tint: *tint,
-                microfacet: Microfacet::new(*distribution, roughness.0, roughness.1),
+        } => Material::plain(MaterialKind::Conductor {
+            fresnel: match fresnel {
+                ConductorDesc::Complex { eta, k } => ConductorFresnel::Complex { eta: *eta, k: *k },
+                ConductorDesc::Reflectance(r) => ConductorFresnel::Schlick(*r),
+                ConductorDesc::Mirror(r) => ConductorFresnel::Constant(*r),
             },
-            emission: Texture::Constant(Rgb::ZERO),
-            two_sided: true,
-            opacity: None,
-            normal_map: None,
-            bump_map: None,
-            roughness_map: None,
-        },
+            tint: *tint,
+            microfacet: Microfacet::new(*distribution, roughness.0, roughness.1),
+        }),
         MaterialKindDesc::Dielectric {
             ior,
             ext_ior,
@@ -832,20 +808,12 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             distribution,
             reflect_tint,
             transmit_tint,
-        } => Material {
-            kind: MaterialKind::Dielectric {
-                eta: ior / ext_ior,
-                microfacet: Microfacet::new(*distribution, *roughness, *roughness),
-                reflect_tint: *reflect_tint,
-                transmit_tint: *transmit_tint,
-            },
-            emission: Texture::Constant(Rgb::ZERO),
-            two_sided: true,
-            opacity: None,
-            normal_map: None,
-            bump_map: None,
-            roughness_map: None,
-        },
+        } => Material::plain(MaterialKind::Dielectric {
+            eta: ior / ext_ior,
+            microfacet: Microfacet::new(*distribution, *roughness, *roughness),
+            reflect_tint: *reflect_tint,
+            transmit_tint: *transmit_tint,
+        }),
         MaterialKindDesc::Plastic {
             diffuse,
             ior,
@@ -871,66 +839,50 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             g,
             max_depth,
             samples,
-        } => Material {
-            kind: MaterialKind::Layered {
-                base: match base {
-                    LayeredBaseDesc::Diffuse(r) => LayerBaseKind::Diffuse(color(r)),
-                    LayeredBaseDesc::Conductor { fresnel, roughness } => {
-                        // The conductor lies in the coat: its indices are
-                        // relative to the coat's (pbrt-v4's
-                        // CoatedConductorMaterial). A reflectance becomes
-                        // the index η = 1, k = 2√r/√(1 − r) that reflects it
-                        // at normal incidence, as pbrt-v4 converts it.
-                        let (eta, k) = match fresnel {
-                            ConductorDesc::Complex { eta, k } => (*eta, *k),
-                            ConductorDesc::Reflectance(r) | ConductorDesc::Mirror(r) => {
-                                let r = r.min(Rgb::splat(0.9999));
-                                let k = |x: f32| 2.0 * x.sqrt() / (1.0 - x).max(0.0).sqrt();
-                                (Rgb::ONE, Rgb::new(k(r.x), k(r.y), k(r.z)))
-                            }
-                        };
-                        LayerBaseKind::Conductor {
-                            fresnel: ConductorFresnel::Complex {
-                                eta: eta / *coat_ior,
-                                k: k / *coat_ior,
-                            },
-                            microfacet: Microfacet::new(MicrofacetDistribution::Ggx, roughness.0, roughness.1),
+        } => Material::plain(MaterialKind::Layered {
+            base: match base {
+                LayeredBaseDesc::Diffuse(r) => LayerBaseKind::Diffuse(color(r)),
+                LayeredBaseDesc::Conductor { fresnel, roughness } => {
+                    // The conductor lies in the coat: its indices are
+                    // relative to the coat's (pbrt-v4's
+                    // CoatedConductorMaterial). A reflectance becomes
+                    // the index η = 1, k = 2√r/√(1 − r) that reflects it
+                    // at normal incidence, as pbrt-v4 converts it.
+                    let (eta, k) = match fresnel {
+                        ConductorDesc::Complex { eta, k } => (*eta, *k),
+                        ConductorDesc::Reflectance(r) | ConductorDesc::Mirror(r) => {
+                            let r = r.min(Rgb::splat(0.9999));
+                            let k = |x: f32| 2.0 * x.sqrt() / (1.0 - x).max(0.0).sqrt();
+                            (Rgb::ONE, Rgb::new(k(r.x), k(r.y), k(r.z)))
                         }
+                    };
+                    LayerBaseKind::Conductor {
+                        fresnel: ConductorFresnel::Complex {
+                            eta: eta / *coat_ior,
+                            k: k / *coat_ior,
+                        },
+                        microfacet: Microfacet::new(MicrofacetDistribution::Ggx, roughness.0, roughness.1),
                     }
-                },
-                coat_eta: *coat_ior,
-                coat: Microfacet::new(MicrofacetDistribution::Ggx, coat_roughness.0, coat_roughness.1),
-                thickness: *thickness,
-                albedo: *albedo,
-                phase: Phase::henyey_greenstein(*g),
-                max_depth: *max_depth,
-                samples: *samples,
+                }
             },
-            emission: Texture::Constant(Rgb::ZERO),
-            two_sided: true,
-            opacity: None,
-            normal_map: None,
-            bump_map: None,
-            roughness_map: None,
-        },
+            coat_eta: *coat_ior,
+            coat: Microfacet::new(MicrofacetDistribution::Ggx, coat_roughness.0, coat_roughness.1),
+            thickness: *thickness,
+            albedo: *albedo,
+            phase: Phase::henyey_greenstein(*g),
+            max_depth: *max_depth,
+            samples: *samples,
+        }),
         MaterialKindDesc::Thin {
             ior,
             ext_ior,
             reflect_tint,
             transmit_tint,
-        } => Material {
-            kind: MaterialKind::Thin {
-                eta: ior / ext_ior,
-                reflect_tint: *reflect_tint,
-                transmit_tint: *transmit_tint,
-            },
-            emission: Texture::Constant(Rgb::ZERO),
-            two_sided: true,
-            opacity: None,
-            normal_map: None,
-            bump_map: None,
-            roughness_map: None,
-        },
+        } => Material::plain(MaterialKind::Thin {
+            eta: ior / ext_ior,
+            reflect_tint: *reflect_tint,
+            transmit_tint: *transmit_tint,
+        }),
         MaterialKindDesc::Principled { params, eta, thin } => Material {
             kind: MaterialKind::Principled {
                 params: Box::new(params.map(color)),

@@ -833,12 +833,17 @@ Shape "sphere""#,
 
 #[test]
 fn other_materials_are_approximated_with_warnings() {
-    for (kind, expect) in [
-        ("diffusetransmission", "Diffuse"),
-        ("measured", "Diffuse"),
-        ("hair", "Diffuse"),
-        ("subsurface", "Plastic"),
-    ] {
+    // diffusetransmission is read as it is, with pbrt-v4's defaults.
+    let d = world("Material \"diffusetransmission\"\nShape \"sphere\"");
+    assert_eq!(
+        material(&d, 0).kind,
+        MaterialKindDesc::DiffuseTransmission {
+            reflectance: ColorSource::Rgb(Rgb::splat(0.25)),
+            transmittance: ColorSource::Rgb(Rgb::splat(0.25)),
+        }
+    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    for (kind, expect) in [("measured", "Diffuse"), ("hair", "Diffuse"), ("subsurface", "Plastic")] {
         let d = world(&format!("Material \"{kind}\"\nShape \"sphere\""));
         let k = format!("{:?}", material(&d, 0).kind);
         assert!(k.starts_with(expect), "{kind}: {k}");
