@@ -169,14 +169,12 @@ impl EnvironmentMap {
         let y = (uv.y * (h - 1).max(1) as f32).clamp(0.0, (h - 1) as f32);
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
-        let px = |xi: i64, yi: i64| {
-            let xi = xi.rem_euclid(w);
-            let yi = yi.clamp(0, h - 1);
-            self.image.pixels[(yi * w + xi) as usize]
-        };
-        let (xi, yi) = (x0 as i64, y0 as i64);
-        let top = px(xi, yi) * (1.0 - fx) + px(xi + 1, yi) * fx;
-        let bottom = px(xi, yi + 1) * (1.0 - fx) + px(xi + 1, yi + 1) * fx;
+        let wrap = |xi: i64| crate::texture::WrapMode::Repeat.apply(xi, w);
+        let (xa, xb) = (wrap(x0 as i64), wrap(x0 as i64 + 1));
+        let (ya, yb) = ((y0 as i64).clamp(0, h - 1), (y0 as i64 + 1).clamp(0, h - 1));
+        let px = |xi: i64, yi: i64| self.image.pixels[(yi * w + xi) as usize];
+        let top = px(xa, ya) * (1.0 - fx) + px(xb, ya) * fx;
+        let bottom = px(xa, yb) * (1.0 - fx) + px(xb, yb) * fx;
         (top * (1.0 - fy) + bottom * fy) * self.scale
     }
 

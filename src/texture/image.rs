@@ -165,15 +165,29 @@ pub enum WrapMode {
 impl WrapMode {
     /// Texel coordinate `i` brought into `0..n` (Mitsuba's `bitmap` wrap).
     #[inline]
-    fn apply(self, i: i64, n: i64) -> i64 {
+    pub(crate) fn apply(self, i: i64, n: i64) -> i64 {
         match self {
-            WrapMode::Repeat => i.rem_euclid(n),
+            WrapMode::Repeat => repeat(i, n),
             WrapMode::Clamp => i.clamp(0, n - 1),
             WrapMode::Mirror => {
-                let k = i.rem_euclid(2 * n);
+                let k = repeat(i, 2 * n);
                 if k < n { k } else { 2 * n - 1 - k }
             }
         }
+    }
+}
+
+/// `i` modulo `n` (> 0) in `0..n`. The texels of a lookup in [0, 1] lie
+/// within one period of it, where a comparison does what the remainder, an
+/// integer division of tens of cycles, would.
+#[inline]
+fn repeat(i: i64, n: i64) -> i64 {
+    if (0..n).contains(&i) {
+        i
+    } else if (-n..0).contains(&i) {
+        i + n
+    } else {
+        i.rem_euclid(n)
     }
 }
 
@@ -191,6 +205,18 @@ pub enum ImageFilter {
 mod tests {
     use super::*;
     use crate::color::srgb_to_linear;
+
+    #[test]
+    fn repeat_is_the_euclidean_remainder() {
+        for n in [1i64, 2, 5, 256] {
+            for i in -3 * n - 2..3 * n + 2 {
+                assert_eq!(repeat(i, n), i.rem_euclid(n), "{i} mod {n}");
+            }
+            for i in [i64::MIN, i64::MIN + 1, i64::MAX] {
+                assert_eq!(repeat(i, n), i.rem_euclid(n));
+            }
+        }
+    }
 
     #[test]
     fn luminance_gradients_are_the_interpolants_derivatives() {
