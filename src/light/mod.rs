@@ -235,11 +235,29 @@ pub struct Projector {
     pub to_local: glam::Mat3,
     /// tan of half the field of view across and up the image.
     pub tan_half: Vec2,
-    /// Irradiance multiplier (π times the scene's `scale`).
+    /// Multiplier of the image's value: π times the scene's `scale` for
+    /// [`ProjectorLaw::PlaneIrradiance`], the scene's `scale` for
+    /// [`ProjectorLaw::RadiantIntensity`].
     pub scale: f32,
     /// The image, read at the (u, v) that `Projector::uv` gives a
     /// direction (Mitsuba's: v = 0 at the image's top).
     pub image: Texture,
+    /// What the image's value is.
+    pub law: ProjectorLaw,
+}
+
+/// What the value E of a projector's image is, which decides its
+/// intensity I toward a direction at angle θ from its axis.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ProjectorLaw {
+    /// Irradiance over π on the plane at depth 1 (Mitsuba 3's
+    /// `projector`): I = π·scale·E/cos³θ, so that a plane facing the light
+    /// at depth z receives π·scale·E/z² everywhere in the frame.
+    #[default]
+    PlaneIrradiance,
+    /// Radiant intensity (pbrt-v4's `projection`): I = scale·E, so that
+    /// the plane's irradiance falls off as cos³θ/z² away from the axis.
+    RadiantIntensity,
 }
 
 impl Projector {
@@ -268,16 +286,69 @@ impl Projector {
     }
 
     /// Intensity (W/sr) toward world point `p`, and the direction from the
-    /// light to it; zero outside the frame. In the light's frame the
-    /// intensity is π·scale·E(u, v)/cos³θ (cos θ from the axis), so that a
-    /// plane facing the light at depth z receives E·π·scale/z².
+    /// light to it; zero outside the frame: scale·E(u, v), over cos³θ (cos θ
+    /// from the axis) for [`ProjectorLaw::PlaneIrradiance`].
     #[inline]
     pub fn intensity_toward(&self, images: &[crate::texture::ImageTexture], p: Vec3) -> Option<(Rgb, Vec3)> {
         let local = self.to_local * (p - self.position);
         let uv = self.uv(local)?;
         let dir = (p - self.position).try_normalize()?;
-        let cos = local.z / local.length();
-        Some((self.eval(images, uv) * (self.scale / (cos * cos * cos)), dir))
+        let factor = match self.law {
+            ProjectorLaw::PlaneIrradiance => {
+                let cos = local.z / local.length();
+                self.scale / (cos * cos * cos)
+            }
+            ProjectorLaw::RadiantIntensity => self.scale,
+        };
+        Some((self.eval(images, uv) * factor, dir))
+    }
+
+    /// The light's power per unit of `scale`, by luminance: the intensity's
+    /// integral over the frame's solid angle, dω = cos³θ dA on the plane
+    /// z = 1, summed over the image's pixels (pbrt-v4's `power`
+    /// normalisation of its `projection` light sums the same way).
+    pub fn power_per_scale(&self, images: &[crate::texture::ImageTexture]) -> f32 {
+        let Texture::Image { image, .. } = self.image else {
+            // A constant image (or one of no pixels to sum): its mean
+            // over the plane, in closed form for the plane-irradiance law,
+            // and by quadrature for the other.
+            let e = luminance(self.image.average(images));
+            return match self.law {
+                ProjectorLaw::PlaneIrradiance => e * self.image_area(),
+                ProjectorLaw::RadiantIntensity => e * self.mean_cos3(64, 64) * self.image_area(),
+            };
+        };
+        let img = &images[image as usize];
+        let (w, h) = (img.width.max(1), img.height.max(1));
+        let mut sum = 0.0f64;
+        for y in 0..h {
+            for x in 0..w {
+                let uv = Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+                let cos3 = match self.law {
+                    ProjectorLaw::PlaneIrradiance => 1.0,
+                    ProjectorLaw::RadiantIntensity => self.cos3_at(uv),
+                };
+                sum += (luminance(self.eval(images, uv)) * cos3) as f64;
+            }
+        }
+        (sum / (w * h) as f64) as f32 * self.image_area()
+    }
+
+    /// cos³θ of the direction through point `uv` of the frame.
+    fn cos3_at(&self, uv: Vec2) -> f32 {
+        let q = (Vec2::ONE - 2.0 * uv) * self.tan_half;
+        (1.0 + q.length_squared()).powf(-1.5)
+    }
+
+    /// The mean of cos³θ over the frame, at the centres of a grid.
+    fn mean_cos3(&self, nx: u32, ny: u32) -> f32 {
+        let mut sum = 0.0;
+        for y in 0..ny {
+            for x in 0..nx {
+                sum += self.cos3_at(Vec2::new((x as f32 + 0.5) / nx as f32, (y as f32 + 0.5) / ny as f32));
+            }
+        }
+        sum / (nx * ny) as f32
     }
 
     /// The density per unit solid angle with which
@@ -294,7 +365,8 @@ impl Projector {
 
     /// A direction of emission drawn uniformly over the image's area on
     /// the plane z = 1, and the power that carries: the intensity over the
-    /// direction's density 1/(area·cos³θ), i.e. π·scale·E·area.
+    /// direction's density 1/(area·cos³θ), i.e. scale·E·area, times cos³θ
+    /// for [`ProjectorLaw::RadiantIntensity`].
     #[inline]
     pub fn sample_emission(&self, images: &[crate::texture::ImageTexture], u: Vec2) -> Option<(Rgb, Vec3)> {
         let local = Vec3::new(
@@ -303,7 +375,11 @@ impl Projector {
             1.0,
         );
         let dir = (self.to_world * local).try_normalize()?;
-        Some((self.eval(images, u) * (self.scale * self.image_area()), dir))
+        let cos3 = match self.law {
+            ProjectorLaw::PlaneIrradiance => 1.0,
+            ProjectorLaw::RadiantIntensity => self.cos3_at(u),
+        };
+        Some((self.eval(images, u) * (self.scale * self.image_area() * cos3), dir))
     }
 }
 
@@ -647,7 +723,10 @@ impl Light {
                 cos_outer,
                 ..
             } => 2.0 * PI * luminance(*intensity) * (1.0 - 0.5 * (cos_inner + cos_outer)),
-            Light::Projector(p) => p.scale * p.image_area() * luminance(p.image.average(&scene.images)),
+            Light::Projector(p) => match p.law {
+                ProjectorLaw::PlaneIrradiance => p.scale * p.image_area() * luminance(p.image.average(&scene.images)),
+                ProjectorLaw::RadiantIntensity => p.scale * p.power_per_scale(&scene.images),
+            },
             Light::Directional { irradiance, .. } => disk * luminance(*irradiance),
             Light::Area {
                 emitter,
@@ -984,7 +1063,44 @@ material = "lamp"
             tan_half,
             scale: PI * 2.0,
             image: Texture::Constant(Rgb::splat(e)),
+            law: ProjectorLaw::PlaneIrradiance,
         }
+    }
+
+    /// pbrt-v4's law: the intensity is scale·E in every direction of the
+    /// frame, so the power is scale·E times the frame's solid angle,
+    /// 4·asin(sin α·sin β) for half-angles α and β; photon emission
+    /// carries the same power, and on the plane the irradiance falls off
+    /// as cos³θ.
+    #[test]
+    fn radiant_intensity_projectors_emit_scale_times_the_frames_solid_angle() {
+        let mut p = projector(Vec2::new(1.0, 0.5), 0.3);
+        p.law = ProjectorLaw::RadiantIntensity;
+        p.scale = 2.0;
+        let (a, b) = (1f32.atan(), 0.5f32.atan());
+        let solid_angle = 4.0 * (a.sin() * b.sin()).asin();
+        let power = 2.0 * 0.3 * solid_angle;
+        let by_pixels = p.scale * p.power_per_scale(&[]);
+        assert!((by_pixels - power).abs() < 1e-3 * power, "{by_pixels} vs {power}");
+        let q = Vec3::new(0.6, 0.2, 0.0);
+        let (i, dir) = p.intensity_toward(&[], q).expect("inside the frame");
+        assert!((i.x - 0.6).abs() < 1e-6);
+        let irradiance = i.x * dir.dot(Vec3::NEG_Z) / (q - p.position).length_squared();
+        let cos = dir.dot(Vec3::NEG_Z);
+        assert!((irradiance - 0.6 * cos.powi(3)).abs() < 1e-5);
+        // Emission: the mean weight of uniform points of the frame.
+        let mut rng = Pcg32::new(8, 0);
+        let n = 200_000;
+        let mean = (0..n)
+            .map(|_| {
+                p.sample_emission(&[], Vec2::new(rng.next_f32(), rng.next_f32()))
+                    .unwrap()
+                    .0
+                    .x as f64
+            })
+            .sum::<f64>()
+            / n as f64;
+        assert!((mean - power as f64).abs() < 5e-3 * power as f64, "{mean} vs {power}");
     }
 
     /// A plane facing a projector at depth z receives π·scale·E/z² inside

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::files::io_reason;
 use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere};
 use crate::geometry::{Aabb, Transform, TriangleMesh};
-use crate::light::{Background, EnvironmentMap, Light, Projector, SpotProjection};
+use crate::light::{Background, EnvironmentMap, Light, Projector, ProjectorLaw, SpotProjection};
 use crate::material::conductor::ConductorFresnel;
 use crate::material::{
     LayerBaseKind, Material, MaterialKind, MaterialMix, Microfacet, MicrofacetDistribution, RoughnessMap,
@@ -1125,6 +1125,8 @@ fn to_light(kind: &LightKind, color: &dyn Fn(&ColorSource) -> Texture, images: &
             fov_axis,
             ref irradiance,
             scale,
+            law,
+            power,
         } => {
             let image = color(irradiance);
             // The frame has the image's proportions (a constant: square).
@@ -1135,14 +1137,28 @@ fn to_light(kind: &LightKind, color: &dyn Fn(&ColorSource) -> Texture, images: &
                 }
                 _ => (1, 1),
             };
-            Light::Projector(Box::new(Projector {
+            let mut projector = Projector {
                 position,
                 to_world,
                 to_local: to_world.inverse(),
                 tan_half: fov_axis.tan_half(fov, w, h),
-                scale: std::f32::consts::PI * scale,
+                scale: match law {
+                    ProjectorLaw::PlaneIrradiance => std::f32::consts::PI * scale,
+                    ProjectorLaw::RadiantIntensity => scale,
+                },
                 image,
-            }))
+                law,
+            };
+            if let Some(power) = power {
+                // As pbrt-v4: the scale then multiplies what makes the
+                // power this. An image of no light keeps its scale: it
+                // emits nothing whatever the scale.
+                let per_scale = projector.power_per_scale(images);
+                if per_scale > 0.0 {
+                    projector.scale *= power / per_scale;
+                }
+            }
+            Light::Projector(Box::new(projector))
         }
         LightKind::Directional { direction, irradiance } => Light::Directional {
             direction: direction.normalize(),

@@ -9,7 +9,7 @@
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::geometry::{Transform, TriangleMesh};
-use crate::light::SpotProfile;
+use crate::light::{ProjectorLaw, SpotProfile};
 pub use crate::material::MicrofacetDistribution;
 use crate::settings::{
     Filter, IntegratorKind, MAX_DEPTH, MAX_GATHER, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_MLT_BOOTSTRAP, MAX_MLT_CHAINS,
@@ -528,11 +528,18 @@ pub enum LightKind {
         fov: f32,
         /// Which extent of the image `fov` spans.
         fov_axis: FovAxis,
-        /// The image: irradiance on a surface facing the light at depth 1,
-        /// over π (a colour or a texture name).
+        /// The image (a colour or a texture name): what its value is, `law`
+        /// says.
         irradiance: ColorSource,
         /// Multiplier.
         scale: f32,
+        /// What the image's value is: irradiance over π on the plane at
+        /// depth 1 (Mitsuba) or radiant intensity (pbrt-v4).
+        law: ProjectorLaw,
+        /// The power (by luminance) the light emits, where given: `scale`
+        /// is then multiplied by what makes the intensity's integral over
+        /// the frame this (pbrt-v4's `power`).
+        power: Option<f32>,
     },
     /// Directional light.
     Directional {
@@ -1407,9 +1414,13 @@ impl SceneDesc {
                     fov,
                     irradiance,
                     scale,
+                    power,
                     ..
                 } => {
                     c.vec3("position", *position)?;
+                    if let Some(power) = power {
+                        c.positive("power", *power)?;
+                    }
                     let det = to_world.determinant();
                     if !(det.is_finite() && det != 0.0) {
                         return Err(c.err("to_world", "the light's transform is singular"));

@@ -1542,6 +1542,8 @@ impl Loader {
                         fov_axis,
                         irradiance,
                         scale,
+                        law: crate::light::ProjectorLaw::PlaneIrradiance,
+                        power: None,
                     },
                     locs,
                 });

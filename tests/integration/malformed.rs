@@ -216,6 +216,11 @@ const CASES: &[(&str, Expect)] = &[
     ("pbrt/missing-instance.pbrt", Error(&["missing-instance.pbrt:", "tree"])),
     ("pbrt/missing-mesh-file.pbrt", Error(&["bunny.ply"])),
     (
+        "pbrt/projection-without-image.pbrt",
+        Error(&["projection-without-image.pbrt:6:", "filename"]),
+    ),
+    ("pbrt/projection-missing-image.pbrt", Error(&["slide.png"])),
+    (
         "pbrt/absurd-resolution.pbrt",
         Error(&["absurd-resolution.pbrt:", "resolution"]),
     ),

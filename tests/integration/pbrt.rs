@@ -4,6 +4,7 @@
 //! and warnings for pbrt files.
 
 use assert_cmd::Command;
+use std::f32::consts::PI;
 use std::fs;
 use std::path::{Path, PathBuf};
 use trazo::color::luminance;
@@ -417,6 +418,79 @@ fn environment_maps_are_equal_area_octahedral_as_in_pbrt() {
             }
         }
     }
+}
+
+/// Writes a PFM image (rows of little-endian RGB floats, bottom row
+/// first) of `w` × `h` pixels, the colour of each given by its column and
+/// its row counted from the top.
+fn write_pfm(path: &Path, w: usize, h: usize, color: impl Fn(usize, usize) -> [f32; 3]) {
+    let mut pfm = format!("PF\n{w} {h}\n-1.0\n").into_bytes();
+    for row in (0..h).rev() {
+        for col in 0..w {
+            for c in color(col, row) {
+                pfm.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    fs::write(path, pfm).unwrap();
+}
+
+/// A projection light at the camera, with the camera's frame and field of
+/// view, casts its image onto a wall facing both: the image appears as it
+/// is (its top up, its left on the left), each pixel with the intensity
+/// scale × value (pbrt-v4's `ProjectionLight`), or with `power` the
+/// intensity that spreads that power over the frame's solid angle.
+#[test]
+fn projection_lights_cast_their_image_upright_with_pbrt_v4s_intensity() {
+    let dir = tempfile::tempdir().unwrap();
+    let quadrants = |col: usize, row: usize| match (col < 4, row < 4) {
+        (true, true) => [1.0, 0.0, 0.0],
+        (false, true) => [0.0, 1.0, 0.0],
+        (true, false) => [0.0, 0.0, 1.0],
+        (false, false) => [1.0, 1.0, 1.0],
+    };
+    write_pfm(&dir.path().join("quadrants.pfm"), 8, 8, quadrants);
+    write_pfm(&dir.path().join("white.pfm"), 8, 8, |_, _| [1.0, 1.0, 1.0]);
+    let render_with = |light: &str| {
+        let text = format!(
+            "Camera \"perspective\" \"float fov\" 40\n\
+             Film \"rgb\" \"integer xresolution\" 32 \"integer yresolution\" 32\n\
+             Sampler \"independent\" \"integer pixelsamples\" 16\n\
+             Integrator \"path\" \"integer maxdepth\" 1\n\
+             WorldBegin\n{light}\n\
+             Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n\
+             Shape \"trianglemesh\" \"point3 P\" [-20 -20 5  20 -20 5  20 20 5  -20 20 5] \"integer indices\" [0 1 2 0 2 3]\n"
+        );
+        let path = dir.path().join("projection.pbrt");
+        fs::write(&path, text).unwrap();
+        let desc = trazo::scene::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+        assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
+        render_desc(&desc)
+    };
+    let film = render_with("LightSource \"projection\" \"string filename\" \"quadrants.pfm\" \"float fov\" 40");
+    let quadrant = |x0: u32, y0: u32| region_mean(&film, (x0 + 3, x0 + 13), (y0 + 3, y0 + 13));
+    let (tl, tr, bl, br) = (quadrant(0, 0), quadrant(16, 0), quadrant(0, 16), quadrant(16, 16));
+    assert!(tl.x > 0.005 && tl.x > 50.0 * (tl.y + tl.z), "top left is red: {tl}");
+    assert!(tr.y > 0.005 && tr.y > 50.0 * (tr.x + tr.z), "top right is green: {tr}");
+    assert!(bl.z > 0.005 && bl.z > 50.0 * (bl.x + bl.y), "bottom left is blue: {bl}");
+    assert!(br.min_element() > 0.005, "bottom right is white: {br}");
+
+    // On the axis the wall receives I/d² and reflects ρ/π of it.
+    let centre = |film: &Film| luminance(region_mean(film, (15, 17), (15, 17)));
+    let expected = 0.5 / PI * 2.0 / 25.0;
+    let film =
+        render_with("LightSource \"projection\" \"string filename\" \"white.pfm\" \"float fov\" 40 \"float scale\" 2");
+    let got = centre(&film);
+    assert!((got - expected).abs() < 0.02 * expected, "scale 2: {got} vs {expected}");
+    // A power of 3 over the solid angle 4·asin(sin² 20°) of the frame,
+    // times the scale, which multiplies it as in pbrt-v4.
+    let solid_angle = 4.0 * (20f32.to_radians().sin().powi(2)).asin();
+    let expected = 0.5 / PI * (2.0 * 3.0 / solid_angle) / 25.0;
+    let film = render_with(
+        "LightSource \"projection\" \"string filename\" \"white.pfm\" \"float fov\" 40 \"float scale\" 2 \"float power\" 3",
+    );
+    let got = centre(&film);
+    assert!((got - expected).abs() < 0.02 * expected, "power 3: {got} vs {expected}");
 }
 
 fn write_gzip(path: &Path, text: &str) {

@@ -144,6 +144,7 @@ impl Parser {
                 }
             }
             "infinite" => return self.infinite_light(p, loc, dir_rel),
+            "projection" => self.projection_light(p, loc, &mut locs, dir_rel)?,
             _ => {
                 Self::use_all(p);
                 self.unsupported(loc, &what, "the light is skipped");
@@ -152,6 +153,82 @@ impl Parser {
         };
         self.desc.lights.push(LightDesc { kind: light, locs });
         Ok(())
+    }
+
+    /// `LightSource "projection"`: pbrt-v4's `ProjectionLight`, an image
+    /// of radiant intensity projected from the origin of the light's space
+    /// along its +z, the image's shorter side spanning `fov` (default 90°),
+    /// read at the nearest pixel, its top toward the light's +y and its
+    /// left toward −x.
+    fn projection_light(
+        &mut self,
+        p: &ParamList,
+        loc: &SourceLoc,
+        locs: &mut Locs,
+        dir_rel: &Path,
+    ) -> Result<LightKind> {
+        let Some((file, file_prm)) = p.string("filename")? else {
+            return Err(Error::scene(
+                Some(loc.clone()),
+                "filename",
+                "a projection light needs a \"string filename\" (its image)",
+            ));
+        };
+        let file_loc = file_prm.loc.clone();
+        let scale = p.float("scale", 1.0)?;
+        if !(scale.is_finite() && scale >= 0.0) {
+            return Err(p
+                .find("scale")
+                .expect("read")
+                .err(format!("must be a non-negative number, got {scale}")));
+        }
+        let power = p.float_opt("power")?.map(|(w, _)| w).filter(|&w| w > 0.0);
+        let fov = p.float("fov", 90.0)?;
+        if !(fov > 0.0 && fov < 180.0) {
+            return Err(p
+                .find("fov")
+                .expect("read")
+                .err(format!("must lie between 0 and 180 degrees, got {fov}")));
+        }
+        add_key(locs, "fov", p.find("fov"));
+        let ctm = self.gs.ctm;
+        let position = place(&ctm, Vec3::ZERO).ok_or_else(|| at_infinity(loc))?;
+        // trazo's projector frame has +x toward the image's left, pbrt-v4's
+        // light space toward its right.
+        let to_world = glam::Mat3::from_mat4(ctm) * glam::Mat3::from_diagonal(Vec3::new(-1.0, 1.0, 1.0));
+        let texture = format!("\u{0}projection {}", self.desc.textures.len());
+        locs.keys.push(("irradiance".into(), file_loc.clone()));
+        self.push_texture(
+            &texture,
+            loc,
+            Locs {
+                item: Some(loc.clone()),
+                keys: vec![("file".into(), file_loc)],
+            },
+            (
+                TextureKind::Image {
+                    source: ImageSource::File(self.resolve(dir_rel, &file)),
+                    // The projector reads v = 0 at the image's top.
+                    scale: glam::Vec2::new(1.0, -1.0),
+                    offset: glam::Vec2::new(0.0, 1.0),
+                    srgb: None,
+                    tint: Rgb::ONE,
+                    wrap: crate::texture::WrapMode::Clamp,
+                    filter: crate::texture::ImageFilter::Nearest,
+                },
+                Rgb::ONE,
+            ),
+        )?;
+        Ok(LightKind::Projector {
+            position,
+            to_world,
+            fov,
+            fov_axis: FovAxis::Smaller,
+            irradiance: ColorSource::Texture(texture),
+            scale,
+            law: crate::light::ProjectorLaw::RadiantIntensity,
+            power,
+        })
     }
 
     /// `LightSource "infinite"`: a constant colour or an environment image.

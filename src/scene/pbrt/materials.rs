@@ -946,7 +946,7 @@ impl Parser {
     }
 
     /// Records a spectrum texture and its typical colour.
-    fn push_texture(
+    pub(super) fn push_texture(
         &mut self,
         name: &str,
         loc: &SourceLoc,
