@@ -14,6 +14,8 @@
 //! | light | point | direction |
 //! |---|---|---|
 //! | point | its position | uniform over the sphere |
+//! | projector | its position | uniform over the image's frame on the plane at depth 1 |
+//! | goniometric | its position | pixel by pixel of its equal-area image, in proportion to the values |
 //! | spot | its position | uniform inside the outer cone, weighted by the smooth falloff |
 //! | directional | uniform on a disk of the scene's bounding radius, before the scene | the light's direction |
 //! | area | uniform on the emitter (by area) | cosine-weighted about the front normal |
@@ -144,6 +146,10 @@ impl Light {
             Light::Projector(proj) => {
                 let (power, dir) = proj.sample_emission(&scene.images, u_dir)?;
                 (power, Ray::new(proj.position, dir))
+            }
+            Light::Goniometric(g) => {
+                let (power, dir) = g.sample_emission(u_dir)?;
+                (power, Ray::new(g.position, dir))
             }
             Light::Directional { direction, irradiance } => {
                 let (center, radius) = bounds;

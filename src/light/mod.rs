@@ -29,7 +29,7 @@ use crate::color::{Rgb, luminance};
 use crate::geometry::SurfaceHit;
 use crate::geometry::shape::Shape;
 use crate::material::Frame;
-use crate::sampling::Sampler;
+use crate::sampling::{Distribution2D, Sampler};
 use crate::scene::Scene;
 use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
@@ -74,6 +74,9 @@ pub enum Light {
     /// depth z in that frame receives the image's value as irradiance
     /// scaled by π/z².
     Projector(Box<Projector>),
+    /// A point light whose intensity varies with direction as an image
+    /// says (pbrt-v4's `goniometric`: a measured luminaire).
+    Goniometric(Box<Goniometric>),
     /// Parallel light from infinitely far away, like the sun.
     Directional {
         /// Unit direction in which the light travels.
@@ -220,6 +223,107 @@ impl SpotProjection {
     pub fn eval(&self, images: &[crate::texture::ImageTexture], d: Vec3) -> Rgb {
         let uv = self.uv(d);
         self.texture.eval(images, &TexCoord::new(uv, Vec3::ZERO))
+    }
+}
+
+/// A goniometric light (see [`Light::Goniometric`]): the intensity toward
+/// a direction is `intensity` times the value of the square image's pixel
+/// that pbrt-v4's equal-area octahedral mapping (Clarberg 2008) takes the
+/// direction to, in the light's frame, read at the nearest pixel as
+/// pbrt-v4's `GoniometricLight` reads it. Every pixel subtends 4π/N
+/// steradians, so emitted directions are drawn pixel by pixel in
+/// proportion to the values.
+#[derive(Clone, Debug)]
+pub struct Goniometric {
+    /// Position of the light.
+    pub position: Vec3,
+    /// World directions into the image's frame (its square's centre is
+    /// +z there).
+    pub to_local: glam::Mat3,
+    /// Its inverse.
+    pub to_world: glam::Mat3,
+    /// Intensity (W/sr) where the image's value is 1.
+    pub intensity: Rgb,
+    /// The image's side in pixels.
+    size: usize,
+    /// Its values, row by row from the top.
+    values: Vec<f32>,
+    distribution: Distribution2D,
+    mean: f32,
+}
+
+impl Goniometric {
+    /// A light at `position` whose frame `to_world` takes to the world,
+    /// with the `size` × `size` values of its image, row by row from the
+    /// top (non-negative and finite).
+    pub fn new(position: Vec3, to_world: glam::Mat3, intensity: Rgb, size: usize, values: Vec<f32>) -> Self {
+        assert!(size > 0 && values.len() == size * size, "a square image");
+        let mean = (values.iter().map(|&v| v as f64).sum::<f64>() / values.len() as f64) as f32;
+        Goniometric {
+            position,
+            to_local: to_world.inverse(),
+            to_world,
+            intensity,
+            size,
+            distribution: Distribution2D::new(&values, size, size),
+            values,
+            mean,
+        }
+    }
+
+    /// The image's value toward world direction `dir`.
+    #[inline]
+    fn value(&self, dir: Vec3) -> f32 {
+        let local = (self.to_local * dir).normalize_or_zero();
+        if local == Vec3::ZERO {
+            return 0.0;
+        }
+        let uv = environment::equal_area_sphere_to_square(local);
+        let n = self.size;
+        let x = ((uv.x * n as f32) as usize).min(n - 1);
+        let y = ((uv.y * n as f32) as usize).min(n - 1);
+        self.values[y * n + x]
+    }
+
+    /// Intensity (W/sr) toward world direction `dir`.
+    #[inline]
+    pub fn intensity_toward(&self, dir: Vec3) -> Rgb {
+        self.intensity * self.value(dir)
+    }
+
+    /// A unit direction of emission drawn in proportion to the intensity's
+    /// luminance, and the power it carries (intensity over density); `None`
+    /// for an image of no light.
+    #[inline]
+    pub fn sample_emission(&self, u: Vec2) -> Option<(Rgb, Vec3)> {
+        let (uv, pdf_uv) = self.distribution.sample(u);
+        if pdf_uv <= 0.0 || self.mean <= 0.0 {
+            return None;
+        }
+        let dir = (self.to_world * environment::equal_area_square_to_sphere(uv)).try_normalize()?;
+        // The map is equal-area: dω = 4π du dv.
+        Some((self.intensity_toward(dir) * (4.0 * PI / pdf_uv), dir))
+    }
+
+    /// The density per steradian with which [`Goniometric::sample_emission`]
+    /// draws unit direction `dir`.
+    #[inline]
+    pub fn pdf_emission(&self, dir: Vec3) -> f32 {
+        let local = (self.to_local * dir).normalize_or_zero();
+        if local == Vec3::ZERO || self.mean <= 0.0 {
+            return 0.0;
+        }
+        self.distribution.pdf(environment::equal_area_sphere_to_square(local)) / (4.0 * PI)
+    }
+
+    /// The mean of the image's values.
+    pub fn mean_value(&self) -> f32 {
+        self.mean
+    }
+
+    /// The power, by luminance: 4π × the image's mean × the intensity.
+    pub fn power(&self) -> f32 {
+        4.0 * PI * self.mean * luminance(self.intensity)
     }
 }
 
@@ -610,6 +714,25 @@ impl Light {
                     target: ShadowTarget::Point(proj.position),
                 })
             }
+            Light::Goniometric(g) => {
+                let d = g.position - p;
+                let dist2 = d.length_squared();
+                if dist2 == 0.0 {
+                    return None;
+                }
+                let wi = d / dist2.sqrt();
+                let li = g.intensity_toward(-wi) / dist2;
+                if li == Rgb::ZERO {
+                    return None;
+                }
+                Some(LightSample {
+                    wi,
+                    li,
+                    pdf: 1.0,
+                    is_delta: true,
+                    target: ShadowTarget::Point(g.position),
+                })
+            }
             Light::Directional { direction, irradiance } => Some(LightSample {
                 wi: -*direction,
                 li: *irradiance,
@@ -707,7 +830,11 @@ impl Light {
     pub fn is_delta(&self) -> bool {
         matches!(
             self,
-            Light::Point { .. } | Light::Spot { .. } | Light::Projector(_) | Light::Directional { .. }
+            Light::Point { .. }
+                | Light::Spot { .. }
+                | Light::Projector(_)
+                | Light::Goniometric(_)
+                | Light::Directional { .. }
         )
     }
 
@@ -727,6 +854,7 @@ impl Light {
                 ProjectorLaw::PlaneIrradiance => p.scale * p.image_area() * luminance(p.image.average(&scene.images)),
                 ProjectorLaw::RadiantIntensity => p.scale * p.power_per_scale(&scene.images),
             },
+            Light::Goniometric(g) => g.power(),
             Light::Directional { irradiance, .. } => disk * luminance(*irradiance),
             Light::Area {
                 emitter,
@@ -761,6 +889,8 @@ impl Light {
     pub fn bounds(&self, scene: &Scene, power: f32) -> Option<LightBounds> {
         match self {
             Light::Point { position, .. } => Some(LightBounds::point(*position, power)),
+            // Bounded as an isotropic point light, as pbrt-v4 bounds it.
+            Light::Goniometric(g) => Some(LightBounds::point(g.position, power)),
             Light::Spot {
                 position,
                 direction,
@@ -1065,6 +1195,45 @@ material = "lamp"
             image: Texture::Constant(Rgb::splat(e)),
             law: ProjectorLaw::PlaneIrradiance,
         }
+    }
+
+    /// A goniometric light's photons carry its power on average, each
+    /// with the weight intensity/density of its direction, and the density
+    /// is the one `pdf_emission` reports.
+    #[test]
+    fn goniometric_emission_carries_the_power_by_the_density_it_reports() {
+        let n = 16;
+        // Brighter toward +z of the image's frame, dark below its equator.
+        let values: Vec<f32> = (0..n * n)
+            .map(|i| {
+                let uv = Vec2::new(((i % n) as f32 + 0.5) / n as f32, ((i / n) as f32 + 0.5) / n as f32);
+                environment::equal_area_square_to_sphere(uv).z.max(0.0) * 2.0
+            })
+            .collect();
+        let to_world = glam::Mat3::from_cols(Vec3::X, Vec3::Z, Vec3::Y);
+        let g = Goniometric::new(Vec3::ONE, to_world, Rgb::new(1.0, 0.5, 0.25), n, values);
+        // Up in the world is +z of the image: twice the intensity's colour
+        // at the top, none below.
+        let up = g.intensity_toward(Vec3::Y);
+        assert!((up.x - 2.0 * 0.99).abs() < 0.05, "{up}");
+        assert_eq!(g.intensity_toward(Vec3::NEG_Y), Rgb::ZERO);
+        let mut rng = Pcg32::new(9, 1);
+        let count = 100_000;
+        let mut sum = 0.0f64;
+        for _ in 0..count {
+            let (w, dir) = g.sample_emission(Vec2::new(rng.next_f32(), rng.next_f32())).unwrap();
+            assert!(dir.y > -1e-3, "no photon leaves where the image is dark: {dir}");
+            let pdf = g.pdf_emission(dir);
+            let expected = g.intensity_toward(dir) / pdf;
+            assert!((w.x - expected.x).abs() <= 1e-3 * expected.x, "{w} vs {expected}");
+            sum += luminance(w) as f64;
+        }
+        let mean = sum / count as f64;
+        assert!(
+            (mean - g.power() as f64).abs() < 0.01 * g.power() as f64,
+            "{mean} vs {}",
+            g.power()
+        );
     }
 
     /// pbrt-v4's law: the intensity is scale·E in every direction of the

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::files::io_reason;
 use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere};
 use crate::geometry::{Aabb, Transform, TriangleMesh};
-use crate::light::{Background, EnvironmentMap, Light, Projector, ProjectorLaw, SpotProjection};
+use crate::light::{Background, EnvironmentMap, Goniometric, Light, Projector, ProjectorLaw, SpotProjection};
 use crate::material::conductor::ConductorFresnel;
 use crate::material::{
     LayerBaseKind, Material, MaterialKind, MaterialMix, Microfacet, MicrofacetDistribution, RoughnessMap,
@@ -348,7 +348,12 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     let mut geometry = Aggregate::build(meshes, shapes, mesh_objects, instances);
 
     // Lights: the explicit ones, then one per emissive surface.
-    let mut lights: Vec<Light> = desc.lights.iter().map(|l| to_light(&l.kind, &color, &images)).collect();
+    let mut lights: Vec<Light> = desc
+        .lights
+        .iter()
+        .enumerate()
+        .map(|(i, l)| to_light(i, l, &color, &images))
+        .collect::<Result<_>>()?;
     let emissive = |m: u32| materials[m as usize].is_emissive();
     let mut emitters: Vec<(EmitterRef, u32)> = Vec::new();
     for (i, s) in geometry.shapes.iter().enumerate() {
@@ -1083,9 +1088,14 @@ fn read_mesh_source(
     }
 }
 
-fn to_light(kind: &LightKind, color: &dyn Fn(&ColorSource) -> Texture, images: &[ImageTexture]) -> Light {
+fn to_light(
+    index: usize,
+    light: &LightDesc,
+    color: &dyn Fn(&ColorSource) -> Texture,
+    images: &[ImageTexture],
+) -> Result<Light> {
     let texture = |name: &str| color(&ColorSource::Texture(name.to_string()));
-    match *kind {
+    Ok(match light.kind {
         LightKind::Point {
             position,
             intensity,
@@ -1160,11 +1170,44 @@ fn to_light(kind: &LightKind, color: &dyn Fn(&ColorSource) -> Texture, images: &
             }
             Light::Projector(Box::new(projector))
         }
+        LightKind::Goniometric {
+            position,
+            to_world,
+            intensity,
+            ref image,
+            power,
+        } => {
+            let Texture::Image { image: i, .. } = texture(image) else {
+                unreachable!("a goniometric light's image is an image texture")
+            };
+            let img = &images[i as usize];
+            if img.width != img.height {
+                return Err(Error::scene(
+                    light.locs.key("image"),
+                    format!("light[{index}].image"),
+                    format!(
+                        "a goniometric light's image must be square (pbrt-v4's equal-area layout); this one is {}×{}",
+                        img.width, img.height
+                    ),
+                ));
+            }
+            let values: Vec<f32> = img.pixels.iter().map(|c| ((c.x + c.y + c.z) / 3.0).max(0.0)).collect();
+            let mut g = Goniometric::new(position, to_world, intensity, img.width as usize, values);
+            if let Some(power) = power {
+                // pbrt-v4 multiplies the intensity by power over 4π × the
+                // image's mean (as for a point light, the colour's own
+                // brightness stays); an image of no light stays dark.
+                if g.mean_value() > 0.0 {
+                    g.intensity *= power / (4.0 * std::f32::consts::PI * g.mean_value());
+                }
+            }
+            Light::Goniometric(Box::new(g))
+        }
         LightKind::Directional { direction, irradiance } => Light::Directional {
             direction: direction.normalize(),
             irradiance,
         },
-    }
+    })
 }
 
 #[cfg(test)]

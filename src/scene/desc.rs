@@ -541,6 +541,25 @@ pub enum LightKind {
         /// the frame this (pbrt-v4's `power`).
         power: Option<f32>,
     },
+    /// A point light whose intensity varies with direction as a square
+    /// image in pbrt-v4's equal-area octahedral layout says (pbrt-v4's
+    /// `goniometric`; see [`crate::light::Light::Goniometric`]).
+    Goniometric {
+        /// Position of the light.
+        position: Vec3,
+        /// The image's frame to the world (the centre of its square is +z
+        /// there).
+        to_world: glam::Mat3,
+        /// Intensity (W/sr) where the image's value is 1.
+        intensity: Rgb,
+        /// The image (a texture name); a pixel's value is the mean of its
+        /// RGB, as pbrt-v4 reads an RGB image.
+        image: String,
+        /// The power (by luminance) where given: the intensity is then
+        /// multiplied by power over 4π × the image's mean (pbrt-v4's
+        /// `power`).
+        power: Option<f32>,
+    },
     /// Directional light.
     Directional {
         /// Direction the light travels in.
@@ -1437,6 +1456,26 @@ impl SceneDesc {
                                 return Err(c.err("irradiance", format!("no texture named \"{t}\"")));
                             }
                         }
+                    }
+                }
+                LightKind::Goniometric {
+                    position,
+                    to_world,
+                    intensity,
+                    image,
+                    power,
+                } => {
+                    c.vec3("position", *position)?;
+                    let det = to_world.determinant();
+                    if !(det.is_finite() && det != 0.0) {
+                        return Err(c.err("to_world", "the light's transform is singular"));
+                    }
+                    c.color("intensity", *intensity)?;
+                    if let Some(power) = power {
+                        c.positive("power", *power)?;
+                    }
+                    if !self.textures.iter().any(|t| &t.name == image) {
+                        return Err(c.err("image", format!("no texture named \"{image}\"")));
                     }
                 }
                 LightKind::Directional { direction, irradiance } => {

@@ -493,6 +493,70 @@ fn projection_lights_cast_their_image_upright_with_pbrt_v4s_intensity() {
     assert!((got - expected).abs() < 0.02 * expected, "power 3: {got} vs {expected}");
 }
 
+/// A goniometric light reads its square image in pbrt-v4's equal-area
+/// layout, the square's centre toward +y of the light's space (pbrt-v4
+/// swaps y and z), a pixel's value the mean of its RGB; `power` sets the
+/// intensity that emits it over the sphere.
+#[test]
+fn goniometric_lights_shine_as_their_equal_area_image_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 64;
+    // Bright toward the image's +z, dark below its equator; grey values
+    // given as unequal RGB of the same mean.
+    write_pfm(&dir.path().join("lamp.pfm"), n, n, |col, row| {
+        let uv = Vec2::new((col as f32 + 0.5) / n as f32, (row as f32 + 0.5) / n as f32);
+        let v = trazo::light::environment::equal_area_square_to_sphere(uv).z.max(0.0);
+        [2.0 * v, v, 0.0]
+    });
+    let light_at = |light: &str, p: Vec3| {
+        let text = format!(
+            "Camera \"perspective\"\nFilm \"rgb\" \"integer xresolution\" 4 \"integer yresolution\" 4\n\
+             WorldBegin\nAttributeBegin\nTranslate 0 1 0\n{light}\nAttributeEnd\nShape \"sphere\" \"float radius\" 0.1\n"
+        );
+        let path = dir.path().join("lamp.pbrt");
+        fs::write(&path, text).unwrap();
+        let desc = trazo::scene::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+        assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
+        let scene = trazo::scene::build(&desc).unwrap_or_else(|e| panic!("{e}"));
+        let s = scene.lights[0].sample_li(&scene, p, 0.5, Vec2::splat(0.5));
+        s.map_or(Rgb::ZERO, |s| s.li)
+    };
+    let lamp = "LightSource \"goniometric\" \"string filename\" \"lamp.pfm\" \"rgb I\" [2 2 2]";
+    // Straight above the light (at y = 1), 2 away: I·v/d² with v ≈ 1.
+    let above = light_at(lamp, Vec3::new(0.0, 3.0, 0.0));
+    assert!((above.x - 2.0 / 4.0).abs() < 0.02, "above: {above}");
+    assert!(
+        above.x == above.y && above.y == above.z,
+        "the mean of RGB is grey: {above}"
+    );
+    // At 45° up: v = cos 45°, within the change of v over a pixel (the
+    // nearest pixel is read); below: nothing.
+    let slanted = light_at(lamp, Vec3::new(2.0, 3.0, 0.0));
+    let expected = 2.0 * std::f32::consts::FRAC_1_SQRT_2 / 8.0;
+    assert!(
+        (slanted.x - expected).abs() < 0.04 * expected,
+        "45°: {slanted} vs {expected}"
+    );
+    assert_eq!(light_at(lamp, Vec3::new(0.0, -1.0, 0.0)), Rgb::ZERO, "below");
+    // With power P the intensity is I × P / (4π × the image's mean).
+    let powered = light_at(&format!("{lamp} \"float power\" 10"), Vec3::new(0.0, 3.0, 0.0));
+    let ratio = powered.x / above.x;
+    // The mean of the image's values: ∫ max(z, 0) dω / 4π = 1/4.
+    let expected = 10.0 / (4.0 * PI * 0.25);
+    assert!(
+        (ratio - expected).abs() < 0.02 * expected,
+        "power: ×{ratio} vs ×{expected}"
+    );
+    // Without a filename pbrt-v4 warns; trazo renders a point light.
+    let text = "Camera \"perspective\"\nWorldBegin\nLightSource \"goniometric\" \"rgb I\" [2 2 2]\n";
+    assert!(
+        parse(text)
+            .warnings
+            .iter()
+            .any(|w| w.contains("without a \"filename\""))
+    );
+}
+
 fn write_gzip(path: &Path, text: &str) {
     use std::io::Write;
     let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());

@@ -238,6 +238,7 @@ fn pdf_le(scene: &Scene, bounds: (Vec3, f32), light: u32, p: Vec3, n: Vec3, w: V
             },
         ),
         Light::Projector(proj) => (1.0, proj.pdf_emission(w)),
+        Light::Goniometric(g) => (1.0, g.pdf_emission(w)),
         Light::Directional { .. } => (disk, 1.0),
         Light::Area { emitter, area, .. } => {
             let cos = n.dot(w);

@@ -36,6 +36,7 @@ impl Parser {
         let mut locs = Locs::at(Some(loc.clone()));
         let what = format!("LightSource \"{kind}\"");
         let light = match kind {
+            "goniometric" if p.find("filename").is_some() => self.goniometric_light(p, loc, &mut locs, dir_rel)?,
             "point" | "goniometric" => {
                 let (i, iloc) = self.emitted(p, "I")?;
                 let mut scale = p.float("scale", 1.0)?;
@@ -56,11 +57,10 @@ impl Parser {
                 add_key(&mut locs, "position", p.find("from"));
                 let position = place(&ctm, from).ok_or_else(|| at_infinity(loc))?;
                 if kind == "goniometric" {
-                    Self::use_all(p);
                     self.approximated(
                         loc,
-                        &what,
-                        "rendered as a point light of intensity I × scale; the goniometric distribution is ignored",
+                        format!("{what} without a \"filename\""),
+                        "rendered as a point light of intensity I × scale (pbrt-v4 warns too, and has no distribution to read)",
                     );
                 }
                 LightKind::Point {
@@ -153,6 +153,65 @@ impl Parser {
         };
         self.desc.lights.push(LightDesc { kind: light, locs });
         Ok(())
+    }
+
+    /// `LightSource "goniometric"` with an image: pbrt-v4's
+    /// `GoniometricLight`, at the origin of the light's space (it reads no
+    /// `from`), its square equal-area image's centre toward the light
+    /// space's +y (pbrt-v4 swaps y and z).
+    fn goniometric_light(
+        &mut self,
+        p: &ParamList,
+        loc: &SourceLoc,
+        locs: &mut Locs,
+        dir_rel: &Path,
+    ) -> Result<LightKind> {
+        let (i, iloc) = self.emitted(p, "I")?;
+        if let Some(l) = iloc {
+            locs.keys.push(("intensity".into(), l));
+        }
+        let scale = p.float("scale", 1.0)?;
+        if !(scale.is_finite() && scale >= 0.0) {
+            return Err(p
+                .find("scale")
+                .expect("read")
+                .err(format!("must be a non-negative number, got {scale}")));
+        }
+        let power = p.float_opt("power")?.map(|(w, _)| w).filter(|&w| w > 0.0);
+        let (file, file_prm) = p.string("filename")?.expect("the caller checked");
+        let file_loc = file_prm.loc.clone();
+        let ctm = self.gs.ctm;
+        let position = place(&ctm, Vec3::ZERO).ok_or_else(|| at_infinity(loc))?;
+        let swap_yz = glam::Mat3::from_cols(Vec3::X, Vec3::Z, Vec3::Y);
+        let texture = format!("\u{0}goniometric {}", self.desc.textures.len());
+        locs.keys.push(("image".into(), file_loc.clone()));
+        self.push_texture(
+            &texture,
+            loc,
+            Locs {
+                item: Some(loc.clone()),
+                keys: vec![("file".into(), file_loc)],
+            },
+            (
+                TextureKind::Image {
+                    source: ImageSource::File(self.resolve(dir_rel, &file)),
+                    scale: glam::Vec2::ONE,
+                    offset: glam::Vec2::ZERO,
+                    srgb: None,
+                    tint: Rgb::ONE,
+                    wrap: crate::texture::WrapMode::Clamp,
+                    filter: crate::texture::ImageFilter::Nearest,
+                },
+                Rgb::ONE,
+            ),
+        )?;
+        Ok(LightKind::Goniometric {
+            position,
+            to_world: glam::Mat3::from_mat4(ctm) * swap_yz,
+            intensity: i * scale,
+            image: texture,
+            power,
+        })
     }
 
     /// `LightSource "projection"`: pbrt-v4's `ProjectionLight`, an image
