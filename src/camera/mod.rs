@@ -1,6 +1,8 @@
 //! Cameras: perspective and orthographic projections with optional thin-lens
 //! depth of field, each defined by a view transform (camera to world) and a
-//! projection transform (camera to screen), as in pbrt-v4 chapter 5.
+//! projection transform (camera to screen), as in pbrt-v4 chapter 5; and a
+//! spherical camera that sees every direction, laid on the image by an
+//! equal-area or an equirectangular mapping (pbrt-v4's `SphericalCamera`).
 //!
 //! Camera space has +x to the right of the image, +y up and +z along the
 //! viewing direction. Raster space has (0, 0) at the top-left corner of the
@@ -8,7 +10,7 @@
 //!
 //! ```toml
 //! [camera]
-//! type = "perspective"      # or "orthographic"
+//! type = "perspective"      # or "orthographic", "spherical"
 //! from = [0, 1, 6.8]
 //! to = [0, 1, 0]
 //! up = [0, 1, 0]
@@ -19,7 +21,7 @@
 
 use crate::geometry::{Ray, Transform};
 use crate::sampling::Sampler;
-use crate::sampling::warp::sample_disk_concentric;
+use crate::sampling::warp::{equal_area_square_to_sphere, sample_disk_concentric};
 use glam::{Mat4, Vec2, Vec3, Vec4};
 
 /// A connection from a scene point to the camera's lens
@@ -53,6 +55,83 @@ pub enum Projection {
         /// Height of the visible region; its width follows the aspect ratio.
         height: f32,
     },
+    /// Every direction around the eye, laid on the image by `mapping`
+    /// (pbrt-v4's `SphericalCamera`); the image's top is camera +y. It
+    /// has no lens, no clipping planes, and light paths do not connect to
+    /// it (neither do pbrt-v4's).
+    Spherical {
+        /// How directions lie on the image.
+        mapping: SphericalMapping,
+    },
+}
+
+/// How a spherical camera lays the sphere of directions on its image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SphericalMapping {
+    /// Clarberg's equal-area octahedral mapping (pbrt-v4's default,
+    /// `equalarea`): every pixel of a square image sees the same solid
+    /// angle; the image's centre looks along camera +y.
+    #[default]
+    EqualArea,
+    /// Latitude and longitude (`equirectangular`): rows from camera +y
+    /// (the top) to −y, columns around from +x through +z (a quarter of the
+    /// way across) and −x (the middle).
+    Equirectangular,
+}
+
+impl SphericalMapping {
+    /// The unit camera-space direction at point `uv` of the image ((0, 0)
+    /// its top-left corner, (1, 1) its bottom-right), as pbrt-v4's
+    /// `SphericalCamera::GenerateRay`: the mapping's direction with its y
+    /// and z swapped.
+    pub fn direction(self, uv: Vec2) -> Vec3 {
+        let d = match self {
+            SphericalMapping::Equirectangular => {
+                let (theta, phi) = (std::f32::consts::PI * uv.y, 2.0 * std::f32::consts::PI * uv.x);
+                let st = theta.sin();
+                Vec3::new(st * phi.cos(), st * phi.sin(), theta.cos())
+            }
+            SphericalMapping::EqualArea => equal_area_square_to_sphere(wrap_equal_area_square(uv)),
+        };
+        Vec3::new(d.x, d.z, d.y)
+    }
+
+    /// The density per steradian of the direction through a uniformly
+    /// drawn point of the image, at unit camera-space direction `dir`.
+    pub fn pdf(self, dir: Vec3) -> f32 {
+        use std::f32::consts::PI;
+        match self {
+            SphericalMapping::EqualArea => 1.0 / (4.0 * PI),
+            SphericalMapping::Equirectangular => {
+                // dω = 2π² sin θ du dv, θ from camera +y.
+                let sin_theta = (1.0 - dir.y * dir.y).max(0.0).sqrt();
+                if sin_theta > 0.0 {
+                    1.0 / (2.0 * PI * PI * sin_theta)
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+}
+
+/// A point near the unit square brought into it as the equal-area
+/// octahedral mapping continues across its edges (pbrt-v4's
+/// `WrapEqualAreaSquare`): beyond an edge the square continues mirrored
+/// along it and flipped across it, as a filter's samples beyond the
+/// image's border reach.
+fn wrap_equal_area_square(mut uv: Vec2) -> Vec2 {
+    if uv.x < 0.0 {
+        uv = Vec2::new(-uv.x, 1.0 - uv.y);
+    } else if uv.x > 1.0 {
+        uv = Vec2::new(2.0 - uv.x, 1.0 - uv.y);
+    }
+    if uv.y < 0.0 {
+        uv = Vec2::new(1.0 - uv.x, -uv.y);
+    } else if uv.y > 1.0 {
+        uv = Vec2::new(1.0 - uv.x, 2.0 - uv.y);
+    }
+    uv
 }
 
 /// A camera ready to generate rays.
@@ -93,6 +172,9 @@ pub struct Camera {
     /// without one): the window's raster positions plus it are the full
     /// image's, which the projection maps.
     offset: Vec2,
+    /// The full image's size in pixels, which a spherical camera's
+    /// mapping spans.
+    full_size: Vec2,
 }
 
 /// The perspective projection of pbrt-v4 (eq. 5.1): maps camera space to
@@ -173,6 +255,8 @@ impl Camera {
         let (camera_to_screen, half_h) = match projection {
             Projection::Perspective { fov_y } => (perspective_matrix(fov_y, 1e-2, 1000.0), 1.0),
             Projection::Orthographic { height } => (orthographic_matrix(0.0, 1.0), height / 2.0),
+            // Its rays come from its mapping; the matrices go unused.
+            Projection::Spherical { .. } => (orthographic_matrix(0.0, 1.0), 1.0),
         };
         let half_w = half_h * aspect;
         // Screen (x right, y up) → raster (x right, y down).
@@ -216,6 +300,7 @@ impl Camera {
                 .vector(c10 - c00)
                 .cross(camera_to_world.vector(c01 - c00))
                 .length(),
+            Projection::Spherical { .. } => 4.0 * std::f32::consts::PI,
         };
         Ok(Camera {
             projection,
@@ -230,12 +315,16 @@ impl Camera {
             width: crop_width,
             height: crop_height,
             offset: Vec2::new(x0f, y0f),
+            full_size: Vec2::new(width as f32, height as f32),
         })
     }
 
     /// The same camera with a thin lens of the given radius focused at
     /// `focus_distance` (measured along the viewing direction).
     pub fn with_thin_lens(mut self, lens_radius: f32, focus_distance: f32) -> Camera {
+        if matches!(self.projection, Projection::Spherical { .. }) {
+            return self;
+        }
         self.lens_radius = lens_radius;
         self.focus_distance = focus_distance;
         self
@@ -245,6 +334,9 @@ impl Camera {
     /// along its viewing axis, as Mitsuba's `near_clip` and `far_clip`: a
     /// ray starts where it crosses the near plane and ends at the far one.
     pub fn with_clipping(mut self, near: f32, far: f32) -> Camera {
+        if matches!(self.projection, Projection::Spherical { .. }) {
+            return self;
+        }
         self.clip = (near > 0.0 || far.is_finite()).then_some((near, far));
         self
     }
@@ -283,6 +375,13 @@ impl Camera {
         if let (Some(([a, b, c], origin)), true) = (self.pinhole, self.lens_radius <= 0.0) {
             return Ray::new(origin, (a * film.x + b * film.y + c).normalize());
         }
+        if let Projection::Spherical { mapping } = self.projection {
+            let dir = mapping.direction(film / self.full_size);
+            return Ray::new(
+                self.camera_to_world.point(Vec3::ZERO),
+                self.camera_to_world.vector(dir).normalize(),
+            );
+        }
         let p_film = Vec3::new(film.x, film.y, 0.0);
         let (mut origin, mut dir) = match self.projection {
             Projection::Perspective { .. } => {
@@ -294,6 +393,7 @@ impl Camera {
                 let p = self.raster_to_camera.m.transform_point3(p_film);
                 (Vec3::new(p.x, p.y, 0.0), Vec3::Z)
             }
+            Projection::Spherical { .. } => unreachable!("returned above"),
         };
         if self.lens_radius > 0.0 {
             // Thin lens: all rays through a point of the focal plane meet there.
@@ -364,6 +464,8 @@ impl Camera {
                 let lens_world = self.camera_to_world.point(Vec3::new(q.x, q.y, 0.0));
                 (raster, lens_world, 1.0)
             }
+            // Refused before rendering (see `Camera::connects`).
+            Projection::Spherical { .. } => return None,
         };
         let raster = Vec2::new(raster.x, raster.y) - self.offset;
         let (w, h) = (self.width as f32, self.height as f32);
@@ -389,6 +491,7 @@ impl Camera {
         let weight = match self.projection {
             Projection::Perspective { .. } => 1.0 / (self.image_area * cos * cos * cos * dist * dist),
             Projection::Orthographic { .. } => 1.0 / self.image_area,
+            Projection::Spherical { .. } => return None,
         };
         weight.is_finite().then_some(CameraConnection {
             raster,
@@ -417,6 +520,7 @@ impl Camera {
                 }
             }
             Projection::Orthographic { .. } => 1.0 / self.image_area,
+            Projection::Spherical { mapping } => mapping.pdf(self.camera_to_world.inv_vector(dir).normalize_or_zero()),
         }
     }
 
@@ -435,9 +539,14 @@ impl Camera {
     }
 
     /// Whether light paths can connect to this camera
-    /// ([`Camera::sample_wi`]): all but an orthographic one with a lens.
+    /// ([`Camera::sample_wi`]): all but an orthographic one with a lens
+    /// and a spherical one.
     pub fn connects(&self) -> bool {
-        !(matches!(self.projection, Projection::Orthographic { .. }) && self.lens_radius > 0.0)
+        match self.projection {
+            Projection::Perspective { .. } => true,
+            Projection::Orthographic { .. } => self.lens_radius <= 0.0,
+            Projection::Spherical { .. } => false,
+        }
     }
 }
 
@@ -690,5 +799,87 @@ mod tests {
         assert!(Camera::look_at(p, Vec3::ZERO, Vec3::ZERO, Vec3::Y, 8, 8).is_err());
         assert!(Camera::look_at(p, Vec3::ZERO, Vec3::Y, Vec3::Y, 8, 8).is_err());
         assert!(Camera::look_at(p, Vec3::ZERO, Vec3::Z, Vec3::Y, 0, 8).is_err());
+    }
+
+    /// pbrt-v4's spherical mappings: equirectangular rows from +y to −y,
+    /// columns around from +x through +z; equal-area +y at the centre
+    /// and −y at the corners, continuous across the square's edges (as
+    /// its wrapping continues it), every pixel the same solid angle.
+    #[test]
+    fn spherical_mappings_are_pbrts() {
+        let eq = SphericalMapping::Equirectangular;
+        for (uv, d) in [
+            (Vec2::new(0.0, 0.5), Vec3::X),
+            (Vec2::new(0.25, 0.5), Vec3::Z),
+            (Vec2::new(0.5, 0.5), Vec3::NEG_X),
+            (Vec2::new(0.75, 0.5), Vec3::NEG_Z),
+            (Vec2::new(0.3, 0.0), Vec3::Y),
+            (Vec2::new(0.3, 1.0), Vec3::NEG_Y),
+        ] {
+            assert!(close(eq.direction(uv), d), "equirectangular {uv}: {}", eq.direction(uv));
+        }
+        let ea = SphericalMapping::EqualArea;
+        assert!(close(ea.direction(Vec2::splat(0.5)), Vec3::Y));
+        assert!(close(ea.direction(Vec2::ZERO), Vec3::NEG_Y));
+        for v in [0.1, 0.3, 0.77] {
+            for (a, b) in [
+                (Vec2::new(-1e-4, v), Vec2::new(1e-4, v)),
+                (Vec2::new(1.0 - 1e-4, v), Vec2::new(1.0 + 1e-4, v)),
+                (Vec2::new(v, -1e-4), Vec2::new(v, 1e-4)),
+            ] {
+                let (da, db) = (ea.direction(a), ea.direction(b));
+                assert!((da - db).length() < 1e-3, "across the edge at {a}: {da} vs {db}");
+            }
+        }
+        // Equal solid angles: the mean of a function over the image's
+        // pixels is its mean over the sphere (z², whose mean is 1/3).
+        let n = 64;
+        let mut sum = 0.0;
+        for y in 0..n {
+            for x in 0..n {
+                let d = ea.direction(Vec2::new((x as f32 + 0.5) / n as f32, (y as f32 + 0.5) / n as f32));
+                assert!((d.length() - 1.0).abs() < 1e-5);
+                sum += d.z * d.z;
+            }
+        }
+        let mean = sum / (n * n) as f32;
+        assert!((mean - 1.0 / 3.0).abs() < 2e-3, "{mean}");
+        assert!((ea.pdf(Vec3::X) * 4.0 * std::f32::consts::PI - 1.0).abs() < 1e-6);
+    }
+
+    /// A spherical camera's rays leave its eye, its image spanning the
+    /// whole sphere around its frame; it has no lens and light paths do
+    /// not connect to it.
+    #[test]
+    fn spherical_cameras_see_all_around() {
+        let p = Projection::Spherical {
+            mapping: SphericalMapping::Equirectangular,
+        };
+        let eye = Vec3::new(1.0, 2.0, 3.0);
+        let cam = Camera::look_at(p, eye, eye + Vec3::NEG_Z, Vec3::Y, 40, 20)
+            .unwrap()
+            .with_thin_lens(0.5, 2.0)
+            .with_clipping(1.0, 2.0);
+        // A quarter of the way across is the view direction; the top row
+        // looks up.
+        let forward = cam.generate_ray(Vec2::new(10.0, 10.0), Vec2::splat(0.3));
+        assert!(
+            close(forward.origin, eye) && close(forward.dir, Vec3::NEG_Z),
+            "{forward:?}"
+        );
+        assert!(close(cam.generate_ray(Vec2::new(7.0, 0.0), Vec2::ZERO).dir, Vec3::Y));
+        assert!(!cam.connects());
+        assert!(cam.sample_wi(Vec3::ZERO, Vec2::ZERO).is_none());
+        // Its density over the sphere integrates to 1 (the equirectangular
+        // one by rows: ∫ pdf · 2π sin θ dθ).
+        let rows = 2000;
+        let total: f32 = (0..rows)
+            .map(|i| {
+                let theta = (i as f32 + 0.5) / rows as f32 * std::f32::consts::PI;
+                let d = Vec3::new(theta.sin(), theta.cos(), 0.0);
+                cam.pdf_dir(d) * 2.0 * std::f32::consts::PI * theta.sin() * (std::f32::consts::PI / rows as f32)
+            })
+            .sum();
+        assert!((total - 1.0).abs() < 1e-3, "{total}");
     }
 }

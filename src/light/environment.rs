@@ -19,6 +19,7 @@
 
 use crate::color::{Rgb, luminance};
 use crate::geometry::Transform;
+pub use crate::sampling::warp::{equal_area_sphere_to_square, equal_area_square_to_sphere};
 use crate::sampling::warp::{pdf_sphere_uniform, sample_sphere_uniform};
 use crate::sampling::{BilinearDistribution2D, Distribution2D};
 pub use crate::scene::desc::EnvironmentLayout;
@@ -212,42 +213,6 @@ impl EnvironmentMap {
         }
         self.distribution.pdf(self.density_point(uv)) / (2.0 * PI * PI * sin_theta)
     }
-}
-
-/// The point of the unit square that Clarberg's equal-area octahedral
-/// mapping (pbrt-v4 `EqualAreaSphereToSquare`, §3.8.3) takes unit direction
-/// `d` to: +z at the centre, −z at the corners, the four quadrants of the
-/// square the signs of x and y.
-pub fn equal_area_sphere_to_square(d: Vec3) -> Vec2 {
-    let (x, y, z) = (d.x.abs(), d.y.abs(), d.z.abs());
-    let r = (1.0 - z).max(0.0).sqrt();
-    let (a, b) = (x.max(y), x.min(y));
-    let b = if a == 0.0 { 0.0 } else { b / a };
-    // φ/(π/2) within the octant.
-    let mut phi = b.atan() * (2.0 / PI);
-    if x < y {
-        phi = 1.0 - phi;
-    }
-    let mut v = phi * r;
-    let mut u = r - v;
-    if d.z < 0.0 {
-        (u, v) = (1.0 - v, 1.0 - u);
-    }
-    Vec2::new(0.5 * (u.copysign(d.x) + 1.0), 0.5 * (v.copysign(d.y) + 1.0))
-}
-
-/// The unit direction at point `p` of the unit square: the inverse of
-/// [`equal_area_sphere_to_square`] (pbrt-v4 `EqualAreaSquareToSphere`).
-pub fn equal_area_square_to_sphere(p: Vec2) -> Vec3 {
-    let (u, v) = (2.0 * p.x - 1.0, 2.0 * p.y - 1.0);
-    let (up, vp) = (u.abs(), v.abs());
-    // Signed distance from the diagonal |u| + |v| = 1: its sign is z's.
-    let signed = 1.0 - (up + vp);
-    let r = 1.0 - signed.abs();
-    let phi = if r == 0.0 { 1.0 } else { (vp - up) / r + 1.0 } * (PI / 4.0);
-    let z = (1.0 - r * r).copysign(signed);
-    let s = r * (2.0 - r * r).max(0.0).sqrt();
-    Vec3::new(phi.cos().copysign(u) * s, phi.sin().copysign(v) * s, z)
 }
 
 /// What rays that leave the scene see.

@@ -118,6 +118,42 @@ pub fn sample_triangle_uniform(u: Vec2) -> [f32; 3] {
     [b0, b1, 1.0 - b0 - b1]
 }
 
+/// The point of the unit square that Clarberg's equal-area octahedral
+/// mapping (pbrt-v4 `EqualAreaSphereToSquare`, §3.8.3) takes unit direction
+/// `d` to: +z at the centre, −z at the corners, the four quadrants of the
+/// square the signs of x and y.
+pub fn equal_area_sphere_to_square(d: Vec3) -> Vec2 {
+    let (x, y, z) = (d.x.abs(), d.y.abs(), d.z.abs());
+    let r = (1.0 - z).max(0.0).sqrt();
+    let (a, b) = (x.max(y), x.min(y));
+    let b = if a == 0.0 { 0.0 } else { b / a };
+    // φ/(π/2) within the octant.
+    let mut phi = b.atan() * (2.0 / PI);
+    if x < y {
+        phi = 1.0 - phi;
+    }
+    let mut v = phi * r;
+    let mut u = r - v;
+    if d.z < 0.0 {
+        (u, v) = (1.0 - v, 1.0 - u);
+    }
+    Vec2::new(0.5 * (u.copysign(d.x) + 1.0), 0.5 * (v.copysign(d.y) + 1.0))
+}
+
+/// The unit direction at point `p` of the unit square: the inverse of
+/// [`equal_area_sphere_to_square`] (pbrt-v4 `EqualAreaSquareToSphere`).
+pub fn equal_area_square_to_sphere(p: Vec2) -> Vec3 {
+    let (u, v) = (2.0 * p.x - 1.0, 2.0 * p.y - 1.0);
+    let (up, vp) = (u.abs(), v.abs());
+    // Signed distance from the diagonal |u| + |v| = 1: its sign is z's.
+    let signed = 1.0 - (up + vp);
+    let r = 1.0 - signed.abs();
+    let phi = if r == 0.0 { 1.0 } else { (vp - up) / r + 1.0 } * (PI / 4.0);
+    let z = (1.0 - r * r).copysign(signed);
+    let s = r * (2.0 - r * r).max(0.0).sqrt();
+    Vec3::new(phi.cos().copysign(u) * s, phi.sin().copysign(v) * s, z)
+}
+
 /// An orthonormal basis around a unit vector (Duff et al. 2017, "Building an
 /// Orthonormal Basis, Revisited"): returns (s, t) with s × t = n.
 #[inline]

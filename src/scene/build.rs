@@ -411,6 +411,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     let projection = match cam.projection {
         ProjectionDesc::Perspective { fov } => Projection::Perspective { fov_y: fov },
         ProjectionDesc::Orthographic { size } => Projection::Orthographic { height: size },
+        ProjectionDesc::Spherical { mapping } => Projection::Spherical { mapping },
     };
     let camera_to_world = match cam.to_world {
         Some(m) => Transform::from_matrix(m)
@@ -435,13 +436,18 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         )
         .with_clipping(cam.near_clip, cam.far_clip);
     if s.integrator.splats_light_paths() && !camera.connects() {
+        let why = match projection {
+            Projection::Spherical { .. } => {
+                "a spherical camera (it has no importance to connect to, nor has pbrt-v4's): use the path tracer, Whitted, photon mapping or SPPM"
+            }
+            _ => {
+                "an orthographic camera with a lens (its rays focus nowhere): drop the aperture, or use another integrator"
+            }
+        };
         return Err(Error::scene(
             cam.locs.item.clone(),
             "camera",
-            format!(
-                "\"{}\" cannot connect light paths to an orthographic camera with a lens (its rays focus nowhere): drop the aperture, or use another integrator",
-                s.integrator.name()
-            ),
+            format!("\"{}\" cannot connect light paths to {why}", s.integrator.name()),
         ));
     }
     let background = match &desc.background {

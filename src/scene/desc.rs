@@ -58,6 +58,12 @@ pub enum ProjectionDesc {
         /// Height of the view plane in world units.
         size: f32,
     },
+    /// Every direction around the eye (see
+    /// [`crate::camera::Projection::Spherical`]).
+    Spherical {
+        /// How directions lie on the image.
+        mapping: crate::camera::SphericalMapping,
+    },
 }
 
 /// The camera.
@@ -1820,6 +1826,7 @@ impl SceneDesc {
                 }
             }
             ProjectionDesc::Orthographic { size } => c.positive("size", size)?,
+            ProjectionDesc::Spherical { .. } => {}
         }
         c.non_negative("aperture_radius", cam.aperture_radius)?;
         c.non_negative("near_clip", cam.near_clip)?;

@@ -592,16 +592,21 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
 
 fn read_camera(t: &Table) -> Result<CameraDesc> {
     let kind = t
-        .choice("type", &["perspective", "orthographic"])?
+        .choice("type", &["perspective", "orthographic", "spherical"])?
         .unwrap_or_else(|| "perspective".into());
-    let projection = if kind == "perspective" {
-        ProjectionDesc::Perspective {
+    let projection = match kind.as_str() {
+        "perspective" => ProjectionDesc::Perspective {
             fov: t.number_or("fov", 40.0)?,
-        }
-    } else {
-        ProjectionDesc::Orthographic {
+        },
+        "orthographic" => ProjectionDesc::Orthographic {
             size: t.number_or("size", 2.0)?,
-        }
+        },
+        _ => ProjectionDesc::Spherical {
+            mapping: match t.choice("mapping", &["equal_area", "equirectangular"])?.as_deref() {
+                Some("equirectangular") => crate::camera::SphericalMapping::Equirectangular,
+                _ => crate::camera::SphericalMapping::EqualArea,
+            },
+        },
     };
     let d = CameraDesc::default();
     let cam = CameraDesc {

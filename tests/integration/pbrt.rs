@@ -420,6 +420,54 @@ fn environment_maps_are_equal_area_octahedral_as_in_pbrt() {
     }
 }
 
+/// pbrt-v4's spherical camera: its equirectangular image looks along the
+/// `LookAt` view a quarter of the way across, up along its top row, and
+/// toward camera +x (world −x here: pbrt's `LookAt` frame is left-handed)
+/// at its left edge; the equal-area one looks up at its centre. Light
+/// paths cannot connect to it.
+#[test]
+fn spherical_cameras_map_directions_as_pbrt_v4() {
+    let scene = |mapping: &str| {
+        parse(&format!(
+            "LookAt 0 0 0  0 0 -1  0 1 0\nCamera \"spherical\" {mapping}\n\
+             Film \"rgb\" \"integer xresolution\" 40 \"integer yresolution\" 20\nWorldBegin\nShape \"sphere\""
+        ))
+    };
+    let desc = scene("\"string mapping\" \"equirectangular\"");
+    assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
+    let built = trazo::scene::build(&desc).unwrap();
+    let dir = |x: f32, y: f32| built.camera.generate_ray(Vec2::new(x, y), Vec2::ZERO).dir;
+    let near = |a: Vec3, b: Vec3| (a - b).length() < 1e-4;
+    assert!(near(dir(10.0, 10.0), Vec3::NEG_Z), "{}", dir(10.0, 10.0));
+    assert!(near(dir(17.0, 0.0), Vec3::Y));
+    assert!(near(dir(0.0, 10.0), Vec3::NEG_X), "{}", dir(0.0, 10.0));
+    assert!(near(dir(20.0, 10.0), Vec3::X));
+
+    let mut desc = scene("");
+    assert!(
+        desc.warnings.iter().any(|w| w.contains("not square")),
+        "equal-area over a 2:1 film: {:?}",
+        desc.warnings
+    );
+    let built = trazo::scene::build(&desc).unwrap();
+    let centre = built.camera.generate_ray(Vec2::new(20.0, 10.0), Vec2::ZERO).dir;
+    assert!(near(centre, Vec3::Y), "{centre}");
+    desc.settings.integrator = trazo::settings::IntegratorKind::from_name("bdpt").unwrap();
+    let e = trazo::scene::build(&desc)
+        .err()
+        .expect("BDPT cannot use a spherical camera")
+        .to_string();
+    assert!(e.contains("spherical camera"), "{e}");
+
+    let e = trazo::scene::pbrt::parse(
+        "Camera \"spherical\" \"string mapping\" \"fisheye\"\nWorldBegin\n",
+        Path::new("test.pbrt"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("test.pbrt:1:") && e.contains("fisheye"), "{e}");
+}
+
 /// Writes a PFM image (rows of little-endian RGB floats, bottom row
 /// first) of `w` × `h` pixels, the colour of each given by its column and
 /// its row counted from the top.

@@ -5,6 +5,7 @@
 
 use super::params::ParamList;
 use super::{Parser, world_from_camera};
+use crate::camera::SphericalMapping;
 use crate::error::{Error, Result, SourceLoc};
 use crate::sampling::SamplerKind;
 use crate::scene::desc::*;
@@ -474,6 +475,31 @@ impl Parser {
         }
         let projection = match cam.kind.as_str() {
             "orthographic" => ProjectionDesc::Orthographic { size: 2.0 * half_h },
+            "spherical" => {
+                let mapping = match p.string("mapping")? {
+                    None => SphericalMapping::EqualArea,
+                    Some((m, prm)) => match m.as_str() {
+                        "equalarea" => SphericalMapping::EqualArea,
+                        "equirectangular" => SphericalMapping::Equirectangular,
+                        _ => {
+                            return Err(prm.err(format!(
+                                "unknown mapping \"{m}\" (pbrt-v4's are \"equalarea\" and \"equirectangular\")"
+                            )));
+                        }
+                    },
+                };
+                if mapping == SphericalMapping::EqualArea && w != h {
+                    let l = at.clone().unwrap_or_else(|| self.desc_loc());
+                    self.approximated(
+                        &l,
+                        "an equal-area spherical camera with a film that is not square",
+                        "the square mapping is stretched over the image, as pbrt-v4 does; every pixel no longer sees the same solid angle",
+                    );
+                }
+                // pbrt-v4 reads `lensradius` and `focaldistance` (below)
+                // and ignores them: the camera has no lens.
+                ProjectionDesc::Spherical { mapping }
+            }
             kind => {
                 let fov = match p.float_opt("fov")? {
                     Some((fov, prm)) => {
@@ -552,9 +578,7 @@ impl Parser {
             locs,
             ..CameraDesc::default()
         };
-        if cam.kind == "orthographic" || cam.kind == "perspective" {
-            self.report_unused(p, &format!("Camera \"{}\"", cam.kind));
-        }
+        self.report_unused(p, &format!("Camera \"{}\"", cam.kind));
         Ok(())
     }
 }
