@@ -450,11 +450,12 @@ fn trace_path(
     let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
     if let (Some(point), true) = (emitted.surface, scene.settings.shows_emission(1)) {
         if let Some(c) = scene.camera.sample_wi(point.p, u_lens) {
-            let cos = point.n.dot(c.wi);
+            let cos = crate::light::emitting_cosine(point.n, c.wi, point.two_sided);
             if cos > 0.0 {
                 *rays += 1;
                 let end = point.p + c.wi * c.dist;
-                let shadow = Ray::with_interval(emitted.ray.origin, end - emitted.ray.origin, 0.0, SHADOW_EPSILON);
+                let origin = point.origin_toward(c.wi);
+                let shadow = Ray::with_interval(origin, end - origin, 0.0, SHADOW_EPSILON);
                 if !scene.occluded(&shadow) {
                     let l = point.le * (cos * c.weight / (point.pdf_area * pmf));
                     target.add_splat(c.raster, l, out);

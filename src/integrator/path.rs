@@ -103,7 +103,7 @@ impl Integrator for PathTracer {
             let m = &scene.materials[hit.material as usize];
             let wo_world = -ray.dir.normalize();
 
-            if m.is_emissive() && shows_emission && hit.is_front(wo_world) {
+            if m.is_emissive() && shows_emission && m.emits_toward(&hit, wo_world) {
                 let w = match hit.light {
                     Some(li) if nee && !prev_delta => {
                         let pdf_light = light_choice_pmf(scene, prev_p, prev_n, li as usize)

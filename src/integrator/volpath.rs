@@ -294,7 +294,7 @@ impl Integrator for VolPathTracer {
             };
             let m = &scene.materials[hit.material as usize];
             let wo_world = -dir;
-            if m.is_emissive() && shows_emission && hit.is_front(wo_world) {
+            if m.is_emissive() && shows_emission && m.emits_toward(&hit, wo_world) {
                 let le = m.emission_at(&scene.images, &TexCoord::at(&hit));
                 let (prev_p, prev_n) = (s.prev_p, s.prev_n);
                 self.add_emission(&mut s, le, || match hit.light {

@@ -1,7 +1,7 @@
 //! Whitted's recursive ray tracer (Whitted 1980, "An Improved Illumination
 //! Model for Shaded Display").
 //!
-//! At each hit: emission (front side only), an optional ambient term
+//! At each hit: emission (front side only, both for two-sided emitters), an optional ambient term
 //! `ambient·kd`, direct light from every light through a shadow ray and the
 //! Phong model ([`crate::material::phong`]), then recursion along the
 //! mirror direction weighted by the reflectivity kr and, for transmissive
@@ -70,9 +70,8 @@ impl Whitted {
         scene.choose_any_material(&mut hit, ray.dir);
         let m = &scene.materials[hit.material as usize];
         let wo = -ray.dir.normalize();
-        let front = hit.is_front(wo);
         let tc = TexCoord::at(&hit);
-        let mut l = if front && shows_emission {
+        let mut l = if m.emits_toward(&hit, wo) && shows_emission {
             m.emission_at(&scene.images, &tc)
         } else {
             Rgb::ZERO

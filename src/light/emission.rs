@@ -18,7 +18,7 @@
 //! | goniometric | its position | pixel by pixel of its equal-area image, in proportion to the values |
 //! | spot | its position | uniform inside the outer cone, weighted by the smooth falloff |
 //! | directional | uniform on a disk of the scene's bounding radius, before the scene | the light's direction |
-//! | area | uniform on the emitter (by area) | cosine-weighted about the front normal |
+//! | area | uniform on the emitter (by area) | cosine-weighted about the front normal (for a two-sided emitter about either side's, each with probability ½) |
 //! | environment | uniform on a disk facing the sampled direction, beyond the scene | importance-sampled from the background |
 //!
 //! A point or spot light with `falloff = false` (the classical constant
@@ -57,12 +57,25 @@ pub struct EmissionSample {
 pub struct EmitterPoint {
     /// The point (before the push off the surface).
     pub p: Vec3,
-    /// The emitting side's unit normal.
+    /// The emitting side's unit normal (the front's; see `two_sided`).
     pub n: Vec3,
-    /// Radiance leaving the front side, the same in every direction.
+    /// Whether the back emits too.
+    pub two_sided: bool,
+    /// Radiance leaving the emitting side (each, when two-sided), the same
+    /// in every direction.
     pub le: Rgb,
     /// Density of the point, per unit area.
     pub pdf_area: f32,
+}
+
+impl EmitterPoint {
+    /// The point pushed off the emitter to the side that unit direction
+    /// `w` leaves on, where a ray toward `w` starts: a two-sided
+    /// emitter's photon may have left from the other side.
+    pub fn origin_toward(&self, w: Vec3) -> Vec3 {
+        let side = if self.n.dot(w) >= 0.0 { self.n } else { -self.n };
+        self.p + side * (EMITTER_OFFSET * self.p.abs().max_element().max(1.0))
+    }
 }
 
 /// The sphere that bounds the scene's geometry: centre and radius (a unit
@@ -162,6 +175,7 @@ impl Light {
                 emitter,
                 radiance,
                 area,
+                two_sided,
                 ..
             } => {
                 let s = scene
@@ -170,21 +184,29 @@ impl Light {
                 if !(s.pdf_area.is_finite() && s.pdf_area > 0.0) {
                     return None;
                 }
+                // A two-sided emitter picks its side with probability ½
+                // (pbrt-v4 `DiffuseAreaLight::SampleLe`), reusing u_dir.x.
+                let (side, u_dir, sides) = match (*two_sided, u_dir.x < 0.5) {
+                    (false, _) => (s.n, u_dir, 1.0),
+                    (true, true) => (s.n, Vec2::new(2.0 * u_dir.x, u_dir.y), 2.0),
+                    (true, false) => (-s.n, Vec2::new(2.0 * u_dir.x - 1.0, u_dir.y), 2.0),
+                };
                 let local = sample_hemisphere_cosine(u_dir);
                 if local.z <= 0.0 {
                     return None;
                 }
-                let dir = Frame::from_normal(s.n).to_world(local);
+                let dir = Frame::from_normal(side).to_world(local);
                 let le = radiance.eval(&scene.images, &TexCoord::new(s.uv, s.p));
-                // Le·cos θ / (p_A · cos θ/π) = π·Le / p_A.
-                let push = s.n * (EMITTER_OFFSET * s.p.abs().max_element().max(1.0));
-                surface = Some(EmitterPoint {
+                let point = EmitterPoint {
                     p: s.p,
                     n: s.n,
+                    two_sided: *two_sided,
                     le,
                     pdf_area: s.pdf_area,
-                });
-                (le * (PI / s.pdf_area), Ray::new(s.p + push, dir))
+                };
+                surface = Some(point);
+                // Le·cos θ / (p_A · cos θ/(π·sides)) = sides·π·Le / p_A.
+                (le * (sides * PI / s.pdf_area), Ray::new(point.origin_toward(dir), dir))
             }
             Light::Environment => {
                 let (wi, pdf_dir) = scene.background.sample(u_dir)?;

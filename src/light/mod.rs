@@ -88,8 +88,11 @@ pub enum Light {
     Area {
         /// The emitting geometry.
         emitter: EmitterRef,
-        /// Emitted radiance from the front side.
+        /// Emitted radiance from the front side (from both with
+        /// `two_sided`).
         radiance: Texture,
+        /// Whether the back emits too (pbrt-v4's `twosided` area lights).
+        two_sided: bool,
         /// Area data for sampling.
         area: EmitterArea,
         /// Centre and radius when the emitter is a sphere, which is then
@@ -487,6 +490,16 @@ impl Projector {
     }
 }
 
+/// The cosine between an emitter's front normal `n` and the unit
+/// direction `w` light leaves in, where the emitter emits that way: from
+/// the front only, or with `two_sided` from either side (the absolute
+/// cosine); zero or less where it does not.
+#[inline(always)]
+pub fn emitting_cosine(n: Vec3, w: Vec3, two_sided: bool) -> f32 {
+    let cos = n.dot(w);
+    if two_sided { cos.abs() } else { cos }
+}
+
 /// GLSL's smoothstep: 0 below `a`, 1 above `b`, a cubic ramp between.
 #[inline]
 fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
@@ -546,6 +559,7 @@ fn area_light_sample(
     p: Vec3,
     lp: Vec3,
     ln: Vec3,
+    two_sided: bool,
     uv: Vec2,
     pdf_solid_angle: Option<f32>,
     pdf_area: f32,
@@ -557,8 +571,7 @@ fn area_light_sample(
         return None;
     }
     let wi = d / dist2.sqrt();
-    // Emission leaves the front side only.
-    let cos_light = ln.dot(-wi);
+    let cos_light = emitting_cosine(ln, -wi, two_sided);
     if cos_light <= 0.0 {
         return None;
     }
@@ -609,11 +622,12 @@ impl Light {
         if let Light::Area {
             radiance,
             parallelogram: Some(r),
+            two_sided,
             ..
         } = self
         {
             let lp = r.corner + u.x * r.edge_u + u.y * r.edge_v;
-            return area_light_sample(scene, p, lp, r.normal, u, None, r.pdf_area, radiance);
+            return area_light_sample(scene, p, lp, r.normal, *two_sided, u, None, r.pdf_area, radiance);
         }
         self.sample_li_other(scene, p, u_pick, u)
     }
@@ -743,6 +757,7 @@ impl Light {
             Light::Area {
                 emitter,
                 radiance,
+                two_sided,
                 area,
                 sphere,
                 parallelogram,
@@ -775,7 +790,7 @@ impl Light {
                         }
                     }
                 };
-                area_light_sample(scene, p, lp, ln, uv, pdf_solid_angle, pdf_area, radiance)
+                area_light_sample(scene, p, lp, ln, *two_sided, uv, pdf_solid_angle, pdf_area, radiance)
             }
             Light::Environment => {
                 let (wi, pdf) = scene.background.sample(u)?;
@@ -798,7 +813,11 @@ impl Light {
     pub fn pdf_li(&self, scene: &Scene, p: Vec3, hit: &SurfaceHit) -> f32 {
         match self {
             Light::Area {
-                emitter, area, sphere, ..
+                emitter,
+                area,
+                sphere,
+                two_sided,
+                ..
             } => {
                 if let Some((c, r)) = sphere {
                     let pdf = sphere_cone_pdf(*c, *r, p);
@@ -807,7 +826,7 @@ impl Light {
                     }
                 }
                 let d = hit.p - p;
-                let cos_light = hit.ng.dot(-d.normalize_or_zero());
+                let cos_light = emitting_cosine(hit.ng, -d.normalize_or_zero(), *two_sided);
                 if cos_light <= 0.0 {
                     return 0.0;
                 }
@@ -860,6 +879,7 @@ impl Light {
                 emitter,
                 radiance,
                 area,
+                two_sided,
                 ..
             } => {
                 // World-space area: exact for meshes, scaled by the
@@ -874,7 +894,8 @@ impl Light {
                     },
                     _ => area.total,
                 };
-                PI * world_area * luminance(radiance.average(&scene.images))
+                let sides = if *two_sided { 2.0 } else { 1.0 };
+                sides * PI * world_area * luminance(radiance.average(&scene.images))
             }
             Light::Environment => disk * luminance(scene.background.average()) * 4.0,
         }
@@ -907,7 +928,7 @@ impl Light {
                     ..LightBounds::point(*position, power)
                 })
             }
-            Light::Area { emitter, .. } => {
+            Light::Area { emitter, two_sided, .. } => {
                 let g = &scene.geometry;
                 let bounds = match *emitter {
                     EmitterRef::Shape(i) => {
@@ -933,7 +954,7 @@ impl Light {
                     w,
                     cos_theta_o,
                     cos_theta_e: 0.0,
-                    two_sided: false,
+                    two_sided: *two_sided,
                 })
             }
             Light::Projector(proj) => {

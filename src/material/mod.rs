@@ -179,8 +179,12 @@ pub enum LayerBaseKind {
 pub struct Material {
     /// How it scatters light.
     pub kind: MaterialKind,
-    /// Emitted radiance, from the front side.
+    /// Emitted radiance, from the front side (both with
+    /// `emits_both_sides`).
     pub emission: Texture,
+    /// Whether the back emits as the front does (pbrt-v4's `twosided`
+    /// area lights).
+    pub emits_both_sides: bool,
     /// Whether the back side scatters like the front (false: the back of
     /// an opaque surface is black, as Mitsuba's one-sided BSDFs).
     pub two_sided: bool,
@@ -398,6 +402,7 @@ impl Material {
         Material {
             kind,
             emission: Texture::Constant(Rgb::ZERO),
+            emits_both_sides: false,
             two_sided: true,
             opacity: None,
             normal_map: None,
@@ -436,6 +441,7 @@ impl Material {
                 ior,
             },
             emission: Texture::Constant(Rgb::ZERO),
+            emits_both_sides: false,
             two_sided: true,
             opacity: None,
             normal_map: None,
@@ -487,6 +493,7 @@ impl Material {
                 tables: (!microfacet.is_smooth()).then(|| Box::new(CoatTables::new(&microfacet, eta))),
             },
             emission: Texture::Constant(Rgb::ZERO),
+            emits_both_sides: false,
             two_sided: true,
             opacity: None,
             normal_map: None,
@@ -629,7 +636,15 @@ impl Material {
         self.emission != Texture::Constant(Rgb::ZERO)
     }
 
-    /// Emitted radiance at a point (front side).
+    /// Whether the surface's emission (if any) leaves `hit` toward `wo`
+    /// (pointing away from the surface): from the front, or from either
+    /// side with `emits_both_sides`.
+    #[inline]
+    pub fn emits_toward(&self, hit: &crate::geometry::SurfaceHit, wo: Vec3) -> bool {
+        self.emits_both_sides || hit.is_front(wo)
+    }
+
+    /// Emitted radiance at a point (of the side that emits).
     #[inline]
     pub fn emission_at(&self, images: &[ImageTexture], tc: &TexCoord) -> Rgb {
         self.emission.eval(images, tc)

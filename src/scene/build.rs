@@ -395,6 +395,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         lights.push(Light::Area {
             emitter,
             radiance: materials[material as usize].emission,
+            two_sided: materials[material as usize].emits_both_sides,
             parallelogram: crate::light::Parallelogram::of_emitter(&geometry, emitter, &area),
             area,
             sphere: crate::light::emitter_sphere(&geometry, emitter),
@@ -901,6 +902,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
                 thin: *thin,
             },
             emission: Texture::Constant(Rgb::ZERO),
+            emits_both_sides: false,
             two_sided: *thin,
             opacity: None,
             normal_map: None,
@@ -911,6 +913,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
         MaterialKindDesc::Mix { .. } => Material::default(),
     };
     mat.emission = color(&m.emission);
+    mat.emits_both_sides = m.emits_both_sides;
     mat.two_sided = m.two_sided;
     mat.opacity = m.opacity.as_ref().map(color);
     mat.normal_map = m.normal_map.as_ref().map(color);

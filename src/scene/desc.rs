@@ -395,6 +395,9 @@ pub struct MaterialDesc {
     pub kind: MaterialKindDesc,
     /// Emitted radiance (a colour or a texture).
     pub emission: ColorSource,
+    /// Whether the back emits as the front does (pbrt-v4's `twosided` area
+    /// lights); emitters are one-sided otherwise.
+    pub emits_both_sides: bool,
     /// Whether the back side scatters like the front.
     pub two_sided: bool,
     /// Opacity in [0, 1] (its first channel), a cut-out mask: where it is
@@ -454,6 +457,7 @@ impl MaterialDesc {
             name: name.into(),
             kind,
             emission: ColorSource::Rgb(Rgb::ZERO),
+            emits_both_sides: false,
             two_sided: true,
             opacity: None,
             normal_map: None,

@@ -1741,6 +1741,9 @@ impl<'a> Reader<'a> {
             name: name.to_string(),
             kind,
             emission,
+            // glTF 2.0: a double-sided material is lit, and so emits, on
+            // both sides.
+            emits_both_sides: mat.double_sided,
             two_sided: mat.double_sided,
             opacity: None,
             normal_map: None,

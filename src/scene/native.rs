@@ -832,6 +832,7 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
     };
     let mut m = MaterialDesc::with_kind(name, kind);
     m.emission = t.color_source("emission")?.unwrap_or(ColorSource::Rgb(Rgb::ZERO));
+    m.emits_both_sides = t.boolean("two_sided_emission")?.unwrap_or(false);
     m.two_sided = t.boolean("two_sided")?.unwrap_or(true);
     m.opacity = t.color_source("opacity")?;
     m.normal_map = t.color_source("normal_map")?;

@@ -240,11 +240,17 @@ fn pdf_le(scene: &Scene, bounds: (Vec3, f32), light: u32, p: Vec3, n: Vec3, w: V
         Light::Projector(proj) => (1.0, proj.pdf_emission(w)),
         Light::Goniometric(g) => (1.0, g.pdf_emission(w)),
         Light::Directional { .. } => (disk, 1.0),
-        Light::Area { emitter, area, .. } => {
-            let cos = n.dot(w);
+        Light::Area {
+            emitter,
+            area,
+            two_sided,
+            ..
+        } => {
+            let cos = crate::light::emitting_cosine(n, w, *two_sided);
+            let sides = if *two_sided { 2.0 } else { 1.0 };
             (
                 scene.geometry.emitter_pdf_area(*emitter, area, p, n),
-                if cos > 0.0 { cos / PI } else { 0.0 },
+                if cos > 0.0 { cos / (sides * PI) } else { 0.0 },
             )
         }
         Light::Environment => (disk, scene.background.pdf(-w)),
@@ -666,7 +672,7 @@ impl<'s> Tracer<'s> {
                 Kind::Surface => {
                     let hit = pt.hit.as_ref()?;
                     let m = &scene.materials[hit.material as usize];
-                    if !(m.is_emissive() && hit.is_front(pt.wo)) {
+                    if !(m.is_emissive() && m.emits_toward(hit, pt.wo)) {
                         return None;
                     }
                     pt.beta * m.emission_at(&scene.images, &TexCoord::at(hit))
@@ -775,6 +781,7 @@ impl<'s> Tracer<'s> {
                 emitter,
                 area,
                 radiance,
+                two_sided,
                 ..
             } => {
                 let es = scene
@@ -782,7 +789,7 @@ impl<'s> Tracer<'s> {
                     .sample_emitter(*emitter, area, u_pick, u, radiance.reads_uv())?;
                 let d = pt.p - es.p;
                 let d2 = d.length_squared();
-                let cos = es.n.dot(d) / d2.sqrt();
+                let cos = crate::light::emitting_cosine(es.n, d, *two_sided) / d2.sqrt();
                 if !(cos > 0.0 && es.pdf_area > 0.0 && d2 > 0.0) {
                     return None;
                 }

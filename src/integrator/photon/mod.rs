@@ -145,7 +145,7 @@ pub(crate) fn camera_segment<'a>(
     scene.choose_any_material(&mut hit, ray.dir);
     let wo_world = -ray.dir.normalize();
     let m = &scene.materials[hit.material as usize];
-    if m.is_emissive() && shows_emission && hit.is_front(wo_world) {
+    if m.is_emissive() && shows_emission && m.emits_toward(&hit, wo_world) {
         *l += beta * m.emission_at(&scene.images, &crate::texture::TexCoord::at(&hit));
     }
     if last {

@@ -411,13 +411,7 @@ impl Parser {
     pub(super) fn area_light_source(&mut self, p: &ParamList, loc: &SourceLoc) -> Result<()> {
         let (l, _) = self.emitted(p, "L")?;
         let scale = p.float("scale", 1.0)?;
-        if p.bool("twosided", false)? {
-            self.approximated(
-                loc,
-                "AreaLightSource with \"bool twosided\" true",
-                "trazo's area lights emit from the front side only",
-            );
-        }
+        let two_sided = p.bool("twosided", false)?;
         if let Some(prm) = p.find("filename") {
             let l = prm.loc.clone();
             self.unsupported(
@@ -445,6 +439,7 @@ impl Parser {
         }
         self.gs.area_light = Some(Emission {
             radiance,
+            two_sided,
             loc: loc.clone(),
         });
         Ok(())

@@ -185,6 +185,8 @@ enum MatRef {
 #[derive(Clone, Debug, PartialEq)]
 struct Emission {
     radiance: Rgb,
+    /// `"bool twosided"`: the back emits too.
+    two_sided: bool,
     loc: SourceLoc,
 }
 
@@ -1250,7 +1252,7 @@ impl Parser {
         // Materials: each used (material, emission) pair becomes one of
         // trazo's materials; named materials are all kept.
         let mut names: HashSet<String> = HashSet::new();
-        let mut made: HashMap<(Option<usize>, Option<[u32; 3]>), String> = HashMap::new();
+        let mut made: HashMap<(Option<usize>, Option<([u32; 3], bool)>), String> = HashMap::new();
         let mut named: Vec<(usize, String)> = self.named_materials.iter().map(|(n, &i)| (i, n.clone())).collect();
         named.sort();
         for (i, n) in named {
@@ -1287,7 +1289,9 @@ impl Parser {
             };
             let key = (
                 index,
-                s.emission.as_ref().map(|e| e.radiance.to_array().map(f32::to_bits)),
+                s.emission
+                    .as_ref()
+                    .map(|e| (e.radiance.to_array().map(f32::to_bits), e.two_sided)),
             );
             let name = match made.get(&key) {
                 Some(n) => n.clone(),
@@ -1309,6 +1313,7 @@ impl Parser {
                             );
                             if let Some(e) = &s.emission {
                                 m.emission = ColorSource::Rgb(e.radiance);
+                                m.emits_both_sides = e.two_sided;
                                 m.locs = Locs::at(Some(e.loc.clone()));
                             }
                             m
@@ -1398,6 +1403,7 @@ impl Parser {
         m.roughness_map = def.roughness_map.clone();
         if let Some(e) = emission {
             m.emission = ColorSource::Rgb(e.radiance);
+            m.emits_both_sides = e.two_sided;
             m.locs.keys.push(("emission".into(), e.loc.clone()));
         }
         m
