@@ -4,7 +4,8 @@
 
 use super::params::{FloatValue, Param, ParamList, SpectrumValue};
 use super::spectrum::{
-    blackbody_rgb, glass_ior, illuminant_rgb, metal_of, parse_spd, sampled_rgb, spectrum_at_rgb_wavelengths,
+    blackbody_rgb, glass_ior, illuminant_rgb, metal_of, parse_spd, pbrt_only_metal_ior, sampled_rgb,
+    spectrum_at_rgb_wavelengths,
 };
 use super::{MatDef, MatKind, Parser};
 use crate::color::Rgb;
@@ -366,23 +367,28 @@ impl Parser {
             SpectrumValue::Rgb(c) => c,
             SpectrumValue::Float(x) => Rgb::splat(x),
             SpectrumValue::Named(n) => match metal_of(&n) {
-                Some((metal, part_eta)) => match metal_ior(metal) {
-                    Some((eta, k)) if crate::material::conductor::METAL_NAMES.contains(&metal) => {
-                        if part_eta {
-                            eta
-                        } else {
-                            k
+                Some((metal, part_eta)) => {
+                    let known = metal_ior(metal)
+                        .filter(|_| crate::material::conductor::METAL_NAMES.contains(&metal))
+                        .or_else(|| pbrt_only_metal_ior(metal));
+                    match known {
+                        Some((eta, k)) => {
+                            if part_eta {
+                                eta
+                            } else {
+                                k
+                            }
+                        }
+                        None => {
+                            self.approximated(
+                                &loc,
+                                format!("{what} \"{n}\""),
+                                "pbrt-v4 names the spectra of Au, Ag, Cu, Al, CuZn, MgO and TiO2 only; copper is used",
+                            );
+                            if part_eta { cu_eta } else { cu_k }
                         }
                     }
-                    _ => {
-                        self.approximated(
-                            &loc,
-                            format!("{what} \"{n}\""),
-                            "trazo tabulates Au, Ag, Cu and Al at three wavelengths; copper is used",
-                        );
-                        if part_eta { cu_eta } else { cu_k }
-                    }
-                },
+                }
                 // Not a named spectrum: a file of samples, found as
                 // textures are.
                 None => {

@@ -116,6 +116,22 @@ pub fn glass_ior(name: &str) -> Option<f32> {
     })
 }
 
+/// η and k at trazo's three wavelengths (650, 550 and 450 nm, see
+/// [`spectrum_at_rgb_wavelengths`]) of pbrt-v4's named spectra of brass,
+/// magnesium oxide and titanium dioxide (`metal-CuZn-eta` …), which
+/// pbrt-v4 tabulates from refractiveindex.info (CC0), interpolated
+/// linearly there. Its other metals (Au, Ag, Cu, Al) are in
+/// [`crate::material::conductor::metal_ior`].
+pub fn pbrt_only_metal_ior(name: &str) -> Option<(Rgb, Rgb)> {
+    let (eta, k) = match name {
+        "CuZn" => ([0.444, 0.527, 1.094], [3.695, 2.765, 1.829]),
+        "MgO" => ([1.7337, 1.7405, 1.7524], [0.0; 3]),
+        "TiO2" => ([2.8599, 2.955, 3.165], [0.0; 3]),
+        _ => return None,
+    };
+    Some((Rgb::from_array(eta), Rgb::from_array(k)))
+}
+
 /// The metal of a named pbrt-v4 conductor spectrum: `"metal-Au-eta"` →
 /// (`"Au"`, true), `"metal-Cu-k"` → (`"Cu"`, false).
 pub fn metal_of(name: &str) -> Option<(&str, bool)> {

@@ -701,6 +701,36 @@ fn bad_meshes_are_errors_at_the_parameter() {
     );
 }
 
+/// pbrt-v4's brass, magnesium oxide and titanium dioxide: their spectra
+/// at trazo's three wavelengths, without a warning; brass is yellow (its
+/// reflectance at normal incidence largest in red, smallest in blue).
+#[test]
+fn pbrt_named_metal_spectra_beyond_the_four_metals() {
+    let d = world(
+        r#"Material "conductor" "spectrum eta" "metal-CuZn-eta" "spectrum k" "metal-CuZn-k"
+Shape "sphere"
+Material "conductor" "spectrum eta" "metal-TiO2-eta" "spectrum k" "metal-TiO2-k"
+Shape "sphere"
+Material "conductor" "spectrum eta" "metal-Xx-eta"
+Shape "sphere""#,
+    );
+    let complex = |i: usize| match material(&d, i).kind {
+        MaterialKindDesc::Conductor {
+            fresnel: ConductorDesc::Complex { eta, k },
+            ..
+        } => (eta, k),
+        ref other => panic!("{other:?}"),
+    };
+    let (eta, k) = complex(0);
+    let r0 = |e: f32, k: f32| ((e - 1.0).powi(2) + k * k) / ((e + 1.0).powi(2) + k * k);
+    let (r, g, b) = (r0(eta.x, k.x), r0(eta.y, k.y), r0(eta.z, k.z));
+    assert!(r > g && g > b && b > 0.3, "brass at normal incidence: {r} {g} {b}");
+    let (eta, k) = complex(1);
+    assert!((eta.y - 2.955).abs() < 1e-3 && k == Rgb::ZERO, "{eta} {k}");
+    assert_eq!(d.warnings.len(), 1, "{:?}", d.warnings);
+    assert!(d.warnings[0].contains("metal-Xx-eta"), "{:?}", d.warnings);
+}
+
 #[test]
 fn materials_map_to_the_nearest_model() {
     let d = world(
