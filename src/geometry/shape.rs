@@ -487,6 +487,8 @@ pub(crate) struct SphereRay<R> {
     pub o: [R; 3],
     pub d: [R; 3],
     pub a: R,
+    /// 1/|d|², so that a ray tested against many spheres divides once.
+    pub inv_a: R,
     pub t_min: R,
     pub t_max: R,
 }
@@ -501,6 +503,7 @@ impl SphereRay<f64> {
             o: ray.origin.as_dvec3().to_array(),
             d: d.to_array(),
             a,
+            inv_a: 1.0 / a,
             t_min: ray.t_min as f64,
             t_max: ray.t_max as f64,
         })
@@ -514,6 +517,7 @@ impl SphereRay<f64> {
             o: self.o.map(s),
             d: self.d.map(s),
             a: s(self.a),
+            inv_a: s(self.inv_a),
             t_min: s(self.t_min),
             t_max: s(self.t_max),
         }
@@ -531,14 +535,14 @@ pub(crate) fn sphere_distance<R: Real>(ray: &SphereRay<R>, cx: R, cy: R, cz: R, 
     let (fx, fy, fz) = (ray.o[0] - cx, ray.o[1] - cy, ray.o[2] - cz);
     let b_half = fx * dx + fy * dy + fz * dz;
     // b'² − a·c rewritten as a·(r² − |f − (b'/a)·d|²): no cancellation.
-    let k = b_half / ray.a;
+    let k = b_half * ray.inv_a;
     let (lx, ly, lz) = (fx - dx * k, fy - dy * k, fz - dz * k);
     let disc = ray.a * (r * r - (lx * lx + ly * ly + lz * lz));
     let c = (fx * fx + fy * fy + fz * fz) - r * r;
     // A negative discriminant (a miss) makes q, and every distance, NaN,
     // which the comparisons below reject.
     let q = (b_half.like(0.0) - b_half) - disc.sqrt().copysign(b_half);
-    let (x, y) = (c / q, q / ray.a);
+    let (x, y) = (c / q, q * ray.inv_a);
     let zero = q.eq(q.like(0.0));
     let t0 = R::select(zero, q.like(0.0), x.min(y));
     let t1 = R::select(zero, q.like(0.0), x.max(y));
