@@ -462,6 +462,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             scale,
             transform,
             layout,
+            illuminance,
         } => {
             let full = base_dir.join(path);
             let mut image = ImageTexture::load(&full, None)
@@ -492,7 +493,14 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                     ),
                 ));
             }
-            Background::Image(Box::new(EnvironmentMap::with_layout(image, *scale, to_world, *layout)))
+            let mut scale = *scale;
+            if let Some(e) = illuminance {
+                let k = pbrt_upper_hemisphere_illuminance(&image);
+                if k > 0.0 {
+                    scale *= e / k;
+                }
+            }
+            Background::Image(Box::new(EnvironmentMap::with_layout(image, scale, to_world, *layout)))
         }
     };
     // In the path tracer a background that is not black lights the scene.
@@ -1095,6 +1103,27 @@ fn read_mesh_source(
             }
         }
     }
+}
+
+/// The illuminance pbrt-v4 computes for an equal-area environment map's
+/// upper hemisphere (+z of its frame) to honour an `illuminance`
+/// (`Light::Create`, "infinite"): Σ luminance · cos θ over the pixels
+/// whose centres lie above the horizon, × 2π/N for N pixels. (Each pixel
+/// subtends 4π/N steradians, so this is half the map's illuminance; a
+/// scene that asks for E gets twice that, in pbrt-v4 and so here.)
+fn pbrt_upper_hemisphere_illuminance(image: &ImageTexture) -> f32 {
+    let (w, h) = (image.width as usize, image.height as usize);
+    let mut sum = 0.0f64;
+    for y in 0..h {
+        for x in 0..w {
+            let uv = glam::Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+            let d = crate::sampling::warp::equal_area_square_to_sphere(uv);
+            if d.z > 0.0 {
+                sum += (crate::color::luminance(image.pixels[y * w + x]) * d.z) as f64;
+            }
+        }
+    }
+    (sum * 2.0 * std::f64::consts::PI / (w * h).max(1) as f64) as f32
 }
 
 fn to_light(

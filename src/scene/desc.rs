@@ -916,6 +916,13 @@ pub enum BackgroundDesc {
         transform: Vec<TransformOp>,
         /// How the image's pixels map to directions.
         layout: EnvironmentLayout,
+        /// pbrt-v4's `illuminance` of an image infinite light (equal-area
+        /// maps only): `scale` is multiplied by it over the illuminance
+        /// pbrt-v4 computes for the map's upper hemisphere (+z of its
+        /// frame), Σ luminance·cos θ over those pixels × 2π/N for N pixels
+        /// (pbrt-v4's sum, which gives each pixel 2π/N steradians where
+        /// it subtends 4π/N).
+        illuminance: Option<f32>,
     },
 }
 
@@ -1072,8 +1079,23 @@ impl SceneDesc {
                 w.color("background", *top)?;
                 w.color("background", *bottom)?;
             }
-            BackgroundDesc::Image { scale, transform, .. } => {
+            BackgroundDesc::Image {
+                scale,
+                transform,
+                layout,
+                illuminance,
+                ..
+            } => {
                 w.non_negative("background", *scale)?;
+                if let Some(e) = illuminance {
+                    w.positive("background", *e)?;
+                    if *layout != EnvironmentLayout::EqualAreaOctahedral {
+                        return Err(w.err(
+                            "background",
+                            "an illuminance is given only to equal-area maps (pbrt-v4's image infinite lights)",
+                        ));
+                    }
+                }
                 for op in transform {
                     op.to_transform()
                         .map_err(|e| w.err("background", format!("transform {}: {e}", op.name())))?;

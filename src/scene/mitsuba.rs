@@ -1585,6 +1585,7 @@ impl Loader {
                         scale,
                         transform: vec![TransformOp::Matrix(to_world)],
                         layout: EnvironmentLayout::LatLong,
+                        illuminance: None,
                     },
                 );
             }

@@ -90,6 +90,7 @@ pub fn parse(text: &str, path: &Path) -> Result<SceneDesc> {
                             scale: g.number_or("scale", 1.0)?,
                             transform,
                             layout: EnvironmentLayout::LatLong,
+                            illuminance: None,
                         }
                     } else {
                         BackgroundDesc::Gradient {

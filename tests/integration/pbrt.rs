@@ -605,6 +605,38 @@ fn goniometric_lights_shine_as_their_equal_area_image_says() {
     );
 }
 
+/// An image infinite light with `illuminance` E is scaled as pbrt-v4
+/// scales it: by E over Σ luminance·cos θ of the pixels above the map's
+/// horizon × 2π/N, which for a uniform map is π/2 (pbrt-v4 counts each
+/// pixel as 2π/N steradians, so the radiance comes out as 2E/π).
+#[test]
+fn image_infinite_lights_take_pbrt_v4s_illuminance_scaling() {
+    let dir = tempfile::tempdir().unwrap();
+    write_pfm(&dir.path().join("sky.pfm"), 32, 32, |_, _| [0.5, 0.5, 0.5]);
+    let text = "Camera \"perspective\"\nWorldBegin\n\
+                LightSource \"infinite\" \"string filename\" \"sky.pfm\" \"float illuminance\" 3\n";
+    let path = dir.path().join("sky.pbrt");
+    fs::write(&path, text).unwrap();
+    let desc = trazo::scene::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+    assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
+    let scene = trazo::scene::build(&desc).unwrap();
+    let mut sum = 0.0f64;
+    for y in 0..32 {
+        for x in 0..32 {
+            let uv = Vec2::new((x as f32 + 0.5) / 32.0, (y as f32 + 0.5) / 32.0);
+            let z = trazo::light::environment::equal_area_square_to_sphere(uv).z;
+            if z > 0.0 {
+                sum += 0.5 * z as f64;
+            }
+        }
+    }
+    let k = sum * 2.0 * std::f64::consts::PI / 1024.0;
+    let expected = (0.5 * 3.0 / k) as f32;
+    let got = scene.background.eval(Vec3::new(0.3, 0.4, 0.5).normalize()).x;
+    assert!((got - expected).abs() < 1e-4 * expected, "{got} vs {expected}");
+    assert!((got - 6.0 / PI).abs() < 0.01 * got, "about 2E/π: {got}");
+}
+
 fn write_gzip(path: &Path, text: &str) {
     use std::io::Write;
     let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());

@@ -309,13 +309,6 @@ impl Parser {
         let (background, at) = match file {
             Some((name, prm)) => {
                 let at = prm.loc.clone();
-                if illuminance.is_some() {
-                    self.unsupported(
-                        loc,
-                        "\"illuminance\" of an image infinite light",
-                        "the image is scaled by \"scale\" only",
-                    );
-                }
                 // pbrt-v4 stores environment maps in its equal-area
                 // octahedral layout, +z at the centre of the square in the
                 // light's space (which the CTM places in the world).
@@ -326,6 +319,7 @@ impl Parser {
                         scale,
                         transform: vec![TransformOp::Matrix(to_world)],
                         layout: EnvironmentLayout::EqualAreaOctahedral,
+                        illuminance,
                     },
                     at,
                 )
