@@ -735,4 +735,41 @@ fn an_rgb_grid_renders_as_the_uniform_grid_it_equals() {
     let (ma, mb) = (mean(&a), mean(&b));
     assert!(ma > 0.01, "{ma}");
     assert!((ma - mb).abs() < 0.002 * ma, "uniformgrid {ma}, rgbgrid {mb}");
+
+    // Emission: a uniformgrid's Le × its Lescale grid is the rgbgrid whose
+    // Le is their product voxel by voxel (pbrt-v4's GridMedium and
+    // RGBGridMedium), without a light.
+    let le_scale = [1.0f32, 0.0, 2.0, 0.5, 0.0, 1.0, 3.0, 0.25];
+    let le = [2.0f32, 1.0, 0.5];
+    let unlit = |s: String| s.replace("LightSource \"point\" \"point3 from\" [2 3 4] \"float scale\" 40\n", "");
+    let uniform = unlit(uniform.replace(
+        "\"rgb sigma_s\" [1.5 1.5 1.5]",
+        &format!(
+            "\"rgb sigma_s\" [1.5 1.5 1.5] \"rgb Le\" [{} {} {}] \"float Lescale\" [{}]",
+            le[0],
+            le[1],
+            le[2],
+            le_scale.map(|k| k.to_string()).join(" ")
+        ),
+    ));
+    let products = le_scale
+        .iter()
+        .map(|k| format!("{} {} {}", k * le[0], k * le[1], k * le[2]))
+        .collect::<Vec<_>>()
+        .join(" ");
+    let rgb = unlit(rgb.replace(
+        &format!("\"rgb sigma_s\" [{}]", times(1.5)),
+        &format!("\"rgb sigma_s\" [{}] \"rgb Le\" [{products}]", times(1.5)),
+    ));
+    let (da, db) = (parse(&uniform), parse(&rgb));
+    assert!(
+        da.warnings.is_empty() && db.warnings.is_empty(),
+        "{:?} {:?}",
+        da.warnings,
+        db.warnings
+    );
+    let (a, b) = (render_desc(&da), render_desc(&db));
+    let (ma, mb) = (mean(&a), mean(&b));
+    assert!(ma > 0.01, "the medium glows: {ma}");
+    assert!((ma - mb).abs() < 0.002 * ma, "emitting uniformgrid {ma}, rgbgrid {mb}");
 }

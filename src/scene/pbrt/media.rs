@@ -82,7 +82,13 @@ impl Parser {
         let scale = p.float("scale", 1.0)?;
         let g = Self::phase_g(p)?;
         let le = self.medium_color(p, "Le", Rgb::ZERO)?;
-        let le_scale = p.float("Lescale", 1.0)?;
+        // A homogeneous medium's `Lescale` is one number, a grid's a grid.
+        let le_scale = if ty == "homogeneous" {
+            p.float("Lescale", 1.0)?
+        } else {
+            1.0
+        };
+        let mut grid_emission = None;
         let sigma_t = sigma_a + sigma_s;
         let albedo = Rgb::select(sigma_t.cmpgt(Rgb::ZERO), sigma_s / sigma_t, Rgb::ZERO);
         let (sigma_t_field, scale) = if ty == "homogeneous" {
@@ -102,14 +108,8 @@ impl Parser {
             };
             let mut grid = VoxelGrid::new(res, 1, density).map_err(|e| prm.err(e))?;
             grid.edge = GridEdge::Zero;
-            for key in ["temperature", "temperaturecutoff", "temperaturescale", "Lescale"] {
-                if let Some(prm) = p.find(key).filter(|_| key != "Lescale" || le != Rgb::ZERO) {
-                    let l = prm.loc.clone();
-                    let written = prm.written.clone();
-                    self.unsupported(&l, format!("\"{written}\""), "a grid medium's emission is not rendered");
-                }
-            }
             let unit_to_world = self.grid_box(p, loc, &what)?;
+            grid_emission = self.uniform_grid_emission(p, loc, &what, res, le, &unit_to_world)?;
             (
                 FieldDesc::Grid {
                     source: GridSource::Data(Arc::new(grid)),
@@ -119,14 +119,11 @@ impl Parser {
                 sigma_t * scale,
             )
         };
-        let emission = (ty == "homogeneous" && le != Rgb::ZERO).then(|| FieldDesc::Constant(le * le_scale));
-        if ty == "uniformgrid" && le != Rgb::ZERO {
-            self.unsupported(
-                loc,
-                format!("\"Le\" of {what}"),
-                "a grid medium's emission is not rendered",
-            );
-        }
+        let emission = if ty == "homogeneous" {
+            (le != Rgb::ZERO).then(|| FieldDesc::Constant(le * le_scale))
+        } else {
+            grid_emission
+        };
         Self::use_all(p);
         let medium = MediumDesc {
             name: format!("medium:{name}"),
@@ -238,6 +235,97 @@ impl Parser {
         Self::use_all(p);
         self.add_medium(name, medium);
         Ok(())
+    }
+
+    /// The emission of a `uniformgrid` (pbrt-v4's `GridMedium`), Le(p) =
+    /// Lescale(p) × (the spectrum `Le`, or the blackbody of `temperature`(p)
+    /// offset by `temperatureoffset` and scaled by `temperaturescale`,
+    /// none at 100 K or below), with the source term σa·Le. Without
+    /// `Lescale` pbrt-v4 reads a grid of one voxel of 1, which fades toward
+    /// the box's edges as every grid does past its outermost voxel centres;
+    /// so does this. pbrt-v4 interpolates the temperature and Lescale; trazo
+    /// interpolates the colour they give voxel by voxel (approximated, with
+    /// a warning, where a temperature grid is given).
+    fn uniform_grid_emission(
+        &mut self,
+        p: &ParamList,
+        loc: &SourceLoc,
+        what: &str,
+        res: [usize; 3],
+        le: Rgb,
+        unit_to_world: &glam::Mat4,
+    ) -> Result<Option<FieldDesc>> {
+        let voxels = res[0] * res[1] * res[2];
+        let grid_values = |key: &str| -> Result<Option<Vec<f32>>> {
+            match p.floats(key)? {
+                Some((v, prm)) if v.len() != voxels => Err(prm.err(format!(
+                    "a {}×{}×{} grid needs {voxels} values, got {}",
+                    res[0],
+                    res[1],
+                    res[2],
+                    v.len()
+                ))),
+                Some((v, prm)) if v.iter().any(|x| !x.is_finite()) => Err(prm.err("must be finite")),
+                Some((v, _)) => Ok(Some(v)),
+                None => Ok(None),
+            }
+        };
+        let le_scale = grid_values("Lescale")?;
+        let temperature = grid_values("temperature")?;
+        if temperature.is_some() && le != Rgb::ZERO {
+            return Err(crate::error::Error::scene(
+                Some(loc.clone()),
+                what,
+                "give either \"Le\" or \"temperature\" to a grid medium, not both (as pbrt-v4)",
+            ));
+        }
+        let offset = match p.float_opt("temperatureoffset")? {
+            Some((v, _)) => v,
+            None => p.float("temperaturecutoff", 0.0)?,
+        };
+        let t_scale = p.float("temperaturescale", 1.0)?;
+        let (values, res) = match (temperature, le_scale) {
+            (None, _) if le == Rgb::ZERO => return Ok(None),
+            (None, None) => (le.to_array().to_vec(), [1, 1, 1]),
+            (None, Some(s)) => (s.iter().flat_map(|&k| (le * k.max(0.0)).to_array()).collect(), res),
+            (Some(t), s) => {
+                self.approximated(
+                    loc,
+                    format!("\"temperature\" of {what}"),
+                    "the blackbody colour is interpolated between voxels, where pbrt-v4 interpolates the temperature",
+                );
+                // Lescale at the voxel centres: its grid, or pbrt-v4's
+                // single voxel of 1, a tent over the box.
+                let tent = |i: usize, n: usize| 1.0 - ((i as f32 + 0.5) / n as f32 - 0.5).abs();
+                let scale_at = |i: usize| match &s {
+                    Some(s) => s[i].max(0.0),
+                    None => {
+                        let (x, y, z) = (i % res[0], (i / res[0]) % res[1], i / (res[0] * res[1]));
+                        tent(x, res[0]) * tent(y, res[1]) * tent(z, res[2])
+                    }
+                };
+                let values = (0..voxels)
+                    .flat_map(|i| {
+                        let kelvin = (t[i] - offset) * t_scale;
+                        let c = if kelvin > 100.0 {
+                            super::spectrum::peak_normalized_blackbody_rgb(kelvin) * scale_at(i)
+                        } else {
+                            Rgb::ZERO
+                        };
+                        c.to_array()
+                    })
+                    .collect();
+                (values, res)
+            }
+        };
+        let mut grid =
+            VoxelGrid::new(res, 3, values).map_err(|e| crate::error::Error::scene(Some(loc.clone()), what, e))?;
+        grid.edge = GridEdge::Zero;
+        Ok(Some(FieldDesc::Grid {
+            source: GridSource::Data(Arc::new(grid)),
+            to_world: vec![TransformOp::Matrix(*unit_to_world)],
+            use_file_bounds: false,
+        }))
     }
 
     /// A grid's voxel count along one axis (`nx`, `ny`, `nz`; 1 if not

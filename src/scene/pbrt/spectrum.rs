@@ -38,6 +38,30 @@ pub fn blackbody_rgb(kelvin: f32) -> Rgb {
     }
 }
 
+/// Linear sRGB colour of pbrt-v4's `BlackbodySpectrum` of `kelvin`: Planck's
+/// law divided by its value at the peak wavelength (Wien's law), so its
+/// luminance is the mean of ȳ weighted by it, ∫B̂ȳ/∫ȳ, as an RGB film
+/// records it (not normalised to luminance 1 as emitters' `blackbody` is).
+pub fn peak_normalized_blackbody_rgb(kelvin: f32) -> Rgb {
+    const C2: f64 = 1.438_776_9e7;
+    const WIEN_NM_K: f64 = 2.897_772_1e6;
+    let t = kelvin as f64;
+    let planck = |l: f64| 1.0 / (l.powi(5) * (C2 / (l * t)).exp_m1());
+    let peak = planck(WIEN_NM_K / t);
+    if !(peak.is_finite() && peak > 0.0) {
+        return Rgb::ZERO;
+    }
+    let (mut weighted, mut total) = (0.0, 0.0);
+    for nm in 360..=830 {
+        let l = nm as f64;
+        let y = cie_1931(l).1;
+        let b = planck(l) / peak;
+        weighted += if b.is_finite() { b * y } else { 0.0 };
+        total += y;
+    }
+    blackbody_rgb(kelvin) * (weighted / total) as f32
+}
+
 /// Linear sRGB colour of a sampled emission spectrum (pairs of wavelength
 /// in nm and value, linearly interpolated and zero outside, as pbrt-v4's
 /// `PiecewiseLinearSpectrum`), scaled to luminance 1 as pbrt-v4 scales

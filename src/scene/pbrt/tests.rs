@@ -1082,11 +1082,15 @@ fn environment_maps_are_read_as_equal_area_octahedral() {
         scale,
         transform,
         layout,
+        illuminance,
     } = &d.background
     else {
         panic!("{:?}", d.background)
     };
-    assert_eq!((path.as_path(), *scale), (Path::new("sky.exr"), 3.0));
+    assert_eq!(
+        (path.as_path(), *scale, *illuminance),
+        (Path::new("sky.exr"), 3.0, None)
+    );
     assert_eq!(*layout, EnvironmentLayout::EqualAreaOctahedral);
     let m = transform.iter().fold(Mat4::IDENTITY, |acc, op| match op {
         TransformOp::Matrix(m) => *m * acc,
@@ -1599,6 +1603,82 @@ fn includes_resolve_relative_to_the_including_file_and_detect_loops() {
 /// pbrt-v4's `Include` is token-level: the included file's tokens are
 /// followed by those after the `Include`, so a statement begun in the
 /// included file goes on after it (pbrt-v4-scenes' smoke-plume/plume.pbrt).
+/// A `uniformgrid`'s emission as pbrt-v4's `GridMedium` gives it: `Le`
+/// without `Lescale` over pbrt-v4's one-voxel grid of 1; a temperature
+/// grid as peak-normalised blackbodies (approximated: interpolated by
+/// colour), none at 100 K or below after the offset and scale; `Le` and
+/// `temperature` together, or a grid of the wrong size, are errors.
+#[test]
+fn uniform_grids_emit_as_pbrt_v4s_grid_medium() {
+    let medium = |extra: &str| {
+        world(&format!(
+            "MakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"float density\" [1 1] {extra}\n\
+             MediumInterface \"m\" \"\"\nMaterial \"interface\"\nShape \"sphere\""
+        ))
+    };
+    let grid = |d: &SceneDesc| match &d.media[0].emission {
+        Some(FieldDesc::Grid {
+            source: GridSource::Data(g),
+            ..
+        }) => (g.res, g.data.clone()),
+        other => panic!("{other:?}"),
+    };
+    let d = medium("\"rgb Le\" [2 1 0.5]");
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    assert_eq!(grid(&d), ([1, 1, 1], vec![2.0, 1.0, 0.5]));
+
+    let d = medium(
+        "\"float temperature\" [50 1600] \"float temperatureoffset\" 100 \"float temperaturescale\" 2 \"float Lescale\" [1 3]",
+    );
+    assert!(
+        d.warnings
+            .iter()
+            .any(|w| w.contains("\"temperature\"") && w.contains("approximated")),
+        "{:?}",
+        d.warnings
+    );
+    let (res, data) = grid(&d);
+    assert_eq!(res, [2, 1, 1]);
+    assert_eq!(&data[..3], &[0.0; 3], "(50 − 100)·2 K emits nothing");
+    let expected = super::spectrum::peak_normalized_blackbody_rgb(3000.0) * 3.0;
+    assert_eq!(&data[3..], &expected.to_array(), "(1600 − 100)·2 = 3000 K, × 3");
+    assert!(
+        expected.x > expected.y && expected.y > expected.z,
+        "3000 K is red: {expected}"
+    );
+
+    let e = crate::scene::pbrt::parse(
+        "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"float density\" [1 1] \"rgb Le\" [1 1 1] \"float temperature\" [2000 2000]\n",
+        Path::new("test.pbrt"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("test.pbrt:2:1") && e.contains("not both"), "{e}");
+    let e = crate::scene::pbrt::parse(
+        "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"float density\" [1 1] \"rgb Le\" [1 1 1] \"float Lescale\" [1 2 3]\n",
+        Path::new("test.pbrt"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("Lescale") && e.contains("needs 2 values"), "{e}");
+}
+
+/// The peak-normalised blackbody (pbrt-v4's `BlackbodySpectrum`) has the
+/// hue of the luminance-normalised one and the luminance ∫B̂ȳ/∫ȳ < 1,
+/// which grows with the temperature across the visible range.
+#[test]
+fn peak_normalized_blackbodies_are_dimmer_where_the_peak_leaves_the_visible() {
+    use super::spectrum::{blackbody_rgb, peak_normalized_blackbody_rgb};
+    let lum = |t: f32| crate::color::luminance(peak_normalized_blackbody_rgb(t));
+    for t in [1500.0, 3000.0, 6500.0] {
+        let (a, b) = (peak_normalized_blackbody_rgb(t), blackbody_rgb(t));
+        // blackbody_rgb has luminance 1: a is b times a's luminance.
+        assert!((a - b * lum(t)).abs().max_element() < 1e-5, "{t} K: {a} vs {b}");
+        assert!(lum(t) > 0.0 && lum(t) < 1.0, "{t} K: {}", lum(t));
+    }
+    assert!(lum(1500.0) < lum(3000.0) && lum(3000.0) < lum(6500.0));
+}
+
 #[test]
 fn include_is_token_level_so_statements_continue_after_it() {
     let dir = tempfile::tempdir().unwrap();
