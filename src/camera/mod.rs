@@ -19,6 +19,10 @@
 //! focus_distance = 6.8
 //! ```
 
+pub mod lens_system;
+
+pub use lens_system::LensSystem;
+
 use crate::geometry::{Ray, Transform};
 use crate::sampling::Sampler;
 use crate::sampling::warp::{equal_area_square_to_sphere, sample_disk_concentric};
@@ -63,6 +67,11 @@ pub enum Projection {
         /// How directions lie on the image.
         mapping: SphericalMapping,
     },
+    /// Rays from the film traced through a system of real lenses (pbrt-v4's
+    /// `RealisticCamera`; the [`LensSystem`] is the camera's). Its rays
+    /// carry weights and the lens blocks some: drawn by
+    /// [`Camera::generate_weighted_ray`]. Light paths do not connect to it.
+    Realistic,
 }
 
 /// How a spherical camera lays the sphere of directions on its image.
@@ -175,6 +184,8 @@ pub struct Camera {
     /// The full image's size in pixels, which a spherical camera's
     /// mapping spans.
     full_size: Vec2,
+    /// A realistic camera's lenses.
+    lens_system: Option<std::sync::Arc<LensSystem>>,
 }
 
 /// The perspective projection of pbrt-v4 (eq. 5.1): maps camera space to
@@ -255,8 +266,9 @@ impl Camera {
         let (camera_to_screen, half_h) = match projection {
             Projection::Perspective { fov_y } => (perspective_matrix(fov_y, 1e-2, 1000.0), 1.0),
             Projection::Orthographic { height } => (orthographic_matrix(0.0, 1.0), height / 2.0),
-            // Its rays come from its mapping; the matrices go unused.
-            Projection::Spherical { .. } => (orthographic_matrix(0.0, 1.0), 1.0),
+            // Their rays come from their mapping or their lenses; the
+            // matrices go unused.
+            Projection::Spherical { .. } | Projection::Realistic => (orthographic_matrix(0.0, 1.0), 1.0),
         };
         let half_w = half_h * aspect;
         // Screen (x right, y up) → raster (x right, y down).
@@ -300,7 +312,7 @@ impl Camera {
                 .vector(c10 - c00)
                 .cross(camera_to_world.vector(c01 - c00))
                 .length(),
-            Projection::Spherical { .. } => 4.0 * std::f32::consts::PI,
+            Projection::Spherical { .. } | Projection::Realistic => 4.0 * std::f32::consts::PI,
         };
         Ok(Camera {
             projection,
@@ -316,13 +328,14 @@ impl Camera {
             height: crop_height,
             offset: Vec2::new(x0f, y0f),
             full_size: Vec2::new(width as f32, height as f32),
+            lens_system: None,
         })
     }
 
     /// The same camera with a thin lens of the given radius focused at
     /// `focus_distance` (measured along the viewing direction).
     pub fn with_thin_lens(mut self, lens_radius: f32, focus_distance: f32) -> Camera {
-        if matches!(self.projection, Projection::Spherical { .. }) {
+        if matches!(self.projection, Projection::Spherical { .. } | Projection::Realistic) {
             return self;
         }
         self.lens_radius = lens_radius;
@@ -334,7 +347,7 @@ impl Camera {
     /// along its viewing axis, as Mitsuba's `near_clip` and `far_clip`: a
     /// ray starts where it crosses the near plane and ends at the far one.
     pub fn with_clipping(mut self, near: f32, far: f32) -> Camera {
-        if matches!(self.projection, Projection::Spherical { .. }) {
+        if matches!(self.projection, Projection::Spherical { .. } | Projection::Realistic) {
             return self;
         }
         self.clip = (near > 0.0 || far.is_finite()).then_some((near, far));
@@ -346,7 +359,7 @@ impl Camera {
     /// [`Camera::generate_ray`] then ignores) for a pinhole.
     #[inline]
     pub fn draw_lens(&self, sampler: &mut Sampler) -> Vec2 {
-        if self.lens_radius > 0.0 {
+        if self.lens_radius > 0.0 || self.lens_system.is_some() {
             sampler.next_2d()
         } else {
             sampler.skip_2d();
@@ -354,9 +367,46 @@ impl Camera {
         }
     }
 
+    /// The same camera seeing through `lenses` (a realistic camera).
+    pub fn with_lens_system(mut self, lenses: LensSystem) -> Camera {
+        self.projection = Projection::Realistic;
+        self.lens_system = Some(std::sync::Arc::new(lenses));
+        self
+    }
+
+    /// The ray through raster position `film` and lens sample `lens`, as
+    /// [`Camera::generate_ray`], with the weight of what it measures: 1
+    /// for every camera but a realistic one, whose rays carry cos⁴θ·A/d²
+    /// and which the lens can block (`None`).
+    #[inline]
+    pub fn generate_weighted_ray(&self, film: Vec2, lens: Vec2) -> Option<(Ray, f32)> {
+        let Some(lenses) = &self.lens_system else {
+            return Some((self.generate_ray(film, lens), 1.0));
+        };
+        let (o, d, weight) = lenses.ray((film + self.offset) / self.full_size, lens)?;
+        let ray = Ray::new(
+            self.camera_to_world.point(o),
+            self.camera_to_world.vector(d).normalize(),
+        );
+        Some((ray, weight))
+    }
+
     /// The ray through raster position `film` (pixels, continuous), using
-    /// `lens` ∈ [0,1)² to pick a point on the lens. Directions are unit length.
+    /// `lens` ∈ [0,1)² to pick a point on the lens. Directions are unit
+    /// length. A realistic camera gives the ray through the centre of its
+    /// exit pupil, or along its axis where the lens blocks that (for the
+    /// estimates that want a ray per pixel: a photon radius, an AOV).
     pub fn generate_ray(&self, film: Vec2, lens: Vec2) -> Ray {
+        if let Some(lenses) = &self.lens_system {
+            let at = |u: Vec2| lenses.ray((film + self.offset) / self.full_size, u);
+            let (o, d) = at(lens)
+                .or_else(|| at(Vec2::splat(0.5)))
+                .map_or((Vec3::ZERO, Vec3::Z), |(o, d, _)| (o, d));
+            return Ray::new(
+                self.camera_to_world.point(o),
+                self.camera_to_world.vector(d).normalize(),
+            );
+        }
         let ray = self.unclipped_ray(film, lens);
         match self.clip {
             None => ray,
@@ -393,7 +443,7 @@ impl Camera {
                 let p = self.raster_to_camera.m.transform_point3(p_film);
                 (Vec3::new(p.x, p.y, 0.0), Vec3::Z)
             }
-            Projection::Spherical { .. } => unreachable!("returned above"),
+            Projection::Spherical { .. } | Projection::Realistic => unreachable!("returned above"),
         };
         if self.lens_radius > 0.0 {
             // Thin lens: all rays through a point of the focal plane meet there.
@@ -465,7 +515,7 @@ impl Camera {
                 (raster, lens_world, 1.0)
             }
             // Refused before rendering (see `Camera::connects`).
-            Projection::Spherical { .. } => return None,
+            Projection::Spherical { .. } | Projection::Realistic => return None,
         };
         let raster = Vec2::new(raster.x, raster.y) - self.offset;
         let (w, h) = (self.width as f32, self.height as f32);
@@ -491,7 +541,7 @@ impl Camera {
         let weight = match self.projection {
             Projection::Perspective { .. } => 1.0 / (self.image_area * cos * cos * cos * dist * dist),
             Projection::Orthographic { .. } => 1.0 / self.image_area,
-            Projection::Spherical { .. } => return None,
+            Projection::Spherical { .. } | Projection::Realistic => return None,
         };
         weight.is_finite().then_some(CameraConnection {
             raster,
@@ -521,6 +571,7 @@ impl Camera {
             }
             Projection::Orthographic { .. } => 1.0 / self.image_area,
             Projection::Spherical { mapping } => mapping.pdf(self.camera_to_world.inv_vector(dir).normalize_or_zero()),
+            Projection::Realistic => 0.0,
         }
     }
 
@@ -545,7 +596,7 @@ impl Camera {
         match self.projection {
             Projection::Perspective { .. } => true,
             Projection::Orthographic { .. } => self.lens_radius <= 0.0,
-            Projection::Spherical { .. } => false,
+            Projection::Spherical { .. } | Projection::Realistic => false,
         }
     }
 }

@@ -482,9 +482,15 @@ fn limit_component(l: Rgb, max: f32) -> Rgb {
 
 /// Starts sample `index` of pixel `(x, y)` in `sampler` and draws its
 /// camera ray: the film position (anywhere in the pixel when splatting,
-/// else by the filter's importance) and the ray through it.
+/// else by the filter's importance), the ray through it and the ray's
+/// weight (1 but for a realistic camera's, 0 where its lens blocks it).
 #[inline(always)]
-fn camera_sample(scene: &Scene, splatting: bool, sampler: &mut Sampler, (x, y, index): (u32, u32, u32)) -> (Vec2, Ray) {
+fn camera_sample(
+    scene: &Scene,
+    splatting: bool,
+    sampler: &mut Sampler,
+    (x, y, index): (u32, u32, u32),
+) -> (Vec2, Ray, f32) {
     // A crop window's pixels draw the numbers of the full image's pixels
     // and find their positions there (the window's are those less its
     // corner, exactly, and the camera adds it back, exactly): they come
@@ -499,7 +505,10 @@ fn camera_sample(scene: &Scene, splatting: bool, sampler: &mut Sampler, (x, y, i
         Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + scene.settings.filter.sample(u)
     } - Vec2::new(cx as f32, cy as f32);
     let lens = scene.camera.draw_lens(sampler);
-    (position, scene.camera.generate_ray(position, lens))
+    match scene.camera.generate_weighted_ray(position, lens) {
+        Some((ray, weight)) => (position, ray, weight),
+        None => (position, scene.camera.generate_ray(position, lens), 0.0),
+    }
 }
 
 /// A tile's splats in this pass: the sums over its pixels and margin, and
@@ -647,8 +656,13 @@ fn render_passes<I: Integrator>(
                         let mut sum = PixelSum::default();
                         let mut aov = AovSum::default();
                         for index in first..end {
-                            let (position, ray) = camera_sample(scene, splat.is_some(), &mut sampler, (x, y, index));
-                            let l = integrator.radiance(scene, &ray, &mut sampler, &mut rays);
+                            let (position, ray, weight) =
+                                camera_sample(scene, splat.is_some(), &mut sampler, (x, y, index));
+                            let l = if weight > 0.0 {
+                                integrator.radiance(scene, &ray, &mut sampler, &mut rays) * weight
+                            } else {
+                                Rgb::ZERO
+                            };
                             if l.is_finite() {
                                 let l = limit_component(l, max_component);
                                 match &splat {

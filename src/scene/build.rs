@@ -413,6 +413,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         ProjectionDesc::Perspective { fov } => Projection::Perspective { fov_y: fov },
         ProjectionDesc::Orthographic { size } => Projection::Orthographic { height: size },
         ProjectionDesc::Spherical { mapping } => Projection::Spherical { mapping },
+        ProjectionDesc::Realistic { .. } => Projection::Realistic,
     };
     let camera_to_world = match cam.to_world {
         Some(m) => Transform::from_matrix(m)
@@ -436,8 +437,37 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
         )
         .with_clipping(cam.near_clip, cam.far_clip);
+    let camera = match &cam.projection {
+        ProjectionDesc::Realistic {
+            lenses,
+            aperture_diameter,
+            focus_distance,
+            film_diagonal,
+        } => {
+            if s.integrator == crate::settings::IntegratorKind::Sppm {
+                return Err(Error::scene(
+                    cam.locs.item.clone(),
+                    "camera",
+                    "\"sppm\" cannot trace its camera paths through a realistic camera's lenses (pbrt-v4's cannot either): use the path tracer, Whitted, photon mapping or ambient occlusion",
+                ));
+            }
+            let lenses = crate::camera::LensSystem::new(
+                lenses,
+                *aperture_diameter,
+                *focus_distance,
+                *film_diagonal,
+                (full_width, full_height),
+            )
+            .map_err(|m| Error::scene(cam.locs.key("lens"), "camera.lens", m))?;
+            camera.with_lens_system(lenses)
+        }
+        _ => camera,
+    };
     if s.integrator.splats_light_paths() && !camera.connects() {
         let why = match projection {
+            Projection::Realistic => {
+                "a realistic camera (it has no importance to connect to, nor has pbrt-v4's): use the path tracer, Whitted, photon mapping or ambient occlusion"
+            }
             Projection::Spherical { .. } => {
                 "a spherical camera (it has no importance to connect to, nor has pbrt-v4's): use the path tracer, Whitted, photon mapping or SPPM"
             }

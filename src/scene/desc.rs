@@ -46,7 +46,7 @@ impl Locs {
 }
 
 /// Camera projection as described.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum ProjectionDesc {
     /// Perspective with vertical field of view in degrees.
     Perspective {
@@ -63,6 +63,20 @@ pub enum ProjectionDesc {
     Spherical {
         /// How directions lie on the image.
         mapping: crate::camera::SphericalMapping,
+    },
+    /// A system of real lenses (see [`crate::camera::LensSystem`]).
+    Realistic {
+        /// The lens description's numbers (mm): curvature radius,
+        /// thickness, index and aperture diameter per interface, from the
+        /// scene's side to the film's.
+        lenses: Vec<f32>,
+        /// The aperture stop's diameter (mm), at most the description's.
+        aperture_diameter: f32,
+        /// Distance from the film to the plane in focus (scene units, as
+        /// metres).
+        focus_distance: f32,
+        /// The film's diagonal (m).
+        film_diagonal: f32,
     },
 }
 
@@ -1853,6 +1867,16 @@ impl SceneDesc {
             }
             ProjectionDesc::Orthographic { size } => c.positive("size", size)?,
             ProjectionDesc::Spherical { .. } => {}
+            ProjectionDesc::Realistic {
+                aperture_diameter,
+                focus_distance,
+                film_diagonal,
+                ..
+            } => {
+                c.positive("aperture_diameter", aperture_diameter)?;
+                c.positive("focus_distance", focus_distance)?;
+                c.positive("film_diagonal", film_diagonal)?;
+            }
         }
         c.non_negative("aperture_radius", cam.aperture_radius)?;
         c.non_negative("near_clip", cam.near_clip)?;

@@ -73,6 +73,65 @@ AttributeEnd
     assert!(left.y > 20.0 * left.x, "mirrored: {left}");
 }
 
+/// A realistic camera (a lens description file, `aperturediameter`,
+/// `focusdistance`, the film's `diagonal`) sees the scene as the
+/// perspective camera of the same `LookAt` does, upright and unmirrored (the
+/// lens inverts the image onto the film; pbrt-v4 reads the film back); the
+/// integrators that connect light paths to the camera refuse it, and a
+/// missing lens file is an error naming it.
+#[test]
+fn realistic_cameras_see_the_scene_as_the_perspective_camera_does() {
+    let dir = tempfile::tempdir().unwrap();
+    // A biconvex singlet (f ≈ 100 mm) and its stop: radius, thickness,
+    // index, aperture diameter in millimetres.
+    fs::write(
+        dir.path().join("singlet.dat"),
+        "# a simple lens\n100 10 1.5 40\n-100 1 1 40\n0 50 0 20\n",
+    )
+    .unwrap();
+    let scene = |camera: &str| {
+        let text = format!(
+            "LookAt 0 0 5  0 0 0  0 1 0\n{camera}\n\
+             Film \"rgb\" \"integer xresolution\" 48 \"integer yresolution\" 24 \"float diagonal\" 100\n\
+             Sampler \"independent\" \"integer pixelsamples\" 16\nIntegrator \"path\" \"integer maxdepth\" 1\nWorldBegin\n\
+             LightSource \"distant\" \"point3 from\" [0 0 5] \"point3 to\" [0 0 0] \"rgb L\" [3 3 3]\n\
+             AttributeBegin\nMaterial \"diffuse\" \"rgb reflectance\" [0.8 0 0]\nTranslate 1.2 0.8 0\nShape \"sphere\" \"float radius\" 0.6\nAttributeEnd\n\
+             AttributeBegin\nMaterial \"diffuse\" \"rgb reflectance\" [0 0.8 0]\nTranslate -1.2 -0.8 0\nShape \"sphere\" \"float radius\" 0.6\nAttributeEnd\n"
+        );
+        let path = dir.path().join("scene.pbrt");
+        fs::write(&path, text).unwrap();
+        trazo::scene::load(&path, &[])
+    };
+    let realistic = scene(
+        "Camera \"realistic\" \"string lensfile\" \"singlet.dat\" \"float aperturediameter\" 10 \"float focusdistance\" 5",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert!(realistic.warnings.is_empty(), "{:?}", realistic.warnings);
+    let film = render_desc(&realistic);
+    let quadrant = |f: &Film, x0: u32, y0: u32| region_mean(f, (x0, x0 + 24), (y0, y0 + 12));
+    // Red at world +x, up: pbrt's LookAt puts +x on the left, so top left.
+    let (tl, br) = (quadrant(&film, 0, 0), quadrant(&film, 24, 12));
+    assert!(tl.x > 0.0 && tl.x > 10.0 * tl.y, "top left is red: {tl}");
+    assert!(br.y > 0.0 && br.y > 10.0 * br.x, "bottom right is green: {br}");
+    let (tr, bl) = (quadrant(&film, 24, 0), quadrant(&film, 0, 12));
+    assert!(
+        tr.max_element() < 0.1 * tl.x && bl.max_element() < 0.1 * br.y,
+        "{tr} {bl}"
+    );
+
+    let mut bdpt = realistic.clone();
+    bdpt.settings.integrator = trazo::settings::IntegratorKind::from_name("bdpt").unwrap();
+    let Err(e) = trazo::scene::build(&bdpt) else {
+        panic!("BDPT refuses it")
+    };
+    let e = e.to_string();
+    assert!(e.contains("realistic camera"), "{e}");
+    let e = scene("Camera \"realistic\" \"string lensfile\" \"missing.dat\"")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("missing.dat"), "{e}");
+}
+
 /// pbrt's `fov` spans the shorter image axis: the rays through the middle
 /// of the image's edges show it.
 #[test]
@@ -453,10 +512,10 @@ fn spherical_cameras_map_directions_as_pbrt_v4() {
     let centre = built.camera.generate_ray(Vec2::new(20.0, 10.0), Vec2::ZERO).dir;
     assert!(near(centre, Vec3::Y), "{centre}");
     desc.settings.integrator = trazo::settings::IntegratorKind::from_name("bdpt").unwrap();
-    let e = trazo::scene::build(&desc)
-        .err()
-        .expect("BDPT cannot use a spherical camera")
-        .to_string();
+    let Err(e) = trazo::scene::build(&desc) else {
+        panic!("BDPT cannot use a spherical camera")
+    };
+    let e = e.to_string();
     assert!(e.contains("spherical camera"), "{e}");
 
     let e = trazo::scene::pbrt::parse(

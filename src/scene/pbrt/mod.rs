@@ -295,6 +295,9 @@ struct CameraDef {
     /// The CTM at `Camera`: camera-from-world.
     ctm: Mat4,
     loc: Option<SourceLoc>,
+    /// The folder of the file it is in, relative to the top file's
+    /// (a realistic camera's lens file is found from it).
+    dir_rel: PathBuf,
 }
 
 /// The reader's state while it walks the files.
@@ -311,6 +314,9 @@ struct Parser {
     camera: CameraDef,
     /// ISO of the film: exposure multiplies by ISO/100 (pbrt-v4 `PixelSensor`).
     film_iso: f32,
+    /// The film's diagonal in millimetres (`Film` `diagonal`, 35), which a
+    /// realistic camera's image spans.
+    film_diagonal_mm: f32,
     materials: Vec<MatDef>,
     named_materials: HashMap<String, usize>,
     spectrum_textures: HashMap<String, SourceLoc>,
@@ -384,8 +390,10 @@ impl Parser {
                 params: ParamList::default(),
                 ctm: Mat4::IDENTITY,
                 loc: None,
+                dir_rel: PathBuf::new(),
             },
             film_iso: 100.0,
+            film_diagonal_mm: 35.0,
             materials: Vec::new(),
             named_materials: HashMap::new(),
             spectrum_textures: HashMap::new(),
@@ -695,6 +703,7 @@ impl Parser {
                     params,
                     ctm: self.gs.ctm,
                     loc: Some(loc),
+                    dir_rel: dir_rel.to_path_buf(),
                 };
                 // pbrt-v4: the camera is in the outside medium current here.
                 self.desc.camera_medium = self.gs.media.1.clone();
@@ -1252,7 +1261,9 @@ impl Parser {
         // Materials: each used (material, emission) pair becomes one of
         // trazo's materials; named materials are all kept.
         let mut names: HashSet<String> = HashSet::new();
-        let mut made: HashMap<(Option<usize>, Option<([u32; 3], bool)>), String> = HashMap::new();
+        // (material, emitted radiance's bits and whether both sides emit).
+        type Made = (Option<usize>, Option<([u32; 3], bool)>);
+        let mut made: HashMap<Made, String> = HashMap::new();
         let mut named: Vec<(usize, String)> = self.named_materials.iter().map(|(n, &i)| (i, n.clone())).collect();
         named.sort();
         for (i, n) in named {

@@ -52,6 +52,12 @@ impl Parser {
                 .push(("max_component_value".into(), prm.loc.clone()));
             self.desc.settings.max_component_value = m;
         }
+        if let Some((d, prm)) = p.float_opt("diagonal")? {
+            if !(d > 0.0 && d.is_finite()) {
+                return Err(prm.err(format!("must be positive, got {d}")));
+            }
+            self.film_diagonal_mm = d;
+        }
         if let Some((iso, prm)) = p.float_opt("iso")? {
             if iso <= 0.0 {
                 return Err(prm.err(format!("must be positive, got {iso}")));
@@ -417,6 +423,51 @@ impl Parser {
         Ok(())
     }
 
+    /// A `Camera "realistic"`: its lens description (`lensfile`, found as
+    /// textures are: numbers in millimetres, four per interface, `#`
+    /// comments), `aperturediameter` (1 mm) and `focusdistance` (10), over
+    /// the film's `diagonal`.
+    fn realistic_camera(
+        &mut self,
+        p: &ParamList,
+        dir_rel: &std::path::Path,
+        locs: &mut Locs,
+    ) -> Result<ProjectionDesc> {
+        let Some((file, prm)) = p.string("lensfile")? else {
+            let l = self.camera.loc.clone().unwrap_or_else(|| self.desc_loc());
+            return Err(Error::scene(
+                Some(l),
+                "lensfile",
+                "a realistic camera needs a \"string lensfile\" (its lens description)",
+            ));
+        };
+        locs.keys.push(("lens".into(), prm.loc.clone()));
+        let path = self.top_dir.join(self.resolve(dir_rel, &file));
+        let text = crate::files::read_limited(&path, crate::files::MAX_SCENE_BYTES)
+            .map_err(|e| prm.err(format!("cannot read the lens description {}: {e}", path.display())))?;
+        let mut lenses = Vec::new();
+        for (n, line) in String::from_utf8_lossy(&text).lines().enumerate() {
+            for word in line.split('#').next().unwrap_or("").split_whitespace() {
+                let x: f32 = word
+                    .parse()
+                    .map_err(|_| prm.err(format!("{}:{}: \"{word}\" is not a number", path.display(), n + 1)))?;
+                lenses.push(x);
+            }
+        }
+        let aperture_diameter = p.float("aperturediameter", 1.0)?;
+        let focus_distance = p.float("focusdistance", 10.0)?;
+        if let Some(prm) = p.find("aperture") {
+            let l = prm.loc.clone();
+            self.unsupported(&l, "\"string aperture\" (a shaped diaphragm)", "the stop is round");
+        }
+        Ok(ProjectionDesc::Realistic {
+            lenses,
+            aperture_diameter,
+            focus_distance,
+            film_diagonal: self.film_diagonal_mm / 1000.0,
+        })
+    }
+
     /// Converts the camera once the film size is known (pbrt-v4 creates it
     /// at WorldBegin too).
     pub(super) fn finish_options(&mut self) -> Result<()> {
@@ -475,6 +526,7 @@ impl Parser {
         }
         let projection = match cam.kind.as_str() {
             "orthographic" => ProjectionDesc::Orthographic { size: 2.0 * half_h },
+            "realistic" => self.realistic_camera(p, &cam.dir_rel, &mut locs)?,
             "spherical" => {
                 let mapping = match p.string("mapping")? {
                     None => SphericalMapping::EqualArea,

@@ -1455,7 +1455,7 @@ fn structural_errors_name_the_place() {
 #[test]
 fn unsupported_parameters_and_directives_warn_with_positions() {
     let d = parse_str(
-        r#"Film "rgb" "string filename" "out.exr" "float diagonal" 35
+        r#"Film "rgb" "string filename" "out.exr" "bool savefp16" true
 Accelerator "kdtree"
 Option "disablepixeljitter" true
 WorldBegin
@@ -1468,7 +1468,7 @@ WorldEnd"#,
     let w = d.warnings.join("\n");
     for expected in [
         "test.pbrt:1:12: \"string filename\" \"out.exr\" is unsupported",
-        "test.pbrt:1:40: parameter \"float diagonal\" of Film \"rgb\" is unsupported: ignored",
+        "test.pbrt:1:40: parameter \"bool savefp16\" of Film \"rgb\" is unsupported: ignored",
         "test.pbrt:2:1: Accelerator \"kdtree\" is unsupported",
         "test.pbrt:3:1: Option \"disablepixeljitter\" is unsupported",
         "test.pbrt:7:16: parameter \"float alpha\" of Shape \"sphere\" is unsupported: ignored",
