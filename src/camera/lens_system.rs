@@ -141,21 +141,12 @@ impl LensSystem {
         for i in (0..self.interfaces.len()).rev() {
             let e = self.interfaces[i];
             z -= e.thickness;
-            let (t, n) = intersect_interface(e.curvature_radius, z, o, d)?;
-            let p = o + d * t;
-            if p.x * p.x + p.y * p.y > e.aperture_radius * e.aperture_radius {
-                return None;
-            }
-            o = p;
-            if let Some(n) = n {
-                let eta_i = air_if_zero(e.eta);
-                let eta_t = if i > 0 {
-                    air_if_zero(self.interfaces[i - 1].eta)
-                } else {
-                    1.0
-                };
-                d = refract((-d).normalize(), n, eta_t / eta_i)?;
-            }
+            let ahead = if i > 0 {
+                air_if_zero(self.interfaces[i - 1].eta)
+            } else {
+                1.0
+            };
+            (o, d) = cross_interface(&e, z, o, d, air_if_zero(e.eta), ahead)?;
         }
         Some((o * Vec3::new(1.0, 1.0, -1.0), d * Vec3::new(1.0, 1.0, -1.0)))
     }
@@ -166,21 +157,12 @@ impl LensSystem {
         let (mut o, mut d) = (o * Vec3::new(1.0, 1.0, -1.0), d * Vec3::new(1.0, 1.0, -1.0));
         let mut z = -self.front_z();
         for (i, e) in self.interfaces.iter().enumerate() {
-            let (t, n) = intersect_interface(e.curvature_radius, z, o, d)?;
-            let p = o + d * t;
-            if p.x * p.x + p.y * p.y > e.aperture_radius * e.aperture_radius {
-                return None;
-            }
-            o = p;
-            if let Some(n) = n {
-                let eta_i = if i > 0 {
-                    air_if_zero(self.interfaces[i - 1].eta)
-                } else {
-                    1.0
-                };
-                let eta_t = air_if_zero(e.eta);
-                d = refract((-d).normalize(), n, eta_t / eta_i)?;
-            }
+            let before = if i > 0 {
+                air_if_zero(self.interfaces[i - 1].eta)
+            } else {
+                1.0
+            };
+            (o, d) = cross_interface(e, z, o, d, before, air_if_zero(e.eta))?;
             z += e.thickness;
         }
         Some((o * Vec3::new(1.0, 1.0, -1.0), d * Vec3::new(1.0, 1.0, -1.0)))
@@ -271,6 +253,23 @@ impl LensSystem {
         let cos_theta = d.normalize().z;
         let weight = cos_theta.powi(4) * area / (self.rear_z() * self.rear_z());
         Some((o, dir.normalize(), weight))
+    }
+}
+
+/// The ray (lens space) `o + t·d` across interface `e`, whose vertex lies
+/// at `z`, from the medium of index `eta_from` into that of `eta_to`:
+/// from the point where it meets the interface, refracted (the stop only
+/// limits it); `None` where the interface's opening blocks it or it is
+/// reflected totally.
+fn cross_interface(e: &Interface, z: f32, o: Vec3, d: Vec3, eta_from: f32, eta_to: f32) -> Option<(Vec3, Vec3)> {
+    let (t, n) = intersect_interface(e.curvature_radius, z, o, d)?;
+    let p = o + d * t;
+    if p.x * p.x + p.y * p.y > e.aperture_radius * e.aperture_radius {
+        return None;
+    }
+    match n {
+        Some(n) => Some((p, refract((-d).normalize(), n, eta_to / eta_from)?)),
+        None => Some((p, d)),
     }
 }
 

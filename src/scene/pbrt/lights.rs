@@ -155,6 +155,41 @@ impl Parser {
         Ok(())
     }
 
+    /// The texture of a light's image file, read at the nearest pixel and
+    /// clamped at its edges as pbrt-v4's lights read their images, under a
+    /// name no scene can write; `top_at_v0` reads v = 0 at its top row.
+    fn light_image(
+        &mut self,
+        kind: &str,
+        file: &str,
+        file_loc: SourceLoc,
+        loc: &SourceLoc,
+        dir_rel: &Path,
+        top_at_v0: bool,
+    ) -> Result<String> {
+        let name = format!("\u{0}{kind} {}", self.desc.textures.len());
+        let (scale, offset) = if top_at_v0 {
+            (glam::Vec2::new(1.0, -1.0), glam::Vec2::new(0.0, 1.0))
+        } else {
+            (glam::Vec2::ONE, glam::Vec2::ZERO)
+        };
+        let kind = TextureKind::Image {
+            source: ImageSource::File(self.resolve(dir_rel, file)),
+            scale,
+            offset,
+            srgb: None,
+            tint: Rgb::ONE,
+            wrap: crate::texture::WrapMode::Clamp,
+            filter: crate::texture::ImageFilter::Nearest,
+        };
+        let locs = Locs {
+            item: Some(loc.clone()),
+            keys: vec![("file".into(), file_loc)],
+        };
+        self.push_texture(&name, loc, locs, (kind, Rgb::ONE))?;
+        Ok(name)
+    }
+
     /// `LightSource "goniometric"` with an image: pbrt-v4's
     /// `GoniometricLight`, at the origin of the light's space (it reads no
     /// `from`), its square equal-area image's centre toward the light
@@ -183,28 +218,8 @@ impl Parser {
         let ctm = self.gs.ctm;
         let position = place(&ctm, Vec3::ZERO).ok_or_else(|| at_infinity(loc))?;
         let swap_yz = glam::Mat3::from_cols(Vec3::X, Vec3::Z, Vec3::Y);
-        let texture = format!("\u{0}goniometric {}", self.desc.textures.len());
         locs.keys.push(("image".into(), file_loc.clone()));
-        self.push_texture(
-            &texture,
-            loc,
-            Locs {
-                item: Some(loc.clone()),
-                keys: vec![("file".into(), file_loc)],
-            },
-            (
-                TextureKind::Image {
-                    source: ImageSource::File(self.resolve(dir_rel, &file)),
-                    scale: glam::Vec2::ONE,
-                    offset: glam::Vec2::ZERO,
-                    srgb: None,
-                    tint: Rgb::ONE,
-                    wrap: crate::texture::WrapMode::Clamp,
-                    filter: crate::texture::ImageFilter::Nearest,
-                },
-                Rgb::ONE,
-            ),
-        )?;
+        let texture = self.light_image("goniometric", &file, file_loc, loc, dir_rel, false)?;
         Ok(LightKind::Goniometric {
             position,
             to_world: glam::Mat3::from_mat4(ctm) * swap_yz,
@@ -255,29 +270,9 @@ impl Parser {
         // trazo's projector frame has +x toward the image's left, pbrt-v4's
         // light space toward its right.
         let to_world = glam::Mat3::from_mat4(ctm) * glam::Mat3::from_diagonal(Vec3::new(-1.0, 1.0, 1.0));
-        let texture = format!("\u{0}projection {}", self.desc.textures.len());
         locs.keys.push(("irradiance".into(), file_loc.clone()));
-        self.push_texture(
-            &texture,
-            loc,
-            Locs {
-                item: Some(loc.clone()),
-                keys: vec![("file".into(), file_loc)],
-            },
-            (
-                TextureKind::Image {
-                    source: ImageSource::File(self.resolve(dir_rel, &file)),
-                    // The projector reads v = 0 at the image's top.
-                    scale: glam::Vec2::new(1.0, -1.0),
-                    offset: glam::Vec2::new(0.0, 1.0),
-                    srgb: None,
-                    tint: Rgb::ONE,
-                    wrap: crate::texture::WrapMode::Clamp,
-                    filter: crate::texture::ImageFilter::Nearest,
-                },
-                Rgb::ONE,
-            ),
-        )?;
+        // The projector reads v = 0 at the image's top.
+        let texture = self.light_image("projection", &file, file_loc, loc, dir_rel, true)?;
         Ok(LightKind::Projector {
             position,
             to_world,
