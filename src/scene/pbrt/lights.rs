@@ -205,14 +205,7 @@ impl Parser {
         if let Some(l) = iloc {
             locs.keys.push(("intensity".into(), l));
         }
-        let scale = p.float("scale", 1.0)?;
-        if !(scale.is_finite() && scale >= 0.0) {
-            return Err(p
-                .find("scale")
-                .expect("read")
-                .err(format!("must be a non-negative number, got {scale}")));
-        }
-        let power = p.float_opt("power")?.map(|(w, _)| w).filter(|&w| w > 0.0);
+        let (scale, power) = scale_and_power(p)?;
         let (file, file_prm) = p.string("filename")?.expect("the caller checked");
         let file_loc = file_prm.loc.clone();
         let ctm = self.gs.ctm;
@@ -249,14 +242,7 @@ impl Parser {
             ));
         };
         let file_loc = file_prm.loc.clone();
-        let scale = p.float("scale", 1.0)?;
-        if !(scale.is_finite() && scale >= 0.0) {
-            return Err(p
-                .find("scale")
-                .expect("read")
-                .err(format!("must be a non-negative number, got {scale}")));
-        }
-        let power = p.float_opt("power")?.map(|(w, _)| w).filter(|&w| w > 0.0);
+        let (scale, power) = scale_and_power(p)?;
         let fov = p.float("fov", 90.0)?;
         if !(fov > 0.0 && fov < 180.0) {
             return Err(p
@@ -443,6 +429,20 @@ fn place(m: &Mat4, p: Vec3) -> Option<Vec3> {
         return None;
     }
     Some((h.truncate() / h.w).as_vec3()).filter(|v| v.is_finite())
+}
+
+/// A light's `scale` (1; non-negative) and its `power` where positive
+/// (pbrt-v4 reads 0 or less as none).
+fn scale_and_power(p: &ParamList) -> Result<(f32, Option<f32>)> {
+    let scale = p.float("scale", 1.0)?;
+    if !(scale.is_finite() && scale >= 0.0) {
+        return Err(p
+            .find("scale")
+            .expect("read")
+            .err(format!("must be a non-negative number, got {scale}")));
+    }
+    let power = p.float_opt("power")?.map(|(w, _)| w).filter(|&w| w > 0.0);
+    Ok((scale, power))
 }
 
 fn at_infinity(loc: &SourceLoc) -> Error {
