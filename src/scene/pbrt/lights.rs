@@ -283,7 +283,7 @@ impl Parser {
             self.unsupported(
                 &l,
                 "\"portal\" of an infinite light",
-                "portals only guide sampling; ignored",
+                "pbrt-v4 lets the map's light in through the portal only (a ray that misses it sees black); trazo lights the scene from the whole map",
             );
         }
         let illuminance = p.float_opt("illuminance")?.map(|(e, _)| e).filter(|&e| e > 0.0);
