@@ -431,23 +431,14 @@ impl Material {
         if diffuse != zero && specular == zero && reflectivity == Rgb::ZERO && transmission == Rgb::ZERO {
             return Material::plain(MaterialKind::Diffuse { reflectance: diffuse });
         }
-        Material {
-            kind: MaterialKind::Classic {
-                diffuse,
-                specular,
-                shininess,
-                reflectivity,
-                transmission,
-                ior,
-            },
-            emission: Texture::Constant(Rgb::ZERO),
-            emits_both_sides: false,
-            two_sided: true,
-            opacity: None,
-            normal_map: None,
-            bump_map: None,
-            roughness_map: None,
-        }
+        Material::plain(MaterialKind::Classic {
+            diffuse,
+            specular,
+            shininess,
+            reflectivity,
+            transmission,
+            ior,
+        })
     }
 
     /// A plain diffuse (classical) material.
@@ -481,25 +472,16 @@ impl Material {
         } else {
             0.5
         };
-        Material {
-            kind: MaterialKind::Plastic {
-                diffuse,
-                eta,
-                microfacet,
-                specular_tint,
-                nonlinear,
-                specular_weight,
-                smooth_internal_reflectance: plastic::smooth_internal_reflectance(eta),
-                tables: (!microfacet.is_smooth()).then(|| Box::new(CoatTables::new(&microfacet, eta))),
-            },
-            emission: Texture::Constant(Rgb::ZERO),
-            emits_both_sides: false,
-            two_sided: true,
-            opacity: None,
-            normal_map: None,
-            bump_map: None,
-            roughness_map: None,
-        }
+        Material::plain(MaterialKind::Plastic {
+            diffuse,
+            eta,
+            microfacet,
+            specular_tint,
+            nonlinear,
+            specular_weight,
+            smooth_internal_reflectance: plastic::smooth_internal_reflectance(eta),
+            tables: (!microfacet.is_smooth()).then(|| Box::new(CoatTables::new(&microfacet, eta))),
+        })
     }
 
     /// Whether light passes through the surface.

@@ -934,18 +934,12 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             transmit_tint: *transmit_tint,
         }),
         MaterialKindDesc::Principled { params, eta, thin } => Material {
-            kind: MaterialKind::Principled {
+            two_sided: *thin,
+            ..Material::plain(MaterialKind::Principled {
                 params: Box::new(params.map(color)),
                 eta: *eta,
                 thin: *thin,
-            },
-            emission: Texture::Constant(Rgb::ZERO),
-            emits_both_sides: false,
-            two_sided: *thin,
-            opacity: None,
-            normal_map: None,
-            bump_map: None,
-            roughness_map: None,
+            })
         },
         // Replaced by `resolve_mixes` once every material is made.
         MaterialKindDesc::Mix { .. } => Material::default(),
