@@ -39,7 +39,7 @@ pub fn camera_aov(scene: &Scene, camera_ray: &Ray) -> AovSample {
         let m = &scene.materials[hit.material as usize];
         let mut parts = None;
         let bsdf = scene.bsdf(hit.material, &TexCoord::at(&hit), &mut parts);
-        let frame = m.shading_frame(&scene.images, &hit, wo_world);
+        let frame = m.shading_frame(&scene.textures, &hit, wo_world);
         let facing = if frame.n.dot(wo_world) < 0.0 { -frame.n } else { frame.n };
         if bsdf.has_smooth() || bounce == MAX_SPECULAR_CHAIN {
             out.albedo = throughput * bsdf.albedo();

@@ -479,12 +479,12 @@ fn trace_path(
         let tc = TexCoord::at(&hit);
         // A mask's cut-out part lets the light through unchanged, as
         // the path tracer's camera paths pass it.
-        if m.cut_out(&scene.images, &tc, || rng.next_f32()) {
+        if m.cut_out(&scene.textures, &tc, || rng.next_f32()) {
             ray = hit.spawn_ray(ray.dir);
             segments += 1;
             continue;
         }
-        let bsdf = m.bsdf(&scene.images, &tc);
+        let bsdf = m.bsdf(&scene.textures, &tc);
         let wo_world = -ray.dir.normalize();
         if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
             return; // the back of a one-sided surface absorbs
@@ -493,7 +493,7 @@ fn trace_path(
         if ng_wo == 0.0 {
             return;
         }
-        let frame = m.shading_frame(&scene.images, &hit, wo_world);
+        let frame = m.shading_frame(&scene.textures, &hit, wo_world);
         let wo = frame.to_local(wo_world);
         let front_o = ng_wo > 0.0;
         // The adjoint BSDF with shading normals (Veach 1997, eq. 5.21)

@@ -112,7 +112,7 @@ impl Integrator for PathTracer {
                     }
                     _ => 1.0,
                 };
-                l += beta * m.emission_at(&scene.images, &TexCoord::at(&hit)) * w;
+                l += beta * m.emission_at(&scene.textures, &TexCoord::at(&hit)) * w;
             }
             if depth == self.max_depth {
                 break;
@@ -123,7 +123,7 @@ impl Integrator for PathTracer {
             // goes on unchanged (a bounce, as Mitsuba's path counts it).
             // Shadow rays do not see through masks (nor do Mitsuba's), so
             // only this way finds the light behind them: weight 1.
-            if m.cut_out(&scene.images, &tc, || sampler.next_1d()) {
+            if m.cut_out(&scene.textures, &tc, || sampler.next_1d()) {
                 prev_delta = true;
                 ray = hit.spawn_ray(ray.dir);
                 depth += 1;
@@ -131,7 +131,7 @@ impl Integrator for PathTracer {
             }
             let mut parts = None;
             let bsdf = scene.bsdf(hit.material, &tc, &mut parts);
-            let frame = m.shading_frame(&scene.images, &hit, wo_world);
+            let frame = m.shading_frame(&scene.textures, &hit, wo_world);
             let wo = frame.to_local(wo_world);
             if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
                 break; // the back of a one-sided surface is black

@@ -186,10 +186,10 @@ impl VolPathTracer {
                 let tc = TexCoord::at(h);
                 // Light passes a mask's cut-out part (1 − α) and what the
                 // surface itself lets through unchanged.
-                let alpha = m.opacity_at(&scene.images, &tc);
+                let alpha = m.opacity_at(&scene.textures, &tc);
                 let sheet = if thin {
-                    let frame = m.shading_frame(&scene.images, h, -dir);
-                    m.bsdf(&scene.images, &tc).pass_through(frame.to_local(-dir))
+                    let frame = m.shading_frame(&scene.textures, h, -dir);
+                    m.bsdf(&scene.textures, &tc).pass_through(frame.to_local(-dir))
                 } else {
                     Rgb::ZERO
                 };
@@ -295,7 +295,7 @@ impl Integrator for VolPathTracer {
             let m = &scene.materials[hit.material as usize];
             let wo_world = -dir;
             if m.is_emissive() && shows_emission && m.emits_toward(&hit, wo_world) {
-                let le = m.emission_at(&scene.images, &TexCoord::at(&hit));
+                let le = m.emission_at(&scene.textures, &TexCoord::at(&hit));
                 let (prev_p, prev_n) = (s.prev_p, s.prev_n);
                 self.add_emission(&mut s, le, || match hit.light {
                     Some(li) => {
@@ -313,7 +313,7 @@ impl Integrator for VolPathTracer {
             // A surface that is not there, or a mask's cut-out part
             // (chosen with probability 1 − α): the path goes on unchanged,
             // no bounce.
-            let cut_out = m.cut_out(&scene.images, &TexCoord::at(&hit), || sampler.next_1d());
+            let cut_out = m.cut_out(&scene.textures, &TexCoord::at(&hit), || sampler.next_1d());
             if cut_out || matches!(m.kind, MaterialKind::Thin { eta, .. } if eta == 1.0) {
                 medium = cross(medium, dir);
                 ray = hit.spawn_ray(dir);
@@ -323,7 +323,7 @@ impl Integrator for VolPathTracer {
             let tc = TexCoord::at(&hit);
             let mut parts = None;
             let bsdf = scene.bsdf(hit.material, &tc, &mut parts);
-            let frame = m.shading_frame(&scene.images, &hit, wo_world);
+            let frame = m.shading_frame(&scene.textures, &hit, wo_world);
             let wo = frame.to_local(wo_world);
             if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
                 return s.l; // the back of a one-sided surface is black

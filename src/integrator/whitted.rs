@@ -72,7 +72,7 @@ impl Whitted {
         let wo = -ray.dir.normalize();
         let tc = TexCoord::at(&hit);
         let mut l = if m.emits_toward(&hit, wo) && shows_emission {
-            m.emission_at(&scene.images, &tc)
+            m.emission_at(&scene.textures, &tc)
         } else {
             Rgb::ZERO
         };
@@ -82,9 +82,9 @@ impl Whitted {
 
         // Surfaces shade on both sides: the shading normal (a normal map's,
         // where the material has one) faces the viewer.
-        let ns = m.shading_frame(&scene.images, &hit, wo).n;
+        let ns = m.shading_frame(&scene.textures, &hit, wo).n;
         let n = if ns.dot(wo) < 0.0 { -ns } else { ns };
-        let c = m.classic(&scene.images, &tc);
+        let c = m.classic(&scene.textures, &tc);
         let (kd, ks) = (c.kd, c.ks);
 
         l += scene.ambient * kd;
@@ -162,7 +162,7 @@ fn shadow_transmittance(scene: &Scene, hit: &SurfaceHit, ls: &LightSample, stats
         if !m.is_transmissive() {
             return Rgb::ZERO;
         }
-        let c = m.classic(&scene.images, &TexCoord::at(&s));
+        let c = m.classic(&scene.textures, &TexCoord::at(&s));
         let cos = s.ns.dot(-ray.dir.normalize());
         transmittance *= c.kt * (1.0 - fresnel_dielectric(cos, c.ior));
         if transmittance == Rgb::ZERO {

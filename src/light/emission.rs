@@ -148,7 +148,7 @@ impl Light {
                 let cone = profile.eval(*cos_inner, *cos_outer, local.z);
                 let dir = Frame::from_normal(*direction).to_world(local);
                 let intensity = match projection {
-                    Some(image) => *intensity * image.eval(&scene.images, dir),
+                    Some(image) => *intensity * image.eval(&scene.textures, dir),
                     None => *intensity,
                 };
                 (
@@ -157,7 +157,7 @@ impl Light {
                 )
             }
             Light::Projector(proj) => {
-                let (power, dir) = proj.sample_emission(&scene.images, u_dir)?;
+                let (power, dir) = proj.sample_emission(&scene.textures, u_dir)?;
                 (power, Ray::new(proj.position, dir))
             }
             Light::Goniometric(g) => {
@@ -196,7 +196,7 @@ impl Light {
                     return None;
                 }
                 let dir = Frame::from_normal(side).to_world(local);
-                let le = radiance.eval(&scene.images, &TexCoord::new(s.uv, s.p));
+                let le = radiance.eval(&scene.textures, &TexCoord::new(s.uv, s.p));
                 let point = EmitterPoint {
                     p: s.p,
                     n: s.n,

@@ -223,9 +223,9 @@ impl SpotProjection {
 
     /// The image's colour in world direction `d` from the light.
     #[inline]
-    pub fn eval(&self, images: &[crate::texture::ImageTexture], d: Vec3) -> Rgb {
+    pub fn eval(&self, textures: &crate::texture::TextureStore, d: Vec3) -> Rgb {
         let uv = self.uv(d);
-        self.texture.eval(images, &TexCoord::new(uv, Vec3::ZERO))
+        self.texture.eval(textures, &TexCoord::new(uv, Vec3::ZERO))
     }
 }
 
@@ -388,15 +388,15 @@ impl Projector {
 
     /// The image's value at `uv`.
     #[inline]
-    fn eval(&self, images: &[crate::texture::ImageTexture], uv: Vec2) -> Rgb {
-        self.image.eval(images, &TexCoord::new(uv, Vec3::ZERO))
+    fn eval(&self, textures: &crate::texture::TextureStore, uv: Vec2) -> Rgb {
+        self.image.eval(textures, &TexCoord::new(uv, Vec3::ZERO))
     }
 
     /// Intensity (W/sr) toward world point `p`, and the direction from the
     /// light to it; zero outside the frame: scale·E(u, v), over cos³θ (cos θ
     /// from the axis) for [`ProjectorLaw::PlaneIrradiance`].
     #[inline]
-    pub fn intensity_toward(&self, images: &[crate::texture::ImageTexture], p: Vec3) -> Option<(Rgb, Vec3)> {
+    pub fn intensity_toward(&self, textures: &crate::texture::TextureStore, p: Vec3) -> Option<(Rgb, Vec3)> {
         let local = self.to_local * (p - self.position);
         let uv = self.uv(local)?;
         let dir = (p - self.position).try_normalize()?;
@@ -407,25 +407,25 @@ impl Projector {
             }
             ProjectorLaw::RadiantIntensity => self.scale,
         };
-        Some((self.eval(images, uv) * factor, dir))
+        Some((self.eval(textures, uv) * factor, dir))
     }
 
     /// The light's power per unit of `scale`, by luminance: the intensity's
     /// integral over the frame's solid angle, dω = cos³θ dA on the plane
     /// z = 1, summed over the image's pixels (pbrt-v4's `power`
     /// normalisation of its `projection` light sums the same way).
-    pub fn power_per_scale(&self, images: &[crate::texture::ImageTexture]) -> f32 {
+    pub fn power_per_scale(&self, textures: &crate::texture::TextureStore) -> f32 {
         let Texture::Image { image, .. } = self.image else {
             // A constant image (or one of no pixels to sum): its mean
             // over the plane, in closed form for the plane-irradiance law,
             // and by quadrature for the other.
-            let e = luminance(self.image.average(images));
+            let e = luminance(self.image.average(textures));
             return match self.law {
                 ProjectorLaw::PlaneIrradiance => e * self.image_area(),
                 ProjectorLaw::RadiantIntensity => e * self.mean_cos3(64, 64) * self.image_area(),
             };
         };
-        let img = &images[image as usize];
+        let img = &textures.images[image as usize];
         let (w, h) = (img.width.max(1), img.height.max(1));
         let mut sum = 0.0f64;
         for y in 0..h {
@@ -435,7 +435,7 @@ impl Projector {
                     ProjectorLaw::PlaneIrradiance => 1.0,
                     ProjectorLaw::RadiantIntensity => self.cos3_at(uv),
                 };
-                sum += (luminance(self.eval(images, uv)) * cos3) as f64;
+                sum += (luminance(self.eval(textures, uv)) * cos3) as f64;
             }
         }
         (sum / (w * h) as f64) as f32 * self.image_area()
@@ -475,7 +475,7 @@ impl Projector {
     /// direction's density 1/(area·cos³θ), i.e. scale·E·area, times cos³θ
     /// for [`ProjectorLaw::RadiantIntensity`].
     #[inline]
-    pub fn sample_emission(&self, images: &[crate::texture::ImageTexture], u: Vec2) -> Option<(Rgb, Vec3)> {
+    pub fn sample_emission(&self, textures: &crate::texture::TextureStore, u: Vec2) -> Option<(Rgb, Vec3)> {
         let local = Vec3::new(
             (1.0 - 2.0 * u.x) * self.tan_half.x,
             (1.0 - 2.0 * u.y) * self.tan_half.y,
@@ -486,7 +486,7 @@ impl Projector {
             ProjectorLaw::PlaneIrradiance => 1.0,
             ProjectorLaw::RadiantIntensity => self.cos3_at(u),
         };
-        Some((self.eval(images, u) * (self.scale * self.image_area() * cos3), dir))
+        Some((self.eval(textures, u) * (self.scale * self.image_area() * cos3), dir))
     }
 }
 
@@ -585,7 +585,7 @@ fn area_light_sample(
     }
     Some(LightSample {
         wi,
-        li: radiance.eval(&scene.images, &TexCoord::new(uv, lp)),
+        li: radiance.eval(&scene.textures, &TexCoord::new(uv, lp)),
         pdf,
         is_delta: false,
         target: ShadowTarget::Point(lp),
@@ -706,7 +706,7 @@ impl Light {
                 }
                 let scale = if *falloff { 1.0 / dist2 } else { 1.0 };
                 let intensity = match projection {
-                    Some(image) => *intensity * image.eval(&scene.images, -wi),
+                    Some(image) => *intensity * image.eval(&scene.textures, -wi),
                     None => *intensity,
                 };
                 Some(LightSample {
@@ -718,7 +718,7 @@ impl Light {
                 })
             }
             Light::Projector(proj) => {
-                let (intensity, dir) = proj.intensity_toward(&scene.images, p)?;
+                let (intensity, dir) = proj.intensity_toward(&scene.textures, p)?;
                 let dist2 = (proj.position - p).length_squared();
                 Some(LightSample {
                     wi: -dir,
@@ -870,8 +870,8 @@ impl Light {
                 ..
             } => 2.0 * PI * luminance(*intensity) * (1.0 - 0.5 * (cos_inner + cos_outer)),
             Light::Projector(p) => match p.law {
-                ProjectorLaw::PlaneIrradiance => p.scale * p.image_area() * luminance(p.image.average(&scene.images)),
-                ProjectorLaw::RadiantIntensity => p.scale * p.power_per_scale(&scene.images),
+                ProjectorLaw::PlaneIrradiance => p.scale * p.image_area() * luminance(p.image.average(&scene.textures)),
+                ProjectorLaw::RadiantIntensity => p.scale * p.power_per_scale(&scene.textures),
             },
             Light::Goniometric(g) => g.power(),
             Light::Directional { irradiance, .. } => disk * luminance(*irradiance),
@@ -895,7 +895,7 @@ impl Light {
                     _ => area.total,
                 };
                 let sides = if *two_sided { 2.0 } else { 1.0 };
-                sides * PI * world_area * luminance(radiance.average(&scene.images))
+                sides * PI * world_area * luminance(radiance.average(&scene.textures))
             }
             Light::Environment => disk * luminance(scene.background.average()) * 4.0,
         }
@@ -1270,10 +1270,12 @@ material = "lamp"
         let (a, b) = (1f32.atan(), 0.5f32.atan());
         let solid_angle = 4.0 * (a.sin() * b.sin()).asin();
         let power = 2.0 * 0.3 * solid_angle;
-        let by_pixels = p.scale * p.power_per_scale(&[]);
+        let by_pixels = p.scale * p.power_per_scale(&crate::texture::TextureStore::default());
         assert!((by_pixels - power).abs() < 1e-3 * power, "{by_pixels} vs {power}");
         let q = Vec3::new(0.6, 0.2, 0.0);
-        let (i, dir) = p.intensity_toward(&[], q).expect("inside the frame");
+        let (i, dir) = p
+            .intensity_toward(&crate::texture::TextureStore::default(), q)
+            .expect("inside the frame");
         assert!((i.x - 0.6).abs() < 1e-6);
         let irradiance = i.x * dir.dot(Vec3::NEG_Z) / (q - p.position).length_squared();
         let cos = dir.dot(Vec3::NEG_Z);
@@ -1283,10 +1285,13 @@ material = "lamp"
         let n = 200_000;
         let mean = (0..n)
             .map(|_| {
-                p.sample_emission(&[], Vec2::new(rng.next_f32(), rng.next_f32()))
-                    .unwrap()
-                    .0
-                    .x as f64
+                p.sample_emission(
+                    &crate::texture::TextureStore::default(),
+                    Vec2::new(rng.next_f32(), rng.next_f32()),
+                )
+                .unwrap()
+                .0
+                .x as f64
             })
             .sum::<f64>()
             / n as f64;
@@ -1301,7 +1306,9 @@ material = "lamp"
         let p = projector(Vec2::new(1.0, 0.5), 0.3);
         let expected = 0.3 * PI * 2.0;
         for q in [Vec3::ZERO, Vec3::new(0.6, 0.2, 0.0), Vec3::new(-0.9, -0.45, 0.0)] {
-            let (i, dir) = p.intensity_toward(&[], q).expect("inside the frame");
+            let (i, dir) = p
+                .intensity_toward(&crate::texture::TextureStore::default(), q)
+                .expect("inside the frame");
             let d2 = (q - p.position).length_squared();
             // Irradiance on the plane z = 0: I·cos/d².
             let irradiance = i.x * dir.dot(Vec3::NEG_Z) / d2;
@@ -1310,10 +1317,17 @@ material = "lamp"
                 "{q}: {irradiance} vs {expected}"
             );
         }
-        assert!(p.intensity_toward(&[], Vec3::new(1.1, 0.0, 0.0)).is_none());
-        assert!(p.intensity_toward(&[], Vec3::new(0.0, 0.6, 0.0)).is_none());
         assert!(
-            p.intensity_toward(&[], Vec3::new(0.0, 0.0, 2.0)).is_none(),
+            p.intensity_toward(&crate::texture::TextureStore::default(), Vec3::new(1.1, 0.0, 0.0))
+                .is_none()
+        );
+        assert!(
+            p.intensity_toward(&crate::texture::TextureStore::default(), Vec3::new(0.0, 0.6, 0.0))
+                .is_none()
+        );
+        assert!(
+            p.intensity_toward(&crate::texture::TextureStore::default(), Vec3::new(0.0, 0.0, 2.0))
+                .is_none(),
             "behind the light"
         );
         // ∫ I dω by uniform directions on the sphere: 4π · mean.
@@ -1323,7 +1337,7 @@ material = "lamp"
         for _ in 0..n {
             let d = crate::sampling::warp::sample_sphere_uniform(Vec2::new(rng.next_f32(), rng.next_f32()));
             let x = p
-                .intensity_toward(&[], p.position + d)
+                .intensity_toward(&crate::texture::TextureStore::default(), p.position + d)
                 .map_or(0.0, |(i, _)| 4.0 * PI as f64 * i.x as f64);
             sum += x;
             sum2 += x * x;
@@ -1335,7 +1349,9 @@ material = "lamp"
             (mean - power).abs() < 4.0 * sigma,
             "∫ I dω = {mean} ± {sigma}, emission {power}"
         );
-        let (w, dir) = p.sample_emission(&[], Vec2::new(0.25, 0.5)).unwrap();
+        let (w, dir) = p
+            .sample_emission(&crate::texture::TextureStore::default(), Vec2::new(0.25, 0.5))
+            .unwrap();
         assert!((w.x as f64 - power).abs() < 1e-4 * power);
         // u = 0.25 lies left of centre: +x of the frame (Mitsuba's left).
         assert!(dir.dot(p.to_world * Vec3::X) > 0.0 && dir.z < 0.0);

@@ -37,7 +37,7 @@ pub use frame::Frame;
 
 use crate::color::Rgb;
 use crate::geometry::SurfaceHit;
-use crate::texture::{ImageTexture, TexCoord, Texture};
+use crate::texture::{TexCoord, Texture, TextureStore};
 use classic::ClassicBsdf;
 use conductor::{ConductorBsdf, ConductorFresnel};
 use dielectric::DielectricBsdf;
@@ -217,8 +217,8 @@ impl BumpMap {
     /// The bumped normal at `hit` (world, unit, on the geometric normal's
     /// side), or `None` where the tilted derivatives are parallel.
     #[inline]
-    pub fn normal(&self, images: &[ImageTexture], hit: &SurfaceHit) -> Option<Vec3> {
-        let g = self.height.luminance_gradient(images, &TexCoord::at(hit)) * self.scale;
+    pub fn normal(&self, textures: &TextureStore, hit: &SurfaceHit) -> Option<Vec3> {
+        let g = self.height.luminance_gradient(textures, &TexCoord::at(hit)) * self.scale;
         let n = hit.ns;
         let dpdu = hit.dpdu + n * (g.x - n.dot(hit.dpdu));
         let dpdv = hit.dpdv + n * (g.y - n.dot(hit.dpdv));
@@ -247,9 +247,9 @@ impl RoughnessMap {
     /// `base` with the map's α at `tc`, kept in [0, 1] as constant
     /// roughness is.
     #[inline]
-    pub fn microfacet_at(&self, base: Microfacet, images: &[ImageTexture], tc: &TexCoord) -> Microfacet {
+    pub fn microfacet_at(&self, base: Microfacet, textures: &TextureStore, tc: &TexCoord) -> Microfacet {
         let alpha = |t: &Texture| {
-            let a = t.eval(images, tc).x.clamp(0.0, 1.0);
+            let a = t.eval(textures, tc).x.clamp(0.0, 1.0);
             if self.remap_sqrt { a.sqrt() } else { a }
         };
         Microfacet::new(base.distribution, alpha(&self.u), alpha(&self.v))
@@ -257,9 +257,9 @@ impl RoughnessMap {
 
     /// The α of the textures' averages: what a material with this map is
     /// built with, so that it counts as rough unless every texel is 0.
-    pub fn average_alpha(&self, images: &[ImageTexture]) -> (f32, f32) {
+    pub fn average_alpha(&self, textures: &TextureStore) -> (f32, f32) {
         let alpha = |t: &Texture| {
-            let a = t.average(images).x.max(0.0);
+            let a = t.average(textures).x.max(0.0);
             if self.remap_sqrt { a.sqrt() } else { a }
         };
         (alpha(&self.u), alpha(&self.v))
@@ -292,8 +292,8 @@ pub struct MaterialMix {
 impl MaterialMix {
     /// The material chosen at a point seen from direction `dir`.
     #[inline]
-    pub fn choose(&self, images: &[ImageTexture], tc: &TexCoord, dir: Vec3) -> u32 {
-        let w = self.weight.eval(images, tc).x;
+    pub fn choose(&self, textures: &TextureStore, tc: &TexCoord, dir: Vec3) -> u32 {
+        let w = self.weight.eval(textures, tc).x;
         if w <= 0.0 {
             return self.materials[0];
         }
@@ -389,9 +389,9 @@ pub fn phong_exponent_for_alpha(alpha: f32) -> f32 {
 
 /// A diffuse material's BSDF: Lambert with the reflectance at `tc`.
 #[inline(always)]
-fn diffuse_bsdf<'a>(reflectance: &Texture, images: &[ImageTexture], tc: &TexCoord) -> Bsdf<'a> {
+fn diffuse_bsdf<'a>(reflectance: &Texture, textures: &TextureStore, tc: &TexCoord) -> Bsdf<'a> {
     Bsdf::Lambert(LambertBsdf {
-        albedo: reflectance.eval(images, tc),
+        albedo: reflectance.eval(textures, tc),
     })
 }
 
@@ -460,10 +460,10 @@ impl Material {
         microfacet: Microfacet,
         specular_tint: Rgb,
         nonlinear: bool,
-        images: &[ImageTexture],
+        textures: &TextureStore,
     ) -> Material {
         let d_mean = {
-            let a = diffuse.average(images);
+            let a = diffuse.average(textures);
             (a.x + a.y + a.z) / 3.0
         };
         let s_mean = (specular_tint.x + specular_tint.y + specular_tint.z) / 3.0;
@@ -540,16 +540,16 @@ impl Material {
     /// only where the material has a mask (paths elsewhere keep their
     /// random numbers).
     #[inline]
-    pub fn cut_out(&self, images: &[ImageTexture], tc: &TexCoord, draw: impl FnOnce() -> f32) -> bool {
-        self.opacity.is_some() && draw() >= self.opacity_at(images, tc)
+    pub fn cut_out(&self, textures: &TextureStore, tc: &TexCoord, draw: impl FnOnce() -> f32) -> bool {
+        self.opacity.is_some() && draw() >= self.opacity_at(textures, tc)
     }
 
     /// The opacity at a point (1 where the material has no mask).
     #[inline]
-    pub fn opacity_at(&self, images: &[ImageTexture], tc: &TexCoord) -> f32 {
+    pub fn opacity_at(&self, textures: &TextureStore, tc: &TexCoord) -> f32 {
         self.opacity
             .as_ref()
-            .map_or(1.0, |o| o.eval(images, tc).x.clamp(0.0, 1.0))
+            .map_or(1.0, |o| o.eval(textures, tc).x.clamp(0.0, 1.0))
     }
 
     /// The frame in which the BSDF sees directions at `hit`, seen from
@@ -565,31 +565,31 @@ impl Material {
     /// ([`BumpMap::normal`]) is mirrored and weighted the same way, as
     /// Mitsuba's `bumpmap` does.
     #[inline]
-    pub fn shading_frame(&self, images: &[ImageTexture], hit: &SurfaceHit, wo: Vec3) -> ShadingFrame {
+    pub fn shading_frame(&self, textures: &TextureStore, hit: &SurfaceHit, wo: Vec3) -> ShadingFrame {
         if self.normal_map.is_none() && self.bump_map.is_none() {
             return ShadingFrame {
                 frame: Frame::from_orthonormal(hit.ns, hit.tangent),
                 unmapped: None,
             };
         }
-        self.mapped_frame(images, hit, wo)
+        self.mapped_frame(textures, hit, wo)
     }
 
     /// [`Material::shading_frame`] of a material with a normal or bump
     /// map: kept out of line, so that the common case above inlines.
     #[inline(never)]
-    fn mapped_frame(&self, images: &[ImageTexture], hit: &SurfaceHit, wo: Vec3) -> ShadingFrame {
+    fn mapped_frame(&self, textures: &TextureStore, hit: &SurfaceHit, wo: Vec3) -> ShadingFrame {
         let base = Frame::from_orthonormal(hit.ns, hit.tangent);
         let unmapped = ShadingFrame {
             frame: base,
             unmapped: None,
         };
         let local = if let Some(map) = &self.normal_map {
-            let c = map.eval(images, &TexCoord::at(hit));
+            let c = map.eval(textures, &TexCoord::at(hit));
             // A black texel names no direction.
             Vec3::new(2.0 * c.x - 1.0, 2.0 * c.y - 1.0, 2.0 * c.z - 1.0).try_normalize()
         } else if let Some(bump) = &self.bump_map {
-            bump.normal(images, hit).map(|n| base.to_local(n))
+            bump.normal(textures, hit).map(|n| base.to_local(n))
         } else {
             None
         };
@@ -628,13 +628,13 @@ impl Material {
 
     /// Emitted radiance at a point (of the side that emits).
     #[inline]
-    pub fn emission_at(&self, images: &[ImageTexture], tc: &TexCoord) -> Rgb {
-        self.emission.eval(images, tc)
+    pub fn emission_at(&self, textures: &TextureStore, tc: &TexCoord) -> Rgb {
+        self.emission.eval(textures, tc)
     }
 
     /// The classical parameters at a point: the record itself for classic
     /// materials, the nearest classical equivalent for the others.
-    pub fn classic(&self, images: &[ImageTexture], tc: &TexCoord) -> ClassicParams {
+    pub fn classic(&self, textures: &TextureStore, tc: &TexCoord) -> ClassicParams {
         let zero = ClassicParams {
             kd: Rgb::ZERO,
             ks: Rgb::ZERO,
@@ -652,19 +652,19 @@ impl Material {
                 transmission,
                 ior,
             } => ClassicParams {
-                kd: diffuse.eval(images, tc),
-                ks: specular.eval(images, tc),
+                kd: diffuse.eval(textures, tc),
+                ks: specular.eval(textures, tc),
                 shininess: *shininess,
                 kr: *reflectivity,
                 kt: *transmission,
                 ior: *ior,
             },
             MaterialKind::Diffuse { reflectance } => ClassicParams {
-                kd: reflectance.eval(images, tc),
+                kd: reflectance.eval(textures, tc),
                 ..zero
             },
             MaterialKind::DiffuseTransmission { reflectance, .. } => ClassicParams {
-                kd: reflectance.eval(images, tc),
+                kd: reflectance.eval(textures, tc),
                 ..zero
             },
             MaterialKind::Conductor {
@@ -700,7 +700,7 @@ impl Material {
                 let alpha = microfacet.alpha_x;
                 let smooth = microfacet.is_smooth();
                 ClassicParams {
-                    kd: diffuse.eval(images, tc),
+                    kd: diffuse.eval(textures, tc),
                     ks: *specular_tint * f0,
                     shininess: if smooth {
                         1000.0
@@ -718,7 +718,7 @@ impl Material {
                 let f0 = optics::fresnel_dielectric(1.0, *coat_eta);
                 let smooth = coat.is_smooth();
                 let kd = match base {
-                    LayerBaseKind::Diffuse(r) => r.eval(images, tc),
+                    LayerBaseKind::Diffuse(r) => r.eval(textures, tc),
                     LayerBaseKind::Conductor { .. } => Rgb::ZERO,
                 };
                 let kr = match base {
@@ -739,7 +739,7 @@ impl Material {
             }
             MaterialKind::Principled { params, eta, thin } => {
                 // The lobes' weights at normal incidence.
-                let b = params.bsdf_at(images, tc, *eta, *thin);
+                let b = params.bsdf_at(textures, tc, *eta, *thin);
                 let dielectric = 1.0 - b.metallic;
                 let f0 = optics::fresnel_dielectric(1.0, *eta);
                 let alpha = (b.roughness * b.roughness).max(0.001);
@@ -779,36 +779,36 @@ impl Material {
     /// a call: it is the commonest material, its BSDF is one texture look-up,
     /// and inlined the BSDF needs no trip through memory.
     #[inline(always)]
-    pub fn bsdf<'a>(&'a self, images: &[ImageTexture], tc: &TexCoord) -> Bsdf<'a> {
+    pub fn bsdf<'a>(&'a self, textures: &TextureStore, tc: &TexCoord) -> Bsdf<'a> {
         match &self.kind {
-            MaterialKind::Diffuse { reflectance } => diffuse_bsdf(reflectance, images, tc),
-            _ => self.bsdf_other(images, tc),
+            MaterialKind::Diffuse { reflectance } => diffuse_bsdf(reflectance, textures, tc),
+            _ => self.bsdf_other(textures, tc),
         }
     }
 
     /// `base`, or the roughness map's α at `tc` where there is one.
     #[inline]
-    fn microfacet_at(&self, base: Microfacet, images: &[ImageTexture], tc: &TexCoord) -> Microfacet {
+    fn microfacet_at(&self, base: Microfacet, textures: &TextureStore, tc: &TexCoord) -> Microfacet {
         match &self.roughness_map {
             None => base,
-            Some(map) => map.microfacet_at(base, images, tc),
+            Some(map) => map.microfacet_at(base, textures, tc),
         }
     }
 
     /// [`Material::bsdf`] of the materials other than diffuse.
-    fn bsdf_other<'a>(&'a self, images: &[ImageTexture], tc: &TexCoord) -> Bsdf<'a> {
+    fn bsdf_other<'a>(&'a self, textures: &TextureStore, tc: &TexCoord) -> Bsdf<'a> {
         match &self.kind {
             MaterialKind::Classic { .. } => {
-                let c = self.classic(images, tc);
+                let c = self.classic(textures, tc);
                 Bsdf::Classic(ClassicBsdf::new(c.kd, c.ks, c.shininess, c.kr, c.kt, c.ior))
             }
-            MaterialKind::Diffuse { reflectance } => diffuse_bsdf(reflectance, images, tc),
+            MaterialKind::Diffuse { reflectance } => diffuse_bsdf(reflectance, textures, tc),
             MaterialKind::DiffuseTransmission {
                 reflectance,
                 transmittance,
             } => Bsdf::DiffuseTransmission(diffuse_transmission::DiffuseTransmissionBsdf {
-                reflectance: reflectance.eval(images, tc),
-                transmittance: transmittance.eval(images, tc),
+                reflectance: reflectance.eval(textures, tc),
+                transmittance: transmittance.eval(textures, tc),
             }),
             MaterialKind::Conductor {
                 fresnel,
@@ -817,7 +817,7 @@ impl Material {
             } => Bsdf::Conductor(ConductorBsdf {
                 fresnel: *fresnel,
                 tint: *tint,
-                microfacet: self.microfacet_at(*microfacet, images, tc),
+                microfacet: self.microfacet_at(*microfacet, textures, tc),
             }),
             MaterialKind::Dielectric {
                 eta,
@@ -826,7 +826,7 @@ impl Material {
                 transmit_tint,
             } => Bsdf::Dielectric(DielectricBsdf {
                 eta: *eta,
-                microfacet: self.microfacet_at(*microfacet, images, tc),
+                microfacet: self.microfacet_at(*microfacet, textures, tc),
                 reflect_tint: *reflect_tint,
                 transmit_tint: *transmit_tint,
             }),
@@ -840,7 +840,7 @@ impl Material {
                 smooth_internal_reflectance,
                 tables,
             } => Bsdf::Plastic(PlasticBsdf {
-                diffuse: diffuse.eval(images, tc),
+                diffuse: diffuse.eval(textures, tc),
                 eta: *eta,
                 microfacet: *microfacet,
                 specular_tint: *specular_tint,
@@ -866,7 +866,7 @@ impl Material {
                     transmit_tint: Rgb::ONE,
                 },
                 base: match base {
-                    LayerBaseKind::Diffuse(r) => LayerBase::Diffuse(r.eval(images, tc)),
+                    LayerBaseKind::Diffuse(r) => LayerBase::Diffuse(r.eval(textures, tc)),
                     LayerBaseKind::Conductor { fresnel, microfacet } => LayerBase::Conductor(ConductorBsdf {
                         fresnel: *fresnel,
                         tint: Rgb::ONE,
@@ -879,7 +879,9 @@ impl Material {
                 max_depth: *max_depth,
                 samples: *samples,
             }),
-            MaterialKind::Principled { params, eta, thin } => Bsdf::Principled(params.bsdf_at(images, tc, *eta, *thin)),
+            MaterialKind::Principled { params, eta, thin } => {
+                Bsdf::Principled(params.bsdf_at(textures, tc, *eta, *thin))
+            }
             MaterialKind::Thin {
                 eta,
                 reflect_tint,
@@ -935,7 +937,7 @@ mod tests {
         assert!(m.reads_uv());
         let at = |m: &Material, u: f32| {
             let tc = TexCoord::new(Vec2::new(u, 0.25), Vec3::ZERO);
-            match m.bsdf(&[], &tc) {
+            match m.bsdf(&crate::texture::TextureStore::default(), &tc) {
                 Bsdf::Conductor(c) => (c.microfacet.alpha_x, c.microfacet.alpha_y, c.microfacet.distribution),
                 other => panic!("not a conductor: {other:?}"),
             }
@@ -945,7 +947,11 @@ mod tests {
         m.roughness_map.as_mut().unwrap().remap_sqrt = true;
         let (ax, ay, _) = at(&m, 0.25);
         assert!((ax - 0.05f32.sqrt()).abs() < 1e-6 && (ay - 0.3f32.sqrt()).abs() < 1e-6);
-        let avg = m.roughness_map.as_ref().unwrap().average_alpha(&[]);
+        let avg = m
+            .roughness_map
+            .as_ref()
+            .unwrap()
+            .average_alpha(&crate::texture::TextureStore::default());
         assert!((avg.0 - 0.175f32.sqrt()).abs() < 1e-6, "{avg:?}");
     }
 
@@ -971,7 +977,7 @@ mod tests {
     fn only_lambert_ignores_the_lobe_choice() {
         let tc = TexCoord::new(Vec2::ZERO, Vec3::ZERO);
         let lambert = Material::diffuse(Rgb::new(0.5, 0.6, 0.7));
-        let lambert = lambert.bsdf(&[], &tc);
+        let lambert = lambert.bsdf(&crate::texture::TextureStore::default(), &tc);
         assert!(!lambert.reads_lobe_choice());
         let mut rng = Pcg32::new(1, 2);
         for _ in 0..1000 {
@@ -989,7 +995,11 @@ mod tests {
             }
         }
         let classic = classic(Rgb::splat(0.4), Rgb::splat(0.3), Rgb::ZERO, Rgb::ZERO);
-        assert!(classic.bsdf(&[], &tc).reads_lobe_choice());
+        assert!(
+            classic
+                .bsdf(&crate::texture::TextureStore::default(), &tc)
+                .reads_lobe_choice()
+        );
     }
 
     /// The claim that lets a diffuse-only classical material be built as
@@ -1000,7 +1010,7 @@ mod tests {
         let tc = TexCoord::new(Vec2::ZERO, Vec3::ZERO);
         for kd in [Rgb::new(0.8, 0.5, 0.2), Rgb::new(0.05, 0.9, 1.0), Rgb::splat(1e-3)] {
             let material = Material::diffuse(kd);
-            let lambert = material.bsdf(&[], &tc);
+            let lambert = material.bsdf(&crate::texture::TextureStore::default(), &tc);
             let classical = Bsdf::Classic(ClassicBsdf::new(kd, Rgb::ZERO, 20.0, Rgb::ZERO, Rgb::ZERO, 1.5));
             assert!(matches!(lambert, Bsdf::Lambert(_)));
             assert_eq!(lambert.has_smooth(), classical.has_smooth());
@@ -1060,7 +1070,7 @@ mod tests {
     #[test]
     fn bump_maps_tilt_the_normal_by_the_heights_slope() {
         // A ramp along u: luminance 0, 1, …, 7 at the texel centres.
-        let ramp = ImageTexture {
+        let ramp = crate::texture::ImageTexture {
             width: 8,
             height: 2,
             pixels: (0..16).map(|i| Rgb::splat((i % 8) as f32)).collect(),
@@ -1080,18 +1090,32 @@ mod tests {
             scale: 0.05,
         });
         // Height 0.05·8·u: slope 0.4 along u.
-        let images = [ramp];
+        let mut textures = crate::texture::TextureStore::with_images(vec![ramp]);
         let expected = Vec3::new(-0.4, 0.0, 1.0).normalize();
-        let f = m.shading_frame(&images, &hit, Vec3::new(-0.3, 0.1, 0.9).normalize());
+        let f = m.shading_frame(&textures, &hit, Vec3::new(-0.3, 0.1, 0.9).normalize());
         assert!((f.n - expected).length() < 1e-5, "{}", f.n);
+        // The same heights through a node (times 1) are differentiated by
+        // forward differences: the same tilt, to their rounding.
+        let image = m.bump_map.as_ref().unwrap().height;
+        let unit = Texture::Constant(Rgb::ONE);
+        let node = textures
+            .push(crate::texture::TextureNode::Scale {
+                tex: image,
+                scale: unit,
+            })
+            .unwrap();
+        let mut by_node = m.clone();
+        by_node.bump_map.as_mut().unwrap().height = node;
+        let f = by_node.shading_frame(&textures, &hit, Vec3::new(-0.3, 0.1, 0.9).normalize());
+        assert!((f.n - expected).length() < 1e-3, "{}", f.n);
         assert!(f.s.dot(f.n).abs() < 1e-6 && (f.s.length() - 1.0).abs() < 1e-6);
         // Longer dp/du (the same heights over a wider surface): half the slope.
         hit.dpdu = Vec3::X * 2.0;
-        let f = m.shading_frame(&images, &hit, Vec3::Z);
+        let f = m.shading_frame(&textures, &hit, Vec3::Z);
         assert!((f.n - Vec3::new(-0.2, 0.0, 1.0).normalize()).length() < 1e-5, "{}", f.n);
         // Seen from far on the +x side the tilt would hide the viewer: mirrored.
         hit.dpdu = Vec3::X;
-        let g = m.shading_frame(&images, &hit, Vec3::new(0.95, 0.0, 0.3).normalize());
+        let g = m.shading_frame(&textures, &hit, Vec3::new(0.95, 0.0, 0.3).normalize());
         assert!(
             (g.n - Vec3::new(-expected.x, 0.0, expected.z)).length() < 1e-5,
             "{}",
@@ -1100,7 +1124,7 @@ mod tests {
         assert_eq!(g.factor(Vec3::new(-0.99, 0.0, 0.05).normalize()), 0.0);
         // A constant height is no bump.
         m.bump_map.as_mut().unwrap().height = Texture::Constant(Rgb::ONE);
-        let flat = m.shading_frame(&images, &hit, Vec3::Z);
+        let flat = m.shading_frame(&textures, &hit, Vec3::Z);
         assert!((flat.n - Vec3::Z).length() < 1e-6);
     }
 
@@ -1112,24 +1136,28 @@ mod tests {
         let hit = hit_at_origin();
         let mut m = Material::diffuse(Rgb::splat(0.5));
         let view = Vec3::new(-0.3, 0.2, 0.93).normalize();
-        let plain = m.shading_frame(&[], &hit, view);
+        let plain = m.shading_frame(&crate::texture::TextureStore::default(), &hit, view);
         assert_eq!((plain.n, plain.s), (Vec3::Z, Vec3::X));
         assert_eq!(plain.factor(Vec3::new(0.9, 0.0, 0.1).normalize()), 1.0);
 
         // The identity map changes nothing.
         m.normal_map = Some(Texture::Constant(Rgb::new(0.5, 0.5, 1.0)));
-        let same = m.shading_frame(&[], &hit, view);
+        let same = m.shading_frame(&crate::texture::TextureStore::default(), &hit, view);
         assert!((same.n - Vec3::Z).length() < 1e-6 && (same.s - Vec3::X).length() < 1e-6);
         assert_eq!(same.factor(Vec3::new(0.6, 0.0, 0.8)), 1.0);
 
         // Tilted towards +x (the tangent), seen from the +x side.
         m.normal_map = Some(Texture::Constant(Rgb::new(0.85, 0.5, 0.75)));
         let tilted = Vec3::new(0.7, 0.0, 0.5).normalize();
-        let f = m.shading_frame(&[], &hit, Vec3::new(0.6, 0.0, 0.8));
+        let f = m.shading_frame(&crate::texture::TextureStore::default(), &hit, Vec3::new(0.6, 0.0, 0.8));
         assert!((f.n - tilted).length() < 1e-5, "{}", f.n);
         assert!(f.s.dot(f.n).abs() < 1e-6 && (f.s.length() - 1.0).abs() < 1e-6 && f.s.x > 0.0);
         // Seen from far on the −x side the tilt would hide the viewer: mirrored.
-        let g = m.shading_frame(&[], &hit, Vec3::new(-0.9, 0.0, 0.3).normalize());
+        let g = m.shading_frame(
+            &crate::texture::TextureStore::default(),
+            &hit,
+            Vec3::new(-0.9, 0.0, 0.3).normalize(),
+        );
         assert!((g.n - Vec3::new(-tilted.x, 0.0, tilted.z)).length() < 1e-5, "{}", g.n);
         // Below the mapped plane but above the surface's own: nothing.
         let w = Vec3::new(-0.8, 0.0, 0.2).normalize();

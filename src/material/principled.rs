@@ -144,14 +144,14 @@ impl PrincipledParams<crate::texture::Texture> {
     #[inline]
     pub fn bsdf_at(
         &self,
-        images: &[crate::texture::ImageTexture],
+        textures: &crate::texture::TextureStore,
         tc: &crate::texture::TexCoord,
         eta: f32,
         thin: bool,
     ) -> PrincipledBsdf {
-        let x = |t: &crate::texture::Texture| t.eval(images, tc).x.clamp(0.0, 1.0);
+        let x = |t: &crate::texture::Texture| t.eval(textures, tc).x.clamp(0.0, 1.0);
         PrincipledBsdf {
-            base_color: self.base_color.eval(images, tc).max(Rgb::ZERO),
+            base_color: self.base_color.eval(textures, tc).max(Rgb::ZERO),
             roughness: x(&self.roughness),
             anisotropic: x(&self.anisotropic),
             metallic: x(&self.metallic),
@@ -162,7 +162,7 @@ impl PrincipledParams<crate::texture::Texture> {
             flatness: x(&self.flatness),
             clearcoat: x(&self.clearcoat),
             clearcoat_gloss: x(&self.clearcoat_gloss),
-            diff_trans: 0.5 * self.diff_trans.eval(images, tc).x.clamp(0.0, 2.0),
+            diff_trans: 0.5 * self.diff_trans.eval(textures, tc).x.clamp(0.0, 2.0),
             eta,
             thin,
         }

@@ -20,7 +20,7 @@ use crate::material::{
 use crate::media::{Field, Medium, MediumInterface, Phase, VoxelGrid};
 use crate::sampling::Distribution1D;
 use crate::settings::IntegratorKind;
-use crate::texture::{ImageTexture, Texture};
+use crate::texture::{ImageTexture, MAX_TEXTURE_DEPTH, Texture, TextureNode, TextureStore};
 use glam::Vec3;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -72,7 +72,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     let mut warnings = desc.warnings.clone();
 
     // Textures.
-    let mut images = Vec::new();
+    let mut store = TextureStore::default();
     let mut textures: HashMap<&str, Texture> = HashMap::new();
     let mut attribute_names: Vec<String> = Vec::new();
     for (i, t) in desc.textures.iter().enumerate() {
@@ -118,15 +118,30 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                         t.locs.key("file").map(|l| format!("{l}: ")).unwrap_or_default()
                     ));
                 }
-                images.push(img);
+                store.images.push(img);
                 Texture::Image {
-                    image: images.len() as u32 - 1,
+                    image: store.images.len() as u32 - 1,
                     scale: *scale,
                     offset: *offset,
                     tint: *tint,
                     wrap: *wrap,
                     filter: *filter,
                 }
+            }
+            kind => {
+                // Validation saw that inputs name textures made before.
+                let input = |c: &ColorSource| match c {
+                    ColorSource::Rgb(rgb) => Texture::Constant(*rgb),
+                    ColorSource::Texture(name) => textures[name.as_str()],
+                };
+                let node = texture_node(kind, input);
+                store.push(node).ok_or_else(|| {
+                    Error::scene(
+                        t.locs.item.clone(),
+                        format!("texture[{i}]"),
+                        format!("\"{}\" nests textures more than {MAX_TEXTURE_DEPTH} deep", t.name),
+                    )
+                })?
             }
         };
         textures.insert(t.name.as_str(), tex);
@@ -139,7 +154,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     };
 
     // Materials; the default one goes last, used by shapes without one.
-    let mut materials: Vec<Material> = desc.materials.iter().map(|m| to_material(m, &color, &images)).collect();
+    let mut materials: Vec<Material> = desc.materials.iter().map(|m| to_material(m, &color, &store)).collect();
     let material_index: HashMap<&str, u32> = desc
         .materials
         .iter()
@@ -352,7 +367,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         .lights
         .iter()
         .enumerate()
-        .map(|(i, l)| to_light(i, l, &color, &images))
+        .map(|(i, l)| to_light(i, l, &color, &store))
         .collect::<Result<_>>()?;
     let emissive = |m: u32| materials[m as usize].is_emissive();
     let mut emitters: Vec<(EmitterRef, u32)> = Vec::new();
@@ -607,7 +622,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         camera,
         geometry,
         materials,
-        images,
+        textures: store,
         lights,
         background,
         ambient: desc.ambient,
@@ -817,7 +832,66 @@ fn read_attribute(m: u32, materials: &[Material], mixes: &[Option<MaterialMix>])
 }
 
 /// The render-time material of a description.
-fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images: &[ImageTexture]) -> Material {
+/// The node of a texture made of textures (or a procedural one), its
+/// inputs resolved by `input`.
+fn texture_node(kind: &TextureKind, input: impl Fn(&ColorSource) -> Texture) -> TextureNode {
+    match kind {
+        TextureKind::Scale { tex, scale } => TextureNode::Scale {
+            tex: input(tex),
+            scale: input(scale),
+        },
+        TextureKind::Mix { first, second, amount } => TextureNode::Mix {
+            first: input(first),
+            second: input(second),
+            amount: input(amount),
+        },
+        TextureKind::DirectionMix { first, second, dir } => TextureNode::DirectionMix {
+            first: input(first),
+            second: input(second),
+            dir: dir.normalize(),
+        },
+        TextureKind::Checks { even, odd, mapping } => TextureNode::Checkerboard {
+            even: input(even),
+            odd: input(odd),
+            mapping: *mapping,
+        },
+        TextureKind::SolidChecks { even, odd, to_texture } => TextureNode::SolidCheckerboard {
+            even: input(even),
+            odd: input(odd),
+            to_texture: *to_texture,
+        },
+        TextureKind::Dots {
+            inside,
+            outside,
+            mapping,
+        } => TextureNode::Dots {
+            inside: input(inside),
+            outside: input(outside),
+            mapping: *mapping,
+        },
+        TextureKind::Bilerp { corners, mapping } => TextureNode::Bilerp {
+            corners: *corners,
+            mapping: *mapping,
+        },
+        TextureKind::Noise { pattern, to_texture } => TextureNode::Noise {
+            pattern: *pattern,
+            to_texture: *to_texture,
+        },
+        TextureKind::Invert(tex) => TextureNode::Invert(input(tex)),
+        TextureKind::FirstChannel(tex) => TextureNode::FirstChannel(input(tex)),
+        TextureKind::Mapped { tex, mapping } => TextureNode::Mapped {
+            tex: input(tex),
+            mapping: *mapping,
+        },
+        TextureKind::Constant(_)
+        | TextureKind::Checkerboard { .. }
+        | TextureKind::Checkerboard3d { .. }
+        | TextureKind::Image { .. }
+        | TextureKind::MeshAttribute { .. } => unreachable!("plain textures are no nodes"),
+    }
+}
+
+fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, textures: &TextureStore) -> Material {
     let mut mat = match &m.kind {
         MaterialKindDesc::Classic(c) => Material::new_classic(
             color(&c.diffuse),
@@ -878,7 +952,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
             Microfacet::new(*distribution, *roughness, *roughness),
             *specular_tint,
             *nonlinear,
-            images,
+            textures,
         ),
         MaterialKindDesc::Layered {
             base,
@@ -961,7 +1035,7 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, images
         };
         // The constant α the kind was built with becomes the textures'
         // average: the material is rough unless every texel is 0.
-        let (au, av) = map.average_alpha(images);
+        let (au, av) = map.average_alpha(textures);
         // (Validation admits a map on conductors and dielectrics only.)
         if let MaterialKind::Conductor { microfacet, .. } | MaterialKind::Dielectric { microfacet, .. } = &mut mat.kind
         {
@@ -1154,7 +1228,7 @@ fn to_light(
     index: usize,
     light: &LightDesc,
     color: &dyn Fn(&ColorSource) -> Texture,
-    images: &[ImageTexture],
+    textures: &TextureStore,
 ) -> Result<Light> {
     let texture = |name: &str| color(&ColorSource::Texture(name.to_string()));
     Ok(match light.kind {
@@ -1204,7 +1278,7 @@ fn to_light(
             // The frame has the image's proportions (a constant: square).
             let (w, h) = match image {
                 Texture::Image { image, .. } => {
-                    let i = &images[image as usize];
+                    let i = &textures.images[image as usize];
                     (i.width, i.height)
                 }
                 _ => (1, 1),
@@ -1225,7 +1299,7 @@ fn to_light(
                 // As pbrt-v4: the scale then multiplies what makes the
                 // power this. An image of no light keeps its scale: it
                 // emits nothing whatever the scale.
-                let per_scale = projector.power_per_scale(images);
+                let per_scale = projector.power_per_scale(textures);
                 if per_scale > 0.0 {
                     projector.scale *= power / per_scale;
                 }
@@ -1242,7 +1316,7 @@ fn to_light(
             let Texture::Image { image: i, .. } = texture(image) else {
                 unreachable!("a goniometric light's image is an image texture")
             };
-            let img = &images[i as usize];
+            let img = &textures.images[i as usize];
             if img.width != img.height {
                 return Err(Error::scene(
                     light.locs.key("image"),

@@ -16,7 +16,8 @@ use crate::settings::{
     MAX_PHOTONS, MAX_SPP, RenderSettings,
 };
 pub use crate::texture::{ImageFilter, WrapMode};
-use glam::{Mat4, Vec2, Vec3};
+use crate::texture::{Mapping2D, NoisePattern};
+use glam::{Affine3A, Mat4, Vec2, Vec3};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -141,6 +142,10 @@ impl From<Rgb> for ColorSource {
     }
 }
 
+/// The most octaves a noise texture sums: each one is a noise look-up
+/// per texture read, and past 30 they are finer than a float resolves.
+pub const MAX_NOISE_OCTAVES: u32 = 64;
+
 /// A texture definition.
 #[derive(Clone, Debug, PartialEq)]
 pub enum TextureKind {
@@ -187,6 +192,112 @@ pub enum TextureKind {
         /// The attribute's name.
         name: String,
     },
+    /// `tex` × `scale`, channel by channel.
+    Scale {
+        /// The texture scaled.
+        tex: ColorSource,
+        /// The factor.
+        scale: ColorSource,
+    },
+    /// (1 − a)·`first` + a·`second`, a the first channel of `amount`.
+    Mix {
+        /// Where the amount is 0.
+        first: ColorSource,
+        /// Where it is 1.
+        second: ColorSource,
+        /// The amount.
+        amount: ColorSource,
+    },
+    /// a·`first` + (1 − a)·`second`, a = |n·dir| for the shading normal n.
+    DirectionMix {
+        /// Where the normal is along `dir`.
+        first: ColorSource,
+        /// Where it is perpendicular to it.
+        second: ColorSource,
+        /// A direction in world space (normalised when built).
+        dir: Vec3,
+    },
+    /// Checks of two colours or textures over a 2-D mapping.
+    Checks {
+        /// Where ⌊s⌋ + ⌊t⌋ is even.
+        even: ColorSource,
+        /// Elsewhere.
+        odd: ColorSource,
+        /// How (s, t) is found.
+        mapping: Mapping2D,
+    },
+    /// Solid checks of two colours or textures: unit cubes of texture
+    /// space.
+    SolidChecks {
+        /// Where ⌊x⌋ + ⌊y⌋ + ⌊z⌋ is even.
+        even: ColorSource,
+        /// Elsewhere.
+        odd: ColorSource,
+        /// World to texture space.
+        to_texture: Affine3A,
+    },
+    /// Polka dots over a 2-D mapping.
+    Dots {
+        /// Inside the dots.
+        inside: ColorSource,
+        /// Between them.
+        outside: ColorSource,
+        /// How (s, t) is found.
+        mapping: Mapping2D,
+    },
+    /// Four colours interpolated bilinearly over (s, t).
+    Bilerp {
+        /// At (s, t) = (0, 0), (1, 0), (0, 1), (1, 1).
+        corners: [Rgb; 4],
+        /// How (s, t) is found.
+        mapping: Mapping2D,
+    },
+    /// A noise pattern at the point in texture space.
+    Noise {
+        /// Which pattern.
+        pattern: NoisePattern,
+        /// World to texture space.
+        to_texture: Affine3A,
+    },
+    /// max(0, 1 − `tex`), channel by channel.
+    Invert(ColorSource),
+    /// The first channel of `tex`, as a grey.
+    FirstChannel(ColorSource),
+    /// A texture read at (u, v) = the mapping's (s, t).
+    Mapped {
+        /// The texture read.
+        tex: ColorSource,
+        /// How its (u, v) is found.
+        mapping: Mapping2D,
+    },
+}
+
+impl TextureKind {
+    /// The colours and textures a texture is made of.
+    pub fn inputs(&self) -> Vec<&ColorSource> {
+        match self {
+            TextureKind::Scale { tex, scale } => vec![tex, scale],
+            TextureKind::Mix { first, second, amount } => vec![first, second, amount],
+            TextureKind::DirectionMix { first, second, .. }
+            | TextureKind::Checks {
+                even: first,
+                odd: second,
+                ..
+            }
+            | TextureKind::SolidChecks {
+                even: first,
+                odd: second,
+                ..
+            }
+            | TextureKind::Dots {
+                inside: first,
+                outside: second,
+                ..
+            } => vec![first, second],
+            TextureKind::Invert(tex) | TextureKind::FirstChannel(tex) | TextureKind::Mapped { tex, .. } => vec![tex],
+            _ => vec![],
+        }
+    }
 }
 
 /// Where an image texture's pixels come from.
@@ -1124,9 +1235,46 @@ impl SceneDesc {
                 locs: &t.locs,
                 prefix: format!("texture[{i}]."),
             };
-            if !names.insert(t.name.as_str()) {
+            if names.contains(t.name.as_str()) {
                 return Err(c.err("name", format!("a texture named \"{}\" is already defined", t.name)));
             }
+            // A texture is made of textures defined before it: no cycles.
+            for input in t.kind.inputs() {
+                match input {
+                    // Inputs may be negative (a float texture's).
+                    ColorSource::Rgb(col) => c.vec3("input", *col)?,
+                    ColorSource::Texture(name) if !names.contains(name.as_str()) => {
+                        return Err(c.err(
+                            "input",
+                            format!(
+                                "no texture named \"{name}\" before this one{}",
+                                suggest(name, names.iter().copied())
+                            ),
+                        ));
+                    }
+                    ColorSource::Texture(_) => {}
+                }
+            }
+            names.insert(t.name.as_str());
+            let mapping = |m: &Mapping2D| -> Result<()> {
+                let finite = match m {
+                    Mapping2D::Uv { scale, offset } => scale.is_finite() && offset.is_finite(),
+                    Mapping2D::Spherical { to_texture } | Mapping2D::Cylindrical { to_texture } => {
+                        to_texture.is_finite()
+                    }
+                    Mapping2D::Planar {
+                        to_texture,
+                        s_axis,
+                        t_axis,
+                        offset,
+                    } => to_texture.is_finite() && s_axis.is_finite() && t_axis.is_finite() && offset.is_finite(),
+                };
+                if finite {
+                    Ok(())
+                } else {
+                    Err(c.err("mapping", "the mapping's numbers must be finite"))
+                }
+            };
             match &t.kind {
                 TextureKind::Constant(col) => c.color("color", *col)?,
                 TextureKind::Checkerboard { even, odd, scale } => {
@@ -1156,6 +1304,49 @@ impl SceneDesc {
                     c.finite("offset", offset.x)?;
                     c.finite("offset", offset.y)?;
                     c.color("tint", *tint)?;
+                }
+                TextureKind::Scale { .. }
+                | TextureKind::Mix { .. }
+                | TextureKind::Invert(_)
+                | TextureKind::FirstChannel(_) => {}
+                TextureKind::DirectionMix { dir, .. } => {
+                    if !dir.is_finite() || dir.length_squared() == 0.0 {
+                        return Err(c.err("dir", "must be a finite, non-zero direction"));
+                    }
+                }
+                TextureKind::Checks { mapping: m, .. }
+                | TextureKind::Dots { mapping: m, .. }
+                | TextureKind::Mapped { mapping: m, .. } => mapping(m)?,
+                TextureKind::Bilerp { corners, mapping: m } => {
+                    for col in corners {
+                        c.color("corners", *col)?;
+                    }
+                    mapping(m)?;
+                }
+                TextureKind::SolidChecks { to_texture, .. } | TextureKind::Noise { to_texture, .. } => {
+                    if !to_texture.is_finite() {
+                        return Err(c.err("transform", "the texture's transform must be finite"));
+                    }
+                    if let TextureKind::Noise { pattern, .. } = &t.kind {
+                        let (octaves, numbers) = match *pattern {
+                            NoisePattern::Fbm { octaves, omega } | NoisePattern::Wrinkled { octaves, omega } => {
+                                (octaves, vec![omega])
+                            }
+                            NoisePattern::Windy => (0, vec![]),
+                            NoisePattern::Marble {
+                                octaves,
+                                omega,
+                                scale,
+                                variation,
+                            } => (octaves, vec![omega, scale, variation]),
+                        };
+                        if octaves > MAX_NOISE_OCTAVES {
+                            return Err(c.err("octaves", format!("must be at most {MAX_NOISE_OCTAVES}, got {octaves}")));
+                        }
+                        for v in numbers {
+                            c.finite("roughness", v)?;
+                        }
+                    }
                 }
             }
         }

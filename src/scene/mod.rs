@@ -29,7 +29,7 @@ use crate::light::{Background, Light};
 use crate::material::Material;
 use crate::sampling::Distribution1D;
 use crate::settings::RenderSettings;
-use crate::texture::ImageTexture;
+use crate::texture::TextureStore;
 use std::path::Path;
 
 /// Everything needed to render, ready for many threads to read at once.
@@ -41,8 +41,8 @@ pub struct Scene {
     pub geometry: Aggregate,
     /// Materials, indexed by the surfaces.
     pub materials: Vec<Material>,
-    /// Texture images, indexed by the textures.
-    pub images: Vec<ImageTexture>,
+    /// Texture images and nodes, indexed by the textures.
+    pub textures: TextureStore,
     /// Lights, including one per emissive shape.
     pub lights: Vec<Light>,
     /// What escaping rays see.
@@ -126,7 +126,7 @@ impl Scene {
             if keep_blends && mix.exact {
                 return;
             }
-            hit.material = mix.choose(&self.images, &crate::texture::TexCoord::at(hit), dir);
+            hit.material = mix.choose(&self.textures, &crate::texture::TexCoord::at(hit), dir);
         }
     }
 
@@ -147,7 +147,7 @@ impl Scene {
                 }
             }
         }
-        self.materials[m as usize].bsdf(&self.images, tc)
+        self.materials[m as usize].bsdf(&self.textures, tc)
     }
 
     #[inline(never)]
@@ -157,8 +157,11 @@ impl Scene {
         tc: &crate::texture::TexCoord,
         parts: &'s mut Option<[crate::material::Bsdf<'s>; 2]>,
     ) -> crate::material::Bsdf<'s> {
-        let weight = mix.weight.eval(&self.images, tc).x.clamp(0.0, 1.0);
-        let parts = parts.insert(mix.materials.map(|k| self.materials[k as usize].bsdf(&self.images, tc)));
+        let weight = mix.weight.eval(&self.textures, tc).x.clamp(0.0, 1.0);
+        let parts = parts.insert(
+            mix.materials
+                .map(|k| self.materials[k as usize].bsdf(&self.textures, tc)),
+        );
         crate::material::Bsdf::Blend(crate::material::blend::BlendBsdf { weight, parts })
     }
 

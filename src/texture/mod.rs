@@ -9,8 +9,11 @@
 //! scale = [8, 8]          # checks per unit of u and v
 //! ```
 
+pub mod graph;
 pub mod image;
+pub mod noise;
 
+pub use self::graph::{MAX_TEXTURE_DEPTH, Mapping2D, NoisePattern, TextureNode};
 pub use self::image::{ImageFilter, ImageTexture, WrapMode};
 
 use crate::color::Rgb;
@@ -26,6 +29,14 @@ pub struct TexCoord {
     /// The value of the mesh attribute the surface's material reads, at
     /// the point (0 where the surface has none).
     pub attribute: Rgb,
+    /// The shading normal (zero where none is known), which direction
+    /// mixes read.
+    pub n: Vec3,
+    /// ∂p/∂u (zero where none is known), along which a bump map's
+    /// differences of a solid texture move the point.
+    pub dpdu: Vec3,
+    /// ∂p/∂v, as `dpdu`.
+    pub dpdv: Vec3,
 }
 
 impl TexCoord {
@@ -37,6 +48,9 @@ impl TexCoord {
             uv,
             p,
             attribute: Rgb::ZERO,
+            n: Vec3::ZERO,
+            dpdu: Vec3::ZERO,
+            dpdv: Vec3::ZERO,
         }
     }
 
@@ -47,12 +61,58 @@ impl TexCoord {
             uv: hit.uv,
             p: hit.p,
             attribute: hit.attribute,
+            n: hit.ns,
+            dpdu: hit.dpdu,
+            dpdv: hit.dpdv,
         }
     }
 }
 
-/// A colour texture. Image data lives in the scene's image list and is
-/// referenced by index, so textures stay small and `Copy`.
+/// What textures refer to by index: the scene's images and the nodes of
+/// textures made of textures.
+#[derive(Clone, Debug, Default)]
+pub struct TextureStore {
+    /// Decoded images.
+    pub images: Vec<ImageTexture>,
+    /// Nodes, each naming only nodes before it.
+    pub nodes: Vec<TextureNode>,
+    /// Each node's nesting depth (1 for a node of plain textures).
+    depths: Vec<u8>,
+}
+
+impl TextureStore {
+    /// A store of these images and no nodes.
+    pub fn with_images(images: Vec<ImageTexture>) -> TextureStore {
+        TextureStore {
+            images,
+            ..TextureStore::default()
+        }
+    }
+
+    /// Adds a node and returns the texture that names it; `None` where it
+    /// would nest deeper than [`MAX_TEXTURE_DEPTH`].
+    pub fn push(&mut self, node: TextureNode) -> Option<Texture> {
+        let depth = 1 + node
+            .inputs()
+            .iter()
+            .map(|t| match *t {
+                Texture::Node(i) => self.depths[i as usize] as usize,
+                _ => 0,
+            })
+            .max()
+            .unwrap_or(0);
+        if depth > MAX_TEXTURE_DEPTH {
+            return None;
+        }
+        self.nodes.push(node);
+        self.depths.push(depth as u8);
+        Some(Texture::Node(self.nodes.len() as u32 - 1))
+    }
+}
+
+/// A colour texture. Image data and the nodes of textures made of
+/// textures live in the scene's [`TextureStore`] and are referenced by
+/// index, so textures stay small and `Copy`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Texture {
     /// The same colour everywhere.
@@ -95,6 +155,9 @@ pub enum Texture {
     /// channel read as grey); the number is the attribute's name among the
     /// scene's `attribute_names`. Surfaces without it read 0.
     MeshAttribute(u32),
+    /// A texture made of textures, or a procedural one: a node of the
+    /// scene's [`TextureStore`].
+    Node(u32),
 }
 
 impl Texture {
@@ -102,22 +165,26 @@ impl Texture {
     /// record needs them only where some texture does, and a sphere's
     /// cost an arc tangent and an arc sine.
     pub fn reads_uv(&self) -> bool {
-        matches!(self, Texture::Checkerboard { .. } | Texture::Image { .. })
+        // A node may (conservatively).
+        matches!(
+            self,
+            Texture::Checkerboard { .. } | Texture::Image { .. } | Texture::Node(_)
+        )
     }
 
     /// The colour at `tc`. A constant is read in place, without a call:
     /// most materials and emitters have constant colours, and their look-up
     /// sits in the path tracer's inner loop.
     #[inline(always)]
-    pub fn eval(&self, images: &[ImageTexture], tc: &TexCoord) -> Rgb {
+    pub fn eval(&self, store: &TextureStore, tc: &TexCoord) -> Rgb {
         match *self {
             Texture::Constant(c) => c,
-            _ => self.eval_varying(images, tc),
+            _ => self.eval_varying(store, tc),
         }
     }
 
     /// [`Texture::eval`] of a texture that varies over the surface.
-    fn eval_varying(&self, images: &[ImageTexture], tc: &TexCoord) -> Rgb {
+    fn eval_varying(&self, store: &TextureStore, tc: &TexCoord) -> Rgb {
         match *self {
             Texture::Constant(c) => c,
             Texture::Checkerboard { even, odd, scale } => {
@@ -143,15 +210,17 @@ impl Texture {
                 tint,
                 wrap,
                 filter,
-            } => images[image as usize].lookup(tc.uv * scale + offset, wrap, filter) * tint,
+            } => store.images[image as usize].lookup(tc.uv * scale + offset, wrap, filter) * tint,
             Texture::MeshAttribute(_) => tc.attribute,
+            Texture::Node(i) => store.nodes[i as usize].eval(store, tc),
         }
     }
 
     /// The derivatives along u and v of the texture's luminance at `tc`,
     /// for bump maps: an image's are its interpolant's; checks are constant
-    /// almost everywhere, as are constants; a mesh attribute gives none.
-    pub fn luminance_gradient(&self, images: &[ImageTexture], tc: &TexCoord) -> Vec2 {
+    /// almost everywhere, as are constants; a mesh attribute gives none; a
+    /// node's are forward differences.
+    pub fn luminance_gradient(&self, store: &TextureStore, tc: &TexCoord) -> Vec2 {
         match *self {
             Texture::Image {
                 image,
@@ -160,7 +229,8 @@ impl Texture {
                 wrap,
                 filter,
                 tint,
-            } => images[image as usize].luminance_gradient(tc.uv * scale + offset, wrap, filter, tint) * scale,
+            } => store.images[image as usize].luminance_gradient(tc.uv * scale + offset, wrap, filter, tint) * scale,
+            Texture::Node(i) => store.nodes[i as usize].luminance_gradient(store, tc),
             Texture::Constant(_)
             | Texture::Checkerboard { .. }
             | Texture::Checkerboard3d { .. }
@@ -169,12 +239,13 @@ impl Texture {
     }
 
     /// The texture's average colour: its value for constants, the mean of
-    /// the checks or of the image otherwise.
-    pub fn average(&self, images: &[ImageTexture]) -> Rgb {
+    /// the checks or of the image, roughly a node's.
+    pub fn average(&self, store: &TextureStore) -> Rgb {
         match *self {
             Texture::Constant(c) => c,
             Texture::Checkerboard { even, odd, .. } | Texture::Checkerboard3d { even, odd, .. } => 0.5 * (even + odd),
-            Texture::Image { image, tint, .. } => images[image as usize].average() * tint,
+            Texture::Image { image, tint, .. } => store.images[image as usize].average() * tint,
+            Texture::Node(i) => store.nodes[i as usize].average(store),
             // Unknown before a mesh is hit: the middle of [0, 1].
             Texture::MeshAttribute(_) => Rgb::splat(0.5),
         }
@@ -186,11 +257,7 @@ mod tests {
     use super::*;
 
     fn at(u: f32, v: f32) -> TexCoord {
-        TexCoord {
-            uv: Vec2::new(u, v),
-            p: Vec3::ZERO,
-            attribute: Rgb::ZERO,
-        }
+        TexCoord::new(Vec2::new(u, v), Vec3::ZERO)
     }
 
     #[test]
@@ -200,11 +267,11 @@ mod tests {
             odd: Rgb::ZERO,
             scale: Vec2::splat(2.0),
         };
-        assert_eq!(t.eval(&[], &at(0.1, 0.1)), Rgb::ONE);
-        assert_eq!(t.eval(&[], &at(0.6, 0.1)), Rgb::ZERO);
-        assert_eq!(t.eval(&[], &at(0.6, 0.6)), Rgb::ONE);
+        assert_eq!(t.eval(&TextureStore::default(), &at(0.1, 0.1)), Rgb::ONE);
+        assert_eq!(t.eval(&TextureStore::default(), &at(0.6, 0.1)), Rgb::ZERO);
+        assert_eq!(t.eval(&TextureStore::default(), &at(0.6, 0.6)), Rgb::ONE);
         // Negative coordinates continue the pattern.
-        assert_eq!(t.eval(&[], &at(-0.1, 0.1)), Rgb::ZERO);
+        assert_eq!(t.eval(&TextureStore::default(), &at(-0.1, 0.1)), Rgb::ZERO);
     }
 
     #[test]
@@ -214,14 +281,19 @@ mod tests {
             odd: Rgb::ZERO,
             scale: 1.0,
         };
-        let tc = |p: Vec3| TexCoord {
-            uv: Vec2::ZERO,
-            p,
-            attribute: Rgb::ZERO,
-        };
-        assert_eq!(t.eval(&[], &tc(Vec3::splat(0.5))), Rgb::ONE);
-        assert_eq!(t.eval(&[], &tc(Vec3::new(1.5, 0.5, 0.5))), Rgb::ZERO);
-        assert_eq!(t.eval(&[], &tc(Vec3::new(1.5, 1.5, 0.5))), Rgb::ONE);
-        assert_eq!(t.eval(&[], &tc(Vec3::new(0.5, 0.5, -0.5))), Rgb::ZERO);
+        let tc = |p: Vec3| TexCoord::new(Vec2::ZERO, p);
+        assert_eq!(t.eval(&TextureStore::default(), &tc(Vec3::splat(0.5))), Rgb::ONE);
+        assert_eq!(
+            t.eval(&TextureStore::default(), &tc(Vec3::new(1.5, 0.5, 0.5))),
+            Rgb::ZERO
+        );
+        assert_eq!(
+            t.eval(&TextureStore::default(), &tc(Vec3::new(1.5, 1.5, 0.5))),
+            Rgb::ONE
+        );
+        assert_eq!(
+            t.eval(&TextureStore::default(), &tc(Vec3::new(0.5, 0.5, -0.5))),
+            Rgb::ZERO
+        );
     }
 }

@@ -832,3 +832,63 @@ fn an_rgb_grid_renders_as_the_uniform_grid_it_equals() {
     assert!(ma > 0.01, "the medium glows: {ma}");
     assert!((ma - mb).abs() < 0.002 * ma, "emitting uniformgrid {ma}, rgbgrid {mb}");
 }
+
+/// A texture graph renders exactly as its closed form: a `mix` of two
+/// colours by a float checkerboard of two amounts is a checkerboard of the
+/// two blends, and a `scale` of it by a float constant the blends scaled.
+#[test]
+fn texture_graphs_render_as_their_closed_forms() {
+    let frame = r#"
+LookAt 0 3 3  0 0 0  0 1 0
+Camera "perspective" "float fov" 50
+Film "rgb" "integer xresolution" 32 "integer yresolution" 24
+Sampler "independent" "integer pixelsamples" 4
+Integrator "path" "integer maxdepth" 2
+WorldBegin
+LightSource "distant" "point3 from" [1 4 2] "point3 to" [0 0 0] "rgb L" [2 2 2]
+"#;
+    let floor = r#"
+Shape "bilinearmesh" "point3 P" [-2 0 -2  2 0 -2  -2 0 2  2 0 2] "point2 uv" [0 0 1 0 0 1 1 1]
+"#;
+    let (a, b) = (Rgb::new(0.9, 0.2, 0.1), Rgb::new(0.1, 0.3, 0.8));
+    let graph = format!(
+        r#"{frame}
+Texture "amount" "float" "checkerboard" "float tex1" 0.2 "float tex2" 0.9 "float uscale" 4 "float vscale" 4
+Texture "blend" "spectrum" "mix" "rgb tex1" [0.9 0.2 0.1] "rgb tex2" [0.1 0.3 0.8] "texture amount" "amount"
+Texture "dim" "spectrum" "scale" "texture tex" "blend" "float scale" 0.5
+Material "diffuse" "texture reflectance" "dim"
+{floor}"#
+    );
+    let blend = |t: f32| 0.5 * ((1.0 - t) * a + t * b);
+    let (even, odd) = (blend(0.2), blend(0.9));
+    let closed = format!(
+        r#"{frame}
+Texture "checks" "spectrum" "checkerboard" "rgb tex1" [{} {} {}] "rgb tex2" [{} {} {}] "float uscale" 4 "float vscale" 4
+Material "diffuse" "texture reflectance" "checks"
+{floor}"#,
+        even.x, even.y, even.z, odd.x, odd.y, odd.z
+    );
+    let mean = 0.5 * (even + odd);
+    let flat = format!(
+        r#"{frame}
+Material "diffuse" "rgb reflectance" [{} {} {}]
+{floor}"#,
+        mean.x, mean.y, mean.z
+    );
+    let (g, c) = (parse(&graph), parse(&closed));
+    assert!(g.warnings.is_empty(), "{:?}", g.warnings);
+    let (g, c, f) = (render_desc(&g), render_desc(&c), render_desc(&parse(&flat)));
+    let largest_difference = |a: &Film, b: &Film| {
+        a.pixels
+            .iter()
+            .zip(&b.pixels)
+            .map(|(p, q)| (p.value() - q.value()).abs().max_element())
+            .fold(0.0f32, f32::max)
+    };
+    // The same albedos to the last bits (the printed colours round).
+    let worst = largest_difference(&g, &c);
+    assert!(worst < 1e-5, "{worst}");
+    // And the checks are there: not their mean colour.
+    let checks = largest_difference(&g, &f);
+    assert!(checks > 0.04, "{checks}");
+}

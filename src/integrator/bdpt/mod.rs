@@ -192,7 +192,7 @@ fn delta_before(light: &[Vertex], i: usize) -> bool {
 fn surface_bsdf<'s>(scene: &'s Scene, hit: &SurfaceHit, wo: Vec3) -> (Bsdf<'s>, ShadingFrame) {
     let m = &scene.materials[hit.material as usize];
     let tc = TexCoord::at(hit);
-    (m.bsdf(&scene.images, &tc), m.shading_frame(&scene.images, hit, wo))
+    (m.bsdf(&scene.textures, &tc), m.shading_frame(&scene.textures, hit, wo))
 }
 
 /// The BSDF of surface vertex `v` from its previous vertex toward unit
@@ -675,7 +675,7 @@ impl<'s> Tracer<'s> {
                     if !(m.is_emissive() && m.emits_toward(hit, pt.wo)) {
                         return None;
                     }
-                    pt.beta * m.emission_at(&scene.images, &TexCoord::at(hit))
+                    pt.beta * m.emission_at(&scene.textures, &TexCoord::at(hit))
                 }
                 _ => return None,
             }
@@ -793,7 +793,7 @@ impl<'s> Tracer<'s> {
                 if !(cos > 0.0 && es.pdf_area > 0.0 && d2 > 0.0) {
                     return None;
                 }
-                let le = radiance.eval(&scene.images, &TexCoord::new(es.uv, es.p));
+                let le = radiance.eval(&scene.textures, &TexCoord::new(es.uv, es.p));
                 let vertex = Vertex::endpoint(kind, es.p, es.n, le / (pmf * es.pdf_area), 0.0);
                 (
                     vertex,
@@ -974,7 +974,7 @@ impl<'s> Tracer<'s> {
             let tc = TexCoord::at(&hit);
             // A mask's cut-out part lets the path through unchanged, as the
             // path tracer's and the light tracer's paths pass it.
-            if m.cut_out(&scene.images, &tc, || rng.next_f32()) {
+            if m.cut_out(&scene.textures, &tc, || rng.next_f32()) {
                 ray = hit.spawn_ray(ray.dir);
                 continue;
             }

@@ -331,7 +331,7 @@ pub(crate) fn specular_bounce(hit: &SurfaceHit, sp: &ShadingPoint, u: f32) -> Op
 fn scene_has_specular(scene: &Scene) -> bool {
     let tc = crate::texture::TexCoord::new(glam::Vec2::splat(0.5), glam::Vec3::ZERO);
     scene.materials.iter().any(|m| {
-        let b = m.bsdf(&scene.images, &tc);
+        let b = m.bsdf(&scene.textures, &tc);
         b.delta_probability(glam::Vec3::Z) > 0.0 || !b.has_smooth()
     })
 }

@@ -146,7 +146,7 @@ pub(crate) fn camera_segment<'a>(
     let wo_world = -ray.dir.normalize();
     let m = &scene.materials[hit.material as usize];
     if m.is_emissive() && shows_emission && m.emits_toward(&hit, wo_world) {
-        *l += beta * m.emission_at(&scene.images, &crate::texture::TexCoord::at(&hit));
+        *l += beta * m.emission_at(&scene.textures, &crate::texture::TexCoord::at(&hit));
     }
     if last {
         return None;
@@ -170,11 +170,11 @@ impl<'a> ShadingPoint<'a> {
     /// back of a one-sided opaque surface, which is black.
     pub(crate) fn new(scene: &'a Scene, hit: &SurfaceHit, wo_world: Vec3) -> Option<ShadingPoint<'a>> {
         let m = &scene.materials[hit.material as usize];
-        let bsdf = m.bsdf(&scene.images, &crate::texture::TexCoord::at(hit));
+        let bsdf = m.bsdf(&scene.textures, &crate::texture::TexCoord::at(hit));
         if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
             return None;
         }
-        let frame = m.shading_frame(&scene.images, hit, wo_world);
+        let frame = m.shading_frame(&scene.textures, hit, wo_world);
         Some(ShadingPoint {
             bsdf,
             frame,

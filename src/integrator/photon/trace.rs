@@ -149,7 +149,7 @@ fn trace_one(
         scene.choose_any_material(&mut hit, ray.dir);
         let m = &scene.materials[hit.material as usize];
         let tc = crate::texture::TexCoord::at(&hit);
-        let bsdf = m.bsdf(&scene.images, &tc);
+        let bsdf = m.bsdf(&scene.textures, &tc);
         let wo_world = -ray.dir.normalize();
         if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
             return; // the back of a one-sided surface absorbs
@@ -173,7 +173,7 @@ fn trace_one(
         // A normal map turns the frame as the light side sees it and
         // scales the scattering by its factor toward the light (Mitsuba's
         // radiance convention, applied to the photon's own direction).
-        let frame = m.shading_frame(&scene.images, &hit, wo_world);
+        let frame = m.shading_frame(&scene.textures, &hit, wo_world);
         let Some((next, next_ray, delta)) = crate::integrator::scatter_light(&hit, &bsdf, &frame, wo_world, beta, rng)
         else {
             return;

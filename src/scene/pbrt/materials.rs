@@ -12,7 +12,8 @@ use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::material::conductor::metal_ior;
 use crate::scene::desc::*;
-use glam::{Mat3, Mat4, Vec2, Vec3};
+use crate::texture::{Mapping2D, NoisePattern};
+use glam::{Affine3A, Mat3, Mat4, Vec2, Vec3};
 use std::path::Path;
 
 /// pbrt-v4's material types (`Material::Create`).
@@ -189,8 +190,8 @@ impl Parser {
         Ok(src.unwrap_or(ColorSource::Rgb(Rgb::splat(default))))
     }
 
-    /// A float parameter that pbrt allows to be a float texture, which
-    /// trazo does not have: a texture gives `default` with a warning.
+    /// A float parameter that pbrt allows to be a float texture and trazo
+    /// takes as a number: a texture gives `default` with a warning.
     fn float_param(&mut self, p: &ParamList, name: &str, default: f32) -> Result<Option<(f32, SourceLoc)>> {
         match p.float_or_texture(name)? {
             None => Ok(None),
@@ -200,7 +201,7 @@ impl Parser {
                 self.unsupported(
                     &l,
                     format!("float texture \"{t}\" for \"{}\"", prm.written),
-                    format!("float textures are not supported; {default} is used"),
+                    format!("trazo takes a number here, not a texture; {default} is used"),
                 );
                 Ok(Some((default, l)))
             }
@@ -730,7 +731,10 @@ impl Parser {
         })
     }
 
-    /// `Texture "name" "spectrum"|"float" "class" …`.
+    /// `Texture "name" "spectrum"|"float" "class" …`: pbrt-v4's texture
+    /// classes as trazo's textures and texture nodes. A float texture is a
+    /// grey texture under a name no scene can write (pbrt's float and
+    /// spectrum namespaces are apart), read by its first channel.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn texture(
         &mut self,
@@ -742,7 +746,8 @@ impl Parser {
         name_loc: &SourceLoc,
         dir_rel: &Path,
     ) -> Result<()> {
-        if ttype == "float" {
+        let float = ttype == "float";
+        if float {
             if !self.float_textures.insert(name.to_string()) {
                 return Err(Error::scene(
                     Some(name_loc.clone()),
@@ -750,205 +755,457 @@ impl Parser {
                     format!("the float texture \"{name}\" is already defined"),
                 ));
             }
-            // Images, constants and checkerboards of numbers are read as
-            // spectrum textures under a name no scene can write (the float
-            // and spectrum namespaces are apart in pbrt), read by their
-            // first channel: pbrt-v4's float image textures read channel 0.
-            let readable = match class {
-                "imagemap" | "constant" => true,
-                "checkerboard" => ["tex1", "tex2"]
-                    .iter()
-                    .all(|k| !matches!(p.float_or_texture(k), Ok(Some((FloatValue::Texture(_), _))))),
-                _ => false,
-            };
-            if readable {
-                let desc_name = format!("\u{0}float texture {name}");
-                self.texture(&desc_name, "spectrum", class, p, loc, name_loc, dir_rel)?;
-                let typical = self.texture_colors.get(&desc_name).map_or(0.0, |c| c.x);
-                self.float_texture_descs.insert(name.to_string(), (desc_name, typical));
-                return Ok(());
-            }
-            Self::use_all(p);
-            self.unsupported(
-                loc,
-                format!("float texture \"{name}\" \"{class}\""),
-                "trazo reads float imagemap, constant and checkerboard textures; parameters that name this one take their default values",
-            );
-            return Ok(());
-        }
-        if let Some(first) = self.spectrum_textures.get(name) {
+        } else if let Some(first) = self.spectrum_textures.get(name) {
             return Err(Error::scene(
                 Some(name_loc.clone()),
                 "Texture",
                 format!("the texture \"{name}\" is already defined (at {first})"),
             ));
         }
+        let desc_name = if float {
+            format!("\u{0}float texture {name}")
+        } else {
+            name.to_string()
+        };
+        // pbrt-v4 knows these classes for one kind of texture only.
+        let only = match class {
+            "fbm" | "wrinkled" | "windy" => Some("float"),
+            "marble" => Some("spectrum"),
+            _ => None,
+        };
+        if let Some(kind) = only.filter(|k| *k != ttype) {
+            return Err(Error::scene(
+                Some(loc.clone()),
+                "Texture",
+                format!("\"{class}\" is a {kind} texture in pbrt-v4, not a {ttype} one"),
+            ));
+        }
         let mut locs = Locs::at(Some(loc.clone()));
         let what = format!("Texture \"{name}\" \"{class}\"");
-        let (kind, typical) = match class {
-            "imagemap" => {
-                let Some((file, prm)) = p.string("filename")? else {
-                    return Err(Error::scene(
-                        Some(loc.clone()),
-                        "filename",
-                        "imagemap needs a \"string filename\"",
-                    ));
-                };
-                locs.keys.push(("file".into(), prm.loc.clone()));
-                let (scale, offset) = self.uv_mapping(p, loc, &what)?;
-                let tint = p.float("scale", 1.0)?;
-                if tint < 0.0 {
-                    return Err(p
-                        .find("scale")
-                        .expect("read")
-                        .err(format!("must not be negative, got {tint}")));
-                }
-                if p.bool("invert", false)? {
-                    self.unsupported(
-                        loc,
-                        format!("{what} with \"bool invert\""),
-                        "the image is used as it is",
-                    );
-                }
-                let srgb = match p.string("encoding")? {
-                    None => None,
-                    Some((e, prm)) => match e.as_str() {
-                        "sRGB" => Some(true),
-                        "linear" => Some(false),
-                        _ => {
-                            let l = prm.loc.clone();
-                            self.approximated(&l, format!("encoding \"{e}\""), "decoded as sRGB");
-                            Some(true)
-                        }
-                    },
-                };
-                if let Some((w, prm)) = p.string("wrap")? {
-                    if w != "repeat" {
-                        let l = prm.loc.clone();
-                        self.approximated(&l, format!("wrap \"{w}\""), "the image repeats");
-                    }
-                }
-                if let Some((f, prm)) = p.string("filter")? {
-                    if f != "bilinear" {
-                        let l = prm.loc.clone();
-                        self.approximated(&l, format!("filter \"{f}\""), "images are filtered bilinearly");
-                    }
-                }
-                (
-                    TextureKind::Image {
-                        source: ImageSource::File(self.resolve(dir_rel, &file)),
-                        scale,
-                        offset,
-                        srgb,
-                        tint: Rgb::splat(tint),
-                        wrap: crate::texture::WrapMode::Repeat,
-                        filter: crate::texture::ImageFilter::Bilinear,
-                    },
-                    Rgb::splat(0.5 * tint),
-                )
-            }
+        let input = |r: &mut Self, key: &str, default: f32| r.texture_input(p, key, default, float);
+        let kind = match class {
+            "imagemap" => self.image_texture(p, loc, &desc_name, &mut locs, dir_rel, float)?,
             "checkerboard" => {
-                let even = self.texture_color(p, "tex1", Rgb::ONE)?;
-                let odd = self.texture_color(p, "tex2", Rgb::ZERO)?;
-                let dim = p.int_opt("dimension")?;
-                match dim {
+                let even = input(self, "tex1", 1.0)?;
+                let odd = input(self, "tex2", 0.0)?;
+                match p.int_opt("dimension")? {
                     None | Some((2, _)) => {
-                        let (scale, offset) = self.uv_mapping(p, loc, &what)?;
-                        if offset != Vec2::ZERO {
-                            self.approximated(loc, format!("{what} with udelta/vdelta"), "the checks are not shifted");
-                        }
+                        let mapping = self.mapping_2d(p, loc)?;
                         if let Some(prm) = p.find("uscale").or(p.find("vscale")) {
                             locs.keys.push(("scale".into(), prm.loc.clone()));
                         }
-                        (TextureKind::Checkerboard { even, odd, scale }, 0.5 * (even + odd))
+                        match (even, odd, mapping) {
+                            (ColorSource::Rgb(even), ColorSource::Rgb(odd), Mapping2D::Uv { scale, offset })
+                                if offset == Vec2::ZERO =>
+                            {
+                                TextureKind::Checkerboard { even, odd, scale }
+                            }
+                            (even, odd, mapping) => TextureKind::Checks { even, odd, mapping },
+                        }
                     }
                     Some((3, _)) => {
-                        // pbrt-v4 maps points into texture space by the
-                        // inverse of the CTM; trazo's solid checks take one
-                        // scale in world space.
                         let m = self.gs.ctm;
                         let s = Mat3::from_mat4(m).determinant().abs().cbrt();
-                        let exact = s > 0.0 && m.abs_diff_eq(Mat4::from_scale(Vec3::splat(s)), 1e-6 * s.max(1.0));
-                        if !exact {
-                            self.approximated(
-                                loc,
-                                format!("{what} with dimension 3 under a rotation, translation or non-uniform scale"),
-                                "trazo's solid checks are axis-aligned in world space; only the transform's mean scale is used",
-                            );
+                        let uniform = s > 0.0 && m.abs_diff_eq(Mat4::from_scale(Vec3::splat(s)), 1e-6 * s.max(1.0));
+                        match (even, odd) {
+                            (ColorSource::Rgb(even), ColorSource::Rgb(odd)) if uniform => TextureKind::Checkerboard3d {
+                                even,
+                                odd,
+                                scale: 1.0 / s,
+                            },
+                            (even, odd) => TextureKind::SolidChecks {
+                                even,
+                                odd,
+                                to_texture: self.texture_from_world(loc)?,
+                            },
                         }
-                        let scale = if s > 0.0 { 1.0 / s } else { 1.0 };
-                        (TextureKind::Checkerboard3d { even, odd, scale }, 0.5 * (even + odd))
                     }
                     Some((d, prm)) => return Err(prm.err(format!("must be 2 or 3, got {d}"))),
                 }
             }
             "constant" => {
-                let c = self.texture_color(p, "value", Rgb::ONE)?;
-                (TextureKind::Constant(c), c)
+                let c = if float {
+                    Rgb::splat(p.float("value", 1.0)?)
+                } else {
+                    self.texture_color(p, "value", Rgb::ONE)?
+                };
+                TextureKind::Constant(c)
             }
             "scale" => {
-                // A texture times a constant keeps the texture; anything
-                // else becomes a constant.
-                if let Some(scaled) = self.scaled_texture(p, "tex", "scale")? {
-                    return self.push_texture(name, loc, locs, scaled);
-                }
-                if let Some(scaled) = self.scaled_texture(p, "scale", "tex")? {
-                    return self.push_texture(name, loc, locs, scaled);
-                }
-                let tex = self.texture_color(p, "tex", Rgb::ONE)?;
-                let s = match p.spectrum("scale")? {
-                    Some((SpectrumValue::Float(s), _)) => s,
-                    Some((v, prm)) => {
-                        let src = self.color_value(v, prm, ColorUse::Unbounded)?;
-                        let c = match src {
-                            Some(src) => self.constant_color(src, prm)?,
-                            None => Rgb::ONE,
-                        };
-                        (c.x + c.y + c.z) / 3.0
+                let tex = input(self, "tex", 1.0)?;
+                let scale = self.float_input(p, "scale", 1.0)?;
+                match (tex, scale) {
+                    (ColorSource::Rgb(t), ColorSource::Rgb(s)) => TextureKind::Constant(t * s),
+                    // An image times a number: the image with its colours
+                    // multiplied, as pbrt-v4 makes it.
+                    (ColorSource::Texture(t), ColorSource::Rgb(s)) if self.image_desc(&t).is_some() => {
+                        let mut kind = self.image_desc(&t).expect("checked").clone();
+                        if let TextureKind::Image { tint, .. } = &mut kind {
+                            *tint *= s;
+                        }
+                        kind
                     }
-                    None => 1.0,
-                };
-                let c = tex * s;
-                (TextureKind::Constant(c), c)
+                    (tex, scale) => TextureKind::Scale { tex, scale },
+                }
             }
-            "mix" | "directionmix" => {
-                let a = self.texture_color(p, "tex1", Rgb::ZERO)?;
-                let b = self.texture_color(p, "tex2", Rgb::ONE)?;
-                let t = if class == "mix" {
-                    self.float_param(p, "amount", 0.5)?.map_or(0.5, |(v, _)| v)
-                } else {
-                    0.5
+            "mix" => {
+                let first = input(self, "tex1", 0.0)?;
+                let second = input(self, "tex2", 1.0)?;
+                let amount = self.float_input(p, "amount", 0.5)?;
+                match (first, second, amount) {
+                    (ColorSource::Rgb(a), ColorSource::Rgb(b), ColorSource::Rgb(t)) => {
+                        TextureKind::Constant(a * (1.0 - t.x) + b * t.x)
+                    }
+                    (first, second, amount) => TextureKind::Mix { first, second, amount },
+                }
+            }
+            "directionmix" => {
+                let first = input(self, "tex1", 0.0)?;
+                let second = input(self, "tex2", 1.0)?;
+                let (dir, prm) = match p.vec3s("dir", &["vector3", "vector"])? {
+                    Some((v, prm)) => (v[0], Some(prm)),
+                    None => (Vec3::Y, None),
                 };
-                Self::use_all(p);
-                let c = a * (1.0 - t) + b * t;
-                self.approximated(
-                    loc,
-                    &what,
-                    format!("replaced by the constant blend [{} {} {}]", c.x, c.y, c.z),
-                );
-                (TextureKind::Constant(c), c)
+                // A direction of texture space, as the CTM turns it.
+                let dir = self.gs.ctm.transform_vector3(dir);
+                if !dir.is_finite() || dir.length_squared() == 0.0 {
+                    let at = prm.map_or(loc.clone(), |prm| prm.loc.clone());
+                    return Err(Error::scene(Some(at), "dir", "must be a non-zero direction"));
+                }
+                TextureKind::DirectionMix { first, second, dir }
             }
             "bilerp" => {
-                let mut sum = Rgb::ZERO;
-                for (k, d) in [("v00", 0.0), ("v01", 1.0), ("v10", 0.0), ("v11", 1.0)] {
-                    sum += self.texture_color(p, k, Rgb::splat(d))?;
+                let mut corners = [Rgb::ZERO; 4];
+                for (k, (key, d)) in [("v00", 0.0), ("v10", 0.0), ("v01", 1.0), ("v11", 1.0)]
+                    .into_iter()
+                    .enumerate()
+                {
+                    corners[k] = if float {
+                        Rgb::splat(p.float(key, d)?)
+                    } else {
+                        self.texture_color(p, key, Rgb::splat(d))?
+                    };
                 }
-                let c = sum / 4.0;
-                self.approximated(
-                    loc,
-                    &what,
-                    format!("replaced by its mean colour [{} {} {}]", c.x, c.y, c.z),
-                );
-                (TextureKind::Constant(c), c)
+                TextureKind::Bilerp {
+                    corners,
+                    mapping: self.mapping_2d(p, loc)?,
+                }
+            }
+            "dots" => TextureKind::Dots {
+                inside: input(self, "inside", 1.0)?,
+                outside: input(self, "outside", 0.0)?,
+                mapping: self.mapping_2d(p, loc)?,
+            },
+            "fbm" | "wrinkled" | "windy" | "marble" => {
+                let octaves = match p.int_opt("octaves")? {
+                    None => 8,
+                    Some((o, prm)) => {
+                        if !(0..=MAX_NOISE_OCTAVES as i64).contains(&o) {
+                            return Err(prm.err(format!("must be between 0 and {MAX_NOISE_OCTAVES}, got {o}")));
+                        }
+                        o as u32
+                    }
+                };
+                let omega = p.float("roughness", 0.5)?;
+                let pattern = match class {
+                    "fbm" => NoisePattern::Fbm { octaves, omega },
+                    "wrinkled" => NoisePattern::Wrinkled { octaves, omega },
+                    "windy" => NoisePattern::Windy,
+                    _ => NoisePattern::Marble {
+                        octaves,
+                        omega,
+                        scale: p.float("scale", 1.0)?,
+                        variation: p.float("variation", 0.2)?,
+                    },
+                };
+                TextureKind::Noise {
+                    pattern,
+                    to_texture: self.texture_from_world(loc)?,
+                }
             }
             _ => {
                 Self::use_all(p);
-                let c = Rgb::splat(0.5);
                 self.unsupported(loc, &what, "replaced by a constant grey of 0.5");
-                (TextureKind::Constant(c), c)
+                TextureKind::Constant(Rgb::splat(0.5))
             }
         };
+        let typical = self.typical_color(&kind);
+        if float {
+            self.float_texture_descs
+                .insert(name.to_string(), (desc_name.clone(), typical.x));
+            self.texture_colors.insert(desc_name.clone(), typical);
+            self.desc.textures.push(TextureDesc {
+                name: desc_name,
+                kind,
+                locs,
+            });
+            return Ok(());
+        }
         self.push_texture(name, loc, locs, (kind, typical))
+    }
+
+    /// An `imagemap`: the image with pbrt-v4's (u, v) mapping, or placed
+    /// by another mapping; `invert`ed where asked; a float texture's the
+    /// image's first channel.
+    #[allow(clippy::too_many_arguments)]
+    fn image_texture(
+        &mut self,
+        p: &ParamList,
+        loc: &SourceLoc,
+        desc_name: &str,
+        locs: &mut Locs,
+        dir_rel: &Path,
+        float: bool,
+    ) -> Result<TextureKind> {
+        let Some((file, prm)) = p.string("filename")? else {
+            return Err(Error::scene(
+                Some(loc.clone()),
+                "filename",
+                "imagemap needs a \"string filename\"",
+            ));
+        };
+        locs.keys.push(("file".into(), prm.loc.clone()));
+        let mapping = self.mapping_2d(p, loc)?;
+        let tint = p.float("scale", 1.0)?;
+        if tint < 0.0 {
+            return Err(p
+                .find("scale")
+                .expect("read")
+                .err(format!("must not be negative, got {tint}")));
+        }
+        let srgb = match p.string("encoding")? {
+            None => None,
+            Some((e, prm)) => match e.as_str() {
+                "sRGB" => Some(true),
+                "linear" => Some(false),
+                _ => {
+                    let l = prm.loc.clone();
+                    self.approximated(&l, format!("encoding \"{e}\""), "decoded as sRGB");
+                    Some(true)
+                }
+            },
+        };
+        let wrap = match p.string("wrap")? {
+            None => crate::texture::WrapMode::Repeat,
+            Some((w, prm)) => match w.as_str() {
+                "repeat" => crate::texture::WrapMode::Repeat,
+                "clamp" => crate::texture::WrapMode::Clamp,
+                _ => {
+                    let l = prm.loc.clone();
+                    self.approximated(&l, format!("wrap \"{w}\""), "the image repeats");
+                    crate::texture::WrapMode::Repeat
+                }
+            },
+        };
+        let filter = match p.string("filter")? {
+            None => crate::texture::ImageFilter::Bilinear,
+            Some((f, prm)) => match f.as_str() {
+                "point" => crate::texture::ImageFilter::Nearest,
+                "bilinear" => crate::texture::ImageFilter::Bilinear,
+                _ => {
+                    let l = prm.loc.clone();
+                    self.approximated(
+                        &l,
+                        format!("filter \"{f}\""),
+                        "read bilinearly at the point (trazo filters by supersampling)",
+                    );
+                    crate::texture::ImageFilter::Bilinear
+                }
+            },
+        };
+        let (scale, offset) = match mapping {
+            Mapping2D::Uv { scale, offset } => (scale, offset),
+            _ => (Vec2::ONE, Vec2::ZERO),
+        };
+        let mut kind = TextureKind::Image {
+            source: ImageSource::File(self.resolve(dir_rel, &file)),
+            scale,
+            offset,
+            srgb,
+            tint: Rgb::splat(tint),
+            wrap,
+            filter,
+        };
+        if !matches!(mapping, Mapping2D::Uv { .. }) {
+            let image = self.hidden_texture(desc_name, "image", kind, locs.clone());
+            kind = TextureKind::Mapped { tex: image, mapping };
+        }
+        if p.bool("invert", false)? {
+            let t = self.hidden_texture(desc_name, "uninverted", kind, locs.clone());
+            kind = TextureKind::Invert(t);
+        }
+        if float {
+            let t = self.hidden_texture(desc_name, "colour", kind, locs.clone());
+            kind = TextureKind::FirstChannel(t);
+        }
+        Ok(kind)
+    }
+
+    /// Records a texture that another is made of, under a name derived from
+    /// that one's that no scene can write; what names it.
+    fn hidden_texture(&mut self, owner: &str, part: &str, kind: TextureKind, locs: Locs) -> ColorSource {
+        let name = format!("\u{0}{owner} {part}");
+        let typical = self.typical_color(&kind);
+        self.texture_colors.insert(name.clone(), typical);
+        self.desc.textures.push(TextureDesc {
+            name: name.clone(),
+            kind,
+            locs,
+        });
+        ColorSource::Texture(name)
+    }
+
+    /// The image texture a name stands for, if it is one.
+    fn image_desc(&self, name: &str) -> Option<&TextureKind> {
+        self.desc
+            .textures
+            .iter()
+            .rev()
+            .find(|t| t.name == name)
+            .map(|t| &t.kind)
+            .filter(|k| matches!(k, TextureKind::Image { .. }))
+    }
+
+    /// A texture's typical colour, for where trazo needs a constant.
+    fn typical_color(&self, kind: &TextureKind) -> Rgb {
+        let of = |c: &ColorSource| match c {
+            ColorSource::Rgb(c) => *c,
+            ColorSource::Texture(t) => self.texture_colors.get(t).copied().unwrap_or(Rgb::splat(0.5)),
+        };
+        match kind {
+            TextureKind::Constant(c) => *c,
+            TextureKind::Checkerboard { even, odd, .. } | TextureKind::Checkerboard3d { even, odd, .. } => {
+                0.5 * (*even + *odd)
+            }
+            TextureKind::Image { tint, .. } => 0.5 * *tint,
+            TextureKind::MeshAttribute { .. } => Rgb::splat(0.5),
+            TextureKind::Scale { tex, scale } => of(tex) * of(scale),
+            TextureKind::Mix { first, second, amount } => {
+                let t = of(amount).x;
+                (1.0 - t) * of(first) + t * of(second)
+            }
+            TextureKind::DirectionMix { first, second, .. }
+            | TextureKind::Checks {
+                even: first,
+                odd: second,
+                ..
+            }
+            | TextureKind::SolidChecks {
+                even: first,
+                odd: second,
+                ..
+            } => 0.5 * (of(first) + of(second)),
+            TextureKind::Dots { inside, outside, .. } => {
+                let covered = 0.5 * std::f32::consts::PI * 0.35 * 0.35;
+                covered * of(inside) + (1.0 - covered) * of(outside)
+            }
+            TextureKind::Bilerp { corners, .. } => corners.iter().sum::<Rgb>() / 4.0,
+            TextureKind::Noise { pattern, .. } => pattern.average(),
+            TextureKind::Invert(t) => (Rgb::ONE - of(t)).max(Rgb::ZERO),
+            TextureKind::FirstChannel(t) => Rgb::splat(of(t).x),
+            TextureKind::Mapped { tex, .. } => of(tex),
+        }
+    }
+
+    /// An input of a texture: a number or float texture in a float
+    /// texture, a colour or spectrum texture in a spectrum one.
+    fn texture_input(&mut self, p: &ParamList, key: &str, default: f32, float: bool) -> Result<ColorSource> {
+        if float {
+            return self.float_input(p, key, default);
+        }
+        let Some((v, prm)) = p.spectrum(key)? else {
+            return Ok(ColorSource::Rgb(Rgb::splat(default)));
+        };
+        if let SpectrumValue::Float(x) = v {
+            return Ok(ColorSource::Rgb(Rgb::splat(x.max(0.0))));
+        }
+        match self.color_value(v, prm, ColorUse::Unbounded)? {
+            Some(ColorSource::Texture(t)) => {
+                if !self.spectrum_textures.contains_key(&t) {
+                    let hint = if self.float_textures.contains(&t) {
+                        " (a float texture of that name exists, but a colour needs a spectrum texture)".to_string()
+                    } else {
+                        suggest(&t, self.spectrum_textures.keys().map(String::as_str))
+                    };
+                    return Err(prm.err(format!("no texture named \"{t}\" before this one{hint}")));
+                }
+                Ok(ColorSource::Texture(t))
+            }
+            Some(src) => Ok(src),
+            None => Ok(ColorSource::Rgb(Rgb::splat(default))),
+        }
+    }
+
+    /// A float input of a texture: a number, or a float texture made
+    /// before.
+    fn float_input(&mut self, p: &ParamList, key: &str, default: f32) -> Result<ColorSource> {
+        match p.float_or_texture(key)? {
+            None => Ok(ColorSource::Rgb(Rgb::splat(default))),
+            Some((FloatValue::Num(v), _)) => Ok(ColorSource::Rgb(Rgb::splat(v))),
+            Some((FloatValue::Texture(t), prm)) => match self.float_texture_descs.get(&t) {
+                Some((desc_name, _)) => Ok(ColorSource::Texture(desc_name.clone())),
+                None => Err(prm.err(format!(
+                    "no float texture named \"{t}\" before this one{}",
+                    suggest(&t, self.float_textures.iter().map(String::as_str))
+                ))),
+            },
+        }
+    }
+
+    /// pbrt-v4's `TextureMapping2D`: `uv` (s = su·u + du, t = sv·v + dv),
+    /// or `spherical`, `cylindrical` and `planar` about the texture space
+    /// that the CTM places.
+    fn mapping_2d(&mut self, p: &ParamList, loc: &SourceLoc) -> Result<Mapping2D> {
+        let kind = p.string("mapping")?;
+        let kind = kind.as_ref().map_or("uv", |(m, _)| m.as_str());
+        Ok(match kind {
+            "spherical" => Mapping2D::Spherical {
+                to_texture: self.texture_from_world(loc)?,
+            },
+            "cylindrical" => Mapping2D::Cylindrical {
+                to_texture: self.texture_from_world(loc)?,
+            },
+            "planar" => {
+                let axis = |name: &str, default: Vec3| -> Result<Vec3> {
+                    Ok(p.vec3s(name, &["vector3", "vector"])?.map_or(default, |(v, _)| v[0]))
+                };
+                Mapping2D::Planar {
+                    to_texture: self.texture_from_world(loc)?,
+                    s_axis: axis("v1", Vec3::X)?,
+                    t_axis: axis("v2", Vec3::Y)?,
+                    offset: Vec2::new(p.float("udelta", 0.0)?, p.float("vdelta", 0.0)?),
+                }
+            }
+            other => {
+                if other != "uv" {
+                    // pbrt-v4 reports it and goes on with (u, v).
+                    self.approximated(
+                        loc,
+                        format!("texture mapping \"{other}\""),
+                        "the (u, v) mapping is used",
+                    );
+                }
+                Mapping2D::Uv {
+                    scale: Vec2::new(p.float("uscale", 1.0)?, p.float("vscale", 1.0)?),
+                    offset: Vec2::new(p.float("udelta", 0.0)?, p.float("vdelta", 0.0)?),
+                }
+            }
+        })
+    }
+
+    /// World to texture space: the inverse of the CTM at the `Texture`
+    /// directive (pbrt-v4's textureFromRender).
+    fn texture_from_world(&self, loc: &SourceLoc) -> Result<Affine3A> {
+        let m = self.gs.ctm;
+        let det = m.determinant();
+        if !det.is_finite() || det.abs() < 1e-12 {
+            return Err(Error::scene(
+                Some(loc.clone()),
+                "Texture",
+                "the texture's transform (the CTM) is singular",
+            ));
+        }
+        Ok(Affine3A::from_mat4(m.inverse()))
     }
 
     /// Records a spectrum texture and its typical colour.
@@ -969,37 +1226,6 @@ impl Parser {
         Ok(())
     }
 
-    /// A `scale` texture whose `textured` parameter names a texture
-    /// already defined and whose `constant` parameter is a colour or a
-    /// number: that texture with its colours multiplied, and its typical
-    /// colour. `None` when the parameters are not of that form.
-    fn scaled_texture(&mut self, p: &ParamList, textured: &str, constant: &str) -> Result<Option<(TextureKind, Rgb)>> {
-        let Some((SpectrumValue::Texture(name), _)) = p.spectrum(textured)? else {
-            return Ok(None);
-        };
-        let factor = match p.spectrum(constant)? {
-            None => Rgb::ONE,
-            Some((SpectrumValue::Float(x), _)) => Rgb::splat(x),
-            Some((SpectrumValue::Rgb(c), _)) => c,
-            Some(_) => return Ok(None),
-        };
-        let Some(base) = self.desc.textures.iter().rev().find(|t| t.name == name) else {
-            return Ok(None);
-        };
-        let mut kind = base.kind.clone();
-        match &mut kind {
-            TextureKind::Constant(c) => *c *= factor,
-            TextureKind::Checkerboard { even, odd, .. } | TextureKind::Checkerboard3d { even, odd, .. } => {
-                *even *= factor;
-                *odd *= factor;
-            }
-            TextureKind::Image { tint, .. } => *tint *= factor,
-            TextureKind::MeshAttribute { .. } => unreachable!("pbrt-v4 scenes have no mesh attribute textures"),
-        }
-        let typical = self.texture_colors.get(&name).copied().unwrap_or(Rgb::splat(0.5)) * factor;
-        Ok(Some((kind, typical)))
-    }
-
     /// A constant colour parameter of a texture (another texture stands
     /// for its typical colour).
     fn texture_color(&mut self, p: &ParamList, name: &str, default: Rgb) -> Result<Rgb> {
@@ -1013,23 +1239,5 @@ impl Parser {
             Some(src) => self.constant_color(src, prm),
             None => Ok(default),
         }
-    }
-
-    /// pbrt-v4's `UVMapping` (s = su·u + du, t = sv·v + dv) as trazo's
-    /// scale and offset; other mappings are approximated by it.
-    fn uv_mapping(&mut self, p: &ParamList, loc: &SourceLoc, what: &str) -> Result<(Vec2, Vec2)> {
-        if let Some((m, _)) = p.string("mapping")? {
-            if m != "uv" {
-                Self::use_all(p);
-                self.approximated(
-                    loc,
-                    format!("{what} with mapping \"{m}\""),
-                    "the surface's (u, v) coordinates are used",
-                );
-            }
-        }
-        let scale = Vec2::new(p.float("uscale", 1.0)?, p.float("vscale", 1.0)?);
-        let offset = Vec2::new(p.float("udelta", 0.0)?, p.float("vdelta", 0.0)?);
-        Ok((scale, offset))
     }
 }

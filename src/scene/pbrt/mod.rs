@@ -1235,10 +1235,23 @@ impl Parser {
                 ColorSource::Rgb(_) => None,
             })
             .collect();
+        // Float textures (and their parts) that nothing reads are not
+        // loaded; a texture kept keeps its inputs, which are made before it.
         let float_names: HashSet<&String> = self.float_texture_descs.values().map(|(n, _)| n).collect();
+        let droppable = |name: &String| float_names.contains(name) || name.starts_with("\0\0float texture ");
+        let mut read_floats = read_floats;
+        for t in self.desc.textures.iter().rev() {
+            if !droppable(&t.name) || read_floats.contains(&t.name) {
+                for input in t.kind.inputs() {
+                    if let ColorSource::Texture(n) = input {
+                        read_floats.insert(n.clone());
+                    }
+                }
+            }
+        }
         self.desc
             .textures
-            .retain(|t| !float_names.contains(&t.name) || read_floats.contains(&t.name));
+            .retain(|t| !droppable(&t.name) || read_floats.contains(&t.name));
 
         // Texture references of materials.
         for m in &self.materials {

@@ -2070,20 +2070,33 @@ Shape "sphere""#,
     let ColorSource::Texture(name) = &b.height else {
         panic!("{:?}", b.height)
     };
+    // A float image is its first channel.
     let t = d.textures.iter().find(|t| &t.name == name).expect("its texture");
+    let TextureKind::FirstChannel(ColorSource::Texture(image)) = &t.kind else {
+        panic!("{:?}", t.kind)
+    };
+    let t = d.textures.iter().find(|t| &t.name == image).expect("its image");
     assert!(
         matches!(&t.kind, TextureKind::Image { source: ImageSource::File(f), .. } if f.ends_with("textures/bumps.png")),
         "{:?}",
         t.kind
     );
-    // A float texture trazo does not read leaves the surface smooth, named.
-    assert!(material(1).bump_map.is_none());
+    // Procedural float textures bump too.
+    let b = material(1).bump_map.as_ref().expect("a bump map of noise");
+    let ColorSource::Texture(name) = &b.height else {
+        panic!("{:?}", b.height)
+    };
+    let t = d.textures.iter().find(|t| &t.name == name).expect("its texture");
     assert!(
-        d.warnings
-            .iter()
-            .any(|w| w.contains("\"displacement\" texture \"noise\"")),
+        matches!(
+            t.kind,
+            TextureKind::Noise {
+                pattern: crate::texture::NoisePattern::Fbm { octaves: 8, omega: 0.5 },
+                ..
+            }
+        ),
         "{:?}",
-        d.warnings
+        t.kind
     );
     // As in pbrt-v4, a normal map wins.
     let both = material(2);
@@ -2141,8 +2154,10 @@ fn a_scaled_texture_stays_a_texture() {
     let d = world(
         r#"Texture "grid" "spectrum" "imagemap" "string filename" "lines.png" "float uscale" 2
 Texture "half" "spectrum" "scale" "float scale" 0.5 "texture tex" "grid"
-Texture "checks" "spectrum" "checkerboard" "rgb tex1" [1 1 1] "rgb tex2" [0 0 0]
+Texture "checks" "float" "checkerboard" "float tex1" 1 "float tex2" 0
 Texture "tinted" "spectrum" "scale" "texture scale" "checks" "rgb tex" [1 0.5 0.25]
+Material "diffuse" "texture reflectance" "tinted"
+Shape "sphere"
 Material "diffuse" "texture reflectance" "half"
 Shape "sphere""#,
     );
@@ -2151,10 +2166,18 @@ Shape "sphere""#,
         panic!("{:?}", d.textures[1].kind)
     };
     assert_eq!((*tint, *scale), (Rgb::splat(0.5), Vec2::new(2.0, 1.0)));
+    // A colour times a float texture: a product node.
     assert_eq!(
         d.textures[3].kind,
+        TextureKind::Scale {
+            tex: ColorSource::Rgb(Rgb::new(1.0, 0.5, 0.25)),
+            scale: ColorSource::Texture("\u{0}float texture checks".into()),
+        }
+    );
+    assert_eq!(
+        d.textures[2].kind,
         TextureKind::Checkerboard {
-            even: Rgb::new(1.0, 0.5, 0.25),
+            even: Rgb::ONE,
             odd: Rgb::ZERO,
             scale: Vec2::ONE
         }
@@ -2241,4 +2264,125 @@ Shape "sphere"
         e.contains("test.pbrt:2:") && e.contains("sigma_s") && e.contains("2 RGB values"),
         "{e}"
     );
+}
+
+/// Every texture class of pbrt-v4 becomes a texture of trazo's, float and
+/// spectrum alike, without a warning (ptex aside).
+#[test]
+fn every_texture_class_is_read() {
+    let d = world(
+        r#"Texture "f" "float" "fbm" "integer octaves" 5 "float roughness" 0.6
+Texture "w" "float" "wrinkled"
+Texture "wind" "float" "windy"
+Texture "marb" "spectrum" "marble" "float scale" 2 "float variation" 0.4
+Texture "bl" "spectrum" "bilerp" "rgb v00" [1 0 0] "rgb v11" [0 0 1]
+Texture "fbl" "float" "bilerp" "float v10" 0.5
+Texture "dots" "spectrum" "dots" "texture inside" "marb" "rgb outside" [0.1 0.1 0.1] "float uscale" 8
+Texture "fdots" "float" "dots" "texture inside" "f"
+Texture "dm" "spectrum" "directionmix" "texture tex1" "bl" "rgb tex2" [0 1 0] "vector3 dir" [0 0 1]
+Texture "fmix" "float" "mix" "texture tex1" "w" "float tex2" 0.25 "texture amount" "wind"
+Texture "sph" "spectrum" "checkerboard" "string mapping" "spherical" "texture tex1" "dots"
+Texture "pl" "spectrum" "bilerp" "string mapping" "planar" "vector3 v1" [0 0 1] "vector3 v2" [1 0 0] "float udelta" 0.5
+Texture "cyl" "spectrum" "checkerboard" "string mapping" "cylindrical"
+AttributeBegin
+  Translate 1 2 3
+  Texture "solid" "spectrum" "checkerboard" "integer dimension" 3 "texture tex1" "dm"
+AttributeEnd
+Texture "fscaled" "float" "scale" "texture tex" "fmix" "texture scale" "fdots"
+Texture "all" "spectrum" "scale" "texture tex" "solid" "texture scale" "fscaled"
+Material "diffuse" "texture reflectance" "all" "texture displacement" "f"
+Shape "sphere"
+Material "conductor" "texture roughness" "fbl"
+Shape "sphere""#,
+    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let kind = |name: &str| {
+        let n = if d.textures.iter().any(|t| t.name == name) {
+            name.to_string()
+        } else {
+            format!("\u{0}float texture {name}")
+        };
+        &d.textures
+            .iter()
+            .find(|t| t.name == n)
+            .unwrap_or_else(|| panic!("{name}"))
+            .kind
+    };
+    use crate::texture::{Mapping2D, NoisePattern};
+    assert!(matches!(
+        kind("f"),
+        TextureKind::Noise {
+            pattern: NoisePattern::Fbm { octaves: 5, omega },
+            ..
+        } if (*omega - 0.6).abs() < 1e-6
+    ));
+    assert!(matches!(
+        kind("marb"),
+        TextureKind::Noise {
+            pattern: NoisePattern::Marble { .. },
+            ..
+        }
+    ));
+    let TextureKind::Bilerp { corners, .. } = kind("bl") else {
+        panic!()
+    };
+    // v00, v10, v01, v11 (pbrt's defaults 0, 0, 1, 1).
+    assert_eq!(
+        *corners,
+        [Rgb::new(1.0, 0.0, 0.0), Rgb::ZERO, Rgb::ONE, Rgb::new(0.0, 0.0, 1.0)]
+    );
+    assert!(matches!(kind("dots"), TextureKind::Dots { mapping: Mapping2D::Uv { scale, .. }, .. } if scale.x == 8.0));
+    assert!(matches!(kind("dm"), TextureKind::DirectionMix { dir, .. } if *dir == Vec3::Z));
+    assert!(matches!(
+        kind("sph"),
+        TextureKind::Checks {
+            mapping: Mapping2D::Spherical { .. },
+            ..
+        }
+    ));
+    assert!(matches!(
+        kind("cyl"),
+        TextureKind::Checks {
+            mapping: Mapping2D::Cylindrical { .. },
+            ..
+        }
+    ));
+    let TextureKind::Bilerp {
+        mapping: Mapping2D::Planar { s_axis, offset, .. },
+        ..
+    } = kind("pl")
+    else {
+        panic!("{:?}", kind("pl"))
+    };
+    assert_eq!((*s_axis, *offset), (Vec3::Z, Vec2::new(0.5, 0.0)));
+    // Solid checks of texture space: the inverse of the CTM.
+    let TextureKind::SolidChecks { to_texture, .. } = kind("solid") else {
+        panic!("{:?}", kind("solid"))
+    };
+    assert!(
+        to_texture
+            .transform_point3(Vec3::new(1.0, 2.0, 3.0))
+            .abs()
+            .max_element()
+            < 1e-6
+    );
+    assert!(matches!(kind("all"), TextureKind::Scale { .. }));
+    // The scene builds, and every texture is evaluated on the way.
+    crate::scene::build(&d).unwrap_or_else(|e| panic!("{e}"));
+}
+
+/// pbrt-v4's classes are of one kind only, and inputs name textures made
+/// before them.
+#[test]
+fn texture_inputs_are_checked() {
+    assert!(error_of("WorldBegin\nTexture \"m\" \"float\" \"marble\"").contains("spectrum texture in pbrt-v4"));
+    assert!(error_of("WorldBegin\nTexture \"m\" \"spectrum\" \"fbm\"").contains("float texture in pbrt-v4"));
+    let e = error_of("WorldBegin\nTexture \"m\" \"spectrum\" \"mix\" \"texture tex1\" \"later\"");
+    assert!(e.contains("no texture named \"later\""), "{e}");
+    let e = error_of("WorldBegin\nTexture \"m\" \"float\" \"mix\" \"texture amount\" \"nope\"");
+    assert!(e.contains("no float texture named \"nope\""), "{e}");
+    let e = error_of("WorldBegin\nTexture \"m\" \"float\" \"fbm\" \"integer octaves\" 1000");
+    assert!(e.contains("between 0 and 64"), "{e}");
+    let e = error_of("WorldBegin\nScale 0 1 1\nTexture \"m\" \"float\" \"fbm\"");
+    assert!(e.contains("singular"), "{e}");
 }
