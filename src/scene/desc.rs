@@ -273,28 +273,21 @@ pub enum TextureKind {
 }
 
 impl TextureKind {
-    /// The colours and textures a texture is made of.
-    pub fn inputs(&self) -> Vec<&ColorSource> {
+    /// The colours and textures a texture is made of, with their keys.
+    pub fn inputs(&self) -> Vec<(&'static str, &ColorSource)> {
         match self {
-            TextureKind::Scale { tex, scale } => vec![tex, scale],
-            TextureKind::Mix { first, second, amount } => vec![first, second, amount],
-            TextureKind::DirectionMix { first, second, .. }
-            | TextureKind::Checks {
-                even: first,
-                odd: second,
-                ..
+            TextureKind::Scale { tex, scale } => vec![("texture", tex), ("scale", scale)],
+            TextureKind::Mix { first, second, amount } => {
+                vec![("first", first), ("second", second), ("amount", amount)]
             }
-            | TextureKind::SolidChecks {
-                even: first,
-                odd: second,
-                ..
+            TextureKind::DirectionMix { first, second, .. } => vec![("first", first), ("second", second)],
+            TextureKind::Checks { even, odd, .. } | TextureKind::SolidChecks { even, odd, .. } => {
+                vec![("even", even), ("odd", odd)]
             }
-            | TextureKind::Dots {
-                inside: first,
-                outside: second,
-                ..
-            } => vec![first, second],
-            TextureKind::Invert(tex) | TextureKind::FirstChannel(tex) | TextureKind::Mapped { tex, .. } => vec![tex],
+            TextureKind::Dots { inside, outside, .. } => vec![("inside", inside), ("outside", outside)],
+            TextureKind::Invert(tex) | TextureKind::FirstChannel(tex) | TextureKind::Mapped { tex, .. } => {
+                vec![("texture", tex)]
+            }
             _ => vec![],
         }
     }
@@ -1239,13 +1232,13 @@ impl SceneDesc {
                 return Err(c.err("name", format!("a texture named \"{}\" is already defined", t.name)));
             }
             // A texture is made of textures defined before it: no cycles.
-            for input in t.kind.inputs() {
+            for (key, input) in t.kind.inputs() {
                 match input {
                     // Inputs may be negative (a float texture's).
-                    ColorSource::Rgb(col) => c.vec3("input", *col)?,
+                    ColorSource::Rgb(col) => c.vec3(key, *col)?,
                     ColorSource::Texture(name) if !names.contains(name.as_str()) => {
                         return Err(c.err(
-                            "input",
+                            key,
                             format!(
                                 "no texture named \"{name}\" before this one{}",
                                 suggest(name, names.iter().copied())

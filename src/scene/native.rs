@@ -13,7 +13,8 @@ use crate::geometry::TriangleMesh;
 use crate::geometry::sdf::{self, SdfBuilder};
 use crate::sampling::SamplerKind;
 use crate::settings::{Filter, IntegratorKind, PathSampling, PhotonKernel, RenderSettings, Tonemap};
-use glam::{Mat4, Vec2, Vec3, Vec4};
+use crate::texture::{Mapping2D, NoisePattern};
+use glam::{Affine3A, Mat4, Vec2, Vec3, Vec4};
 use serde_spanned::Spanned;
 use std::cell::RefCell;
 use std::ops::Range;
@@ -108,7 +109,7 @@ pub fn parse(text: &str, path: &Path) -> Result<SceneDesc> {
         desc.world_locs = t.finish()?;
     }
     for t in top.tables("texture")? {
-        desc.textures.push(read_texture(&t)?);
+        desc.textures.extend(read_texture(&t)?);
     }
     for t in top.tables("material")? {
         desc.materials.push(read_material(&t)?);
@@ -626,40 +627,207 @@ fn read_camera(t: &Table) -> Result<CameraDesc> {
     })
 }
 
-fn read_texture(t: &Table) -> Result<TextureDesc> {
+/// The texture types of the native format.
+pub const TEXTURE_TYPES: [&str; 14] = [
+    "constant",
+    "checkerboard",
+    "checkerboard3d",
+    "image",
+    "scale",
+    "mix",
+    "direction_mix",
+    "dots",
+    "bilerp",
+    "invert",
+    "fbm",
+    "wrinkled",
+    "windy",
+    "marble",
+];
+
+/// A `[[texture]]`: one texture, or two where an image is placed by a
+/// mapping other than (u, v) (the image itself, under the texture's name
+/// after a "\0" that no scene can write, and the texture reading it).
+fn read_texture(t: &Table) -> Result<Vec<TextureDesc>> {
     let name = t.required_string("name")?;
-    let kind = t.choice("type", &["constant", "checkerboard", "checkerboard3d", "image"])?;
+    let kind = t.choice("type", &TEXTURE_TYPES)?;
     let kind = t.required("type", kind)?;
+    let input = |key: &str, default: f32| -> Result<ColorSource> {
+        Ok(t.color_source(key)?.unwrap_or(ColorSource::Rgb(Rgb::splat(default))))
+    };
     let kind = match kind.as_str() {
         "constant" => TextureKind::Constant(t.color("color")?.unwrap_or(Rgb::splat(0.5))),
-        "checkerboard" => TextureKind::Checkerboard {
-            even: t.color("even")?.unwrap_or(Rgb::ONE),
-            odd: t.color("odd")?.unwrap_or(Rgb::ZERO),
-            scale: t.vec2("scale")?.unwrap_or(Vec2::splat(8.0)),
-        },
-        "checkerboard3d" => TextureKind::Checkerboard3d {
-            even: t.color("even")?.unwrap_or(Rgb::ONE),
-            odd: t.color("odd")?.unwrap_or(Rgb::ZERO),
-            scale: t.number_or("scale", 1.0)?,
-        },
-        _ => {
+        "checkerboard" => {
+            let (even, odd) = (input("even", 1.0)?, input("odd", 0.0)?);
+            match (even, odd, read_mapping(t, Vec2::splat(8.0))?) {
+                (ColorSource::Rgb(even), ColorSource::Rgb(odd), Mapping2D::Uv { scale, offset })
+                    if offset == Vec2::ZERO =>
+                {
+                    TextureKind::Checkerboard { even, odd, scale }
+                }
+                (even, odd, mapping) => TextureKind::Checks { even, odd, mapping },
+            }
+        }
+        "checkerboard3d" => {
+            let (even, odd) = (input("even", 1.0)?, input("odd", 0.0)?);
+            let scale = t.number_or("scale", 1.0)?;
+            match (even, odd) {
+                (ColorSource::Rgb(even), ColorSource::Rgb(odd)) if t.value("transform").is_none() => {
+                    TextureKind::Checkerboard3d { even, odd, scale }
+                }
+                (even, odd) => TextureKind::SolidChecks {
+                    even,
+                    odd,
+                    to_texture: Affine3A::from_scale(Vec3::splat(scale)) * texture_space(t)?,
+                },
+            }
+        }
+        "image" => {
             let path = t.path("file")?;
-            TextureKind::Image {
+            let mapping = read_mapping(t, Vec2::ONE)?;
+            let (scale, offset) = match mapping {
+                Mapping2D::Uv { scale, offset } => (scale, offset),
+                _ => (Vec2::ONE, Vec2::ZERO),
+            };
+            let wrap = match t.choice("wrap", &["repeat", "mirror", "clamp"])?.as_deref() {
+                Some("mirror") => crate::texture::WrapMode::Mirror,
+                Some("clamp") => crate::texture::WrapMode::Clamp,
+                _ => crate::texture::WrapMode::Repeat,
+            };
+            let filter = match t.choice("filter", &["bilinear", "nearest"])?.as_deref() {
+                Some("nearest") => crate::texture::ImageFilter::Nearest,
+                _ => crate::texture::ImageFilter::Bilinear,
+            };
+            let image = TextureKind::Image {
                 source: ImageSource::File(t.required("file", path)?),
-                scale: t.vec2("scale")?.unwrap_or(Vec2::ONE),
-                offset: t.vec2("offset")?.unwrap_or(Vec2::ZERO),
+                scale,
+                offset,
                 srgb: t.boolean("srgb")?,
                 tint: t.color("tint")?.unwrap_or(Rgb::ONE),
-                wrap: crate::texture::WrapMode::Repeat,
-                filter: crate::texture::ImageFilter::Bilinear,
+                wrap,
+                filter,
+            };
+            if !matches!(mapping, Mapping2D::Uv { .. }) {
+                let locs = t.finish()?;
+                let image_name = format!("\u{0}{name} image");
+                return Ok(vec![
+                    TextureDesc {
+                        name: image_name.clone(),
+                        kind: image,
+                        locs: locs.clone(),
+                    },
+                    TextureDesc {
+                        name,
+                        kind: TextureKind::Mapped {
+                            tex: ColorSource::Texture(image_name),
+                            mapping,
+                        },
+                        locs,
+                    },
+                ]);
+            }
+            image
+        }
+        "scale" => TextureKind::Scale {
+            tex: t.required("texture", t.color_source("texture")?)?,
+            scale: input("scale", 1.0)?,
+        },
+        "mix" => TextureKind::Mix {
+            first: input("first", 0.0)?,
+            second: input("second", 1.0)?,
+            amount: input("amount", 0.5)?,
+        },
+        "direction_mix" => TextureKind::DirectionMix {
+            first: input("first", 0.0)?,
+            second: input("second", 1.0)?,
+            dir: t.vec3("direction")?.unwrap_or(Vec3::Y),
+        },
+        "dots" => TextureKind::Dots {
+            inside: input("inside", 1.0)?,
+            outside: input("outside", 0.0)?,
+            mapping: read_mapping(t, Vec2::ONE)?,
+        },
+        "bilerp" => TextureKind::Bilerp {
+            corners: [
+                t.color("v00")?.unwrap_or(Rgb::ZERO),
+                t.color("v10")?.unwrap_or(Rgb::ZERO),
+                t.color("v01")?.unwrap_or(Rgb::ONE),
+                t.color("v11")?.unwrap_or(Rgb::ONE),
+            ],
+            mapping: read_mapping(t, Vec2::ONE)?,
+        },
+        "invert" => TextureKind::Invert(t.required("texture", t.color_source("texture")?)?),
+        noise => {
+            let octaves = t.unsigned("octaves", MAX_NOISE_OCTAVES as u64)?.unwrap_or(8) as u32;
+            let omega = t.number_or("roughness", 0.5)?;
+            let pattern = match noise {
+                "fbm" => NoisePattern::Fbm { octaves, omega },
+                "wrinkled" => NoisePattern::Wrinkled { octaves, omega },
+                "windy" => NoisePattern::Windy,
+                _ => NoisePattern::Marble {
+                    octaves,
+                    omega,
+                    scale: t.number_or("scale", 1.0)?,
+                    variation: t.number_or("variation", 0.2)?,
+                },
+            };
+            TextureKind::Noise {
+                pattern,
+                to_texture: texture_space(t)?,
             }
         }
     };
-    Ok(TextureDesc {
+    Ok(vec![TextureDesc {
         name,
         kind,
         locs: t.finish()?,
-    })
+    }])
+}
+
+/// `mapping = ""uv" | "spherical" | "cylindrical" | "planar"` (pbrt-v4's
+/// 2-D mappings): (u, v) scaled by `scale` and moved by `offset`, or read
+/// from the point in the texture space that `transform` places (`s_axis`,
+/// `t_axis` and `offset` for planar).
+fn read_mapping(t: &Table, default_scale: Vec2) -> Result<Mapping2D> {
+    Ok(
+        match t
+            .choice("mapping", &["uv", "spherical", "cylindrical", "planar"])?
+            .as_deref()
+        {
+            Some("spherical") => Mapping2D::Spherical {
+                to_texture: texture_space(t)?,
+            },
+            Some("cylindrical") => Mapping2D::Cylindrical {
+                to_texture: texture_space(t)?,
+            },
+            Some("planar") => Mapping2D::Planar {
+                to_texture: texture_space(t)?,
+                s_axis: t.vec3("s_axis")?.unwrap_or(Vec3::X),
+                t_axis: t.vec3("t_axis")?.unwrap_or(Vec3::Y),
+                offset: t.vec2("offset")?.unwrap_or(Vec2::ZERO),
+            },
+            _ => Mapping2D::Uv {
+                scale: t.vec2("scale")?.unwrap_or(default_scale),
+                offset: t.vec2("offset")?.unwrap_or(Vec2::ZERO),
+            },
+        },
+    )
+}
+
+/// World to a texture's own space: the inverse of its `transform` (which
+/// places the texture in the world), the identity without one.
+fn texture_space(t: &Table) -> Result<Affine3A> {
+    let Some(v) = t.value("transform") else {
+        return Ok(Affine3A::IDENTITY);
+    };
+    let mut placed = crate::geometry::Transform::IDENTITY;
+    for op in read_transform(t, v)? {
+        let step = op
+            .to_transform()
+            .map_err(|e| t.err_at("transform", &v.span(), format!("{}: {e}", op.name())))?;
+        placed = placed.then(&step);
+    }
+    Ok(Affine3A::from_mat4(placed.inv))
 }
 
 /// The material types of the native format.
@@ -1742,6 +1910,128 @@ material = "red"
     fn missing_required_keys() {
         let e = error_of("[[material]]\ndiffuse = 0.5\n");
         assert!(e.contains("`material[0].name`: missing required key `name`"), "{e}");
+    }
+
+    #[test]
+    fn textures_of_textures_and_procedural_ones() {
+        let s = r#"
+[[texture]]
+name = "grain"
+type = "fbm"
+octaves = 5
+transform = [{ scale = 0.5 }]
+
+[[texture]]
+name = "stone"
+type = "marble"
+variation = 0.5
+
+[[texture]]
+name = "blend"
+type = "mix"
+first = "stone"
+second = [0.1, 0.2, 0.3]
+amount = "grain"
+
+[[texture]]
+name = "dots"
+type = "dots"
+inside = "blend"
+scale = 10
+
+[[texture]]
+name = "dim"
+type = "scale"
+texture = "dots"
+scale = 0.5
+
+[[texture]]
+name = "solid"
+type = "checkerboard3d"
+even = "dim"
+scale = 2
+
+[[texture]]
+name = "globe"
+type = "image"
+file = "earth.png"
+mapping = "spherical"
+
+[[texture]]
+name = "flipped"
+type = "invert"
+texture = "globe"
+
+[[texture]]
+name = "sky"
+type = "direction_mix"
+first = "flipped"
+direction = [0, 0, 2]
+
+[[texture]]
+name = "ramp"
+type = "bilerp"
+v11 = [1, 0, 0]
+mapping = "planar"
+s_axis = [0, 0, 1]
+"#;
+        let d = parse_str(s).unwrap_or_else(|e| panic!("{e}"));
+        d.validate().unwrap_or_else(|e| panic!("{e}"));
+        let kind = |name: &str| &d.textures.iter().find(|t| t.name == name).unwrap().kind;
+        let TextureKind::Noise {
+            pattern: NoisePattern::Fbm { octaves: 5, .. },
+            to_texture,
+        } = kind("grain")
+        else {
+            panic!("{:?}", kind("grain"))
+        };
+        // Texture space is the transform's inverse: twice the world's.
+        assert_eq!(to_texture.transform_point3(Vec3::ONE), Vec3::splat(2.0));
+        assert!(
+            matches!(kind("stone"), TextureKind::Noise { pattern: NoisePattern::Marble { variation, .. }, .. } if *variation == 0.5)
+        );
+        assert_eq!(
+            kind("blend"),
+            &TextureKind::Mix {
+                first: ColorSource::Texture("stone".into()),
+                second: ColorSource::Rgb(Rgb::new(0.1, 0.2, 0.3)),
+                amount: ColorSource::Texture("grain".into()),
+            }
+        );
+        assert!(
+            matches!(kind("dots"), TextureKind::Dots { mapping: Mapping2D::Uv { scale, .. }, .. } if *scale == Vec2::splat(10.0))
+        );
+        assert!(matches!(kind("dim"), TextureKind::Scale { .. }));
+        let TextureKind::SolidChecks { to_texture, .. } = kind("solid") else {
+            panic!("{:?}", kind("solid"))
+        };
+        assert_eq!(to_texture.transform_point3(Vec3::ONE), Vec3::splat(2.0));
+        // An image by another mapping: the image, and the texture placing it.
+        let TextureKind::Mapped {
+            tex: ColorSource::Texture(image),
+            mapping,
+        } = kind("globe")
+        else {
+            panic!("{:?}", kind("globe"))
+        };
+        assert!(matches!(mapping, Mapping2D::Spherical { .. }));
+        assert!(matches!(kind(image), TextureKind::Image { .. }));
+        assert!(matches!(kind("flipped"), TextureKind::Invert(_)));
+        assert!(matches!(kind("sky"), TextureKind::DirectionMix { dir, .. } if *dir == Vec3::new(0.0, 0.0, 2.0)));
+        assert!(
+            matches!(kind("ramp"), TextureKind::Bilerp { mapping: Mapping2D::Planar { s_axis, .. }, .. } if *s_axis == Vec3::Z)
+        );
+        // A texture may only be made of textures defined before it.
+        let later = "[[texture]]\nname = \"a\"\ntype = \"invert\"\ntexture = \"b\"\n\n[[texture]]\nname = \"b\"\ntype = \"constant\"\n";
+        let e = parse_str(later).unwrap_err().to_string();
+        assert!(
+            e.contains("`texture[0].texture`: no texture named \"b\" before this one"),
+            "{e}"
+        );
+        let e = parse_str("[[texture]]\nname = \"n\"\ntype = \"fbm\"\noctaves = 100\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("octaves"), "{e}");
     }
 
     #[test]

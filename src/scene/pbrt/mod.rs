@@ -1242,7 +1242,7 @@ impl Parser {
         let mut read_floats = read_floats;
         for t in self.desc.textures.iter().rev() {
             if !droppable(&t.name) || read_floats.contains(&t.name) {
-                for input in t.kind.inputs() {
+                for (_, input) in t.kind.inputs() {
                     if let ColorSource::Texture(n) = input {
                         read_floats.insert(n.clone());
                     }
