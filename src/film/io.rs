@@ -309,7 +309,7 @@ pub fn decode_image(bytes: &[u8], format: ImageFormat) -> Result<Image, String> 
     match format {
         ImageFormat::Exr => decode_exr(bytes),
         ImageFormat::Pfm => parse_pfm(bytes).map_err(|m| format!("not a valid PFM file: {m}")),
-        ImageFormat::Png | ImageFormat::Hdr => decode_encoded(bytes, None, None),
+        ImageFormat::Png | ImageFormat::Hdr => decode_encoded(bytes, None, None).map(|(image, _)| image),
     }
 }
 
@@ -329,6 +329,17 @@ pub fn decode_any(bytes: &[u8], srgb: Option<bool>) -> Result<Image, String> {
 /// [`decode_any`] for a file of extension `ext`, which names the format
 /// where the bytes cannot: Truevision TGA files have no signature.
 pub fn decode_any_named(bytes: &[u8], srgb: Option<bool>, ext: Option<&str>) -> Result<Image, String> {
+    decode_any_with_alpha(bytes, srgb, ext).map(|(image, _)| image)
+}
+
+/// [`decode_any_named`] with the image's alpha channel where it has one
+/// (formats of the `image` crate only), decoded from sRGB as the colours
+/// are: pbrt-v4 decodes every channel of an 8-bit image by its encoding.
+pub fn decode_any_with_alpha(
+    bytes: &[u8],
+    srgb: Option<bool>,
+    ext: Option<&str>,
+) -> Result<(Image, Option<Vec<f32>>), String> {
     let is_pfm = bytes.starts_with(b"PF") || bytes.starts_with(b"Pf");
     if !bytes.starts_with(&EXR_MAGIC) && !is_pfm {
         return decode_encoded(bytes, srgb, ext);
@@ -339,12 +350,12 @@ pub fn decode_any_named(bytes: &[u8], srgb: Option<bool>, ext: Option<&str>) -> 
             *p = Rgb::new(srgb_to_linear(p.x), srgb_to_linear(p.y), srgb_to_linear(p.z));
         }
     }
-    Ok(image)
+    Ok((image, None))
 }
 
 /// [`decode_any`] for the formats of the `image` crate (PNG, JPEG, BMP, HDR,
 /// TGA, PPM/PGM/PBM); `ext` names the format where the first bytes do not.
-fn decode_encoded(bytes: &[u8], srgb: Option<bool>, ext: Option<&str>) -> Result<Image, String> {
+fn decode_encoded(bytes: &[u8], srgb: Option<bool>, ext: Option<&str>) -> Result<(Image, Option<Vec<f32>>), String> {
     let open = || -> Result<_, String> {
         let mut reader = ::image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
@@ -368,23 +379,24 @@ fn decode_encoded(bytes: &[u8], srgb: Option<bool>, ext: Option<&str>) -> Result
     let img = open()?.decode().map_err(|e| format!("cannot decode image: {e}"))?;
     let is_float = matches!(img.color(), ::image::ColorType::Rgb32F | ::image::ColorType::Rgba32F);
     let decode_srgb = srgb.unwrap_or(!is_float);
+    let decode = |x: f32| if decode_srgb { srgb_to_linear(x) } else { x };
+    let alpha = img
+        .color()
+        .has_alpha()
+        .then(|| img.to_rgba32f().pixels().map(|p| decode(p[3])).collect());
     let rgb = img.to_rgb32f();
     let pixels = rgb
         .pixels()
-        .map(|p| {
-            let c = Rgb::new(p[0], p[1], p[2]);
-            if decode_srgb {
-                Rgb::new(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z))
-            } else {
-                c
-            }
-        })
+        .map(|p| Rgb::new(decode(p[0]), decode(p[1]), decode(p[2])))
         .collect();
-    Ok(Image {
-        width: rgb.width(),
-        height: rgb.height(),
-        pixels,
-    })
+    Ok((
+        Image {
+            width: rgb.width(),
+            height: rgb.height(),
+            pixels,
+        },
+        alpha,
+    ))
 }
 
 /// Reads the first RGB(A) layer of an OpenEXR file.

@@ -107,6 +107,8 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 let mut img = match source {
                     ImageSource::File(path) => ImageTexture::load(&base_dir.join(path), *srgb)
                         .map_err(|e| Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e)))?,
+                    ImageSource::FloatFile(path) => ImageTexture::load_float(&base_dir.join(path), *srgb)
+                        .map_err(|e| Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e)))?,
                     ImageSource::Data(data) => (**data).clone(),
                 };
                 memory.textures += img.pixels.len() as u64 * BYTES_PER_TEXEL;
@@ -878,7 +880,6 @@ fn texture_node(kind: &TextureKind, input: impl Fn(&ColorSource) -> Texture) -> 
             to_texture: *to_texture,
         },
         TextureKind::Invert(tex) => TextureNode::Invert(input(tex)),
-        TextureKind::FirstChannel(tex) => TextureNode::FirstChannel(input(tex)),
         TextureKind::Mapped { tex, mapping } => TextureNode::Mapped {
             tex: input(tex),
             mapping: *mapping,

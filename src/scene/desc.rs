@@ -261,8 +261,6 @@ pub enum TextureKind {
     },
     /// max(0, 1 − `tex`), channel by channel.
     Invert(ColorSource),
-    /// The first channel of `tex`, as a grey.
-    FirstChannel(ColorSource),
     /// A texture read at (u, v) = the mapping's (s, t).
     Mapped {
         /// The texture read.
@@ -285,7 +283,7 @@ impl TextureKind {
                 vec![("even", even), ("odd", odd)]
             }
             TextureKind::Dots { inside, outside, .. } => vec![("inside", inside), ("outside", outside)],
-            TextureKind::Invert(tex) | TextureKind::FirstChannel(tex) | TextureKind::Mapped { tex, .. } => {
+            TextureKind::Invert(tex) | TextureKind::Mapped { tex, .. } => {
                 vec![("texture", tex)]
             }
             _ => vec![],
@@ -298,6 +296,10 @@ impl TextureKind {
 pub enum ImageSource {
     /// A file, relative to the scene file.
     File(PathBuf),
+    /// A file read as pbrt-v4 reads a float image texture: its alpha where
+    /// it has one that is not 1 everywhere, else the mean of its colour
+    /// channels, as a grey ([`crate::texture::ImageTexture::load_float`]).
+    FloatFile(PathBuf),
     /// Pixels already decoded (images embedded in a glTF binary, say).
     Data(Arc<crate::texture::ImageTexture>),
 }
@@ -1298,10 +1300,7 @@ impl SceneDesc {
                     c.finite("offset", offset.y)?;
                     c.color("tint", *tint)?;
                 }
-                TextureKind::Scale { .. }
-                | TextureKind::Mix { .. }
-                | TextureKind::Invert(_)
-                | TextureKind::FirstChannel(_) => {}
+                TextureKind::Scale { .. } | TextureKind::Mix { .. } | TextureKind::Invert(_) => {}
                 TextureKind::DirectionMix { dir, .. } => {
                     if !dir.is_finite() || dir.length_squared() == 0.0 {
                         return Err(c.err("dir", "must be a finite, non-zero direction"));

@@ -1485,7 +1485,8 @@ impl<'a> Reader<'a> {
         let image = root.textures[info.index.value()].source.value();
         match self.image_source(root, image)? {
             ImageSource::Data(img) => Ok(img.average()),
-            ImageSource::File(rel) => {
+            // glTF images are colours.
+            ImageSource::File(rel) | ImageSource::FloatFile(rel) => {
                 let full = self.base_dir.join(rel);
                 let img = ImageTexture::load(&full, Some(true)).map_err(|e| {
                     let reason = match e {

@@ -286,9 +286,6 @@ pub enum TextureNode {
     },
     /// max(0, 1 − `tex`), channel by channel (an image's `invert`).
     Invert(Texture),
-    /// The first channel of `tex` as a grey (pbrt-v4's float image
-    /// textures read an image's first channel).
-    FirstChannel(Texture),
     /// `tex` read at (u, v) = the mapping's (s, t): an image or checks
     /// placed by the point.
     Mapped {
@@ -321,7 +318,7 @@ impl TextureNode {
                 outside: second,
                 ..
             } => vec![first, second],
-            TextureNode::Invert(tex) | TextureNode::FirstChannel(tex) | TextureNode::Mapped { tex, .. } => vec![tex],
+            TextureNode::Invert(tex) | TextureNode::Mapped { tex, .. } => vec![tex],
             TextureNode::Bilerp { .. } | TextureNode::Noise { .. } => vec![],
         }
     }
@@ -387,7 +384,6 @@ impl TextureNode {
             }
             TextureNode::Noise { pattern, to_texture } => pattern.eval(to_texture.transform_point3(tc.p)),
             TextureNode::Invert(tex) => (Rgb::ONE - tex.eval(store, tc)).max(Rgb::ZERO),
-            TextureNode::FirstChannel(tex) => Rgb::splat(tex.eval(store, tc).x),
             TextureNode::Mapped { tex, mapping } => {
                 let mut moved = *tc;
                 moved.uv = mapping.map(tc);
@@ -439,7 +435,6 @@ impl TextureNode {
             TextureNode::Bilerp { corners, .. } => corners.iter().sum::<Rgb>() / 4.0,
             TextureNode::Noise { pattern, .. } => pattern.average(),
             TextureNode::Invert(tex) => (Rgb::ONE - tex.average(store)).max(Rgb::ZERO),
-            TextureNode::FirstChannel(tex) => Rgb::splat(tex.average(store).x),
             TextureNode::Mapped { tex, .. } => tex.average(store),
         }
     }

@@ -33,6 +33,31 @@ impl ImageTexture {
         Self::from_image(image).map_err(|e| Error::file(path, e))
     }
 
+    /// Reads an image as pbrt-v4 reads a float image texture (its
+    /// `MIPMap::Bilerp<Float>`): one value a texel, in all three channels:
+    /// the image's alpha where it has one that is not 1 everywhere, else
+    /// the mean of its red, green and blue (for a grey image, its value).
+    pub fn load_float(path: &Path, srgb: Option<bool>) -> Result<ImageTexture> {
+        let bytes = crate::files::read_limited(path, crate::files::MAX_IMAGE_FILE_BYTES)
+            .map_err(|e| Error::file(path, format!("cannot open image: {e}")))?;
+        let ext = path.extension().and_then(|e| e.to_str());
+        let (mut image, alpha) =
+            crate::film::io::decode_any_with_alpha(&bytes, srgb, ext).map_err(|e| Error::file(path, e))?;
+        match alpha.filter(|a| a.iter().any(|&x| x != 1.0)) {
+            Some(alpha) => {
+                for (p, a) in image.pixels.iter_mut().zip(alpha) {
+                    *p = Rgb::splat(a);
+                }
+            }
+            None => {
+                for p in &mut image.pixels {
+                    *p = Rgb::splat((p.x + p.y + p.z) / 3.0);
+                }
+            }
+        }
+        Self::from_image(image).map_err(|e| Error::file(path, e))
+    }
+
     /// Decodes a PNG, JPEG, BMP, Radiance HDR, OpenEXR or PFM image held in
     /// memory (told apart by their first bytes), as [`ImageTexture::load`] does.
     /// The size in the header is checked before any pixel is allocated.
@@ -205,6 +230,31 @@ pub enum ImageFilter {
 mod tests {
     use super::*;
     use crate::color::srgb_to_linear;
+
+    #[test]
+    fn float_images_are_their_alpha_or_the_mean_of_their_colours() {
+        let dir = tempfile::tempdir().unwrap();
+        let rgba = |alpha: [u8; 2]| {
+            ::image::RgbaImage::from_raw(2, 1, vec![255, 0, 0, alpha[0], 0, 255, 255, alpha[1]]).unwrap()
+        };
+        let cut = dir.path().join("cut.png");
+        rgba([0, 128]).save(&cut).unwrap();
+        let t = ImageTexture::load_float(&cut, None).unwrap();
+        // The alpha, decoded by the image's (sRGB) encoding as pbrt-v4 does.
+        assert_eq!(t.pixels, vec![Rgb::ZERO, Rgb::splat(srgb_to_linear(128.0 / 255.0))]);
+        // Opaque everywhere: the mean of the colours.
+        let opaque = dir.path().join("opaque.png");
+        rgba([255, 255]).save(&opaque).unwrap();
+        let t = ImageTexture::load_float(&opaque, None).unwrap();
+        assert_eq!(t.pixels, vec![Rgb::splat(1.0 / 3.0), Rgb::splat(2.0 / 3.0)]);
+        let plain = dir.path().join("plain.png");
+        ::image::RgbImage::from_raw(1, 1, vec![255, 255, 0])
+            .unwrap()
+            .save(&plain)
+            .unwrap();
+        let t = ImageTexture::load_float(&plain, Some(false)).unwrap();
+        assert_eq!(t.pixels, vec![Rgb::splat(2.0 / 3.0)]);
+    }
 
     #[test]
     fn repeat_is_the_euclidean_remainder() {

@@ -373,7 +373,7 @@ WorldBegin
 LightSource "point" "point3 from" [0 3 3] "blackbody I" 5000 "float scale" 20
 Material "hair"
 Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3]
-Shape "disk" "float alpha" 0.5
+Shape "disk" "string emissionfilename" "e.exr"
 "#,
     )
     .unwrap();
@@ -392,7 +392,7 @@ Shape "disk" "float alpha" 0.5
         "w.pbrt:4:43: \"blackbody I\" 5000 K is approximated",
         "w.pbrt:5:1: material \"hair\" is approximated",
         "w.pbrt:6:1: Shape \"curve\" is unsupported",
-        "w.pbrt:7:14: parameter \"float alpha\" of Shape \"disk\" is unsupported: ignored",
+        "w.pbrt:7:14: parameter \"string emissionfilename\" of Shape \"disk\" is unsupported: ignored",
     ] {
         assert!(
             err.lines().any(|l| l.starts_with("warning: ") && l.contains(expected)),
@@ -891,4 +891,42 @@ Material "diffuse" "rgb reflectance" [{} {} {}]
     // And the checks are there: not their mean colour.
     let checks = largest_difference(&g, &f);
     assert!(checks > 0.04, "{checks}");
+}
+
+/// pbrt-v4's `alpha` cuts a shape out for every ray, shadow rays too: a
+/// sheet of alpha 0.25 between a floor and the light lets 0.75 of the
+/// light through, as a number and as a float texture.
+#[test]
+fn alpha_cut_outs_let_shadow_rays_through() {
+    let scene = |sheet: &str| {
+        format!(
+            r#"
+LookAt 0 0.5 0  0 0 0  0 0 1
+Camera "perspective" "float fov" 40
+Film "rgb" "integer xresolution" 16 "integer yresolution" 16
+Sampler "independent" "integer pixelsamples" 4
+Integrator "path" "integer maxdepth" 1
+WorldBegin
+LightSource "distant" "point3 from" [0 1 0] "point3 to" [0 0 0] "rgb L" [3 3 3]
+Texture "quarter" "float" "constant" "float value" 0.25
+Material "diffuse" "rgb reflectance" [0.5 0.5 0.5]
+Shape "bilinearmesh" "point3 P" [-5 0 -5  5 0 -5  -5 0 5  5 0 5]
+{sheet}
+"#
+        )
+    };
+    let sheet = |alpha: &str| format!(r#"Shape "bilinearmesh" "point3 P" [-5 1 -5  5 1 -5  -5 1 5  5 1 5] {alpha}"#);
+    let open = render_desc(&parse(&scene("")));
+    let mean = |f: &Film| region_mean(f, (0, 16), (0, 16));
+    let lit = mean(&open);
+    assert!(lit.x > 0.1, "{lit}");
+    for alpha in [r#""float alpha" 0.25"#, r#""texture alpha" "quarter""#] {
+        let d = parse(&scene(&sheet(alpha)));
+        assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+        let ratio = mean(&render_desc(&d)).x / lit.x;
+        assert!((ratio - 0.75).abs() < 0.01, "{alpha}: {ratio}");
+    }
+    // An opaque sheet casts its full shadow.
+    let ratio = mean(&render_desc(&parse(&scene(&sheet(""))))).x / lit.x;
+    assert!(ratio < 0.01, "{ratio}");
 }

@@ -945,8 +945,8 @@ impl Parser {
     }
 
     /// An `imagemap`: the image with pbrt-v4's (u, v) mapping, or placed
-    /// by another mapping; `invert`ed where asked; a float texture's the
-    /// image's first channel.
+    /// by another mapping; `invert`ed where asked; a float texture's image
+    /// read as pbrt-v4 reads one (its alpha, or the mean of its colours).
     #[allow(clippy::too_many_arguments)]
     fn image_texture(
         &mut self,
@@ -1017,8 +1017,13 @@ impl Parser {
             Mapping2D::Uv { scale, offset } => (scale, offset),
             _ => (Vec2::ONE, Vec2::ZERO),
         };
+        let path = self.resolve(dir_rel, &file);
         let mut kind = TextureKind::Image {
-            source: ImageSource::File(self.resolve(dir_rel, &file)),
+            source: if float {
+                ImageSource::FloatFile(path)
+            } else {
+                ImageSource::File(path)
+            },
             scale,
             offset,
             srgb,
@@ -1033,10 +1038,6 @@ impl Parser {
         if p.bool("invert", false)? {
             let t = self.hidden_texture(desc_name, "uninverted", kind, locs.clone());
             kind = TextureKind::Invert(t);
-        }
-        if float {
-            let t = self.hidden_texture(desc_name, "colour", kind, locs.clone());
-            kind = TextureKind::FirstChannel(t);
         }
         Ok(kind)
     }
@@ -1102,7 +1103,6 @@ impl Parser {
             TextureKind::Bilerp { corners, .. } => corners.iter().sum::<Rgb>() / 4.0,
             TextureKind::Noise { pattern, .. } => pattern.average(),
             TextureKind::Invert(t) => (Rgb::ONE - of(t)).max(Rgb::ZERO),
-            TextureKind::FirstChannel(t) => Rgb::splat(of(t).x),
             TextureKind::Mapped { tex, .. } => of(tex),
         }
     }

@@ -277,6 +277,9 @@ struct PendingShape {
     reverse: bool,
     mat: MatRef,
     emission: Option<Emission>,
+    /// pbrt-v4's `alpha` (a number below 1 or a float texture): trazo's
+    /// opacity mask on the shape's material.
+    alpha: Option<ColorSource>,
 }
 
 /// An `ObjectBegin` … `ObjectEnd` definition.
@@ -1230,6 +1233,7 @@ impl Parser {
                 };
                 roughness.chain(m.bump_map.iter().map(|b| &b.height)).chain(amount)
             })
+            .chain(self.shapes.iter().filter_map(|s| s.alpha.as_ref()))
             .filter_map(|c| match c {
                 ColorSource::Texture(t) => Some(t.clone()),
                 ColorSource::Rgb(_) => None,
@@ -1274,8 +1278,9 @@ impl Parser {
         // Materials: each used (material, emission) pair becomes one of
         // trazo's materials; named materials are all kept.
         let mut names: HashSet<String> = HashSet::new();
-        // (material, emitted radiance's bits and whether both sides emit).
-        type Made = (Option<usize>, Option<([u32; 3], bool)>);
+        // (material, emitted radiance's bits and whether both sides emit,
+        // the alpha's bits or texture).
+        type Made = (Option<usize>, Option<([u32; 3], bool)>, Option<String>);
         let mut made: HashMap<Made, String> = HashMap::new();
         let mut named: Vec<(usize, String)> = self.named_materials.iter().map(|(n, &i)| (i, n.clone())).collect();
         named.sort();
@@ -1285,7 +1290,7 @@ impl Parser {
             let m = self.material_desc(base, None, name.clone());
             self.desc.materials.push(m);
             if base == i {
-                made.insert((Some(i), None), name);
+                made.insert((Some(i), None, None), name);
             }
         }
         let shapes = std::mem::take(&mut self.shapes);
@@ -1316,14 +1321,22 @@ impl Parser {
                 s.emission
                     .as_ref()
                     .map(|e| (e.radiance.to_array().map(f32::to_bits), e.two_sided)),
+                s.alpha.as_ref().map(|a| match a {
+                    ColorSource::Rgb(c) => format!("{}", c.x.to_bits()),
+                    ColorSource::Texture(t) => format!("texture {t}"),
+                }),
             );
             let name = match made.get(&key) {
                 Some(n) => n.clone(),
                 None => {
                     let base_name =
                         index.map_or("diffuse (pbrt default)".to_string(), |i| self.materials[i].name.clone());
-                    let name = match &s.emission {
-                        Some(_) => unique_name(&mut names, format!("{base_name} + area light")),
+                    let base_name = match &s.emission {
+                        Some(_) => format!("{base_name} + area light"),
+                        None => base_name,
+                    };
+                    let name = match &s.alpha {
+                        Some(_) => unique_name(&mut names, format!("{base_name} + alpha")),
                         None => unique_name(&mut names, base_name),
                     };
                     let m = match index {
@@ -1343,6 +1356,8 @@ impl Parser {
                             m
                         }
                     };
+                    let mut m = m;
+                    m.opacity = s.alpha.clone();
                     self.desc.materials.push(m);
                     made.insert(key, name.clone());
                     name
@@ -1361,8 +1376,14 @@ impl Parser {
             desc.flip_normals = s.reverse ^ (s.analytic && det3(&total) < 0.0);
             self.desc.shapes.push(desc);
         }
-        // pbrt's volpath is its path tracer where there are no media.
-        if self.volpath && !self.desc.media.is_empty() {
+        // pbrt's volpath is its path tracer where there are no media. Its
+        // alpha cut-outs are geometry that shadow rays pass too (with
+        // probability 1 − α), which trazo's volumetric path tracer does
+        // with masks (in expectation, by the transmittance 1 − α), and its
+        // path tracer does not.
+        let any_alpha = self.desc.materials.iter().any(|m| m.opacity.is_some());
+        let path = self.desc.settings.integrator == IntegratorKind::Path;
+        if path && ((self.volpath && !self.desc.media.is_empty()) || any_alpha) {
             self.desc.settings.integrator = IntegratorKind::VolPath;
         }
         if let Some(m) = self.mlt_mutations {

@@ -1,8 +1,9 @@
 //! `Shape` (pbrt-v4 shapes.cpp, `Shape::Create` and each shape's
 //! `Create`): parameters, defaults and checks.
 
-use super::params::ParamList;
+use super::params::{FloatValue, ParamList};
 use super::{Parser, PendingShape};
+use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::geometry::TriangleMesh;
 use crate::geometry::quadric::Quadric;
@@ -223,6 +224,20 @@ impl Parser {
                 "area lights are not instanced (pbrt-v4 does not support them either); the shape does not emit",
             );
         }
+        // pbrt-v4's alpha: a number below 1 or a float texture.
+        let alpha = match p.float_or_texture("alpha")? {
+            None => None,
+            Some((FloatValue::Num(a), _)) => (a < 1.0).then(|| ColorSource::Rgb(Rgb::splat(a.max(0.0)))),
+            Some((FloatValue::Texture(t), prm)) => match self.float_texture_descs.get(&t) {
+                Some((name, _)) => Some(ColorSource::Texture(name.clone())),
+                None => {
+                    return Err(prm.err(format!(
+                        "no float texture named \"{t}\"{}",
+                        suggest(&t, self.float_textures.iter().map(String::as_str))
+                    )));
+                }
+            },
+        };
         let desc = ShapeDesc {
             kind: shape,
             transform: vec![TransformOp::Matrix(self.gs.ctm)],
@@ -242,6 +257,7 @@ impl Parser {
                 reverse: self.gs.reverse_orientation,
                 mat: self.gs.material.clone(),
                 emission: emission.clone(),
+                alpha: alpha.clone(),
             });
         }
         Ok(())

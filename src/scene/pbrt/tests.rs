@@ -1461,7 +1461,7 @@ Option "disablepixeljitter" true
 WorldBegin
 MakeNamedMedium "fog" "string type" "homogeneous"
 MediumInterface "fog" ""
-Shape "sphere" "float alpha" 0.5
+Shape "sphere" "string emissionfilename" "e.exr"
 WorldEnd"#,
     )
     .unwrap();
@@ -1471,7 +1471,7 @@ WorldEnd"#,
         "test.pbrt:1:40: parameter \"bool savefp16\" of Film \"rgb\" is unsupported: ignored",
         "test.pbrt:2:1: Accelerator \"kdtree\" is unsupported",
         "test.pbrt:3:1: Option \"disablepixeljitter\" is unsupported",
-        "test.pbrt:7:16: parameter \"float alpha\" of Shape \"sphere\" is unsupported: ignored",
+        "test.pbrt:7:16: parameter \"string emissionfilename\" of Shape \"sphere\" is unsupported: ignored",
         "test.pbrt:8:1: WorldEnd (pbrt-v3 syntax) is unsupported",
     ] {
         assert!(w.contains(expected), "missing {expected:?} in\n{w}");
@@ -1480,11 +1480,11 @@ WorldEnd"#,
 
 #[test]
 fn repeated_warnings_are_counted_after_ten() {
-    let d = world(&"Shape \"sphere\" \"float alpha\" 0.5\n".repeat(25));
+    let d = world(&"Shape \"sphere\" \"string emissionfilename\" \"e.exr\"\n".repeat(25));
     assert_eq!(d.warnings.len(), 11, "{:?}", d.warnings);
     assert_eq!(
         d.warnings[10],
-        "test.pbrt:2:16: parameter \"float alpha\" of Shape \"sphere\" is unsupported: ignored (15 more times, not listed)"
+        "test.pbrt:2:16: parameter \"string emissionfilename\" of Shape \"sphere\" is unsupported: ignored (15 more times, not listed)"
     );
 }
 
@@ -2070,14 +2070,10 @@ Shape "sphere""#,
     let ColorSource::Texture(name) = &b.height else {
         panic!("{:?}", b.height)
     };
-    // A float image is its first channel.
+    // A float image is read as pbrt-v4 reads one.
     let t = d.textures.iter().find(|t| &t.name == name).expect("its texture");
-    let TextureKind::FirstChannel(ColorSource::Texture(image)) = &t.kind else {
-        panic!("{:?}", t.kind)
-    };
-    let t = d.textures.iter().find(|t| &t.name == image).expect("its image");
     assert!(
-        matches!(&t.kind, TextureKind::Image { source: ImageSource::File(f), .. } if f.ends_with("textures/bumps.png")),
+        matches!(&t.kind, TextureKind::Image { source: ImageSource::FloatFile(f), .. } if f.ends_with("textures/bumps.png")),
         "{:?}",
         t.kind
     );
