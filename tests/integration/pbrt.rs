@@ -930,3 +930,39 @@ Shape "bilinearmesh" "point3 P" [-5 0 -5  5 0 -5  -5 0 5  5 0 5]
     let ratio = mean(&render_desc(&parse(&scene(&sheet(""))))).x / lit.x;
     assert!(ratio < 0.01, "{ratio}");
 }
+
+/// A white furnace of pbrt-v4's `subsurface`: a sphere of a medium that
+/// absorbs nothing, under a glass-like surface, in light of radiance 1
+/// everywhere, is invisible (every pixel 1) once light can scatter below
+/// its surface; so is a coloured one's absorbed light missing from it.
+#[test]
+fn subsurface_spheres_conserve_energy_in_a_white_furnace() {
+    let scene = |medium: &str| {
+        format!(
+            r#"
+LookAt 0 0 4  0 0 0  0 1 0
+Camera "perspective" "float fov" 30
+Film "rgb" "integer xresolution" 12 "integer yresolution" 12
+Sampler "independent" "integer pixelsamples" 64
+Integrator "volpath" "integer maxdepth" 400
+WorldBegin
+LightSource "infinite" "rgb L" [1 1 1]
+Material "subsurface" "float eta" 1.33 {medium}
+Shape "sphere"
+"#
+        )
+    };
+    let white = parse(&scene(r#""rgb sigma_a" [0 0 0] "rgb sigma_s" [2 2 2]"#));
+    assert!(
+        white.warnings.iter().all(|w| w.contains("subsurface")),
+        "{:?}",
+        white.warnings
+    );
+    let film = render_desc(&white);
+    let mean = region_mean(&film, (0, 12), (0, 12));
+    assert!((mean - Rgb::ONE).abs().max_element() < 0.02, "{mean}");
+    // Absorption in the red: the sphere shows, red darkest.
+    let film = render_desc(&parse(&scene(r#""rgb sigma_a" [0.5 0 0] "rgb sigma_s" [2 2 2]"#)));
+    let centre = region_mean(&film, (4, 8), (4, 8));
+    assert!(centre.x < 0.8 && (centre.y - 1.0).abs() < 0.03, "{centre}");
+}

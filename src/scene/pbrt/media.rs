@@ -25,7 +25,7 @@ use std::sync::Arc;
 
 impl Parser {
     /// A colour parameter of a medium (unbounded), or `default`.
-    fn medium_color(&mut self, p: &ParamList, name: &str, default: Rgb) -> Result<Rgb> {
+    pub(super) fn medium_color(&mut self, p: &ParamList, name: &str, default: Rgb) -> Result<Rgb> {
         let Some((v, prm)) = p.spectrum(name)? else {
             return Ok(default);
         };

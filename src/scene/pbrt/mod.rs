@@ -253,6 +253,18 @@ struct MatDef {
     bump_map: Option<BumpMapDesc>,
     /// Roughness from float textures (conductors and dielectrics).
     roughness_map: Option<RoughnessMapDesc>,
+    /// A `subsurface` material's medium below its dielectric surface.
+    subsurface: Option<SubsurfaceMedium>,
+}
+
+/// The homogeneous medium of a pbrt `subsurface` material, its
+/// coefficients already multiplied by its `scale`.
+#[derive(Clone, Debug)]
+struct SubsurfaceMedium {
+    sigma_a: Rgb,
+    sigma_s: Rgb,
+    g: f32,
+    loc: SourceLoc,
 }
 
 #[derive(Clone, Debug)]
@@ -1294,7 +1306,8 @@ impl Parser {
             }
         }
         let shapes = std::mem::take(&mut self.shapes);
-        for s in shapes {
+        let mut subsurface_media: HashMap<usize, String> = HashMap::new();
+        for mut s in shapes {
             let index = match &s.mat {
                 MatRef::Default => None,
                 MatRef::Index(i) => Some(*i),
@@ -1316,6 +1329,35 @@ impl Parser {
                 Some(i) => Some(self.resolve_material(i)?),
                 None => None,
             };
+            // A subsurface material's shapes hold its medium, which
+            // pbrt-v4's volpath (alone) scatters light in.
+            let subsurface = index.and_then(|i| self.materials[i].subsurface.clone().map(|m| (i, m)));
+            if let (Some((i, medium)), true) = (subsurface, self.volpath) {
+                let name = match subsurface_media.get(&i) {
+                    Some(n) => n.clone(),
+                    None => {
+                        let n = format!("\u{0}subsurface {}", self.materials[i].name);
+                        let sigma_t = medium.sigma_a + medium.sigma_s;
+                        let albedo = Rgb::select(sigma_t.cmpgt(Rgb::ZERO), medium.sigma_s / sigma_t, Rgb::ZERO);
+                        self.desc.media.push(MediumDesc {
+                            name: n.clone(),
+                            sigma_t: FieldDesc::Constant(sigma_t),
+                            albedo: FieldDesc::Constant(albedo),
+                            emission: None,
+                            scale: Rgb::ONE,
+                            g: medium.g,
+                            locs: Locs::at(Some(medium.loc.clone())),
+                        });
+                        subsurface_media.insert(i, n.clone());
+                        n
+                    }
+                };
+                let outside = s.desc.media.as_ref().and_then(|m| m.outside.clone());
+                s.desc.media = Some(MediumInterfaceDesc {
+                    inside: Some(name),
+                    outside,
+                });
+            }
             let key = (
                 index,
                 s.emission

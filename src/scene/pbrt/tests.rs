@@ -2382,3 +2382,72 @@ fn texture_inputs_are_checked() {
     let e = error_of("WorldBegin\nScale 0 1 1\nTexture \"m\" \"float\" \"fbm\"");
     assert!(e.contains("singular"), "{e}");
 }
+
+/// pbrt-v4's `subsurface`: a dielectric over a homogeneous medium, in each
+/// of its ways of giving the coefficients; only `volpath` gets the medium.
+#[test]
+fn subsurface_materials_are_dielectrics_over_a_medium() {
+    let d = world(
+        r#"Material "subsurface" "float eta" 1.4 "rgb sigma_a" [0.1 0.2 0.3] "rgb sigma_s" [1 2 3] "float scale" 2 "float g" 0.5
+Shape "sphere"
+Material "subsurface" "rgb reflectance" [0.5 0.5 0.5] "rgb mfp" [0.25 0.25 0.25]
+Shape "sphere"
+Material "subsurface"
+Shape "sphere""#,
+    );
+    assert_eq!(d.settings.integrator, crate::settings::IntegratorKind::VolPath);
+    assert_eq!(d.media.len(), 3);
+    let medium_of = |i: usize| {
+        let name = d.shapes[i].media.as_ref().unwrap().inside.as_ref().unwrap();
+        d.media.iter().find(|m| &m.name == name).unwrap()
+    };
+    let constant = |f: &FieldDesc| match f {
+        FieldDesc::Constant(c) => *c,
+        other => panic!("{other:?}"),
+    };
+    let m = medium_of(0);
+    assert!((constant(&m.sigma_t) - Rgb::new(2.2, 4.4, 6.6)).abs().max_element() < 1e-5);
+    assert!(
+        (constant(&m.albedo) - Rgb::new(1.0 / 1.1, 2.0 / 2.2, 3.0 / 3.3))
+            .abs()
+            .max_element()
+            < 1e-5
+    );
+    assert_eq!(m.g, 0.5);
+    let material = d
+        .materials
+        .iter()
+        .find(|x| Some(&x.name) == d.shapes[0].material.as_ref())
+        .unwrap();
+    assert!(matches!(material.kind, MaterialKindDesc::Dielectric { ior, .. } if ior == 1.4));
+    // From a reflectance: σt = 1/mfp, and an albedo below 1 that reflects it.
+    let m = medium_of(1);
+    assert!((constant(&m.sigma_t) - Rgb::splat(4.0)).abs().max_element() < 1e-4);
+    let albedo = constant(&m.albedo).x;
+    assert!(albedo > 0.9 && albedo < 1.0, "{albedo}");
+    // pbrt-v4's defaults.
+    let m = medium_of(2);
+    assert!(
+        (constant(&m.sigma_t) - Rgb::new(2.5511, 3.2124, 3.784))
+            .abs()
+            .max_element()
+            < 1e-4
+    );
+    // pbrt's path tracer does not scatter below the surface.
+    let d = parse_str("Integrator \"path\"\nWorldBegin\nMaterial \"subsurface\"\nShape \"sphere\"").unwrap();
+    assert!(d.media.is_empty() && d.shapes[0].media.is_none());
+    assert_eq!(d.settings.integrator, crate::settings::IntegratorKind::Path);
+}
+
+#[test]
+fn the_single_scattering_albedo_inverts_the_reflectance_monotonically() {
+    use super::materials::single_scattering_albedo;
+    assert!(single_scattering_albedo(0.0).abs() < 1e-5);
+    assert!((single_scattering_albedo(1.0) - 1.0).abs() < 1e-4);
+    let mut last = 0.0;
+    for k in 1..=20 {
+        let a = single_scattering_albedo(k as f32 / 20.0);
+        assert!(a > last, "{k}: {a}");
+        last = a;
+    }
+}
