@@ -966,3 +966,41 @@ Shape "sphere"
     let centre = region_mean(&film, (4, 8), (4, 8));
     assert!(centre.x < 0.8 && (centre.y - 1.0).abs() < 0.03, "{centre}");
 }
+
+/// An area light's image (`"string filename"`) emits scale × the image at
+/// the surface's (u, v), v = 0 at the image's bottom, as pbrt-v4's
+/// `DiffuseAreaLight`: seen straight on, a two-pixel image's red and blue
+/// halves are where (u, v) puts them (pbrt's `LookAt` shows world +x on the
+/// image's left).
+#[test]
+fn area_lights_emit_their_image() {
+    let dir = tempfile::tempdir().unwrap();
+    write_pfm(&dir.path().join("split.pfm"), 2, 1, |col, _| {
+        if col == 0 { [1.0, 0.0, 0.0] } else { [0.0, 0.0, 1.0] }
+    });
+    let text = r#"LookAt 0 0 5  0 0 0  0 1 0
+Camera "perspective" "float fov" 20
+Film "rgb" "integer xresolution" 16 "integer yresolution" 16
+Sampler "independent" "integer pixelsamples" 4
+Integrator "path" "integer maxdepth" 1
+WorldBegin
+AreaLightSource "diffuse" "string filename" "split.pfm" "float scale" 3
+Shape "bilinearmesh" "point3 P" [-1 -1 0  1 -1 0  -1 1 0  1 1 0] "point2 uv" [0 0 1 0 0 1 1 1]
+"#;
+    let path = dir.path().join("image-light.pbrt");
+    fs::write(&path, text).unwrap();
+    let desc = trazo::scene::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+    assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
+    let film = render_desc(&desc);
+    // u < 1/4 (world x < −1/2: the render's right) is the red texel's.
+    let right = region_mean(&film, (13, 16), (4, 12));
+    let left = region_mean(&film, (0, 3), (4, 12));
+    assert!((right - Rgb::new(3.0, 0.0, 0.0)).abs().max_element() < 1e-3, "{right}");
+    assert!((left - Rgb::new(0.0, 0.0, 3.0)).abs().max_element() < 1e-3, "{left}");
+    // Both L and an image is pbrt-v4's error.
+    fs::write(&path, text.replace("\"float scale\" 3", "\"rgb L\" [1 1 1]")).unwrap();
+    let Err(e) = trazo::scene::load(&path, &[]) else {
+        panic!("L and filename together were accepted")
+    };
+    assert!(e.to_string().contains("not both"), "{e}");
+}

@@ -11,7 +11,7 @@ use super::{Emission, Parser};
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::scene::desc::*;
-use glam::{DMat3, DVec3, Mat4, Vec3, Vec4};
+use glam::{DMat3, DVec3, Mat4, Vec2, Vec3, Vec4};
 use std::f32::consts::PI;
 use std::path::Path;
 
@@ -383,18 +383,41 @@ impl Parser {
     }
 
     /// `AreaLightSource "diffuse"`: shapes that follow in the block emit.
-    pub(super) fn area_light_source(&mut self, p: &ParamList, loc: &SourceLoc) -> Result<()> {
+    pub(super) fn area_light_source(&mut self, p: &ParamList, loc: &SourceLoc, dir_rel: &Path) -> Result<()> {
         let (l, _) = self.emitted(p, "L")?;
         let scale = p.float("scale", 1.0)?;
         let two_sided = p.bool("twosided", false)?;
-        if let Some(prm) = p.find("filename") {
-            let l = prm.loc.clone();
-            self.unsupported(
-                &l,
-                "image emission (\"filename\") of an area light",
-                "the constant L × scale is used",
-            );
-        }
+        // pbrt-v4's image emission: L = scale × the image at the surface's
+        // (u, v) (v = 0 at the image's bottom), clamped at its edges.
+        let image = match p.string("filename")? {
+            None => None,
+            Some((file, prm)) => {
+                if p.find("L").is_some() {
+                    return Err(prm.err("give \"L\" or \"filename\", not both (as pbrt-v4 requires)"));
+                }
+                if !scale.is_finite() || scale < 0.0 {
+                    return Err(Error::scene(
+                        Some(loc.clone()),
+                        "scale",
+                        format!("must not be negative, got {scale}"),
+                    ));
+                }
+                let name = format!("\u{0}area light image {}", self.desc.textures.len());
+                let mut locs = Locs::at(Some(loc.clone()));
+                locs.keys.push(("file".into(), prm.loc.clone()));
+                let kind = TextureKind::Image {
+                    source: ImageSource::File(self.resolve(dir_rel, &file)),
+                    scale: Vec2::ONE,
+                    offset: Vec2::ZERO,
+                    srgb: None,
+                    tint: Rgb::splat(scale),
+                    wrap: crate::texture::WrapMode::Clamp,
+                    filter: crate::texture::ImageFilter::Bilinear,
+                };
+                self.push_texture(&name, loc, locs, (kind, Rgb::splat(0.5 * scale)))?;
+                Some(name)
+            }
+        };
         if let Some((power, prm)) = p.float_opt("power")? {
             if power > 0.0 {
                 let l = prm.loc.clone();
@@ -414,6 +437,7 @@ impl Parser {
         }
         self.gs.area_light = Some(Emission {
             radiance,
+            image,
             two_sided,
             loc: loc.clone(),
         });

@@ -185,9 +185,22 @@ enum MatRef {
 #[derive(Clone, Debug, PartialEq)]
 struct Emission {
     radiance: Rgb,
+    /// The texture of its image (`"string filename"`), which replaces
+    /// `radiance`.
+    image: Option<String>,
     /// `"bool twosided"`: the back emits too.
     two_sided: bool,
     loc: SourceLoc,
+}
+
+impl Emission {
+    /// What the emitting material's emission is.
+    fn source(&self) -> ColorSource {
+        match &self.image {
+            Some(name) => ColorSource::Texture(name.clone()),
+            None => ColorSource::Rgb(self.radiance),
+        }
+    }
 }
 
 /// The graphics state that `AttributeBegin`/`AttributeEnd` save and
@@ -977,7 +990,7 @@ impl Parser {
                 let params = parse_params(lx)?;
                 check_kind(lx, koff, "AreaLightSource", &kind, &["diffuse"])?;
                 let params = self.with_attributes(params, "light");
-                self.area_light_source(&params, &loc)?;
+                self.area_light_source(&params, &loc, dir_rel)?;
                 self.report_unused(&params, &format!("AreaLightSource \"{kind}\""));
             }
             "MakeNamedMedium" => {
@@ -1290,9 +1303,9 @@ impl Parser {
         // Materials: each used (material, emission) pair becomes one of
         // trazo's materials; named materials are all kept.
         let mut names: HashSet<String> = HashSet::new();
-        // (material, emitted radiance's bits and whether both sides emit,
-        // the alpha's bits or texture).
-        type Made = (Option<usize>, Option<([u32; 3], bool)>, Option<String>);
+        // (material, emitted radiance's bits, whether both sides emit and
+        // its image, the alpha's bits or texture).
+        type Made = (Option<usize>, Option<([u32; 3], bool, Option<String>)>, Option<String>);
         let mut made: HashMap<Made, String> = HashMap::new();
         let mut named: Vec<(usize, String)> = self.named_materials.iter().map(|(n, &i)| (i, n.clone())).collect();
         named.sort();
@@ -1362,7 +1375,7 @@ impl Parser {
                 index,
                 s.emission
                     .as_ref()
-                    .map(|e| (e.radiance.to_array().map(f32::to_bits), e.two_sided)),
+                    .map(|e| (e.radiance.to_array().map(f32::to_bits), e.two_sided, e.image.clone())),
                 s.alpha.as_ref().map(|a| match a {
                     ColorSource::Rgb(c) => format!("{}", c.x.to_bits()),
                     ColorSource::Texture(t) => format!("texture {t}"),
@@ -1391,7 +1404,7 @@ impl Parser {
                                 },
                             );
                             if let Some(e) = &s.emission {
-                                m.emission = ColorSource::Rgb(e.radiance);
+                                m.emission = e.source();
                                 m.emits_both_sides = e.two_sided;
                                 m.locs = Locs::at(Some(e.loc.clone()));
                             }
@@ -1489,7 +1502,7 @@ impl Parser {
         m.bump_map = def.bump_map.clone();
         m.roughness_map = def.roughness_map.clone();
         if let Some(e) = emission {
-            m.emission = ColorSource::Rgb(e.radiance);
+            m.emission = e.source();
             m.emits_both_sides = e.two_sided;
             m.locs.keys.push(("emission".into(), e.loc.clone()));
         }
