@@ -19,3 +19,5 @@ trazo="$root/target/release/trazo"
 "$trazo" render -q "$root/scenes/door.toml" --integrator bdpt --width 40 --height 30 --spp 16384 --seed 104 -o "$here/door-40-ref.exr"
 # The caustic box, 32×32, path traced (none of the integrators compared there).
 "$trazo" render -q "$root/scenes/caustic-box.toml" --integrator path --width 32 --height 32 --spp 131072 --seed 105 -o "$here/caustic-box-32-ref.exr"
+# The caustic in a glossy mirror, 32×24, by bidirectional path tracing.
+"$trazo" render -q "$root/scenes/caustic-mirror.toml" --integrator bdpt --width 32 --height 24 --spp 32768 --seed 106 -o "$here/caustic-mirror-32-ref.exr"
