@@ -22,6 +22,7 @@
 //! side it goes to; a surface without one leaves the ray in its medium.
 
 pub mod grid;
+pub mod measured;
 pub mod phase;
 
 pub use grid::{GridEdge, VoxelGrid};

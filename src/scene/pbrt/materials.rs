@@ -1208,8 +1208,7 @@ impl Parser {
     /// (σt = 1/mfp, the single-scattering albedo whose multiple scattering
     /// reflects that much, by Chiang et al.'s (2016) inversion where pbrt-v4
     /// inverts its photon-beam-diffusion table); pbrt-v4's defaults (in
-    /// mm⁻¹); a measured medium by `name`, which trazo has not (warning:
-    /// the defaults). All times `scale`.
+    /// mm⁻¹); a measured medium by `name` (g then 0). All times `scale`.
     fn subsurface_medium(&mut self, p: &ParamList, loc: &SourceLoc) -> Result<super::SubsurfaceMedium> {
         let mut g = p.float("g", 0.0)?;
         if !(g > -1.0 && g < 1.0) {
@@ -1217,14 +1216,22 @@ impl Parser {
         }
         let defaults = (Rgb::new(0.0011, 0.0024, 0.014), Rgb::new(2.55, 3.21, 3.77));
         let (sigma_a, sigma_s) = if let Some((name, prm)) = p.string("name")? {
-            let l = prm.loc.clone();
-            self.unsupported(
-                &l,
-                format!("measured medium \"{name}\""),
-                "trazo has no table of measured media; pbrt-v4's default coefficients are used",
-            );
+            let Some(coefficients) = crate::media::measured::measured_medium(&name) else {
+                return Err(prm.err(format!(
+                    "no measured medium named \"{name}\"{}",
+                    suggest(&name, crate::media::measured::measured_medium_names())
+                )));
+            };
+            if g != 0.0 {
+                let l = prm.loc.clone();
+                self.approximated(
+                    &l,
+                    format!("\"g\" {g} with the measured medium \"{name}\""),
+                    "g = 0: the measured coefficients are reduced ones, for isotropic scattering (as pbrt-v4)",
+                );
+            }
             g = 0.0;
-            defaults
+            coefficients
         } else if p.find("sigma_a").is_some() || p.find("sigma_s").is_some() {
             let (Some(_), Some(_)) = (p.find("sigma_a"), p.find("sigma_s")) else {
                 return Err(Error::scene(

@@ -69,16 +69,41 @@ impl Parser {
             self.unsupported_media.insert(name.to_string());
             return Ok(());
         }
-        if let Some((preset, prm)) = p.string("preset")? {
+        // pbrt-v4's homogeneous medium takes a measured medium's
+        // coefficients over sigma_a and sigma_s (mm⁻¹, times scale).
+        let mut preset = None;
+        if let Some((name, prm)) = p.string("preset")? {
             let l = prm.loc.clone();
-            self.unsupported(
-                &l,
-                format!("\"string preset\" \"{preset}\""),
-                "measured scattering presets are not built in; sigma_a and sigma_s are used",
-            );
+            if ty != "homogeneous" {
+                self.unsupported(
+                    &l,
+                    format!("\"string preset\" of a \"{ty}\" medium"),
+                    "pbrt-v4 reads presets for homogeneous media only; sigma_a and sigma_s are used",
+                );
+            } else {
+                preset = crate::media::measured::measured_medium(&name);
+                if preset.is_none() {
+                    // pbrt-v4 warns and goes on.
+                    self.unsupported(
+                        &l,
+                        format!("medium preset \"{name}\""),
+                        format!(
+                            "no measured medium has that name{}; sigma_a and sigma_s are used",
+                            suggest(&name, crate::media::measured::measured_medium_names())
+                        ),
+                    );
+                }
+            }
         }
-        let sigma_a = self.medium_color(p, "sigma_a", Rgb::ONE)?;
-        let sigma_s = self.medium_color(p, "sigma_s", Rgb::ONE)?;
+        // With a preset, sigma_a and sigma_s are not read (pbrt-v4 then
+        // reports them unused too).
+        let (sigma_a, sigma_s) = match preset {
+            Some(coefficients) => coefficients,
+            None => (
+                self.medium_color(p, "sigma_a", Rgb::ONE)?,
+                self.medium_color(p, "sigma_s", Rgb::ONE)?,
+            ),
+        };
         let scale = p.float("scale", 1.0)?;
         let g = Self::phase_g(p)?;
         let le = self.medium_color(p, "Le", Rgb::ZERO)?;

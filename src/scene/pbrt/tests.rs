@@ -2451,3 +2451,46 @@ fn the_single_scattering_albedo_inverts_the_reflectance_monotonically() {
         last = a;
     }
 }
+
+/// Measured media by name: a homogeneous medium's `preset` and a
+/// subsurface material's `name` take Jensen et al.'s and Narasimhan et
+/// al.'s coefficients (mm⁻¹), times `scale`.
+#[test]
+fn measured_media_by_name() {
+    let d = world(
+        r#"MakeNamedMedium "milk" "string type" "homogeneous" "string preset" "Wholemilk" "float scale" 10
+MakeNamedMedium "odd" "string type" "homogeneous" "string preset" "Mik"
+MediumInterface "milk" ""
+Material "interface"
+Shape "sphere"
+MediumInterface "" ""
+Material "subsurface" "string name" "Ketchup"
+Shape "sphere""#,
+    );
+    let medium = |name: &str| d.media.iter().find(|m| m.name == name).unwrap();
+    let milk = medium(d.shapes[0].media.as_ref().unwrap().inside.as_ref().unwrap());
+    let FieldDesc::Constant(sigma_t) = &milk.sigma_t else {
+        panic!()
+    };
+    assert!(
+        (*sigma_t * milk.scale - 10.0 * Rgb::new(2.5511, 3.2124, 3.784))
+            .abs()
+            .max_element()
+            < 1e-3
+    );
+    assert!(
+        d.warnings.iter().any(|w| w.contains("medium preset \"Mik\"")),
+        "{:?}",
+        d.warnings
+    );
+    let inside = d.shapes[1].media.as_ref().unwrap().inside.clone().unwrap();
+    let FieldDesc::Constant(sigma_t) = &medium(&inside).sigma_t else {
+        panic!()
+    };
+    assert!(
+        (*sigma_t - Rgb::new(0.241, 1.04, 1.48)).abs().max_element() < 1e-4,
+        "{sigma_t}"
+    );
+    let e = error_of("WorldBegin\nMaterial \"subsurface\" \"string name\" \"Skin9\"");
+    assert!(e.contains("no measured medium named \"Skin9\""), "{e}");
+}
