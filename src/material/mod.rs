@@ -861,7 +861,8 @@ impl Material {
             } => Bsdf::Layered(LayeredBsdf {
                 coat: DielectricBsdf {
                     eta: *coat_eta,
-                    microfacet: *coat,
+                    // A roughness map of a layered material is its coat's.
+                    microfacet: self.microfacet_at(*coat, textures, tc),
                     reflect_tint: Rgb::ONE,
                     transmit_tint: Rgb::ONE,
                 },

@@ -1037,8 +1037,11 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, textur
         // The constant α the kind was built with becomes the textures'
         // average: the material is rough unless every texel is 0.
         let (au, av) = map.average_alpha(textures);
-        // (Validation admits a map on conductors and dielectrics only.)
-        if let MaterialKind::Conductor { microfacet, .. } | MaterialKind::Dielectric { microfacet, .. } = &mut mat.kind
+        // (Validation admits a map on conductors, dielectrics and the
+        // coats of layered materials only.)
+        if let MaterialKind::Conductor { microfacet, .. }
+        | MaterialKind::Dielectric { microfacet, .. }
+        | MaterialKind::Layered { coat: microfacet, .. } = &mut mat.kind
         {
             *microfacet = Microfacet::new(microfacet.distribution, au, av);
             mat.roughness_map = Some(map);

@@ -1402,11 +1402,13 @@ impl SceneDesc {
                 texture("roughness_texture", &r.v)?;
                 if !matches!(
                     m.kind,
-                    MaterialKindDesc::Conductor { .. } | MaterialKindDesc::Dielectric { .. }
+                    MaterialKindDesc::Conductor { .. }
+                        | MaterialKindDesc::Dielectric { .. }
+                        | MaterialKindDesc::Layered { .. }
                 ) {
                     return Err(c.err(
                         "roughness_texture",
-                        "a roughness texture applies to conductors and dielectrics only",
+                        "a roughness texture applies to conductors, dielectrics and the coats of layered materials only",
                     ));
                 }
             }

@@ -523,6 +523,14 @@ impl Parser {
                 else {
                     unreachable!("conductor() makes conductors")
                 };
+                // trazo varies the coat's roughness only.
+                if def.roughness_map.take().is_some() {
+                    self.approximated(
+                        loc,
+                        format!("{what} with a float texture for \"conductor.roughness\""),
+                        "the texture's typical value is used",
+                    );
+                }
                 let coat_ior = self.eta(p, "interface.eta", 1.5, &mut def)?;
                 let coat_roughness = self.roughness(p, "interface.", &mut def)?;
                 self.layered(
@@ -658,7 +666,8 @@ impl Parser {
         };
         if def.roughness_map.is_some() {
             match &desc {
-                MaterialKindDesc::Conductor { .. } => {}
+                // A layered material's map is its coat's.
+                MaterialKindDesc::Conductor { .. } | MaterialKindDesc::Layered { .. } => {}
                 MaterialKindDesc::Dielectric { .. } => {
                     // trazo's rough dielectric is isotropic.
                     if let Some(m) = &mut def.roughness_map {
