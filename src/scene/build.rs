@@ -20,7 +20,7 @@ use crate::material::{
 use crate::media::{Field, Medium, MediumInterface, Phase, VoxelGrid};
 use crate::sampling::Distribution1D;
 use crate::settings::IntegratorKind;
-use crate::texture::{ImageTexture, MAX_TEXTURE_DEPTH, Texture, TextureNode, TextureStore};
+use crate::texture::{ImageTexture, MAX_TEXTURE_DEPTH, Texture, TextureStore};
 use glam::Vec3;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -130,13 +130,12 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                     filter: *filter,
                 }
             }
-            kind => {
+            TextureKind::Node(node) => {
                 // Validation saw that inputs name textures made before.
-                let input = |c: &ColorSource| match c {
+                let node = node.map(|c| match c {
                     ColorSource::Rgb(rgb) => Texture::Constant(*rgb),
                     ColorSource::Texture(name) => textures[name.as_str()],
-                };
-                let node = texture_node(kind, input);
+                });
                 store.push(node).ok_or_else(|| {
                     Error::scene(
                         t.locs.item.clone(),
@@ -834,64 +833,6 @@ fn read_attribute(m: u32, materials: &[Material], mixes: &[Option<MaterialMix>])
 }
 
 /// The render-time material of a description.
-/// The node of a texture made of textures (or a procedural one), its
-/// inputs resolved by `input`.
-fn texture_node(kind: &TextureKind, input: impl Fn(&ColorSource) -> Texture) -> TextureNode {
-    match kind {
-        TextureKind::Scale { tex, scale } => TextureNode::Scale {
-            tex: input(tex),
-            scale: input(scale),
-        },
-        TextureKind::Mix { first, second, amount } => TextureNode::Mix {
-            first: input(first),
-            second: input(second),
-            amount: input(amount),
-        },
-        TextureKind::DirectionMix { first, second, dir } => TextureNode::DirectionMix {
-            first: input(first),
-            second: input(second),
-            dir: dir.normalize(),
-        },
-        TextureKind::Checks { even, odd, mapping } => TextureNode::Checkerboard {
-            even: input(even),
-            odd: input(odd),
-            mapping: *mapping,
-        },
-        TextureKind::SolidChecks { even, odd, to_texture } => TextureNode::SolidCheckerboard {
-            even: input(even),
-            odd: input(odd),
-            to_texture: *to_texture,
-        },
-        TextureKind::Dots {
-            inside,
-            outside,
-            mapping,
-        } => TextureNode::Dots {
-            inside: input(inside),
-            outside: input(outside),
-            mapping: *mapping,
-        },
-        TextureKind::Bilerp { corners, mapping } => TextureNode::Bilerp {
-            corners: *corners,
-            mapping: *mapping,
-        },
-        TextureKind::Noise { pattern, to_texture } => TextureNode::Noise {
-            pattern: *pattern,
-            to_texture: *to_texture,
-        },
-        TextureKind::Invert(tex) => TextureNode::Invert(input(tex)),
-        TextureKind::Mapped { tex, mapping } => TextureNode::Mapped {
-            tex: input(tex),
-            mapping: *mapping,
-        },
-        TextureKind::Constant(_)
-        | TextureKind::Checkerboard { .. }
-        | TextureKind::Checkerboard3d { .. }
-        | TextureKind::Image { .. }
-        | TextureKind::MeshAttribute { .. } => unreachable!("plain textures are no nodes"),
-    }
-}
-
 fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, textures: &TextureStore) -> Material {
     let mut mat = match &m.kind {
         MaterialKindDesc::Classic(c) => Material::new_classic(

@@ -16,8 +16,8 @@ use crate::settings::{
     MAX_PHOTONS, MAX_SPP, RenderSettings,
 };
 pub use crate::texture::{ImageFilter, WrapMode};
-use crate::texture::{Mapping2D, NoisePattern};
-use glam::{Affine3A, Mat4, Vec2, Vec3};
+use crate::texture::{Mapping2D, NoisePattern, TextureNode};
+use glam::{Mat4, Vec2, Vec3};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -192,103 +192,9 @@ pub enum TextureKind {
         /// The attribute's name.
         name: String,
     },
-    /// `tex` × `scale`, channel by channel.
-    Scale {
-        /// The texture scaled.
-        tex: ColorSource,
-        /// The factor.
-        scale: ColorSource,
-    },
-    /// (1 − a)·`first` + a·`second`, a the first channel of `amount`.
-    Mix {
-        /// Where the amount is 0.
-        first: ColorSource,
-        /// Where it is 1.
-        second: ColorSource,
-        /// The amount.
-        amount: ColorSource,
-    },
-    /// a·`first` + (1 − a)·`second`, a = |n·dir| for the shading normal n.
-    DirectionMix {
-        /// Where the normal is along `dir`.
-        first: ColorSource,
-        /// Where it is perpendicular to it.
-        second: ColorSource,
-        /// A direction in world space (normalised when built).
-        dir: Vec3,
-    },
-    /// Checks of two colours or textures over a 2-D mapping.
-    Checks {
-        /// Where ⌊s⌋ + ⌊t⌋ is even.
-        even: ColorSource,
-        /// Elsewhere.
-        odd: ColorSource,
-        /// How (s, t) is found.
-        mapping: Mapping2D,
-    },
-    /// Solid checks of two colours or textures: unit cubes of texture
-    /// space.
-    SolidChecks {
-        /// Where ⌊x⌋ + ⌊y⌋ + ⌊z⌋ is even.
-        even: ColorSource,
-        /// Elsewhere.
-        odd: ColorSource,
-        /// World to texture space.
-        to_texture: Affine3A,
-    },
-    /// Polka dots over a 2-D mapping.
-    Dots {
-        /// Inside the dots.
-        inside: ColorSource,
-        /// Between them.
-        outside: ColorSource,
-        /// How (s, t) is found.
-        mapping: Mapping2D,
-    },
-    /// Four colours interpolated bilinearly over (s, t).
-    Bilerp {
-        /// At (s, t) = (0, 0), (1, 0), (0, 1), (1, 1).
-        corners: [Rgb; 4],
-        /// How (s, t) is found.
-        mapping: Mapping2D,
-    },
-    /// A noise pattern at the point in texture space.
-    Noise {
-        /// Which pattern.
-        pattern: NoisePattern,
-        /// World to texture space.
-        to_texture: Affine3A,
-    },
-    /// max(0, 1 − `tex`), channel by channel.
-    Invert(ColorSource),
-    /// A texture read at (u, v) = the mapping's (s, t).
-    Mapped {
-        /// The texture read.
-        tex: ColorSource,
-        /// How its (u, v) is found.
-        mapping: Mapping2D,
-    },
-}
-
-impl TextureKind {
-    /// The colours and textures a texture is made of, with their keys.
-    pub fn inputs(&self) -> Vec<(&'static str, &ColorSource)> {
-        match self {
-            TextureKind::Scale { tex, scale } => vec![("texture", tex), ("scale", scale)],
-            TextureKind::Mix { first, second, amount } => {
-                vec![("first", first), ("second", second), ("amount", amount)]
-            }
-            TextureKind::DirectionMix { first, second, .. } => vec![("first", first), ("second", second)],
-            TextureKind::Checks { even, odd, .. } | TextureKind::SolidChecks { even, odd, .. } => {
-                vec![("even", even), ("odd", odd)]
-            }
-            TextureKind::Dots { inside, outside, .. } => vec![("inside", inside), ("outside", outside)],
-            TextureKind::Invert(tex) | TextureKind::Mapped { tex, .. } => {
-                vec![("texture", tex)]
-            }
-            _ => vec![],
-        }
-    }
+    /// A texture made of textures, or a procedural one: its inputs are
+    /// colours or the names of textures defined before it.
+    Node(TextureNode<ColorSource>),
 }
 
 /// Where an image texture's pixels come from.
@@ -1234,7 +1140,11 @@ impl SceneDesc {
                 return Err(c.err("name", format!("a texture named \"{}\" is already defined", t.name)));
             }
             // A texture is made of textures defined before it: no cycles.
-            for (key, input) in t.kind.inputs() {
+            let inputs = match &t.kind {
+                TextureKind::Node(node) => node.inputs(),
+                _ => vec![],
+            };
+            for (key, input) in inputs {
                 match input {
                     // Inputs may be negative (a float texture's).
                     ColorSource::Rgb(col) => c.vec3(key, *col)?,
@@ -1300,46 +1210,50 @@ impl SceneDesc {
                     c.finite("offset", offset.y)?;
                     c.color("tint", *tint)?;
                 }
-                TextureKind::Scale { .. } | TextureKind::Mix { .. } | TextureKind::Invert(_) => {}
-                TextureKind::DirectionMix { dir, .. } => {
-                    if !dir.is_finite() || dir.length_squared() == 0.0 {
-                        return Err(c.err("dir", "must be a finite, non-zero direction"));
+                TextureKind::Node(node) => match node {
+                    TextureNode::Scale { .. } | TextureNode::Mix { .. } | TextureNode::Invert(_) => {}
+                    TextureNode::DirectionMix { dir, .. } => {
+                        if !dir.is_finite() || dir.length_squared() == 0.0 {
+                            return Err(c.err("direction", "must be a finite, non-zero direction"));
+                        }
                     }
-                }
-                TextureKind::Checks { mapping: m, .. }
-                | TextureKind::Dots { mapping: m, .. }
-                | TextureKind::Mapped { mapping: m, .. } => mapping(m)?,
-                TextureKind::Bilerp { corners, mapping: m } => {
-                    for col in corners {
-                        c.color("corners", *col)?;
+                    TextureNode::Checkerboard { mapping: m, .. }
+                    | TextureNode::Dots { mapping: m, .. }
+                    | TextureNode::Mapped { mapping: m, .. } => mapping(m)?,
+                    TextureNode::Bilerp { corners, mapping: m } => {
+                        for col in corners {
+                            c.color("corners", *col)?;
+                        }
+                        mapping(m)?;
                     }
-                    mapping(m)?;
-                }
-                TextureKind::SolidChecks { to_texture, .. } | TextureKind::Noise { to_texture, .. } => {
-                    if !to_texture.is_finite() {
-                        return Err(c.err("transform", "the texture's transform must be finite"));
-                    }
-                    if let TextureKind::Noise { pattern, .. } = &t.kind {
-                        let (octaves, numbers) = match *pattern {
-                            NoisePattern::Fbm { octaves, omega } | NoisePattern::Wrinkled { octaves, omega } => {
-                                (octaves, vec![omega])
+                    TextureNode::SolidCheckerboard { to_texture, .. } | TextureNode::Noise { to_texture, .. } => {
+                        if !to_texture.is_finite() {
+                            return Err(c.err("transform", "the texture's transform must be finite"));
+                        }
+                        if let TextureNode::Noise { pattern, .. } = node {
+                            let (octaves, numbers) = match *pattern {
+                                NoisePattern::Fbm { octaves, omega } | NoisePattern::Wrinkled { octaves, omega } => {
+                                    (octaves, vec![omega])
+                                }
+                                NoisePattern::Windy => (0, vec![]),
+                                NoisePattern::Marble {
+                                    octaves,
+                                    omega,
+                                    scale,
+                                    variation,
+                                } => (octaves, vec![omega, scale, variation]),
+                            };
+                            if octaves > MAX_NOISE_OCTAVES {
+                                return Err(
+                                    c.err("octaves", format!("must be at most {MAX_NOISE_OCTAVES}, got {octaves}"))
+                                );
                             }
-                            NoisePattern::Windy => (0, vec![]),
-                            NoisePattern::Marble {
-                                octaves,
-                                omega,
-                                scale,
-                                variation,
-                            } => (octaves, vec![omega, scale, variation]),
-                        };
-                        if octaves > MAX_NOISE_OCTAVES {
-                            return Err(c.err("octaves", format!("must be at most {MAX_NOISE_OCTAVES}, got {octaves}")));
-                        }
-                        for v in numbers {
-                            c.finite("roughness", v)?;
+                            for v in numbers {
+                                c.finite("roughness", v)?;
+                            }
                         }
                     }
-                }
+                },
             }
         }
 

@@ -13,7 +13,7 @@ use crate::geometry::TriangleMesh;
 use crate::geometry::sdf::{self, SdfBuilder};
 use crate::sampling::SamplerKind;
 use crate::settings::{Filter, IntegratorKind, PathSampling, PhotonKernel, RenderSettings, Tonemap};
-use crate::texture::{Mapping2D, NoisePattern};
+use crate::texture::{Mapping2D, NoisePattern, TextureNode};
 use glam::{Affine3A, Mat4, Vec2, Vec3, Vec4};
 use serde_spanned::Spanned;
 use std::cell::RefCell;
@@ -665,7 +665,7 @@ fn read_texture(t: &Table) -> Result<Vec<TextureDesc>> {
                 {
                     TextureKind::Checkerboard { even, odd, scale }
                 }
-                (even, odd, mapping) => TextureKind::Checks { even, odd, mapping },
+                (even, odd, mapping) => TextureKind::Node(TextureNode::Checkerboard { even, odd, mapping }),
             }
         }
         "checkerboard3d" => {
@@ -675,11 +675,11 @@ fn read_texture(t: &Table) -> Result<Vec<TextureDesc>> {
                 (ColorSource::Rgb(even), ColorSource::Rgb(odd)) if t.value("transform").is_none() => {
                     TextureKind::Checkerboard3d { even, odd, scale }
                 }
-                (even, odd) => TextureKind::SolidChecks {
+                (even, odd) => TextureKind::Node(TextureNode::SolidCheckerboard {
                     even,
                     odd,
                     to_texture: Affine3A::from_scale(Vec3::splat(scale)) * texture_space(t)?,
-                },
+                }),
             }
         }
         "image" => {
@@ -718,36 +718,36 @@ fn read_texture(t: &Table) -> Result<Vec<TextureDesc>> {
                     },
                     TextureDesc {
                         name,
-                        kind: TextureKind::Mapped {
+                        kind: TextureKind::Node(TextureNode::Mapped {
                             tex: ColorSource::Texture(image_name),
                             mapping,
-                        },
+                        }),
                         locs,
                     },
                 ]);
             }
             image
         }
-        "scale" => TextureKind::Scale {
+        "scale" => TextureKind::Node(TextureNode::Scale {
             tex: t.required("texture", t.color_source("texture")?)?,
             scale: input("scale", 1.0)?,
-        },
-        "mix" => TextureKind::Mix {
+        }),
+        "mix" => TextureKind::Node(TextureNode::Mix {
             first: input("first", 0.0)?,
             second: input("second", 1.0)?,
             amount: input("amount", 0.5)?,
-        },
-        "direction_mix" => TextureKind::DirectionMix {
+        }),
+        "direction_mix" => TextureKind::Node(TextureNode::DirectionMix {
             first: input("first", 0.0)?,
             second: input("second", 1.0)?,
             dir: t.vec3("direction")?.unwrap_or(Vec3::Y),
-        },
-        "dots" => TextureKind::Dots {
+        }),
+        "dots" => TextureKind::Node(TextureNode::Dots {
             inside: input("inside", 1.0)?,
             outside: input("outside", 0.0)?,
             mapping: read_mapping(t, Vec2::ONE)?,
-        },
-        "bilerp" => TextureKind::Bilerp {
+        }),
+        "bilerp" => TextureKind::Node(TextureNode::Bilerp {
             corners: [
                 t.color("v00")?.unwrap_or(Rgb::ZERO),
                 t.color("v10")?.unwrap_or(Rgb::ZERO),
@@ -755,26 +755,19 @@ fn read_texture(t: &Table) -> Result<Vec<TextureDesc>> {
                 t.color("v11")?.unwrap_or(Rgb::ONE),
             ],
             mapping: read_mapping(t, Vec2::ONE)?,
-        },
-        "invert" => TextureKind::Invert(t.required("texture", t.color_source("texture")?)?),
+        }),
+        "invert" => TextureKind::Node(TextureNode::Invert(t.required("texture", t.color_source("texture")?)?)),
         noise => {
             let octaves = t.unsigned("octaves", MAX_NOISE_OCTAVES as u64)?.unwrap_or(8) as u32;
             let omega = t.number_or("roughness", 0.5)?;
-            let pattern = match noise {
-                "fbm" => NoisePattern::Fbm { octaves, omega },
-                "wrinkled" => NoisePattern::Wrinkled { octaves, omega },
-                "windy" => NoisePattern::Windy,
-                _ => NoisePattern::Marble {
-                    octaves,
-                    omega,
-                    scale: t.number_or("scale", 1.0)?,
-                    variation: t.number_or("variation", 0.2)?,
-                },
-            };
-            TextureKind::Noise {
+            let pattern = NoisePattern::named(noise, octaves, omega, || {
+                Ok::<_, Error>((t.number_or("scale", 1.0)?, t.number_or("variation", 0.2)?))
+            })?
+            .expect("a noise type");
+            TextureKind::Node(TextureNode::Noise {
                 pattern,
                 to_texture: texture_space(t)?,
-            }
+            })
         }
     };
     Ok(vec![TextureDesc {
@@ -1978,48 +1971,50 @@ s_axis = [0, 0, 1]
         let d = parse_str(s).unwrap_or_else(|e| panic!("{e}"));
         d.validate().unwrap_or_else(|e| panic!("{e}"));
         let kind = |name: &str| &d.textures.iter().find(|t| t.name == name).unwrap().kind;
-        let TextureKind::Noise {
+        let TextureKind::Node(TextureNode::Noise {
             pattern: NoisePattern::Fbm { octaves: 5, .. },
             to_texture,
-        } = kind("grain")
+        }) = kind("grain")
         else {
             panic!("{:?}", kind("grain"))
         };
         // Texture space is the transform's inverse: twice the world's.
         assert_eq!(to_texture.transform_point3(Vec3::ONE), Vec3::splat(2.0));
         assert!(
-            matches!(kind("stone"), TextureKind::Noise { pattern: NoisePattern::Marble { variation, .. }, .. } if *variation == 0.5)
+            matches!(kind("stone"), TextureKind::Node(TextureNode::Noise { pattern: NoisePattern::Marble { variation, .. }, .. }) if *variation == 0.5)
         );
         assert_eq!(
             kind("blend"),
-            &TextureKind::Mix {
+            &TextureKind::Node(TextureNode::Mix {
                 first: ColorSource::Texture("stone".into()),
                 second: ColorSource::Rgb(Rgb::new(0.1, 0.2, 0.3)),
                 amount: ColorSource::Texture("grain".into()),
-            }
+            })
         );
         assert!(
-            matches!(kind("dots"), TextureKind::Dots { mapping: Mapping2D::Uv { scale, .. }, .. } if *scale == Vec2::splat(10.0))
+            matches!(kind("dots"), TextureKind::Node(TextureNode::Dots { mapping: Mapping2D::Uv { scale, .. }, .. }) if *scale == Vec2::splat(10.0))
         );
-        assert!(matches!(kind("dim"), TextureKind::Scale { .. }));
-        let TextureKind::SolidChecks { to_texture, .. } = kind("solid") else {
+        assert!(matches!(kind("dim"), TextureKind::Node(TextureNode::Scale { .. })));
+        let TextureKind::Node(TextureNode::SolidCheckerboard { to_texture, .. }) = kind("solid") else {
             panic!("{:?}", kind("solid"))
         };
         assert_eq!(to_texture.transform_point3(Vec3::ONE), Vec3::splat(2.0));
         // An image by another mapping: the image, and the texture placing it.
-        let TextureKind::Mapped {
+        let TextureKind::Node(TextureNode::Mapped {
             tex: ColorSource::Texture(image),
             mapping,
-        } = kind("globe")
+        }) = kind("globe")
         else {
             panic!("{:?}", kind("globe"))
         };
         assert!(matches!(mapping, Mapping2D::Spherical { .. }));
         assert!(matches!(kind(image), TextureKind::Image { .. }));
-        assert!(matches!(kind("flipped"), TextureKind::Invert(_)));
-        assert!(matches!(kind("sky"), TextureKind::DirectionMix { dir, .. } if *dir == Vec3::new(0.0, 0.0, 2.0)));
+        assert!(matches!(kind("flipped"), TextureKind::Node(TextureNode::Invert(_))));
         assert!(
-            matches!(kind("ramp"), TextureKind::Bilerp { mapping: Mapping2D::Planar { s_axis, .. }, .. } if *s_axis == Vec3::Z)
+            matches!(kind("sky"), TextureKind::Node(TextureNode::DirectionMix { dir, .. }) if *dir == Vec3::new(0.0, 0.0, 2.0))
+        );
+        assert!(
+            matches!(kind("ramp"), TextureKind::Node(TextureNode::Bilerp { mapping: Mapping2D::Planar { s_axis, .. }, .. }) if *s_axis == Vec3::Z)
         );
         // A texture may only be made of textures defined before it.
         let later = "[[texture]]\nname = \"a\"\ntype = \"invert\"\ntexture = \"b\"\n\n[[texture]]\nname = \"b\"\ntype = \"constant\"\n";

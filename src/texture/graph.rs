@@ -147,6 +147,31 @@ fn marble_color(t: f32) -> Rgb {
 }
 
 impl NoisePattern {
+    /// The pattern of pbrt-v4's class `class` (`fbm`, `wrinkled`, `windy`
+    /// or `marble`, whose scale and variation `marble` reads), or `None`.
+    pub fn named<E>(
+        class: &str,
+        octaves: u32,
+        omega: f32,
+        marble: impl FnOnce() -> Result<(f32, f32), E>,
+    ) -> Result<Option<NoisePattern>, E> {
+        Ok(Some(match class {
+            "fbm" => NoisePattern::Fbm { octaves, omega },
+            "wrinkled" => NoisePattern::Wrinkled { octaves, omega },
+            "windy" => NoisePattern::Windy,
+            "marble" => {
+                let (scale, variation) = marble()?;
+                NoisePattern::Marble {
+                    octaves,
+                    omega,
+                    scale,
+                    variation,
+                }
+            }
+            _ => return Ok(None),
+        }))
+    }
+
     /// The pattern at `q` in texture space.
     pub fn eval(&self, q: Vec3) -> Rgb {
         match *self {
@@ -212,32 +237,34 @@ fn even_cell(q: &[f32]) -> bool {
     q.iter().map(|x| x.floor() as i64).sum::<i64>().rem_euclid(2) == 0
 }
 
-/// A texture made of other textures, or a procedural one.
+/// A texture made of other textures, or a procedural one. Its inputs are
+/// `T`: [`Texture`]s in a scene, colours or texture names
+/// ([`crate::scene::desc::ColorSource`]) in a scene description.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum TextureNode {
+pub enum TextureNode<T = Texture> {
     /// `tex` × `scale`, channel by channel (pbrt-v4's `scale`).
     Scale {
         /// The texture scaled.
-        tex: Texture,
+        tex: T,
         /// The factor (a grey float texture, or a colour).
-        scale: Texture,
+        scale: T,
     },
     /// (1 − a)·`first` + a·`second`, a the first channel of `amount`.
     Mix {
         /// Where the amount is 0.
-        first: Texture,
+        first: T,
         /// Where the amount is 1.
-        second: Texture,
+        second: T,
         /// The amount.
-        amount: Texture,
+        amount: T,
     },
     /// a·`first` + (1 − a)·`second`, a = |n·dir| for the shading normal n
     /// (pbrt-v4's `directionmix`).
     DirectionMix {
         /// Where the normal is along `dir`.
-        first: Texture,
+        first: T,
         /// Where it is perpendicular to it.
-        second: Texture,
+        second: T,
         /// Unit direction in world space.
         dir: Vec3,
     },
@@ -245,27 +272,27 @@ pub enum TextureNode {
     /// is even.
     Checkerboard {
         /// Where ⌊s⌋ + ⌊t⌋ is even.
-        even: Texture,
+        even: T,
         /// Elsewhere.
-        odd: Texture,
+        odd: T,
         /// How (s, t) is found.
         mapping: Mapping2D,
     },
     /// Solid checks of two textures: unit cubes of texture space.
     SolidCheckerboard {
         /// Where ⌊x⌋ + ⌊y⌋ + ⌊z⌋ is even.
-        even: Texture,
+        even: T,
         /// Elsewhere.
-        odd: Texture,
+        odd: T,
         /// World to texture space.
         to_texture: Affine3A,
     },
     /// pbrt-v4's polka dots over a 2-D mapping.
     Dots {
         /// Inside the dots.
-        inside: Texture,
+        inside: T,
         /// Between them.
-        outside: Texture,
+        outside: T,
         /// How (s, t) is found.
         mapping: Mapping2D,
     },
@@ -285,44 +312,113 @@ pub enum TextureNode {
         to_texture: Affine3A,
     },
     /// max(0, 1 − `tex`), channel by channel (an image's `invert`).
-    Invert(Texture),
+    Invert(T),
     /// `tex` read at (u, v) = the mapping's (s, t): an image or checks
     /// placed by the point.
     Mapped {
         /// The texture read.
-        tex: Texture,
+        tex: T,
         /// How its (u, v) is found.
         mapping: Mapping2D,
     },
 }
 
-impl TextureNode {
-    /// The inputs that are textures.
-    pub fn inputs(&self) -> Vec<Texture> {
-        match *self {
-            TextureNode::Scale { tex, scale } => vec![tex, scale],
-            TextureNode::Mix { first, second, amount } => vec![first, second, amount],
-            TextureNode::DirectionMix { first, second, .. }
-            | TextureNode::Checkerboard {
-                even: first,
-                odd: second,
-                ..
+impl<T> TextureNode<T> {
+    /// The inputs, with the keys that name them in a scene file.
+    pub fn inputs(&self) -> Vec<(&'static str, &T)> {
+        match self {
+            TextureNode::Scale { tex, scale } => vec![("texture", tex), ("scale", scale)],
+            TextureNode::Mix { first, second, amount } => {
+                vec![("first", first), ("second", second), ("amount", amount)]
             }
-            | TextureNode::SolidCheckerboard {
-                even: first,
-                odd: second,
-                ..
+            TextureNode::DirectionMix { first, second, .. } => vec![("first", first), ("second", second)],
+            TextureNode::Checkerboard { even, odd, .. } | TextureNode::SolidCheckerboard { even, odd, .. } => {
+                vec![("even", even), ("odd", odd)]
             }
-            | TextureNode::Dots {
-                inside: first,
-                outside: second,
-                ..
-            } => vec![first, second],
-            TextureNode::Invert(tex) | TextureNode::Mapped { tex, .. } => vec![tex],
+            TextureNode::Dots { inside, outside, .. } => vec![("inside", inside), ("outside", outside)],
+            TextureNode::Invert(tex) | TextureNode::Mapped { tex, .. } => vec![("texture", tex)],
             TextureNode::Bilerp { .. } | TextureNode::Noise { .. } => vec![],
         }
     }
 
+    /// The same node with each input replaced by `f` of it.
+    pub fn map<U>(&self, mut f: impl FnMut(&T) -> U) -> TextureNode<U> {
+        match self {
+            TextureNode::Scale { tex, scale } => TextureNode::Scale {
+                tex: f(tex),
+                scale: f(scale),
+            },
+            TextureNode::Mix { first, second, amount } => TextureNode::Mix {
+                first: f(first),
+                second: f(second),
+                amount: f(amount),
+            },
+            TextureNode::DirectionMix { first, second, dir } => TextureNode::DirectionMix {
+                first: f(first),
+                second: f(second),
+                dir: *dir,
+            },
+            TextureNode::Checkerboard { even, odd, mapping } => TextureNode::Checkerboard {
+                even: f(even),
+                odd: f(odd),
+                mapping: *mapping,
+            },
+            TextureNode::SolidCheckerboard { even, odd, to_texture } => TextureNode::SolidCheckerboard {
+                even: f(even),
+                odd: f(odd),
+                to_texture: *to_texture,
+            },
+            TextureNode::Dots {
+                inside,
+                outside,
+                mapping,
+            } => TextureNode::Dots {
+                inside: f(inside),
+                outside: f(outside),
+                mapping: *mapping,
+            },
+            TextureNode::Bilerp { corners, mapping } => TextureNode::Bilerp {
+                corners: *corners,
+                mapping: *mapping,
+            },
+            TextureNode::Noise { pattern, to_texture } => TextureNode::Noise {
+                pattern: *pattern,
+                to_texture: *to_texture,
+            },
+            TextureNode::Invert(tex) => TextureNode::Invert(f(tex)),
+            TextureNode::Mapped { tex, mapping } => TextureNode::Mapped {
+                tex: f(tex),
+                mapping: *mapping,
+            },
+        }
+    }
+
+    /// The node's mean colour, roughly, from its inputs' means `mean`.
+    pub fn average_by(&self, mean: impl Fn(&T) -> Rgb) -> Rgb {
+        match self {
+            TextureNode::Scale { tex, scale } => mean(tex) * mean(scale),
+            TextureNode::Mix { first, second, amount } => {
+                let a = mean(amount).x;
+                (1.0 - a) * mean(first) + a * mean(second)
+            }
+            TextureNode::DirectionMix { first, second, .. } => 0.5 * (mean(first) + mean(second)),
+            TextureNode::Checkerboard { even, odd, .. } | TextureNode::SolidCheckerboard { even, odd, .. } => {
+                0.5 * (mean(even) + mean(odd))
+            }
+            TextureNode::Dots { inside, outside, .. } => {
+                // Half the cells hold a dot of radius 0.35.
+                let covered = 0.5 * PI * 0.35 * 0.35;
+                covered * mean(inside) + (1.0 - covered) * mean(outside)
+            }
+            TextureNode::Bilerp { corners, .. } => corners.iter().sum::<Rgb>() / 4.0,
+            TextureNode::Noise { pattern, .. } => pattern.average(),
+            TextureNode::Invert(tex) => (Rgb::ONE - mean(tex)).max(Rgb::ZERO),
+            TextureNode::Mapped { tex, .. } => mean(tex),
+        }
+    }
+}
+
+impl TextureNode {
     /// The node's colour at `tc`.
     pub fn eval(&self, store: &TextureStore, tc: &TexCoord) -> Rgb {
         match *self {
@@ -408,35 +504,9 @@ impl TextureNode {
         Vec2::new(at(STEP, 0.0) - here, at(0.0, STEP) - here) / STEP
     }
 
-    /// The node's mean colour, roughly: constants of its inputs' means.
+    /// The node's mean colour, roughly: of its inputs' means.
     pub fn average(&self, store: &TextureStore) -> Rgb {
-        match *self {
-            TextureNode::Scale { tex, scale } => tex.average(store) * scale.average(store),
-            TextureNode::Mix { first, second, amount } => {
-                let a = amount.average(store).x;
-                (1.0 - a) * first.average(store) + a * second.average(store)
-            }
-            TextureNode::DirectionMix { first, second, .. }
-            | TextureNode::Checkerboard {
-                even: first,
-                odd: second,
-                ..
-            }
-            | TextureNode::SolidCheckerboard {
-                even: first,
-                odd: second,
-                ..
-            } => 0.5 * (first.average(store) + second.average(store)),
-            TextureNode::Dots { inside, outside, .. } => {
-                // Half the cells hold a dot of radius 0.35.
-                let covered = 0.5 * PI * 0.35 * 0.35;
-                covered * inside.average(store) + (1.0 - covered) * outside.average(store)
-            }
-            TextureNode::Bilerp { corners, .. } => corners.iter().sum::<Rgb>() / 4.0,
-            TextureNode::Noise { pattern, .. } => pattern.average(),
-            TextureNode::Invert(tex) => (Rgb::ONE - tex.average(store)).max(Rgb::ZERO),
-            TextureNode::Mapped { tex, .. } => tex.average(store),
-        }
+        self.average_by(|t| t.average(store))
     }
 }
 
@@ -446,6 +516,19 @@ mod tests {
 
     fn at(u: f32, v: f32, p: Vec3) -> TexCoord {
         TexCoord::new(Vec2::new(u, v), p)
+    }
+
+    /// (s, t, s·t) over (u, v): red along u, green along v.
+    fn ramp(store: &mut TextureStore) -> Texture {
+        store
+            .push(TextureNode::Bilerp {
+                corners: [Rgb::ZERO, Rgb::X, Rgb::Y, Rgb::ONE],
+                mapping: Mapping2D::Uv {
+                    scale: Vec2::ONE,
+                    offset: Vec2::ZERO,
+                },
+            })
+            .unwrap()
     }
 
     #[test]
@@ -501,15 +584,7 @@ mod tests {
     #[test]
     fn checks_of_textures_and_bilinear_corners() {
         let mut store = TextureStore::default();
-        let ramp = store
-            .push(TextureNode::Bilerp {
-                corners: [Rgb::ZERO, Rgb::X, Rgb::Y, Rgb::ONE],
-                mapping: Mapping2D::Uv {
-                    scale: Vec2::ONE,
-                    offset: Vec2::ZERO,
-                },
-            })
-            .unwrap();
+        let ramp = ramp(&mut store);
         let tc = at(0.25, 0.75, Vec3::ZERO);
         assert!(
             (ramp.eval(&store, &tc) - Rgb::new(0.25, 0.75, 0.1875))
@@ -564,15 +639,7 @@ mod tests {
         .map(&tc(Vec3::new(1.0, 5.0, 2.0)));
         assert_eq!(st, Vec2::new(2.5, 2.0));
         let mut store = TextureStore::default();
-        let flat = store
-            .push(TextureNode::Bilerp {
-                corners: [Rgb::ZERO, Rgb::X, Rgb::Y, Rgb::ONE],
-                mapping: Mapping2D::Uv {
-                    scale: Vec2::ONE,
-                    offset: Vec2::ZERO,
-                },
-            })
-            .unwrap();
+        let flat = ramp(&mut store);
         let placed = store
             .push(TextureNode::Mapped {
                 tex: flat,

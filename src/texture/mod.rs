@@ -95,7 +95,7 @@ impl TextureStore {
         let depth = 1 + node
             .inputs()
             .iter()
-            .map(|t| match *t {
+            .map(|(_, t)| match **t {
                 Texture::Node(i) => self.depths[i as usize] as usize,
                 _ => 0,
             })

@@ -12,7 +12,7 @@ use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::material::conductor::metal_ior;
 use crate::scene::desc::*;
-use crate::texture::{Mapping2D, NoisePattern};
+use crate::texture::{Mapping2D, NoisePattern, TextureNode};
 use glam::{Affine3A, Mat3, Mat4, Vec2, Vec3};
 use std::path::Path;
 
@@ -550,14 +550,7 @@ impl Parser {
                 let ior = self.eta(p, "eta", 1.5, &mut def)?;
                 let r = self.roughness(p, "", &mut def)?;
                 let roughness = self.isotropic(r, loc, &what);
-                MaterialKindDesc::Dielectric {
-                    ior,
-                    ext_ior: 1.0,
-                    roughness,
-                    distribution: MicrofacetDistribution::Ggx,
-                    reflect_tint: Rgb::ONE,
-                    transmit_tint: Rgb::ONE,
-                }
+                dielectric(ior, roughness)
             }
             "coateddiffuse" => {
                 let diffuse = self.albedo(p, "reflectance", 0.5, "diffuse", &mut def)?;
@@ -609,14 +602,7 @@ impl Parser {
                     &what,
                     "a dielectric surface over a homogeneous medium that the volumetric path tracer walks through (pbrt-v4 integrates the same medium with its tabulated photon-beam-diffusion BSSRDF); as in pbrt-v4, only \"volpath\" scatters below the surface",
                 );
-                MaterialKindDesc::Dielectric {
-                    ior,
-                    ext_ior: 1.0,
-                    roughness,
-                    distribution: MicrofacetDistribution::Ggx,
-                    reflect_tint: Rgb::ONE,
-                    transmit_tint: Rgb::ONE,
-                }
+                dielectric(ior, roughness)
             }
             "hair" | "measured" => {
                 let reflectance = if kind == "hair" && p.has("reflectance") {
@@ -804,7 +790,7 @@ impl Parser {
                             {
                                 TextureKind::Checkerboard { even, odd, scale }
                             }
-                            (even, odd, mapping) => TextureKind::Checks { even, odd, mapping },
+                            (even, odd, mapping) => TextureKind::Node(TextureNode::Checkerboard { even, odd, mapping }),
                         }
                     }
                     Some((3, _)) => {
@@ -817,11 +803,11 @@ impl Parser {
                                 odd,
                                 scale: 1.0 / s,
                             },
-                            (even, odd) => TextureKind::SolidChecks {
+                            (even, odd) => TextureKind::Node(TextureNode::SolidCheckerboard {
                                 even,
                                 odd,
                                 to_texture: self.texture_from_world(loc)?,
-                            },
+                            }),
                         }
                     }
                     Some((d, prm)) => return Err(prm.err(format!("must be 2 or 3, got {d}"))),
@@ -849,7 +835,7 @@ impl Parser {
                         }
                         kind
                     }
-                    (tex, scale) => TextureKind::Scale { tex, scale },
+                    (tex, scale) => TextureKind::Node(TextureNode::Scale { tex, scale }),
                 }
             }
             "mix" => {
@@ -860,7 +846,7 @@ impl Parser {
                     (ColorSource::Rgb(a), ColorSource::Rgb(b), ColorSource::Rgb(t)) => {
                         TextureKind::Constant(a * (1.0 - t.x) + b * t.x)
                     }
-                    (first, second, amount) => TextureKind::Mix { first, second, amount },
+                    (first, second, amount) => TextureKind::Node(TextureNode::Mix { first, second, amount }),
                 }
             }
             "directionmix" => {
@@ -876,7 +862,7 @@ impl Parser {
                     let at = prm.map_or(loc.clone(), |prm| prm.loc.clone());
                     return Err(Error::scene(Some(at), "dir", "must be a non-zero direction"));
                 }
-                TextureKind::DirectionMix { first, second, dir }
+                TextureKind::Node(TextureNode::DirectionMix { first, second, dir })
             }
             "bilerp" => {
                 let mut corners = [Rgb::ZERO; 4];
@@ -890,16 +876,16 @@ impl Parser {
                         self.texture_color(p, key, Rgb::splat(d))?
                     };
                 }
-                TextureKind::Bilerp {
+                TextureKind::Node(TextureNode::Bilerp {
                     corners,
                     mapping: self.mapping_2d(p, loc)?,
-                }
+                })
             }
-            "dots" => TextureKind::Dots {
+            "dots" => TextureKind::Node(TextureNode::Dots {
                 inside: input(self, "inside", 1.0)?,
                 outside: input(self, "outside", 0.0)?,
                 mapping: self.mapping_2d(p, loc)?,
-            },
+            }),
             "fbm" | "wrinkled" | "windy" | "marble" => {
                 let octaves = match p.int_opt("octaves")? {
                     None => 8,
@@ -911,21 +897,14 @@ impl Parser {
                     }
                 };
                 let omega = p.float("roughness", 0.5)?;
-                let pattern = match class {
-                    "fbm" => NoisePattern::Fbm { octaves, omega },
-                    "wrinkled" => NoisePattern::Wrinkled { octaves, omega },
-                    "windy" => NoisePattern::Windy,
-                    _ => NoisePattern::Marble {
-                        octaves,
-                        omega,
-                        scale: p.float("scale", 1.0)?,
-                        variation: p.float("variation", 0.2)?,
-                    },
-                };
-                TextureKind::Noise {
+                let pattern = NoisePattern::named(class, octaves, omega, || {
+                    Ok::<_, Error>((p.float("scale", 1.0)?, p.float("variation", 0.2)?))
+                })?
+                .expect("a noise class");
+                TextureKind::Node(TextureNode::Noise {
                     pattern,
                     to_texture: self.texture_from_world(loc)?,
-                }
+                })
             }
             _ => {
                 Self::use_all(p);
@@ -1037,11 +1016,11 @@ impl Parser {
         };
         if !matches!(mapping, Mapping2D::Uv { .. }) {
             let image = self.hidden_texture(desc_name, "image", kind, locs.clone());
-            kind = TextureKind::Mapped { tex: image, mapping };
+            kind = TextureKind::Node(TextureNode::Mapped { tex: image, mapping });
         }
         if p.bool("invert", false)? {
             let t = self.hidden_texture(desc_name, "uninverted", kind, locs.clone());
-            kind = TextureKind::Invert(t);
+            kind = TextureKind::Node(TextureNode::Invert(t));
         }
         Ok(kind)
     }
@@ -1084,30 +1063,7 @@ impl Parser {
             }
             TextureKind::Image { tint, .. } => 0.5 * *tint,
             TextureKind::MeshAttribute { .. } => Rgb::splat(0.5),
-            TextureKind::Scale { tex, scale } => of(tex) * of(scale),
-            TextureKind::Mix { first, second, amount } => {
-                let t = of(amount).x;
-                (1.0 - t) * of(first) + t * of(second)
-            }
-            TextureKind::DirectionMix { first, second, .. }
-            | TextureKind::Checks {
-                even: first,
-                odd: second,
-                ..
-            }
-            | TextureKind::SolidChecks {
-                even: first,
-                odd: second,
-                ..
-            } => 0.5 * (of(first) + of(second)),
-            TextureKind::Dots { inside, outside, .. } => {
-                let covered = 0.5 * std::f32::consts::PI * 0.35 * 0.35;
-                covered * of(inside) + (1.0 - covered) * of(outside)
-            }
-            TextureKind::Bilerp { corners, .. } => corners.iter().sum::<Rgb>() / 4.0,
-            TextureKind::Noise { pattern, .. } => pattern.average(),
-            TextureKind::Invert(t) => (Rgb::ONE - of(t)).max(Rgb::ZERO),
-            TextureKind::Mapped { tex, .. } => of(tex),
+            TextureKind::Node(node) => node.average_by(of),
         }
     }
 
@@ -1331,4 +1287,17 @@ pub(super) fn single_scattering_albedo(a: f32) -> f32 {
     let a = a.clamp(0.0, 1.0);
     let s = 4.09712 + 4.20863 * a - (9.59217 + 41.6808 * a + 17.7126 * a * a).sqrt();
     (1.0 - s * s).clamp(0.0, 1.0)
+}
+
+/// pbrt-v4's dielectric surface (of `dielectric` and `subsurface`): GGX of
+/// isotropic α, in vacuum.
+fn dielectric(ior: f32, roughness: f32) -> MaterialKindDesc {
+    MaterialKindDesc::Dielectric {
+        ior,
+        ext_ior: 1.0,
+        roughness,
+        distribution: MicrofacetDistribution::Ggx,
+        reflect_tint: Rgb::ONE,
+        transmit_tint: Rgb::ONE,
+    }
 }

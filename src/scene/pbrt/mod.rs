@@ -1270,8 +1270,8 @@ impl Parser {
         let droppable = |name: &String| float_names.contains(name) || name.starts_with("\0\0float texture ");
         let mut read_floats = read_floats;
         for t in self.desc.textures.iter().rev() {
-            if !droppable(&t.name) || read_floats.contains(&t.name) {
-                for (_, input) in t.kind.inputs() {
+            if let (TextureKind::Node(node), true) = (&t.kind, !droppable(&t.name) || read_floats.contains(&t.name)) {
+                for (_, input) in node.inputs() {
                     if let ColorSource::Texture(n) = input {
                         read_floats.insert(n.clone());
                     }

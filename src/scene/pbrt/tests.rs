@@ -2,6 +2,7 @@
 //! errors and warnings of malformed or unsupported input.
 
 use super::*;
+use crate::texture::TextureNode;
 use glam::{Vec2, Vec3, Vec4};
 
 fn parse_str(s: &str) -> Result<SceneDesc> {
@@ -873,7 +874,11 @@ fn other_materials_are_approximated_with_warnings() {
         }
     );
     assert!(d.warnings.is_empty(), "{:?}", d.warnings);
-    for (kind, expect) in [("measured", "Diffuse"), ("hair", "Diffuse"), ("subsurface", "Dielectric")] {
+    for (kind, expect) in [
+        ("measured", "Diffuse"),
+        ("hair", "Diffuse"),
+        ("subsurface", "Dielectric"),
+    ] {
         let d = world(&format!("Material \"{kind}\"\nShape \"sphere\""));
         let k = format!("{:?}", material(&d, 0).kind);
         assert!(k.starts_with(expect), "{kind}: {k}");
@@ -2087,10 +2092,10 @@ Shape "sphere""#,
     assert!(
         matches!(
             t.kind,
-            TextureKind::Noise {
+            TextureKind::Node(TextureNode::Noise {
                 pattern: crate::texture::NoisePattern::Fbm { octaves: 8, omega: 0.5 },
                 ..
-            }
+            })
         ),
         "{:?}",
         t.kind
@@ -2166,10 +2171,10 @@ Shape "sphere""#,
     // A colour times a float texture: a product node.
     assert_eq!(
         d.textures[3].kind,
-        TextureKind::Scale {
+        TextureKind::Node(TextureNode::Scale {
             tex: ColorSource::Rgb(Rgb::new(1.0, 0.5, 0.25)),
             scale: ColorSource::Texture("\u{0}float texture checks".into()),
-        }
+        })
     );
     assert_eq!(
         d.textures[2].kind,
@@ -2308,19 +2313,19 @@ Shape "sphere""#,
     use crate::texture::{Mapping2D, NoisePattern};
     assert!(matches!(
         kind("f"),
-        TextureKind::Noise {
+        TextureKind::Node(TextureNode::Noise {
             pattern: NoisePattern::Fbm { octaves: 5, omega },
             ..
-        } if (*omega - 0.6).abs() < 1e-6
+        }) if (*omega - 0.6).abs() < 1e-6
     ));
     assert!(matches!(
         kind("marb"),
-        TextureKind::Noise {
+        TextureKind::Node(TextureNode::Noise {
             pattern: NoisePattern::Marble { .. },
             ..
-        }
+        })
     ));
-    let TextureKind::Bilerp { corners, .. } = kind("bl") else {
+    let TextureKind::Node(TextureNode::Bilerp { corners, .. }) = kind("bl") else {
         panic!()
     };
     // v00, v10, v01, v11 (pbrt's defaults 0, 0, 1, 1).
@@ -2328,32 +2333,34 @@ Shape "sphere""#,
         *corners,
         [Rgb::new(1.0, 0.0, 0.0), Rgb::ZERO, Rgb::ONE, Rgb::new(0.0, 0.0, 1.0)]
     );
-    assert!(matches!(kind("dots"), TextureKind::Dots { mapping: Mapping2D::Uv { scale, .. }, .. } if scale.x == 8.0));
-    assert!(matches!(kind("dm"), TextureKind::DirectionMix { dir, .. } if *dir == Vec3::Z));
+    assert!(
+        matches!(kind("dots"), TextureKind::Node(TextureNode::Dots { mapping: Mapping2D::Uv { scale, .. }, .. }) if scale.x == 8.0)
+    );
+    assert!(matches!(kind("dm"), TextureKind::Node(TextureNode::DirectionMix { dir, .. }) if *dir == Vec3::Z));
     assert!(matches!(
         kind("sph"),
-        TextureKind::Checks {
+        TextureKind::Node(TextureNode::Checkerboard {
             mapping: Mapping2D::Spherical { .. },
             ..
-        }
+        })
     ));
     assert!(matches!(
         kind("cyl"),
-        TextureKind::Checks {
+        TextureKind::Node(TextureNode::Checkerboard {
             mapping: Mapping2D::Cylindrical { .. },
             ..
-        }
+        })
     ));
-    let TextureKind::Bilerp {
+    let TextureKind::Node(TextureNode::Bilerp {
         mapping: Mapping2D::Planar { s_axis, offset, .. },
         ..
-    } = kind("pl")
+    }) = kind("pl")
     else {
         panic!("{:?}", kind("pl"))
     };
     assert_eq!((*s_axis, *offset), (Vec3::Z, Vec2::new(0.5, 0.0)));
     // Solid checks of texture space: the inverse of the CTM.
-    let TextureKind::SolidChecks { to_texture, .. } = kind("solid") else {
+    let TextureKind::Node(TextureNode::SolidCheckerboard { to_texture, .. }) = kind("solid") else {
         panic!("{:?}", kind("solid"))
     };
     assert!(
@@ -2363,7 +2370,7 @@ Shape "sphere""#,
             .max_element()
             < 1e-6
     );
-    assert!(matches!(kind("all"), TextureKind::Scale { .. }));
+    assert!(matches!(kind("all"), TextureKind::Node(TextureNode::Scale { .. })));
     // The scene builds, and every texture is evaluated on the way.
     crate::scene::build(&d).unwrap_or_else(|e| panic!("{e}"));
 }
