@@ -3,7 +3,7 @@
 //! ```toml
 //! [[texture]]
 //! name = "floor"
-//! type = "checkerboard"   # or "checkerboard3d", "image", "constant"
+//! type = "checkerboard"   # or "image", "mix", "marble", … (docs/scene-format.md)
 //! even = [0.9, 0.9, 0.9]
 //! odd = [0.1, 0.1, 0.1]
 //! scale = [8, 8]          # checks per unit of u and v
