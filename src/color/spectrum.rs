@@ -161,6 +161,36 @@ pub enum SpectrumUse {
 /// value)` pairs sorted by wavelength (at least two). Also says whether a
 /// channel had to be clamped (out of gamut), which Mitsuba warns about.
 pub fn sampled_to_rgb(samples: &[(f32, f32)], usage: SpectrumUse) -> (Rgb, bool) {
+    let rgb = linear_rgb(samples, usage);
+    let high = if usage == SpectrumUse::Bounded {
+        1.0
+    } else {
+        f64::INFINITY
+    };
+    let clamped = rgb.iter().any(|&c| c < 0.0 || c > high);
+    let [r, g, b] = rgb.map(|c| c.clamp(0.0, high) as f32);
+    (Rgb::new(r, g, b), clamped)
+}
+
+/// What each sample of a spectrum at `wavelengths` (nm, ascending, at
+/// least two) adds to its colour: the colour of a spectrum is
+/// Σ value_j · weight_j before clamping, since the conversion is linear.
+pub fn sample_weights(wavelengths: &[f32], usage: SpectrumUse) -> Vec<Rgb> {
+    (0..wavelengths.len())
+        .map(|j| {
+            let hat: Vec<(f32, f32)> = wavelengths
+                .iter()
+                .enumerate()
+                .map(|(i, &l)| (l, if i == j { 1.0 } else { 0.0 }))
+                .collect();
+            let [r, g, b] = linear_rgb(&hat, usage).map(|c| c as f32);
+            Rgb::new(r, g, b)
+        })
+        .collect()
+}
+
+/// The unclamped linear sRGB of a sampled spectrum.
+fn linear_rgb(samples: &[(f32, f32)], usage: SpectrumUse) -> [f64; 3] {
     let (first, last) = (samples[0].0 as f64, samples[samples.len() - 1].0 as f64);
     let mut xyz = [0.0f64; 3];
     let mut segment = 0;
@@ -187,19 +217,11 @@ pub fn sampled_to_rgb(samples: &[(f32, f32)], usage: SpectrumUse) -> (Rgb, bool)
     }
     let scale = (LAMBDA_MAX - LAMBDA_MIN) / STEPS as f64 * CIE_Y_NORMALIZATION;
     let [x, y, z] = xyz.map(|c| c * scale);
-    let rgb = [
+    [
         3.2404790 * x - 1.5371500 * y - 0.4985350 * z,
         -0.9692560 * x + 1.8759910 * y + 0.0415560 * z,
         0.0556480 * x - 0.2040430 * y + 1.0573110 * z,
-    ];
-    let high = if usage == SpectrumUse::Bounded {
-        1.0
-    } else {
-        f64::INFINITY
-    };
-    let clamped = rgb.iter().any(|&c| c < 0.0 || c > high);
-    let [r, g, b] = rgb.map(|c| c.clamp(0.0, high) as f32);
-    (Rgb::new(r, g, b), clamped)
+    ]
 }
 
 #[cfg(test)]

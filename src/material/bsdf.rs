@@ -14,6 +14,7 @@ use super::conductor::ConductorBsdf;
 use super::dielectric::DielectricBsdf;
 use super::lambert::LambertBsdf;
 use super::layered::LayeredBsdf;
+use super::measured::MeasuredBsdf;
 use super::plastic::PlasticBsdf;
 use super::principled::PrincipledBsdf;
 use super::thin::ThinBsdf;
@@ -111,6 +112,8 @@ pub enum Bsdf<'a> {
     Principled(PrincipledBsdf),
     /// Two BSDFs blended by a weight (Mitsuba's `blendbsdf`).
     Blend(BlendBsdf<'a>),
+    /// A measured BRDF.
+    Measured(MeasuredBsdf<'a>),
 }
 
 macro_rules! dispatch {
@@ -126,6 +129,7 @@ macro_rules! dispatch {
             Bsdf::Layered($b) => $e,
             Bsdf::Principled($b) => $e,
             Bsdf::Blend($b) => $e,
+            Bsdf::Measured($b) => $e,
         }
     };
 }

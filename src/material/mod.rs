@@ -25,6 +25,7 @@ pub mod diffuse_transmission;
 pub mod frame;
 pub mod lambert;
 pub mod layered;
+pub mod measured;
 pub mod microfacet;
 pub mod optics;
 pub mod phong;
@@ -147,6 +148,11 @@ pub enum MaterialKind {
         eta: f32,
         /// The thin form (Mitsuba's `principledthin`).
         thin: bool,
+    },
+    /// A measured BRDF (an RGL `.bsdf` file; see [`measured`]).
+    Measured {
+        /// Its tables, shared by the materials that name the same file.
+        brdf: std::sync::Arc<measured::MeasuredBrdf>,
     },
     /// A thin dielectric sheet (index 1: no surface, only the boundary of
     /// a medium).
@@ -519,7 +525,7 @@ impl Material {
             } => &[diffuse],
             MaterialKind::Layered { .. } => &[],
             MaterialKind::Conductor { .. } | MaterialKind::Dielectric { .. } | MaterialKind::Thin { .. } => &[],
-            MaterialKind::Principled { .. } => &[],
+            MaterialKind::Principled { .. } | MaterialKind::Measured { .. } => &[],
         };
         let mut all = vec![&self.emission];
         if let MaterialKind::Principled { params, .. } = &self.kind {
@@ -772,6 +778,11 @@ impl Material {
                     ..zero
                 }
             }
+            // Its albedo at normal incidence, as a diffuse colour.
+            MaterialKind::Measured { brdf } => ClassicParams {
+                kd: measured::MeasuredBsdf { brdf }.albedo(),
+                ..zero
+            },
         }
     }
 
@@ -883,6 +894,7 @@ impl Material {
             MaterialKind::Principled { params, eta, thin } => {
                 Bsdf::Principled(params.bsdf_at(textures, tc, *eta, *thin))
             }
+            MaterialKind::Measured { brdf } => Bsdf::Measured(measured::MeasuredBsdf { brdf }),
             MaterialKind::Thin {
                 eta,
                 reflect_tint,

@@ -14,6 +14,7 @@ use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sp
 use crate::geometry::{Aabb, Transform, TriangleMesh};
 use crate::light::{Background, EnvironmentMap, Goniometric, Light, Projector, ProjectorLaw, SpotProjection};
 use crate::material::conductor::ConductorFresnel;
+use crate::material::measured::MeasuredBrdf;
 use crate::material::{
     LayerBaseKind, Material, MaterialKind, MaterialMix, Microfacet, MicrofacetDistribution, RoughnessMap,
 };
@@ -154,8 +155,30 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         }
     };
 
+    // Measured BRDFs, each file read once.
+    let mut measured: HashMap<&Path, Arc<MeasuredBrdf>> = HashMap::new();
+    for (i, m) in desc.materials.iter().enumerate() {
+        if let MaterialKindDesc::Measured { file } = &m.kind
+            && !measured.contains_key(file.as_path())
+        {
+            let path = base_dir.join(file);
+            let brdf = MeasuredBrdf::load(&path).map_err(|e| {
+                Error::scene(
+                    m.locs.key("file"),
+                    format!("material[{i}].file"),
+                    format!("measured BSDF {}: {e}", path.display()),
+                )
+            })?;
+            measured.insert(file.as_path(), Arc::new(brdf));
+        }
+    }
+
     // Materials; the default one goes last, used by shapes without one.
-    let mut materials: Vec<Material> = desc.materials.iter().map(|m| to_material(m, &color, &store)).collect();
+    let mut materials: Vec<Material> = desc
+        .materials
+        .iter()
+        .map(|m| to_material(m, &color, &store, &measured))
+        .collect();
     let material_index: HashMap<&str, u32> = desc
         .materials
         .iter()
@@ -833,7 +856,12 @@ fn read_attribute(m: u32, materials: &[Material], mixes: &[Option<MaterialMix>])
 }
 
 /// The render-time material of a description.
-fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, textures: &TextureStore) -> Material {
+fn to_material(
+    m: &MaterialDesc,
+    color: &dyn Fn(&ColorSource) -> Texture,
+    textures: &TextureStore,
+    measured: &HashMap<&Path, Arc<MeasuredBrdf>>,
+) -> Material {
     let mut mat = match &m.kind {
         MaterialKindDesc::Classic(c) => Material::new_classic(
             color(&c.diffuse),
@@ -948,6 +976,9 @@ fn to_material(m: &MaterialDesc, color: &dyn Fn(&ColorSource) -> Texture, textur
             eta: ior / ext_ior,
             reflect_tint: *reflect_tint,
             transmit_tint: *transmit_tint,
+        }),
+        MaterialKindDesc::Measured { file } => Material::plain(MaterialKind::Measured {
+            brdf: measured[file.as_path()].clone(),
         }),
         MaterialKindDesc::Principled { params, eta, thin } => Material {
             two_sided: *thin,

@@ -363,6 +363,12 @@ pub enum MaterialKindDesc {
         /// Walks per evaluation.
         samples: u32,
     },
+    /// A measured BRDF: an RGL `.bsdf` file (pbrt-v4's and Mitsuba's
+    /// `measured`), relative to the scene's folder.
+    Measured {
+        /// The file.
+        file: PathBuf,
+    },
     /// A thin dielectric sheet; with `ior` equal to `ext_ior`, no surface
     /// at all (only the boundary of a medium).
     Thin {
@@ -1462,6 +1468,11 @@ impl SceneDesc {
                         texture(key, t)?;
                     }
                     ior("eta", *eta)?;
+                }
+                MaterialKindDesc::Measured { file } => {
+                    if file.as_os_str().is_empty() {
+                        return Err(c.err("file", "names no file"));
+                    }
                 }
                 MaterialKindDesc::Mix { weight, materials } => {
                     texture("weight", weight)?;

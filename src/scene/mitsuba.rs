@@ -2193,6 +2193,16 @@ impl Loader {
                     ..def
                 });
             }
+            "measured" => {
+                let file = self
+                    .string(f, &props, "filename", &mut used)?
+                    .ok_or_else(|| self.err(f, node, "a measured BSDF needs a \"filename\" (an RGL .bsdf file)"))?;
+                let path = self.resolve(&file);
+                if !path.is_file() {
+                    return Err(self.err(f, node, format!("measured BSDF file not found: {}", path.display())));
+                }
+                MaterialKindDesc::Measured { file: path }
+            }
             "blendbsdf" => {
                 // Mitsuba reads the weight as a float (`eval_1`).
                 let weight = match self.color_source(f, &props, "weight", &mut used)? {

@@ -824,7 +824,7 @@ fn texture_space(t: &Table) -> Result<Affine3A> {
 }
 
 /// The material types of the native format.
-pub const MATERIAL_TYPES: [&str; 11] = [
+pub const MATERIAL_TYPES: [&str; 12] = [
     "classic",
     "diffuse",
     "diffusetransmission",
@@ -836,6 +836,7 @@ pub const MATERIAL_TYPES: [&str; 11] = [
     "null",
     "mix",
     "principled",
+    "measured",
 ];
 
 fn read_material(t: &Table) -> Result<MaterialDesc> {
@@ -924,6 +925,9 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
             transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
         },
         "null" => MaterialKindDesc::NULL,
+        "measured" => MaterialKindDesc::Measured {
+            file: t.required("file", t.path("file")?)?,
+        },
         "principled" => {
             let thin = t.boolean("thin")?.unwrap_or(false);
             let param = |key: &str, default: f32| -> Result<ColorSource> {

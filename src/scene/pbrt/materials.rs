@@ -604,10 +604,23 @@ impl Parser {
                 );
                 dielectric(ior, roughness)
             }
-            "hair" | "measured" => {
-                let reflectance = if kind == "hair" && p.has("reflectance") {
+            "measured" => {
+                let Some((file, prm)) = p.string("filename")? else {
+                    return Err(Error::scene(
+                        Some(loc.clone()),
+                        "filename",
+                        "measured needs a \"string filename\" (an RGL .bsdf file)",
+                    ));
+                };
+                def.locs.keys.push(("file".into(), prm.loc.clone()));
+                MaterialKindDesc::Measured {
+                    file: self.resolve(dir_rel, &file),
+                }
+            }
+            "hair" => {
+                let reflectance = if p.has("reflectance") {
                     self.albedo(p, "reflectance", 0.5, "reflectance", &mut def)?
-                } else if kind == "hair" && p.has("color") {
+                } else if p.has("color") {
                     self.albedo(p, "color", 0.5, "reflectance", &mut def)?
                 } else {
                     ColorSource::Rgb(Rgb::splat(0.5))
