@@ -1328,6 +1328,57 @@ mod tests {
     use crate::geometry::Ray;
     use glam::Vec3;
 
+    /// Mitsuba's and the native format's `measured` read the same file as
+    /// pbrt-v4's (whose reader test renders it), one copy a file.
+    #[test]
+    fn measured_materials_of_every_format_share_their_tables() {
+        use crate::material::measured::fixture::{ggx_file, thetas};
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("ggx.bsdf"), ggx_file(0.3, 0.8, 9, &thetas())).unwrap();
+        let xml = dir.path().join("s.xml");
+        std::fs::write(
+            &xml,
+            r#"<scene version="3.0.0">
+                <bsdf type="measured" id="a"><string name="filename" value="ggx.bsdf"/></bsdf>
+                <shape type="sphere"><ref id="a"/></shape>
+                <shape type="sphere"><bsdf type="measured"><string name="filename" value="ggx.bsdf"/></bsdf></shape>
+            </scene>"#,
+        )
+        .unwrap();
+        let scene = build(&crate::scene::load(&xml, &[]).unwrap()).unwrap();
+        let tables: Vec<_> = scene
+            .materials
+            .iter()
+            .filter_map(|m| match &m.kind {
+                MaterialKind::Measured { brdf } => Some(brdf.clone()),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(tables.len(), 2);
+        assert!(Arc::ptr_eq(&tables[0], &tables[1]), "one copy of the file");
+        assert!(!scene.materials[0].two_sided, "Mitsuba's is one-sided");
+        std::fs::write(
+            &xml,
+            r#"<scene version="3.0.0"><shape type="sphere"><bsdf type="measured"><string name="filename" value="gone.bsdf"/></bsdf></shape></scene>"#,
+        )
+        .unwrap();
+        let e = crate::scene::load(&xml, &[]).unwrap_err().to_string();
+        assert!(e.contains("measured BSDF file not found") && e.contains("gone.bsdf"), "{e}");
+
+        let toml = dir.path().join("s.toml");
+        std::fs::write(
+            &toml,
+            "[[material]]\nname = \"m\"\ntype = \"measured\"\nfile = \"ggx.bsdf\"\n\n\
+             [[shape]]\ntype = \"sphere\"\nmaterial = \"m\"\n",
+        )
+        .unwrap();
+        let scene = build(&crate::scene::load(&toml, &[]).unwrap()).unwrap();
+        assert!(matches!(scene.materials[0].kind, MaterialKind::Measured { .. }) && scene.materials[0].two_sided);
+        std::fs::write(&toml, "[[material]]\nname = \"m\"\ntype = \"measured\"\n").unwrap();
+        let e = crate::scene::load(&toml, &[]).unwrap_err().to_string();
+        assert!(e.contains("file"), "{e}");
+    }
+
     /// Surface records carry (u, v) where the material reads them, and a
     /// sphere whose material reads none skips them (they are zero).
     #[test]
