@@ -896,12 +896,12 @@ impl Aggregate {
                     }
                     (_, None) => {
                         tangent = s.shape.constant_tangent();
-                        let ls = s.shape.surface_with(ray.at(hit.t), uv);
+                        let ls = s.shape.surface_at_hit(ray, hit.t, uv);
                         (ls, s.shape.shading_normal(ls.p))
                     }
                     (_, Some(t)) => {
                         let obj_ray = t.inv_ray(ray);
-                        let ls = s.shape.surface_with(obj_ray.at(hit.t), uv);
+                        let ls = s.shape.surface_at_hit(&obj_ray, hit.t, uv);
                         let ns = s.shape.shading_normal(ls.p).and_then(|n| t.normal(n).try_normalize());
                         (transform_surface(t, ls), ns)
                     }

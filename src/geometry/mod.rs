@@ -3,6 +3,7 @@
 
 pub mod bilinear;
 pub mod bounds;
+pub mod curve;
 pub mod implicit;
 pub mod interaction;
 #[cfg(target_arch = "x86_64")]

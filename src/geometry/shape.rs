@@ -129,6 +129,9 @@ pub enum Shape {
     Quadric(super::quadric::Quadric),
     /// A bilinear patch through four corners (pbrt-v4's `bilinearmesh`).
     Bilinear(super::bilinear::BilinearPatch),
+    /// A piece of a cubic Bézier curve swept by a width (pbrt-v4's
+    /// `curve`).
+    Curve(Box<super::curve::Curve>),
 }
 
 /// The surface of a shape at a point, in the shape's object space.
@@ -197,6 +200,7 @@ impl Shape {
             Shape::Implicit(ref f) => Some(f.bounds()),
             Shape::Quadric(ref q) => Some(q.bounds()),
             Shape::Bilinear(ref b) => Some(b.bounds()),
+            Shape::Curve(ref c) => Some(c.bounds()),
         }
     }
 
@@ -215,6 +219,7 @@ impl Shape {
             Shape::Implicit(f) => f.intersect(ray),
             Shape::Quadric(q) => q.intersect(ray),
             Shape::Bilinear(b) => b.intersect(ray),
+            Shape::Curve(c) => c.intersect(ray),
         }
     }
 
@@ -276,6 +281,24 @@ impl Shape {
             Shape::Implicit(f) => f.surface(p),
             Shape::Quadric(q) => q.surface(p),
             Shape::Bilinear(b) => b.surface(p),
+            // A curve's surface depends on the ray (see
+            // `Shape::surface_at_hit`); from a point alone, a ray toward
+            // it along the curve's normal plane is assumed.
+            Shape::Curve(c) => {
+                let b = c.bounds();
+                let ray = Ray::new(p + (b.max - b.min).length().max(1.0) * Vec3::Z, -Vec3::Z);
+                c.surface(&ray, (ray.origin - p).length())
+            }
+        }
+    }
+
+    /// The surface where `ray` meets the shape at `t`: [`Shape::surface_with`]
+    /// at the point, but for curves, whose surface faces the ray.
+    #[inline]
+    pub fn surface_at_hit(&self, ray: &Ray, t: f32, uv: bool) -> LocalSurface {
+        match self {
+            Shape::Curve(c) => c.surface(ray, t),
+            _ => self.surface_with(ray.at(t), uv),
         }
     }
 
@@ -302,6 +325,7 @@ impl Shape {
             Shape::SdfGrid(_) | Shape::Sdf(_) | Shape::Implicit(_) => 0.0,
             Shape::Quadric(q) => q.area(),
             Shape::Bilinear(b) => b.area(),
+            Shape::Curve(ref c) => c.area(),
         }
     }
 
@@ -347,7 +371,8 @@ impl Shape {
 
     fn sample_area_point(&self, u: Vec2) -> Option<AreaSample> {
         match *self {
-            Shape::SdfGrid(_) | Shape::Sdf(_) | Shape::Implicit(_) => None,
+            // Curves cannot emit either (nor in pbrt-v4).
+            Shape::SdfGrid(_) | Shape::Sdf(_) | Shape::Implicit(_) | Shape::Curve(_) => None,
             Shape::Quadric(q) => q.sample_area(u),
             Shape::Bilinear(b) => b.sample_area(u),
             Shape::Sphere(s) => {

@@ -13,6 +13,7 @@ use super::classic::ClassicBsdf;
 use super::conductor::ConductorBsdf;
 use super::dielectric::DielectricBsdf;
 use super::lambert::LambertBsdf;
+use super::hair::HairBsdf;
 use super::layered::LayeredBsdf;
 use super::measured::MeasuredBsdf;
 use super::plastic::PlasticBsdf;
@@ -114,6 +115,8 @@ pub enum Bsdf<'a> {
     Blend(BlendBsdf<'a>),
     /// A measured BRDF.
     Measured(MeasuredBsdf<'a>),
+    /// Hair fibres.
+    Hair(HairBsdf),
 }
 
 macro_rules! dispatch {
@@ -130,6 +133,7 @@ macro_rules! dispatch {
             Bsdf::Principled($b) => $e,
             Bsdf::Blend($b) => $e,
             Bsdf::Measured($b) => $e,
+            Bsdf::Hair($b) => $e,
         }
     };
 }
@@ -184,7 +188,7 @@ impl Bsdf<'_> {
     pub fn has_smooth_transmission(&self) -> bool {
         match self {
             Bsdf::Dielectric(d) => d.has_smooth(),
-            Bsdf::DiffuseTransmission(_) => true,
+            Bsdf::DiffuseTransmission(_) | Bsdf::Hair(_) => true,
             Bsdf::Principled(p) => p.transmits(),
             Bsdf::Blend(b) => b.has_smooth_transmission(),
             _ => false,
@@ -195,7 +199,7 @@ impl Bsdf<'_> {
     #[inline]
     pub fn transmits(&self) -> bool {
         match self {
-            Bsdf::Dielectric(_) | Bsdf::Thin(_) | Bsdf::DiffuseTransmission(_) => true,
+            Bsdf::Dielectric(_) | Bsdf::Thin(_) | Bsdf::DiffuseTransmission(_) | Bsdf::Hair(_) => true,
             Bsdf::Classic(c) => c.kt != Rgb::ZERO,
             Bsdf::Principled(p) => p.transmits(),
             Bsdf::Blend(b) => b.transmits(),

@@ -23,6 +23,7 @@ pub mod conductor;
 pub mod dielectric;
 pub mod diffuse_transmission;
 pub mod frame;
+pub mod hair;
 pub mod lambert;
 pub mod layered;
 pub mod measured;
@@ -148,6 +149,20 @@ pub enum MaterialKind {
         eta: f32,
         /// The thin form (Mitsuba's `principledthin`).
         thin: bool,
+    },
+    /// Hair fibres (see [`hair`]): meant for curves, whose v runs across
+    /// the fibre.
+    Hair {
+        /// Absorption per unit diameter.
+        sigma_a: Rgb,
+        /// Index of refraction of the fibre.
+        eta: f32,
+        /// Longitudinal roughness.
+        beta_m: f32,
+        /// Azimuthal roughness.
+        beta_n: f32,
+        /// Tilt of the cuticle scales, in degrees.
+        alpha: f32,
     },
     /// A measured BRDF (an RGL `.bsdf` file; see [`measured`]).
     Measured {
@@ -506,7 +521,8 @@ impl Material {
 
     /// Whether any of its textures reads surface coordinates (u, v).
     pub fn reads_uv(&self) -> bool {
-        self.textures().iter().any(|t| t.reads_uv())
+        // Hair reads v: where across the fibre the ray met it.
+        matches!(self.kind, MaterialKind::Hair { .. }) || self.textures().iter().any(|t| t.reads_uv())
     }
 
     /// Every texture it reads.
@@ -525,7 +541,7 @@ impl Material {
             } => &[diffuse],
             MaterialKind::Layered { .. } => &[],
             MaterialKind::Conductor { .. } | MaterialKind::Dielectric { .. } | MaterialKind::Thin { .. } => &[],
-            MaterialKind::Principled { .. } | MaterialKind::Measured { .. } => &[],
+            MaterialKind::Principled { .. } | MaterialKind::Measured { .. } | MaterialKind::Hair { .. } => &[],
         };
         let mut all = vec![&self.emission];
         if let MaterialKind::Principled { params, .. } = &self.kind {
@@ -778,6 +794,10 @@ impl Material {
                     ..zero
                 }
             }
+            MaterialKind::Hair { sigma_a, eta, beta_m, beta_n, alpha } => ClassicParams {
+                kd: hair::HairBsdf::new(0.0, *eta, *sigma_a, *beta_m, *beta_n, *alpha).albedo(),
+                ..zero
+            },
             // Its albedo at normal incidence, as a diffuse colour.
             MaterialKind::Measured { brdf } => ClassicParams {
                 kd: measured::MeasuredBsdf { brdf }.albedo(),
@@ -895,6 +915,20 @@ impl Material {
                 Bsdf::Principled(params.bsdf_at(textures, tc, *eta, *thin))
             }
             MaterialKind::Measured { brdf } => Bsdf::Measured(measured::MeasuredBsdf { brdf }),
+            MaterialKind::Hair {
+                sigma_a,
+                eta,
+                beta_m,
+                beta_n,
+                alpha,
+            } => Bsdf::Hair(hair::HairBsdf::new(
+                -1.0 + 2.0 * tc.uv.y,
+                *eta,
+                *sigma_a,
+                *beta_m,
+                *beta_n,
+                *alpha,
+            )),
             MaterialKind::Thin {
                 eta,
                 reflect_tint,

@@ -282,6 +282,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             ShapeKind::Implicit(f) => Some(Shape::Implicit(f.clone())),
             ShapeKind::Quadric(q) => Some(Shape::Quadric(*q)),
             ShapeKind::Bilinear(b) => Some(Shape::Bilinear(*b)),
+            ShapeKind::Curve(c) => Some(Shape::Curve(Box::new(*c))),
             ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_) => None,
         };
         if let Some(shape) = analytic {
@@ -976,6 +977,19 @@ fn to_material(
             eta: ior / ext_ior,
             reflect_tint: *reflect_tint,
             transmit_tint: *transmit_tint,
+        }),
+        MaterialKindDesc::Hair {
+            sigma_a,
+            eta,
+            beta_m,
+            beta_n,
+            alpha,
+        } => Material::plain(MaterialKind::Hair {
+            sigma_a: *sigma_a,
+            eta: *eta,
+            beta_m: *beta_m,
+            beta_n: *beta_n,
+            alpha: *alpha,
         }),
         MaterialKindDesc::Measured { file } => Material::plain(MaterialKind::Measured {
             brdf: measured[file.as_path()].clone(),

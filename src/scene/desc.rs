@@ -363,6 +363,19 @@ pub enum MaterialKindDesc {
         /// Walks per evaluation.
         samples: u32,
     },
+    /// Hair fibres (pbrt-v4's `hair`; Chiang et al. 2016), for curves.
+    Hair {
+        /// Absorption per unit diameter.
+        sigma_a: Rgb,
+        /// Index of refraction of the fibre.
+        eta: f32,
+        /// Longitudinal roughness, in [0, 1].
+        beta_m: f32,
+        /// Azimuthal roughness, in [0, 1].
+        beta_n: f32,
+        /// Tilt of the cuticle scales, in degrees.
+        alpha: f32,
+    },
     /// A measured BRDF: an RGL `.bsdf` file (pbrt-v4's and Mitsuba's
     /// `measured`), relative to the scene's folder.
     Measured {
@@ -817,6 +830,8 @@ pub enum ShapeKind {
     Quadric(crate::geometry::quadric::Quadric),
     /// A bilinear patch through four corners (before its transform).
     Bilinear(crate::geometry::bilinear::BilinearPatch),
+    /// A piece of a cubic Bézier curve (pbrt-v4's `curve`).
+    Curve(crate::geometry::curve::Curve),
     /// A named mesh from the scene's meshes.
     Mesh(String),
     /// A mesh given with the shape itself.
@@ -1469,6 +1484,24 @@ impl SceneDesc {
                     }
                     ior("eta", *eta)?;
                 }
+                MaterialKindDesc::Hair {
+                    sigma_a,
+                    eta,
+                    beta_m,
+                    beta_n,
+                    alpha,
+                } => {
+                    c.color("sigma_a", *sigma_a)?;
+                    ior("eta", *eta)?;
+                    for (key, b) in [("beta_m", beta_m), ("beta_n", beta_n)] {
+                        if !(0.0..=1.0).contains(b) {
+                            return Err(c.err(key, format!("must be in [0, 1], got {b}")));
+                        }
+                    }
+                    if !alpha.is_finite() || alpha.abs() > 90.0 {
+                        return Err(c.err("alpha", format!("must be an angle in [-90, 90] degrees, got {alpha}")));
+                    }
+                }
                 MaterialKindDesc::Measured { file } => {
                     if file.as_os_str().is_empty() {
                         return Err(c.err("file", "names no file"));
@@ -1780,6 +1813,7 @@ impl SceneDesc {
                 | ShapeKind::Sdf(_)
                 | ShapeKind::Implicit(_)
                 | ShapeKind::Quadric(_)
+                | ShapeKind::Curve(_)
                 | ShapeKind::Bilinear(_) => {
                     let emits = s.material.as_ref().is_some_and(|name| {
                         self.materials
@@ -1791,6 +1825,7 @@ impl SceneDesc {
                         ShapeKind::Quadric(_) => Some("a quadric without area (degenerate) cannot emit light"),
                         ShapeKind::Bilinear(b) if b.area() > 0.0 => None,
                         ShapeKind::Bilinear(_) => Some("a bilinear patch without area (degenerate) cannot emit light"),
+                        ShapeKind::Curve(_) => Some("a curve cannot emit light (nor in pbrt-v4)"),
                         _ => Some(
                             "a distance function or implicit surface cannot emit light (nor in Mitsuba): it has no area to sample",
                         ),

@@ -824,7 +824,7 @@ fn texture_space(t: &Table) -> Result<Affine3A> {
 }
 
 /// The material types of the native format.
-pub const MATERIAL_TYPES: [&str; 12] = [
+pub const MATERIAL_TYPES: [&str; 13] = [
     "classic",
     "diffuse",
     "diffusetransmission",
@@ -837,6 +837,7 @@ pub const MATERIAL_TYPES: [&str; 12] = [
     "mix",
     "principled",
     "measured",
+    "hair",
 ];
 
 fn read_material(t: &Table) -> Result<MaterialDesc> {
@@ -925,6 +926,26 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
             transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
         },
         "null" => MaterialKindDesc::NULL,
+        "hair" => {
+            let beta_n = t.number_or("beta_n", 0.3)?;
+            let sigma_a = if let Some(s) = t.color("sigma_a")? {
+                s
+            } else if let Some(c) = t.color("reflectance")? {
+                crate::material::hair::HairBsdf::sigma_a_from_reflectance(c, beta_n)
+            } else {
+                crate::material::hair::HairBsdf::sigma_a_from_concentration(
+                    t.number_or("eumelanin", 1.3)?,
+                    t.number_or("pheomelanin", 0.0)?,
+                )
+            };
+            MaterialKindDesc::Hair {
+                sigma_a,
+                eta: t.number_or("eta", 1.55)?,
+                beta_m: t.number_or("beta_m", 0.3)?,
+                beta_n,
+                alpha: t.number_or("alpha", 2.0)?,
+            }
+        }
         "measured" => MaterialKindDesc::Measured {
             file: t.required("file", t.path("file")?)?,
         },

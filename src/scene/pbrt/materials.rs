@@ -618,20 +618,43 @@ impl Parser {
                 }
             }
             "hair" => {
-                let reflectance = if p.has("reflectance") {
-                    self.albedo(p, "reflectance", 0.5, "reflectance", &mut def)?
-                } else if p.has("color") {
-                    self.albedo(p, "color", 0.5, "reflectance", &mut def)?
+                // pbrt-v4's HairMaterial: σa, else a colour, else pigment
+                // concentrations, else eumelanin 1.3 (brown).
+                let beta_m = p.float("beta_m", 0.3)?;
+                let beta_n = p.float("beta_n", 0.3)?;
+                let eta = p.float("eta", 1.55)?;
+                let alpha = p.float("alpha", 2.0)?;
+                let colour_key = ["reflectance", "color"].into_iter().find(|k| p.has(k));
+                let sigma_a = if p.has("sigma_a") {
+                    self.medium_color(p, "sigma_a", Rgb::ZERO)?
+                } else if let Some(key) = colour_key {
+                    let c = self.medium_color(p, key, Rgb::splat(0.5))?;
+                    crate::material::hair::HairBsdf::sigma_a_from_reflectance(c, beta_n)
+                } else if p.has("eumelanin") || p.has("pheomelanin") {
+                    crate::material::hair::HairBsdf::sigma_a_from_concentration(
+                        p.float("eumelanin", 0.0)?.max(0.0),
+                        p.float("pheomelanin", 0.0)?.max(0.0),
+                    )
                 } else {
-                    ColorSource::Rgb(Rgb::splat(0.5))
+                    crate::material::hair::HairBsdf::sigma_a_from_concentration(1.3, 0.0)
                 };
+                // Whichever of the others were given, pbrt-v4 ignores too.
                 Self::use_all(p);
-                self.approximated(
-                    loc,
-                    &what,
-                    "rendered as a diffuse surface (grey 0.5 unless a reflectance is given)",
-                );
-                MaterialKindDesc::Diffuse { reflectance }
+                for (key, bad) in [("beta_m", beta_m), ("beta_n", beta_n)] {
+                    if !(0.0..=1.0).contains(&bad) {
+                        return Err(p.find(key).expect("read").err(format!("must be in [0, 1], got {bad}")));
+                    }
+                }
+                if !(eta > 0.0 && eta.is_finite()) {
+                    return Err(p.find("eta").expect("read").err(format!("must be positive, got {eta}")));
+                }
+                MaterialKindDesc::Hair {
+                    sigma_a,
+                    eta,
+                    beta_m,
+                    beta_n,
+                    alpha,
+                }
             }
             "mix" => {
                 let Some((names, prm)) = p.strings("materials")? else {

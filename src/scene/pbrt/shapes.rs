@@ -209,10 +209,81 @@ impl Parser {
                 (ShapeKind::InlineMesh(MeshSource::Inline(mesh)), false)
             }
             _ => {
-                // curve.
-                Self::use_all(p);
-                self.unsupported(&loc, &what, "the shape is skipped");
-                return Ok(());
+                // curve (pbrt-v4's Curve::Create): Bézier segments, each
+                // split into 2^splitdepth pieces.
+                use crate::geometry::curve::{Curve, CurveKind, bezier_segments};
+                let Some((points, pp)) = p.vec3s("P", &["point3"])? else {
+                    return Err(Error::scene(
+                        Some(loc.clone()),
+                        "P",
+                        "a curve needs its control points \"point3 P\"",
+                    ));
+                };
+                let pp_loc = pp.loc.clone();
+                let width = p.float("width", 1.0)?;
+                let (w0, w1) = (p.float("width0", width)?, p.float("width1", width)?);
+                if !(w0 >= 0.0 && w1 >= 0.0 && w0.is_finite() && w1.is_finite() && w0.max(w1) > 0.0) {
+                    return Err(Error::scene(
+                        Some(loc.clone()),
+                        "width",
+                        format!("{what}: widths must be finite, not negative and not both zero, got {w0} and {w1}"),
+                    ));
+                }
+                let degree = p.int_opt("degree")?.map_or(3, |(d, _)| d);
+                let basis = p.string("basis")?.map_or("bezier".to_string(), |(b, _)| b);
+                if basis != "bezier" && basis != "bspline" {
+                    return Err(Error::scene(
+                        Some(loc.clone()),
+                        "basis",
+                        format!("{what}: basis \"{basis}\" (pbrt-v4 knows \"bezier\" and \"bspline\")"),
+                    ));
+                }
+                let segments = bezier_segments(&points, basis == "bspline", degree.clamp(0, 16) as usize)
+                    .map_err(|e| Error::scene(Some(pp_loc), "P", format!("{what}: {e}")))?;
+                let kind = match p.string("type")? {
+                    None => CurveKind::Flat,
+                    Some((t, prm)) => CurveKind::named(&t).ok_or_else(|| {
+                        prm.err(format!(
+                            "unknown curve type \"{t}\" (pbrt-v4 knows \"flat\", \"cylinder\" and \"ribbon\")"
+                        ))
+                    })?,
+                };
+                let normals = match p.vec3s("N", &["normal", "normal3"])? {
+                    Some((n, prm)) if kind == CurveKind::Ribbon => {
+                        if n.len() != segments.len() + 1 {
+                            return Err(prm.err(format!(
+                                "a ribbon of {} segments needs {} normals, got {}",
+                                segments.len(),
+                                segments.len() + 1,
+                                n.len()
+                            )));
+                        }
+                        Some(n)
+                    }
+                    Some((_, prm)) => {
+                        let l = prm.loc.clone();
+                        self.unsupported(&l, "\"normal N\" of a curve that is not a ribbon", "ignored, as in pbrt-v4");
+                        None
+                    }
+                    None if kind == CurveKind::Ribbon => {
+                        return Err(Error::scene(
+                            Some(loc.clone()),
+                            "N",
+                            "a ribbon curve needs normals \"normal N\" at its segments' ends",
+                        ));
+                    }
+                    None => None,
+                };
+                let split_depth = p.int_opt("splitdepth")?.map_or(3, |(d, _)| d).clamp(0, 10) as u32;
+                let n = segments.len() as f32;
+                let mut pieces = segments.iter().enumerate().flat_map(|(i, cp)| {
+                    let lerp = |t: f32| w0 + (w1 - w0) * t;
+                    let ends = normals.as_ref().map(|n| [n[i], n[i + 1]]);
+                    Curve::pieces(*cp, lerp(i as f32 / n), lerp((i + 1) as f32 / n), kind, ends, split_depth)
+                });
+                let first = pieces.next().expect("a curve has a segment");
+                extra_patches = pieces.map(ShapeKind::Curve).collect();
+                (ShapeKind::Curve(first), true)
             }
         };
         let mut emission = self.gs.area_light.clone();

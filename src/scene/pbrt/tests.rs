@@ -561,7 +561,6 @@ Shape "disk" "float height" 0.5 "float radius" 3
 Shape "cylinder" "float radius" 0.5 "float zmin" -2 "float zmax" 3
 Shape "sphere" "float zmax" 0.5
 Shape "disk" "float innerradius" 0.5
-Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3]
 Shape "cylinder" "float phimax" 90
 Shape "cone" "float radius" 2 "float height" 3
 Shape "paraboloid" "float zmax" 2
@@ -592,7 +591,7 @@ Shape "hyperboloid" "point3 p1" [1 0 -1] "point3 p2" [0 1 1] "float phimax" 180"
         }
     );
     use crate::geometry::quadric::Quadric;
-    assert_eq!(d.shapes.len(), 9, "curves are skipped");
+    assert_eq!(d.shapes.len(), 9);
     // Cut quadrics, pbrt-v4's and pbrt-v3's, are quadrics with their cuts.
     let expected = [
         Quadric::sphere(1.0, -1.0, 0.5, 360.0),
@@ -605,12 +604,7 @@ Shape "hyperboloid" "point3 p1" [1 0 -1] "point3 p2" [0 1 1] "float phimax" 180"
     for (shape, q) in d.shapes[3..].iter().zip(expected) {
         assert_eq!(shape.kind, ShapeKind::Quadric(q.unwrap()));
     }
-    let w = &d.warnings;
-    assert_eq!(w.len(), 1, "{w:?}");
-    assert!(
-        w[0].starts_with("test.pbrt:7:1: Shape \"curve\" is unsupported"),
-        "{w:?}"
-    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
     // The default material is pbrt's: diffuse 0.5.
     assert_eq!(
         material(&d, 0).kind,
@@ -2557,4 +2551,75 @@ fn measured_materials_read_their_file_and_render_as_the_surface_it_measured() {
     std::fs::write(dir.path().join("bsdfs/missing.bsdf"), "Shape \"sphere\"").unwrap();
     let e = crate::scene::build::build(&load(&main, &[]).unwrap()).unwrap_err().to_string();
     assert!(e.contains("not a tensor file"), "{e}");
+}
+
+#[test]
+fn curves_and_hair() {
+    // A degree-3 Bézier of 7 points is 2 segments, a quadratic b-spline
+    // of 3 points 1; each is split into 2^splitdepth pieces (default 3).
+    let d = world(
+        r#"Shape "curve" "point3 P" [0 0 0 1 1 0 2 -1 0 3 0 0 4 1 0 5 -1 0 6 0 0] "float width0" 0.2 "float width1" 0.1 "integer splitdepth" 1
+Shape "curve" "point3 P" [0 0 0 1 0 0 2 0 0] "integer degree" 2 "string basis" "bspline" "string type" "cylinder""#,
+    );
+    assert_eq!(d.shapes.len(), 4 + 8);
+    assert!(d.shapes.iter().all(|s| matches!(s.kind, ShapeKind::Curve(_))));
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    for (bad, message) in [
+        (r#"Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2]"#, "a degree-3 Bézier curve takes 4 + n·3"),
+        (r#"Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3] "string type" "tube""#, "unknown curve type \"tube\""),
+        (r#"Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3] "string type" "ribbon""#, "needs normals"),
+        (r#"Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3] "float width" -1"#, "widths must be finite"),
+        (r#"Shape "curve""#, "control points"),
+        (r#"Material "hair" "float beta_m" 2"#, "must be in [0, 1]"),
+    ] {
+        let e = error_of(&format!("WorldBegin\n{bad}"));
+        assert!(e.contains(message), "{bad}: {e}");
+    }
+    let e = error_of("WorldBegin\nAreaLightSource \"diffuse\"\nShape \"curve\" \"point3 P\" [0 0 0 1 1 1 2 2 2 3 3 3]");
+    assert!(e.contains("test.pbrt:3:1") && e.contains("a curve cannot emit light"), "{e}");
+
+    // Hair's absorption: σa, a colour, pigments or pbrt-v4's brown.
+    let hair = |params: &str| match material(&world(&format!("Material \"hair\" {params}\nShape \"sphere\"")), 0).kind {
+        MaterialKindDesc::Hair { sigma_a, .. } => sigma_a,
+        ref k => panic!("{k:?}"),
+    };
+    use crate::material::hair::HairBsdf;
+    assert_eq!(hair(r#""rgb sigma_a" [0.1 0.2 0.3]"#), Rgb::new(0.1, 0.2, 0.3));
+    assert_eq!(hair(r#""float eumelanin" 0.5"#), HairBsdf::sigma_a_from_concentration(0.5, 0.0));
+    assert_eq!(hair(""), HairBsdf::sigma_a_from_concentration(1.3, 0.0));
+    assert_eq!(
+        hair(r#""rgb reflectance" [0.5 0.4 0.3] "float beta_n" 0.5"#),
+        HairBsdf::sigma_a_from_reflectance(Rgb::new(0.5, 0.4, 0.3), 0.5)
+    );
+}
+
+/// Rendered: a flat curve covers the pixels a black one darkens, at the
+/// albedo of its material (so rays leaving it do not meet it again), and
+/// a fibre without absorption vanishes in a white furnace.
+#[test]
+fn curves_render_at_their_albedo_and_clear_hair_vanishes_in_a_furnace() {
+    let render = |material: &str, kind: &str| {
+        let text = format!(
+            "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 30\n\
+             Film \"rgb\" \"integer xresolution\" 32 \"integer yresolution\" 32\n\
+             Sampler \"independent\" \"integer pixelsamples\" 128\nIntegrator \"path\" \"integer maxdepth\" 64\nWorldBegin\n\
+             LightSource \"infinite\" \"rgb L\" [1 1 1]\n{material}\n\
+             Shape \"curve\" \"point3 P\" [-1.2 -0.5 0  -0.4 0.8 0.3  0.4 -0.8 -0.3  1.2 0.5 0] \"float width\" 0.25 \"string type\" \"{kind}\"\n"
+        );
+        let d = parse_str(&text).unwrap();
+        let image = crate::render::render_image(&crate::scene::build::build(&d).unwrap()).unwrap();
+        image.pixels.iter().map(|p| p.y as f64).sum::<f64>() / image.pixels.len() as f64
+    };
+    let black = render("Material \"diffuse\" \"rgb reflectance\" [0 0 0]", "flat");
+    let coverage = 1.0 - black;
+    assert!(coverage > 0.05, "the curve covers {coverage} of the image");
+    let grey = render("Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]", "flat");
+    let expected = 1.0 - 0.5 * coverage;
+    assert!((grey - expected).abs() < 0.02 * coverage, "{grey} against {expected} (coverage {coverage})");
+    for kind in ["flat", "cylinder"] {
+        let clear = render("Material \"hair\" \"rgb sigma_a\" [0 0 0] \"float beta_m\" 0.3", kind);
+        assert!((clear - 1.0).abs() < 0.02 * coverage, "{kind}: {clear} (coverage {coverage})");
+        let brown = render("Material \"hair\"", kind);
+        assert!(brown < 1.0 - 0.3 * coverage, "{kind}: brown hair {brown}");
+    }
 }
