@@ -127,7 +127,7 @@ pub fn parse(text: &str, path: &Path) -> Result<SceneDesc> {
         desc.lights.push(read_light(&t)?);
     }
     for t in top.tables("shape")? {
-        desc.shapes.push(read_shape(&t)?);
+        desc.shapes.extend(read_shape(&t)?);
     }
     for t in top.tables("medium")? {
         desc.media.push(read_medium(&t)?);
@@ -1208,7 +1208,9 @@ fn vec3_list(t: &Table, key: &str, v: &Value) -> Result<Vec<Vec3>> {
     Ok(flat.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect())
 }
 
-fn read_shape(t: &Table) -> Result<ShapeDesc> {
+/// One shape, or for a curve one shape per piece.
+fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
+    let mut more_pieces = Vec::new();
     let types = [
         "sphere",
         "plane",
@@ -1220,6 +1222,7 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
         "paraboloid",
         "hyperboloid",
         "bilinear",
+        "curve",
         "sdf",
         "sdfgrid",
         "implicit",
@@ -1271,6 +1274,55 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
             }
             let [p00, p10, p01, p11] = corners;
             ShapeKind::Bilinear(crate::geometry::bilinear::BilinearPatch::new(p00, p10, p01, p11))
+        }
+        "curve" => {
+            use crate::geometry::curve::{Curve, CurveKind, bezier_segments};
+            let points = match t.value("points") {
+                Some(v) => vec3_list(t, "points", v)?,
+                None => return Err(t.err_at("points", &t.span, "a curve needs its control `points`")),
+            };
+            let degree = t.number_or("degree", 3.0)?;
+            let bspline = match t.string("basis")?.as_deref() {
+                None | Some("bezier") => false,
+                Some("bspline") => true,
+                Some(other) => {
+                    return Err(t.err_at("basis", &t.span, format!("\"{other}\": \"bezier\" or \"bspline\"")));
+                }
+            };
+            let segments = bezier_segments(&points, bspline, if degree == 2.0 { 2 } else if degree == 3.0 { 3 } else { 0 })
+                .map_err(|e| t.err_at("points", &t.span, e))?;
+            let width = t.number_or("width", 0.1)?;
+            let (w0, w1) = (t.number_or("width0", width)?, t.number_or("width1", width)?);
+            if !(w0 >= 0.0 && w1 >= 0.0 && w0.is_finite() && w1.is_finite() && w0.max(w1) > 0.0) {
+                return Err(t.err_at("width", &t.span, "widths must be finite, not negative and not both zero"));
+            }
+            let kind = match t.string("curve_type")? {
+                None => CurveKind::Cylinder,
+                Some(k) => CurveKind::named(&k).ok_or_else(|| {
+                    t.err_at("curve_type", &t.span, format!("\"{k}\": \"flat\", \"cylinder\" or \"ribbon\""))
+                })?,
+            };
+            let normals = match t.value("normals") {
+                Some(v) => Some(vec3_list(t, "normals", v)?),
+                None => None,
+            };
+            if kind == CurveKind::Ribbon && normals.as_ref().is_none_or(|n| n.len() != segments.len() + 1) {
+                return Err(t.err_at(
+                    "normals",
+                    &t.span,
+                    format!("a ribbon of {} segments needs {} `normals`", segments.len(), segments.len() + 1),
+                ));
+            }
+            let split = t.number_or("split_depth", 3.0)?.clamp(0.0, 10.0) as u32;
+            let n = segments.len() as f32;
+            let mut pieces = segments.iter().enumerate().flat_map(|(i, cp)| {
+                let lerp = |x: f32| w0 + (w1 - w0) * x;
+                let ends = normals.as_ref().filter(|_| kind == CurveKind::Ribbon).map(|n| [n[i], n[i + 1]]);
+                Curve::pieces(*cp, lerp(i as f32 / n), lerp((i + 1) as f32 / n), kind, ends, split)
+            });
+            let first = pieces.next().expect("a curve has a segment");
+            more_pieces = pieces.collect();
+            ShapeKind::Curve(first)
         }
         "plane" => ShapeKind::Plane {
             point: t.vec3("point")?.unwrap_or(Vec3::ZERO),
@@ -1385,14 +1437,22 @@ fn read_shape(t: &Table) -> Result<ShapeDesc> {
     let inside = t.string("inside")?;
     let outside = t.string("outside")?;
     let media = (inside.is_some() || outside.is_some()).then_some(MediumInterfaceDesc { inside, outside });
-    Ok(ShapeDesc {
+    let first = ShapeDesc {
         kind,
         transform,
         material,
         flip_normals,
         media,
         locs: t.finish()?,
-    })
+    };
+    let rest: Vec<ShapeDesc> = more_pieces
+        .into_iter()
+        .map(|c| ShapeDesc {
+            kind: ShapeKind::Curve(c),
+            ..first.clone()
+        })
+        .collect();
+    Ok(std::iter::once(first).chain(rest).collect())
 }
 
 /// The kinds of node of a distance function, each written as the key that
@@ -1634,6 +1694,40 @@ mod tests {
 
     fn parse_str(s: &str) -> Result<SceneDesc> {
         parse(s, Path::new("test.toml"))
+    }
+
+    /// A curve is a shape per piece, all with the table's material and
+    /// transform; hair reads its absorption three ways.
+    #[test]
+    fn curves_and_hair() {
+        let d = parse_str(
+            r#"
+[[material]]
+name = "fur"
+type = "hair"
+reflectance = [0.6, 0.4, 0.2]
+
+[[shape]]
+type = "curve"
+points = [[0, 0, 0], [1, 1, 0], [2, -1, 0], [3, 0, 0], [4, 1, 0], [5, 0, 0], [6, 0, 0]]
+width0 = 0.1
+width1 = 0.02
+split_depth = 2
+material = "fur"
+transform = [{ translate = [0, 1, 0] }]
+"#,
+        )
+        .unwrap();
+        assert_eq!(d.shapes.len(), 2 * 4);
+        assert!(d.shapes.iter().all(|s| matches!(s.kind, ShapeKind::Curve(_)) && s.material.as_deref() == Some("fur") && s.transform.len() == 1));
+        assert!(matches!(d.materials[0].kind, MaterialKindDesc::Hair { sigma_a, .. }
+            if sigma_a == crate::material::hair::HairBsdf::sigma_a_from_reflectance(Rgb::new(0.6, 0.4, 0.2), 0.3)));
+        let e = parse_str("[[shape]]\ntype = \"curve\"\npoints = [[0, 0, 0], [1, 1, 0], [2, 0, 0], [3, 0, 0]]\ncurve_type = \"ribbon\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("needs 2 `normals`"), "{e}");
+        let e = parse_str("[[shape]]\ntype = \"curve\"\npoints = [[0, 0, 0], [1, 1, 0]]\n").unwrap_err().to_string();
+        assert!(e.contains("4 + n·3"), "{e}");
     }
 
     const MINIMAL: &str = r#"

@@ -869,7 +869,6 @@ fn other_materials_are_approximated_with_warnings() {
     );
     assert!(d.warnings.is_empty(), "{:?}", d.warnings);
     for (kind, expect) in [
-        ("hair", "Diffuse"),
         ("subsurface", "Dielectric"),
     ] {
         let d = world(&format!("Material \"{kind}\"\nShape \"sphere\""));
