@@ -868,12 +868,13 @@ fn warnings_before_a_fatal_error_are_printed_with_it() {
     let scene = write_scene(
         dir.path(),
         "bad.pbrt",
-        "WorldBegin\nShape \"curve\" \"point3 P\" [0 0 0 1 0 0 2 0 0 3 0 0]\nBogus 1 2 3\n",
+        "WorldBegin\nShape \"disk\" \"string emissionfilename\" \"e.exr\"\nBogus 1 2 3\n",
     );
     let lines = run(&scene);
     assert_eq!(lines.len(), 2, "{lines:?}");
     assert!(
-        lines[0].starts_with("warning: ") && lines[0].contains("bad.pbrt:2:1: Shape \"curve\" is unsupported"),
+        lines[0].starts_with("warning: ")
+            && lines[0].contains("bad.pbrt:2:14: parameter \"string emissionfilename\" of Shape \"disk\" is unsupported"),
         "{lines:?}"
     );
     assert!(
