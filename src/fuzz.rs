@@ -18,7 +18,7 @@ use std::path::Path;
 pub type Target = fn(&[u8]);
 
 /// The fuzzing targets, by name.
-pub const TARGETS: [(&str, Target); 10] = [
+pub const TARGETS: [(&str, Target); 11] = [
     ("native", native),
     ("mitsuba", mitsuba),
     ("pbrt", pbrt),
@@ -26,6 +26,7 @@ pub const TARGETS: [(&str, Target); 10] = [
     ("ply", ply),
     ("serialized", serialized),
     ("sdfgrid", sdfgrid),
+    ("measured", measured),
     ("gltf", gltf),
     ("image", image),
     ("checkpoint", checkpoint),
@@ -146,6 +147,24 @@ pub fn sdfgrid(data: &[u8]) {
                 let p = ray.at(t);
                 let _ = (sdf.surface(p), sdf.shading_normal(p));
             }
+        }
+    }
+}
+
+/// A measured BRDF (an RGL `.bsdf` tensor file), evaluated and sampled
+/// for a few directions.
+pub fn measured(data: &[u8]) {
+    let Ok(brdf) = crate::material::measured::MeasuredBrdf::from_bytes(data) else {
+        return;
+    };
+    let bsdf = crate::material::Bsdf::Measured(crate::material::measured::MeasuredBsdf { brdf: &brdf });
+    let mode = crate::material::TransportMode::Radiance;
+    for k in 0..8 {
+        let a = k as f32 * 0.7;
+        let wo = glam::Vec3::new(a.cos() * 0.6, a.sin() * 0.6, 0.5).normalize();
+        let u = glam::Vec2::new((a * 0.37).fract(), (a * 0.91).fract());
+        if let Some(s) = bsdf.sample(wo, 0.5, u, mode) {
+            let _ = (bsdf.eval(wo, s.wi, mode), bsdf.pdf(wo, s.wi));
         }
     }
 }

@@ -946,6 +946,10 @@ mod tests {
     fn damaged_files_are_refused_with_a_reason() {
         let good = ggx_file(0.3, 0.5, 9, &thetas());
         assert!(MeasuredBrdf::from_bytes(&good).is_ok());
+        // Cut at every length: an error each time, never a panic.
+        for len in 0..good.len() {
+            assert!(MeasuredBrdf::from_bytes(&good[..len]).is_err(), "cut at {len}");
+        }
         let e = MeasuredBrdf::from_bytes(b"not a tensor").unwrap_err();
         assert!(e.contains("not a tensor file"), "{e}");
         let e = MeasuredBrdf::from_bytes(&good[..40]).unwrap_err();

@@ -216,6 +216,18 @@ const CASES: &[(&str, Expect)] = &[
     ("pbrt/missing-instance.pbrt", Error(&["missing-instance.pbrt:", "tree"])),
     ("pbrt/missing-mesh-file.pbrt", Error(&["bunny.ply"])),
     (
+        "pbrt/missing-measured-file.pbrt",
+        Error(&["missing-measured-file.pbrt:7:", "paint.bsdf"]),
+    ),
+    (
+        "pbrt/curve-too-few-points.pbrt",
+        Error(&["curve-too-few-points.pbrt:8:", "3 control points", "4 + n·3"]),
+    ),
+    (
+        "pbrt/ribbon-without-normals.pbrt",
+        Error(&["ribbon-without-normals.pbrt:7:", "normals"]),
+    ),
+    (
         "pbrt/projection-without-image.pbrt",
         Error(&["projection-without-image.pbrt:6:", "filename"]),
     ),
@@ -350,6 +362,41 @@ const VOLUME_CASES: &[(&str, Option<&[&str]>)] = &[
     ),
     ("sdfgrid/one-value-wide.vol", Some(&["one-value-wide.vol", "no cells"])),
     ("sdfgrid/huge-header.vol", Some(&["huge-header.vol", "more than"])),
+];
+
+#[test]
+fn malformed_measured_bsdfs_are_errors_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("paint.pbrt");
+    let mut failures = Vec::new();
+    for (rel, parts) in MEASURED_CASES {
+        let file = corpus(rel);
+        std::fs::write(
+            &scene,
+            format!(
+                "WorldBegin\nMaterial \"measured\" \"string filename\" \"{}\"\nShape \"sphere\"\n",
+                file.display()
+            ),
+        )
+        .unwrap();
+        let args = [
+            "render", "paint.pbrt", "-o", "out.png", "--width", "8", "--height", "8", "--spp", "1", "-q",
+        ];
+        let (code, err) = run(&args, dir.path());
+        if !(code == Some(2) && err.starts_with("error: ") && parts.iter().all(|p| err.contains(p))) {
+            failures.push(format!("{rel}: expected exit 2 with {parts:?}, got {code:?}: {err}"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Damaged measured BSDF files (tests/malformed/measured) and what the
+/// error must say, besides the scene's line and the file's name.
+const MEASURED_CASES: &[(&str, &[&str])] = &[
+    ("measured/not-a-tensor.bsdf", &["paint.pbrt:2:", "not-a-tensor.bsdf", "not a tensor file"]),
+    ("measured/truncated-header.bsdf", &["truncated-header.bsdf", "truncated"]),
+    ("measured/field-past-end.bsdf", &["field-past-end.bsdf", "\"theta_i\" lies past the end"]),
+    ("measured/missing-fields.bsdf", &["missing-fields.bsdf", "no \"phi_i\" field"]),
 ];
 
 #[test]
@@ -511,6 +558,7 @@ fn the_corpus_and_the_table_agree() {
         .map(|c| c.0)
         .chain(IMAGE_CASES.iter().map(|c| c.0))
         .chain(VOLUME_CASES.iter().map(|c| c.0))
+        .chain(MEASURED_CASES.iter().map(|c| c.0))
         .collect();
     for dir in std::fs::read_dir(corpus("")).unwrap() {
         let dir = dir.unwrap().path();
