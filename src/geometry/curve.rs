@@ -95,7 +95,12 @@ fn sub_curve(cp: &[Vec3; 4], u0: f32, u1: f32) -> [Vec3; 4] {
         let y = [lerp3(b, x[0], x[1]), lerp3(b, x[1], x[2])];
         lerp3(c, y[0], y[1])
     };
-    [blossom(u0, u0, u0), blossom(u0, u0, u1), blossom(u0, u1, u1), blossom(u1, u1, u1)]
+    [
+        blossom(u0, u0, u0),
+        blossom(u0, u0, u1),
+        blossom(u0, u1, u1),
+        blossom(u1, u1, u1),
+    ]
 }
 
 /// The two halves of a cubic Bézier curve: seven points, the middle shared.
@@ -136,7 +141,13 @@ pub fn bezier_segments(points: &[Vec3], bspline: bool, degree: usize) -> Result<
         return Ok(points
             .windows(degree + 1)
             .step_by(degree)
-            .map(|w| if degree == 3 { [w[0], w[1], w[2], w[3]] } else { elevate([w[0], w[1], w[2]]) })
+            .map(|w| {
+                if degree == 3 {
+                    [w[0], w[1], w[2], w[3]]
+                } else {
+                    elevate([w[0], w[1], w[2]])
+                }
+            })
             .collect());
     }
     if points.len() < degree + 1 {
@@ -284,7 +295,12 @@ impl Curve {
             let split = split_bezier(cp);
             let u = [u0, 0.5 * (u0 + u1), u1];
             for seg in 0..2 {
-                let piece = [split[3 * seg], split[3 * seg + 1], split[3 * seg + 2], split[3 * seg + 3]];
+                let piece = [
+                    split[3 * seg],
+                    split[3 * seg + 1],
+                    split[3 * seg + 2],
+                    split[3 * seg + 3],
+                ];
                 let max_width = self.width_at(u[seg]).max(self.width_at(u[seg + 1]));
                 if overlaps_ray(&piece, max_width, z_max) {
                     self.recurse(ray, &piece, u[seg], u[seg + 1], depth - 1, ray_length, best);
@@ -333,7 +349,11 @@ impl Curve {
         }
         let dist = dist2.sqrt();
         let edge = dpcdw.x * -pc.y + pc.x * dpcdw.y;
-        let v = if edge > 0.0 { 0.5 + dist / width } else { 0.5 - dist / width };
+        let v = if edge > 0.0 {
+            0.5 + dist / width
+        } else {
+            0.5 - dist / width
+        };
         *best = Some(CurveHit { t, u, v, width, normal });
     }
 
@@ -393,7 +413,12 @@ impl Curve {
 fn overlaps_ray(cp: &[Vec3; 4], width: f32, z_max: f32) -> bool {
     let b = control_bounds(cp);
     let h = 0.5 * width;
-    b.min.x - h <= 0.0 && b.max.x + h >= 0.0 && b.min.y - h <= 0.0 && b.max.y + h >= 0.0 && b.max.z + h >= 0.0 && b.min.z - h <= z_max
+    b.min.x - h <= 0.0
+        && b.max.x + h >= 0.0
+        && b.min.y - h <= 0.0
+        && b.max.y + h >= 0.0
+        && b.max.z + h >= 0.0
+        && b.min.z - h <= z_max
 }
 
 #[cfg(test)]
@@ -401,7 +426,12 @@ mod tests {
     use super::*;
 
     fn straight(kind: CurveKind, width: f32) -> Vec<Curve> {
-        let cp = [Vec3::new(-1.0, 0.0, 0.0), Vec3::new(-1.0 / 3.0, 0.0, 0.0), Vec3::new(1.0 / 3.0, 0.0, 0.0), Vec3::X];
+        let cp = [
+            Vec3::new(-1.0, 0.0, 0.0),
+            Vec3::new(-1.0 / 3.0, 0.0, 0.0),
+            Vec3::new(1.0 / 3.0, 0.0, 0.0),
+            Vec3::X,
+        ];
         Curve::pieces(cp, width, width, kind, Some([Vec3::Z, Vec3::Z]), 2)
     }
 
@@ -423,7 +453,11 @@ mod tests {
             let h = nearest(&pieces, &ray).unwrap_or_else(|| panic!("({x}, {y}) missed"));
             assert!((h.t - 2.5).abs() < 1e-4, "t {}", h.t);
             assert!((h.u - (x + 1.0) / 2.0).abs() < 1e-3, "u {} at x {x}", h.u);
-            assert!((h.v - (0.5 + y / 0.2).clamp(0.0, 1.0)).abs() < 1e-3 || (h.v - (0.5 - y / 0.2)).abs() < 1e-3, "v {}", h.v);
+            assert!(
+                (h.v - (0.5 + y / 0.2).clamp(0.0, 1.0)).abs() < 1e-3 || (h.v - (0.5 - y / 0.2)).abs() < 1e-3,
+                "v {}",
+                h.v
+            );
         }
         for (x, y) in [(0.0f32, 0.11f32), (0.5, -0.12), (1.2, 0.0), (-1.05, 0.0)] {
             let ray = Ray::new(Vec3::new(x, y, 5.0), Vec3::new(0.0, 0.0, -1.0));
@@ -442,7 +476,12 @@ mod tests {
     /// points, and rays far from it miss.
     #[test]
     fn hits_lie_on_the_curve_within_half_its_width() {
-        let cp = [Vec3::ZERO, Vec3::new(1.0, 1.0, 0.2), Vec3::new(2.0, -1.0, -0.2), Vec3::new(3.0, 0.0, 0.0)];
+        let cp = [
+            Vec3::ZERO,
+            Vec3::new(1.0, 1.0, 0.2),
+            Vec3::new(2.0, -1.0, -0.2),
+            Vec3::new(3.0, 0.0, 0.0),
+        ];
         let pieces = Curve::pieces(cp, 0.1, 0.05, CurveKind::Cylinder, None, 3);
         let mut hits = 0;
         let mut rng = crate::sampling::rng::Pcg32::new(5, 0);
@@ -455,10 +494,18 @@ mod tests {
                 let at = ray.at(h.t);
                 let across = (at - p).truncate().length();
                 let width = 0.1 + (0.05 - 0.1) * h.u;
-                assert!(across <= 0.5 * width * 1.05 + 1e-3, "{across} from the curve at u {}", h.u);
+                assert!(
+                    across <= 0.5 * width * 1.05 + 1e-3,
+                    "{across} from the curve at u {}",
+                    h.u
+                );
                 assert!((0.0..=1.0).contains(&h.v));
                 // Its surface: the normal perpendicular to the curve.
-                let ls = pieces.iter().find(|c| c.hit(&ray).is_some_and(|x| x.t == h.t)).unwrap().surface(&ray, h.t);
+                let ls = pieces
+                    .iter()
+                    .find(|c| c.hit(&ray).is_some_and(|x| x.t == h.t))
+                    .unwrap()
+                    .surface(&ray, h.t);
                 assert!(ls.n.dot(ls.dpdu.normalize()).abs() < 1e-3, "{} {}", ls.n, ls.dpdu);
                 assert!((ls.uv - Vec2::new(h.u, h.v)).length() < 1e-5);
             }
@@ -473,7 +520,10 @@ mod tests {
         let pieces = straight(CurveKind::Ribbon, 0.2);
         let down = Ray::new(Vec3::new(0.0, 0.09, 3.0), -Vec3::Z);
         let h = nearest(&pieces, &down).expect("facing: hit");
-        let ls = pieces.iter().find_map(|c| c.hit(&down).map(|_| c.surface(&down, h.t))).unwrap();
+        let ls = pieces
+            .iter()
+            .find_map(|c| c.hit(&down).map(|_| c.surface(&down, h.t)))
+            .unwrap();
         assert!(ls.n.z.abs() > 0.999, "{}", ls.n);
         let edge_on = Ray::new(Vec3::new(0.0, -3.0, 0.01), Vec3::Y);
         assert!(nearest(&pieces, &edge_on).is_none());

@@ -83,7 +83,7 @@ fn longitudinal(cos_i: f32, cos_o: f32, sin_i: f32, sin_o: f32, v: f32) -> f32 {
     let a = cos_i * cos_o / v;
     let b = sin_i * sin_o / v;
     if v <= 0.1 {
-        (log_bessel_i0(a) - b - 1.0 / v + 0.6931 + (1.0 / (2.0 * v)).ln()).exp()
+        (log_bessel_i0(a) - b - 1.0 / v + std::f32::consts::LN_2 + (1.0 / (2.0 * v)).ln()).exp()
     } else {
         ((-b).exp() * bessel_i0(a)) / ((1.0 / v).sinh() * 2.0 * v)
     }
@@ -219,9 +219,21 @@ impl HairBsdf {
         }
         let rest = Rgb::ONE - t * f;
         ap[P_MAX] = Rgb::new(
-            if rest.x != 0.0 { ap[P_MAX - 1].x * f * t.x / rest.x } else { 0.0 },
-            if rest.y != 0.0 { ap[P_MAX - 1].y * f * t.y / rest.y } else { 0.0 },
-            if rest.z != 0.0 { ap[P_MAX - 1].z * f * t.z / rest.z } else { 0.0 },
+            if rest.x != 0.0 {
+                ap[P_MAX - 1].x * f * t.x / rest.x
+            } else {
+                0.0
+            },
+            if rest.y != 0.0 {
+                ap[P_MAX - 1].y * f * t.y / rest.y
+            } else {
+                0.0
+            },
+            if rest.z != 0.0 {
+                ap[P_MAX - 1].z * f * t.z / rest.z
+            } else {
+                0.0
+            },
         );
         ap
     }
@@ -250,8 +262,7 @@ impl HairBsdf {
         let mut sum = Rgb::ZERO;
         for (p, a) in ap.iter().enumerate().take(P_MAX) {
             let (s, c) = self.tilted(p, sin_o, cos_o);
-            sum += *a
-                * (longitudinal(cos_i, c, sin_i, s, self.v[p]) * azimuthal(phi, p, self.s, gamma_o, gamma_t));
+            sum += *a * (longitudinal(cos_i, c, sin_i, s, self.v[p]) * azimuthal(phi, p, self.s, gamma_o, gamma_t));
         }
         sum += ap[P_MAX] * (longitudinal(cos_i, cos_o, sin_i, sin_o, self.v[P_MAX]) / (2.0 * PI));
         if wi.z != 0.0 {
@@ -292,7 +303,11 @@ impl HairBsdf {
         for (k, w) in order.iter().enumerate() {
             if uc < below + w || k == P_MAX {
                 p = k;
-                uc = if *w > 0.0 { ((uc - below) / w).clamp(0.0, crate::sampling::rng::ONE_MINUS_EPSILON) } else { 0.5 };
+                uc = if *w > 0.0 {
+                    ((uc - below) / w).clamp(0.0, crate::sampling::rng::ONE_MINUS_EPSILON)
+                } else {
+                    0.5
+                };
                 break;
             }
             below += w;
@@ -314,7 +329,7 @@ impl HairBsdf {
         let phi_i = phi_o + dphi;
         let wi = Vec3::new(sin_i, cos_i * phi_i.cos(), cos_i * phi_i.sin());
         let pdf = self.pdf_with(wo, wi, &order);
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         Some(BsdfSample {
@@ -413,7 +428,10 @@ mod tests {
     #[test]
     fn absorption_and_its_parameterisations() {
         let dark = HairBsdf::sigma_a_from_concentration(1.3, 0.0);
-        assert!((dark - Rgb::new(0.5447, 0.9061, 1.781)).abs().max_element() < 1e-3, "{dark}");
+        assert!(
+            (dark - Rgb::new(0.5447, 0.9061, 1.781)).abs().max_element() < 1e-3,
+            "{dark}"
+        );
         // Reflectance → σa → the colour back (the approximation's inverse).
         let c = Rgb::new(0.7, 0.5, 0.2);
         let s = HairBsdf::sigma_a_from_reflectance(c, 0.3);

@@ -114,7 +114,10 @@ fn read_tensor(bytes: &[u8]) -> Result<HashMap<String, Field<'_>>, String> {
     }
     let version = c.take(2)?;
     if version != [1, 0] {
-        return Err(format!("tensor file version {}.{} (only 1.0 is known)", version[0], version[1]));
+        return Err(format!(
+            "tensor file version {}.{} (only 1.0 is known)",
+            version[0], version[1]
+        ));
     }
     let count = c.u32()?;
     let mut fields = HashMap::new();
@@ -378,7 +381,10 @@ impl PiecewiseLinear2D {
         };
         let pdf = ((1.0 - s.x) * c0 + s.x * c1) * self.cells();
         (
-            Vec2::new((col as f32 + s.x) / self.inv_patch.x, (row as f32 + s.y) / self.inv_patch.y),
+            Vec2::new(
+                (col as f32 + s.x) / self.inv_patch.x,
+                (row as f32 + s.y) / self.inv_patch.y,
+            ),
             pdf,
         )
     }
@@ -508,7 +514,10 @@ impl MeasuredBrdf {
         }
         let params = vec![phis.clone(), thetas.clone()];
         let named = |name: &str, r: Result<PiecewiseLinear2D, String>| r.map_err(|e| format!("field \"{name}\": {e}"));
-        let ndf_t = named("ndf", PiecewiseLinear2D::new(&ndf.floats(), ndf.shape[1], ndf.shape[0], vec![], false))?;
+        let ndf_t = named(
+            "ndf",
+            PiecewiseLinear2D::new(&ndf.floats(), ndf.shape[1], ndf.shape[0], vec![], false),
+        )?;
         let sigma_t = named(
             "sigma",
             PiecewiseLinear2D::new(&sigma.floats(), sigma.shape[1], sigma.shape[0], vec![], false),
@@ -531,11 +540,7 @@ impl MeasuredBrdf {
         let values = spectra.floats();
         let cell = ss[3] * ss[4];
         let n_lambda = lambdas.len();
-        let mut channels = [
-            Vec::with_capacity(n_phi * n_theta * cell),
-            Vec::new(),
-            Vec::new(),
-        ];
+        let mut channels = [Vec::with_capacity(n_phi * n_theta * cell), Vec::new(), Vec::new()];
         for slice in 0..n_phi * n_theta {
             let block = &values[slice * n_lambda * cell..(slice + 1) * n_lambda * cell];
             for k in 0..cell {
@@ -706,12 +711,24 @@ pub(crate) mod fixture {
     pub fn tensor_file(fields: &[(&str, Vec<usize>, Vec<f32>)]) -> Vec<u8> {
         let mut all: Vec<(String, u8, Vec<usize>, Vec<u8>)> = fields
             .iter()
-            .map(|(n, s, v)| (n.to_string(), 10u8, s.clone(), v.iter().flat_map(|x| x.to_le_bytes()).collect()))
+            .map(|(n, s, v)| {
+                (
+                    n.to_string(),
+                    10u8,
+                    s.clone(),
+                    v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+                )
+            })
             .collect();
         all.push(("description".into(), 1, vec![4], b"test".to_vec()));
         all.push(("jacobian".into(), 1, vec![1], vec![1]));
-        let header_len: usize =
-            12 + 2 + 4 + all.iter().map(|(n, _, s, _)| 2 + n.len() + 2 + 1 + 8 + 8 * s.len()).sum::<usize>();
+        let header_len: usize = 12
+            + 2
+            + 4
+            + all
+                .iter()
+                .map(|(n, _, s, _)| 2 + n.len() + 2 + 1 + 8 + 8 * s.len())
+                .sum::<usize>();
         let mut out = b"tensor_file\0".to_vec();
         out.extend([1u8, 0]);
         out.extend((all.len() as u32).to_le_bytes());
@@ -781,7 +798,11 @@ pub(crate) mod fixture {
                     let m = normal(u_to_theta(u_wm.x), u_to_phi(u_wm.y));
                     let wi = 2.0 * wo.dot(m) * m - wo;
                     let g1 = mf.g1(wo);
-                    slice.push(if wi.z > 0.0 && g1 > 0.0 { r * mf.g(wo, wi) / g1 } else { 0.0 });
+                    slice.push(if wi.z > 0.0 && g1 > 0.0 {
+                        r * mf.g(wo, wi) / g1
+                    } else {
+                        0.0
+                    });
                 }
             }
             luminance.extend(&slice);
@@ -839,7 +860,10 @@ mod tests {
             assert!((back - u).abs().max_element() < 2e-3, "{u} → {p} → {back}");
             let density = t.evaluate(p, &params);
             assert!((pdf - density).abs() < 1e-3 * density.max(1.0), "{pdf} {density}");
-            assert!((pdf_back - density).abs() < 1e-3 * density.max(1.0), "{pdf_back} {density}");
+            assert!(
+                (pdf_back - density).abs() < 1e-3 * density.max(1.0),
+                "{pdf_back} {density}"
+            );
         }
         // Each slice integrates to 1 (midpoint rule on a fine grid).
         let params = [0.7, 0.2];
@@ -911,7 +935,11 @@ mod tests {
                 let pdf = measured.pdf(wo, s.wi);
                 assert!((s.pdf - pdf).abs() <= 2e-3 * pdf.max(1.0), "{} against {pdf}", s.pdf);
                 let f = measured.eval(wo, s.wi, mode);
-                assert!((s.f - f).abs().max_element() <= 2e-3 * f.max_element().max(1.0), "{} {f}", s.f);
+                assert!(
+                    (s.f - f).abs().max_element() <= 2e-3 * f.max_element().max(1.0),
+                    "{} {f}",
+                    s.f
+                );
             }
             // The albedo by the tables' own sampling against the model's,
             // both on a 64² grid of samples.
@@ -927,7 +955,10 @@ mod tests {
             }
             let model = model / (n * n) as f32;
             let table = brdf.directional_albedo(wo, n);
-            assert!((table.y - model.y).abs() < 0.005 * model.y, "θo {theta_o}: {table} against {model}");
+            assert!(
+                (table.y - model.y).abs() < 0.005 * model.y,
+                "θo {theta_o}: {table} against {model}"
+            );
         }
         // The density integrates to 1 over the hemisphere (estimate: 100 000
         // uniform directions, standard error about 0.007).

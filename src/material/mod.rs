@@ -794,7 +794,13 @@ impl Material {
                     ..zero
                 }
             }
-            MaterialKind::Hair { sigma_a, eta, beta_m, beta_n, alpha } => ClassicParams {
+            MaterialKind::Hair {
+                sigma_a,
+                eta,
+                beta_m,
+                beta_n,
+                alpha,
+            } => ClassicParams {
                 kd: hair::HairBsdf::new(0.0, *eta, *sigma_a, *beta_m, *beta_n, *alpha).albedo(),
                 ..zero
             },

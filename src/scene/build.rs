@@ -1377,7 +1377,10 @@ mod tests {
         )
         .unwrap();
         let e = crate::scene::load(&xml, &[]).unwrap_err().to_string();
-        assert!(e.contains("measured BSDF file not found") && e.contains("gone.bsdf"), "{e}");
+        assert!(
+            e.contains("measured BSDF file not found") && e.contains("gone.bsdf"),
+            "{e}"
+        );
 
         let toml = dir.path().join("s.toml");
         std::fs::write(

@@ -1289,17 +1289,35 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
                     return Err(t.err_at("basis", &t.span, format!("\"{other}\": \"bezier\" or \"bspline\"")));
                 }
             };
-            let segments = bezier_segments(&points, bspline, if degree == 2.0 { 2 } else if degree == 3.0 { 3 } else { 0 })
-                .map_err(|e| t.err_at("points", &t.span, e))?;
+            let segments = bezier_segments(
+                &points,
+                bspline,
+                if degree == 2.0 {
+                    2
+                } else if degree == 3.0 {
+                    3
+                } else {
+                    0
+                },
+            )
+            .map_err(|e| t.err_at("points", &t.span, e))?;
             let width = t.number_or("width", 0.1)?;
             let (w0, w1) = (t.number_or("width0", width)?, t.number_or("width1", width)?);
             if !(w0 >= 0.0 && w1 >= 0.0 && w0.is_finite() && w1.is_finite() && w0.max(w1) > 0.0) {
-                return Err(t.err_at("width", &t.span, "widths must be finite, not negative and not both zero"));
+                return Err(t.err_at(
+                    "width",
+                    &t.span,
+                    "widths must be finite, not negative and not both zero",
+                ));
             }
             let kind = match t.string("curve_type")? {
                 None => CurveKind::Cylinder,
                 Some(k) => CurveKind::named(&k).ok_or_else(|| {
-                    t.err_at("curve_type", &t.span, format!("\"{k}\": \"flat\", \"cylinder\" or \"ribbon\""))
+                    t.err_at(
+                        "curve_type",
+                        &t.span,
+                        format!("\"{k}\": \"flat\", \"cylinder\" or \"ribbon\""),
+                    )
                 })?,
             };
             let normals = match t.value("normals") {
@@ -1310,14 +1328,21 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
                 return Err(t.err_at(
                     "normals",
                     &t.span,
-                    format!("a ribbon of {} segments needs {} `normals`", segments.len(), segments.len() + 1),
+                    format!(
+                        "a ribbon of {} segments needs {} `normals`",
+                        segments.len(),
+                        segments.len() + 1
+                    ),
                 ));
             }
             let split = t.number_or("split_depth", 3.0)?.clamp(0.0, 10.0) as u32;
             let n = segments.len() as f32;
             let mut pieces = segments.iter().enumerate().flat_map(|(i, cp)| {
                 let lerp = |x: f32| w0 + (w1 - w0) * x;
-                let ends = normals.as_ref().filter(|_| kind == CurveKind::Ribbon).map(|n| [n[i], n[i + 1]]);
+                let ends = normals
+                    .as_ref()
+                    .filter(|_| kind == CurveKind::Ribbon)
+                    .map(|n| [n[i], n[i + 1]]);
                 Curve::pieces(*cp, lerp(i as f32 / n), lerp((i + 1) as f32 / n), kind, ends, split)
             });
             let first = pieces.next().expect("a curve has a segment");
@@ -1719,14 +1744,18 @@ transform = [{ translate = [0, 1, 0] }]
         )
         .unwrap();
         assert_eq!(d.shapes.len(), 2 * 4);
-        assert!(d.shapes.iter().all(|s| matches!(s.kind, ShapeKind::Curve(_)) && s.material.as_deref() == Some("fur") && s.transform.len() == 1));
+        assert!(d.shapes.iter().all(|s| matches!(s.kind, ShapeKind::Curve(_))
+            && s.material.as_deref() == Some("fur")
+            && s.transform.len() == 1));
         assert!(matches!(d.materials[0].kind, MaterialKindDesc::Hair { sigma_a, .. }
             if sigma_a == crate::material::hair::HairBsdf::sigma_a_from_reflectance(Rgb::new(0.6, 0.4, 0.2), 0.3)));
         let e = parse_str("[[shape]]\ntype = \"curve\"\npoints = [[0, 0, 0], [1, 1, 0], [2, 0, 0], [3, 0, 0]]\ncurve_type = \"ribbon\"\n")
             .unwrap_err()
             .to_string();
         assert!(e.contains("needs 2 `normals`"), "{e}");
-        let e = parse_str("[[shape]]\ntype = \"curve\"\npoints = [[0, 0, 0], [1, 1, 0]]\n").unwrap_err().to_string();
+        let e = parse_str("[[shape]]\ntype = \"curve\"\npoints = [[0, 0, 0], [1, 1, 0]]\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("4 + n·3"), "{e}");
     }
 

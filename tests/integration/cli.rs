@@ -874,7 +874,8 @@ fn warnings_before_a_fatal_error_are_printed_with_it() {
     assert_eq!(lines.len(), 2, "{lines:?}");
     assert!(
         lines[0].starts_with("warning: ")
-            && lines[0].contains("bad.pbrt:2:14: parameter \"string emissionfilename\" of Shape \"disk\" is unsupported"),
+            && lines[0]
+                .contains("bad.pbrt:2:14: parameter \"string emissionfilename\" of Shape \"disk\" is unsupported"),
         "{lines:?}"
     );
     assert!(

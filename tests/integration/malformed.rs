@@ -380,7 +380,17 @@ fn malformed_measured_bsdfs_are_errors_naming_the_file() {
         )
         .unwrap();
         let args = [
-            "render", "paint.pbrt", "-o", "out.png", "--width", "8", "--height", "8", "--spp", "1", "-q",
+            "render",
+            "paint.pbrt",
+            "-o",
+            "out.png",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "1",
+            "-q",
         ];
         let (code, err) = run(&args, dir.path());
         if !(code == Some(2) && err.starts_with("error: ") && parts.iter().all(|p| err.contains(p))) {
@@ -393,10 +403,22 @@ fn malformed_measured_bsdfs_are_errors_naming_the_file() {
 /// Damaged measured BSDF files (tests/malformed/measured) and what the
 /// error must say, besides the scene's line and the file's name.
 const MEASURED_CASES: &[(&str, &[&str])] = &[
-    ("measured/not-a-tensor.bsdf", &["paint.pbrt:2:", "not-a-tensor.bsdf", "not a tensor file"]),
-    ("measured/truncated-header.bsdf", &["truncated-header.bsdf", "truncated"]),
-    ("measured/field-past-end.bsdf", &["field-past-end.bsdf", "\"theta_i\" lies past the end"]),
-    ("measured/missing-fields.bsdf", &["missing-fields.bsdf", "no \"phi_i\" field"]),
+    (
+        "measured/not-a-tensor.bsdf",
+        &["paint.pbrt:2:", "not-a-tensor.bsdf", "not a tensor file"],
+    ),
+    (
+        "measured/truncated-header.bsdf",
+        &["truncated-header.bsdf", "truncated"],
+    ),
+    (
+        "measured/field-past-end.bsdf",
+        &["field-past-end.bsdf", "\"theta_i\" lies past the end"],
+    ),
+    (
+        "measured/missing-fields.bsdf",
+        &["missing-fields.bsdf", "no \"phi_i\" field"],
+    ),
 ];
 
 #[test]

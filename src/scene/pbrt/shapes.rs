@@ -262,7 +262,11 @@ impl Parser {
                     }
                     Some((_, prm)) => {
                         let l = prm.loc.clone();
-                        self.unsupported(&l, "\"normal N\" of a curve that is not a ribbon", "ignored, as in pbrt-v4");
+                        self.unsupported(
+                            &l,
+                            "\"normal N\" of a curve that is not a ribbon",
+                            "ignored, as in pbrt-v4",
+                        );
                         None
                     }
                     None if kind == CurveKind::Ribbon => {
@@ -279,7 +283,14 @@ impl Parser {
                 let mut pieces = segments.iter().enumerate().flat_map(|(i, cp)| {
                     let lerp = |t: f32| w0 + (w1 - w0) * t;
                     let ends = normals.as_ref().map(|n| [n[i], n[i + 1]]);
-                    Curve::pieces(*cp, lerp(i as f32 / n), lerp((i + 1) as f32 / n), kind, ends, split_depth)
+                    Curve::pieces(
+                        *cp,
+                        lerp(i as f32 / n),
+                        lerp((i + 1) as f32 / n),
+                        kind,
+                        ends,
+                        split_depth,
+                    )
                 });
                 let first = pieces.next().expect("a curve has a segment");
                 extra_patches = pieces.map(ShapeKind::Curve).collect();
