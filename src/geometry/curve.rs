@@ -43,7 +43,7 @@ impl CurveKind {
 /// A piece [u0, u1] of a cubic Bézier segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Curve {
-    /// Control points of the whole segment.
+    /// Control points of the piece (of the segment between u0 and u1).
     cp: [Vec3; 4],
     /// The piece of it this shape is.
     u_range: [f32; 2],
@@ -200,7 +200,7 @@ impl Curve {
         let n = 1u32 << split_depth.min(10);
         (0..n)
             .map(|i| Curve {
-                cp,
+                cp: sub_curve(&cp, i as f32 / n as f32, (i + 1) as f32 / n as f32),
                 u_range: [i as f32 / n as f32, (i + 1) as f32 / n as f32],
                 width: [width0, width1],
                 kind,
@@ -218,7 +218,7 @@ impl Curve {
     /// Object-space bounds of the piece, grown by half its width.
     pub fn bounds(&self) -> Aabb {
         let [u0, u1] = self.u_range;
-        let b = control_bounds(&sub_curve(&self.cp, u0, u1));
+        let b = control_bounds(&self.cp);
         let half = Vec3::splat(0.5 * self.width_at(u0).max(self.width_at(u1)));
         Aabb::new(b.min - half, b.max + half)
     }
@@ -226,8 +226,7 @@ impl Curve {
     /// pbrt-v4's area: the control polygon's length times the mean width.
     pub fn area(&self) -> f32 {
         let [u0, u1] = self.u_range;
-        let cp = sub_curve(&self.cp, u0, u1);
-        let length: f32 = cp.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+        let length: f32 = self.cp.windows(2).map(|w| (w[1] - w[0]).length()).sum();
         length * 0.5 * (self.width_at(u0) + self.width_at(u1))
     }
 
@@ -240,7 +239,7 @@ impl Curve {
     /// The nearest hit within the ray's interval.
     pub fn hit(&self, ray: &Ray) -> Option<CurveHit> {
         let [u0, u1] = self.u_range;
-        let cp_obj = sub_curve(&self.cp, u0, u1);
+        let cp_obj = self.cp;
         let mut up = ray.dir.cross(cp_obj[3] - cp_obj[0]);
         if up.length_squared() == 0.0 {
             up = crate::sampling::warp::orthonormal_basis(ray.dir.normalize()).0;
@@ -372,7 +371,10 @@ impl Curve {
             width: self.width_at(0.5),
             normal: self.normals[0],
         });
-        let (_, dpdu) = evaluate_bezier(&self.cp, hit.u);
+        // ∂p/∂u of the whole segment: the piece's derivative over its span.
+        let [u0, u1] = self.u_range;
+        let (_, dpdw) = evaluate_bezier(&self.cp, ((hit.u - u0) / (u1 - u0)).clamp(0.0, 1.0));
+        let dpdu = dpdw / (u1 - u0);
         let dpdv = match self.kind {
             CurveKind::Ribbon => hit.normal.cross(dpdu).normalize_or_zero() * hit.width,
             _ => {

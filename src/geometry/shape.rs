@@ -131,7 +131,7 @@ pub enum Shape {
     Bilinear(super::bilinear::BilinearPatch),
     /// A piece of a cubic Bézier curve swept by a width (pbrt-v4's
     /// `curve`).
-    Curve(Box<super::curve::Curve>),
+    Curve(super::curve::Curve),
 }
 
 /// The surface of a shape at a point, in the shape's object space.

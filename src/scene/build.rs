@@ -282,7 +282,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             ShapeKind::Implicit(f) => Some(Shape::Implicit(f.clone())),
             ShapeKind::Quadric(q) => Some(Shape::Quadric(*q)),
             ShapeKind::Bilinear(b) => Some(Shape::Bilinear(*b)),
-            ShapeKind::Curve(c) => Some(Shape::Curve(Box::new(*c))),
+            ShapeKind::Curve(c) => Some(Shape::Curve(*c)),
             ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_) => None,
         };
         if let Some(shape) = analytic {
