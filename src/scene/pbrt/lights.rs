@@ -418,12 +418,11 @@ impl Parser {
                 Some(name)
             }
         };
-        if let Some((power, prm)) = p.float_opt("power")? {
-            if power > 0.0 {
-                let l = prm.loc.clone();
-                self.unsupported(&l, "\"power\" of an area light", "the given L and scale are used");
-            }
-        }
+        // pbrt-v4 reads a power of 0 or less as none.
+        let power = match p.float_opt("power")? {
+            Some((w, prm)) if w > 0.0 && w.is_finite() => Some((w, prm.loc.clone())),
+            _ => None,
+        };
         let radiance = l * scale;
         if !radiance.is_finite() || radiance.min_element() < 0.0 {
             return Err(Error::scene(
@@ -439,6 +438,7 @@ impl Parser {
             radiance,
             image,
             two_sided,
+            power,
             loc: loc.clone(),
         });
         Ok(())

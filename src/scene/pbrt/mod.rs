@@ -190,6 +190,9 @@ struct Emission {
     image: Option<String>,
     /// `"bool twosided"`: the back emits too.
     two_sided: bool,
+    /// `"float power"` where positive, and where it was written: each
+    /// shape's radiance is scaled so that it emits this much.
+    power: Option<(f32, SourceLoc)>,
     loc: SourceLoc,
 }
 

@@ -2,7 +2,7 @@
 //! `Create`): parameters, defaults and checks.
 
 use super::params::{FloatValue, ParamList};
-use super::{Parser, PendingShape};
+use super::{Emission, Parser, PendingShape};
 use crate::color::Rgb;
 use crate::error::{Error, Result, SourceLoc};
 use crate::geometry::TriangleMesh;
@@ -298,6 +298,9 @@ impl Parser {
             }
         };
         let mut emission = self.gs.area_light.clone();
+        if let Some(e) = emission.as_mut() {
+            self.apply_power(e, &shape, &what);
+        }
         if emission.is_some() && self.current_object.is_some() {
             emission = None;
             self.unsupported(
@@ -343,6 +346,69 @@ impl Parser {
             });
         }
         Ok(())
+    }
+
+    /// pbrt-v4's area light `power` (DiffuseAreaLight::Create): the
+    /// radiance scaled by power / (π · sides · area), with the area as
+    /// pbrt-v4's shapes report it — in object space for spheres, disks,
+    /// cylinders and quadrics, in world space for triangles and patches.
+    /// pbrt-v4 makes each triangle of a mesh a light of that power: for a
+    /// mesh of equal triangles that is exact, for unequal ones the mean
+    /// triangle is used (warning). An image's mean luminance is not
+    /// known here: with an image the power is not applied (warning).
+    fn apply_power(&mut self, e: &mut Emission, shape: &ShapeKind, what: &str) {
+        let Some((power, at)) = e.power.take() else {
+            return;
+        };
+        if e.image.is_some() {
+            self.unsupported(
+                &at,
+                "\"power\" of an area light with an image",
+                "the image and scale are used as given",
+            );
+            return;
+        }
+        let ctm = self.gs.ctm;
+        let world = |p: Vec3| ctm.transform_point3(p);
+        let area = match shape {
+            ShapeKind::Sphere { radius, .. } => 4.0 * std::f32::consts::PI * radius * radius,
+            ShapeKind::Disk { radius, .. } => std::f32::consts::PI * radius * radius,
+            ShapeKind::Cylinder { p0, p1, radius } => 2.0 * std::f32::consts::PI * radius * (*p1 - *p0).length(),
+            ShapeKind::Quadric(q) => q.area(),
+            ShapeKind::Bilinear(b) => {
+                let [p00, p10, p01, p11] = b.p.map(|p| world(p.as_vec3()));
+                crate::geometry::bilinear::BilinearPatch::new(p00, p10, p01, p11).area()
+            }
+            ShapeKind::InlineMesh(MeshSource::Inline(mesh)) => {
+                let areas: Vec<f32> = (0..mesh.indices.len())
+                    .map(|i| {
+                        let [a, b, c] = mesh.vertices(i).map(world);
+                        0.5 * (b - a).cross(c - a).length()
+                    })
+                    .collect();
+                let mean = areas.iter().sum::<f32>() / areas.len().max(1) as f32;
+                if areas.iter().any(|a| (a - mean).abs() > 1e-3 * mean) {
+                    self.approximated(
+                        &at,
+                        format!("\"power\" of {what}"),
+                        "pbrt-v4 gives each triangle that power, so its radiance varies with the triangle's area; trazo gives every triangle the radiance of the mean one",
+                    );
+                }
+                mean
+            }
+            _ => {
+                self.unsupported(
+                    &at,
+                    format!("\"power\" of an area light on {what}"),
+                    "the given L and scale are used",
+                );
+                return;
+            }
+        };
+        let sides = if e.two_sided { 2.0 } else { 1.0 };
+        if area > 0.0 && area.is_finite() {
+            e.radiance *= power / (std::f32::consts::PI * sides * area);
+        }
     }
 
     /// The triangles of a gzip-compressed PLY file, decompressed through

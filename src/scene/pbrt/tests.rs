@@ -2650,3 +2650,55 @@ fn curves_render_at_their_albedo_and_clear_hair_vanishes_in_a_furnace() {
         assert!(brown < 1.0 - 0.3 * coverage, "{kind}: brown hair {brown}");
     }
 }
+
+/// pbrt-v4's area light `power`: radiance × power / (π · sides · area),
+/// with each shape's area as pbrt-v4 reports it.
+#[test]
+fn area_light_power_sets_each_shapes_radiance() {
+    use std::f32::consts::PI;
+    let emission = |light: &str, shape: &str| {
+        let d = world(&format!(
+            "AttributeBegin\nAreaLightSource \"diffuse\" {light}\n{shape}\nAttributeEnd"
+        ));
+        match &material(&d, 0).emission {
+            ColorSource::Rgb(c) => (c.x, d.warnings.clone()),
+            e => panic!("{e:?}"),
+        }
+    };
+    let quad = "Shape \"trianglemesh\" \"point3 P\" [0 0 0 2 0 0 0 1 0 2 1 0] \"integer indices\" [0 1 2 2 1 3]";
+    let cases = [
+        // A disk of radius 2: area 4π.
+        ("Shape \"disk\" \"float radius\" 2", "", 4.0 * PI),
+        // A sphere of radius 0.5 scaled by 2: pbrt-v4 takes its object-space area, π.
+        ("Scale 2 2 2 Shape \"sphere\" \"float radius\" 0.5", "", PI),
+        // Two triangles of area 1, two-sided: each emits the power.
+        (quad, "\"bool twosided\" true", 2.0),
+        // The same quad twice as wide in world space.
+        (&format!("Scale 2 1 1 {quad}"), "", 2.0),
+    ];
+    for (shape, extra, area_sides) in cases {
+        let (plain, _) = emission(&format!("\"rgb L\" [1 1 1] {extra}"), shape);
+        let (powered, warnings) = emission(&format!("\"rgb L\" [1 1 1] \"float power\" 10 {extra}"), shape);
+        let expected = plain * 10.0 / (PI * area_sides);
+        assert!(
+            (powered - expected).abs() < 1e-4 * expected,
+            "{shape}: {powered} against {expected}"
+        );
+        assert!(warnings.is_empty(), "{shape}: {warnings:?}");
+    }
+    // Unequal triangles: the mean one, with a warning.
+    let (_, w) = emission(
+        "\"rgb L\" [1 1 1] \"float power\" 10",
+        "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0 4 0 0 0 4 0] \"integer indices\" [0 1 2 0 3 4]",
+    );
+    assert!(
+        w.iter().any(|w| w.contains("\"power\"") && w.contains("approximated")),
+        "{w:?}"
+    );
+    // Zero or negative: none, as in pbrt-v4.
+    let (plain, _) = emission("\"rgb L\" [1 1 1]", "Shape \"disk\"");
+    assert_eq!(
+        emission("\"rgb L\" [1 1 1] \"float power\" 0", "Shape \"disk\"").0,
+        plain
+    );
+}
