@@ -192,6 +192,8 @@ pub enum LayerBaseKind {
         fresnel: ConductorFresnel,
         /// Roughness.
         microfacet: Microfacet,
+        /// Roughness that varies over the surface, replacing `microfacet`'s.
+        roughness_map: Option<RoughnessMap>,
     },
 }
 
@@ -546,6 +548,16 @@ impl Material {
         let mut all = vec![&self.emission];
         if let MaterialKind::Principled { params, .. } = &self.kind {
             all.extend(params.named().map(|(_, t)| t));
+        }
+        if let MaterialKind::Layered {
+            base: LayerBaseKind::Conductor {
+                roughness_map: Some(map),
+                ..
+            },
+            ..
+        } = &self.kind
+        {
+            all.extend([&map.u, &map.v]);
         }
         all.extend(self.opacity.as_ref());
         all.extend(self.normal_map.as_ref());
@@ -905,10 +917,17 @@ impl Material {
                 },
                 base: match base {
                     LayerBaseKind::Diffuse(r) => LayerBase::Diffuse(r.eval(textures, tc)),
-                    LayerBaseKind::Conductor { fresnel, microfacet } => LayerBase::Conductor(ConductorBsdf {
+                    LayerBaseKind::Conductor {
+                        fresnel,
+                        microfacet,
+                        roughness_map,
+                    } => LayerBase::Conductor(ConductorBsdf {
                         fresnel: *fresnel,
                         tint: Rgb::ONE,
-                        microfacet: *microfacet,
+                        microfacet: match roughness_map {
+                            Some(map) => map.microfacet_at(*microfacet, textures, tc),
+                            None => *microfacet,
+                        },
                     }),
                 },
                 thickness: *thickness,

@@ -937,7 +937,11 @@ fn to_material(
         } => Material::plain(MaterialKind::Layered {
             base: match base {
                 LayeredBaseDesc::Diffuse(r) => LayerBaseKind::Diffuse(color(r)),
-                LayeredBaseDesc::Conductor { fresnel, roughness } => {
+                LayeredBaseDesc::Conductor {
+                    fresnel,
+                    roughness,
+                    roughness_map,
+                } => {
                     // The conductor lies in the coat: its indices are
                     // relative to the coat's (pbrt-v4's
                     // CoatedConductorMaterial). A reflectance becomes
@@ -951,12 +955,21 @@ fn to_material(
                             (Rgb::ONE, Rgb::new(k(r.x), k(r.y), k(r.z)))
                         }
                     };
+                    // A roughness texture: the constant α becomes its
+                    // average, as for a material's own map.
+                    let base_map = roughness_map.as_ref().map(|r| RoughnessMap {
+                        u: color(&r.u),
+                        v: color(&r.v),
+                        remap_sqrt: r.remap_sqrt,
+                    });
+                    let base_alpha = base_map.as_ref().map_or(*roughness, |m| m.average_alpha(textures));
                     LayerBaseKind::Conductor {
                         fresnel: ConductorFresnel::Complex {
                             eta: eta / *coat_ior,
                             k: k / *coat_ior,
                         },
-                        microfacet: Microfacet::new(MicrofacetDistribution::Ggx, roughness.0, roughness.1),
+                        microfacet: Microfacet::new(MicrofacetDistribution::Ggx, base_alpha.0, base_alpha.1),
+                        roughness_map: base_map,
                     }
                 }
             },

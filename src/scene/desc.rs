@@ -263,6 +263,8 @@ pub enum LayeredBaseDesc {
         fresnel: ConductorDesc,
         /// Microfacet α along tangent and bitangent (0: smooth).
         roughness: (f32, f32),
+        /// Roughness that varies over the surface, replacing `roughness`.
+        roughness_map: Option<RoughnessMapDesc>,
     },
 }
 
@@ -1430,7 +1432,12 @@ impl SceneDesc {
                         LayeredBaseDesc::Conductor {
                             fresnel,
                             roughness: (ax, ay),
+                            roughness_map,
                         } => {
+                            if let Some(r) = roughness_map {
+                                texture("conductor.roughness", &r.u)?;
+                                texture("conductor.roughness", &r.v)?;
+                            }
                             match fresnel {
                                 ConductorDesc::Complex { eta, k } => {
                                     c.color("conductor.eta", *eta)?;

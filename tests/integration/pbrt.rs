@@ -1003,11 +1003,12 @@ Shape "bilinearmesh" "point3 P" [-1 -1 0  1 -1 0  -1 1 0  1 1 0] "point2 uv" [0 
     assert!(e.to_string().contains("not both"), "{e}");
 }
 
-/// A float texture for a coated material's roughness varies its coat's
-/// roughness at each hit: a constant texture renders as the number.
+/// A float texture for a coated material's roughness (its coat's, or the
+/// conductor's under the coat) varies it at each hit: a constant texture
+/// renders as the number, checks of roughness differ.
 #[test]
 fn coated_materials_take_roughness_textures() {
-    let scene = |roughness: &str| {
+    let scene = |material: &str| {
         format!(
             r#"
 LookAt 0 0 4  0 0 0  0 1 0
@@ -1019,30 +1020,37 @@ WorldBegin
 LightSource "distant" "point3 from" [1 1 2] "point3 to" [0 0 0] "rgb L" [3 3 3]
 Texture "rough" "float" "constant" "float value" 0.3
 Texture "checks" "float" "checkerboard" "float tex1" 0.01 "float tex2" 0.6 "float uscale" 8 "float vscale" 8
-Material "coateddiffuse" "rgb reflectance" [0.6 0.3 0.2] {roughness}
+Material {material}
 Shape "sphere"
 "#
         )
     };
-    let textured = parse(&scene(r#""texture roughness" "rough""#));
-    assert!(textured.warnings.is_empty(), "{:?}", textured.warnings);
-    let (a, b) = (
-        render_desc(&textured),
-        render_desc(&parse(&scene(r#""float roughness" 0.3"#))),
-    );
-    let worst = a
-        .pixels
-        .iter()
-        .zip(&b.pixels)
-        .map(|(p, q)| (p.value() - q.value()).abs().max_element())
-        .fold(0.0f32, f32::max);
-    assert!(worst < 1e-5, "{worst}");
-    // Checks of roughness: a different image.
-    let c = render_desc(&parse(&scene(r#""texture roughness" "checks""#)));
-    let differs = a
-        .pixels
-        .iter()
-        .zip(&c.pixels)
-        .any(|(p, q)| (p.value() - q.value()).abs().max_element() > 0.01);
-    assert!(differs);
+    for (material, key) in [
+        (r#""coateddiffuse" "rgb reflectance" [0.6 0.3 0.2]"#, "roughness"),
+        (
+            r#""coatedconductor" "float interface.roughness" 0.05"#,
+            "conductor.roughness",
+        ),
+    ] {
+        let textured = parse(&scene(&format!(r#"{material} "texture {key}" "rough""#)));
+        assert!(textured.warnings.is_empty(), "{:?}", textured.warnings);
+        let (a, b) = (
+            render_desc(&textured),
+            render_desc(&parse(&scene(&format!(r#"{material} "float {key}" 0.3"#)))),
+        );
+        let worst = a
+            .pixels
+            .iter()
+            .zip(&b.pixels)
+            .map(|(p, q)| (p.value() - q.value()).abs().max_element())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 1e-5, "{material}: {worst}");
+        let c = render_desc(&parse(&scene(&format!(r#"{material} "texture {key}" "checks""#))));
+        let differs = a
+            .pixels
+            .iter()
+            .zip(&c.pixels)
+            .any(|(p, q)| (p.value() - q.value()).abs().max_element() > 0.01);
+        assert!(differs, "{material}");
+    }
 }

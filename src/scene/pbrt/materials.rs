@@ -523,19 +523,17 @@ impl Parser {
                 else {
                     unreachable!("conductor() makes conductors")
                 };
-                // trazo varies the coat's roughness only.
-                if def.roughness_map.take().is_some() {
-                    self.approximated(
-                        loc,
-                        format!("{what} with a float texture for \"conductor.roughness\""),
-                        "the texture's typical value is used",
-                    );
-                }
+                // The conductor's roughness texture, apart from the coat's.
+                let roughness_map = def.roughness_map.take();
                 let coat_ior = self.eta(p, "interface.eta", 1.5, &mut def)?;
                 let coat_roughness = self.roughness(p, "interface.", &mut def)?;
                 self.layered(
                     p,
-                    LayeredBaseDesc::Conductor { fresnel, roughness },
+                    LayeredBaseDesc::Conductor {
+                        fresnel,
+                        roughness,
+                        roughness_map,
+                    },
                     coat_ior,
                     coat_roughness,
                 )?

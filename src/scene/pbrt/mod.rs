@@ -1254,7 +1254,15 @@ impl Parser {
             .materials
             .iter()
             .flat_map(|m| {
-                let roughness = m.roughness_map.iter().flat_map(|r| [&r.u, &r.v]);
+                // A coated conductor's own map sits in its base.
+                let base_map = match &m.kind {
+                    MatKind::Desc(MaterialKindDesc::Layered {
+                        base: LayeredBaseDesc::Conductor { roughness_map, .. },
+                        ..
+                    }) => roughness_map.as_ref(),
+                    _ => None,
+                };
+                let roughness = m.roughness_map.iter().chain(base_map).flat_map(|r| [&r.u, &r.v]);
                 let amount = match &m.kind {
                     MatKind::Mix { amount, .. } => Some(amount),
                     MatKind::Desc(_) => None,

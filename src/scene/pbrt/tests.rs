@@ -815,6 +815,7 @@ Shape "sphere""#,
                     k: Rgb::splat(3.0)
                 },
                 roughness: (0.2, 0.2),
+                roughness_map: None,
             },
             coat_ior: 1.4,
             coat_roughness: (0.3, 0.3),
@@ -829,7 +830,7 @@ Shape "sphere""#,
     assert!(matches!(
         material(&d, 1).kind,
         MaterialKindDesc::Layered {
-            base: LayeredBaseDesc::Conductor { fresnel: ConductorDesc::Complex { eta, k }, roughness: (0.0, 0.0) },
+            base: LayeredBaseDesc::Conductor { fresnel: ConductorDesc::Complex { eta, k }, roughness: (0.0, 0.0), .. },
             coat_ior: 1.5,
             ..
         } if eta == cu_eta && k == cu_k
