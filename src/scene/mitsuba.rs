@@ -1679,20 +1679,32 @@ impl Loader {
             }
             "checkerboard" => {
                 let c0 = self
-                    .constant_color(f, node, &props, "color0", &mut used)?
-                    .unwrap_or(Rgb::splat(0.4));
+                    .color_source(f, &props, "color0", &mut used)?
+                    .unwrap_or(ColorSource::Rgb(Rgb::splat(0.4)));
                 let c1 = self
-                    .constant_color(f, node, &props, "color1", &mut used)?
-                    .unwrap_or(Rgb::splat(0.2));
-                if offset != Vec2::ZERO {
-                    self.warn(f, node, "a checkerboard's to_uv offset is unsupported; ignored");
-                }
-                // Mitsuba's checks are half a unit of (u, v) wide; color0
-                // is at u, v < ½ (as a colour; see `float_texture`).
-                TextureKind::Checkerboard {
-                    even: c0,
-                    odd: c1,
-                    scale: 2.0 * scale,
+                    .color_source(f, &props, "color1", &mut used)?
+                    .unwrap_or(ColorSource::Rgb(Rgb::splat(0.2)));
+                // Mitsuba's checks are half a unit of its transformed
+                // (u, v) wide; color0 is where both fractions are below ½
+                // (as a colour; see `float_texture`).
+                match (&c0, &c1) {
+                    (ColorSource::Rgb(even), ColorSource::Rgb(odd)) if offset == Vec2::ZERO => {
+                        TextureKind::Checkerboard {
+                            even: *even,
+                            odd: *odd,
+                            scale: 2.0 * scale,
+                        }
+                    }
+                    // Nested textures or a to_uv offset: the node, which
+                    // takes both.
+                    _ => TextureKind::Node(crate::texture::TextureNode::Checkerboard {
+                        even: c0,
+                        odd: c1,
+                        mapping: crate::texture::Mapping2D::Uv {
+                            scale: 2.0 * scale,
+                            offset: 2.0 * offset,
+                        },
+                    }),
                 }
             }
             "mesh_attribute" => {
@@ -1746,17 +1758,25 @@ impl Loader {
         let Some(t) = self.desc.textures.iter().find(|t| &t.name == name) else {
             return src;
         };
-        let TextureKind::Checkerboard { even, odd, scale } = t.kind else {
-            return src;
+        let kind = match &t.kind {
+            TextureKind::Checkerboard { even, odd, scale } => TextureKind::Checkerboard {
+                even: *odd,
+                odd: *even,
+                scale: *scale,
+            },
+            TextureKind::Node(crate::texture::TextureNode::Checkerboard { even, odd, mapping }) => {
+                TextureKind::Node(crate::texture::TextureNode::Checkerboard {
+                    even: odd.clone(),
+                    odd: even.clone(),
+                    mapping: *mapping,
+                })
+            }
+            _ => return src,
         };
         let locs = t.locs.clone();
         let swapped = TextureDesc {
             name: self.fresh_name("mitsuba-texture"),
-            kind: TextureKind::Checkerboard {
-                even: odd,
-                odd: even,
-                scale,
-            },
+            kind,
             locs,
         };
         let name = swapped.name.clone();
@@ -3672,6 +3692,61 @@ mod tests {
         // The emitting shape gets its own material; the plain one is shared.
         assert_ne!(d.shapes[2].material, d.shapes[3].material);
         assert_eq!(by(3).emission, ColorSource::Rgb(Rgb::splat(4.0)));
+    }
+
+    /// Mitsuba's checkerboard with textures for its colours and a to_uv
+    /// offset: checks half a unit of the transformed (u, v) wide, color0
+    /// where both fractions are below ½ (checkerboard.cpp), evaluated here
+    /// against that formula at many points.
+    #[test]
+    fn checkerboards_nest_and_take_offsets() {
+        let xml = r#"<scene version="3.0.0">
+          <shape type="sphere">
+            <bsdf type="diffuse">
+              <texture name="reflectance" type="checkerboard">
+                <transform name="to_uv"><scale x="3" y="2"/><translate x="0.25" y="0.1"/></transform>
+                <texture name="color0" type="checkerboard">
+                  <rgb name="color0" value="0.9, 0.1, 0.1"/><rgb name="color1" value="0.1, 0.9, 0.1"/>
+                  <transform name="to_uv"><scale x="5" y="5"/></transform>
+                </texture>
+                <rgb name="color1" value="0.1, 0.1, 0.9"/>
+              </texture>
+            </bsdf>
+          </shape>
+        </scene>"#;
+        let d = parse_str(xml).unwrap();
+        assert!(
+            !d.warnings
+                .iter()
+                .any(|w| w.contains("checkerboard") || w.contains("to_uv")),
+            "{:?}",
+            d.warnings
+        );
+        let scene = crate::scene::build::build(&d).unwrap();
+        let crate::material::MaterialKind::Diffuse { reflectance } = &scene.materials[0].kind else {
+            panic!("{:?}", scene.materials[0].kind)
+        };
+        let checks = |uv: Vec2, even: Rgb, odd: Rgb| {
+            let f = uv - uv.floor();
+            if (f.x > 0.5) == (f.y > 0.5) { even } else { odd }
+        };
+        let mut rng = crate::sampling::rng::Pcg32::new(9, 0);
+        for _ in 0..500 {
+            let uv = Vec2::new(rng.next_f32(), rng.next_f32());
+            let inner = checks(uv * 5.0, Rgb::new(0.9, 0.1, 0.1), Rgb::new(0.1, 0.9, 0.1));
+            let expected = checks(
+                uv * Vec2::new(3.0, 2.0) + Vec2::new(0.25, 0.1),
+                inner,
+                Rgb::new(0.1, 0.1, 0.9),
+            );
+            let tc = crate::texture::TexCoord::new(uv, Vec3::ZERO);
+            let got = reflectance.eval(&scene.textures, &tc);
+            // Points within float error of a check's edge may go either way.
+            let near_edge = [uv * 5.0, uv * Vec2::new(3.0, 2.0) + Vec2::new(0.25, 0.1)]
+                .iter()
+                .any(|q| ((2.0 * *q) - (2.0 * *q).round()).abs().min_element() < 1e-4);
+            assert!(near_edge || got == expected, "at {uv}: {got} against {expected}");
+        }
     }
 
     /// A bump map keeps its nested BSDF and takes its texture whatever the
