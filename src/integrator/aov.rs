@@ -28,7 +28,7 @@ pub fn camera_aov(scene: &Scene, camera_ray: &Ray) -> AovSample {
         let Some(hit) = found else {
             // Seen through a specular chain, the background is the colour.
             if bounce > 0 {
-                out.albedo = (throughput * scene.background.eval(ray.dir)).min(Rgb::ONE);
+                out.albedo = (throughput * scene.background.eval_from(ray.origin, ray.dir)).min(Rgb::ONE);
             }
             return out;
         };

@@ -88,10 +88,11 @@ impl Integrator for PathTracer {
             let Some(hit) = scene.intersect(&ray) else {
                 if let (Some(env), true) = (scene.environment_light, shows_emission) {
                     let dir = ray.dir.normalize();
-                    let le = scene.background.eval(dir);
+                    // (A portal lets in what the ray's origin sees through it.)
+                    let le = scene.background.eval_from(ray.origin, dir);
                     let w = if nee && !prev_delta {
-                        let pdf_light =
-                            light_choice_pmf(scene, prev_p, prev_n, env as usize) * scene.background.pdf(dir);
+                        let pdf_light = light_choice_pmf(scene, prev_p, prev_n, env as usize)
+                            * scene.background.pdf_from(prev_p, dir);
                         power_heuristic(prev_pdf, pdf_light)
                     } else {
                         1.0

@@ -284,10 +284,10 @@ impl Integrator for VolPathTracer {
             let shows_emission = scene.settings.shows_emission(s.depth + 1);
             let Some(hit) = hit else {
                 if let (Some(env), true) = (scene.environment_light, shows_emission) {
-                    let le = scene.background.eval(dir);
                     let (prev_p, prev_n) = (s.prev_p, s.prev_n);
+                    let le = scene.background.eval_from(prev_p, dir);
                     self.add_emission(&mut s, le, || {
-                        light_choice_pmf(scene, prev_p, prev_n, env as usize) * scene.background.pdf(dir)
+                        light_choice_pmf(scene, prev_p, prev_n, env as usize) * scene.background.pdf_from(prev_p, dir)
                     });
                 }
                 return s.l;

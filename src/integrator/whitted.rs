@@ -61,7 +61,7 @@ impl Whitted {
         let shows_emission = scene.settings.shows_emission(depth);
         let Some(mut hit) = scene.intersect(ray) else {
             return if shows_emission {
-                scene.background.eval(ray.dir)
+                scene.background.eval_from(ray.origin, ray.dir)
             } else {
                 Rgb::ZERO
             };

@@ -230,6 +230,8 @@ pub enum Background {
     },
     /// An environment image.
     Image(Box<EnvironmentMap>),
+    /// An environment image seen through a portal.
+    Portal(Box<super::portal::PortalMap>),
 }
 
 impl Default for Background {
@@ -250,6 +252,18 @@ impl Background {
                 *bottom * (1.0 - t) + *top * t
             }
             Background::Image(map) => map.eval(dir),
+            Background::Portal(map) => map.eval(dir),
+        }
+    }
+
+    /// Radiance arriving at `origin` from direction `dir`: [`Background::eval`]
+    /// but through a portal, which only lets in what `origin` sees through
+    /// it.
+    #[inline]
+    pub fn eval_from(&self, origin: Vec3, dir: Vec3) -> Rgb {
+        match self {
+            Background::Portal(map) => map.eval_from(origin, dir),
+            _ => self.eval(dir),
         }
     }
 
@@ -259,6 +273,7 @@ impl Background {
             Background::Constant(c) => *c == Rgb::ZERO,
             Background::Gradient { top, bottom } => *top == Rgb::ZERO && *bottom == Rgb::ZERO,
             Background::Image(map) => map.average == Rgb::ZERO,
+            Background::Portal(map) => map.average == Rgb::ZERO,
         }
     }
 
@@ -268,6 +283,8 @@ impl Background {
             Background::Constant(c) => *c,
             Background::Gradient { top, bottom } => 0.5 * (*top + *bottom),
             Background::Image(map) => map.average,
+            // Black behind the portal.
+            Background::Portal(map) => 0.5 * map.average,
         }
     }
 
@@ -276,6 +293,7 @@ impl Background {
     pub fn sample(&self, u: Vec2) -> Option<(Vec3, f32)> {
         match self {
             Background::Image(map) => map.sample(u),
+            Background::Portal(map) => map.sample(u),
             _ => Some((sample_sphere_uniform(u), pdf_sphere_uniform())),
         }
     }
@@ -284,7 +302,27 @@ impl Background {
     pub fn pdf(&self, dir: Vec3) -> f32 {
         match self {
             Background::Image(map) => map.pdf(dir),
+            Background::Portal(map) => map.pdf(dir),
             _ => pdf_sphere_uniform(),
+        }
+    }
+
+    /// A direction toward the background from `p`: [`Background::sample`],
+    /// but through a portal, only the directions `p` sees through it.
+    #[inline]
+    pub fn sample_from(&self, p: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
+        match self {
+            Background::Portal(map) => map.sample_from(p, u),
+            _ => self.sample(u),
+        }
+    }
+
+    /// Density of [`Background::sample_from`] for `dir` from `p`.
+    #[inline]
+    pub fn pdf_from(&self, p: Vec3, dir: Vec3) -> f32 {
+        match self {
+            Background::Portal(map) => map.pdf_from(p, dir),
+            _ => self.pdf(dir),
         }
     }
 }

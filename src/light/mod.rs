@@ -18,6 +18,7 @@
 
 pub mod emission;
 pub mod environment;
+pub mod portal;
 pub mod sampler;
 
 pub use emission::{EmissionSample, sample_scene_emission, scene_bounding_sphere};
@@ -793,7 +794,7 @@ impl Light {
                 area_light_sample(scene, p, lp, ln, *two_sided, uv, pdf_solid_angle, pdf_area, radiance)
             }
             Light::Environment => {
-                let (wi, pdf) = scene.background.sample(u)?;
+                let (wi, pdf) = scene.background.sample_from(p, u)?;
                 if pdf <= 0.0 {
                     return None;
                 }
@@ -837,10 +838,10 @@ impl Light {
     }
 
     /// The density per steradian with which the environment light samples
-    /// direction `dir`.
-    pub fn pdf_environment(&self, scene: &Scene, dir: Vec3) -> f32 {
+    /// direction `dir` from `p`.
+    pub fn pdf_environment(&self, scene: &Scene, p: Vec3, dir: Vec3) -> f32 {
         match self {
-            Light::Environment => scene.background.pdf(dir),
+            Light::Environment => scene.background.pdf_from(p, dir),
             _ => 0.0,
         }
     }

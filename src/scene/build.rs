@@ -573,6 +573,25 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             Background::Image(Box::new(EnvironmentMap::with_layout(image, scale, to_world, *layout)))
         }
     };
+    // A portal: the background resampled into the portal's directions,
+    // at the map's resolution (pbrt-v4's; a constant needs one pixel).
+    let background = match (&desc.portal, background) {
+        (None, b) => b,
+        (Some(corners), b) => {
+            let res = match &b {
+                Background::Image(map) => map.image.height.max(1) as usize,
+                _ => 1,
+            };
+            let portal = crate::light::portal::PortalMap::new(|d| b.eval(d), *corners, res).map_err(|e| {
+                Error::scene(
+                    desc.world_locs.key("portal"),
+                    "world.portal",
+                    format!("the portal: {e}"),
+                )
+            })?;
+            Background::Portal(Box::new(portal))
+        }
+    };
     // In the path tracer a background that is not black lights the scene.
     let environment_light = if background.is_black() {
         None

@@ -1002,6 +1002,10 @@ pub struct SceneDesc {
     pub camera: CameraDesc,
     /// Background.
     pub background: BackgroundDesc,
+    /// A portal (four corners of a rectangle, in order, in world space)
+    /// through which alone the background lights the scene (pbrt-v4's
+    /// `portal`); `None`: the whole background.
+    pub portal: Option<[Vec3; 4]>,
     /// Ambient light for the Whitted integrator's ambient term.
     pub ambient: Rgb,
     /// Where the world settings were written.
@@ -1033,6 +1037,7 @@ impl Default for SceneDesc {
             settings_locs: Locs::default(),
             camera: CameraDesc::default(),
             background: BackgroundDesc::Constant(Rgb::ZERO),
+            portal: None,
             ambient: Rgb::ZERO,
             world_locs: Locs::default(),
             textures: Vec::new(),

@@ -1054,3 +1054,60 @@ Shape "sphere"
         assert!(differs, "{material}");
     }
 }
+
+/// An infinite light's portal: a closed room lit through a hole in its
+/// ceiling by a uniform sky renders the same with and without the portal
+/// on the hole (the sky reaches the room through it alone), and with less
+/// noise: its samples all go through the hole.
+#[test]
+fn a_portal_over_the_only_opening_changes_the_noise_not_the_image() {
+    let scene = |portal: bool, seed: u64| {
+        let portal = if portal {
+            r#""point3 portal" [-0.5 2 -0.5  0.5 2 -0.5  0.5 2 0.5  -0.5 2 0.5]"#
+        } else {
+            ""
+        };
+        let mut d = parse(&format!(
+            r#"LookAt 0 1 1.9  0 0 -1  0 1 0
+Camera "perspective" "float fov" 70
+Film "rgb" "integer xresolution" 24 "integer yresolution" 24
+Sampler "independent" "integer pixelsamples" 16
+Integrator "path" "integer maxdepth" 3
+WorldBegin
+LightSource "infinite" "rgb L" [1 1 1] {portal}
+Material "diffuse" "rgb reflectance" [0.5 0.5 0.5]
+# Floor, walls and a ceiling with a 1 × 1 hole, a room 4 wide, 2 high.
+Shape "bilinearmesh" "point3 P" [-2 0 -2  2 0 -2  -2 0 2  2 0 2]
+Shape "bilinearmesh" "point3 P" [-2 0 -2  -2 2 -2  2 0 -2  2 2 -2]
+Shape "bilinearmesh" "point3 P" [-2 0 2  2 0 2  -2 2 2  2 2 2]
+Shape "bilinearmesh" "point3 P" [-2 0 -2  -2 0 2  -2 2 -2  -2 2 2]
+Shape "bilinearmesh" "point3 P" [2 0 -2  2 2 -2  2 0 2  2 2 2]
+Shape "bilinearmesh" "point3 P" [-2 2 -2  -0.5 2 -2  -2 2 2  -0.5 2 2]
+Shape "bilinearmesh" "point3 P" [0.5 2 -2  2 2 -2  0.5 2 2  2 2 2]
+Shape "bilinearmesh" "point3 P" [-0.5 2 -2  0.5 2 -2  -0.5 2 -0.5  0.5 2 -0.5]
+Shape "bilinearmesh" "point3 P" [-0.5 2 0.5  0.5 2 0.5  -0.5 2 2  0.5 2 2]
+"#
+        ));
+        d.settings.seed = seed;
+        let film = render_desc(&d);
+        film.pixels.iter().map(|p| p.value().y as f64).collect::<Vec<_>>()
+    };
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    // Squared difference between two renders of other seeds: twice the
+    // per-pixel variance.
+    let spread = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / a.len() as f64;
+    let (p1, p2) = (scene(true, 1), scene(true, 2));
+    let (n1, n2) = (scene(false, 1), scene(false, 2));
+    let (mp, mn) = (mean(&p1) + mean(&p2), mean(&n1) + mean(&n2));
+    // Standard error of the difference of the two means, from the spreads.
+    let sigma = ((spread(&p1, &p2) + spread(&n1, &n2)) / p1.len() as f64).sqrt();
+    assert!(mn > 0.01, "the room is lit: {mn}");
+    assert!((mp - mn).abs() < 4.0 * sigma, "{mp} against {mn} (σ {sigma})");
+    // (Measured: a four-hundredth.)
+    assert!(
+        spread(&p1, &p2) < 0.1 * spread(&n1, &n2),
+        "{} against {}",
+        spread(&p1, &p2),
+        spread(&n1, &n2)
+    );
+}

@@ -355,7 +355,7 @@ fn check_light(name: &str, scene: &trazo::scene::Scene, p: Vec3, alpha: f64) {
         },
         |d| {
             if let Light::Environment = light {
-                return light.pdf_environment(scene, d) as f64;
+                return light.pdf_environment(scene, p, d) as f64;
             }
             let ray = trazo::geometry::Ray::new(p, d);
             match scene.intersect(&ray) {

@@ -803,7 +803,23 @@ impl<'s> Tracer<'s> {
                 )
             }
             _ => {
-                let ls = light.sample_li(scene, pt.p, u_pick, u)?;
+                let ls = match light {
+                    // The densities BDPT weighs an environment vertex with
+                    // are its emission's, which a portal does not window:
+                    // its connections are drawn the same way (for other
+                    // backgrounds the two are one).
+                    Light::Environment => {
+                        let (wi, pdf) = scene.background.sample(u)?;
+                        crate::light::LightSample {
+                            wi,
+                            li: scene.background.eval(wi),
+                            pdf,
+                            is_delta: false,
+                            target: ShadowTarget::Infinity,
+                        }
+                    }
+                    _ => light.sample_li(scene, pt.p, u_pick, u)?,
+                };
                 if ls.pdf <= 0.0 {
                     return None;
                 }

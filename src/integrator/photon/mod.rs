@@ -136,7 +136,7 @@ pub(crate) fn camera_segment<'a>(
     let shows_emission = scene.settings.shows_emission(depth);
     let Some(mut hit) = scene.intersect(ray) else {
         if scene.environment_light.is_some() && shows_emission {
-            *l += beta * scene.background.eval(ray.dir);
+            *l += beta * scene.background.eval_from(ray.origin, ray.dir);
         }
         return None;
     };

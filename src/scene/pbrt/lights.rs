@@ -278,13 +278,17 @@ impl Parser {
             return Err(prm.err("give either \"L\" or \"filename\" to an infinite light, not both"));
         }
         let mut scale = p.float("scale", 1.0)?;
-        if let Some(prm) = p.find("portal") {
-            let l = prm.loc.clone();
-            self.unsupported(
-                &l,
-                "\"portal\" of an infinite light",
-                "pbrt-v4 lets the map's light in through the portal only (a ray that misses it sees black); trazo lights the scene from the whole map",
-            );
+        // A portal: four corners in world space (pbrt-v4 does not move
+        // them by the CTM).
+        if let Some((corners, prm)) = p.vec3s("portal", &["point3", "point"])? {
+            let [a, b, c, d] = corners[..] else {
+                return Err(prm.err(format!("a portal has 4 corners, got {}", corners.len())));
+            };
+            if !corners.iter().all(|v| v.is_finite()) {
+                return Err(prm.err("the portal's corners must be finite"));
+            }
+            self.desc.portal = Some([a, b, c, d]);
+            self.desc.world_locs.keys.push(("portal".into(), prm.loc.clone()));
         }
         let illuminance = p.float_opt("illuminance")?.map(|(e, _)| e).filter(|&e| e > 0.0);
         let (background, at) = match file {
