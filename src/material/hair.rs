@@ -26,6 +26,29 @@ use std::f32::consts::PI;
 /// Scattering orders tabulated before the remainder.
 const P_MAX: usize = 3;
 
+/// A fibre's parameters (pbrt-v4's `hair` material), the same at every
+/// point; the BSDF at a point adds where across the fibre it is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HairParams {
+    /// Absorption per unit diameter.
+    pub sigma_a: Rgb,
+    /// Index of refraction of the fibre.
+    pub eta: f32,
+    /// Longitudinal roughness, in [0, 1].
+    pub beta_m: f32,
+    /// Azimuthal roughness, in [0, 1].
+    pub beta_n: f32,
+    /// Tilt of the cuticle scales, in degrees.
+    pub alpha: f32,
+}
+
+impl HairParams {
+    /// The BSDF at offset `h` ∈ [−1, 1] across the fibre.
+    pub fn bsdf(&self, h: f32) -> HairBsdf {
+        HairBsdf::new(h, self.eta, self.sigma_a, self.beta_m, self.beta_n, self.alpha)
+    }
+}
+
 /// The hair BSDF at one point.
 #[derive(Clone, Copy, Debug)]
 pub struct HairBsdf {

@@ -152,18 +152,7 @@ pub enum MaterialKind {
     },
     /// Hair fibres (see [`hair`]): meant for curves, whose v runs across
     /// the fibre.
-    Hair {
-        /// Absorption per unit diameter.
-        sigma_a: Rgb,
-        /// Index of refraction of the fibre.
-        eta: f32,
-        /// Longitudinal roughness.
-        beta_m: f32,
-        /// Azimuthal roughness.
-        beta_n: f32,
-        /// Tilt of the cuticle scales, in degrees.
-        alpha: f32,
-    },
+    Hair(hair::HairParams),
     /// A measured BRDF (an RGL `.bsdf` file; see [`measured`]).
     Measured {
         /// Its tables, shared by the materials that name the same file.
@@ -524,7 +513,7 @@ impl Material {
     /// Whether any of its textures reads surface coordinates (u, v).
     pub fn reads_uv(&self) -> bool {
         // Hair reads v: where across the fibre the ray met it.
-        matches!(self.kind, MaterialKind::Hair { .. }) || self.textures().iter().any(|t| t.reads_uv())
+        matches!(self.kind, MaterialKind::Hair(_)) || self.textures().iter().any(|t| t.reads_uv())
     }
 
     /// Every texture it reads.
@@ -543,7 +532,7 @@ impl Material {
             } => &[diffuse],
             MaterialKind::Layered { .. } => &[],
             MaterialKind::Conductor { .. } | MaterialKind::Dielectric { .. } | MaterialKind::Thin { .. } => &[],
-            MaterialKind::Principled { .. } | MaterialKind::Measured { .. } | MaterialKind::Hair { .. } => &[],
+            MaterialKind::Principled { .. } | MaterialKind::Measured { .. } | MaterialKind::Hair(_) => &[],
         };
         let mut all = vec![&self.emission];
         if let MaterialKind::Principled { params, .. } = &self.kind {
@@ -806,14 +795,8 @@ impl Material {
                     ..zero
                 }
             }
-            MaterialKind::Hair {
-                sigma_a,
-                eta,
-                beta_m,
-                beta_n,
-                alpha,
-            } => ClassicParams {
-                kd: hair::HairBsdf::new(0.0, *eta, *sigma_a, *beta_m, *beta_n, *alpha).albedo(),
+            MaterialKind::Hair(hair) => ClassicParams {
+                kd: hair.bsdf(0.0).albedo(),
                 ..zero
             },
             // Its albedo at normal incidence, as a diffuse colour.
@@ -940,20 +923,7 @@ impl Material {
                 Bsdf::Principled(params.bsdf_at(textures, tc, *eta, *thin))
             }
             MaterialKind::Measured { brdf } => Bsdf::Measured(measured::MeasuredBsdf { brdf }),
-            MaterialKind::Hair {
-                sigma_a,
-                eta,
-                beta_m,
-                beta_n,
-                alpha,
-            } => Bsdf::Hair(hair::HairBsdf::new(
-                -1.0 + 2.0 * tc.uv.y,
-                *eta,
-                *sigma_a,
-                *beta_m,
-                *beta_n,
-                *alpha,
-            )),
+            MaterialKind::Hair(hair) => Bsdf::Hair(hair.bsdf(-1.0 + 2.0 * tc.uv.y)),
             MaterialKind::Thin {
                 eta,
                 reflect_tint,

@@ -1010,19 +1010,7 @@ fn to_material(
             reflect_tint: *reflect_tint,
             transmit_tint: *transmit_tint,
         }),
-        MaterialKindDesc::Hair {
-            sigma_a,
-            eta,
-            beta_m,
-            beta_n,
-            alpha,
-        } => Material::plain(MaterialKind::Hair {
-            sigma_a: *sigma_a,
-            eta: *eta,
-            beta_m: *beta_m,
-            beta_n: *beta_n,
-            alpha: *alpha,
-        }),
+        MaterialKindDesc::Hair(h) => Material::plain(MaterialKind::Hair(*h)),
         MaterialKindDesc::Measured { file } => Material::plain(MaterialKind::Measured {
             brdf: measured[file.as_path()].clone(),
         }),

@@ -366,18 +366,7 @@ pub enum MaterialKindDesc {
         samples: u32,
     },
     /// Hair fibres (pbrt-v4's `hair`; Chiang et al. 2016), for curves.
-    Hair {
-        /// Absorption per unit diameter.
-        sigma_a: Rgb,
-        /// Index of refraction of the fibre.
-        eta: f32,
-        /// Longitudinal roughness, in [0, 1].
-        beta_m: f32,
-        /// Azimuthal roughness, in [0, 1].
-        beta_n: f32,
-        /// Tilt of the cuticle scales, in degrees.
-        alpha: f32,
-    },
+    Hair(crate::material::hair::HairParams),
     /// A measured BRDF: an RGL `.bsdf` file (pbrt-v4's and Mitsuba's
     /// `measured`), relative to the scene's folder.
     Measured {
@@ -1496,22 +1485,19 @@ impl SceneDesc {
                     }
                     ior("eta", *eta)?;
                 }
-                MaterialKindDesc::Hair {
-                    sigma_a,
-                    eta,
-                    beta_m,
-                    beta_n,
-                    alpha,
-                } => {
-                    c.color("sigma_a", *sigma_a)?;
-                    ior("eta", *eta)?;
-                    for (key, b) in [("beta_m", beta_m), ("beta_n", beta_n)] {
-                        if !(0.0..=1.0).contains(b) {
+                MaterialKindDesc::Hair(h) => {
+                    c.color("sigma_a", h.sigma_a)?;
+                    ior("eta", h.eta)?;
+                    for (key, b) in [("beta_m", h.beta_m), ("beta_n", h.beta_n)] {
+                        if !(0.0..=1.0).contains(&b) {
                             return Err(c.err(key, format!("must be in [0, 1], got {b}")));
                         }
                     }
-                    if !alpha.is_finite() || alpha.abs() > 90.0 {
-                        return Err(c.err("alpha", format!("must be an angle in [-90, 90] degrees, got {alpha}")));
+                    if !h.alpha.is_finite() || h.alpha.abs() > 90.0 {
+                        return Err(c.err(
+                            "alpha",
+                            format!("must be an angle in [-90, 90] degrees, got {}", h.alpha),
+                        ));
                     }
                 }
                 MaterialKindDesc::Measured { file } => {

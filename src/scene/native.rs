@@ -938,13 +938,13 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
                     t.number_or("pheomelanin", 0.0)?,
                 )
             };
-            MaterialKindDesc::Hair {
+            MaterialKindDesc::Hair(crate::material::hair::HairParams {
                 sigma_a,
                 eta: t.number_or("eta", 1.55)?,
                 beta_m: t.number_or("beta_m", 0.3)?,
                 beta_n,
                 alpha: t.number_or("alpha", 2.0)?,
-            }
+            })
         }
         "measured" => MaterialKindDesc::Measured {
             file: t.required("file", t.path("file")?)?,
@@ -1747,8 +1747,8 @@ transform = [{ translate = [0, 1, 0] }]
         assert!(d.shapes.iter().all(|s| matches!(s.kind, ShapeKind::Curve(_))
             && s.material.as_deref() == Some("fur")
             && s.transform.len() == 1));
-        assert!(matches!(d.materials[0].kind, MaterialKindDesc::Hair { sigma_a, .. }
-            if sigma_a == crate::material::hair::HairBsdf::sigma_a_from_reflectance(Rgb::new(0.6, 0.4, 0.2), 0.3)));
+        assert!(matches!(d.materials[0].kind, MaterialKindDesc::Hair(h)
+            if h.sigma_a == crate::material::hair::HairBsdf::sigma_a_from_reflectance(Rgb::new(0.6, 0.4, 0.2), 0.3)));
         let e = parse_str("[[shape]]\ntype = \"curve\"\npoints = [[0, 0, 0], [1, 1, 0], [2, 0, 0], [3, 0, 0]]\ncurve_type = \"ribbon\"\n")
             .unwrap_err()
             .to_string();

@@ -646,13 +646,13 @@ impl Parser {
                 if !(eta > 0.0 && eta.is_finite()) {
                     return Err(p.find("eta").expect("read").err(format!("must be positive, got {eta}")));
                 }
-                MaterialKindDesc::Hair {
+                MaterialKindDesc::Hair(crate::material::hair::HairParams {
                     sigma_a,
                     eta,
                     beta_m,
                     beta_n,
                     alpha,
-                }
+                })
             }
             "mix" => {
                 let Some((names, prm)) = p.strings("materials")? else {

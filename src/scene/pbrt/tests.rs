@@ -2599,7 +2599,7 @@ Shape "curve" "point3 P" [0 0 0 1 0 0 2 0 0] "integer degree" 2 "string basis" "
 
     // Hair's absorption: σa, a colour, pigments or pbrt-v4's brown.
     let hair = |params: &str| match material(&world(&format!("Material \"hair\" {params}\nShape \"sphere\"")), 0).kind {
-        MaterialKindDesc::Hair { sigma_a, .. } => sigma_a,
+        MaterialKindDesc::Hair(h) => h.sigma_a,
         ref k => panic!("{k:?}"),
     };
     use crate::material::hair::HairBsdf;
