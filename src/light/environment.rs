@@ -261,9 +261,13 @@ impl Background {
     /// it.
     #[inline]
     pub fn eval_from(&self, origin: Vec3, dir: Vec3) -> Rgb {
+        // One match, not a second through `eval`: this is the path
+        // tracer's every escaping ray.
         match self {
+            Background::Constant(c) => *c,
+            Background::Image(map) => map.eval(dir),
             Background::Portal(map) => map.eval_from(origin, dir),
-            _ => self.eval(dir),
+            Background::Gradient { .. } => self.eval(dir),
         }
     }
 
@@ -312,8 +316,9 @@ impl Background {
     #[inline]
     pub fn sample_from(&self, p: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
         match self {
+            Background::Image(map) => map.sample(u),
             Background::Portal(map) => map.sample_from(p, u),
-            _ => self.sample(u),
+            _ => Some((sample_sphere_uniform(u), pdf_sphere_uniform())),
         }
     }
 
@@ -321,8 +326,9 @@ impl Background {
     #[inline]
     pub fn pdf_from(&self, p: Vec3, dir: Vec3) -> f32 {
         match self {
+            Background::Image(map) => map.pdf(dir),
             Background::Portal(map) => map.pdf_from(p, dir),
-            _ => self.pdf(dir),
+            _ => pdf_sphere_uniform(),
         }
     }
 }
