@@ -115,6 +115,7 @@ fn clutter(n: usize, seed: u64, extent: f32) -> Aggregate {
     let shapes = (0..n / 2)
         .map(|_| ShapeInstance {
             shape: Shape::Rectangle(Rectangle::new(v() * extent, v() * 0.4, v() * 0.4)),
+            motion: None,
             transform: None,
             material: 0,
             light: None,

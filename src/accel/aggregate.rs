@@ -16,6 +16,7 @@ use super::bvh::{ALONE, Bvh, SahCosts};
 use super::queries::TriangleBvh;
 use super::wide::Bvh4;
 use crate::geometry::mesh::TriangleMesh;
+use crate::geometry::motion::MotionTransform;
 use crate::geometry::shape::{LocalSurface, Rectangle, Shape};
 use crate::geometry::triangle::{TriangleRay, intersect_triangle_with};
 use crate::geometry::{Aabb, Ray, SurfaceHit, Transform};
@@ -28,8 +29,12 @@ use std::time::Instant;
 pub struct ShapeInstance {
     /// The shape in its object space.
     pub shape: Shape,
-    /// Object-to-world transform; `None` for the identity.
+    /// Object-to-world transform; `None` for the identity. For a moving
+    /// shape, the transform at the shutter's opening.
     pub transform: Option<Transform>,
+    /// The shape's motion while the shutter is open; `None`: it stands
+    /// still. Emitters do not move.
+    pub motion: Option<Box<MotionTransform>>,
     /// Material index.
     pub material: u32,
     /// Area light index, if the shape emits.
@@ -54,8 +59,12 @@ pub struct MeshObject {
 pub struct MeshInstance {
     /// Index into the meshes.
     pub mesh: u32,
-    /// Object-to-world transform.
+    /// Object-to-world transform (of a moving instance, at the shutter's
+    /// opening).
     pub transform: Transform,
+    /// The instance's motion while the shutter is open; `None`: it stands
+    /// still. Emitters do not move.
+    pub motion: Option<Box<MotionTransform>>,
     /// Material index.
     pub material: u32,
     /// Area light index, if the instance emits.
@@ -275,9 +284,10 @@ impl Aggregate {
             match s.shape.bounds() {
                 Some(b) => {
                     refs.push(PrimRef::Shape(i as u32));
-                    bounds.push(match &s.transform {
-                        Some(t) => t.aabb(&b),
-                        None => b,
+                    bounds.push(match (&s.motion, &s.transform) {
+                        (Some(m), _) => m.bounds(&b),
+                        (None, Some(t)) => t.aabb(&b),
+                        (None, None) => b,
                     });
                 }
                 None => unbounded.push(i as u32),
@@ -313,7 +323,10 @@ impl Aggregate {
                 (None, None) => Aabb::EMPTY,
             };
             refs.push(PrimRef::Instance(i as u32));
-            bounds.push(inst.transform.aabb(&b));
+            bounds.push(match &inst.motion {
+                Some(m) => m.bounds(&b),
+                None => inst.transform.aabb(&b),
+            });
         }
         let scene_bounds = bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
         let mut blocks = Blocks::new();
@@ -666,7 +679,10 @@ impl Aggregate {
         let inst = &self.instances[i as usize];
         let mesh = &self.meshes[inst.mesh as usize];
         // The object-space ray keeps the world ray's parameter.
-        let mut obj_ray = inst.transform.inv_ray(ray);
+        let mut obj_ray = match &inst.motion {
+            Some(m) => m.at(ray.time).inv_ray(ray),
+            None => inst.transform.inv_ray(ray),
+        };
         let Some(obj_pre) = TriangleRay::new(&obj_ray) else {
             return false;
         };
@@ -715,7 +731,10 @@ impl Aggregate {
             // theirs is inlined; the other shapes' tests stay a call.
             (None, Shape::Rectangle(r)) => r.intersect(ray),
             (None, shape) => shape.intersect(ray),
-            (Some(t), shape) => shape.intersect(&t.inv_ray(ray)),
+            (Some(t), shape) => match &s.motion {
+                Some(m) => shape.intersect(&m.at(ray.time).inv_ray(ray)),
+                None => shape.intersect(&t.inv_ray(ray)),
+            },
         }
     }
 
@@ -900,6 +919,7 @@ impl Aggregate {
                         (ls, s.shape.shading_normal(ls.p))
                     }
                     (_, Some(t)) => {
+                        let t = &s.motion.as_ref().map_or(*t, |m| m.at(ray.time));
                         let obj_ray = t.inv_ray(ray);
                         let ls = s.shape.surface_at_hit(&obj_ray, hit.t, uv);
                         let ns = s.shape.shading_normal(ls.p).and_then(|n| t.normal(n).try_normalize());
@@ -910,7 +930,7 @@ impl Aggregate {
             HitPrim::Instance { instance, tri, b } => {
                 let inst = &self.instances[instance as usize];
                 let mesh = &self.meshes[inst.mesh as usize];
-                let t = &inst.transform;
+                let t = &inst.motion.as_ref().map_or(inst.transform, |m| m.at(ray.time));
                 attribute = mesh.attribute(tri as usize, b);
                 let ls = transform_surface(t, mesh.surface(tri as usize, b));
                 let ns = mesh
@@ -928,7 +948,9 @@ impl Aggregate {
             ls.n = -ls.n;
             ns = ns.map(|n| -n);
         }
-        finish_surface(hit.t, ls, ns, tangent, material, light, attribute)
+        let mut surface = finish_surface(hit.t, ls, ns, tangent, material, light, attribute);
+        surface.time = ray.time;
+        surface
     }
 
     /// The density, per unit world area, with which [`Aggregate::sample_emitter`]
@@ -1082,7 +1104,7 @@ impl Aggregate {
 /// Mitsuba Cornell box, whose walls are transformed rectangles, that was a
 /// sixth of the path tracer's time.
 fn bake_transform(mut s: ShapeInstance) -> ShapeInstance {
-    let Some(t) = s.transform else {
+    let (Some(t), None) = (s.transform, &s.motion) else {
         return s;
     };
     match s.shape {
@@ -1181,6 +1203,7 @@ fn finish_surface(
         material,
         light,
         attribute,
+        time: 0.0,
     }
 }
 
@@ -1248,6 +1271,7 @@ mod tests {
                 shapes.push(ShapeInstance {
                     shape,
                     transform: None,
+                    motion: None,
                     material: k,
                     light: None,
                     flip_normals: false,
@@ -1257,6 +1281,7 @@ mod tests {
             shapes.push(ShapeInstance {
                 shape: Shape::Sphere(Sphere::new(Vec3::new(1e4 + 6.0, 0.0, 0.0), 1e4)),
                 transform: None,
+                motion: None,
                 material: 50,
                 light: None,
                 flip_normals: false,
@@ -1359,6 +1384,7 @@ mod tests {
             .map(|r| ShapeInstance {
                 shape: Shape::Rectangle(r),
                 transform: None,
+                motion: None,
                 material: 0,
                 light: None,
                 flip_normals: false,
@@ -1418,6 +1444,7 @@ mod tests {
             vec![ShapeInstance {
                 shape,
                 transform: Some(transform),
+                motion: None,
                 material: 0,
                 light: None,
                 flip_normals: false,

@@ -186,6 +186,9 @@ pub struct Camera {
     full_size: Vec2,
     /// A realistic camera's lenses.
     lens_system: Option<std::sync::Arc<LensSystem>>,
+    /// When the shutter opens and closes, where something in the scene
+    /// moves; `None`: every ray is traced at time 0.
+    shutter: Option<(f32, f32)>,
 }
 
 /// The perspective projection of pbrt-v4 (eq. 5.1): maps camera space to
@@ -329,6 +332,7 @@ impl Camera {
             offset: Vec2::new(x0f, y0f),
             full_size: Vec2::new(width as f32, height as f32),
             lens_system: None,
+            shutter: None,
         })
     }
 
@@ -364,6 +368,32 @@ impl Camera {
         } else {
             sampler.skip_2d();
             Vec2::ZERO
+        }
+    }
+
+    /// The same camera with its shutter open from `open` to `close`, each
+    /// camera sample then drawing its time in between (a scene with moving
+    /// objects; in one without, no sample is spent on time).
+    pub fn with_shutter(mut self, open: f32, close: f32) -> Camera {
+        self.shutter = Some((open, close));
+        self
+    }
+
+    /// The time of a camera sample: uniform over the shutter interval,
+    /// drawn from `sampler` where the camera has a shutter, else 0 and no
+    /// number drawn (pbrt-v4's `SampleTime`).
+    #[inline]
+    pub fn draw_time(&self, sampler: &mut Sampler) -> f32 {
+        self.time_from(|| sampler.next_1d())
+    }
+
+    /// [`Camera::draw_time`] with the uniform number from `u`, called only
+    /// where the camera has a shutter.
+    #[inline]
+    pub fn time_from(&self, u: impl FnOnce() -> f32) -> f32 {
+        match self.shutter {
+            Some((open, close)) => open + (close - open) * u(),
+            None => 0.0,
         }
     }
 

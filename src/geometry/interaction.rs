@@ -34,6 +34,8 @@ pub struct SurfaceHit {
     /// The value of the mesh attribute its material reads (first three
     /// channels), 0 where there is none.
     pub attribute: Vec3,
+    /// The time of the ray that found it, which rays leaving it keep.
+    pub time: f32,
 }
 
 impl SurfaceHit {
@@ -64,6 +66,7 @@ impl SurfaceHit {
             p: self.p,
             p_error: self.p_error,
             ng: self.ng,
+            time: self.time,
         }
     }
 }
@@ -78,13 +81,15 @@ pub struct SpawnPoint {
     pub p_error: Vec3,
     /// Geometric normal (unit length).
     pub ng: Vec3,
+    /// The time rays leaving it are traced at.
+    pub time: f32,
 }
 
 impl SpawnPoint {
     /// See [`SurfaceHit::spawn_ray`].
     #[inline]
     pub fn spawn_ray(&self, dir: Vec3) -> Ray {
-        Ray::new(offset_ray_origin(self.p, self.p_error, self.ng, dir), dir)
+        Ray::new(offset_ray_origin(self.p, self.p_error, self.ng, dir), dir).at_time(self.time)
     }
 
     /// See [`SurfaceHit::spawn_ray_to`].
@@ -92,7 +97,7 @@ impl SpawnPoint {
     pub fn spawn_ray_to(&self, target: Vec3) -> Ray {
         let o = offset_ray_origin(self.p, self.p_error, self.ng, target - self.p);
         let d = target - o;
-        Ray::with_interval(o, d, 0.0, SHADOW_EPSILON)
+        Ray::with_interval(o, d, 0.0, SHADOW_EPSILON).at_time(self.time)
     }
 }
 

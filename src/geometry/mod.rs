@@ -9,6 +9,7 @@ pub mod interaction;
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod lanes;
 pub mod mesh;
+pub mod motion;
 pub mod quadric;
 pub mod ray;
 pub(crate) mod real;

@@ -17,6 +17,10 @@ pub struct Ray {
     pub t_min: f32,
     /// Largest accepted parameter; shrinks to the closest hit during traversal.
     pub t_max: f32,
+    /// When the ray is traced, within the camera's shutter interval: what
+    /// moving objects it meets depends on it (motion blur). Rays continuing
+    /// a path keep their path's time.
+    pub time: f32,
 }
 
 impl Ray {
@@ -28,6 +32,7 @@ impl Ray {
             dir,
             t_min: 0.0,
             t_max: f32::INFINITY,
+            time: 0.0,
         }
     }
 
@@ -39,7 +44,15 @@ impl Ray {
             dir,
             t_min,
             t_max,
+            time: 0.0,
         }
+    }
+
+    /// The same ray traced at `time`.
+    #[inline]
+    pub fn at_time(mut self, time: f32) -> Self {
+        self.time = time;
+        self
     }
 
     /// The point `o + t·d`.

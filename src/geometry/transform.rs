@@ -221,14 +221,14 @@ impl Transform {
     /// parameter `t` names the same points before and after.
     #[inline]
     pub fn ray(&self, r: &Ray) -> Ray {
-        Ray::with_interval(self.point(r.origin), self.vector(r.dir), r.t_min, r.t_max)
+        Ray::with_interval(self.point(r.origin), self.vector(r.dir), r.t_min, r.t_max).at_time(r.time)
     }
 
     /// Maps a ray by the inverse transform (world to object space for a
     /// shape's object-to-world transform).
     #[inline]
     pub fn inv_ray(&self, r: &Ray) -> Ray {
-        Ray::with_interval(self.inv_point(r.origin), self.inv_vector(r.dir), r.t_min, r.t_max)
+        Ray::with_interval(self.inv_point(r.origin), self.inv_vector(r.dir), r.t_min, r.t_max).at_time(r.time)
     }
 
     /// The bounding box of a transformed box (Arvo's method: exact for the

@@ -287,7 +287,8 @@ impl SplatImage {
                     let mut rng = Pcg32::new(hash_u64s(&[seed, stream + 1, iteration, (y * w + x) as u64]), 0x5bd1);
                     let film = Vec2::new(x as f32 + rng.next_f32(), y as f32 + rng.next_f32());
                     let lens = Vec2::new(rng.next_f32(), rng.next_f32());
-                    sum.add(&camera_aov(scene, &scene.camera.generate_ray(film, lens)));
+                    let time = scene.camera.time_from(|| rng.next_f32());
+                    sum.add(&camera_aov(scene, &scene.camera.generate_ray(film, lens).at_time(time)));
                 }
             });
             rays += (self.target.width * self.target.height) as u64;
@@ -448,6 +449,7 @@ fn trace_path(
     };
     // The light's own point, seen directly (one segment).
     let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
+    let time = scene.camera.time_from(|| rng.next_f32());
     if let (Some(point), true) = (emitted.surface, scene.settings.shows_emission(1)) {
         if let Some(c) = scene.camera.sample_wi(point.p, u_lens) {
             let cos = crate::light::emitting_cosine(point.n, c.wi, point.two_sided);
@@ -455,7 +457,7 @@ fn trace_path(
                 *rays += 1;
                 let end = point.p + c.wi * c.dist;
                 let origin = point.origin_toward(c.wi);
-                let shadow = Ray::with_interval(origin, end - origin, 0.0, SHADOW_EPSILON);
+                let shadow = Ray::with_interval(origin, end - origin, 0.0, SHADOW_EPSILON).at_time(time);
                 if !scene.occluded(&shadow) {
                     let l = point.le * (cos * c.weight / (point.pdf_area * pmf));
                     target.add_splat(c.raster, l, out);
@@ -465,7 +467,7 @@ fn trace_path(
     }
 
     let mut beta = emitted.weight / pmf;
-    let mut ray = emitted.ray;
+    let mut ray = emitted.ray.at_time(time);
     // Segments of the path once it reaches the camera from the next
     // vertex: light → vertex → camera.
     let mut segments = 2u32;

@@ -75,6 +75,8 @@ enum Vertex<'a> {
         /// Direction toward the previous vertex.
         wo: Vec3,
         phase: Phase,
+        /// The path's time, which its rays keep.
+        time: f32,
     },
 }
 
@@ -154,12 +156,13 @@ impl VolPathTracer {
                 };
                 (f, bsdf.pdf(*wo, wi), shadow, medium)
             }
-            Vertex::Medium { p, wo, phase } => {
+            Vertex::Medium { p, wo, phase, time } => {
                 let f = phase.eval(*wo, ls.wi);
                 let shadow = match ls.target {
                     ShadowTarget::Point(q) => Ray::with_interval(*p, q - *p, 0.0, SHADOW_EPSILON),
                     ShadowTarget::Infinity => Ray::new(*p, ls.wi),
-                };
+                }
+                .at_time(*time);
                 (Rgb::splat(f), f, shadow, medium)
             }
         };
@@ -261,6 +264,7 @@ impl Integrator for VolPathTracer {
                     scene,
                     medium: mi,
                     channel,
+                    time: ray.time,
                 };
                 let outcome = match self.march_step {
                     None => self.track(&walk, &segment, &mut s, sampler, &mut rng, stats),
@@ -406,6 +410,8 @@ struct Walk<'a> {
     scene: &'a Scene,
     medium: u32,
     channel: usize,
+    /// The path's time.
+    time: f32,
 }
 
 /// exp(−τ) per channel.
@@ -636,7 +642,12 @@ impl VolPathTracer {
         }
         let phase = walk.scene.media[walk.medium as usize].phase;
         let wo = -dir;
-        let vertex = Vertex::Medium { p, wo, phase };
+        let vertex = Vertex::Medium {
+            p,
+            wo,
+            phase,
+            time: walk.time,
+        };
         s.l += self.sample_light(
             walk.scene,
             &vertex,
@@ -657,7 +668,7 @@ impl VolPathTracer {
         s.prev_p = p;
         s.prev_n = Vec3::ZERO;
         s.specular = false;
-        Segment::Scattered(Ray::new(p, ps.wi))
+        Segment::Scattered(Ray::new(p, ps.wi).at_time(walk.time))
     }
 
     /// The transmittance along a shadow `segment` (unit direction) in

@@ -1102,6 +1102,7 @@ mod tests {
             material: 0,
             light: None,
             attribute: Vec3::ZERO,
+            time: 0.0,
         }
     }
 

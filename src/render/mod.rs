@@ -505,9 +505,10 @@ fn camera_sample(
         Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + scene.settings.filter.sample(u)
     } - Vec2::new(cx as f32, cy as f32);
     let lens = scene.camera.draw_lens(sampler);
+    let time = scene.camera.draw_time(sampler);
     match scene.camera.generate_weighted_ray(position, lens) {
-        Some((ray, weight)) => (position, ray, weight),
-        None => (position, scene.camera.generate_ray(position, lens), 0.0),
+        Some((ray, weight)) => (position, ray.at_time(time), weight),
+        None => (position, scene.camera.generate_ray(position, lens).at_time(time), 0.0),
     }
 }
 

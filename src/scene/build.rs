@@ -10,6 +10,7 @@ use crate::camera::{Camera, Projection};
 use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::files::io_reason;
+use crate::geometry::motion::MotionTransform;
 use crate::geometry::shape::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere};
 use crate::geometry::{Aabb, Transform, TriangleMesh};
 use crate::light::{Background, EnvironmentMap, Goniometric, Light, Projector, ProjectorLaw, SpotProjection};
@@ -254,6 +255,37 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         }
         let transform = compose(&s.transform)
             .map_err(|e| Error::scene(s.locs.key("transform"), format!("shape[{i}].transform"), e))?;
+        let motion = match &s.motion {
+            None => None,
+            // pbrt-v4 cannot sample moving emitters either ("animated area
+            // lights are not supported").
+            Some(_) if materials[material as usize].is_emissive() => {
+                warnings.push(format!(
+                    "{}shape[{i}]: an emitting shape cannot move in trazo; it stays where the shutter opens",
+                    s.locs
+                        .key("transform_end")
+                        .map(|l| format!("{l}: "))
+                        .unwrap_or_default()
+                ));
+                None
+            }
+            Some(m) => {
+                let end = compose(&m.end)
+                    .map_err(|e| Error::scene(s.locs.key("transform_end"), format!("shape[{i}].transform_end"), e))?;
+                if end == transform {
+                    None
+                } else {
+                    let motion = MotionTransform::new(transform, end, m.times.0, m.times.1).ok_or_else(|| {
+                        Error::scene(
+                            s.locs.key("transform_end"),
+                            format!("shape[{i}].transform_end"),
+                            "the motion between the two transforms cannot be interpolated (entries too large or too small)",
+                        )
+                    })?;
+                    Some(Box::new(motion))
+                }
+            }
+        };
         let analytic = match &s.kind {
             ShapeKind::Sphere { center, radius } => Some(Shape::Sphere(Sphere::new(*center, *radius))),
             ShapeKind::Plane { point, normal } => Some(Shape::Plane(Plane::new(*point, *normal))),
@@ -285,6 +317,18 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             ShapeKind::Curve(c) => Some(Shape::Curve(*c)),
             ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_) => None,
         };
+        if let (Some(shape), Some(motion)) = (&analytic, &motion) {
+            shape_desc_index.push(i);
+            shapes.push(ShapeInstance {
+                shape: shape.clone(),
+                transform: Some(transform),
+                motion: Some(motion.clone()),
+                material,
+                light: None,
+                flip_normals: s.flip_normals,
+            });
+            continue;
+        }
         if let Some(shape) = analytic {
             // A sphere under a similarity (rotation, uniform scale,
             // translation) is still a sphere: bake the transform in, so it
@@ -316,6 +360,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                     shapes.push(ShapeInstance {
                         shape: Shape::Rectangle(face),
                         transform,
+                        motion: None,
                         material,
                         light: None,
                         flip_normals: s.flip_normals ^ !outward_is_front,
@@ -327,6 +372,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             shapes.push(ShapeInstance {
                 shape,
                 transform,
+                motion: None,
                 material,
                 light: None,
                 flip_normals: s.flip_normals,
@@ -337,7 +383,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             ShapeKind::Mesh(name) => uses[name.as_str()] == 1,
             _ => true,
         };
-        if placed_once {
+        if placed_once && motion.is_none() {
             let mesh = match &s.kind {
                 ShapeKind::Mesh(name) => named_meshes.remove(name.as_str()).expect("loaded"),
                 ShapeKind::InlineMesh(src) => {
@@ -360,18 +406,32 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 light: None,
             });
         } else {
-            let ShapeKind::Mesh(name) = &s.kind else { unreachable!() };
-            // Moved, not copied: a mesh placed many times is held once.
-            let mesh = *instanced_mesh_index.entry(name.as_str()).or_insert_with(|| {
-                let mesh = named_meshes.remove(name.as_str()).expect("loaded");
-                let what = format!("shape[{i}]");
-                let read = read_attribute(material, &materials, &material_mixes);
-                meshes.push(keep_read_attribute(mesh, read, &attribute_names, &what, &mut warnings));
-                meshes.len() as u32 - 1
-            });
+            // A moving mesh, or one placed many times: an instance (a mesh
+            // placed many times is moved, not copied, and held once).
+            let what = format!("shape[{i}]");
+            let read = read_attribute(material, &materials, &material_mixes);
+            let mesh = match &s.kind {
+                ShapeKind::Mesh(name) if placed_once => {
+                    let mesh = named_meshes.remove(name.as_str()).expect("loaded");
+                    meshes.push(keep_read_attribute(mesh, read, &attribute_names, &what, &mut warnings));
+                    meshes.len() as u32 - 1
+                }
+                ShapeKind::Mesh(name) => *instanced_mesh_index.entry(name.as_str()).or_insert_with(|| {
+                    let mesh = named_meshes.remove(name.as_str()).expect("loaded");
+                    meshes.push(keep_read_attribute(mesh, read, &attribute_names, &what, &mut warnings));
+                    meshes.len() as u32 - 1
+                }),
+                ShapeKind::InlineMesh(src) => {
+                    let mesh = load_mesh_source(src, &base_dir, &s.locs, &what, &mut warnings)?;
+                    meshes.push(keep_read_attribute(mesh, read, &attribute_names, &what, &mut warnings));
+                    meshes.len() as u32 - 1
+                }
+                _ => unreachable!("analytic shapes are placed above"),
+            };
             instances.push(MeshInstance {
                 mesh,
                 transform,
+                motion,
                 material,
                 light: None,
                 flip_normals: s.flip_normals,
@@ -385,6 +445,8 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         .sum::<u64>()
         + top_level_bytes((shapes.len() + instances.len()) as u64);
     memory.check(limits.max_memory)?;
+    let moving = shapes.iter().any(|s: &ShapeInstance| s.motion.is_some())
+        || instances.iter().any(|i: &MeshInstance| i.motion.is_some());
     let mut geometry = Aggregate::build(meshes, shapes, mesh_objects, instances);
 
     // Lights: the explicit ones, then one per emissive surface.
@@ -477,6 +539,11 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
         )
         .with_clipping(cam.near_clip, cam.far_clip);
+    let camera = if moving {
+        camera.with_shutter(cam.shutter.0, cam.shutter.1)
+    } else {
+        camera
+    };
     let camera = match &cam.projection {
         ProjectionDesc::Realistic {
             lenses,

@@ -106,6 +106,9 @@ pub struct CameraDesc {
     /// image, +y up, +z forward); when given, `from`, `to` and `up` are
     /// ignored. Format readers use it for their cameras' transforms.
     pub to_world: Option<Mat4>,
+    /// When the shutter opens and closes (pbrt-v4's `shutteropen` and
+    /// `shutterclose`): moving shapes are seen at times uniform in between.
+    pub shutter: (f32, f32),
     /// Source locations.
     pub locs: Locs,
 }
@@ -122,6 +125,7 @@ impl Default for CameraDesc {
             near_clip: 0.0,
             far_clip: f32::INFINITY,
             to_world: None,
+            shutter: (0.0, 1.0),
             locs: Locs::default(),
         }
     }
@@ -844,8 +848,22 @@ pub struct ShapeDesc {
     /// The media inside and outside the shape; `None`: the shape does not
     /// bound a medium, and rays keep theirs when they cross it.
     pub media: Option<MediumInterfaceDesc>,
+    /// How the shape moves while the shutter is open (motion blur); `None`:
+    /// it stands still, placed by `transform`.
+    pub motion: Option<MotionDesc>,
     /// Source locations.
     pub locs: Locs,
+}
+
+/// A shape's motion: `transform` places it at the first time, `end` at
+/// the second; in between it moves as pbrt-v4's animated transforms do
+/// ([`crate::geometry::motion::MotionTransform`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MotionDesc {
+    /// Transform steps at the second time, applied in order.
+    pub end: Vec<TransformOp>,
+    /// The times of the two transforms, the first smaller.
+    pub times: (f32, f32),
 }
 
 /// The media on the two sides of a surface, by name; `None`: vacuum.
@@ -920,6 +938,7 @@ impl ShapeDesc {
             material: material.map(str::to_string),
             flip_normals: false,
             media: None,
+            motion: None,
             locs: Locs::default(),
         }
     }
@@ -1751,6 +1770,16 @@ impl SceneDesc {
                     ));
                 }
             }
+            if let Some(m) = &s.motion {
+                c.finite("motion_times", m.times.0)?;
+                c.finite("motion_times", m.times.1)?;
+                if m.times.0 >= m.times.1 {
+                    return Err(c.err(
+                        "motion_times",
+                        format!("must increase, got {} then {}", m.times.0, m.times.1),
+                    ));
+                }
+            }
             match &s.kind {
                 ShapeKind::Sphere { center, radius } => {
                     c.vec3("center", *center)?;
@@ -1998,6 +2027,14 @@ impl SceneDesc {
         c.vec3("from", cam.from)?;
         c.vec3("to", cam.to)?;
         c.nonzero_vec3("up", cam.up)?;
+        c.finite("shutter", cam.shutter.0)?;
+        c.finite("shutter", cam.shutter.1)?;
+        if cam.shutter.0 > cam.shutter.1 {
+            return Err(c.err(
+                "shutter",
+                format!("closes before it opens: {} then {}", cam.shutter.0, cam.shutter.1),
+            ));
+        }
         match cam.projection {
             ProjectionDesc::Perspective { fov } => {
                 c.finite("fov", fov)?;

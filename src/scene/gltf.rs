@@ -891,6 +891,7 @@ impl<'a> Reader<'a> {
                     material: Some(material.clone()),
                     flip_normals: false,
                     media: None,
+                    motion: None,
                     locs,
                 });
             }

@@ -619,6 +619,7 @@ fn read_camera(t: &Table) -> Result<CameraDesc> {
         aperture_radius: t.number_or("aperture_radius", 0.0)?,
         focus_distance: t.number("focus_distance")?,
         to_world: None,
+        shutter: t.vec2("shutter")?.map_or(d.shutter, |v| (v.x, v.y)),
         ..d
     };
     Ok(CameraDesc {
@@ -1462,12 +1463,34 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
     let inside = t.string("inside")?;
     let outside = t.string("outside")?;
     let media = (inside.is_some() || outside.is_some()).then_some(MediumInterfaceDesc { inside, outside });
+    let motion = match t.value("transform_end") {
+        Some(v) => {
+            let mut end = read_transform(t, v)?;
+            if let Some(center) = placed_at {
+                end.insert(0, TransformOp::Translate(center));
+            }
+            let times = t.vec2("motion_times")?.map_or((0.0, 1.0), |v| (v.x, v.y));
+            Some(MotionDesc { end, times })
+        }
+        None => {
+            if t.value("motion_times").is_some() {
+                let span = t.value("motion_times").map(|v| v.span()).unwrap_or(t.span.clone());
+                return Err(t.err_at(
+                    "motion_times",
+                    &span,
+                    "needs `transform_end`, the transform at the second time",
+                ));
+            }
+            None
+        }
+    };
     let first = ShapeDesc {
         kind,
         transform,
         material,
         flip_normals,
         media,
+        motion,
         locs: t.finish()?,
     };
     let rest: Vec<ShapeDesc> = more_pieces

@@ -17,6 +17,7 @@ mod malformed;
 mod media;
 mod mitsuba;
 mod mlt;
+mod motion;
 mod path;
 mod pbrt;
 mod pbrt_refs;

@@ -73,6 +73,18 @@ const CASES: &[(&str, Expect)] = &[
         Error(&["bilinear-nan-corner.toml:16:7", "shape[0].p11", "finite"]),
     ),
     ("native/overflowing-number.toml", Error(&["shape[0].radius", "finite"])),
+    (
+        "native/motion-times-backwards.toml",
+        Error(&[
+            "motion-times-backwards.toml:6:",
+            "shape[0].motion_times",
+            "must increase",
+        ]),
+    ),
+    (
+        "native/shutter-backwards.toml",
+        Error(&["shutter-backwards.toml:2:", "camera.shutter", "closes before it opens"]),
+    ),
     ("native/negative-radius.toml", Error(&["shape[0].radius", "positive"])),
     ("native/zero-radius.toml", Error(&["shape[0].radius", "positive"])),
     ("native/zero-size-box.toml", Error(&["shape[0].max", "greater"])),
@@ -237,6 +249,14 @@ const CASES: &[(&str, Expect)] = &[
         Error(&["absurd-resolution.pbrt:", "resolution"]),
     ),
     ("pbrt/absurd-spp.pbrt", Error(&["absurd-spp.pbrt:", "pixelsamples"])),
+    (
+        "pbrt/transform-times-backwards.pbrt",
+        Error(&[
+            "transform-times-backwards.pbrt:1:1",
+            "TransformTimes",
+            "start time before the end",
+        ]),
+    ),
     ("pbrt/include-loop.pbrt", Error(&["include-loop.pbrt:", "loop"])),
     ("pbrt/include-loop-a.pbrt", Error(&["loop"])),
     ("pbrt/include-loop-b.pbrt", Error(&["loop"])),

@@ -187,6 +187,7 @@ fn refraction_through_a_slab_follows_snell() {
                 min: Vec3::new(-10.0, -thickness, -10.0),
                 max: Vec3::new(10.0, 0.0, 10.0),
             }),
+            motion: None,
             transform: None,
             material: 0,
             light: None,
@@ -420,6 +421,7 @@ fn random_aggregate(seed: u64) -> Aggregate {
         };
         shapes.push(ShapeInstance {
             shape,
+            motion: None,
             transform,
             material: 0,
             light: None,
@@ -447,6 +449,7 @@ fn random_aggregate(seed: u64) -> Aggregate {
     let instances = (0..8)
         .map(|k| MeshInstance {
             mesh: if k < 5 { 1 } else { 3 },
+            motion: None,
             transform: Transform::rotate(Vec3::new(v(), v(), v()) + 0.1, v() * 360.0)
                 .unwrap()
                 .then(&Transform::translate(Vec3::new(v(), v(), v()) * 10.0 - 5.0)),
@@ -563,6 +566,7 @@ fn small_planar_aggregate(seed: u64, triangles: [usize; 2]) -> Aggregate {
                 Vec3::new(v(), v(), v()) * 2.0 - 1.0,
                 Vec3::new(v(), v(), v()) * 2.0 - 1.0,
             )),
+            motion: None,
             transform,
             material: 0,
             light: None,
@@ -655,6 +659,7 @@ fn a_room_is_a_tree_of_one_leaf() {
                     Vec3::new(1.0, 0.0, 0.2),
                     Vec3::new(0.0, 1.0, 0.3),
                 )),
+                motion: None,
                 transform: None,
                 material: 0,
                 light: None,

@@ -499,10 +499,12 @@ impl<'s> Tracer<'s> {
     ) {
         let scene = self.scene;
         let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
-        self.camera_subpath(raster, u_lens, self.max_depth as usize + 1, rng, &mut work.camera, rays);
+        let time = scene.camera.time_from(|| rng.next_f32());
+        let camera_vertices = self.max_depth as usize + 1;
+        self.camera_subpath(raster, u_lens, time, camera_vertices, rng, &mut work.camera, rays);
         rng.start_stream(LIGHT_STREAM);
         let light_vertices = if self.max_depth < 2 { 0 } else { self.max_depth as usize };
-        self.light_subpath(rng, light_vertices, &mut work.light, rays);
+        self.light_subpath(rng, time, light_vertices, &mut work.light, rays);
         rng.start_stream(CONNECTION_STREAM);
         let (nc, nl) = (work.camera.len(), work.light.len());
         for t in 1..=nc {
@@ -555,12 +557,13 @@ impl<'s> Tracer<'s> {
         let (width, height) = (scene.settings.width as f32, scene.settings.height as f32);
         let raster = Vec2::new(rng.next_f32() * width, rng.next_f32() * height);
         let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
-        self.camera_subpath(raster, u_lens, t, rng, &mut work.camera, rays);
+        let time = scene.camera.time_from(|| rng.next_f32());
+        self.camera_subpath(raster, u_lens, time, t, rng, &mut work.camera, rays);
         if work.camera.len() != t {
             return None;
         }
         rng.start_stream(LIGHT_STREAM);
-        self.light_subpath(rng, if s >= 2 { s } else { 0 }, &mut work.light, rays);
+        self.light_subpath(rng, time, if s >= 2 { s } else { 0 }, &mut work.light, rays);
         if s >= 2 && work.light.len() != s {
             return None;
         }
@@ -573,11 +576,13 @@ impl<'s> Tracer<'s> {
         (l.is_finite() && l != Rgb::ZERO).then(|| (at.unwrap_or(raster), l))
     }
 
-    /// The camera subpath through raster position `raster`.
+    /// The camera subpath through raster position `raster`, traced at `time`.
+    #[allow(clippy::too_many_arguments)]
     fn camera_subpath<R: Uniforms>(
         &self,
         raster: Vec2,
         u_lens: Vec2,
+        time: f32,
         max_vertices: usize,
         rng: &mut R,
         path: &mut Vec<Vertex<'s>>,
@@ -585,7 +590,7 @@ impl<'s> Tracer<'s> {
     ) {
         path.clear();
         let camera = &self.scene.camera;
-        let ray = camera.generate_ray(raster, u_lens);
+        let ray = camera.generate_ray(raster, u_lens).at_time(time);
         let lens = camera.lens_point(&ray);
         path.push(Vertex::endpoint(Kind::Camera, lens, Vec3::ZERO, Rgb::ONE, 1.0));
         let pdf_dir = camera.pdf_dir(ray.dir);
@@ -603,8 +608,15 @@ impl<'s> Tracer<'s> {
 
     /// The light subpath of up to `max_vertices` vertices: a light chosen
     /// by power, a point and direction on it ([`Light::sample_le`]), then
-    /// the walk.
-    fn light_subpath<R: Uniforms>(&self, rng: &mut R, max_vertices: usize, path: &mut Vec<Vertex<'s>>, rays: &mut u64) {
+    /// the walk, traced at `time`.
+    fn light_subpath<R: Uniforms>(
+        &self,
+        rng: &mut R,
+        time: f32,
+        max_vertices: usize,
+        path: &mut Vec<Vertex<'s>>,
+        rays: &mut u64,
+    ) {
         path.clear();
         let scene = self.scene;
         if scene.lights.is_empty() || scene.light_distribution.is_empty() || max_vertices == 0 {
@@ -635,7 +647,7 @@ impl<'s> Tracer<'s> {
         }
         path.push(start);
         self.walk(
-            emitted.ray,
+            emitted.ray.at_time(time),
             beta,
             pdf_dir,
             TransportMode::Importance,
@@ -1171,7 +1183,7 @@ mod tests {
         for _ in 0..trials {
             let raster = Vec2::new(rng.next_f32() * w, rng.next_f32() * h);
             let lens = Vec2::new(rng.next_f32(), rng.next_f32());
-            tracer.camera_subpath(raster, lens, 9, &mut rng, &mut path, &mut rays);
+            tracer.camera_subpath(raster, lens, 0.0, 9, &mut rng, &mut path, &mut rays);
             for t in 3..=path.len() {
                 let Some(light_end) = tracer.as_light(&path[t - 1]) else {
                     continue;

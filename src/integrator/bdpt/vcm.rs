@@ -367,7 +367,8 @@ fn light_vertices_of(tracer: &Tracer, scene: &Scene, iteration: u32) -> Vec<Ligh
             let (mut out, mut rays, mut path) = (Vec::new(), 0u64, Vec::new());
             for i in c * CHUNK..((c + 1) * CHUNK).min(paths) {
                 let mut rng = light_generator(s.seed, iteration, i);
-                tracer.light_subpath(&mut rng, vertices, &mut path, &mut rays);
+                let time = tracer.scene.camera.time_from(|| rng.next_f32());
+                tracer.light_subpath(&mut rng, time, vertices, &mut path, &mut rays);
                 tracer.light_vertices(&path, &mut out);
             }
             out

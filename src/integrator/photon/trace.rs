@@ -138,7 +138,8 @@ fn trace_one(
         return;
     };
     let mut beta = emitted.weight / (pmf * count as f32);
-    let mut ray = emitted.ray;
+    // Photons of a moving scene leave at times spread over the shutter.
+    let mut ray = emitted.ray.at_time(scene.camera.time_from(|| rng.next_f32()));
     let mut only_specular = true;
     for depth in 0..max_depth {
         *rays += 1;

@@ -210,10 +210,14 @@ impl Emission {
 /// restore (pbrt-v4 `BasicSceneBuilder::GraphicsState`).
 #[derive(Clone, Debug)]
 struct GraphicsState {
+    /// The current transform at the first of the `TransformTimes`.
     ctm: Mat4,
-    /// False after `ActiveTransform EndTime`: transforms then change only
-    /// the end of a motion, which trazo does not render.
-    start_active: bool,
+    /// The current transform at the second (pbrt-v4 keeps the pair as a
+    /// `TransformSet`); it differs from `ctm` where things move.
+    ctm_end: Mat4,
+    /// Which of the two transform directives change (`ActiveTransform`):
+    /// the start's, the end's.
+    active: [bool; 2],
     reverse_orientation: bool,
     material: MatRef,
     area_light: Option<Emission>,
@@ -228,7 +232,8 @@ impl Default for GraphicsState {
     fn default() -> Self {
         GraphicsState {
             ctm: Mat4::IDENTITY,
-            start_active: true,
+            ctm_end: Mat4::IDENTITY,
+            active: [true, true],
             reverse_orientation: false,
             material: MatRef::Default,
             area_light: None,
@@ -341,7 +346,8 @@ struct Parser {
     world: Option<SourceLoc>,
     gs: GraphicsState,
     pushed: Vec<(GraphicsState, Block, SourceLoc)>,
-    named_coords: HashMap<String, Mat4>,
+    /// Named coordinate systems: the transforms at both times.
+    named_coords: HashMap<String, (Mat4, Mat4)>,
     camera: CameraDef,
     /// ISO of the film: exposure multiplies by ISO/100 (pbrt-v4 `PixelSensor`).
     film_iso: f32,
@@ -361,10 +367,14 @@ struct Parser {
     shapes: Vec<PendingShape>,
     current_object: Option<(String, ObjectDef)>,
     objects: HashMap<String, ObjectDef>,
-    instance_uses: Vec<(String, Mat4, SourceLoc)>,
+    /// Each `ObjectInstance`: the object's name, the transforms at both
+    /// times, where it was.
+    instance_uses: Vec<(String, (Mat4, Mat4), SourceLoc)>,
     /// Where the infinite light that set the background was declared.
     infinite_light: Option<SourceLoc>,
-    motion_warned: bool,
+    /// `TransformTimes`: the times of the two transforms (pbrt-v4's
+    /// default 0 and 1).
+    transform_times: (f32, f32),
     /// `pushed` may not shrink below this inside an `Import`ed file.
     import_floor: usize,
     /// How often each warning text (without its position) was given, and
@@ -436,7 +446,7 @@ impl Parser {
             objects: HashMap::new(),
             instance_uses: Vec::new(),
             infinite_light: None,
-            motion_warned: false,
+            transform_times: (0.0, 1.0),
             import_floor: 0,
             warning_counts: HashMap::new(),
             media_names: HashMap::new(),
@@ -492,14 +502,45 @@ impl Parser {
     }
 
     fn concat(&mut self, m: Mat4) {
-        if self.gs.start_active {
+        if self.gs.active[0] {
             self.gs.ctm *= m;
+        }
+        if self.gs.active[1] {
+            self.gs.ctm_end *= m;
         }
     }
 
-    fn set_ctm(&mut self, m: Mat4) {
-        if self.gs.start_active {
-            self.gs.ctm = m;
+    fn set_ctm(&mut self, (start, end): (Mat4, Mat4)) {
+        if self.gs.active[0] {
+            self.gs.ctm = start;
+        }
+        if self.gs.active[1] {
+            self.gs.ctm_end = end;
+        }
+    }
+
+    /// Whether the current transform differs between the two times.
+    fn ctm_moves(&self) -> bool {
+        self.gs.ctm != self.gs.ctm_end
+    }
+
+    /// The current transform's motion for a shape made now, if it moves.
+    fn motion(&self) -> Option<MotionDesc> {
+        self.ctm_moves().then(|| MotionDesc {
+            end: vec![TransformOp::Matrix(self.gs.ctm_end)],
+            times: self.transform_times,
+        })
+    }
+
+    /// Warns that `what`, made while the transform moves, stays where it is
+    /// at the start (pbrt-v4 does the same for lights and media).
+    fn warn_if_moving(&mut self, loc: &SourceLoc, what: &str) {
+        if self.ctm_moves() {
+            self.unsupported(
+                loc,
+                format!("motion of a {what}"),
+                "it does not move; it stays where the transform puts it at the start time",
+            );
         }
     }
 
@@ -620,7 +661,7 @@ impl Parser {
                     list.insert(0, p);
                 }
             }
-            "Identity" => self.set_ctm(Mat4::IDENTITY),
+            "Identity" => self.set_ctm((Mat4::IDENTITY, Mat4::IDENTITY)),
             "Translate" => {
                 let v = numbers::<3>(lx, name, offset)?;
                 self.concat(Mat4::from_translation(Vec3::from(v)));
@@ -657,14 +698,14 @@ impl Parser {
                 // column by column, translation in the 13th to 15th.
                 let m = Mat4::from_cols_array(&bracketed_16(lx, name, offset)?);
                 if name == "Transform" {
-                    self.set_ctm(m);
+                    self.set_ctm((m, m));
                 } else {
                     self.concat(m);
                 }
             }
             "CoordinateSystem" => {
                 let (n, _) = quoted(lx, name, offset)?;
-                self.named_coords.insert(n, self.gs.ctm);
+                self.named_coords.insert(n, (self.gs.ctm, self.gs.ctm_end));
             }
             "CoordSysTransform" => {
                 let (n, _) = quoted(lx, name, offset)?;
@@ -689,11 +730,9 @@ impl Parser {
                     ));
                 };
                 match t.tok.word() {
-                    Some("All" | "StartTime") => self.gs.start_active = true,
-                    Some("EndTime") => {
-                        self.gs.start_active = false;
-                        self.warn_motion(&loc);
-                    }
+                    Some("All") => self.gs.active = [true, true],
+                    Some("StartTime") => self.gs.active = [true, false],
+                    Some("EndTime") => self.gs.active = [false, true],
                     _ => {
                         return Err(lx.error(
                             t.offset,
@@ -707,8 +746,15 @@ impl Parser {
             }
             "TransformTimes" => {
                 self.in_options(lx, offset, name)?;
-                numbers::<2>(lx, name, offset)?;
-                self.warn_motion(&loc);
+                let [start, end] = numbers::<2>(lx, name, offset)?;
+                if !(start.is_finite() && end.is_finite() && start < end) {
+                    return Err(Error::scene(
+                        Some(loc),
+                        name,
+                        format!("needs a start time before the end time, got {start} and {end}"),
+                    ));
+                }
+                self.transform_times = (start, end);
             }
             "ReverseOrientation" => {
                 self.in_world(lx, offset, name)?;
@@ -727,8 +773,10 @@ impl Parser {
                 )?;
                 // pbrt-v4 names the camera's space "camera" (scene.cpp).
                 if let Ok((inv, _)) = world_from_camera(&self.gs.ctm) {
-                    self.named_coords.insert("camera".into(), inv);
+                    let inv_end = world_from_camera(&self.gs.ctm_end).map_or(inv, |(m, _)| m);
+                    self.named_coords.insert("camera".into(), (inv, inv_end));
                 }
+                self.warn_if_moving(&loc, "camera");
                 self.camera = CameraDef {
                     kind,
                     params,
@@ -857,8 +905,10 @@ impl Parser {
                 }
                 self.world = Some(loc);
                 self.gs.ctm = Mat4::IDENTITY;
-                self.gs.start_active = true;
-                self.named_coords.insert("world".into(), Mat4::IDENTITY);
+                self.gs.ctm_end = Mat4::IDENTITY;
+                self.gs.active = [true, true];
+                self.named_coords
+                    .insert("world".into(), (Mat4::IDENTITY, Mat4::IDENTITY));
                 self.finish_options()?;
             }
             "WorldEnd" => {
@@ -984,6 +1034,7 @@ impl Parser {
                     &["distant", "goniometric", "infinite", "point", "projection", "spot"],
                 )?;
                 let params = self.with_attributes(params, "light");
+                self.warn_if_moving(&loc, "light");
                 self.light_source(&kind, &params, &loc, dir_rel)?;
                 self.report_unused(&params, &format!("LightSource \"{kind}\""));
             }
@@ -1000,6 +1051,7 @@ impl Parser {
                 let (mname, _) = quoted(lx, name, offset)?;
                 let params = parse_params(lx)?;
                 let params = self.with_attributes(params, "medium");
+                self.warn_if_moving(&loc, "medium");
                 self.make_named_medium(&mname, &params, &loc)?;
                 self.report_unused(&params, &format!("MakeNamedMedium \"{mname}\""));
             }
@@ -1071,7 +1123,8 @@ impl Parser {
                         format!("ObjectInstance inside the definition of object \"{open}\""),
                     ));
                 }
-                self.instance_uses.push((oname, self.gs.ctm, lx.loc(ooff)));
+                self.instance_uses
+                    .push((oname, (self.gs.ctm, self.gs.ctm_end), lx.loc(ooff)));
             }
             _ => {
                 return Err(Error::scene(
@@ -1082,17 +1135,6 @@ impl Parser {
             }
         }
         Ok(())
-    }
-
-    fn warn_motion(&mut self, loc: &SourceLoc) {
-        if !self.motion_warned {
-            self.motion_warned = true;
-            self.unsupported(
-                loc,
-                "motion blur (ActiveTransform, TransformTimes)",
-                "transforms for the end of the shutter interval are ignored; everything is rendered at the start",
-            );
-        }
     }
 
     /// `Include` (token-level inclusion, pbrt-v4 parser.cpp: the included
@@ -1216,7 +1258,7 @@ impl Parser {
         // instance (pbrt-v4: render-from-instance × the shape's own CTM).
         let uses = std::mem::take(&mut self.instance_uses);
         let mut used_objects: HashSet<String> = HashSet::new();
-        for (oname, ctm, loc) in uses {
+        for (oname, (ctm, ctm_end), loc) in uses {
             let Some(def) = self.objects.get(&oname) else {
                 return Err(Error::scene(
                     Some(loc),
@@ -1229,6 +1271,16 @@ impl Parser {
             };
             for s in &def.shapes {
                 let mut s = s.clone();
+                // A moving instance moves its shapes; a shape that moves
+                // inside the object moves by its own motion, then the
+                // instance's.
+                if ctm != ctm_end || s.desc.motion.is_some() {
+                    let motion = s.desc.motion.get_or_insert_with(|| MotionDesc {
+                        end: s.desc.transform.clone(),
+                        times: self.transform_times,
+                    });
+                    motion.end.push(TransformOp::Matrix(ctm_end));
+                }
                 s.desc.transform.push(TransformOp::Matrix(ctm));
                 self.shapes.push(s);
             }

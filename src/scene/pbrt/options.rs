@@ -627,6 +627,7 @@ impl Parser {
             aperture_radius,
             focus_distance: Some(focus_distance),
             to_world: Some(world_from_camera),
+            shutter: (open, close),
             locs,
             ..CameraDesc::default()
         };

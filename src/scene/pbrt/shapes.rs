@@ -329,6 +329,7 @@ impl Parser {
             material: None,
             flip_normals: false,
             media: self.current_media(),
+            motion: self.motion(),
             locs,
         };
         for kind in std::iter::once(None).chain(extra_patches.into_iter().map(Some)) {

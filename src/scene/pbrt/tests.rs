@@ -2703,3 +2703,43 @@ fn area_light_power_sets_each_shapes_radiance() {
         plain
     );
 }
+
+/// `ActiveTransform` chooses which of the two transforms the transform
+/// directives change, `AttributeBegin` saves the choice with the
+/// transforms, and shapes and object instances made where the two differ
+/// move between the `TransformTimes`; a light made there stays, with a
+/// warning.
+#[test]
+fn active_transform_gives_shapes_and_instances_their_motion() {
+    let d = parse_str(
+        "TransformTimes 0 2\nWorldBegin\n\
+         AttributeBegin\nActiveTransform EndTime\nTranslate 1 0 0\n\
+         AttributeBegin\nActiveTransform All\nShape \"sphere\"\nAttributeEnd\n\
+         Shape \"sphere\"\nAttributeEnd\n\
+         Shape \"sphere\"\n\
+         ObjectBegin \"o\"\nShape \"sphere\"\nObjectEnd\n\
+         ActiveTransform StartTime\nTranslate 0 1 0\nActiveTransform All\n\
+         ObjectInstance \"o\"\nLightSource \"point\"\n",
+    )
+    .unwrap();
+    let moved = Mat4::from_translation(Vec3::X);
+    for s in &d.shapes[..2] {
+        let m = s.motion.as_ref().expect("moves");
+        assert_eq!(m.times, (0.0, 2.0));
+        assert_eq!(m.end, vec![TransformOp::Matrix(moved)]);
+        assert_eq!(s.transform, vec![TransformOp::Matrix(Mat4::IDENTITY)]);
+    }
+    assert!(d.shapes[2].motion.is_none());
+    let instanced = d.shapes.last().unwrap();
+    let m = instanced.motion.as_ref().expect("the instance moves");
+    assert_eq!(m.end.last(), Some(&TransformOp::Matrix(Mat4::IDENTITY)));
+    assert_eq!(
+        instanced.transform.last(),
+        Some(&TransformOp::Matrix(Mat4::from_translation(Vec3::Y)))
+    );
+    assert!(
+        d.warnings.iter().any(|w| w.contains("motion of a light")),
+        "{:?}",
+        d.warnings
+    );
+}

@@ -1,0 +1,181 @@
+//! Motion blur: shapes moving while the shutter is open, against the
+//! fraction of the shutter interval for which they cover each pixel.
+
+use std::path::Path;
+use trazo::film::Film;
+use trazo::render::{RenderOptions, render};
+use trazo::scene::SceneDesc;
+
+const WIDTH: u32 = 32;
+const HEIGHT: u32 = 6;
+const SPP: u32 = 256;
+
+/// A black bar 0.5 wide, in front of a white background, seen by an
+/// orthographic camera spanning x ∈ [−1, 1]. It moves from x = −0.5 at
+/// time 0 to x = 0.5 at time 1; the shutter is open from 0 to 0.5.
+fn moving_bar(integrator: &str, shape: &str) -> String {
+    format!(
+        r#"
+[render]
+width = {WIDTH}
+height = {HEIGHT}
+spp = {SPP}
+integrator = "{integrator}"
+filter = "box"
+max_depth = 4
+
+[camera]
+type = "orthographic"
+size = 0.375
+from = [0, 0, 5]
+to = [0, 0, 0]
+shutter = [0, 0.5]
+
+[world]
+background = [1, 1, 1]
+
+[[material]]
+name = "black"
+type = "diffuse"
+reflectance = 0
+
+[[shape]]
+material = "black"
+{shape}
+transform = [{{ translate = [-0.5, 0, 0] }}]
+transform_end = [{{ translate = [0.5, 0, 0] }}]
+motion_times = [0, 1]
+"#
+    )
+}
+
+const RECTANGLE: &str = r#"type = "rectangle"
+corner = [-0.25, -2, 0]
+edge_u = [0.5, 0, 0]
+edge_v = [0, 4, 0]"#;
+
+const MESH: &str = r#"type = "mesh"
+positions = [[-0.25, -2, 0], [0.25, -2, 0], [0.25, 2, 0], [-0.25, 2, 0]]
+indices = [0, 1, 2, 0, 2, 3]"#;
+
+fn render_film(text: &str) -> Film {
+    let d: SceneDesc = trazo::scene::native::parse(text, Path::new("test.toml")).unwrap();
+    let scene = trazo::scene::build(&d).unwrap();
+    render(&scene, &RenderOptions::default()).unwrap().film
+}
+
+/// The fraction of the shutter interval [0, 0.5] during which the bar
+/// (centre −0.5 + u at time u, half-width 0.25) covers x.
+fn covered(x: f64) -> f64 {
+    let (a, b) = ((x + 0.25).max(0.0), (x + 0.75).min(0.5));
+    (b - a).max(0.0) / 0.5
+}
+
+/// Each column's mean against 1 − the bar's mean coverage over the
+/// column's span of x, within 5 standard errors: the film's estimate, or
+/// where it has none (SPPM's) or is smaller, that of a path tracer's
+/// samples, each 0 or 1. `mirrored`: world +x is on the image's left (as
+/// pbrt-v4's left-handed camera space puts it).
+fn check_profile(f: &Film, mirrored: bool, what: &str) {
+    let pixel = 2.0 / WIDTH as f64;
+    for x in 0..WIDTH {
+        let column = if mirrored { WIDTH - 1 - x } else { x };
+        let x0 = -1.0 + column as f64 * pixel;
+        let steps = 1000;
+        let expected = 1.0
+            - (0..steps)
+                .map(|i| covered(x0 + (i as f64 + 0.5) * pixel / steps as f64))
+                .sum::<f64>()
+                / steps as f64;
+        let (mut mean, mut var) = (0.0f64, 0.0f64);
+        for y in 0..HEIGHT {
+            let p = &f.pixels[(y * WIDTH + x) as usize];
+            mean += p.value().x as f64;
+            var += p.variance_of_mean();
+        }
+        let n = HEIGHT as f64;
+        let bernoulli = (expected * (1.0 - expected) / (SPP as f64 * n)).sqrt();
+        let (mean, sigma) = (mean / n, (var.sqrt() / n).max(bernoulli));
+        assert!(
+            (mean - expected).abs() <= 5.0 * sigma + 2e-3,
+            "{what}: column {x} is {mean:.4} ± {sigma:.4}, expected {expected:.4}"
+        );
+    }
+}
+
+#[test]
+fn a_moving_bar_is_blurred_over_the_shutter_interval() {
+    for integrator in ["path", "volpath", "bdpt", "sppm", "whitted", "photon", "vcm"] {
+        for (shape, name) in [(RECTANGLE, "rectangle"), (MESH, "mesh")] {
+            let f = render_film(&moving_bar(integrator, shape));
+            check_profile(&f, false, &format!("{integrator}, {name}"));
+        }
+    }
+}
+
+/// Without a shutter interval (it opens and closes at once) the bar stands
+/// where it is at that time: a sharp image of it.
+#[test]
+fn a_closed_shutter_freezes_the_motion() {
+    let text = moving_bar("path", RECTANGLE).replace("shutter = [0, 0.5]", "shutter = [0.25, 0.25]");
+    let f = render_film(&text);
+    // At time 0.25 the bar spans x ∈ [−0.5, 0]: columns 8 to 15.
+    for x in 0..WIDTH {
+        let v = f.pixels[x as usize].value().x;
+        let expected = if (8..16).contains(&x) { 0.0 } else { 1.0 };
+        assert_eq!(v, expected, "column {x}");
+    }
+}
+
+/// An emitter cannot move (as in pbrt-v4): it stays where the shutter
+/// opens, and the user is told.
+#[test]
+fn a_moving_emitter_stays_put_with_a_warning() {
+    let text = moving_bar("path", RECTANGLE).replace("reflectance = 0", "reflectance = 0\nemission = [1, 1, 1]");
+    let d: SceneDesc = trazo::scene::native::parse(&text, Path::new("test.toml")).unwrap();
+    let scene = trazo::scene::build(&d).unwrap();
+    assert!(
+        scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("an emitting shape cannot move")),
+        "{:?}",
+        scene.warnings
+    );
+}
+
+/// pbrt-v4's `ActiveTransform` and `TransformTimes` give the shape its two
+/// transforms, and the camera's `shutteropen` and `shutterclose` its
+/// interval; the render is the same blur.
+#[test]
+fn pbrt_motion_renders_the_same_blur() {
+    let text = r#"
+LookAt 0 0 5  0 0 0  0 1 0
+Camera "orthographic" "float screenwindow" [-1 1 -0.1875 0.1875]
+    "float shutteropen" 0 "float shutterclose" 0.5
+Film "rgb" "integer xresolution" 32 "integer yresolution" 6 "float iso" 200
+PixelFilter "box"
+Sampler "independent" "integer pixelsamples" 256
+Integrator "path" "integer maxdepth" 4
+TransformTimes 0 1
+WorldBegin
+LightSource "infinite" "rgb L" [1 1 1]
+Material "diffuse" "rgb reflectance" [0 0 0]
+AttributeBegin
+  ActiveTransform StartTime
+  Translate -0.5 0 0
+  ActiveTransform EndTime
+  Translate 0.5 0 0
+  ActiveTransform All
+  Shape "trianglemesh" "point3 P" [-0.25 -2 0  0.25 -2 0  0.25 2 0  -0.25 2 0]
+      "integer indices" [0 1 2 0 2 3]
+AttributeEnd
+"#;
+    let d = trazo::scene::pbrt::parse(text, Path::new("test.pbrt")).unwrap();
+    let motion = d.shapes[0].motion.as_ref().expect("the shape moves");
+    assert_eq!(motion.times, (0.0, 1.0));
+    assert_eq!(d.camera.shutter, (0.0, 0.5));
+    let scene = trazo::scene::build(&d).unwrap();
+    let f = render(&scene, &RenderOptions::default()).unwrap().film;
+    check_profile(&f, true, "pbrt");
+}
