@@ -189,6 +189,10 @@ pub struct Camera {
     /// When the shutter opens and closes, where something in the scene
     /// moves; `None`: every ray is traced at time 0.
     shutter: Option<(f32, f32)>,
+    /// How the camera moves while the shutter is open (camera to world
+    /// over time, starting from `camera_to_world`); `None`: it stands
+    /// still.
+    motion: Option<Box<crate::geometry::motion::MotionTransform>>,
 }
 
 /// The perspective projection of pbrt-v4 (eq. 5.1): maps camera space to
@@ -333,6 +337,7 @@ impl Camera {
             full_size: Vec2::new(width as f32, height as f32),
             lens_system: None,
             shutter: None,
+            motion: None,
         })
     }
 
@@ -377,6 +382,34 @@ impl Camera {
     pub fn with_shutter(mut self, open: f32, close: f32) -> Camera {
         self.shutter = Some((open, close));
         self
+    }
+
+    /// The same camera moving from where it is to `end` (camera to world)
+    /// between `times`.
+    pub fn with_motion(mut self, end: Transform, times: (f32, f32)) -> Option<Camera> {
+        let motion = crate::geometry::motion::MotionTransform::new(self.camera_to_world, end, times.0, times.1)?;
+        self.motion = Some(Box::new(motion));
+        Some(self)
+    }
+
+    /// A ray the still camera generated, from where the camera is at the
+    /// ray's time: moved by (camera to world at that time) · (camera to
+    /// world at the start)⁻¹, its direction unit length again.
+    #[inline]
+    pub fn moved(&self, ray: Ray) -> Ray {
+        let Some(motion) = &self.motion else {
+            return ray;
+        };
+        let relative = motion.at(ray.time).m * self.camera_to_world.inv;
+        let dir = relative.transform_vector3(ray.dir);
+        let len = dir.length();
+        Ray::with_interval(
+            relative.transform_point3(ray.origin),
+            dir / len,
+            ray.t_min * len,
+            ray.t_max * len,
+        )
+        .at_time(ray.time)
     }
 
     /// The time of a camera sample: uniform over the shutter interval,

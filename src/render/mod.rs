@@ -507,8 +507,14 @@ fn camera_sample(
     let lens = scene.camera.draw_lens(sampler);
     let time = scene.camera.draw_time(sampler);
     match scene.camera.generate_weighted_ray(position, lens) {
-        Some((ray, weight)) => (position, ray.at_time(time), weight),
-        None => (position, scene.camera.generate_ray(position, lens).at_time(time), 0.0),
+        Some((ray, weight)) => (position, scene.camera.moved(ray.at_time(time)), weight),
+        None => (
+            position,
+            scene
+                .camera
+                .moved(scene.camera.generate_ray(position, lens).at_time(time)),
+            0.0,
+        ),
     }
 }
 

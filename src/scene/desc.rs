@@ -109,6 +109,11 @@ pub struct CameraDesc {
     /// When the shutter opens and closes (pbrt-v4's `shutteropen` and
     /// `shutterclose`): moving shapes are seen at times uniform in between.
     pub shutter: (f32, f32),
+    /// Where the camera moves (motion blur): its camera-to-world matrix
+    /// at the second of two times (`to_world` holds at the first), and the
+    /// times. Integrators whose light paths reach the camera (`light`,
+    /// `bdpt`, `mlt`, `pssmlt`, `vcm`) keep it still, with a warning.
+    pub motion: Option<(Mat4, (f32, f32))>,
     /// Source locations.
     pub locs: Locs,
 }
@@ -126,6 +131,7 @@ impl Default for CameraDesc {
             far_clip: f32::INFINITY,
             to_world: None,
             shutter: (0.0, 1.0),
+            motion: None,
             locs: Locs::default(),
         }
     }

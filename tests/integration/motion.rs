@@ -144,12 +144,12 @@ fn a_moving_emitter_stays_put_with_a_warning() {
     );
 }
 
-/// pbrt-v4's `ActiveTransform` and `TransformTimes` give the shape its two
-/// transforms, and the camera's `shutteropen` and `shutterclose` its
-/// interval; the render is the same blur.
-#[test]
-fn pbrt_motion_renders_the_same_blur() {
-    let text = r#"
+/// A pbrt-v4 scene of the bar: `camera` before `LookAt`, `bar` the
+/// transform directives before the bar's mesh.
+fn pbrt_bar_scene(camera: &str, bar: &str) -> SceneDesc {
+    let text = format!(
+        r#"
+{camera}
 LookAt 0 0 5  0 0 0  0 1 0
 Camera "orthographic" "float screenwindow" [-1 1 -0.1875 0.1875]
     "float shutteropen" 0 "float shutterclose" 0.5
@@ -162,20 +162,61 @@ WorldBegin
 LightSource "infinite" "rgb L" [1 1 1]
 Material "diffuse" "rgb reflectance" [0 0 0]
 AttributeBegin
-  ActiveTransform StartTime
-  Translate -0.5 0 0
-  ActiveTransform EndTime
-  Translate 0.5 0 0
-  ActiveTransform All
+  {bar}
   Shape "trianglemesh" "point3 P" [-0.25 -2 0  0.25 -2 0  0.25 2 0  -0.25 2 0]
       "integer indices" [0 1 2 0 2 3]
 AttributeEnd
-"#;
-    let d = trazo::scene::pbrt::parse(text, Path::new("test.pbrt")).unwrap();
-    let motion = d.shapes[0].motion.as_ref().expect("the shape moves");
-    assert_eq!(motion.times, (0.0, 1.0));
+"#
+    );
+    let d = trazo::scene::pbrt::parse(&text, Path::new("test.pbrt")).unwrap();
     assert_eq!(d.camera.shutter, (0.0, 0.5));
+    d
+}
+
+fn pbrt_bar(camera: &str, bar: &str) -> Film {
+    let scene = trazo::scene::build(&pbrt_bar_scene(camera, bar)).unwrap();
+    render(&scene, &RenderOptions::default()).unwrap().film
+}
+
+const MOVING_CAMERA: &str =
+    "ActiveTransform StartTime\nTranslate 0.5 0 0\nActiveTransform EndTime\nTranslate -0.5 0 0\nActiveTransform All";
+
+/// pbrt-v4's `ActiveTransform` and `TransformTimes` give the shape its two
+/// transforms, and the camera's `shutteropen` and `shutterclose` its
+/// interval; the render is the same blur.
+#[test]
+fn pbrt_motion_renders_the_same_blur() {
+    let f = pbrt_bar(
+        "",
+        "ActiveTransform StartTime\n  Translate -0.5 0 0\n  ActiveTransform EndTime\n  Translate 0.5 0 0\n  ActiveTransform All",
+    );
+    check_profile(&f, true, "pbrt, moving bar");
+}
+
+/// A camera moving the other way past a still bar sees the same: its
+/// transform before `Camera` given at both times. (pbrt-v4's camera space
+/// has +x toward world −x here, so a camera-space shift of +0.5 puts the
+/// bar where the moving bar starts.)
+#[test]
+fn a_moving_pbrt_camera_blurs_what_it_passes() {
+    let f = pbrt_bar(MOVING_CAMERA, "");
+    check_profile(&f, true, "pbrt, moving camera");
+}
+
+/// Integrators whose light paths reach the camera keep a moving camera
+/// still, and say so.
+#[test]
+fn light_paths_keep_a_moving_camera_still() {
+    let mut d = pbrt_bar_scene(MOVING_CAMERA, "");
+    assert!(d.camera.motion.is_some());
+    d.settings.integrator = trazo::settings::IntegratorKind::Bdpt;
     let scene = trazo::scene::build(&d).unwrap();
-    let f = render(&scene, &RenderOptions::default()).unwrap().film;
-    check_profile(&f, true, "pbrt");
+    assert!(
+        scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("a moving camera stands still under the bdpt integrator")),
+        "{:?}",
+        scene.warnings
+    );
 }

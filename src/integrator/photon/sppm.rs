@@ -256,10 +256,12 @@ fn camera_sample(
     let offset = s.filter.sample(sampler.pixel_2d());
     let lens = scene.camera.draw_lens(sampler);
     let time = scene.camera.draw_time(sampler);
-    let camera_ray = scene
-        .camera
-        .generate_ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset, lens)
-        .at_time(time);
+    let camera_ray = scene.camera.moved(
+        scene
+            .camera
+            .generate_ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset, lens)
+            .at_time(time),
+    );
     if aovs {
         px.aov.add(&camera_aov(scene, &camera_ray));
     }

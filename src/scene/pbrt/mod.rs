@@ -330,6 +330,8 @@ struct CameraDef {
     params: ParamList,
     /// The CTM at `Camera`: camera-from-world.
     ctm: Mat4,
+    /// The same at the second of the `TransformTimes` (a moving camera).
+    ctm_end: Mat4,
     loc: Option<SourceLoc>,
     /// The folder of the file it is in, relative to the top file's
     /// (a realistic camera's lens file is found from it).
@@ -430,6 +432,7 @@ impl Parser {
                 kind: "perspective".into(),
                 params: ParamList::default(),
                 ctm: Mat4::IDENTITY,
+                ctm_end: Mat4::IDENTITY,
                 loc: None,
                 dir_rel: PathBuf::new(),
             },
@@ -776,11 +779,11 @@ impl Parser {
                     let inv_end = world_from_camera(&self.gs.ctm_end).map_or(inv, |(m, _)| m);
                     self.named_coords.insert("camera".into(), (inv, inv_end));
                 }
-                self.warn_if_moving(&loc, "camera");
                 self.camera = CameraDef {
                     kind,
                     params,
                     ctm: self.gs.ctm,
+                    ctm_end: self.gs.ctm_end,
                     loc: Some(loc),
                     dir_rel: dir_rel.to_path_buf(),
                 };

@@ -479,6 +479,19 @@ impl Parser {
         let mut locs = Locs::at(at.clone());
         locs.keys
             .push(("to_world".into(), at.clone().unwrap_or_else(|| self.desc_loc())));
+        // A moving camera's transform at the end time (checked first: the
+        // name is taken below).
+        let world_from_camera_end = match world_from_camera(&cam.ctm_end) {
+            _ if cam.ctm_end == cam.ctm => None,
+            Ok((m, _)) => Some(m),
+            Err(why) => {
+                return Err(Error::scene(
+                    at,
+                    "Camera",
+                    format!("the current transform at the end time {why}, so the moving camera has no view"),
+                ));
+            }
+        };
         let (world_from_camera, projective) = match world_from_camera(&cam.ctm) {
             Ok(m) => m,
             Err(why) => {
@@ -628,6 +641,7 @@ impl Parser {
             focus_distance: Some(focus_distance),
             to_world: Some(world_from_camera),
             shutter: (open, close),
+            motion: world_from_camera_end.map(|m| (m, self.transform_times)),
             locs,
             ..CameraDesc::default()
         };
