@@ -611,11 +611,54 @@ fn read_camera(t: &Table) -> Result<CameraDesc> {
         },
     };
     let d = CameraDesc::default();
+    let (from, to, up) = (
+        t.vec3("from")?.unwrap_or(d.from),
+        t.vec3("to")?.unwrap_or(d.to),
+        t.vec3("up")?.unwrap_or(d.up),
+    );
+    // A moving camera: where it is at the second of `motion_times`.
+    let ends = (t.vec3("from_end")?, t.vec3("to_end")?, t.vec3("up_end")?);
+    let motion = match ends {
+        (None, None, None) => None,
+        (from_end, to_end, up_end) => {
+            let key = ["from_end", "to_end", "up_end"][if from_end.is_some() {
+                0
+            } else if to_end.is_some() {
+                1
+            } else {
+                2
+            }];
+            let span = t.value(key).map(|v| v.span()).unwrap_or(t.span.clone());
+            let end = crate::geometry::Transform::look_at(
+                from_end.unwrap_or(from),
+                to_end.unwrap_or(to),
+                up_end.unwrap_or(up),
+            )
+            .map_err(|_| {
+                t.err_at(
+                    key,
+                    &span,
+                    "the camera's `from_end`, `to_end` and `up_end` do not define a view (from = to, or up parallel to the view direction)",
+                )
+            })?;
+            let times = t.vec2("motion_times")?.map_or((0.0, 1.0), |v| (v.x, v.y));
+            if !(times.0.is_finite() && times.1.is_finite() && times.0 < times.1) {
+                let span = t.value("motion_times").map(|v| v.span()).unwrap_or(t.span.clone());
+                return Err(t.err_at(
+                    "motion_times",
+                    &span,
+                    format!("must increase, got {} then {}", times.0, times.1),
+                ));
+            }
+            Some((end.m, times))
+        }
+    };
     let cam = CameraDesc {
         projection,
-        from: t.vec3("from")?.unwrap_or(d.from),
-        to: t.vec3("to")?.unwrap_or(d.to),
-        up: t.vec3("up")?.unwrap_or(d.up),
+        from,
+        to,
+        up,
+        motion,
         aperture_radius: t.number_or("aperture_radius", 0.0)?,
         focus_distance: t.number("focus_distance")?,
         to_world: None,

@@ -82,6 +82,14 @@ const CASES: &[(&str, Expect)] = &[
         ]),
     ),
     (
+        "native/camera-end-no-view.toml",
+        Error(&[
+            "camera-end-no-view.toml:4:12",
+            "camera.from_end",
+            "do not define a view",
+        ]),
+    ),
+    (
         "native/shutter-backwards.toml",
         Error(&["shutter-backwards.toml:2:", "camera.shutter", "closes before it opens"]),
     ),

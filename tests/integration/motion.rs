@@ -113,6 +113,24 @@ fn a_moving_bar_is_blurred_over_the_shutter_interval() {
     }
 }
 
+/// A camera moving past a still bar (`from_end`, `to_end`) sees what a
+/// still camera sees of the bar moving the other way.
+#[test]
+fn a_moving_camera_blurs_what_it_passes() {
+    let text = moving_bar("path", MESH)
+        .replace(
+            "from = [0, 0, 5]\nto = [0, 0, 0]",
+            "from = [0.5, 0, 5]\nto = [0.5, 0, 0]\nfrom_end = [-0.5, 0, 5]\nto_end = [-0.5, 0, 0]",
+        )
+        .replace("transform = [{ translate = [-0.5, 0, 0] }]\n", "")
+        .replace(
+            "transform_end = [{ translate = [0.5, 0, 0] }]\nmotion_times = [0, 1]\n",
+            "",
+        );
+    assert!(text.contains("from_end") && !text.contains("transform_end"), "{text}");
+    check_profile(&render_film(&text), false, "moving camera");
+}
+
 /// Without a shutter interval (it opens and closes at once) the bar stands
 /// where it is at that time: a sharp image of it.
 #[test]
