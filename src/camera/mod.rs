@@ -397,10 +397,9 @@ impl Camera {
     /// world at the start)⁻¹, its direction unit length again.
     #[inline]
     pub fn moved(&self, ray: Ray) -> Ray {
-        let Some(motion) = &self.motion else {
+        let Some(relative) = self.relative_motion(ray.time) else {
             return ray;
         };
-        let relative = motion.at(ray.time).m * self.camera_to_world.inv;
         let dir = relative.transform_vector3(ray.dir);
         let len = dir.length();
         Ray::with_interval(
@@ -410,6 +409,40 @@ impl Camera {
             ray.t_max * len,
         )
         .at_time(ray.time)
+    }
+
+    /// Where a moving camera is at `time` relative to where it starts:
+    /// (camera to world at `time`) · (camera to world at the start)⁻¹;
+    /// `None` for a still camera.
+    #[inline]
+    fn relative_motion(&self, time: f32) -> Option<Mat4> {
+        let motion = self.motion.as_ref()?;
+        Some(motion.at(time).m * self.camera_to_world.inv)
+    }
+
+    /// [`Camera::sample_wi`] for the camera as it is at `time`: the point
+    /// carried back to where the camera starts, the connection carried
+    /// forward again. A camera's motion moves it rigidly, so distances,
+    /// raster positions and weights are those at the start.
+    pub fn sample_wi_at(&self, p: Vec3, lens: Vec2, time: f32) -> Option<CameraConnection> {
+        let Some(relative) = self.relative_motion(time) else {
+            return self.sample_wi(p, lens);
+        };
+        let c = self.sample_wi(relative.inverse().transform_point3(p), lens)?;
+        Some(CameraConnection {
+            origin: relative.transform_point3(c.origin),
+            wi: relative.transform_vector3(c.wi).normalize_or_zero(),
+            ..c
+        })
+    }
+
+    /// [`Camera::pdf_dir`] of a direction from the camera as it is at
+    /// `time`.
+    pub fn pdf_dir_at(&self, dir: Vec3, time: f32) -> f32 {
+        match self.relative_motion(time) {
+            None => self.pdf_dir(dir),
+            Some(relative) => self.pdf_dir(relative.inverse().transform_vector3(dir).normalize_or_zero()),
+        }
     }
 
     /// The time of a camera sample: uniform over the shutter interval,
@@ -648,7 +681,13 @@ impl Camera {
     pub fn lens_point(&self, ray: &Ray) -> Vec3 {
         match self.clip {
             None => ray.origin,
-            Some((near, _)) => ray.origin - ray.dir * (near / ray.dir.dot(self.forward)),
+            Some((near, _)) => {
+                let forward = match self.relative_motion(ray.time) {
+                    None => self.forward,
+                    Some(relative) => relative.transform_vector3(self.forward).normalize_or_zero(),
+                };
+                ray.origin - ray.dir * (near / ray.dir.dot(forward))
+            }
         }
     }
 

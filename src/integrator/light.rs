@@ -451,7 +451,7 @@ fn trace_path(
     let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
     let time = scene.camera.time_from(|| rng.next_f32());
     if let (Some(point), true) = (emitted.surface, scene.settings.shows_emission(1)) {
-        if let Some(c) = scene.camera.sample_wi(point.p, u_lens) {
+        if let Some(c) = scene.camera.sample_wi_at(point.p, u_lens, time) {
             let cos = crate::light::emitting_cosine(point.n, c.wi, point.two_sided);
             if cos > 0.0 {
                 *rays += 1;
@@ -503,7 +503,7 @@ fn trace_path(
         // as the photons' bounces take them (`scatter_light`).
         let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
         if bsdf.has_smooth() {
-            if let Some(c) = scene.camera.sample_wi(hit.p, u_lens) {
+            if let Some(c) = scene.camera.sample_wi_at(hit.p, u_lens, hit.time) {
                 let wi = frame.to_local(c.wi);
                 let front_i = hit.ng.dot(c.wi) > 0.0;
                 let consistent = (front_i == front_o) == (wi.z * wo.z > 0.0);

@@ -539,17 +539,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
         )
         .with_clipping(cam.near_clip, cam.far_clip);
-    // The camera's motion; light paths that reach the camera would need
-    // it at their time too, which trazo's connections do not take.
     let camera_end = match cam.motion {
-        Some(_) if desc.settings.integrator.splats_light_paths() => {
-            warnings.push(format!(
-                "{}camera: a moving camera stands still under the {} integrator, whose light paths reach it; it stays where the shutter opens",
-                cam.locs.key("to_world").map(|l| format!("{l}: ")).unwrap_or_default(),
-                desc.settings.integrator.name()
-            ));
-            None
-        }
         Some((end, times)) => {
             let end = Transform::from_matrix(end)
                 .map_err(|e| Error::scene(cam.locs.key("to_world"), "camera.to_world", e.to_string()))?;

@@ -111,8 +111,7 @@ pub struct CameraDesc {
     pub shutter: (f32, f32),
     /// Where the camera moves (motion blur): its camera-to-world matrix
     /// at the second of two times (`to_world` holds at the first), and the
-    /// times. Integrators whose light paths reach the camera (`light`,
-    /// `bdpt`, `mlt`, `pssmlt`, `vcm`) keep it still, with a warning.
+    /// times.
     pub motion: Option<(Mat4, (f32, f32))>,
     /// Source locations.
     pub locs: Locs,

@@ -109,6 +109,9 @@ struct Vertex<'s> {
     wo: Vec3,
     /// Radiance for camera subpaths, importance for light subpaths.
     mode: TransportMode,
+    /// The time its subpath is traced at (where the camera moves, the
+    /// camera vertex is where the camera is then).
+    time: f32,
 }
 
 impl<'s> Vertex<'s> {
@@ -134,6 +137,7 @@ impl<'s> Vertex<'s> {
             bsdf: None,
             wo: Vec3::ZERO,
             mode: TransportMode::Radiance,
+            time: 0.0,
         }
     }
 
@@ -590,10 +594,12 @@ impl<'s> Tracer<'s> {
     ) {
         path.clear();
         let camera = &self.scene.camera;
-        let ray = camera.generate_ray(raster, u_lens).at_time(time);
+        let ray = camera.moved(camera.generate_ray(raster, u_lens).at_time(time));
         let lens = camera.lens_point(&ray);
-        path.push(Vertex::endpoint(Kind::Camera, lens, Vec3::ZERO, Rgb::ONE, 1.0));
-        let pdf_dir = camera.pdf_dir(ray.dir);
+        let mut endpoint = Vertex::endpoint(Kind::Camera, lens, Vec3::ZERO, Rgb::ONE, 1.0);
+        endpoint.time = time;
+        path.push(endpoint);
+        let pdf_dir = camera.pdf_dir_at(ray.dir, time);
         self.walk(
             ray,
             Rgb::ONE,
@@ -698,7 +704,7 @@ impl<'s> Tracer<'s> {
                 return None;
             }
             let hit = qs.hit.as_ref()?;
-            let c = scene.camera.sample_wi(qs.p, u)?;
+            let c = scene.camera.sample_wi_at(qs.p, u, hit.time)?;
             let l = qs.beta * vertex_f(qs, c.wi) * (qs.ns.dot(c.wi).abs() * c.weight);
             if l == Rgb::ZERO {
                 return None;
@@ -709,6 +715,7 @@ impl<'s> Tracer<'s> {
             }
             let mut camera = Vertex::endpoint(Kind::Camera, c.origin, Vec3::ZERO, Rgb::splat(c.weight), 0.0);
             camera.mode = TransportMode::Radiance;
+            camera.time = hit.time;
             sampled = Some(camera);
             raster = Some(c.raster);
             l
@@ -1023,6 +1030,7 @@ impl<'s> Tracer<'s> {
                 connectible: bsdf.has_smooth(),
                 pdf_fwd: 0.0,
                 pdf_rev: 0.0,
+                time: hit.time,
                 hit: Some(hit),
                 bsdf: Some((bsdf, frame)),
                 wo: wo_world,
@@ -1105,7 +1113,7 @@ impl<'s> Tracer<'s> {
             Kind::Light { .. } => self.pdf_light(v, next),
             Kind::Camera => {
                 let (w, _) = v.toward(next);
-                self.convert(self.scene.camera.pdf_dir(w), v, next)
+                self.convert(self.scene.camera.pdf_dir_at(w, v.time), v, next)
             }
             Kind::Surface => {
                 let (Some((bsdf, frame)), Some(prev)) = (&v.bsdf, prev) else {
