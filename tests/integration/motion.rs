@@ -71,22 +71,27 @@ fn covered(x: f64) -> f64 {
     (b - a).max(0.0) / 0.5
 }
 
+/// What column `x` sees: 1 − the bar's mean coverage over the column's
+/// span of x (`mirrored`: world +x on the image's left).
+fn expected_column(x: u32, mirrored: bool) -> f64 {
+    let pixel = 2.0 / WIDTH as f64;
+    let column = if mirrored { WIDTH - 1 - x } else { x };
+    let x0 = -1.0 + column as f64 * pixel;
+    let steps = 1000;
+    1.0 - (0..steps)
+        .map(|i| covered(x0 + (i as f64 + 0.5) * pixel / steps as f64))
+        .sum::<f64>()
+        / steps as f64
+}
+
 /// Each column's mean against 1 − the bar's mean coverage over the
 /// column's span of x, within 5 standard errors: the film's estimate, or
 /// where it has none (SPPM's) or is smaller, that of a path tracer's
 /// samples, each 0 or 1. `mirrored`: world +x is on the image's left (as
 /// pbrt-v4's left-handed camera space puts it).
 fn check_profile(f: &Film, mirrored: bool, what: &str) {
-    let pixel = 2.0 / WIDTH as f64;
     for x in 0..WIDTH {
-        let column = if mirrored { WIDTH - 1 - x } else { x };
-        let x0 = -1.0 + column as f64 * pixel;
-        let steps = 1000;
-        let expected = 1.0
-            - (0..steps)
-                .map(|i| covered(x0 + (i as f64 + 0.5) * pixel / steps as f64))
-                .sum::<f64>()
-                / steps as f64;
+        let expected = expected_column(x, mirrored);
         let (mut mean, mut var) = (0.0f64, 0.0f64);
         for y in 0..HEIGHT {
             let p = &f.pixels[(y * WIDTH + x) as usize];
@@ -264,15 +269,8 @@ fn the_light_tracer_meets_a_moving_camera_where_it_is() {
     };
     let scene = trazo::scene::build(&d).unwrap();
     let f = render(&scene, &RenderOptions::default()).unwrap().film;
-    let pixel = 2.0 / WIDTH as f64;
     for x in 0..WIDTH {
-        let x0 = -1.0 + (WIDTH - 1 - x) as f64 * pixel;
-        let steps = 1000;
-        let expected = 1.0
-            - (0..steps)
-                .map(|i| covered(x0 + (i as f64 + 0.5) * pixel / steps as f64))
-                .sum::<f64>()
-                / steps as f64;
+        let expected = expected_column(x, true);
         let values: Vec<f64> = (0..rows)
             .map(|y| f.pixels[(y * WIDTH + x) as usize].value().x as f64)
             .collect();
