@@ -89,15 +89,13 @@ impl Integrator for PathTracer {
                 if let (Some(env), true) = (scene.environment_light, shows_emission) {
                     let dir = ray.dir.normalize();
                     // (A portal lets in what the ray's origin sees through it.)
-                    let le = scene.background.eval_from(ray.origin, dir);
-                    let w = if nee && !prev_delta {
-                        let pdf_light = light_choice_pmf(scene, prev_p, prev_n, env as usize)
-                            * scene.background.pdf_from(prev_p, dir);
-                        power_heuristic(prev_pdf, pdf_light)
+                    if nee && !prev_delta {
+                        let (le, pdf_dir) = scene.background.eval_pdf_from(prev_p, dir);
+                        let pdf_light = light_choice_pmf(scene, prev_p, prev_n, env as usize) * pdf_dir;
+                        l += beta * le * power_heuristic(prev_pdf, pdf_light);
                     } else {
-                        1.0
-                    };
-                    l += beta * le * w;
+                        l += beta * scene.background.eval_from(ray.origin, dir);
+                    }
                 }
                 break;
             };

@@ -289,9 +289,13 @@ impl Integrator for VolPathTracer {
             let Some(hit) = hit else {
                 if let (Some(env), true) = (scene.environment_light, shows_emission) {
                     let (prev_p, prev_n) = (s.prev_p, s.prev_n);
-                    let le = scene.background.eval_from(prev_p, dir);
+                    let (le, pdf_dir) = if s.specular {
+                        (scene.background.eval_from(prev_p, dir), 0.0)
+                    } else {
+                        scene.background.eval_pdf_from(prev_p, dir)
+                    };
                     self.add_emission(&mut s, le, || {
-                        light_choice_pmf(scene, prev_p, prev_n, env as usize) * scene.background.pdf_from(prev_p, dir)
+                        light_choice_pmf(scene, prev_p, prev_n, env as usize) * pdf_dir
                     });
                 }
                 return s.l;

@@ -200,6 +200,45 @@ impl EnvironmentMap {
         Some((d, pdf_uv / (2.0 * PI * PI * sin_theta)))
     }
 
+    /// [`EnvironmentMap::sample`] with the radiance arriving from the
+    /// direction drawn, looked up where it was drawn rather than found
+    /// again from the direction (which costs an arctangent and an arccosine).
+    pub fn sample_radiance(&self, u: Vec2) -> Option<(Vec3, f32, Rgb)> {
+        if self.layout == EnvironmentLayout::EqualAreaOctahedral {
+            let (uv, pdf_uv) = self.pixel_distribution.sample(u);
+            if pdf_uv <= 0.0 {
+                return None;
+            }
+            let d = self.to_world.vector(equal_area_square_to_sphere(uv)).normalize();
+            return Some((d, pdf_uv / (4.0 * PI), self.nearest(uv)));
+        }
+        let (p, pdf_uv) = self.distribution.sample(u);
+        let uv = self.map_point(p);
+        let (d, sin_theta) = self.dir_of(uv);
+        if sin_theta <= 0.0 || pdf_uv <= 0.0 {
+            return None;
+        }
+        Some((d, pdf_uv / (2.0 * PI * PI * sin_theta), self.eval_uv(uv)))
+    }
+
+    /// [`EnvironmentMap::eval`] and [`EnvironmentMap::pdf`] of one
+    /// direction, which is mapped to the image once.
+    pub fn eval_pdf(&self, dir: Vec3) -> (Rgb, f32) {
+        if self.layout == EnvironmentLayout::EqualAreaOctahedral {
+            let d = self.to_world.inv_vector(dir).normalize_or_zero();
+            let uv = equal_area_sphere_to_square(d);
+            return (self.nearest(uv), self.pixel_distribution.pdf(uv) / (4.0 * PI));
+        }
+        let uv = self.uv_of(dir);
+        let sin_theta = (PI * uv.y).sin();
+        let pdf = if sin_theta <= 0.0 {
+            0.0
+        } else {
+            self.distribution.pdf(self.density_point(uv)) / (2.0 * PI * PI * sin_theta)
+        };
+        (self.eval_uv(uv), pdf)
+    }
+
     /// Density of [`EnvironmentMap::sample`] for direction `dir`.
     pub fn pdf(&self, dir: Vec3) -> f32 {
         if self.layout == EnvironmentLayout::EqualAreaOctahedral {
@@ -319,6 +358,29 @@ impl Background {
             Background::Image(map) => map.sample(u),
             Background::Portal(map) => map.sample_from(p, u),
             _ => Some((sample_sphere_uniform(u), pdf_sphere_uniform())),
+        }
+    }
+
+    /// [`Background::sample_from`] with the radiance arriving from the
+    /// direction drawn.
+    #[inline]
+    pub fn sample_radiance_from(&self, p: Vec3, u: Vec2) -> Option<(Vec3, f32, Rgb)> {
+        match self {
+            Background::Image(map) => map.sample_radiance(u),
+            _ => {
+                let (wi, pdf) = self.sample_from(p, u)?;
+                Some((wi, pdf, self.eval(wi)))
+            }
+        }
+    }
+
+    /// [`Background::eval_from`] and [`Background::pdf_from`] at once (an
+    /// image maps the direction to its pixels once).
+    #[inline]
+    pub fn eval_pdf_from(&self, p: Vec3, dir: Vec3) -> (Rgb, f32) {
+        match self {
+            Background::Image(map) => map.eval_pdf(dir),
+            _ => (self.eval_from(p, dir), self.pdf_from(p, dir)),
         }
     }
 

@@ -794,13 +794,13 @@ impl Light {
                 area_light_sample(scene, p, lp, ln, *two_sided, uv, pdf_solid_angle, pdf_area, radiance)
             }
             Light::Environment => {
-                let (wi, pdf) = scene.background.sample_from(p, u)?;
+                let (wi, pdf, li) = scene.background.sample_radiance_from(p, u)?;
                 if pdf <= 0.0 {
                     return None;
                 }
                 Some(LightSample {
                     wi,
-                    li: scene.background.eval(wi),
+                    li,
                     pdf,
                     is_delta: false,
                     target: ShadowTarget::Infinity,
