@@ -1212,7 +1212,7 @@ fn to_medium(
 }
 
 /// The message of an error without the file name it already carries.
-fn reason_of(e: Error) -> String {
+pub(crate) fn reason_of(e: Error) -> String {
     match e {
         Error::File { path, message } => format!("{}: {message}", path.display()),
         other => other.to_string(),

@@ -166,7 +166,9 @@ impl Parser {
                 };
                 locs.keys.push(("file".into(), prm.loc.clone()));
                 let path = self.resolve(dir_rel, &file);
-                if crate::files::is_gzip_name(&path) {
+                // An emitter's `power` needs its triangles' areas now.
+                let powered = self.gs.area_light.as_ref().is_some_and(|e| e.power.is_some());
+                if crate::files::is_gzip_name(&path) || powered {
                     // pbrt-v4 reads gzip-compressed PLY files; trazo
                     // decompresses and reads them now, the others when the
                     // scene is built.
@@ -299,7 +301,7 @@ impl Parser {
         };
         let mut emission = self.gs.area_light.clone();
         if let Some(e) = emission.as_mut() {
-            self.apply_power(e, &shape, &what);
+            self.apply_power(e, &shape, &what)?;
         }
         if emission.is_some() && self.current_object.is_some() {
             emission = None;
@@ -350,25 +352,22 @@ impl Parser {
     }
 
     /// pbrt-v4's area light `power` (DiffuseAreaLight::Create): the
-    /// radiance scaled by power / (π · sides · area), with the area as
+    /// radiance scaled by power / (k · π · sides · area), with the area as
     /// pbrt-v4's shapes report it — in object space for spheres, disks,
-    /// cylinders and quadrics, in world space for triangles and patches.
+    /// cylinders and quadrics, in world space for triangles and patches —
+    /// and k the mean luminance of the light's image (1 without one).
     /// pbrt-v4 makes each triangle of a mesh a light of that power: for a
     /// mesh of equal triangles that is exact, for unequal ones the mean
-    /// triangle is used (warning). An image's mean luminance is not
-    /// known here: with an image the power is not applied (warning).
-    fn apply_power(&mut self, e: &mut Emission, shape: &ShapeKind, what: &str) {
+    /// triangle is used (warning). An image light's shape gets its own
+    /// copy of the image's texture, tinted by its factor.
+    fn apply_power(&mut self, e: &mut Emission, shape: &ShapeKind, what: &str) -> Result<()> {
         let Some((power, at)) = e.power.take() else {
-            return;
+            return Ok(());
         };
-        if e.image.is_some() {
-            self.unsupported(
-                &at,
-                "\"power\" of an area light with an image",
-                "the image and scale are used as given",
-            );
-            return;
-        }
+        let image_luminance = match &e.image {
+            Some(name) => Some(self.image_mean_luminance(name)?),
+            None => None,
+        };
         let ctm = self.gs.ctm;
         let world = |p: Vec3| ctm.transform_point3(p);
         let area = match shape {
@@ -403,13 +402,69 @@ impl Parser {
                     format!("\"power\" of an area light on {what}"),
                     "the given L and scale are used",
                 );
-                return;
+                return Ok(());
             }
         };
         let sides = if e.two_sided { 2.0 } else { 1.0 };
-        if area > 0.0 && area.is_finite() {
-            e.radiance *= power / (std::f32::consts::PI * sides * area);
+        let k_e = image_luminance.unwrap_or(1.0) * std::f32::consts::PI * sides * area;
+        if !(k_e > 0.0 && k_e.is_finite()) {
+            return Ok(());
         }
+        let factor = power / k_e;
+        match e.image.take() {
+            None => e.radiance *= factor,
+            Some(name) => {
+                let mut texture = self
+                    .desc
+                    .textures
+                    .iter()
+                    .rev()
+                    .find(|t| t.name == name)
+                    .expect("an area light's image texture was made with it")
+                    .clone();
+                if let TextureKind::Image { tint, .. } = &mut texture.kind {
+                    *tint *= factor;
+                }
+                let typical = self.texture_colors.get(&name).copied().unwrap_or(Rgb::ONE) * factor;
+                texture.name = format!("{name} with power {}", self.desc.textures.len());
+                self.push_texture(&texture.name, &at, texture.locs.clone(), (texture.kind, typical))?;
+                e.image = Some(texture.name);
+            }
+        }
+        Ok(())
+    }
+
+    /// The mean luminance of the pixels of an area light's image texture
+    /// `name` (pbrt-v4's k_e): the image is read now, once, and kept in
+    /// the texture so that the build does not read it again.
+    fn image_mean_luminance(&mut self, name: &str) -> Result<f32> {
+        let top_dir = self.top_dir.clone();
+        let texture = self
+            .desc
+            .textures
+            .iter_mut()
+            .rev()
+            .find(|t| t.name == name)
+            .expect("an area light's image texture was made with it");
+        let file_loc = texture.locs.key("file");
+        let TextureKind::Image { source, srgb, .. } = &mut texture.kind else {
+            unreachable!("an area light's image is an image texture")
+        };
+        if let ImageSource::File(path) = source {
+            let image = crate::texture::ImageTexture::load(&top_dir.join(&*path), *srgb)
+                .map_err(|e| Error::scene(file_loc, "string filename", crate::scene::build::reason_of(e)))?;
+            *source = ImageSource::Data(std::sync::Arc::new(image));
+        }
+        let ImageSource::Data(image) = source else {
+            unreachable!("an area light's image is a file")
+        };
+        let sum: f64 = image
+            .pixels
+            .iter()
+            .filter(|c| c.is_finite())
+            .map(|&c| f64::from(crate::color::luminance(c.max(Rgb::ZERO))))
+            .sum();
+        Ok((sum / image.pixels.len().max(1) as f64) as f32)
     }
 
     /// The triangles of a gzip-compressed PLY file, decompressed through

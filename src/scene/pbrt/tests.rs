@@ -2704,6 +2704,67 @@ fn area_light_power_sets_each_shapes_radiance() {
     );
 }
 
+/// `power` of an area light with an image divides by the image's mean
+/// luminance too (pbrt-v4's k_e), each shape by its own area; a PLY
+/// mesh's triangles are read for theirs.
+#[test]
+fn area_light_power_reads_the_image_and_the_ply_mesh() {
+    use std::f32::consts::PI;
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    // A 2 × 1 PFM image of greys 1 and 3: mean luminance 2.
+    let mut pfm = b"PF\n2 1\n-1.0\n".to_vec();
+    for v in [1.0f32, 1.0, 1.0, 3.0, 3.0, 3.0] {
+        pfm.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(root.join("glow.pfm"), pfm).unwrap();
+    std::fs::write(root.join("tri.ply"), TRIANGLE_PLY).unwrap();
+    std::fs::write(
+        root.join("scene.pbrt"),
+        "WorldBegin\nAttributeBegin\nAreaLightSource \"diffuse\" \"string filename\" \"glow.pfm\" \"float power\" 10\n\
+         Shape \"disk\"\nShape \"disk\" \"float radius\" 2\nAttributeEnd\n\
+         AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 1 1] \"float power\" 10\n\
+         Shape \"plymesh\" \"string filename\" \"tri.ply\"\nAttributeEnd\n",
+    )
+    .unwrap();
+    let d = crate::scene::load(&root.join("scene.pbrt"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    for (shape, area) in [(0, PI), (1, 4.0 * PI)] {
+        let ColorSource::Texture(name) = &material(&d, shape).emission else {
+            panic!("{:?}", material(&d, shape).emission)
+        };
+        let t = d.textures.iter().find(|t| &t.name == name).unwrap();
+        let TextureKind::Image { source, tint, .. } = &t.kind else {
+            panic!("{:?}", t.kind)
+        };
+        let expected = 10.0 / (2.0 * PI * area);
+        assert!(
+            (tint.x - expected).abs() < 1e-5 * expected,
+            "shape {shape}: {tint} against {expected}"
+        );
+        // Read once, while parsing, and kept.
+        assert!(matches!(source, ImageSource::Data(_)), "{source:?}");
+    }
+    let ColorSource::Rgb(c) = material(&d, 2).emission else {
+        panic!("{:?}", material(&d, 2).emission)
+    };
+    assert!(matches!(d.shapes[2].kind, ShapeKind::InlineMesh(MeshSource::Inline(_))));
+    let (plain, expected) = (1.0, 10.0 / (PI * 0.5));
+    assert!(
+        (c.x - plain * expected).abs() < 1e-4 * expected,
+        "{c} against {expected}"
+    );
+    // A missing image is an error at its file key, as at the build.
+    std::fs::remove_file(root.join("glow.pfm")).unwrap();
+    let e = crate::scene::load(&root.join("scene.pbrt"), &[])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("scene.pbrt:3:") && e.contains("glow.pfm: cannot open image"),
+        "{e}"
+    );
+}
+
 /// `ActiveTransform` chooses which of the two transforms the transform
 /// directives change, `AttributeBegin` saves the choice with the
 /// transforms, and shapes and object instances made where the two differ
