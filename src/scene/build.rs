@@ -696,16 +696,32 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         })
         .collect();
     let camera_medium = medium_of(&desc.camera_medium);
-    if !desc.media.is_empty() && desc.settings.integrator != IntegratorKind::VolPath {
-        let first = desc.media[0]
-            .locs
-            .item
-            .as_ref()
-            .map(|l| format!("{l}: "))
-            .unwrap_or_default();
+    let integrator = desc.settings.integrator;
+    // BDPT and the Metropolis samplers over it trace media (bdpt/mod.rs);
+    // VCM merges on surfaces only.
+    let traces_media = matches!(
+        integrator,
+        IntegratorKind::VolPath | IntegratorKind::Bdpt | IntegratorKind::Mlt | IntegratorKind::Pssmlt
+    );
+    let at_medium =
+        |m: &crate::scene::desc::MediumDesc| m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default();
+    if !desc.media.is_empty() && !traces_media {
         warnings.push(format!(
-            "{first}the scene has participating media, which only the \"volpath\" integrator renders; \"{}\" renders the surfaces as if the media were not there",
-            desc.settings.integrator.name()
+            "{}the scene has participating media, which only the \"volpath\", \"bdpt\", \"mlt\" and \"pssmlt\" integrators render; \"{}\" renders the surfaces as if the media were not there",
+            at_medium(&desc.media[0]),
+            integrator.name()
+        ));
+    }
+    if let (true, false, Some(m)) = (
+        traces_media,
+        integrator == IntegratorKind::VolPath,
+        desc.media.iter().find(|m| m.emission.is_some()),
+    ) {
+        warnings.push(format!(
+            "{}medium \"{}\" emits light, which only the \"volpath\" integrator renders; \"{}\" renders its scattering and absorption without its emission",
+            at_medium(m),
+            m.name,
+            integrator.name()
         ));
     }
     if desc.settings.max_component_value.is_finite()

@@ -22,8 +22,17 @@ fn agrees_with_the_path_tracer(name: &str, d: &SceneDesc) {
 /// tracer's within five standard errors of their difference (16 seeds
 /// each), both known to 2 % or better.
 fn same_as_the_path_tracer(name: &str, d: &SceneDesc, integrator: IntegratorKind) {
+    same_as(name, d, integrator, (IntegratorKind::Path, 1));
+}
+
+/// Every block of `d` rendered by `integrator` agrees with `reference`'s
+/// (rendered with `spp_scale` times the samples) within five standard
+/// errors of their difference (16 seeds each), both known to 2 % or better.
+fn same_as(name: &str, d: &SceneDesc, integrator: IntegratorKind, (reference, spp_scale): (IntegratorKind, u32)) {
     let bdpt = blocks_over_seeds(d, integrator, 16);
-    let path = blocks_over_seeds(d, IntegratorKind::Path, 16);
+    let mut more = d.clone();
+    more.settings.spp *= spp_scale;
+    let path = blocks_over_seeds(&more, reference, 16);
     let mut worst: f64 = 0.0;
     for (b, ((mb, sb), (mp, sp))) in bdpt.iter().zip(&path).enumerate() {
         if *sb == 0.0 && *sp == 0.0 {
@@ -35,11 +44,11 @@ fn same_as_the_path_tracer(name: &str, d: &SceneDesc, integrator: IntegratorKind
         worst = worst.max(z.abs());
         assert!(
             z.abs() < 5.0,
-            "{name}, block {b}: bdpt {mb} ± {sb}, path {mp} ± {sp} (z = {z:.2})"
+            "{name}, block {b}: {integrator:?} {mb} ± {sb}, {reference:?} {mp} ± {sp} (z = {z:.2})"
         );
         assert!(
             sb / mb < 0.02 && sp / mp < 0.02,
-            "{name}, block {b}: errors too large to judge"
+            "{name}, block {b}: errors too large to judge: {integrator:?} {mb} ± {sb}, {reference:?} {mp} ± {sp}"
         );
     }
     eprintln!("{name}: largest |z| over {} blocks {worst:.2}", bdpt.len());
@@ -190,6 +199,179 @@ fn bdpt_agrees_with_the_path_tracer_over_delta_bsdfs() {
     let scene = trazo::scene::build(&d).unwrap();
     assert_eq!(scene.lights.len(), 2, "sphere and sky");
     agrees_with_the_path_tracer("sphere and sky, delta BSDFs", &d);
+}
+
+/// A room of thin fog (a `null` box, the camera inside) under a sky
+/// seen through it, a point light and a small spherical lamp; in it a
+/// diffuse floor and ball, a ball of a chromatic scattering medium with no
+/// surface, and a rough glass ball filled with a denser one. What the
+/// subpaths of bidirectional path tracing go through.
+const FOG_ROOM: &str = r#"
+[render]
+width = 32
+height = 32
+spp = 16
+max_depth = 6
+
+[camera]
+from = [0, 1.2, 3.5]
+to = [0, 0.6, 0]
+fov = 50
+medium = "fog"
+
+[world]
+background = [0.3, 0.35, 0.45]
+
+[[medium]]
+name = "fog"
+type = "homogeneous"
+sigma_t = 0.3
+albedo = 0.9
+
+[[medium]]
+name = "tint"
+type = "homogeneous"
+sigma_t = [0.6, 1.8, 3.5]
+albedo = [0.9, 0.8, 0.7]
+g = 0.3
+
+[[medium]]
+name = "milk"
+type = "homogeneous"
+sigma_t = 4
+albedo = 0.95
+g = -0.2
+
+[[material]]
+name = "floor"
+type = "diffuse"
+reflectance = 0.6
+
+[[material]]
+name = "boundary"
+type = "null"
+
+[[material]]
+name = "glass"
+type = "dielectric"
+ior = 1.4
+roughness = 0.3
+
+[[material]]
+name = "lamp"
+emission = [20, 18, 15]
+
+[[light]]
+type = "point"
+position = [-1.5, 2.5, 1]
+intensity = [4, 4, 3.5]
+
+[[shape]]
+type = "box"
+min = [-2.5, -0.5, -2.5]
+max = [2.5, 3, 4.5]
+material = "boundary"
+inside = "fog"
+
+[[shape]]
+type = "rectangle"
+corner = [-2, 0, -2]
+edge_u = [0, 0, 4]
+edge_v = [4, 0, 0]
+material = "floor"
+
+[[shape]]
+type = "sphere"
+center = [-0.8, 0.45, -0.2]
+radius = 0.45
+material = "floor"
+
+[[shape]]
+type = "sphere"
+center = [0.2, 0.5, 0.5]
+radius = 0.5
+material = "boundary"
+inside = "tint"
+outside = "fog"
+
+[[shape]]
+type = "sphere"
+center = [1.1, 0.4, -0.3]
+radius = 0.4
+material = "glass"
+inside = "milk"
+outside = "fog"
+
+[[shape]]
+type = "sphere"
+center = [0.8, 2.2, 0.6]
+radius = 0.12
+material = "lamp"
+"#;
+
+/// Bidirectional path tracing through participating media: medium
+/// vertices on both subpaths, connections weighed by the transmittance
+/// through media and past surfaces that are not there, light subpaths
+/// starting in the medium around their light (the sky's from outside the
+/// room). The same image as the volumetric path tracer's, in a room of
+/// homogeneous media and with the tinted ball a voxel grid (delta and
+/// ratio tracking); and with the fog everywhere (no room), where the sky's
+/// light never arrives.
+#[test]
+fn bdpt_agrees_with_the_volumetric_path_tracer_through_media() {
+    let d = trazo::scene::native::parse(FOG_ROOM, Path::new("<fog-room>")).unwrap();
+    let mut bdpt = d.clone();
+    bdpt.settings.integrator = IntegratorKind::Bdpt;
+    let warnings = trazo::scene::build(&bdpt).unwrap().warnings;
+    assert!(!warnings.iter().any(|w| w.contains("media")), "{warnings:?}");
+    same_as("fog room", &d, IntegratorKind::Bdpt, (IntegratorKind::VolPath, 1));
+
+    let mut grid = d.clone();
+    let values: Vec<f32> = (0..64 * 3).map(|i| ((i * 7) % 10) as f32 * 0.4).collect();
+    let tint = grid.media.iter_mut().find(|m| m.name == "tint").unwrap();
+    tint.sigma_t = FieldDesc::Grid {
+        source: GridSource::Data(std::sync::Arc::new(
+            trazo::media::VoxelGrid::new([4, 4, 4], 3, values).unwrap(),
+        )),
+        to_world: vec![
+            TransformOp::Translate(trazo::Vec3::splat(-0.5)),
+            TransformOp::Scale(trazo::Vec3::splat(1.0)),
+            TransformOp::Translate(trazo::Vec3::new(0.2, 0.5, 0.5)),
+        ],
+        use_file_bounds: false,
+    };
+    same_as(
+        "fog room, grid",
+        &grid,
+        IntegratorKind::Bdpt,
+        (IntegratorKind::VolPath, 1),
+    );
+
+    // Without the room, and without the glass ball, whose milk the
+    // volumetric path tracer lights only by finding the lamp (through
+    // rough glass, light sampling is blocked).
+    let mut open = d.clone();
+    open.shapes.retain(
+        |s| !matches!(s.material.as_deref(), Some("boundary") if s.media.as_ref().is_some_and(|m| m.outside.is_none())),
+    );
+    open.shapes.retain(|s| s.material.as_deref() != Some("glass"));
+    assert_eq!(open.shapes.len(), d.shapes.len() - 2);
+    let mean_of = |integrator, spp_scale| {
+        let mut d = open.clone();
+        d.settings.spp *= spp_scale;
+        let blocks = blocks_over_seeds(&d, integrator, 16);
+        let n = blocks.len() as f64;
+        let mean = blocks.iter().map(|(m, _)| m).sum::<f64>() / n;
+        let error = blocks.iter().map(|(_, e)| e * e).sum::<f64>().sqrt() / n;
+        (mean, error)
+    };
+    // The whole image: the volumetric path tracer's blocks are noisy here.
+    let ((mb, sb), (mv, sv)) = (mean_of(IntegratorKind::Bdpt, 1), mean_of(IntegratorKind::VolPath, 8));
+    let z = (mb - mv) / (sb * sb + sv * sv).sqrt();
+    assert!(
+        z.abs() < 5.0 && sb < 0.01 * mb && sv < 0.01 * mv,
+        "fog everywhere: bdpt {mb} ± {sb}, volpath {mv} ± {sv}"
+    );
 }
 
 /// The strategies' images (pbrt-v4's `visualizeweights` and

@@ -44,9 +44,11 @@ use super::state::{StateReader, StateWriter};
 use super::{Progressive, Work};
 use crate::color::Rgb;
 use crate::film::Film;
+use crate::geometry::interaction::SHADOW_EPSILON;
 use crate::geometry::{Ray, SurfaceHit};
 use crate::light::{Light, ShadowTarget};
-use crate::material::{Bsdf, ShadingFrame, TransportMode};
+use crate::material::{Bsdf, MaterialKind, ShadingFrame, TransportMode};
+use crate::media::Phase;
 use crate::sampling::Uniforms;
 use crate::sampling::warp::{pdf_cone_uniform, pdf_sphere_uniform};
 use crate::scene::Scene;
@@ -76,6 +78,8 @@ enum Kind {
     Light { light: u32, infinite: bool, delta: bool },
     /// A surface.
     Surface,
+    /// A scattering point in a participating medium.
+    Medium,
 }
 
 /// A vertex of a subpath (`'s`: the scene its BSDF reads).
@@ -112,6 +116,11 @@ struct Vertex<'s> {
     /// The time its subpath is traced at (where the camera moves, the
     /// camera vertex is where the camera is then).
     time: f32,
+    /// The medium the subpath reached the vertex through (for the camera
+    /// and lights, the one they sit in).
+    medium: Option<u32>,
+    /// For medium vertices, the medium's phase function.
+    phase: Option<Phase>,
 }
 
 impl<'s> Vertex<'s> {
@@ -138,6 +147,19 @@ impl<'s> Vertex<'s> {
             wo: Vec3::ZERO,
             mode: TransportMode::Radiance,
             time: 0.0,
+            medium: None,
+            phase: None,
+        }
+    }
+
+    /// The cosine a segment along unit direction `w` has at this vertex in
+    /// the geometry term: with the shading normal on surfaces, none (1) in
+    /// a medium.
+    fn cos_toward(&self, w: Vec3) -> f32 {
+        if self.kind == Kind::Medium {
+            1.0
+        } else {
+            self.ns.dot(w).abs()
         }
     }
 
@@ -192,6 +214,51 @@ fn delta_before(light: &[Vertex], i: usize) -> bool {
     }
 }
 
+/// How many surfaces that are not there a segment or a walk may cross
+/// (a bound against a ray caught among coincident surfaces).
+const MAX_CROSSINGS: usize = 256;
+
+/// What a segment of a subpath through a medium ended in.
+enum Flight {
+    /// It reached the segment's end.
+    Crossed,
+    /// It scattered at this point.
+    Scattered(Vec3),
+    /// Nothing is left to carry.
+    Ended,
+}
+
+/// The mean of the three channels.
+#[inline]
+fn mean(c: Rgb) -> f32 {
+    (c.x + c.y + c.z) * (1.0 / 3.0)
+}
+
+/// Whether a surface of material `m` is not there: a boundary of a
+/// medium that light crosses unchanged (Mitsuba's `null`, pbrt-v4's
+/// `interface`).
+fn is_null(m: &crate::material::Material) -> bool {
+    matches!(m.kind, MaterialKind::Thin { eta, .. } if eta == 1.0)
+}
+
+/// The medium that lies outside every surface bounding a medium, where
+/// lights at infinity shine from: the camera's, changed at every such
+/// surface a ray from the camera through the image's centre crosses on
+/// its way out of the scene.
+fn outer_medium(scene: &Scene) -> Option<u32> {
+    let (w, h) = (scene.settings.width as f32, scene.settings.height as f32);
+    let mut ray = scene.camera.generate_ray(Vec2::new(0.5 * w, 0.5 * h), Vec2::splat(0.5));
+    let mut medium = scene.camera_medium;
+    for _ in 0..MAX_CROSSINGS {
+        let Some(hit) = scene.intersect(&ray) else { break };
+        if let Some(interface) = scene.material_media[hit.material as usize] {
+            medium = interface.toward(ray.dir, hit.ng);
+        }
+        ray = hit.spawn_ray(ray.dir);
+    }
+    medium
+}
+
 /// The BSDF at a surface vertex, in its shading frame.
 fn surface_bsdf<'s>(scene: &'s Scene, hit: &SurfaceHit, wo: Vec3) -> (Bsdf<'s>, ShadingFrame) {
     let m = &scene.materials[hit.material as usize];
@@ -204,6 +271,9 @@ fn surface_bsdf<'s>(scene: &'s Scene, hit: &SurfaceHit, wo: Vec3) -> (Bsdf<'s>, 
 /// adjoint correction for shading normals; the geometry term's shading
 /// cosine at `v` is applied by the caller.
 fn vertex_f(v: &Vertex, wi_world: Vec3) -> Rgb {
+    if let Some(phase) = &v.phase {
+        return Rgb::splat(phase.eval(v.wo, wi_world));
+    }
     let (Some(hit), Some((bsdf, frame))) = (&v.hit, &v.bsdf) else {
         return Rgb::ZERO;
     };
@@ -464,16 +534,27 @@ pub(crate) struct Tracer<'s> {
     /// both sides times η, for N light paths merged within radius r);
     /// zero where paths are only connected (BDPT, MLT).
     merge_eta: f32,
+    /// Whether subpaths and connections go through participating media
+    /// (the scene has some, and the tracer is not VCM's: its merging is on
+    /// surfaces only, so VCM renders the surfaces as if the media were
+    /// not there, with a warning).
+    media: bool,
+    /// The medium of what lies outside every surface that bounds a medium,
+    /// where lights at infinity shine from (see [`Tracer::outer_medium`]).
+    outer_medium: Option<u32>,
 }
 
 impl<'s> Tracer<'s> {
     /// The subpaths and connections of the scene for `max_depth` segments.
     pub(crate) fn new(scene: &'s Scene, max_depth: u32) -> Tracer<'s> {
+        let media = !scene.media.is_empty();
         Tracer {
             scene,
             bounds: crate::light::scene_bounding_sphere(scene),
             max_depth,
             merge_eta: 0.0,
+            media,
+            outer_medium: if media { outer_medium(scene) } else { None },
         }
     }
 
@@ -482,6 +563,14 @@ impl<'s> Tracer<'s> {
     /// (π r² times the light paths merged).
     pub(crate) fn merging(mut self, eta: f32) -> Tracer<'s> {
         self.merge_eta = eta;
+        self
+    }
+
+    /// The tracer that renders the surfaces as if the scene's media were
+    /// not there (VCM's).
+    pub(crate) fn without_media(mut self) -> Tracer<'s> {
+        self.media = false;
+        self.outer_medium = None;
         self
     }
 
@@ -598,12 +687,15 @@ impl<'s> Tracer<'s> {
         let lens = camera.lens_point(&ray);
         let mut endpoint = Vertex::endpoint(Kind::Camera, lens, Vec3::ZERO, Rgb::ONE, 1.0);
         endpoint.time = time;
+        endpoint.medium = if self.media { self.scene.camera_medium } else { None };
+        let medium = endpoint.medium;
         path.push(endpoint);
         let pdf_dir = camera.pdf_dir_at(ray.dir, time);
         self.walk(
             ray,
             Rgb::ONE,
             pdf_dir,
+            medium,
             TransportMode::Radiance,
             max_vertices,
             rng,
@@ -648,14 +740,32 @@ impl<'s> Tracer<'s> {
         let (pdf_pos, pdf_dir) = pdf_le(scene, self.bounds, light, p, n, w);
         let mut start = Vertex::endpoint(kind, p, n, Rgb::ZERO, pmf * pdf_pos);
         start.mode = TransportMode::Importance;
+        start.time = time;
         if infinite {
             start.pdf_fwd = self.pdf_light_origin(&start, &start);
         }
+        if self.media {
+            start.medium = if infinite {
+                self.outer_medium
+            } else {
+                self.medium_around(emitted.ray.origin, w, time)
+            };
+            // Light from infinity does not cross a medium without end
+            // (the camera's rays that leave through one find no sky
+            // either).
+            if let Some(m) = start.medium.map(|m| &scene.media[m as usize]) {
+                if infinite && m.bounds.is_none() && m.majorant().max_element() > 0.0 {
+                    return;
+                }
+            }
+        }
+        let medium = start.medium;
         path.push(start);
         self.walk(
             emitted.ray.at_time(time),
             beta,
             pdf_dir,
+            medium,
             TransportMode::Importance,
             max_vertices,
             rng,
@@ -665,7 +775,12 @@ impl<'s> Tracer<'s> {
         // The first surface of a path from infinity was found by a point
         // on the disk the light shines from.
         if infinite && path.len() > 1 {
-            path[1].pdf_fwd = pdf_pos * path[1].ng.dot(w).abs();
+            let cos = if path[1].on_surface() {
+                path[1].ng.dot(w).abs()
+            } else {
+                1.0
+            };
+            path[1].pdf_fwd = pdf_pos * cos;
         }
     }
 
@@ -700,66 +815,63 @@ impl<'s> Tracer<'s> {
         } else if t == 1 {
             let qs = &work.light[s - 1];
             let u = Vec2::new(rng.next_f32(), rng.next_f32());
-            if !qs.connectible {
+            if !qs.connectible || !matches!(qs.kind, Kind::Surface | Kind::Medium) {
                 return None;
             }
-            let hit = qs.hit.as_ref()?;
-            let c = scene.camera.sample_wi_at(qs.p, u, hit.time)?;
-            let l = qs.beta * vertex_f(qs, c.wi) * (qs.ns.dot(c.wi).abs() * c.weight);
+            let c = scene.camera.sample_wi_at(qs.p, u, qs.time)?;
+            let l = qs.beta * vertex_f(qs, c.wi) * (qs.cos_toward(c.wi) * c.weight);
             if l == Rgb::ZERO {
                 return None;
             }
             *rays += 1;
-            if scene.occluded(&hit.spawn_ray_to(qs.p + c.wi * c.dist)) {
+            let tr = self.transmittance(qs, ShadowTarget::Point(qs.p + c.wi * c.dist), c.wi, rng);
+            if tr == Rgb::ZERO {
                 return None;
             }
             let mut camera = Vertex::endpoint(Kind::Camera, c.origin, Vec3::ZERO, Rgb::splat(c.weight), 0.0);
             camera.mode = TransportMode::Radiance;
-            camera.time = hit.time;
+            camera.time = qs.time;
             sampled = Some(camera);
             raster = Some(c.raster);
-            l
+            l * tr
         } else if s == 1 {
             let pt = &work.camera[t - 1];
             let (u_light, u_pick) = (rng.next_f32(), rng.next_f32());
             let u = Vec2::new(rng.next_f32(), rng.next_f32());
-            if !pt.connectible {
+            if !pt.connectible || !matches!(pt.kind, Kind::Surface | Kind::Medium) {
                 return None;
             }
-            let hit = pt.hit.as_ref()?;
             let (vertex, wi, li, shadow) = self.sample_light_vertex(pt, u_light, u_pick, u)?;
-            let l = pt.beta * vertex_f(pt, wi) * li * pt.ns.dot(wi).abs();
+            let l = pt.beta * vertex_f(pt, wi) * li * pt.cos_toward(wi);
             if l == Rgb::ZERO {
                 return None;
             }
             *rays += 1;
-            let ray = match shadow {
-                ShadowTarget::Point(p) => hit.spawn_ray_to(p),
-                ShadowTarget::Infinity => hit.spawn_ray(wi),
-            };
-            if scene.occluded(&ray) {
+            let tr = self.transmittance(pt, shadow, wi, rng);
+            if tr == Rgb::ZERO {
                 return None;
             }
             sampled = Some(vertex);
-            l
+            l * tr
         } else {
             let (qs, pt) = (&work.light[s - 1], &work.camera[t - 1]);
-            if !qs.connectible || !pt.connectible {
+            let inner = |v: &Vertex| v.connectible && matches!(v.kind, Kind::Surface | Kind::Medium);
+            if !inner(qs) || !inner(pt) {
                 return None;
             }
-            let (q_hit, p_hit) = (qs.hit.as_ref()?, pt.hit.as_ref()?);
             let (w, d2) = pt.toward(qs);
-            let g = pt.ns.dot(w).abs() * qs.ns.dot(w).abs() / d2;
+            let g = pt.cos_toward(w) * qs.cos_toward(w) / d2;
             let l = qs.beta * vertex_f(qs, -w) * vertex_f(pt, w) * pt.beta * g;
             if l == Rgb::ZERO || !l.is_finite() {
                 return None;
             }
             *rays += 1;
-            let end = q_hit.spawn_ray(-w).origin;
-            if scene.occluded(&p_hit.spawn_ray_to(end)) {
+            let end = qs.hit.as_ref().map_or(qs.p, |h| h.spawn_ray(-w).origin);
+            let tr = self.transmittance(pt, ShadowTarget::Point(end), w, rng);
+            if tr == Rgb::ZERO {
                 return None;
             }
-            l
+            l * tr
         };
         if l == Rgb::ZERO {
             return None;
@@ -967,19 +1079,20 @@ impl<'s> Tracer<'s> {
                 l.pdf_rev = v.pdf_rev;
                 Some(l)
             }
-            Kind::Camera => None,
+            Kind::Camera | Kind::Medium => None,
         }
     }
 
-    /// Extends `path` from its last vertex along `ray` until it has
-    /// `max_vertices` vertices or ends; `pdf_dir` is the density of
-    /// `ray`'s direction at the last vertex.
+    /// Extends `path` from its last vertex along `ray`, which starts in
+    /// `medium`, until it has `max_vertices` vertices or ends; `pdf_dir`
+    /// is the density of `ray`'s direction at the last vertex.
     #[allow(clippy::too_many_arguments)]
     fn walk<R: Uniforms>(
         &self,
         mut ray: Ray,
         mut beta: Rgb,
         mut pdf_dir: f32,
+        mut medium: Option<u32>,
         mode: TransportMode,
         max_vertices: usize,
         rng: &mut R,
@@ -987,9 +1100,43 @@ impl<'s> Tracer<'s> {
         rays: &mut u64,
     ) {
         let scene = self.scene;
+        let mut crossings = 0;
         while path.len() < max_vertices {
             *rays += 1;
-            let Some(mut hit) = scene.intersect(&ray) else {
+            let hit = scene.intersect(&ray);
+            if let (true, Some(mi)) = (self.media, medium) {
+                let t_end = hit.as_ref().map_or(ray.t_max, |h| h.t);
+                match self.fly(mi, &ray, t_end, &mut beta, rng) {
+                    Flight::Crossed => {}
+                    Flight::Ended => return,
+                    Flight::Scattered(p) => {
+                        if beta == Rgb::ZERO || !beta.is_finite() {
+                            return;
+                        }
+                        let phase = scene.media[mi as usize].phase;
+                        let wo = -ray.dir.normalize();
+                        let prev = path.len() - 1;
+                        let mut v = Vertex::endpoint(Kind::Medium, p, Vec3::ZERO, beta, 0.0);
+                        (v.wo, v.mode, v.time, v.medium, v.phase) = (wo, mode, ray.time, medium, Some(phase));
+                        v.pdf_fwd = self.convert(pdf_dir, &path[prev], &v);
+                        path.push(v);
+                        if path.len() >= max_vertices {
+                            return;
+                        }
+                        // Phase functions are sampled exactly: the weight is 1.
+                        let ps = phase.sample(wo, Vec2::new(rng.next_f32(), rng.next_f32()));
+                        if ps.pdf.is_nan() || ps.pdf <= 0.0 {
+                            return;
+                        }
+                        pdf_dir = ps.pdf;
+                        let this = path.len() - 1;
+                        path[prev].pdf_rev = self.convert(phase.eval(ps.wi, wo), &path[this], &path[prev]);
+                        ray = Ray::new(p, ps.wi).at_time(ray.time);
+                        continue;
+                    }
+                }
+            }
+            let Some(mut hit) = hit else {
                 // A camera subpath that leaves the scene meets the
                 // environment, as a vertex on a light at infinity.
                 if mode == TransportMode::Radiance {
@@ -1008,8 +1155,19 @@ impl<'s> Tracer<'s> {
             let m = &scene.materials[hit.material as usize];
             let tc = TexCoord::at(&hit);
             // A mask's cut-out part lets the path through unchanged, as the
-            // path tracer's and the light tracer's paths pass it.
-            if m.cut_out(&scene.textures, &tc, || rng.next_f32()) {
+            // path tracer's and the light tracer's paths pass it; among
+            // media so does a surface that is not there (a medium's
+            // boundary), as the volumetric path tracer's paths pass it.
+            if m.cut_out(&scene.textures, &tc, || rng.next_f32()) || (self.media && is_null(m)) {
+                if self.media {
+                    crossings += 1;
+                    if crossings > MAX_CROSSINGS {
+                        return;
+                    }
+                    if let Some(interface) = scene.material_media[hit.material as usize] {
+                        medium = interface.toward(ray.dir, hit.ng);
+                    }
+                }
                 ray = hit.spawn_ray(ray.dir);
                 continue;
             }
@@ -1020,6 +1178,7 @@ impl<'s> Tracer<'s> {
                 return; // the back of a one-sided surface is black
             }
             let prev = path.len() - 1;
+            let interface = scene.material_media[hit.material as usize];
             let mut v = Vertex {
                 kind: Kind::Surface,
                 p: hit.p,
@@ -1035,6 +1194,8 @@ impl<'s> Tracer<'s> {
                 bsdf: Some((bsdf, frame)),
                 wo: wo_world,
                 mode,
+                medium,
+                phase: None,
             };
             v.pdf_fwd = self.convert(pdf_dir, &path[prev], &v);
             path.push(v);
@@ -1081,8 +1242,163 @@ impl<'s> Tracer<'s> {
                 let pdf_back = bsdf.pdf(bs.wi, wo);
                 path[prev].pdf_rev = self.convert(pdf_back, &path[this], &path[prev]);
             }
+            if let (true, Some(interface)) = (self.media, interface) {
+                medium = interface.toward(wi_world, hit.ng);
+            }
             ray = hit.spawn_ray(wi_world);
         }
+    }
+
+    /// A free flight along `ray` up to its parameter `t_end` in medium
+    /// `medium`, by spectral tracking (Kutz et al. 2017) against one grey
+    /// majorant σ̄ (the largest channel's), so that the tentative
+    /// collisions have one density in every channel: at each, the path
+    /// scatters or goes on (a null collision) with probabilities P in
+    /// proportion to the throughput either would carry, averaged over the
+    /// channels, and `beta` is weighed by σs/(σ̄·P) or σn/(σ̄·P).
+    /// Absorption is folded into those weights, as the volumetric path
+    /// tracer folds it. Unbiased in every channel.
+    fn fly<R: Uniforms>(&self, medium: u32, ray: &Ray, t_end: f32, beta: &mut Rgb, rng: &mut R) -> Flight {
+        let m = &self.scene.media[medium as usize];
+        let len = ray.dir.length();
+        let (dir, origin) = (ray.dir / len, ray.at(ray.t_min));
+        let Some((t0, t1)) = m.segment(origin, dir, (t_end - ray.t_min) * len) else {
+            return Flight::Crossed;
+        };
+        let sigma_bar = m.majorant().max_element();
+        if sigma_bar.is_nan() || sigma_bar <= 0.0 {
+            return Flight::Crossed;
+        }
+        let mut t = t0;
+        loop {
+            t -= (1.0 - rng.next_f32()).ln() / sigma_bar;
+            if t.is_nan() || t >= t1 {
+                return Flight::Crossed;
+            }
+            let p = origin + dir * t;
+            let mp = m.point(p);
+            let sigma_n = (Rgb::splat(sigma_bar) - mp.sigma_a - mp.sigma_s).max(Rgb::ZERO);
+            let (w_scatter, w_null) = (mean(*beta * mp.sigma_s), mean(*beta * sigma_n));
+            if (w_scatter + w_null).is_nan() || w_scatter + w_null <= 0.0 {
+                return Flight::Ended;
+            }
+            let p_scatter = w_scatter / (w_scatter + w_null);
+            if rng.next_f32() < p_scatter {
+                *beta *= mp.sigma_s / (sigma_bar * p_scatter);
+                return Flight::Scattered(p);
+            }
+            *beta *= sigma_n / (sigma_bar * (1.0 - p_scatter));
+        }
+    }
+
+    /// The transmittance from vertex `from` to `target` (unit direction
+    /// `dir` from it): zero where a surface is in the way, except, among
+    /// media, surfaces that are not there, which the segment crosses into
+    /// the medium behind them. Through a medium whose σt is constant the
+    /// exact exp(−σt·d); otherwise ratio tracking against the grey
+    /// majorant (the product of σn/σ̄ over tentative collisions; Novák et
+    /// al. 2014), unbiased per channel.
+    fn transmittance<R: Uniforms>(&self, from: &Vertex, target: ShadowTarget, dir: Vec3, rng: &mut R) -> Rgb {
+        let scene = self.scene;
+        let mut ray = match (&from.hit, target) {
+            (Some(h), ShadowTarget::Point(q)) => h.spawn_ray_to(q),
+            (Some(h), ShadowTarget::Infinity) => h.spawn_ray(dir),
+            (None, ShadowTarget::Point(q)) => {
+                Ray::with_interval(from.p, q - from.p, 0.0, SHADOW_EPSILON).at_time(from.time)
+            }
+            (None, ShadowTarget::Infinity) => Ray::new(from.p, dir).at_time(from.time),
+        };
+        if !self.media {
+            return if scene.occluded(&ray) { Rgb::ZERO } else { Rgb::ONE };
+        }
+        let mut medium = match (
+            &from.hit,
+            &from
+                .hit
+                .as_ref()
+                .and_then(|h| scene.material_media[h.material as usize]),
+        ) {
+            (Some(h), Some(interface)) => interface.toward(dir, h.ng),
+            _ => from.medium,
+        };
+        let mut tr = Rgb::ONE;
+        for _ in 0..MAX_CROSSINGS {
+            let hit = scene.intersect(&ray);
+            if let Some(mi) = medium {
+                let t_end = hit.as_ref().map_or(ray.t_max, |h| h.t);
+                tr *= self.segment_transmittance(mi, &ray, t_end, rng);
+                if tr == Rgb::ZERO || !tr.is_finite() {
+                    return Rgb::ZERO;
+                }
+            }
+            let Some(h) = hit else {
+                return tr;
+            };
+            if !is_null(&scene.materials[h.material as usize]) {
+                return Rgb::ZERO;
+            }
+            if let Some(interface) = scene.material_media[h.material as usize] {
+                medium = interface.toward(dir, h.ng);
+            }
+            ray = match target {
+                ShadowTarget::Point(q) => h.spawn_ray_to(q),
+                ShadowTarget::Infinity => h.spawn_ray(dir),
+            };
+        }
+        Rgb::ZERO
+    }
+
+    /// The transmittance of medium `medium` along `ray` up to its
+    /// parameter `t_end` (see [`Tracer::transmittance`]).
+    fn segment_transmittance<R: Uniforms>(&self, medium: u32, ray: &Ray, t_end: f32, rng: &mut R) -> Rgb {
+        let m = &self.scene.media[medium as usize];
+        let len = ray.dir.length();
+        let (dir, origin) = (ray.dir / len, ray.at(ray.t_min));
+        let Some((t0, t1)) = m.segment(origin, dir, (t_end - ray.t_min) * len) else {
+            return Rgb::ONE;
+        };
+        if let Some(sigma_t) = m.constant_extinction() {
+            return crate::media::transmittance(t1 - t0, sigma_t);
+        }
+        let sigma_bar = m.majorant().max_element();
+        if sigma_bar.is_nan() || sigma_bar <= 0.0 {
+            return Rgb::ONE;
+        }
+        let mut tr = Rgb::ONE;
+        let mut t = t0;
+        loop {
+            t -= (1.0 - rng.next_f32()).ln() / sigma_bar;
+            if t.is_nan() || t >= t1 {
+                return tr;
+            }
+            let mp = m.point(origin + dir * t);
+            tr *= (Rgb::splat(sigma_bar) - mp.sigma_a - mp.sigma_s).max(Rgb::ZERO) / sigma_bar;
+            // Russian roulette on a faint estimate (as pbrt-v4's).
+            if tr.max_element() < 0.05 {
+                if rng.next_f32() < 0.75 {
+                    return Rgb::ZERO;
+                }
+                tr /= 0.25;
+            }
+        }
+    }
+
+    /// The medium at point `p` of a light: the side that a ray from `p`
+    /// along `w` comes from at the first surface it meets that bounds a
+    /// medium; where it meets none, the outer medium. (Lights do not name
+    /// their medium; pbrt-v4's take the one current where they are made.)
+    fn medium_around(&self, p: Vec3, w: Vec3, time: f32) -> Option<u32> {
+        let scene = self.scene;
+        let eps = 1e-4 * (1.0 + p.abs().max_element());
+        let mut ray = Ray::with_interval(p, w, eps, f32::INFINITY).at_time(time);
+        for _ in 0..MAX_CROSSINGS {
+            let Some(hit) = scene.intersect(&ray) else { break };
+            if let Some(interface) = scene.material_media[hit.material as usize] {
+                return interface.toward(-w, hit.ng);
+            }
+            ray = hit.spawn_ray(w);
+        }
+        self.outer_medium
     }
 
     /// A density per solid angle at `from` as a density per unit area at
@@ -1114,6 +1430,14 @@ impl<'s> Tracer<'s> {
             Kind::Camera => {
                 let (w, _) = v.toward(next);
                 self.convert(self.scene.camera.pdf_dir_at(w, v.time), v, next)
+            }
+            Kind::Medium => {
+                let (Some(phase), Some(prev)) = (&v.phase, prev) else {
+                    return 0.0;
+                };
+                let (wp, _) = v.toward(prev);
+                let (wn, _) = v.toward(next);
+                self.convert(phase.eval(wp, wn), v, next)
             }
             Kind::Surface => {
                 let (Some((bsdf, frame)), Some(prev)) = (&v.bsdf, prev) else {
@@ -1181,12 +1505,12 @@ mod tests {
     /// With `eta` > 0 the strategies are vertex connection and merging's:
     /// merges at every vertex with a non-delta lobe join the connections,
     /// the merged light vertex lying exactly at the camera's.
-    fn weights_sum_to_one<'s>(scene: &'s Scene, trials: u32, eta: f32) -> u32 {
+    fn weights_sum_to_one<'s>(scene: &'s Scene, trials: u32, eta: f32) -> (u32, u32) {
         let tracer = Tracer::new(scene, 8).merging(eta);
         let mut rng = Pcg32::new(11, 3);
         let mut path = Vec::new();
         let mut rays = 0;
-        let mut checked = 0;
+        let (mut checked, mut through_media) = (0, 0);
         let (w, h) = (scene.settings.width as f32, scene.settings.height as f32);
         for _ in 0..trials {
             let raster = Vec2::new(rng.next_f32() * w, rng.next_f32() * h);
@@ -1295,16 +1619,17 @@ mod tests {
                 }
                 assert!((sum - 1.0).abs() < 1e-3, "path of {k} segments: weights sum to {sum}");
                 checked += 1;
+                through_media += u32::from(x.iter().any(|v| v.kind == Kind::Medium));
                 x.clear();
             }
         }
-        checked
+        (checked, through_media)
     }
 
     #[test]
     fn weights_of_the_strategies_of_a_path_sum_to_one() {
         let cornell = crate::scene::build(&crate::scene::builtin::cornell_box()).unwrap();
-        let n = weights_sum_to_one(&cornell, 5000, 0.0);
+        let (n, _) = weights_sum_to_one(&cornell, 5000, 0.0);
         assert!(n > 50, "only {n} paths reached the light");
         // Glass (delta lobes) and a sphere light.
         let caustic = crate::scene::load(
@@ -1313,8 +1638,48 @@ mod tests {
         )
         .unwrap();
         let caustic = crate::scene::build(&caustic).unwrap();
-        let n = weights_sum_to_one(&caustic, 200_000, 0.0);
+        let (n, _) = weights_sum_to_one(&caustic, 200_000, 0.0);
         assert!(n > 50, "only {n} paths reached the light");
+        // Medium vertices: the Cornell box in chromatic fog (the camera in
+        // it), and a ball of a denser medium with no surface.
+        let mut foggy = crate::scene::builtin::cornell_box();
+        let medium = |name: &str, sigma_t: Rgb, g: f32| crate::scene::desc::MediumDesc {
+            name: name.into(),
+            sigma_t: crate::scene::desc::FieldDesc::Constant(sigma_t),
+            albedo: crate::scene::desc::FieldDesc::Constant(Rgb::splat(0.8)),
+            emission: None,
+            scale: Rgb::ONE,
+            g,
+            locs: Default::default(),
+        };
+        foggy.media.push(medium("fog", Rgb::new(0.3, 0.5, 0.7), 0.0));
+        foggy.media.push(medium("milk", Rgb::splat(3.0), 0.4));
+        foggy.camera_medium = Some("fog".into());
+        foggy.materials.push(crate::scene::desc::MaterialDesc::with_kind(
+            "boundary",
+            crate::scene::desc::MaterialKindDesc::NULL,
+        ));
+        let mut ball = crate::scene::desc::ShapeDesc::new(
+            crate::scene::desc::ShapeKind::Sphere {
+                center: Vec3::new(0.3, -0.5, 0.2),
+                radius: 0.35,
+            },
+            Some("boundary"),
+        );
+        ball.media = Some(crate::scene::desc::MediumInterfaceDesc {
+            inside: Some("milk".into()),
+            outside: Some("fog".into()),
+        });
+        foggy.shapes.push(ball);
+        foggy.settings.integrator = crate::settings::IntegratorKind::Bdpt;
+        let foggy = crate::scene::build(&foggy).unwrap();
+        let tracer = Tracer::new(&foggy, 8);
+        assert!(tracer.media);
+        let (n, through_media) = weights_sum_to_one(&foggy, 20_000, 0.0);
+        assert!(
+            n > 50 && through_media > n / 4,
+            "{n} paths reached the light, {through_media} through media"
+        );
     }
 
     /// Vertex connection and merging: connections and merges together,
@@ -1330,9 +1695,9 @@ mod tests {
         .unwrap();
         let caustic = crate::scene::build(&caustic).unwrap();
         for eta in [1e-4, 1.0, 1e3] {
-            let n = weights_sum_to_one(&cornell, 2000, eta);
+            let (n, _) = weights_sum_to_one(&cornell, 2000, eta);
             assert!(n > 20, "only {n} paths reached the light");
-            let n = weights_sum_to_one(&caustic, 100_000, eta);
+            let (n, _) = weights_sum_to_one(&caustic, 100_000, eta);
             assert!(n > 20, "only {n} paths reached the light");
         }
     }

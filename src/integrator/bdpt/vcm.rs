@@ -346,7 +346,7 @@ impl Vcm {
         let r = self.radius_of_iteration(i);
         let paths = (scene.settings.width * scene.settings.height) as f32;
         let eta = if i == 0 { 0.0 } else { PI * r * r * paths };
-        Tracer::new(scene, self.max_depth).merging(eta)
+        Tracer::new(scene, self.max_depth).merging(eta).without_media()
     }
 }
 
