@@ -41,6 +41,55 @@ pub enum Field {
     Constant(Rgb),
     /// A grid over a unit cube, with the map from the world to that cube.
     Grid(Arc<VoxelGrid>, Transform),
+    /// pbrt-v4's procedural cloud: a value times a density in [0, 1].
+    Cloud(Box<CloudField>),
+}
+
+/// pbrt-v4's `CloudMedium` density (Physically Based Rendering, 4th ed.,
+/// §11.3.3): octaves of Perlin noise at a point perturbed by the noise's
+/// gradient (its wispiness), thinning with height, in the box [p0, p1] of
+/// the medium's space; the value there is `value` times the density.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CloudField {
+    /// The value where the density is 1 (σt).
+    pub value: Rgb,
+    /// Scale of the noise's sum (pbrt-v4's `density`).
+    pub density: f32,
+    /// How much the noise's gradient perturbs the lookup point.
+    pub wispiness: f32,
+    /// Scale of the lookup point.
+    pub frequency: f32,
+    /// The medium's box, in its own space.
+    pub bounds: Aabb,
+    /// From the world to the medium's space.
+    pub to_local: Transform,
+}
+
+impl CloudField {
+    /// The density at point `p` of the medium's space (0 outside its box).
+    pub fn density_at(&self, p: Vec3) -> f32 {
+        use crate::texture::noise::{dnoise, noise};
+        if p.cmplt(self.bounds.min).any() || p.cmpgt(self.bounds.max).any() {
+            return 0.0;
+        }
+        let mut pp = self.frequency * p;
+        if self.wispiness > 0.0 {
+            let (mut omega, mut lambda) = (0.05 * self.wispiness, 10.0);
+            for _ in 0..2 {
+                pp += omega * dnoise(lambda * pp);
+                omega *= 0.5;
+                lambda *= 1.99;
+            }
+        }
+        let (mut d, mut omega, mut lambda) = (0.0, 0.5, 1.0);
+        for _ in 0..5 {
+            d += omega * noise(lambda * pp);
+            omega *= 0.5;
+            lambda *= 1.99;
+        }
+        let d = ((1.0 - p.y) * 4.5 * self.density * d).clamp(0.0, 1.0) + 2.0 * (0.5 - p.y).max(0.0);
+        if d.is_nan() { 0.0 } else { d.clamp(0.0, 1.0) }
+    }
 }
 
 impl Field {
@@ -50,6 +99,7 @@ impl Field {
         match self {
             Field::Constant(c) => *c,
             Field::Grid(g, to_local) => g.lookup(to_local.point(p)),
+            Field::Cloud(c) => c.value * c.density_at(c.to_local.point(p)),
         }
     }
 
@@ -58,6 +108,7 @@ impl Field {
         match self {
             Field::Constant(c) => *c,
             Field::Grid(g, _) => g.max(),
+            Field::Cloud(c) => c.value,
         }
     }
 }
@@ -147,7 +198,7 @@ impl Medium {
     pub fn constant_extinction(&self) -> Option<Rgb> {
         match self.sigma_t {
             Field::Constant(c) => Some((c * self.scale).max(Rgb::ZERO)),
-            Field::Grid(..) => None,
+            Field::Grid(..) | Field::Cloud(..) => None,
         }
     }
 

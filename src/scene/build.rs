@@ -1209,6 +1209,27 @@ fn to_medium(
                 let bounds = unit_cube_in(&unit_to_world);
                 (Field::Grid(Arc::new(grid), unit_to_world.inverse()), Some(bounds))
             }
+            FieldDesc::Cloud {
+                value,
+                density,
+                wispiness,
+                frequency,
+                p0,
+                p1,
+                to_world,
+            } => {
+                let to_world = place(to_world)?;
+                let bounds = Aabb::new(*p0, *p1);
+                let cloud = crate::media::CloudField {
+                    value: *value,
+                    density: *density,
+                    wispiness: *wispiness,
+                    frequency: *frequency,
+                    bounds,
+                    to_local: to_world.inverse(),
+                };
+                (Field::Cloud(Box::new(cloud)), Some(to_world.aabb(&bounds)))
+            }
         })
     };
     let (sigma_t, bounds) = field("sigma_t", &m.sigma_t)?;

@@ -912,6 +912,25 @@ pub enum FieldDesc {
         /// unit cube's space) rather than the unit cube.
         use_file_bounds: bool,
     },
+    /// pbrt-v4's procedural cloud (see [`crate::media::CloudField`]): the
+    /// value times the cloud's density in the box [p0, p1] of the space
+    /// `to_world` maps, which bounds the medium when it gives σt.
+    Cloud {
+        /// The value where the density is 1.
+        value: Rgb,
+        /// `density`, `wispiness` and `frequency`.
+        density: f32,
+        /// See [`crate::media::CloudField::wispiness`].
+        wispiness: f32,
+        /// See [`crate::media::CloudField::frequency`].
+        frequency: f32,
+        /// The box in the medium's space.
+        p0: Vec3,
+        /// Its far corner.
+        p1: Vec3,
+        /// Transform steps from the medium's space to the world.
+        to_world: Vec<TransformOp>,
+    },
 }
 
 /// A named participating medium (see [`crate::media::Medium`]).
@@ -1707,16 +1726,37 @@ impl SceneDesc {
             }
             let field = |key: &str, f: &FieldDesc, at_most_one: bool| -> Result<()> {
                 let value = match f {
-                    FieldDesc::Constant(v) | FieldDesc::Boxed { value: v, .. } => Some(*v),
+                    FieldDesc::Constant(v) | FieldDesc::Boxed { value: v, .. } | FieldDesc::Cloud { value: v, .. } => {
+                        Some(*v)
+                    }
                     FieldDesc::Grid { .. } => None,
                 };
+                if let FieldDesc::Cloud {
+                    density,
+                    wispiness,
+                    frequency,
+                    p0,
+                    p1,
+                    ..
+                } = f
+                {
+                    if !([*density, *wispiness, *frequency].iter().all(|x| x.is_finite())
+                        && p0.is_finite()
+                        && p1.is_finite())
+                    {
+                        return Err(c.err(key, "a cloud's density, wispiness, frequency and box must be finite"));
+                    }
+                }
                 if let Some(v) = value {
                     c.color(key, v)?;
                     if at_most_one && v.max_element() > 1.0 {
                         return Err(c.err(key, "must lie in [0, 1]"));
                     }
                 }
-                if let FieldDesc::Boxed { to_world, .. } | FieldDesc::Grid { to_world, .. } = f {
+                if let FieldDesc::Boxed { to_world, .. }
+                | FieldDesc::Grid { to_world, .. }
+                | FieldDesc::Cloud { to_world, .. } = f
+                {
                     for op in to_world {
                         op.to_transform()
                             .map_err(|e| c.err(key, format!("transform {}: {e}", op.name())))?;

@@ -1093,27 +1093,38 @@ fn distribution(t: &Table) -> Result<MicrofacetDistribution> {
 }
 
 /// `[[medium]]`: `type = "homogeneous"` (σt and albedo everywhere the
-/// shapes that bound it say) or `"grid"` (σt from a Mitsuba `.vol` file
-/// over the unit cube placed by `transform`, empty outside it).
+/// shapes that bound it say), `"grid"` (σt from a Mitsuba `.vol` file
+/// over the unit cube placed by `transform`, empty outside it) or
+/// `"cloud"` (σt times pbrt-v4's procedural cloud density over the unit
+/// cube placed by `transform`, with its `density`, `wispiness` and
+/// `frequency`).
 fn read_medium(t: &Table) -> Result<MediumDesc> {
     let name = t.required_string("name")?;
     let kind = t
-        .choice("type", &["homogeneous", "grid"])?
+        .choice("type", &["homogeneous", "grid", "cloud"])?
         .unwrap_or_else(|| "homogeneous".into());
     let to_world = match t.value("transform") {
         Some(v) => read_transform(t, v)?,
         None => Vec::new(),
     };
-    let sigma_t = if kind == "grid" {
+    let sigma_t = match kind.as_str() {
         // σt comes from the file (times `scale`); a `sigma_t` key is
         // reported as unknown by `finish`.
-        FieldDesc::Grid {
+        "grid" => FieldDesc::Grid {
             source: GridSource::MitsubaVol(t.required("file", t.path("file")?)?),
             to_world,
             use_file_bounds: false,
-        }
-    } else {
-        FieldDesc::Constant(t.color("sigma_t")?.unwrap_or(Rgb::ONE))
+        },
+        "cloud" => FieldDesc::Cloud {
+            value: t.color("sigma_t")?.unwrap_or(Rgb::ONE),
+            density: finite_number(t, "density", 1.0)?,
+            wispiness: finite_number(t, "wispiness", 1.0)?,
+            frequency: finite_number(t, "frequency", 5.0)?,
+            p0: glam::Vec3::ZERO,
+            p1: glam::Vec3::ONE,
+            to_world,
+        },
+        _ => FieldDesc::Constant(t.color("sigma_t")?.unwrap_or(Rgb::ONE)),
     };
     Ok(MediumDesc {
         name,
@@ -1124,6 +1135,19 @@ fn read_medium(t: &Table) -> Result<MediumDesc> {
         g: t.number_or("g", 0.0)?,
         locs: t.finish()?,
     })
+}
+
+/// Number `key` of `t`, or `default`; an error at the key where it is
+/// not finite.
+fn finite_number(t: &Table, key: &str, default: f32) -> Result<f32> {
+    let Some(v) = t.value(key) else {
+        return Ok(default);
+    };
+    let x = t.number_of(key, v)?;
+    if !x.is_finite() {
+        return Err(t.err_at(key, &v.span(), format!("must be a finite number, got {x}")));
+    }
+    Ok(x)
 }
 
 fn read_light(t: &Table) -> Result<LightDesc> {

@@ -76,6 +76,19 @@ pub fn noise(p: Vec3) -> f32 {
     lerp(wz, y0, y1)
 }
 
+/// The gradient of [`noise`] at `p` by forward differences of 0.01
+/// (pbrt-v4's `DNoise`).
+pub fn dnoise(p: Vec3) -> Vec3 {
+    const DELTA: f32 = 0.01;
+    let n = noise(p);
+    Vec3::new(
+        noise(p + Vec3::X * DELTA),
+        noise(p + Vec3::Y * DELTA),
+        noise(p + Vec3::Z * DELTA),
+    ) / DELTA
+        - Vec3::splat(n / DELTA)
+}
+
 /// Noise at (x, y) in the plane z = ½ (pbrt-v4's two-argument `Noise`,
 /// which the polka dots read).
 pub fn noise_2d(x: f32, y: f32) -> f32 {

@@ -74,6 +74,10 @@ const CASES: &[(&str, Expect)] = &[
     ),
     ("native/overflowing-number.toml", Error(&["shape[0].radius", "finite"])),
     (
+        "native/cloud-infinite-frequency.toml",
+        Error(&["cloud-infinite-frequency.toml:11:13", "medium[0].frequency", "finite"]),
+    ),
+    (
         "native/motion-times-backwards.toml",
         Error(&[
             "motion-times-backwards.toml:6:",

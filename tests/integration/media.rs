@@ -308,3 +308,57 @@ fn integrators_without_masks_or_media_say_so() {
             .any(|w| w.contains("opacity mask") || w.contains("participating media"))
     );
 }
+
+/// pbrt-v4's procedural cloud from trazo's TOML: with albedo 1 it vanishes
+/// in a white furnace; absorbing, it darkens the sky behind it.
+#[test]
+fn a_toml_cloud_vanishes_in_a_furnace_and_absorbs_when_dark() {
+    let scene = |albedo: f32| {
+        format!(
+            r#"
+[render]
+width = 12
+height = 12
+spp = 48
+max_depth = 256
+integrator = "volpath"
+
+[camera]
+from = [0, 0, 4]
+to = [0, 0, 0]
+fov = 30
+
+[world]
+background = [1, 1, 1]
+
+[[medium]]
+name = "cloud"
+type = "cloud"
+sigma_t = 8
+albedo = {albedo}
+frequency = 3
+transform = [{{ scale = 2 }}, {{ translate = [-1, -1, -1] }}]
+
+[[material]]
+name = "boundary"
+type = "null"
+
+[[shape]]
+type = "box"
+min = [-1, -1, -1]
+max = [1, 1, 1]
+material = "boundary"
+inside = "cloud"
+"#
+        )
+    };
+    let render = |text: &str| {
+        let d = trazo::scene::native::parse(text, std::path::Path::new("<cloud>")).unwrap();
+        assert!(matches!(d.media[0].sigma_t, FieldDesc::Cloud { frequency, .. } if frequency == 3.0));
+        render_image(&trazo::scene::build(&d).unwrap()).unwrap()
+    };
+    assert_mean(&render(&scene(1.0)).pixels, Rgb::ONE, "white cloud");
+    let dark = render(&scene(0.0));
+    let (mean, _) = mean_and_error(&dark.pixels);
+    assert!(mean.y < 0.8, "a black cloud lets {} through", mean.y);
+}

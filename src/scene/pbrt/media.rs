@@ -1,5 +1,6 @@
 //! pbrt-v4's participating media: `MakeNamedMedium` (`homogeneous`,
-//! `uniformgrid`, `rgbgrid`), `MediumInterface` and the camera's medium.
+//! `uniformgrid`, `rgbgrid`, `cloud`), `MediumInterface` and the camera's
+//! medium.
 //!
 //! pbrt gives σa and σs (both defaulting to 1, times `scale`); trazo's
 //! media hold σt and the albedo, so σt = (σa + σs)·scale·density and the
@@ -59,12 +60,15 @@ impl Parser {
         if ty == "rgbgrid" {
             return self.rgb_grid_medium(name, p, loc);
         }
+        if ty == "cloud" {
+            return self.cloud_medium(name, p, loc);
+        }
         if !matches!(ty.as_str(), "homogeneous" | "uniformgrid") {
             Self::use_all(p);
             self.unsupported(
                 loc,
                 format!("{what} of type \"{ty}\""),
-                "the medium is not rendered: shapes it fills are empty (trazo reads \"homogeneous\", \"uniformgrid\" and \"rgbgrid\")",
+                "the medium is not rendered: shapes it fills are empty (trazo reads \"homogeneous\", \"uniformgrid\", \"rgbgrid\" and \"cloud\")",
             );
             self.unsupported_media.insert(name.to_string());
             return Ok(());
@@ -156,6 +160,52 @@ impl Parser {
             albedo: FieldDesc::Constant(albedo),
             emission,
             scale,
+            g,
+            locs: Locs::at(Some(loc.clone())),
+        };
+        self.add_medium(name, medium);
+        Ok(())
+    }
+
+    /// `MakeNamedMedium "name" "string type" "cloud"`: pbrt-v4's procedural
+    /// cloud (`CloudMedium`), σa and σs (each 1 where not given) times its
+    /// density in the box [`p0`, `p1`] of the medium's space; pbrt-v4 reads
+    /// no `scale` here.
+    fn cloud_medium(&mut self, name: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {
+        let sigma_a = self.medium_color(p, "sigma_a", Rgb::ONE)?;
+        let sigma_s = self.medium_color(p, "sigma_s", Rgb::ONE)?;
+        let g = Self::phase_g(p)?;
+        let number = |key: &str, default: f32| -> Result<f32> {
+            match p.float_opt(key)? {
+                Some((x, prm)) if !x.is_finite() => Err(prm.err(format!("must be a finite number, got {x}"))),
+                Some((x, _)) => Ok(x),
+                None => Ok(default),
+            }
+        };
+        let (density, wispiness, frequency) = (
+            number("density", 1.0)?,
+            number("wispiness", 1.0)?,
+            number("frequency", 5.0)?,
+        );
+        // pbrt-v4's Bounds3f(p0, p1) takes the corners in either order.
+        let (a, b) = (p.point3("p0", Vec3::ZERO)?, p.point3("p1", Vec3::ONE)?);
+        let sigma_t = sigma_a + sigma_s;
+        let albedo = Rgb::select(sigma_t.cmpgt(Rgb::ZERO), sigma_s / sigma_t, Rgb::ZERO);
+        Self::use_all(p);
+        let medium = MediumDesc {
+            name: format!("medium:{name}"),
+            sigma_t: FieldDesc::Cloud {
+                value: sigma_t,
+                density,
+                wispiness,
+                frequency,
+                p0: a.min(b),
+                p1: a.max(b),
+                to_world: vec![TransformOp::Matrix(self.gs.ctm)],
+            },
+            albedo: FieldDesc::Constant(albedo),
+            emission: None,
+            scale: Rgb::ONE,
             g,
             locs: Locs::at(Some(loc.clone())),
         };

@@ -2765,6 +2765,76 @@ fn area_light_power_reads_the_image_and_the_ply_mesh() {
     );
 }
 
+/// pbrt-v4's `cloud` medium: its parameters, a density that is 1 at the
+/// bottom of its box, thins to nothing at the top and is 0 outside it;
+/// with albedo 1 inside a white furnace it vanishes under the volumetric
+/// path tracer and BDPT alike, and absorbing it darkens what is behind.
+#[test]
+fn cloud_medium_thins_with_height_and_vanishes_in_a_furnace() {
+    let scene = |sigma: &str, integrator: &str| {
+        format!(
+            "LookAt 0 0.5 4  0 0.5 0  0 1 0\nCamera \"perspective\" \"float fov\" 30\n\
+             Film \"rgb\" \"integer xresolution\" 12 \"integer yresolution\" 12\n\
+             Sampler \"independent\" \"integer pixelsamples\" 64\nIntegrator \"{integrator}\" \"integer maxdepth\" 256\nWorldBegin\n\
+             LightSource \"infinite\" \"rgb L\" [1 1 1]\n\
+             MakeNamedMedium \"c\" \"string type\" \"cloud\" {sigma} \"point3 p0\" [1 1 1] \"point3 p1\" [-1 0 -1] \"float frequency\" 3\n\
+             AttributeBegin\nMediumInterface \"c\" \"\"\nMaterial \"interface\"\nTranslate 0 0.5 0\nShape \"sphere\" \"float radius\" 1.6\nAttributeEnd\n"
+        )
+    };
+    let d = parse_str(&scene("\"rgb sigma_a\" [0 0 0] \"rgb sigma_s\" [6 6 6]", "volpath")).unwrap();
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let FieldDesc::Cloud {
+        value,
+        frequency,
+        p0,
+        p1,
+        ..
+    } = &d.media[0].sigma_t
+    else {
+        panic!("{:?}", d.media[0].sigma_t)
+    };
+    assert_eq!((*value, *frequency), (Rgb::splat(6.0), 3.0));
+    assert_eq!((*p0, *p1), (Vec3::new(-1.0, 0.0, -1.0), Vec3::ONE));
+    let built = crate::scene::build::build(&d).unwrap();
+    let medium = &built.media[0];
+    let mut rng = crate::sampling::rng::Pcg32::new(5, 0);
+    let mut upper = 0.0;
+    for _ in 0..2000 {
+        let (x, y, z) = (2.0 * rng.next_f32() - 1.0, rng.next_f32(), 2.0 * rng.next_f32() - 1.0);
+        let sigma_t = medium.point(Vec3::new(x, y, z)).sigma_s.x;
+        assert!((0.0..=6.0).contains(&sigma_t), "{sigma_t}");
+        if y < 0.25 {
+            assert!(sigma_t >= 6.0 * (1.0 - 2.0 * y) - 1e-4, "at height {y}: {sigma_t}");
+        }
+        if y > 0.999 {
+            assert!(sigma_t < 0.03, "at height {y}: {sigma_t}");
+        }
+        if y > 0.5 {
+            upper += sigma_t as f64 / 6.0;
+        }
+        // Outside the box: nothing.
+        assert_eq!(medium.point(Vec3::new(x, y + 1.001, z)).sigma_s, Rgb::ZERO);
+    }
+    let upper = upper / 1000.0;
+    assert!(
+        upper > 0.02 && upper < 0.8,
+        "mean density of the upper half about {upper}"
+    );
+    let mean = |text: &str| {
+        let image = crate::render::render_image(&crate::scene::build(&parse_str(text).unwrap()).unwrap()).unwrap();
+        let n = image.pixels.len() as f64;
+        let m = image.pixels.iter().map(|p| p.y as f64).sum::<f64>() / n;
+        let var = image.pixels.iter().map(|p| (p.y as f64 - m).powi(2)).sum::<f64>() / (n - 1.0);
+        (m, (var / n).sqrt())
+    };
+    for integrator in ["volpath", "bdpt"] {
+        let (m, e) = mean(&scene("\"rgb sigma_a\" [0 0 0] \"rgb sigma_s\" [6 6 6]", integrator));
+        assert!((m - 1.0).abs() < 4.5 * e + 2e-4, "{integrator}: furnace {m} ± {e}");
+    }
+    let (dark, _) = mean(&scene("\"rgb sigma_a\" [6 6 6] \"rgb sigma_s\" [0 0 0]", "volpath"));
+    assert!(dark < 0.8, "an absorbing cloud lets {dark} through");
+}
+
 /// `ActiveTransform` chooses which of the two transforms the transform
 /// directives change, `AttributeBegin` saves the choice with the
 /// transforms, and shapes and object instances made where the two differ
