@@ -697,17 +697,21 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         .collect();
     let camera_medium = medium_of(&desc.camera_medium);
     let integrator = desc.settings.integrator;
-    // BDPT and the Metropolis samplers over it trace media (bdpt/mod.rs);
-    // VCM merges on surfaces only.
+    // BDPT, VCM and the Metropolis samplers over BDPT trace media
+    // (bdpt/mod.rs).
     let traces_media = matches!(
         integrator,
-        IntegratorKind::VolPath | IntegratorKind::Bdpt | IntegratorKind::Mlt | IntegratorKind::Pssmlt
+        IntegratorKind::VolPath
+            | IntegratorKind::Bdpt
+            | IntegratorKind::Mlt
+            | IntegratorKind::Pssmlt
+            | IntegratorKind::Vcm
     );
     let at_medium =
         |m: &crate::scene::desc::MediumDesc| m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default();
     if !desc.media.is_empty() && !traces_media {
         warnings.push(format!(
-            "{}the scene has participating media, which only the \"volpath\", \"bdpt\", \"mlt\" and \"pssmlt\" integrators render; \"{}\" renders the surfaces as if the media were not there",
+            "{}the scene has participating media, which only the \"volpath\", \"bdpt\", \"vcm\", \"mlt\" and \"pssmlt\" integrators render; \"{}\" renders the surfaces as if the media were not there",
             at_medium(&desc.media[0]),
             integrator.name()
         ));

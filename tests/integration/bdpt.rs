@@ -309,8 +309,8 @@ radius = 0.12
 material = "lamp"
 "#;
 
-/// Bidirectional path tracing through participating media: medium
-/// vertices on both subpaths, connections weighed by the transmittance
+/// Bidirectional path tracing (and vertex connection and merging)
+/// through participating media: medium vertices on both subpaths, connections weighed by the transmittance
 /// through media and past surfaces that are not there, light subpaths
 /// starting in the medium around their light (the sky's from outside the
 /// room). The same image as the volumetric path tracer's, in a room of
@@ -318,13 +318,18 @@ material = "lamp"
 /// ratio tracking); and with the fog everywhere (no room), where the sky's
 /// light never arrives.
 #[test]
-fn bdpt_agrees_with_the_volumetric_path_tracer_through_media() {
+fn bdpt_and_vcm_agree_with_the_volumetric_path_tracer_through_media() {
     let d = trazo::scene::native::parse(FOG_ROOM, Path::new("<fog-room>")).unwrap();
     let mut bdpt = d.clone();
     bdpt.settings.integrator = IntegratorKind::Bdpt;
     let warnings = trazo::scene::build(&bdpt).unwrap().warnings;
     assert!(!warnings.iter().any(|w| w.contains("media")), "{warnings:?}");
     same_as("fog room", &d, IntegratorKind::Bdpt, (IntegratorKind::VolPath, 1));
+    // Vertex connection and merging: the same connections, and merges on
+    // the surfaces (within a small radius, as the Cornell box's test).
+    let mut vcm = d.clone();
+    vcm.settings.photon.radius = 0.02;
+    same_as("fog room, vcm", &vcm, IntegratorKind::Vcm, (IntegratorKind::VolPath, 1));
 
     let mut grid = d.clone();
     let values: Vec<f32> = (0..64 * 3).map(|i| ((i * 7) % 10) as f32 * 0.4).collect();

@@ -152,6 +152,13 @@ impl<'s> Vertex<'s> {
         }
     }
 
+    /// Whether vertex merging can happen here: at a surface that did not
+    /// scatter by a delta lobe (photons are kept on surfaces only, not
+    /// in media).
+    fn merges(&self) -> bool {
+        self.kind == Kind::Surface && !self.delta
+    }
+
     /// The cosine a segment along unit direction `w` has at this vertex in
     /// the geometry term: with the shading normal on surfaces, none (1) in
     /// a medium.
@@ -535,9 +542,7 @@ pub(crate) struct Tracer<'s> {
     /// zero where paths are only connected (BDPT, MLT).
     merge_eta: f32,
     /// Whether subpaths and connections go through participating media
-    /// (the scene has some, and the tracer is not VCM's: its merging is on
-    /// surfaces only, so VCM renders the surfaces as if the media were
-    /// not there, with a warning).
+    /// (the scene has some; VCM merges on surfaces only).
     media: bool,
     /// The medium of what lies outside every surface that bounds a medium,
     /// where lights at infinity shine from (see [`Tracer::outer_medium`]).
@@ -563,14 +568,6 @@ impl<'s> Tracer<'s> {
     /// (π r² times the light paths merged).
     pub(crate) fn merging(mut self, eta: f32) -> Tracer<'s> {
         self.merge_eta = eta;
-        self
-    }
-
-    /// The tracer that renders the surfaces as if the scene's media were
-    /// not there (VCM's).
-    pub(crate) fn without_media(mut self) -> Tracer<'s> {
-        self.media = false;
-        self.outer_medium = None;
         self
     }
 
@@ -1043,7 +1040,7 @@ impl<'s> Tracer<'s> {
             }
             // Merging at a surface vertex (not at the emitter an s = 0
             // path ends on).
-            if eta > 0.0 && !camera[i].delta && !(s == 0 && i == t - 1) {
+            if eta > 0.0 && camera[i].merges() && !(s == 0 && i == t - 1) {
                 sum += sq(ratio * remap(camera[i].pdf_fwd) * eta);
             }
         }
@@ -1053,7 +1050,7 @@ impl<'s> Tracer<'s> {
             if !light[i].delta && !delta_before(light, i) {
                 sum += ratio * ratio;
             }
-            if eta > 0.0 && i > 0 && !light[i].delta {
+            if eta > 0.0 && i > 0 && light[i].merges() {
                 sum += sq(ratio * remap(light[i].pdf_fwd) * eta);
             }
         }
@@ -1587,7 +1584,7 @@ mod tests {
                 // Merges at x_i: the light subpath x₀ … x_i, the camera
                 // subpath x_k … x_i.
                 for i in 1..k {
-                    if eta == 0.0 || x[i].delta || !x[i].connectible {
+                    if eta == 0.0 || !x[i].merges() || !x[i].connectible {
                         continue;
                     }
                     let light: Vec<Vertex> = (0..=i)
@@ -1626,22 +1623,9 @@ mod tests {
         (checked, through_media)
     }
 
-    #[test]
-    fn weights_of_the_strategies_of_a_path_sum_to_one() {
-        let cornell = crate::scene::build(&crate::scene::builtin::cornell_box()).unwrap();
-        let (n, _) = weights_sum_to_one(&cornell, 5000, 0.0);
-        assert!(n > 50, "only {n} paths reached the light");
-        // Glass (delta lobes) and a sphere light.
-        let caustic = crate::scene::load(
-            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/caustic.toml"),
-            &[],
-        )
-        .unwrap();
-        let caustic = crate::scene::build(&caustic).unwrap();
-        let (n, _) = weights_sum_to_one(&caustic, 200_000, 0.0);
-        assert!(n > 50, "only {n} paths reached the light");
-        // Medium vertices: the Cornell box in chromatic fog (the camera in
-        // it), and a ball of a denser medium with no surface.
+    /// The Cornell box in chromatic fog (the camera in it) with a ball of
+    /// a denser medium with no surface.
+    fn foggy_cornell_box() -> Scene {
         let mut foggy = crate::scene::builtin::cornell_box();
         let medium = |name: &str, sigma_t: Rgb, g: f32| crate::scene::desc::MediumDesc {
             name: name.into(),
@@ -1672,7 +1656,25 @@ mod tests {
         });
         foggy.shapes.push(ball);
         foggy.settings.integrator = crate::settings::IntegratorKind::Bdpt;
-        let foggy = crate::scene::build(&foggy).unwrap();
+        crate::scene::build(&foggy).unwrap()
+    }
+
+    #[test]
+    fn weights_of_the_strategies_of_a_path_sum_to_one() {
+        let cornell = crate::scene::build(&crate::scene::builtin::cornell_box()).unwrap();
+        let (n, _) = weights_sum_to_one(&cornell, 5000, 0.0);
+        assert!(n > 50, "only {n} paths reached the light");
+        // Glass (delta lobes) and a sphere light.
+        let caustic = crate::scene::load(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/caustic.toml"),
+            &[],
+        )
+        .unwrap();
+        let caustic = crate::scene::build(&caustic).unwrap();
+        let (n, _) = weights_sum_to_one(&caustic, 200_000, 0.0);
+        assert!(n > 50, "only {n} paths reached the light");
+        // Medium vertices.
+        let foggy = foggy_cornell_box();
         let tracer = Tracer::new(&foggy, 8);
         assert!(tracer.media);
         let (n, through_media) = weights_sum_to_one(&foggy, 20_000, 0.0);
@@ -1694,11 +1696,18 @@ mod tests {
         )
         .unwrap();
         let caustic = crate::scene::build(&caustic).unwrap();
+        let foggy = foggy_cornell_box();
         for eta in [1e-4, 1.0, 1e3] {
             let (n, _) = weights_sum_to_one(&cornell, 2000, eta);
             assert!(n > 20, "only {n} paths reached the light");
             let (n, _) = weights_sum_to_one(&caustic, 100_000, eta);
             assert!(n > 20, "only {n} paths reached the light");
+            // Merging on surfaces only, among medium vertices.
+            let (n, through_media) = weights_sum_to_one(&foggy, 20_000, eta);
+            assert!(
+                n > 20 && through_media > n / 4,
+                "{n} paths, {through_media} through media"
+            );
         }
     }
 }

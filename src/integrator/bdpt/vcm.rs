@@ -101,7 +101,7 @@ impl<'s> Tracer<'s> {
     fn strategies_at(&self, light: &[Vertex], i: usize) -> f32 {
         let v = &light[i];
         let connection = if !v.delta && !delta_before(light, i) { 1.0 } else { 0.0 };
-        let merge = if i > 0 && !v.delta {
+        let merge = if i > 0 && v.merges() {
             sq(remap(v.pdf_fwd) * self.merge_eta)
         } else {
             0.0
@@ -145,7 +145,7 @@ impl<'s> Tracer<'s> {
     fn camera_strategies_at(&self, camera: &[Vertex], i: usize) -> f32 {
         let v = &camera[i];
         let connection = if !v.delta && !camera[i - 1].delta { 1.0 } else { 0.0 };
-        let merge = if !v.delta {
+        let merge = if v.merges() {
             sq(remap(v.pdf_fwd) * self.merge_eta)
         } else {
             0.0
@@ -346,7 +346,7 @@ impl Vcm {
         let r = self.radius_of_iteration(i);
         let paths = (scene.settings.width * scene.settings.height) as f32;
         let eta = if i == 0 { 0.0 } else { PI * r * r * paths };
-        Tracer::new(scene, self.max_depth).merging(eta).without_media()
+        Tracer::new(scene, self.max_depth).merging(eta)
     }
 }
 
