@@ -142,42 +142,8 @@ impl BilinearPatch {
 
     /// The nearest hit within the ray's interval: its distance and (u, v).
     pub fn intersect_uv(&self, ray: &Ray) -> Option<(f64, DVec2)> {
-        let [p00, p10, p01, p11] = self.p;
-        let o = ray.origin.as_dvec3();
-        let d = ray.dir.as_dvec3();
-        // S(u, 0) − o = q + u·e and ∂S/∂v = g + u·h.
-        let (q, e) = (p00 - o, p10 - p00);
-        let (g, h) = (p01 - p00, p11 - p10 - p01 + p00);
-        let (dg, dh) = (d.cross(g), d.cross(h));
-        let a = e.dot(dh);
-        let b = q.dot(dh) + e.dot(dg);
-        let c = q.dot(dg);
-        let (t_min, t_max) = (ray.t_min as f64, ray.t_max as f64);
-        let mut best: Option<(f64, DVec2)> = None;
-        for u in quadratic_roots(a, b, c).into_iter().flatten() {
-            if !(0.0..=1.0).contains(&u) {
-                continue;
-            }
-            // The ray o + t·d against the segment S(u, 0) + v·∂S/∂v:
-            // with Δ = S(u, 0) − o and n = d × ∂S/∂v, t = (Δ × ∂S/∂v)·n / |n|²
-            // and v = (Δ × d)·n / |n|².
-            let start = q + u * e;
-            let dir_v = g + u * h;
-            let n = d.cross(dir_v);
-            let nn = n.length_squared();
-            if nn == 0.0 {
-                continue; // the ray runs along the iso-line
-            }
-            let v = start.cross(d).dot(n) / nn;
-            let t = start.cross(dir_v).dot(n) / nn;
-            if !(0.0..=1.0).contains(&v) || t <= t_min || t > t_max {
-                continue;
-            }
-            if best.is_none_or(|(t_best, _)| t < t_best) {
-                best = Some((t, DVec2::new(u, v)));
-            }
-        }
-        best
+        let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+        intersect_bilinear(self.p, o, d, ray.t_min as f64, ray.t_max as f64)
     }
 
     /// The (u, v) of a point on (or within rounding of) the patch: the
@@ -335,6 +301,51 @@ impl BilinearPatch {
         let factor = self.area_factor(u, v);
         if factor > 0.0 { (bilinear / factor) as f32 } else { 0.0 }
     }
+}
+
+/// The nearest hit of the ray o + t·d, t in (`t_min`, `t_max`], with the
+/// bilinear patch of corners S(0, 0), S(1, 0), S(0, 1), S(1, 1): its
+/// distance and (u, v). A ray meets the iso-line S(u, ·) only where the
+/// two are coplanar, a quadratic in u (Reshetov 2019, as pbrt-v4).
+pub fn intersect_bilinear(
+    [p00, p10, p01, p11]: [DVec3; 4],
+    o: DVec3,
+    d: DVec3,
+    t_min: f64,
+    t_max: f64,
+) -> Option<(f64, DVec2)> {
+    // S(u, 0) − o = q + u·e and ∂S/∂v = g + u·h.
+    let (q, e) = (p00 - o, p10 - p00);
+    let (g, h) = (p01 - p00, p11 - p10 - p01 + p00);
+    let (dg, dh) = (d.cross(g), d.cross(h));
+    let a = e.dot(dh);
+    let b = q.dot(dh) + e.dot(dg);
+    let c = q.dot(dg);
+    let mut best: Option<(f64, DVec2)> = None;
+    for u in quadratic_roots(a, b, c).into_iter().flatten() {
+        if !(0.0..=1.0).contains(&u) {
+            continue;
+        }
+        // The ray o + t·d against the segment S(u, 0) + v·∂S/∂v:
+        // with Δ = S(u, 0) − o and n = d × ∂S/∂v, t = (Δ × ∂S/∂v)·n / |n|²
+        // and v = (Δ × d)·n / |n|².
+        let start = q + u * e;
+        let dir_v = g + u * h;
+        let n = d.cross(dir_v);
+        let nn = n.length_squared();
+        if nn == 0.0 {
+            continue; // the ray runs along the iso-line
+        }
+        let v = start.cross(d).dot(n) / nn;
+        let t = start.cross(dir_v).dot(n) / nn;
+        if !(0.0..=1.0).contains(&v) || t <= t_min || t > t_max {
+            continue;
+        }
+        if best.is_none_or(|(t_best, _)| t < t_best) {
+            best = Some((t, DVec2::new(u, v)));
+        }
+    }
+    best
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! Rays, bounding boxes, affine transforms, shapes and the intersection
 //! record.
 
+pub mod bezier;
 pub mod bilinear;
 pub mod bounds;
 pub mod curve;

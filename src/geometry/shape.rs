@@ -132,6 +132,8 @@ pub enum Shape {
     /// A piece of a cubic Bézier curve swept by a width (pbrt-v4's
     /// `curve`).
     Curve(super::curve::Curve),
+    /// A bicubic Bézier patch, intersected directly.
+    Bezier(std::sync::Arc<super::bezier::BezierPatch>),
 }
 
 /// The surface of a shape at a point, in the shape's object space.
@@ -201,6 +203,7 @@ impl Shape {
             Shape::Quadric(ref q) => Some(q.bounds()),
             Shape::Bilinear(ref b) => Some(b.bounds()),
             Shape::Curve(ref c) => Some(c.bounds()),
+            Shape::Bezier(ref b) => Some(b.bounds()),
         }
     }
 
@@ -220,6 +223,7 @@ impl Shape {
             Shape::Quadric(q) => q.intersect(ray),
             Shape::Bilinear(b) => b.intersect(ray),
             Shape::Curve(c) => c.intersect(ray),
+            Shape::Bezier(b) => b.intersect(ray),
         }
     }
 
@@ -281,6 +285,7 @@ impl Shape {
             Shape::Implicit(f) => f.surface(p),
             Shape::Quadric(q) => q.surface(p),
             Shape::Bilinear(b) => b.surface(p),
+            Shape::Bezier(b) => b.surface(p),
             // A curve's surface depends on the ray (see
             // `Shape::surface_at_hit`); from a point alone, a ray toward
             // it along the curve's normal plane is assumed.
@@ -326,6 +331,7 @@ impl Shape {
             Shape::Quadric(q) => q.area(),
             Shape::Bilinear(b) => b.area(),
             Shape::Curve(ref c) => c.area(),
+            Shape::Bezier(ref b) => b.area(),
         }
     }
 
@@ -365,6 +371,7 @@ impl Shape {
     pub fn relative_area_density(&self, p: Vec3) -> f32 {
         match self {
             Shape::Bilinear(b) => b.density_at(p) * b.area(),
+            Shape::Bezier(b) => b.density_at(p) * b.area(),
             _ => 1.0,
         }
     }
@@ -375,6 +382,7 @@ impl Shape {
             Shape::SdfGrid(_) | Shape::Sdf(_) | Shape::Implicit(_) | Shape::Curve(_) => None,
             Shape::Quadric(q) => q.sample_area(u),
             Shape::Bilinear(b) => b.sample_area(u),
+            Shape::Bezier(ref b) => b.sample_area(u),
             Shape::Sphere(s) => {
                 let n = sample_sphere_uniform(u);
                 Some(AreaSample {

@@ -314,6 +314,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             ShapeKind::Implicit(f) => Some(Shape::Implicit(f.clone())),
             ShapeKind::Quadric(q) => Some(Shape::Quadric(*q)),
             ShapeKind::Bilinear(b) => Some(Shape::Bilinear(*b)),
+            ShapeKind::Bezier(b) => Some(Shape::Bezier(b.clone())),
             ShapeKind::Curve(c) => Some(Shape::Curve(*c)),
             ShapeKind::Mesh(_) | ShapeKind::InlineMesh(_) => None,
         };

@@ -830,6 +830,8 @@ pub enum ShapeKind {
     Quadric(crate::geometry::quadric::Quadric),
     /// A bilinear patch through four corners (before its transform).
     Bilinear(crate::geometry::bilinear::BilinearPatch),
+    /// A bicubic Bézier patch, intersected directly.
+    Bezier(std::sync::Arc<crate::geometry::bezier::BezierPatch>),
     /// A piece of a cubic Bézier curve (pbrt-v4's `curve`).
     Curve(crate::geometry::curve::Curve),
     /// A named mesh from the scene's meshes.
@@ -1886,6 +1888,7 @@ impl SceneDesc {
                 | ShapeKind::Implicit(_)
                 | ShapeKind::Quadric(_)
                 | ShapeKind::Curve(_)
+                | ShapeKind::Bezier(_)
                 | ShapeKind::Bilinear(_) => {
                     let emits = s.material.as_ref().is_some_and(|name| {
                         self.materials
@@ -1897,6 +1900,8 @@ impl SceneDesc {
                         ShapeKind::Quadric(_) => Some("a quadric without area (degenerate) cannot emit light"),
                         ShapeKind::Bilinear(b) if b.area() > 0.0 => None,
                         ShapeKind::Bilinear(_) => Some("a bilinear patch without area (degenerate) cannot emit light"),
+                        ShapeKind::Bezier(b) if b.area() > 0.0 => None,
+                        ShapeKind::Bezier(_) => Some("a Bézier patch without area (degenerate) cannot emit light"),
                         ShapeKind::Curve(_) => Some("a curve cannot emit light (nor in pbrt-v4)"),
                         _ => Some(
                             "a distance function or implicit surface cannot emit light (nor in Mitsuba): it has no area to sample",

@@ -1290,6 +1290,7 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
         "paraboloid",
         "hyperboloid",
         "bilinear",
+        "bezier",
         "curve",
         "sdf",
         "sdfgrid",
@@ -1414,8 +1415,14 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
                 Curve::pieces(*cp, lerp(i as f32 / n), lerp((i + 1) as f32 / n), kind, ends, split)
             });
             let first = pieces.next().expect("a curve has a segment");
-            more_pieces = pieces.collect();
+            more_pieces = pieces.map(ShapeKind::Curve).collect();
             ShapeKind::Curve(first)
+        }
+        "bezier" => {
+            let mut kinds = read_bezier(t)?.into_iter();
+            let first = kinds.next().expect("a Bézier shape has a patch");
+            more_pieces = kinds.collect();
+            first
         }
         "plane" => ShapeKind::Plane {
             point: t.vec3("point")?.unwrap_or(Vec3::ZERO),
@@ -1562,12 +1569,72 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
     };
     let rest: Vec<ShapeDesc> = more_pieces
         .into_iter()
-        .map(|c| ShapeDesc {
-            kind: ShapeKind::Curve(c),
-            ..first.clone()
-        })
+        .map(|kind| ShapeDesc { kind, ..first.clone() })
         .collect();
     Ok(std::iter::once(first).chain(rest).collect())
+}
+
+/// `type = "bezier"`: bicubic Bézier patches, from 16 control `points`
+/// (row by row) or a `.bpt` `file` of Newell's format (the teapot's),
+/// intersected directly, or with `tessellate = N` as one mesh of N × N
+/// quads per patch.
+fn read_bezier(t: &Table) -> Result<Vec<ShapeKind>> {
+    use crate::geometry::bezier::{BezierPatch, parse_bpt, tessellate};
+    let patches = match (t.value("points"), t.path("file")?) {
+        (Some(v), None) => {
+            let points = vec3_list(t, "points", v)?;
+            let points: [Vec3; 16] = points.try_into().map_err(|p: Vec<Vec3>| {
+                t.err_at(
+                    "points",
+                    &v.span(),
+                    format!("a bicubic patch has 16 control points, got {}", p.len()),
+                )
+            })?;
+            if !points.iter().all(|p| p.is_finite()) {
+                return Err(t.err_at("points", &v.span(), "control points must be finite"));
+            }
+            vec![BezierPatch::new(points)]
+        }
+        (None, Some(file)) => {
+            let full = t.ctx.file.parent().unwrap_or(Path::new("")).join(&file);
+            let at = &t.value("file").expect("read").span();
+            let bytes = crate::files::read_limited(&full, crate::files::MAX_SCENE_BYTES)
+                .map_err(|e| t.err_at("file", at, format!("cannot read {}: {e}", full.display())))?;
+            let text =
+                String::from_utf8(bytes).map_err(|_| t.err_at("file", at, format!("{}: not text", full.display())))?;
+            parse_bpt(&text).map_err(|e| t.err_at("file", at, format!("{}: {e}", full.display())))?
+        }
+        _ => {
+            return Err(t.err_at(
+                "points",
+                &t.span,
+                "a Bézier patch needs its 16 control `points` or a `.bpt` `file`, one of the two",
+            ));
+        }
+    };
+    let Some(n) = t.number("tessellate")? else {
+        return Ok(patches
+            .into_iter()
+            .map(|p| ShapeKind::Bezier(std::sync::Arc::new(p)))
+            .collect());
+    };
+    if !(1.0..=1024.0).contains(&n) || n.fract() != 0.0 {
+        return Err(t.err_at(
+            "tessellate",
+            &t.span,
+            format!("{n} is not a number of quads a side (1 to 1024)"),
+        ));
+    }
+    let mut mesh = TriangleMesh::default();
+    for patch in &patches {
+        let (positions, normals, uvs, indices) = tessellate(patch, n as u32);
+        let base = mesh.positions.len() as u32;
+        mesh.positions.extend(positions);
+        mesh.normals.extend(normals);
+        mesh.uvs.extend(uvs);
+        mesh.indices.extend(indices.into_iter().map(|i| i.map(|k| k + base)));
+    }
+    Ok(vec![ShapeKind::InlineMesh(MeshSource::Inline(mesh))])
 }
 
 /// The kinds of node of a distance function, each written as the key that

@@ -74,6 +74,10 @@ const CASES: &[(&str, Expect)] = &[
     ),
     ("native/overflowing-number.toml", Error(&["shape[0].radius", "finite"])),
     (
+        "native/bezier-fifteen-points.toml",
+        Error(&["bezier-fifteen-points.toml:13:10", "shape[0].points", "16 control points, got 15"]),
+    ),
+    (
         "native/cloud-infinite-frequency.toml",
         Error(&["cloud-infinite-frequency.toml:11:13", "medium[0].frequency", "finite"]),
     ),

@@ -12,6 +12,7 @@ use trazo::color::luminance;
 use trazo::film::{Aov, Film};
 use trazo::render::{RenderOptions, render};
 use trazo::scene::SceneDesc;
+use trazo::scene::desc::ShapeKind;
 
 fn parse(text: &str) -> SceneDesc {
     trazo::scene::native::parse(text, Path::new("test.toml")).unwrap()
@@ -440,4 +441,106 @@ fn bent_bilinear_patch_lights_are_sampled_by_their_density() {
         &pbrt_lit_by("", mesh, "bilinearmesh", "bsdf"),
         "pbrt bilinearmesh",
     );
+}
+
+/// A bent bicubic Bézier patch (a saddle with two bulges) in TOML, row by
+/// row.
+const BEZIER_POINTS: &str = "points = [[-1.5, -1.5, 0.9], [-0.5, -1.5, 0.3], [0.5, -1.5, -0.3], [1.5, -1.5, -0.9],
+  [-1.5, -0.5, 0.3], [-0.5, -0.5, 0.1], [0.5, -0.5, -1.0], [1.5, -0.5, -0.3],
+  [-1.5, 0.5, -0.3], [-0.5, 0.5, 1.3], [0.5, 0.5, 0.1], [1.5, 0.5, 0.3],
+  [-1.5, 1.5, -0.9], [-0.5, 1.5, -0.3], [0.5, 1.5, 0.3], [1.5, 1.5, 0.9]]";
+
+/// Bézier patches intersected directly: they vanish in a white furnace
+/// (no light leaks through or between the pieces the intersection splits
+/// them into), render as a fine tessellation of themselves (`tessellate`),
+/// and as lights their points' density is the one reported, so MIS agrees
+/// with BSDF sampling.
+#[test]
+fn bezier_patches_vanish_in_a_furnace_match_their_tessellation_and_emit() {
+    let patch = format!("[[shape]]\ntype = \"bezier\"\n{BEZIER_POINTS}\nmaterial = \"white\"\n");
+    let tilted = "transform = [{ scale = 0.6 }, { rotate = { axis = [1, 0, 0], angle = 35 } }]";
+    assert_white(
+        &render_film(&parse(&format!("{FURNACE}{patch}{tilted}\n")), false),
+        "Bézier patch",
+    );
+
+    // On a lit floor, against 64 × 64 quads of the same patch.
+    let lit = |shape: &str| {
+        let d = parse(&format!(
+            r#"
+[render]
+width = 24
+height = 24
+spp = 128
+max_depth = 3
+
+[camera]
+from = [0, 2.5, 4]
+to = [0, 0.5, 0]
+fov = 45
+
+[world]
+background = [0.3, 0.35, 0.4]
+
+[[material]]
+name = "white"
+type = "diffuse"
+reflectance = 0.7
+
+[[light]]
+type = "point"
+position = [1.5, 3, 2]
+intensity = 6
+
+[[shape]]
+type = "plane"
+material = "white"
+
+{shape}
+transform = [{{ scale = 0.5 }}, {{ rotate = {{ axis = [1, 0, 0], angle = -60 }} }}, {{ translate = [0, 0.9, 0] }}]
+"#
+        ));
+        mean_and_error(&render_film(&d, false))
+    };
+    let (a, ea) = lit(&patch);
+    let (b, eb) = lit(&format!("{patch}tessellate = 64\n"));
+    assert!(
+        (a - b).abs() <= 4.5 * (ea * ea + eb * eb).sqrt() + 1e-3 * b,
+        "patch {a} ± {ea}, tessellation {b} ± {eb}"
+    );
+
+    let lamp = format!(
+        "[[shape]]\ntype = \"bezier\"\n{BEZIER_POINTS}\ntransform = [{{ scale = 0.4 }}, {{ rotate = {{ axis = [1, 0, 0], angle = 90 }} }}, {{ translate = [0, 1.2, 0] }}]"
+    );
+    check_mis_agrees(&lit_by(&lamp, "mis"), &lit_by(&lamp, "bsdf"), "Bézier lamp");
+}
+
+/// Newell's `.bpt` format: a file of two patches read as two shapes; a
+/// malformed one is an error naming the file and the line.
+#[test]
+fn bpt_files_are_read_as_patches() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("2\n");
+    for k in 0..2 {
+        text += "3 3\n";
+        for p in 0..16 {
+            text += &format!(
+                "{} {} {}\n",
+                (p % 4) as f32 + 4.0 * k as f32,
+                (p / 4) as f32,
+                0.1 * (p % 3) as f32
+            );
+        }
+    }
+    std::fs::write(dir.path().join("two.bpt"), &text).unwrap();
+    let scene = "[[shape]]\ntype = \"bezier\"\nfile = \"two.bpt\"\n";
+    std::fs::write(dir.path().join("scene.toml"), scene).unwrap();
+    let d = trazo::scene::load(&dir.path().join("scene.toml"), &[]).unwrap();
+    assert_eq!(d.shapes.len(), 2);
+    assert!(d.shapes.iter().all(|s| matches!(s.kind, ShapeKind::Bezier(_))));
+    std::fs::write(dir.path().join("two.bpt"), text.replace("0.1", "x")).unwrap();
+    let e = trazo::scene::load(&dir.path().join("scene.toml"), &[])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("scene.toml:3:8") && e.contains("two.bpt: line 4"), "{e}");
 }
