@@ -468,6 +468,16 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 ));
                 continue;
             }
+            if matches!(s.shape, Shape::Sdf(_) | Shape::SdfGrid(_) | Shape::Implicit(_)) {
+                // Its light arrives where paths hit it, unweighted by MIS
+                // (no other strategy finds it), so it is unbiased but not
+                // sampled: noisy where it is small.
+                warnings.push(format!(
+                    "shape[{}]: an emissive distance function or implicit surface is not sampled as a light (it has no area to sample): its light reaches what paths that hit it see (path, volpath, bdpt, vcm, mlt), noisily where it is small, and photon mapping, SPPM and light tracing do not see it",
+                    shape_desc_index[i]
+                ));
+                continue;
+            }
             emitters.push((EmitterRef::Shape(i as u32), s.material));
         }
     }

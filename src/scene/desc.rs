@@ -1903,9 +1903,10 @@ impl SceneDesc {
                         ShapeKind::Bezier(b) if b.area() > 0.0 => None,
                         ShapeKind::Bezier(_) => Some("a Bézier patch without area (degenerate) cannot emit light"),
                         ShapeKind::Curve(_) => Some("a curve cannot emit light (nor in pbrt-v4)"),
-                        _ => Some(
-                            "a distance function or implicit surface cannot emit light (nor in Mitsuba): it has no area to sample",
-                        ),
+                        // Distance functions and implicit surfaces emit
+                        // where paths hit them; the build warns that no
+                        // light samples them.
+                        _ => None,
                     };
                     if let (true, Some(why)) = (emits, why) {
                         return Err(c.err("material", why));

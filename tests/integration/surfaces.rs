@@ -544,3 +544,27 @@ fn bpt_files_are_read_as_patches() {
         .to_string();
     assert!(e.contains("scene.toml:3:8") && e.contains("two.bpt: line 4"), "{e}");
 }
+
+/// Distance functions and implicit surfaces may emit: no light samples
+/// them (a warning says so, as they have no area to draw points from), but
+/// the paths that hit them carry their light, weighted 1, so a floor lit by
+/// an emitting sphere of either kind is lit as by the analytic sphere
+/// sampled as a light.
+#[test]
+fn emitting_distance_functions_and_equations_light_what_paths_that_hit_them_see() {
+    let sphere = "[[shape]]\ntype = \"sphere\"\ncenter = [0, 1.2, 0]\nradius = 0.5";
+    let sdf = "[[shape]]\ntype = \"sdf\"\nsdf = { sphere = 0.5 }\ntransform = [{ translate = [0, 1.2, 0] }]";
+    let implicit = "[[shape]]\ntype = \"implicit\"\nequation = \"x^2 + (y - 1.2)^2 + z^2 - 0.25\"\nbounds = [[-0.6, 0.6, -0.6], [0.6, 1.8, 0.6]]";
+    let reference = lit_by(sphere, "mis");
+    for (what, lamp) in [("distance function", sdf), ("equation", implicit)] {
+        let d = parse(&format!(
+            "{lamp}\nmaterial = \"lamp\"\n[[material]]\nname = \"lamp\"\nemission = 4\n"
+        ));
+        let warnings = trazo::scene::build(&d).unwrap().warnings;
+        assert!(
+            warnings.iter().any(|w| w.contains("not sampled as a light")),
+            "{what}: {warnings:?}"
+        );
+        check_mis_agrees(&reference, &lit_by(lamp, "mis"), what);
+    }
+}
