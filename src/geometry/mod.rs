@@ -4,6 +4,7 @@
 pub mod bezier;
 pub mod bilinear;
 pub mod bounds;
+pub mod catmull_clark;
 pub mod curve;
 pub mod implicit;
 pub mod interaction;

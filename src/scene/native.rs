@@ -1291,6 +1291,7 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
         "hyperboloid",
         "bilinear",
         "bezier",
+        "subdivision",
         "curve",
         "sdf",
         "sdfgrid",
@@ -1418,6 +1419,7 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
             more_pieces = pieces.map(ShapeKind::Curve).collect();
             ShapeKind::Curve(first)
         }
+        "subdivision" => read_subdivision(t)?,
         "bezier" => {
             let mut kinds = read_bezier(t)?.into_iter();
             let first = kinds.next().expect("a Bézier shape has a patch");
@@ -1572,6 +1574,80 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
         .map(|kind| ShapeDesc { kind, ..first.clone() })
         .collect();
     Ok(std::iter::once(first).chain(rest).collect())
+}
+
+/// `type = "subdivision"`: a subdivision surface of the control mesh
+/// `positions` and polygon `faces` (lists of indices), `levels` rounds
+/// (3) of Catmull–Clark (`scheme = "catmull-clark"`, the default) or Loop
+/// (`"loop"`, triangles only) refinement, its vertices on the limit
+/// surface.
+fn read_subdivision(t: &Table) -> Result<ShapeKind> {
+    let positions = match t.value("positions") {
+        Some(v) => vec3_list(t, "positions", v)?,
+        None => {
+            return Err(t.err_at(
+                "positions",
+                &t.span,
+                "a subdivision surface needs its control `positions`",
+            ));
+        }
+    };
+    if !positions.iter().all(|p| p.is_finite()) {
+        return Err(t.err_at("positions", &t.span, "control points must be finite"));
+    }
+    let Some(fv) = t.value("faces") else {
+        return Err(t.err_at(
+            "faces",
+            &t.span,
+            "a subdivision surface needs its `faces`, lists of indices",
+        ));
+    };
+    let DeValue::Array(items) = fv.get_ref() else {
+        return Err(t.expected("faces", fv, "an array of faces"));
+    };
+    let mut faces = Vec::with_capacity(items.len());
+    for item in items.iter() {
+        let DeValue::Array(corners) = item.get_ref() else {
+            return Err(t.expected("faces", item, "a face: an array of indices"));
+        };
+        let mut face = Vec::with_capacity(corners.len());
+        for c in corners.iter() {
+            let x = t.number_of("faces", c)?;
+            if x < 0.0 || x.fract() != 0.0 || x > u32::MAX as f32 {
+                return Err(t.err_at(
+                    "faces",
+                    &c.span(),
+                    format!("indices must be non-negative whole numbers, got {x}"),
+                ));
+            }
+            face.push(x as u32);
+        }
+        faces.push(face);
+    }
+    let levels = t.number_or("levels", 3.0)?;
+    if !(0.0..=64.0).contains(&levels) || levels.fract() != 0.0 {
+        return Err(t.err_at("levels", &t.span, format!("{levels} is not a number of levels")));
+    }
+    let scheme = t.choice("scheme", &["catmull-clark", "loop"])?;
+    let mesh = match scheme.as_deref() {
+        Some("loop") => {
+            let triangles: Vec<[u32; 3]> = faces
+                .iter()
+                .map(|f| <[u32; 3]>::try_from(f.as_slice()))
+                .collect::<std::result::Result<_, _>>()
+                .map_err(|_| {
+                    t.err_at(
+                        "faces",
+                        &fv.span(),
+                        "Loop subdivision needs triangles (faces of 3 indices)",
+                    )
+                })?;
+            crate::geometry::subdivision::loop_subdivide(&positions, &triangles, levels as u32)
+        }
+        _ => crate::geometry::catmull_clark::catmull_clark(&positions, &faces, levels as u32),
+    }
+    .map_err(|e| t.err_at("faces", &fv.span(), e))?;
+    Ok(ShapeKind::InlineMesh(MeshSource::Inline(mesh)))
 }
 
 /// `type = "bezier"`: bicubic Bézier patches, from 16 control `points`

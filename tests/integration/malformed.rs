@@ -74,6 +74,14 @@ const CASES: &[(&str, Expect)] = &[
     ),
     ("native/overflowing-number.toml", Error(&["shape[0].radius", "finite"])),
     (
+        "native/subdivision-bad-index.toml",
+        Error(&[
+            "subdivision-bad-index.toml:14:9",
+            "shape[0].faces",
+            "index 4 is out of range",
+        ]),
+    ),
+    (
         "native/bezier-fifteen-points.toml",
         Error(&[
             "bezier-fifteen-points.toml:13:10",

@@ -568,3 +568,40 @@ fn emitting_distance_functions_and_equations_light_what_paths_that_hit_them_see(
         check_mis_agrees(&reference, &lit_by(lamp, "mis"), what);
     }
 }
+
+/// Subdivision surfaces from TOML: a Catmull–Clark cube of quads and a
+/// Loop octahedron of triangles are closed, so they vanish in a white
+/// furnace; the cube's corners reach (±½, ±½, ±½).
+#[test]
+fn subdivision_surfaces_are_closed_and_vanish_in_a_furnace() {
+    let cube = r#"
+[[shape]]
+type = "subdivision"
+positions = [[-1, -1, -1], [1, -1, -1], [-1, 1, -1], [1, 1, -1], [-1, -1, 1], [1, -1, 1], [-1, 1, 1], [1, 1, 1]]
+faces = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]]
+levels = 3
+material = "white"
+transform = [{ rotate = { axis = [1, 1, 0], angle = 30 } }, { translate = [-0.9, 0, 0] }]
+"#;
+    let octahedron = r#"
+[[shape]]
+type = "subdivision"
+scheme = "loop"
+positions = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
+faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+levels = 2
+material = "white"
+transform = [{ translate = [0.9, 0, 0] }]
+"#;
+    let d = parse(&format!("{FURNACE}{cube}{octahedron}"));
+    let ShapeKind::InlineMesh(trazo::scene::desc::MeshSource::Inline(mesh)) = &d.shapes[0].kind else {
+        panic!("{:?}", d.shapes[0].kind)
+    };
+    assert_eq!(mesh.indices.len(), 6 * 64 * 2);
+    assert!(
+        (mesh.positions[7] - trazo::Vec3::splat(0.5)).length() < 1e-5,
+        "{}",
+        mesh.positions[7]
+    );
+    assert_white(&render_film(&d, false), "subdivision surfaces");
+}
