@@ -376,12 +376,7 @@ impl BezierPatch {
         if self.area <= 0.0 {
             return None;
         }
-        let s = self.surface_at(u.as_dvec2());
-        Some(AreaSample {
-            p: s.p,
-            n: s.n,
-            uv: s.uv,
-        })
+        Some(self.surface_at(u.as_dvec2()).into())
     }
 
     /// The density per unit area with which [`BezierPatch::sample_area`]

@@ -282,12 +282,7 @@ impl BilinearPatch {
         // then u from the density linear along that row.
         let v = sample_linear(u.y, (w00 + w10) as f32, (w01 + w11) as f32) as f64;
         let uu = sample_linear(u.x, (w00 + v * (w01 - w00)) as f32, (w10 + v * (w11 - w10)) as f32) as f64;
-        let s = self.surface_at(DVec2::new(uu, v));
-        Some(AreaSample {
-            p: s.p,
-            n: s.n,
-            uv: s.uv,
-        })
+        Some(self.surface_at(DVec2::new(uu, v)).into())
     }
 
     /// The density per unit area with which [`BilinearPatch::sample_area`]

@@ -387,12 +387,7 @@ impl Quadric {
                 DVec3::new(r * phi.cos(), r * phi.sin(), height)
             }
         };
-        let s = self.surface(p.as_vec3());
-        Some(AreaSample {
-            p: s.p,
-            n: s.n,
-            uv: s.uv,
-        })
+        Some(self.surface(p.as_vec3()).into())
     }
 }
 

@@ -153,6 +153,17 @@ pub struct LocalSurface {
     pub dpdv: Vec3,
 }
 
+impl From<LocalSurface> for AreaSample {
+    /// The point, normal and coordinates of a surface, as a sampled point.
+    fn from(s: LocalSurface) -> AreaSample {
+        AreaSample {
+            p: s.p,
+            n: s.n,
+            uv: s.uv,
+        }
+    }
+}
+
 /// A point sampled on a surface.
 #[derive(Clone, Copy, Debug)]
 pub struct AreaSample {
