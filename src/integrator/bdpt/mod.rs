@@ -545,7 +545,7 @@ pub(crate) struct Tracer<'s> {
     /// (the scene has some; VCM merges on surfaces only).
     media: bool,
     /// The medium of what lies outside every surface that bounds a medium,
-    /// where lights at infinity shine from (see [`Tracer::outer_medium`]).
+    /// where lights at infinity shine from (see [`outer_medium`]).
     outer_medium: Option<u32>,
 }
 
