@@ -727,18 +727,6 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             integrator.name()
         ));
     }
-    if let (true, false, Some(m)) = (
-        traces_media,
-        integrator == IntegratorKind::VolPath,
-        desc.media.iter().find(|m| m.emission.is_some()),
-    ) {
-        warnings.push(format!(
-            "{}medium \"{}\" emits light, which only the \"volpath\" integrator renders; \"{}\" renders its scattering and absorption without its emission",
-            at_medium(m),
-            m.name,
-            integrator.name()
-        ));
-    }
     if desc.settings.max_component_value.is_finite()
         && (desc.settings.integrator == IntegratorKind::Sppm || desc.settings.integrator.splats_light_paths())
     {

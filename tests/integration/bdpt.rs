@@ -355,6 +355,18 @@ fn bdpt_and_vcm_agree_with_the_volumetric_path_tracer_through_media() {
     // Without the room, and without the glass ball, whose milk the
     // volumetric path tracer lights only by finding the lamp (through
     // rough glass, light sampling is blocked).
+    // The tinted ball glowing: emission that only the camera's flights
+    // find.
+    let mut glowing = d.clone();
+    glowing.media.iter_mut().find(|m| m.name == "tint").unwrap().emission =
+        Some(FieldDesc::Constant(trazo::color::Rgb::new(3.0, 1.5, 0.5)));
+    same_as(
+        "fog room, glowing ball",
+        &glowing,
+        IntegratorKind::Bdpt,
+        (IntegratorKind::VolPath, 1),
+    );
+
     let mut open = d.clone();
     open.shapes.retain(
         |s| !matches!(s.material.as_deref(), Some("boundary") if s.media.as_ref().is_some_and(|m| m.outside.is_none())),

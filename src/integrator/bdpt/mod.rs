@@ -498,6 +498,9 @@ pub(crate) struct Subpaths<'s> {
     /// The light subpath's vertices kept for merging (vertex connection
     /// and merging).
     stored: Vec<vcm::LightVertex>,
+    /// Light the camera subpath's flights gathered from emitting media:
+    /// (t, light) for the strategy (0, t) whose last segment it lay on.
+    glow: Vec<(usize, Rgb)>,
 }
 
 /// What [`Tracer::mis_weight`] changes in the subpaths, to be put back.
@@ -591,12 +594,28 @@ impl<'s> Tracer<'s> {
         let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
         let time = scene.camera.time_from(|| rng.next_f32());
         let camera_vertices = self.max_depth as usize + 1;
-        self.camera_subpath(raster, u_lens, time, camera_vertices, rng, &mut work.camera, rays);
+        work.glow.clear();
+        self.camera_subpath(
+            raster,
+            u_lens,
+            time,
+            camera_vertices,
+            rng,
+            &mut work.camera,
+            Some(&mut work.glow),
+            rays,
+        );
         rng.start_stream(LIGHT_STREAM);
         let light_vertices = if self.max_depth < 2 { 0 } else { self.max_depth as usize };
         self.light_subpath(rng, time, light_vertices, &mut work.light, rays);
         rng.start_stream(CONNECTION_STREAM);
         let (nc, nl) = (work.camera.len(), work.light.len());
+        // Emission of media, found only by the camera's flights: weight 1.
+        for &(t, l) in &work.glow {
+            if l.is_finite() && l != Rgb::ZERO {
+                each(0, t, None, l, l);
+            }
+        }
         for t in 1..=nc {
             // s = 1 samples its own light vertex: it needs none from the
             // light subpath.
@@ -648,9 +667,27 @@ impl<'s> Tracer<'s> {
         let raster = Vec2::new(rng.next_f32() * width, rng.next_f32() * height);
         let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
         let time = scene.camera.time_from(|| rng.next_f32());
-        self.camera_subpath(raster, u_lens, time, t, rng, &mut work.camera, rays);
+        work.glow.clear();
+        self.camera_subpath(
+            raster,
+            u_lens,
+            time,
+            t,
+            rng,
+            &mut work.camera,
+            Some(&mut work.glow),
+            rays,
+        );
+        // Emission of media on the camera subpath's last segment is this
+        // length's (0, t) too.
+        let glow: Rgb = if s == 0 {
+            work.glow.iter().filter(|(g, _)| *g == t).map(|(_, l)| *l).sum()
+        } else {
+            Rgb::ZERO
+        };
         if work.camera.len() != t {
-            return None;
+            let l = glow * strategies as f32;
+            return (l.is_finite() && l != Rgb::ZERO).then_some((raster, l));
         }
         rng.start_stream(LIGHT_STREAM);
         self.light_subpath(rng, time, if s >= 2 { s } else { 0 }, &mut work.light, rays);
@@ -661,8 +698,11 @@ impl<'s> Tracer<'s> {
         if segments <= 1 && !scene.settings.shows_emission(1) {
             return None;
         }
-        let (unweighted, w, at) = self.connect(s, t, work, rng, rays)?;
-        let l = unweighted * (w * strategies as f32);
+        let (l, at) = match self.connect(s, t, work, rng, rays) {
+            Some((unweighted, w, at)) => (unweighted * w + glow, at),
+            None => (glow, None),
+        };
+        let l = l * strategies as f32;
         (l.is_finite() && l != Rgb::ZERO).then(|| (at.unwrap_or(raster), l))
     }
 
@@ -676,6 +716,7 @@ impl<'s> Tracer<'s> {
         max_vertices: usize,
         rng: &mut R,
         path: &mut Vec<Vertex<'s>>,
+        glow: Option<&mut Vec<(usize, Rgb)>>,
         rays: &mut u64,
     ) {
         path.clear();
@@ -697,6 +738,7 @@ impl<'s> Tracer<'s> {
             max_vertices,
             rng,
             path,
+            glow,
             rays,
         );
     }
@@ -767,6 +809,7 @@ impl<'s> Tracer<'s> {
             max_vertices,
             rng,
             path,
+            None,
             rays,
         );
         // The first surface of a path from infinity was found by a point
@@ -1082,7 +1125,9 @@ impl<'s> Tracer<'s> {
 
     /// Extends `path` from its last vertex along `ray`, which starts in
     /// `medium`, until it has `max_vertices` vertices or ends; `pdf_dir`
-    /// is the density of `ray`'s direction at the last vertex.
+    /// is the density of `ray`'s direction at the last vertex. With
+    /// `glow`, the light of emitting media along the flights is added to it
+    /// per strategy (0, t).
     #[allow(clippy::too_many_arguments)]
     fn walk<R: Uniforms>(
         &self,
@@ -1094,6 +1139,7 @@ impl<'s> Tracer<'s> {
         max_vertices: usize,
         rng: &mut R,
         path: &mut Vec<Vertex<'s>>,
+        mut glow: Option<&mut Vec<(usize, Rgb)>>,
         rays: &mut u64,
     ) {
         let scene = self.scene;
@@ -1103,7 +1149,18 @@ impl<'s> Tracer<'s> {
             let hit = scene.intersect(&ray);
             if let (true, Some(mi)) = (self.media, medium) {
                 let t_end = hit.as_ref().map_or(ray.t_max, |h| h.t);
-                match self.fly(mi, &ray, t_end, &mut beta, rng) {
+                // The segment makes paths of as many segments as there
+                // are vertices.
+                let segments = path.len();
+                let gathers = glow.is_some()
+                    && segments <= self.max_depth as usize
+                    && scene.settings.shows_emission(segments as u32);
+                let mut light = Rgb::ZERO;
+                let flight = self.fly(mi, &ray, t_end, &mut beta, gathers.then_some(&mut light), rng);
+                if let (Some(glow), true) = (glow.as_deref_mut(), light != Rgb::ZERO) {
+                    glow.push((segments + 1, light));
+                }
+                match flight {
                     Flight::Crossed => {}
                     Flight::Ended => return,
                     Flight::Scattered(p) => {
@@ -1254,8 +1311,18 @@ impl<'s> Tracer<'s> {
     /// proportion to the throughput either would carry, averaged over the
     /// channels, and `beta` is weighed by σs/(σ̄·P) or σn/(σ̄·P).
     /// Absorption is folded into those weights, as the volumetric path
-    /// tracer folds it. Unbiased in every channel.
-    fn fly<R: Uniforms>(&self, medium: u32, ray: &Ray, t_end: f32, beta: &mut Rgb, rng: &mut R) -> Flight {
+    /// tracer folds it. Unbiased in every channel. With `glow`, the
+    /// medium's emission is added to it: β·σa·Le/σ̄ at each tentative
+    /// collision (the null-scattering estimate of ∫ T σa Le dt).
+    fn fly<R: Uniforms>(
+        &self,
+        medium: u32,
+        ray: &Ray,
+        t_end: f32,
+        beta: &mut Rgb,
+        mut glow: Option<&mut Rgb>,
+        rng: &mut R,
+    ) -> Flight {
         let m = &self.scene.media[medium as usize];
         let len = ray.dir.length();
         let (dir, origin) = (ray.dir / len, ray.at(ray.t_min));
@@ -1274,6 +1341,9 @@ impl<'s> Tracer<'s> {
             }
             let p = origin + dir * t;
             let mp = m.point(p);
+            if let (Some(glow), true) = (glow.as_deref_mut(), mp.le != Rgb::ZERO) {
+                *glow += *beta * mp.sigma_a * mp.le / sigma_bar;
+            }
             let sigma_n = (Rgb::splat(sigma_bar) - mp.sigma_a - mp.sigma_s).max(Rgb::ZERO);
             let (w_scatter, w_null) = (mean(*beta * mp.sigma_s), mean(*beta * sigma_n));
             if (w_scatter + w_null).is_nan() || w_scatter + w_null <= 0.0 {
@@ -1512,7 +1582,7 @@ mod tests {
         for _ in 0..trials {
             let raster = Vec2::new(rng.next_f32() * w, rng.next_f32() * h);
             let lens = Vec2::new(rng.next_f32(), rng.next_f32());
-            tracer.camera_subpath(raster, lens, 0.0, 9, &mut rng, &mut path, &mut rays);
+            tracer.camera_subpath(raster, lens, 0.0, 9, &mut rng, &mut path, None, &mut rays);
             for t in 3..=path.len() {
                 let Some(light_end) = tracer.as_light(&path[t - 1]) else {
                     continue;
@@ -1578,6 +1648,7 @@ mod tests {
                         camera,
                         light,
                         stored: Vec::new(),
+                        glow: Vec::new(),
                     };
                     sum += tracer.mis_weight(&mut work, s, t, sampled) as f64;
                 }
