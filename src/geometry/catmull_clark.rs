@@ -47,6 +47,22 @@ struct Ring {
     non_manifold: bool,
 }
 
+impl Ring {
+    /// Vertex `p`'s new position by `interior` (a vertex inside the
+    /// surface) or by `boundary` (given its two boundary neighbours); `p`
+    /// itself where neither rule applies.
+    fn place(&self, p: Vec3, interior: impl FnOnce() -> Vec3, boundary: impl FnOnce(u32, u32) -> Vec3) -> Vec3 {
+        if self.non_manifold || self.faces.is_empty() {
+            return p;
+        }
+        match self.boundary[..] {
+            [] => interior(),
+            [a, b] => boundary(a, b),
+            _ => p,
+        }
+    }
+}
+
 fn rings_of(points: usize, faces: &Faces, edges: &BTreeMap<(u32, u32), Vec<u32>>) -> Vec<Ring> {
     let mut rings = vec![Ring::default(); points];
     for (f, face) in faces.iter().enumerate() {
@@ -80,13 +96,10 @@ fn refine(points: &[Vec3], faces: &Faces) -> (Vec<Vec3>, Faces) {
     // New points: the vertices, then the faces, then the edges.
     let mut out: Vec<Vec3> = (0..points.len())
         .map(|v| {
-            let r = &rings[v];
-            let p = points[v];
-            if r.non_manifold || r.faces.is_empty() {
-                return p;
-            }
-            match r.boundary.len() {
-                0 => {
+            let (r, p) = (&rings[v], points[v]);
+            r.place(
+                p,
+                || {
                     // (F + 2R + (n − 3)P)/n: F the mean of the faces'
                     // points, R of the edges' midpoints.
                     let n = r.neighbours.len() as f32;
@@ -98,10 +111,9 @@ fn refine(points: &[Vec3], faces: &Faces) -> (Vec<Vec3>, Faces) {
                         .sum::<Vec3>()
                         / n;
                     (f + 2.0 * m + (n - 3.0) * p) / n
-                }
-                2 => (points[r.boundary[0] as usize] + 6.0 * p + points[r.boundary[1] as usize]) / 8.0,
-                _ => p,
-            }
+                },
+                |a, b| (points[a as usize] + 6.0 * p + points[b as usize]) / 8.0,
+            )
         })
         .collect();
     let face_base = out.len() as u32;
@@ -137,13 +149,10 @@ fn limit_points(points: &[Vec3], quads: &Faces) -> Vec<Vec3> {
     let rings = rings_of(points.len(), quads, &edges);
     (0..points.len())
         .map(|v| {
-            let r = &rings[v];
-            let p = points[v];
-            if r.non_manifold || r.faces.is_empty() {
-                return p;
-            }
-            match r.boundary.len() {
-                0 => {
+            let (r, p) = (&rings[v], points[v]);
+            r.place(
+                p,
+                || {
                     let n = r.faces.len() as f32;
                     let e: Vec3 = r.neighbours.iter().map(|&w| points[w as usize]).sum();
                     let f: Vec3 = r
@@ -156,10 +165,9 @@ fn limit_points(points: &[Vec3], quads: &Faces) -> Vec<Vec3> {
                         })
                         .sum();
                     (n * n * p + 4.0 * e + f) / (n * (n + 5.0))
-                }
-                2 => (points[r.boundary[0] as usize] + 4.0 * p + points[r.boundary[1] as usize]) / 6.0,
-                _ => p,
-            }
+                },
+                |a, b| (points[a as usize] + 4.0 * p + points[b as usize]) / 6.0,
+            )
         })
         .collect()
 }
