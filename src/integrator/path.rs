@@ -90,7 +90,7 @@ impl Integrator for PathTracer {
                     let dir = ray.dir.normalize();
                     // (A portal lets in what the ray's origin sees through it.)
                     if nee && !prev_delta {
-                        let (le, pdf_dir) = scene.background.eval_pdf_from(prev_p, dir);
+                        let (le, pdf_dir) = scene.background.eval_pdf_from(prev_p, dir, true);
                         let pdf_light = light_choice_pmf(scene, prev_p, prev_n, env as usize) * pdf_dir;
                         l += beta * le * power_heuristic(prev_pdf, pdf_light);
                     } else {
@@ -141,7 +141,7 @@ impl Integrator for PathTracer {
             if nee && bsdf.has_smooth() && !scene.lights.is_empty() {
                 let chosen = choose_light(scene, hit.p, hit.ns, sampler);
                 let sample = match chosen {
-                    Some((light_index, _)) => scene.lights[light_index].sample_li_drawing(scene, hit.p, sampler),
+                    Some((light_index, _)) => scene.lights[light_index].sample_li_drawing(scene, hit.p, sampler, true),
                     None => {
                         // No light reaches the point: its numbers are passed over.
                         sampler.skip_1d();

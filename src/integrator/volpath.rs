@@ -122,7 +122,7 @@ impl VolPathTracer {
         };
         let chosen = choose_light(scene, p, n, sampler);
         let sample = match chosen {
-            Some((light, _)) => scene.lights[light].sample_li_drawing(scene, p, sampler),
+            Some((light, _)) => scene.lights[light].sample_li_drawing(scene, p, sampler, true),
             None => {
                 sampler.skip_1d();
                 sampler.skip_2d();
@@ -292,7 +292,7 @@ impl Integrator for VolPathTracer {
                     let (le, pdf_dir) = if s.specular {
                         (scene.background.eval_from(prev_p, dir), 0.0)
                     } else {
-                        scene.background.eval_pdf_from(prev_p, dir)
+                        scene.background.eval_pdf_from(prev_p, dir, true)
                     };
                     self.add_emission(&mut s, le, || {
                         light_choice_pmf(scene, prev_p, prev_n, env as usize) * pdf_dir

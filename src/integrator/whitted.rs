@@ -94,7 +94,7 @@ impl Whitted {
                 if matches!(light, Light::Environment) {
                     continue;
                 }
-                let Some(ls) = light.sample_li_drawing(scene, hit.p, sampler) else {
+                let Some(ls) = light.sample_li_drawing(scene, hit.p, sampler, false) else {
                     continue;
                 };
                 let cos = n.dot(ls.wi);

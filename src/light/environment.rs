@@ -16,6 +16,15 @@
 //! where its light is, with no margin of dim density around it (a step
 //! density over pixels would leave one there, half a pixel wide, and every
 //! sample that lands in it is a firefly).
+//!
+//! Integrators that weigh light samples against BSDF samples by multiple
+//! importance sampling may ask for a second density, the *compensated* one
+//! (Karlík et al. 2019, "MIS compensation", as pbrt-v4's
+//! `ImageInfiniteLight` with `allowIncompletePDF`): luminance minus its
+//! mean over the sphere, clamped at zero. The bright part of the sky (a
+//! sun) then gets every light sample, and the even part, which BSDF
+//! sampling finds as well, gets none. It is incomplete, so only estimators
+//! that also sample the BSDF and weigh the two may use it.
 
 use crate::color::{Rgb, luminance};
 use crate::geometry::Transform;
@@ -42,6 +51,12 @@ pub struct EnvironmentMap {
     /// The equal-area layout's density: constant over each pixel, like its
     /// nearest-pixel lookup.
     pixel_distribution: Distribution2D,
+    /// The compensated densities of the two layouts (see the module's
+    /// text); `None` where no pixel is brighter than the mean (a constant
+    /// map), whose light samples then use the full density, as pbrt-v4's
+    /// do.
+    compensated: Option<BilinearDistribution2D>,
+    compensated_pixels: Option<Distribution2D>,
     average: Rgb,
 }
 
@@ -66,20 +81,25 @@ impl EnvironmentMap {
             layout,
             distribution: BilinearDistribution2D::default(),
             pixel_distribution: Distribution2D::default(),
+            compensated: None,
+            compensated_pixels: None,
         };
         // The density's nodes are the lookup's: pixel centres, columns at
         // u = (i + ½)/W (one more column, the first again, closes the
         // wrap-around) and rows at v = j/(H − 1) (an image of one row is
         // read as two equal rows). Each node holds luminance × sin θ.
         let rows = h.max(2);
-        let mut nodes = Vec::with_capacity((w + 1) * rows);
-        for j in 0..rows {
-            let sin_theta = (PI * j as f32 / (rows - 1) as f32).sin();
-            let row = &map.image.pixels[j.min(h - 1) * w..(j.min(h - 1) + 1) * w];
-            nodes.extend(row.iter().map(|&c| luminance(c * map.scale).max(0.0) * sin_theta));
-            nodes.push(luminance(row[0] * map.scale).max(0.0) * sin_theta);
-        }
-        map.distribution = BilinearDistribution2D::new(&nodes, w + 1, rows);
+        let node_rows = |brightness: &dyn Fn(Rgb) -> f32| {
+            let mut nodes = Vec::with_capacity((w + 1) * rows);
+            for j in 0..rows {
+                let sin_theta = (PI * j as f32 / (rows - 1) as f32).sin();
+                let row = &map.image.pixels[j.min(h - 1) * w..(j.min(h - 1) + 1) * w];
+                nodes.extend(row.iter().map(|&c| brightness(c * map.scale) * sin_theta));
+                nodes.push(brightness(row[0] * map.scale) * sin_theta);
+            }
+            nodes
+        };
+        map.distribution = BilinearDistribution2D::new(&node_rows(&|c| luminance(c).max(0.0)), w + 1, rows);
         let mut sum = glam::DVec3::ZERO;
         let mut solid_angle = 0.0f64;
         for y in 0..h {
@@ -92,6 +112,11 @@ impl EnvironmentMap {
             }
         }
         map.average = (sum / solid_angle.max(1e-12)).as_vec3();
+        let mean = luminance(map.average);
+        let nodes = node_rows(&|c| (luminance(c) - mean).max(0.0));
+        if nodes.iter().any(|&v| v > 0.0) {
+            map.compensated = Some(BilinearDistribution2D::new(&nodes, w + 1, rows));
+        }
         map
     }
 
@@ -102,10 +127,17 @@ impl EnvironmentMap {
         let (w, h) = (image.width as usize, image.height as usize);
         let weights: Vec<f32> = image.pixels.iter().map(|&c| luminance(c).max(0.0)).collect();
         let sum: glam::DVec3 = image.pixels.iter().map(|c| c.as_dvec3()).sum();
+        let mean = luminance((sum / (w * h).max(1) as f64).as_vec3());
+        let compensated: Vec<f32> = image.pixels.iter().map(|&c| (luminance(c) - mean).max(0.0)).collect();
         EnvironmentMap {
             average: (sum * scale as f64 / (w * h).max(1) as f64).as_vec3(),
             pixel_distribution: Distribution2D::new(&weights, w, h),
             distribution: BilinearDistribution2D::default(),
+            compensated: None,
+            compensated_pixels: compensated
+                .iter()
+                .any(|&v| v > 0.0)
+                .then(|| Distribution2D::new(&compensated, w, h)),
             image,
             scale,
             to_world,
@@ -200,19 +232,39 @@ impl EnvironmentMap {
         Some((d, pdf_uv / (2.0 * PI * PI * sin_theta)))
     }
 
+    /// The latitude–longitude density of light samples: the compensated
+    /// one if `incomplete` and the map has one (see the module's text).
+    #[inline]
+    fn density(&self, incomplete: bool) -> &BilinearDistribution2D {
+        match (&self.compensated, incomplete) {
+            (Some(d), true) => d,
+            _ => &self.distribution,
+        }
+    }
+
+    /// [`EnvironmentMap::density`] for the equal-area layout.
+    #[inline]
+    fn pixel_density(&self, incomplete: bool) -> &Distribution2D {
+        match (&self.compensated_pixels, incomplete) {
+            (Some(d), true) => d,
+            _ => &self.pixel_distribution,
+        }
+    }
+
     /// [`EnvironmentMap::sample`] with the radiance arriving from the
     /// direction drawn, looked up where it was drawn rather than found
-    /// again from the direction (which costs an arctangent and an arccosine).
-    pub fn sample_radiance(&self, u: Vec2) -> Option<(Vec3, f32, Rgb)> {
+    /// again from the direction (which costs an arctangent and an
+    /// arccosine); from the compensated density if `incomplete`.
+    pub fn sample_radiance(&self, u: Vec2, incomplete: bool) -> Option<(Vec3, f32, Rgb)> {
         if self.layout == EnvironmentLayout::EqualAreaOctahedral {
-            let (uv, pdf_uv) = self.pixel_distribution.sample(u);
+            let (uv, pdf_uv) = self.pixel_density(incomplete).sample(u);
             if pdf_uv <= 0.0 {
                 return None;
             }
             let d = self.to_world.vector(equal_area_square_to_sphere(uv)).normalize();
             return Some((d, pdf_uv / (4.0 * PI), self.nearest(uv)));
         }
-        let (p, pdf_uv) = self.distribution.sample(u);
+        let (p, pdf_uv) = self.density(incomplete).sample(u);
         let uv = self.map_point(p);
         let (d, sin_theta) = self.dir_of(uv);
         if sin_theta <= 0.0 || pdf_uv <= 0.0 {
@@ -221,20 +273,21 @@ impl EnvironmentMap {
         Some((d, pdf_uv / (2.0 * PI * PI * sin_theta), self.eval_uv(uv)))
     }
 
-    /// [`EnvironmentMap::eval`] and [`EnvironmentMap::pdf`] of one
-    /// direction, which is mapped to the image once.
-    pub fn eval_pdf(&self, dir: Vec3) -> (Rgb, f32) {
+    /// [`EnvironmentMap::eval`] and the density of
+    /// [`EnvironmentMap::sample_radiance`] (with the same `incomplete`) of
+    /// one direction, which is mapped to the image once.
+    pub fn eval_pdf(&self, dir: Vec3, incomplete: bool) -> (Rgb, f32) {
         if self.layout == EnvironmentLayout::EqualAreaOctahedral {
             let d = self.to_world.inv_vector(dir).normalize_or_zero();
             let uv = equal_area_sphere_to_square(d);
-            return (self.nearest(uv), self.pixel_distribution.pdf(uv) / (4.0 * PI));
+            return (self.nearest(uv), self.pixel_density(incomplete).pdf(uv) / (4.0 * PI));
         }
         let uv = self.uv_of(dir);
         let sin_theta = (PI * uv.y).sin();
         let pdf = if sin_theta <= 0.0 {
             0.0
         } else {
-            self.distribution.pdf(self.density_point(uv)) / (2.0 * PI * PI * sin_theta)
+            self.density(incomplete).pdf(self.density_point(uv)) / (2.0 * PI * PI * sin_theta)
         };
         (self.eval_uv(uv), pdf)
     }
@@ -362,11 +415,15 @@ impl Background {
     }
 
     /// [`Background::sample_from`] with the radiance arriving from the
-    /// direction drawn.
+    /// direction drawn. With `incomplete` (pbrt-v4's `allowIncompletePDF`),
+    /// for estimators that also sample the BSDF and weigh the two by
+    /// multiple importance sampling, an image is sampled by its
+    /// compensated density, which leaves out directions no brighter than
+    /// the image's mean.
     #[inline]
-    pub fn sample_radiance_from(&self, p: Vec3, u: Vec2) -> Option<(Vec3, f32, Rgb)> {
+    pub fn sample_radiance_from(&self, p: Vec3, u: Vec2, incomplete: bool) -> Option<(Vec3, f32, Rgb)> {
         match self {
-            Background::Image(map) => map.sample_radiance(u),
+            Background::Image(map) => map.sample_radiance(u, incomplete),
             _ => {
                 let (wi, pdf) = self.sample_from(p, u)?;
                 Some((wi, pdf, self.eval(wi)))
@@ -374,12 +431,13 @@ impl Background {
         }
     }
 
-    /// [`Background::eval_from`] and [`Background::pdf_from`] at once (an
-    /// image maps the direction to its pixels once).
+    /// [`Background::eval_from`] and the density of
+    /// [`Background::sample_radiance_from`] with the same `incomplete` at
+    /// once (an image maps the direction to its pixels once).
     #[inline]
-    pub fn eval_pdf_from(&self, p: Vec3, dir: Vec3) -> (Rgb, f32) {
+    pub fn eval_pdf_from(&self, p: Vec3, dir: Vec3, incomplete: bool) -> (Rgb, f32) {
         match self {
-            Background::Image(map) => map.eval_pdf(dir),
+            Background::Image(map) => map.eval_pdf(dir, incomplete),
             _ => (self.eval_from(p, dir), self.pdf_from(p, dir)),
         }
     }
@@ -527,6 +585,67 @@ mod tests {
             );
             assert!(result.p_value > 0.001, "{result:?}");
         }
+    }
+
+    #[test]
+    fn compensated_density_draws_only_what_is_brighter_than_the_mean() {
+        use crate::sampling::chi2::Chi2Test;
+        for map in [contrasty_map(16, 8), contrasty_map(5, 3), equal_area_map(16)] {
+            let mean = luminance(map.average);
+            let mut r = Pcg32::new(11, 6);
+            let (mut drawn, mut mismatches) = (0, 0);
+            for _ in 0..20_000 {
+                let Some((d, pdf, li)) = map.sample_radiance(Vec2::new(r.next_f32(), r.next_f32()), true) else {
+                    continue;
+                };
+                drawn += 1;
+                // What the direction maps back to may round into the next
+                // pixel.
+                let (l, pdf_eval) = map.eval_pdf(d, true);
+                if (pdf - pdf_eval).abs() > 1e-3 * pdf || (li - l).abs().max_element() > 1e-3 * l.max_element() {
+                    mismatches += 1;
+                }
+                // An equal-area map's samples land on pixels brighter than
+                // the mean (a bilinear map's between such a pixel and others).
+                if map.layout == EnvironmentLayout::EqualAreaOctahedral {
+                    assert!(luminance(li) > mean, "{li:?} drawn, mean {mean}");
+                }
+            }
+            assert!(drawn > 19_000, "{drawn} of 20000 samples drawn");
+            assert!(mismatches < 20, "{mismatches} samples disagree with eval_pdf");
+            // Directions no brighter than the mean are never drawn: a
+            // uniform direction toward the dimmest part has density 0.
+            let dim = (0..2000)
+                .map(|_| sample_sphere_uniform(Vec2::new(r.next_f32(), r.next_f32())))
+                .filter(|&d| map.eval(d).max_element() < 0.5 * mean)
+                .collect::<Vec<_>>();
+            if map.layout == EnvironmentLayout::EqualAreaOctahedral {
+                assert!(dim.iter().all(|&d| map.eval_pdf(d, true).1 == 0.0));
+            }
+            let mut r = Pcg32::new(12, 7);
+            let result = Chi2Test::default().run(
+                |_| {
+                    map.sample_radiance(Vec2::new(r.next_f32(), r.next_f32()), true)
+                        .map(|(d, _, _)| d)
+                },
+                |d| map.eval_pdf(d, true).1 as f64,
+            );
+            assert!(result.p_value > 0.001, "{result:?}");
+        }
+        // A constant map has nothing above its mean: its light samples
+        // keep the full density.
+        let flat = EnvironmentMap::new(
+            ImageTexture {
+                width: 8,
+                height: 4,
+                pixels: vec![Rgb::splat(0.5); 32],
+            },
+            1.0,
+            Transform::IDENTITY,
+        );
+        let u = Vec2::new(0.3, 0.6);
+        assert_eq!(flat.sample_radiance(u, true), flat.sample_radiance(u, false));
+        assert!(flat.sample_radiance(u, true).is_some());
     }
 
     #[test]

@@ -612,9 +612,13 @@ impl Light {
     /// Samples light arriving at point `p`; `u_pick` and `u` are uniform
     /// numbers (the first picks a triangle of a mesh emitter). Returns
     /// `None` when no light can arrive (behind a spot, on the back of an
-    /// emitter, or at the emitter itself).
+    /// emitter, or at the emitter itself). `incomplete` (pbrt-v4's
+    /// `allowIncompletePDF`) lets the environment draw from a density that
+    /// leaves out part of its light, which only estimators that also
+    /// sample the BSDF and weigh the two by MIS may ask for (see
+    /// [`Background::sample_radiance_from`]).
     #[inline(always)]
-    pub fn sample_li(&self, scene: &Scene, p: Vec3, u_pick: f32, u: Vec2) -> Option<LightSample> {
+    pub fn sample_li(&self, scene: &Scene, p: Vec3, u_pick: f32, u: Vec2, incomplete: bool) -> Option<LightSample> {
         // A rectangle light, a room's usual light, is sampled in the
         // caller's code; the other kinds behind a call. (Inlining the
         // whole match into the path loop made renders 5–8% slower.)
@@ -630,14 +634,20 @@ impl Light {
             let lp = r.corner + u.x * r.edge_u + u.y * r.edge_v;
             return area_light_sample(scene, p, lp, r.normal, *two_sided, u, None, r.pdf_area, radiance);
         }
-        self.sample_li_other(scene, p, u_pick, u)
+        self.sample_li_other(scene, p, u_pick, u, incomplete)
     }
 
     /// [`Light::sample_li`] with its numbers drawn from `sampler`: first
     /// `u_pick` (passed over where this light does not read it), then
     /// `u`.
     #[inline(always)]
-    pub fn sample_li_drawing(&self, scene: &Scene, p: Vec3, sampler: &mut Sampler) -> Option<LightSample> {
+    pub fn sample_li_drawing(
+        &self,
+        scene: &Scene,
+        p: Vec3,
+        sampler: &mut Sampler,
+        incomplete: bool,
+    ) -> Option<LightSample> {
         let u_pick = if self.reads_pick() {
             sampler.next_1d()
         } else {
@@ -645,7 +655,7 @@ impl Light {
             0.0
         };
         let u = sampler.next_2d();
-        self.sample_li(scene, p, u_pick, u)
+        self.sample_li(scene, p, u_pick, u, incomplete)
     }
 
     /// Whether [`Light::sample_li`] reads its `u_pick`: only an area
@@ -664,7 +674,7 @@ impl Light {
 
     /// [`Light::sample_li`] for every light but a rectangle.
     #[inline(never)]
-    fn sample_li_other(&self, scene: &Scene, p: Vec3, u_pick: f32, u: Vec2) -> Option<LightSample> {
+    fn sample_li_other(&self, scene: &Scene, p: Vec3, u_pick: f32, u: Vec2, incomplete: bool) -> Option<LightSample> {
         match self {
             Light::Point {
                 position,
@@ -794,7 +804,7 @@ impl Light {
                 area_light_sample(scene, p, lp, ln, *two_sided, uv, pdf_solid_angle, pdf_area, radiance)
             }
             Light::Environment => {
-                let (wi, pdf, li) = scene.background.sample_radiance_from(p, u)?;
+                let (wi, pdf, li) = scene.background.sample_radiance_from(p, u, incomplete)?;
                 if pdf <= 0.0 {
                     return None;
                 }
@@ -838,10 +848,11 @@ impl Light {
     }
 
     /// The density per steradian with which the environment light samples
-    /// direction `dir` from `p`.
-    pub fn pdf_environment(&self, scene: &Scene, p: Vec3, dir: Vec3) -> f32 {
+    /// direction `dir` from `p` (by [`Light::sample_li`] with the same
+    /// `incomplete`).
+    pub fn pdf_environment(&self, scene: &Scene, p: Vec3, dir: Vec3, incomplete: bool) -> f32 {
         match self {
-            Light::Environment => scene.background.pdf_from(p, dir),
+            Light::Environment => scene.background.eval_pdf_from(p, dir, incomplete).1,
             _ => 0.0,
         }
     }
@@ -1067,7 +1078,10 @@ transform = [{ scale = [2, 3, 1] }, { rotate = { axis = [1, 1, 0], angle = 30 } 
             for _ in 0..2000 {
                 let p = r.corner + Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 6.0 - 3.0;
                 let u = Vec2::new(rng.next_f32(), rng.next_f32());
-                let (a, b) = (light.sample_li(&scene, p, 0.5, u), general.sample_li(&scene, p, 0.5, u));
+                let (a, b) = (
+                    light.sample_li(&scene, p, 0.5, u, false),
+                    general.sample_li(&scene, p, 0.5, u, false),
+                );
                 match (a, b) {
                     (Some(a), Some(b)) => {
                         hits += 1;
@@ -1138,7 +1152,10 @@ material = "lamp"
             for _ in 0..500 {
                 let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::new(1.0, 1.0, 1.0);
                 let u = Vec2::new(rng.next_f32(), rng.next_f32());
-                let (a, b) = (light.sample_li(&scene, p, 0.05, u), light.sample_li(&scene, p, 0.95, u));
+                let (a, b) = (
+                    light.sample_li(&scene, p, 0.05, u, false),
+                    light.sample_li(&scene, p, 0.95, u, false),
+                );
                 let same = match (&a, &b) {
                     (Some(a), Some(b)) => (a.wi, a.li, a.pdf, a.target) == (b.wi, b.li, b.pdf, b.target),
                     (None, None) => true,
@@ -1164,9 +1181,9 @@ material = "lamp"
                 drawing.start_pixel_sample(3, 4, 2);
                 plain.start_pixel_sample(3, 4, 2);
                 let p = Vec3::new(0.1, 0.2, 0.3);
-                let a = light.sample_li_drawing(&scene, p, &mut drawing);
+                let a = light.sample_li_drawing(&scene, p, &mut drawing, false);
                 let (u_pick, u) = (plain.next_1d(), plain.next_2d());
-                let b = light.sample_li(&scene, p, u_pick, u);
+                let b = light.sample_li(&scene, p, u_pick, u, false);
                 assert_eq!(a.map(|s| (s.wi, s.pdf)), b.map(|s| (s.wi, s.pdf)), "{light:?}");
                 assert_eq!(drawing.next_1d(), plain.next_1d(), "{light:?}");
             }

@@ -528,7 +528,7 @@ fn spherical_cameras_map_directions_as_pbrt_v4() {
 /// Writes a PFM image (rows of little-endian RGB floats, bottom row
 /// first) of `w` × `h` pixels, the colour of each given by its column and
 /// its row counted from the top.
-fn write_pfm(path: &Path, w: usize, h: usize, color: impl Fn(usize, usize) -> [f32; 3]) {
+pub(crate) fn write_pfm(path: &Path, w: usize, h: usize, color: impl Fn(usize, usize) -> [f32; 3]) {
     let mut pfm = format!("PF\n{w} {h}\n-1.0\n").into_bytes();
     for row in (0..h).rev() {
         for col in 0..w {
@@ -623,7 +623,7 @@ fn goniometric_lights_shine_as_their_equal_area_image_says() {
         let desc = trazo::scene::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
         assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
         let scene = trazo::scene::build(&desc).unwrap_or_else(|e| panic!("{e}"));
-        let s = scene.lights[0].sample_li(&scene, p, 0.5, Vec2::splat(0.5));
+        let s = scene.lights[0].sample_li(&scene, p, 0.5, Vec2::splat(0.5), false);
         s.map_or(Rgb::ZERO, |s| s.li)
     };
     let lamp = "LightSource \"goniometric\" \"string filename\" \"lamp.pfm\" \"rgb I\" [2 2 2]";

@@ -342,6 +342,12 @@ fn light_scene(shape: ShapeDesc) -> trazo::scene::Scene {
 }
 
 fn check_light(name: &str, scene: &trazo::scene::Scene, p: Vec3, alpha: f64) {
+    check_light_density(name, scene, p, alpha, false);
+}
+
+/// [`check_light`], with the environment's compensated density if
+/// `incomplete`.
+fn check_light_density(name: &str, scene: &trazo::scene::Scene, p: Vec3, alpha: f64, incomplete: bool) {
     let light = &scene.lights[0];
     let mut r = Pcg32::new(name.len() as u64, 3);
     let result = Chi2Test {
@@ -350,12 +356,18 @@ fn check_light(name: &str, scene: &trazo::scene::Scene, p: Vec3, alpha: f64) {
     }
     .run(
         |_| {
-            let s = light.sample_li(scene, p, r.next_f32(), Vec2::new(r.next_f32(), r.next_f32()))?;
+            let s = light.sample_li(
+                scene,
+                p,
+                r.next_f32(),
+                Vec2::new(r.next_f32(), r.next_f32()),
+                incomplete,
+            )?;
             Some(s.wi)
         },
         |d| {
             if let Light::Environment = light {
-                return light.pdf_environment(scene, p, d) as f64;
+                return light.pdf_environment(scene, p, d, incomplete) as f64;
             }
             let ray = trazo::geometry::Ray::new(p, d);
             match scene.intersect(&ray) {
@@ -514,4 +526,6 @@ fn light_sampling_matches_the_density() {
     )));
     scene.lights = vec![Light::Environment];
     check_light("environment map", &scene, p, alpha);
+    // Its compensated density (for MIS): the spots alone.
+    check_light_density("environment map, compensated", &scene, p, alpha, true);
 }

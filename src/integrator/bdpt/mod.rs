@@ -989,7 +989,7 @@ impl<'s> Tracer<'s> {
                             target: ShadowTarget::Infinity,
                         }
                     }
-                    _ => light.sample_li(scene, pt.p, u_pick, u)?,
+                    _ => light.sample_li(scene, pt.p, u_pick, u, false)?,
                 };
                 if ls.pdf <= 0.0 {
                     return None;

@@ -241,7 +241,7 @@ impl<'a> ShadingPoint<'a> {
             sampler.skip_2d();
             return Rgb::ZERO;
         };
-        let Some(ls) = scene.lights[light_index].sample_li_drawing(scene, hit.p, sampler) else {
+        let Some(ls) = scene.lights[light_index].sample_li_drawing(scene, hit.p, sampler, false) else {
             return Rgb::ZERO;
         };
         if ls.li == Rgb::ZERO || pmf <= 0.0 {
