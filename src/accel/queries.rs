@@ -140,21 +140,36 @@ impl TriangleBvh {
     /// The closest hit along `ray` within its interval.
     #[inline]
     pub fn closest_hit(&self, ray: &Ray) -> QueryHit {
+        self.closest_hit_with::<false>(ray)
+    }
+
+    /// [`TriangleBvh::closest_hit`]; with `AVX` (only where the processor
+    /// has it) eight-wide boxes are tested in one AVX register.
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    fn closest_hit_with<const AVX: bool>(&self, ray: &Ray) -> QueryHit {
         let Some(pre) = TriangleRay::new(ray) else {
             return QueryHit::NONE;
         };
         let mut r = *ray;
         let mut best = MISS;
-        self.bvh.traverse_leaves(&self.blocks, &mut r, false, |k, r| {
-            match self.blocks[k as usize].intersect(r, &pre) {
-                Some((lane, t)) => {
-                    r.t_max = t;
-                    best = self.blocks[k as usize].ids[lane];
-                    true
-                }
-                None => false,
+        let test = |k: u32, r: &mut Ray| match self.blocks[k as usize].intersect(r, &pre) {
+            Some((lane, t)) => {
+                r.t_max = t;
+                best = self.blocks[k as usize].ids[lane];
+                true
             }
-        });
+            None => false,
+        };
+        #[cfg(target_arch = "x86_64")]
+        if AVX {
+            // SAFETY: `AVX` is set only where the processor has AVX.
+            unsafe { self.bvh.traverse_leaves_avx(&self.blocks, &mut r, false, test) };
+        } else {
+            self.bvh.traverse_leaves(&self.blocks, &mut r, false, test);
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        self.bvh.traverse_leaves(&self.blocks, &mut r, false, test);
         if best == MISS {
             QueryHit::NONE
         } else {
@@ -162,7 +177,9 @@ impl TriangleBvh {
         }
     }
 
-    /// Whether anything lies along `ray` within its interval.
+    /// Whether anything lies along `ray` within its interval. (Testing
+    /// the boxes in AVX, as closest hits do, made any-hit queries a little
+    /// slower: they sort nothing.)
     #[inline]
     pub fn any_hit(&self, ray: &Ray) -> bool {
         let Some(pre) = TriangleRay::new(ray) else {
@@ -178,10 +195,20 @@ impl TriangleBvh {
     /// iterator is indexed, so rayon's workers write each hit straight to
     /// its place in the result (a `flat_map_iter` over chunks builds a
     /// vector per chunk and then joins them; commit eba9c13).
+    #[allow(unsafe_code)]
     pub fn closest_hits(&self, rays: &[Ray]) -> Vec<QueryHit> {
+        let avx = avx_available();
         rays.par_iter()
             .with_min_len(CHUNK)
-            .map(|r| self.closest_hit(r))
+            .map(|r| {
+                #[cfg(target_arch = "x86_64")]
+                if avx {
+                    // SAFETY: the processor has AVX.
+                    return unsafe { self.closest_hit_avx(r) };
+                }
+                let _ = avx;
+                self.closest_hit(r)
+            })
             .collect()
     }
 
@@ -191,6 +218,21 @@ impl TriangleBvh {
             .map(|c| c.iter().filter(|r| self.any_hit(r)).count())
             .sum()
     }
+
+    /// [`TriangleBvh::closest_hit`] built for AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn closest_hit_avx(&self, ray: &Ray) -> QueryHit {
+        self.closest_hit_with::<true>(ray)
+    }
+}
+
+/// Whether closest-hit batches may take their AVX form.
+fn avx_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    return crate::geometry::lanes::avx_available();
+    #[cfg(not(target_arch = "x86_64"))]
+    false
 }
 
 /// Rays per parallel work item: large enough to amortise scheduling,

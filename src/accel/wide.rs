@@ -172,7 +172,7 @@ impl<const W: usize> WideBvh<W> {
     /// whether anything was hit.
     #[inline]
     pub fn traverse<F: FnMut(u32, &mut Ray) -> bool>(&self, ray: &mut Ray, any_hit: bool, test: F) -> bool {
-        self.traverse_impl::<false, false, (), F>(&[], ray, any_hit, test)
+        self.traverse_impl::<false, false, false, (), F>(&[], ray, any_hit, test)
     }
 
     /// [`WideBvh::traverse`] for a large tree whose primitive positions
@@ -187,7 +187,27 @@ impl<const W: usize> WideBvh<W> {
         any_hit: bool,
         test: F,
     ) -> bool {
-        self.traverse_impl::<false, true, L, F>(leaves, ray, any_hit, test)
+        self.traverse_impl::<false, true, false, L, F>(leaves, ray, any_hit, test)
+    }
+
+    /// [`WideBvh::traverse_leaves`] with an eight-wide node's boxes tested
+    /// in one AVX register instead of two SSE ones (the same arithmetic,
+    /// so the same hits).
+    ///
+    /// # Safety
+    ///
+    /// The processor must have AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[inline]
+    #[allow(unsafe_code)]
+    pub unsafe fn traverse_leaves_avx<L, F: FnMut(u32, &mut Ray) -> bool>(
+        &self,
+        leaves: &[L],
+        ray: &mut Ray,
+        any_hit: bool,
+        test: F,
+    ) -> bool {
+        self.traverse_impl::<false, true, true, L, F>(leaves, ray, any_hit, test)
     }
 
     /// [`WideBvh::traverse`] with the root's children tested before the
@@ -199,11 +219,20 @@ impl<const W: usize> WideBvh<W> {
     /// fewer rays per second, so those keep the plain loop (commit e8dc360).
     #[inline]
     pub fn traverse_small<F: FnMut(u32, &mut Ray) -> bool>(&self, ray: &mut Ray, any_hit: bool, test: F) -> bool {
-        self.traverse_impl::<true, false, (), F>(&[], ray, any_hit, test)
+        self.traverse_impl::<true, false, false, (), F>(&[], ray, any_hit, test)
     }
 
+    /// `AVX`: eight-wide boxes in one AVX register; only where the
+    /// processor has AVX.
     #[inline(always)]
-    fn traverse_impl<const ROOT_FIRST: bool, const PREFETCH: bool, L, F: FnMut(u32, &mut Ray) -> bool>(
+    #[allow(unsafe_code)]
+    fn traverse_impl<
+        const ROOT_FIRST: bool,
+        const PREFETCH: bool,
+        const AVX: bool,
+        L,
+        F: FnMut(u32, &mut Ray) -> bool,
+    >(
         &self,
         leaves: &[L],
         ray: &mut Ray,
@@ -259,7 +288,33 @@ impl<const W: usize> WideBvh<W> {
                 // box's face plane), as the scalar slab test does.
                 let mut hits = 0;
                 let mut t_enter = [0.0f32; W];
-                for c in 0..W / 4 {
+                #[cfg(target_arch = "x86_64")]
+                let boxes_done = AVX && W == 8 && {
+                    let row = |plane: usize| -> &[f32; 8] { b[plane].as_slice().try_into().expect("eight-wide") };
+                    let out: &mut [f32; 8] = t_enter.as_mut_slice().try_into().expect("eight-wide");
+                    // SAFETY: AVX traversals run where the processor has
+                    // AVX (the contract of `traverse_leaves_avx`).
+                    hits = unsafe {
+                        boxes_avx(
+                            [
+                                row(near_x),
+                                row(near_y),
+                                row(near_z),
+                                row(far_x),
+                                row(far_y),
+                                row(far_z),
+                            ],
+                            org,
+                            inv,
+                            (ray.t_min, ray.t_max),
+                            out,
+                        )
+                    };
+                    true
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let boxes_done = false;
+                for c in 0..if boxes_done { 0 } else { W / 4 } {
                     let lanes = |plane: usize| Vec4::from_slice(&b[plane][4 * c..4 * c + 4]);
                     let tx0 = (lanes(near_x) - ox) * ix;
                     let ty0 = (lanes(near_y) - oy) * iy;
@@ -343,6 +398,38 @@ impl<const W: usize> WideBvh<W> {
         }
         hit
     }
+}
+
+/// The slab tests of eight boxes, whose near and far planes along x, y
+/// and z are `planes` (as the ray enters them), in one AVX register: the
+/// SSE test's arithmetic in the same order, so the same bits. Returns the
+/// mask of the boxes the ray's interval `(t_min, t_max)` meets and writes
+/// where it enters each.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx")]
+fn boxes_avx(
+    planes: [&[f32; 8]; 6],
+    org: glam::Vec3,
+    inv: glam::Vec3,
+    (t_min, t_max): (f32, f32),
+    t_enter: &mut [f32; 8],
+) -> u32 {
+    use crate::geometry::lanes::F8;
+    let slab = |plane: &[f32; 8], o: f32, i: f32| F8::load_unaligned(plane).sub(F8::splat(o)).mul(F8::splat(i));
+    let tx0 = slab(planes[0], org.x, inv.x);
+    let ty0 = slab(planes[1], org.y, inv.y);
+    let tz0 = slab(planes[2], org.z, inv.z);
+    let tx1 = slab(planes[3], org.x, inv.x);
+    let ty1 = slab(planes[4], org.y, inv.y);
+    let tz1 = slab(planes[5], org.z, inv.z);
+    let t0 = tx0.max(ty0).max(tz0.max(F8::splat(t_min)));
+    let t1 = tx1
+        .min(ty1)
+        .min(tz1.min(F8::splat(t_max)))
+        .mul(F8::splat(SLAB_ROUNDING));
+    t0.store_unaligned(t_enter);
+    t0.le(t1).bits()
 }
 
 /// Starts loading the cache lines of `value` (at most `lines`), where the
@@ -459,6 +546,31 @@ mod tests {
                 assert_eq!(r6.t_max, r1.t_max, "n = {n}");
                 let mut r7 = Ray::with_interval(o, d, 1e-4, f32::INFINITY);
                 assert_eq!(wide.traverse_small(&mut r7, true, test), h1);
+                // Eight-wide boxes in one AVX register: the same boxes, in
+                // the same order, so the same hits.
+                #[cfg(target_arch = "x86_64")]
+                if crate::geometry::lanes::avx_available() {
+                    for any_hit in [false, true] {
+                        let mut r8 = Ray::with_interval(o, d, 1e-4, f32::INFINITY);
+                        let mut r9 = r8;
+                        let mut order_plain = Vec::new();
+                        let mut order_avx = Vec::new();
+                        let plain = wide8.traverse_leaves(&[(); 0], &mut r8, any_hit, |k, r| {
+                            order_plain.push(k);
+                            test(k, r)
+                        });
+                        // SAFETY: the processor has AVX.
+                        #[allow(unsafe_code)]
+                        let avx = unsafe {
+                            wide8.traverse_leaves_avx(&[(); 0], &mut r9, any_hit, |k, r| {
+                                order_avx.push(k);
+                                test(k, r)
+                            })
+                        };
+                        assert_eq!((plain, r8.t_max), (avx, r9.t_max), "n = {n}");
+                        assert_eq!(order_plain, order_avx, "n = {n}");
+                    }
+                }
             }
         }
     }

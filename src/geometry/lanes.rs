@@ -87,6 +87,22 @@ impl F8 {
         out.0
     }
 
+    /// Eight consecutive values, at any alignment.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn load_unaligned(values: &[f32; LANES]) -> F8 {
+        // SAFETY: eight f32 are readable from the reference.
+        F8(unsafe { _mm256_loadu_ps(values.as_ptr()) })
+    }
+
+    /// Stores the lanes into `out`, at any alignment.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    pub fn store_unaligned(self, out: &mut [f32; LANES]) {
+        // SAFETY: eight f32 are writable through the reference.
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) }
+    }
+
     /// Lanes from an array.
     #[inline]
     #[target_feature(enable = "avx")]
@@ -102,6 +118,11 @@ impl F8 {
         max,
         _mm256_max_ps,
         "Lane-wise `if self > other { self } else { other }` (SSE's and glam's max)."
+    );
+    binary!(
+        min,
+        _mm256_min_ps,
+        "Lane-wise `if self < other { self } else { other }` (SSE's and glam's min)."
     );
 
     /// Lane-wise absolute value.
