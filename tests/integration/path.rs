@@ -56,6 +56,17 @@ fn diffuse(albedo: f32) -> MaterialDesc {
     )
 }
 
+/// The plane y = 0 of material "diffuse".
+fn diffuse_floor() -> ShapeDesc {
+    ShapeDesc::new(
+        ShapeKind::Plane {
+            point: Vec3::ZERO,
+            normal: Vec3::Y,
+        },
+        Some("diffuse"),
+    )
+}
+
 /// Every pixel is `expect` within 5 of its own standard errors (plus a
 /// rounding allowance), and the image mean within 4 standard errors.
 fn assert_uniform(f: &Film, expect: f32, what: &str) {
@@ -246,13 +257,7 @@ fn sphere_light_over_a_plane_matches_the_closed_form() {
         lamp.name = "lamp".into();
         lamp.emission = ColorSource::Rgb(Rgb::splat(le));
         d.materials.push(lamp);
-        d.shapes.push(ShapeDesc::new(
-            ShapeKind::Plane {
-                point: Vec3::ZERO,
-                normal: Vec3::Y,
-            },
-            Some("diffuse"),
-        ));
+        d.shapes.push(diffuse_floor());
         d.shapes.push(ShapeDesc::new(
             ShapeKind::Sphere {
                 center: Vec3::new(0.0, h, 0.0),
@@ -289,13 +294,7 @@ fn plane_under_a_uniform_sky() {
     };
     d.background = BackgroundDesc::Constant(Rgb::splat(2.0));
     d.materials.push(diffuse(0.3));
-    d.shapes.push(ShapeDesc::new(
-        ShapeKind::Plane {
-            point: Vec3::ZERO,
-            normal: Vec3::Y,
-        },
-        Some("diffuse"),
-    ));
+    d.shapes.push(diffuse_floor());
     let f = render_film(&d);
     let (mean, err) = mean_and_error(&f);
     assert!((mean - 0.6).abs() <= 4.0 * err + 1e-5, "{mean} ± {err}");
@@ -345,13 +344,7 @@ fn mis_with_a_compensated_sky_agrees_with_bsdf_sampling() {
             illuminance: None,
         };
         d.materials.push(diffuse(0.5));
-        d.shapes.push(ShapeDesc::new(
-            ShapeKind::Plane {
-                point: Vec3::ZERO,
-                normal: Vec3::Y,
-            },
-            Some("diffuse"),
-        ));
+        d.shapes.push(diffuse_floor());
         // A ball that shades the plane and reflects the sky onto it.
         d.shapes.push(ShapeDesc::new(
             ShapeKind::Sphere {
@@ -474,13 +467,7 @@ fn delta_lights_in_the_path_tracer() {
         };
         d.materials.push(diffuse(0.5));
         d.lights.push(LightDesc::new(light));
-        d.shapes.push(ShapeDesc::new(
-            ShapeKind::Plane {
-                point: Vec3::ZERO,
-                normal: Vec3::Y,
-            },
-            Some("diffuse"),
-        ));
+        d.shapes.push(diffuse_floor());
         let (mean, _) = mean_and_error(&render_film(&d));
         mean as f32
     };
