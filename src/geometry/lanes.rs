@@ -364,3 +364,77 @@ impl Real for D4 {
         D4(unsafe { _mm256_blendv_pd(b.0, a.0, mask.0) })
     }
 }
+
+macro_rules! f8_operator {
+    ($trait:ident, $method:ident, $intrinsic:ident) => {
+        impl std::ops::$trait for F8 {
+            type Output = F8;
+            #[inline(always)]
+            fn $method(self, other: F8) -> F8 {
+                // SAFETY: an `F8` exists only where the processor has AVX.
+                F8(unsafe { $intrinsic(self.0, other.0) })
+            }
+        }
+    };
+}
+f8_operator!(Add, add, _mm256_add_ps);
+f8_operator!(Sub, sub, _mm256_sub_ps);
+f8_operator!(Mul, mul, _mm256_mul_ps);
+f8_operator!(Div, div, _mm256_div_ps);
+
+// SAFETY (every block below): an `F8` or `M8` exists only where the
+// processor has AVX (see the type), and functions that make one from
+// plain values are entered only from functions built for AVX.
+impl super::simd::Floats for F8 {
+    const N: usize = LANES;
+    type Each<T: Copy> = [T; LANES];
+    type Mask = M8;
+
+    #[inline(always)]
+    fn each<T: Copy>(f: impl FnMut(usize) -> T) -> [T; LANES] {
+        std::array::from_fn(f)
+    }
+    #[inline(always)]
+    fn splat(x: f32) -> F8 {
+        F8(unsafe { _mm256_set1_ps(x) })
+    }
+    #[inline(always)]
+    fn gather(values: &[f32; LANES]) -> F8 {
+        F8(unsafe { _mm256_loadu_ps(values.as_ptr()) })
+    }
+    #[inline(always)]
+    fn lane(self, i: usize) -> f32 {
+        let mut out = [0.0f32; LANES];
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) };
+        out[i]
+    }
+    #[inline(always)]
+    fn min(self, other: F8) -> F8 {
+        F8(unsafe { _mm256_min_ps(self.0, other.0) })
+    }
+    #[inline(always)]
+    fn max(self, other: F8) -> F8 {
+        F8(unsafe { _mm256_max_ps(self.0, other.0) })
+    }
+    #[inline(always)]
+    fn ge(self, other: F8) -> M8 {
+        M8(unsafe { _mm256_cmp_ps::<_CMP_GE_OQ>(self.0, other.0) })
+    }
+    #[inline(always)]
+    fn select(mask: M8, a: F8, b: F8) -> F8 {
+        F8(unsafe { _mm256_blendv_ps(b.0, a.0, mask.0) })
+    }
+    #[inline(always)]
+    fn mask_from_bits(bits: u32) -> M8 {
+        let lanes = unsafe { _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128) };
+        let bits = unsafe { _mm256_set1_epi32(bits as i32) };
+        // AVX (without AVX2) has no integer compare on 256 bits: the lanes'
+        // bits, as floats, are nonzero exactly where the bit is set.
+        let masked = unsafe { _mm256_and_ps(_mm256_castsi256_ps(lanes), _mm256_castsi256_ps(bits)) };
+        M8(unsafe { _mm256_cmp_ps::<_CMP_NEQ_OQ>(masked, _mm256_setzero_ps()) })
+    }
+    #[inline(always)]
+    fn mask_bits(mask: M8) -> u32 {
+        unsafe { _mm256_movemask_ps(mask.0) as u32 }
+    }
+}

@@ -19,6 +19,7 @@ pub(crate) mod roots;
 pub mod sdf;
 pub mod sdf_grid;
 pub mod shape;
+pub(crate) mod simd;
 pub mod subdivision;
 pub mod transform;
 pub mod triangle;

@@ -55,10 +55,34 @@ impl std::ops::AddAssign for RayStats {
     }
 }
 
+/// Camera samples [`Integrator::radiance_lanes`] takes at once.
+pub const LANES: usize = 8;
+
 /// A per-sample radiance estimator.
 pub trait Integrator: Sync {
     /// An estimate of the radiance arriving at the camera along `ray`.
     fn radiance(&self, scene: &Scene, ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb;
+
+    /// The estimates of [`Integrator::radiance`] for the `rays` whose bits
+    /// are set in `live`, ray `i` drawing from `samplers[i]` (zero for the
+    /// others): the same numbers, which an estimator that traces paths
+    /// many at a time computes together.
+    fn radiance_lanes(
+        &self,
+        scene: &Scene,
+        rays: &[Ray; LANES],
+        samplers: &mut [Sampler; LANES],
+        live: u32,
+        stats: &mut RayStats,
+    ) -> [Rgb; LANES] {
+        std::array::from_fn(|i| {
+            if live & (1 << i) != 0 {
+                self.radiance(scene, &rays[i], &mut samplers[i], stats)
+            } else {
+                Rgb::ZERO
+            }
+        })
+    }
 }
 
 /// Work an algorithm did besides the camera samples' own paths (photon

@@ -28,9 +28,10 @@
 //! radiance scaling of refraction so that paths inside glass are not
 //! killed for it).
 
-use super::{Integrator, RayStats, choose_light, light_choice_pmf};
+use super::{Integrator, LANES, RayStats, choose_light, light_choice_pmf};
 use crate::color::Rgb;
-use crate::geometry::Ray;
+use crate::geometry::simd::{Floats, Vec3s};
+use crate::geometry::{Ray, SurfaceHit};
 use crate::light::ShadowTarget;
 use crate::material::{DirectionSampling, TransportMode};
 use crate::sampling::Sampler;
@@ -62,162 +63,413 @@ pub struct PathTracer {
 
 impl Integrator for PathTracer {
     fn radiance(&self, scene: &Scene, camera_ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb {
+        self.trace::<f32>(scene, [*camera_ray], std::array::from_mut(sampler), 1, stats)
+            .lane(0)
+    }
+
+    #[allow(unsafe_code)]
+    fn radiance_lanes(
+        &self,
+        scene: &Scene,
+        rays: &[Ray; LANES],
+        samplers: &mut [Sampler; LANES],
+        live: u32,
+        stats: &mut RayStats,
+    ) -> [Rgb; LANES] {
+        #[cfg(target_arch = "x86_64")]
+        if crate::geometry::lanes::avx_available() {
+            // SAFETY: the processor has AVX.
+            return unsafe { self.trace_avx(scene, rays, samplers, live, stats) };
+        }
+        std::array::from_fn(|i| {
+            if live & (1 << i) != 0 {
+                self.radiance(scene, &rays[i], &mut samplers[i], stats)
+            } else {
+                Rgb::ZERO
+            }
+        })
+    }
+}
+
+/// What a path did at the previous bounce, which weighs the emission its
+/// next ray finds.
+#[derive(Clone, Copy)]
+struct Previous {
+    /// Whether the direction came from a delta lobe (or a cut-out).
+    delta: bool,
+    /// The direction's density.
+    pdf: f32,
+    /// The bounce's position.
+    p: glam::Vec3,
+    /// The normal the light choice used there (zero: none).
+    n: glam::Vec3,
+}
+
+/// Light a path found at the end of its ray, before its throughput: the
+/// radiance and its MIS weight.
+#[derive(Clone, Copy)]
+struct Found {
+    le: Rgb,
+    weight: f32,
+}
+
+/// Light found by next-event estimation at a bounce, before the path's
+/// throughput: the BSDF value, the light's radiance and the factor
+/// `|cos θ| · w / pdf`.
+#[derive(Clone, Copy)]
+struct Direct {
+    f: Rgb,
+    li: Rgb,
+    factor: f32,
+}
+
+/// How a path goes on from a surface.
+#[derive(Clone, Copy)]
+enum Scatter {
+    /// It ends.
+    End,
+    /// Through a mask's cut-out part, unchanged.
+    Pass(Ray),
+    /// By a sampled direction: the throughput's factor, the factor of
+    /// the radiance scale (η² through refraction, else 1), the bounce and
+    /// the next ray.
+    Bounce {
+        factor: Rgb,
+        eta2: f32,
+        previous: Previous,
+        ray: Ray,
+    },
+}
+
+/// The lanes whose bits are set in `bits`, in order.
+#[inline(always)]
+fn lanes(mut bits: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (bits != 0).then(|| {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            i
+        })
+    })
+}
+
+impl PathTracer {
+    /// [`PathTracer::trace`] over eight lanes.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn trace_avx(
+        &self,
+        scene: &Scene,
+        rays: &[Ray; LANES],
+        samplers: &mut [Sampler; LANES],
+        live: u32,
+        stats: &mut RayStats,
+    ) -> [Rgb; LANES] {
+        use crate::geometry::lanes::F8;
+        let l = self.trace::<F8>(scene, *rays, samplers, live, stats);
+        std::array::from_fn(|i| l.lane(i))
+    }
+
+    /// Traces `F::N` paths at once from the camera rays `rays`, those of
+    /// the lanes set in `live`, lane `i` drawing its numbers from
+    /// `samplers[i]`: their estimates, each the one the path would give
+    /// traced alone. The paths move in lockstep, one segment each per
+    /// step; what depends on one path's surface (its intersection, BSDF
+    /// and light sample) is computed lane by lane, and the throughput and
+    /// estimate in lanes.
+    #[inline(always)]
+    fn trace<F: Floats>(
+        &self,
+        scene: &Scene,
+        mut rays: F::Each<Ray>,
+        samplers: &mut [Sampler],
+        mut live: u32,
+        stats: &mut RayStats,
+    ) -> Vec3s<F> {
         let strategy = match self.sampling {
             PathSampling::Uniform => DirectionSampling::Uniform,
             PathSampling::Cosine => DirectionSampling::Cosine,
             PathSampling::Bsdf | PathSampling::Mis => DirectionSampling::Bsdf,
         };
         let nee = self.sampling == PathSampling::Mis;
-        let mode = TransportMode::Radiance;
+        debug_assert_eq!(samplers.len(), F::N, "a sampler a lane");
 
-        let mut l = Rgb::ZERO;
-        let mut beta = Rgb::ONE;
-        let mut ray = *camera_ray;
-        // What the previous bounce was, for weighting emission found by it.
-        let mut prev_delta = true;
-        let mut prev_pdf = 0.0f32;
-        let mut prev_p = ray.origin;
-        // The normal the light choice used there (zero: none).
-        let mut prev_n = glam::Vec3::ZERO;
-        let mut eta_scale = 1.0f32;
-        let mut depth = 1u32; // segments in the path once `ray` is traced
+        let mut l = Vec3s::<F>::splat(Rgb::ZERO);
+        let mut beta = Vec3s::<F>::splat(Rgb::ONE);
+        let mut eta_scale = F::splat(1.0);
+        let mut previous = F::each(|i| Previous {
+            delta: true,
+            pdf: 0.0,
+            p: rays.as_ref()[i].origin,
+            n: glam::Vec3::ZERO,
+        });
+        let mut depth = 1u32; // segments in the paths once `rays` are traced
+        // Per-lane results of each step, valid in the lanes its masks name.
+        let mut hits = F::each(|_| None);
+        let mut found = F::each(|_| Found {
+            le: Rgb::ZERO,
+            weight: 0.0,
+        });
+        let mut direct = F::each(|_| Direct {
+            f: Rgb::ZERO,
+            li: Rgb::ZERO,
+            factor: 0.0,
+        });
+        let mut factor = F::each(|_| Rgb::ONE);
+        let mut eta2 = F::each(|_| 1.0f32);
 
-        while depth <= self.max_depth {
-            stats.rays += 1;
-            let shows_emission = scene.settings.shows_emission(depth);
-            let Some(hit) = scene.intersect(&ray) else {
-                if let (Some(env), true) = (scene.environment_light, shows_emission) {
-                    let dir = ray.dir.normalize();
-                    // (A portal lets in what the ray's origin sees through it.)
-                    if nee && !prev_delta {
-                        let (le, pdf_dir) = scene.background.eval_pdf_from(prev_p, dir, true);
-                        let pdf_light = light_choice_pmf(scene, prev_p, prev_n, env as usize) * pdf_dir;
-                        l += beta * le * power_heuristic(prev_pdf, pdf_light);
-                    } else {
-                        l += beta * scene.background.eval_from(ray.origin, dir);
-                    }
+        while depth <= self.max_depth && live != 0 {
+            // Where the rays end, and the light they find there.
+            let mut lit = 0u32;
+            for i in lanes(live) {
+                stats.rays += 1;
+                let (hit, light) = self.arrive(scene, &rays.as_ref()[i], &previous.as_ref()[i], depth, nee);
+                if hit.is_none() {
+                    live &= !(1 << i);
                 }
-                break;
-            };
-            let m = &scene.materials[hit.material as usize];
-            let wo_world = -ray.dir.normalize();
-
-            if m.is_emissive() && shows_emission && m.emits_toward(&hit, wo_world) {
-                let w = match hit.light {
-                    Some(li) if nee && !prev_delta => {
-                        let pdf_light = light_choice_pmf(scene, prev_p, prev_n, li as usize)
-                            * scene.lights[li as usize].pdf_li(scene, prev_p, &hit);
-                        power_heuristic(prev_pdf, pdf_light)
-                    }
-                    _ => 1.0,
-                };
-                l += beta * m.emission_at(&scene.textures, &TexCoord::at(&hit)) * w;
+                if let Some(light) = light {
+                    found.as_mut()[i] = light;
+                    lit |= 1 << i;
+                }
+                hits.as_mut()[i] = hit;
             }
-            if depth == self.max_depth {
+            if lit != 0 {
+                let le = Vec3s::gather(&F::each(|i| found.as_ref()[i].le));
+                let w = F::gather(&F::each(|i| found.as_ref()[i].weight));
+                l = Vec3s::select(F::mask_from_bits(lit), l + (beta * le).scale(w), l);
+            }
+            if depth == self.max_depth || live == 0 {
                 break;
             }
 
-            let tc = TexCoord::at(&hit);
-            // A mask's cut-out part, chosen with probability 1 − α: the path
-            // goes on unchanged (a bounce, as Mitsuba's path counts it).
-            // Shadow rays do not see through masks (nor do Mitsuba's), so
-            // only this way finds the light behind them: weight 1.
-            if m.cut_out(&scene.textures, &tc, || sampler.next_1d()) {
-                prev_delta = true;
-                ray = hit.spawn_ray(ray.dir);
-                depth += 1;
-                continue;
-            }
-            let mut parts = None;
-            let bsdf = scene.bsdf(hit.material, &tc, &mut parts);
-            let frame = m.shading_frame(&scene.textures, &hit, wo_world);
-            let wo = frame.to_local(wo_world);
-            if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
-                break; // the back of a one-sided surface is black
-            }
-            let front_o = hit.ng.dot(wo_world) > 0.0;
-
-            // Next-event estimation.
-            if nee && bsdf.has_smooth() && !scene.lights.is_empty() {
-                let chosen = choose_light(scene, hit.p, hit.ns, sampler);
-                let sample = match chosen {
-                    Some((light_index, _)) => scene.lights[light_index].sample_li_drawing(scene, hit.p, sampler, true),
-                    None => {
-                        // No light reaches the point: its numbers are passed over.
-                        sampler.skip_1d();
-                        sampler.skip_2d();
-                        None
+            // How the paths go on.
+            let mut lit = 0u32;
+            let mut bounced = 0u32;
+            for i in lanes(live) {
+                let Some(hit) = &hits.as_ref()[i] else { continue };
+                let ray = &mut rays.as_mut()[i];
+                let (light, scatter) = self.scatter(scene, hit, ray.dir, &mut samplers[i], stats, strategy, nee);
+                if let Some(light) = light {
+                    direct.as_mut()[i] = light;
+                    lit |= 1 << i;
+                }
+                match scatter {
+                    Scatter::End => live &= !(1 << i),
+                    Scatter::Pass(next) => {
+                        previous.as_mut()[i].delta = true;
+                        *ray = next;
                     }
-                };
-                let pmf = chosen.map_or(0.0, |(_, pmf)| pmf);
-                if let Some(ls) = sample {
-                    let wi = frame.to_local(ls.wi);
-                    let f = bsdf.eval(wo, wi, mode) * frame.factor(ls.wi);
-                    // The geometric normal decides reflection or transmission.
-                    let front_i = hit.ng.dot(ls.wi) > 0.0;
-                    let consistent = (front_i == front_o) == (wi.z * wo.z > 0.0);
-                    if f != Rgb::ZERO && ls.li != Rgb::ZERO && consistent {
-                        stats.rays += 1;
-                        let shadow = match ls.target {
-                            ShadowTarget::Point(p) => hit.spawn_ray_to(p),
-                            ShadowTarget::Infinity => hit.spawn_ray(ls.wi),
-                        };
-                        if !scene.occluded(&shadow) {
-                            let pdf_light = ls.pdf * pmf;
-                            let w = if ls.is_delta {
-                                1.0
-                            } else {
-                                power_heuristic(pdf_light, bsdf.pdf(wo, wi))
-                            };
-                            l += beta * f * ls.li * (wi.z.abs() * w / pdf_light);
-                        }
+                    Scatter::Bounce {
+                        factor: f,
+                        eta2: e,
+                        previous: p,
+                        ray: next,
+                    } => {
+                        factor.as_mut()[i] = f;
+                        eta2.as_mut()[i] = e;
+                        previous.as_mut()[i] = p;
+                        *ray = next;
+                        bounced |= 1 << i;
                     }
                 }
             }
-
-            // Continue the path.
-            // The lobe choice, passed over where there is one lobe.
-            let u_lobe = if bsdf.reads_lobe_choice() {
-                sampler.next_1d()
-            } else {
-                sampler.skip_1d();
-                0.0
-            };
-            let Some(bs) = bsdf.sample_with(strategy, wo, u_lobe, sampler.next_2d(), mode) else {
-                break;
-            };
-            if bs.pdf <= 0.0 || bs.f == Rgb::ZERO || bs.wi.z == 0.0 {
-                break;
+            if lit != 0 {
+                let f = Vec3s::gather(&F::each(|i| direct.as_ref()[i].f));
+                let li = Vec3s::gather(&F::each(|i| direct.as_ref()[i].li));
+                let s = F::gather(&F::each(|i| direct.as_ref()[i].factor));
+                l = Vec3s::select(F::mask_from_bits(lit), l + (beta * f * li).scale(s), l);
             }
-            let wi_world = frame.to_world(bs.wi);
-            let reflection = bs.wi.z * wo.z > 0.0;
-            if (hit.ng.dot(wi_world) > 0.0) != (front_o == reflection) {
-                break; // the shading normal sent the path through the surface
+            if bounced != 0 {
+                let mask = F::mask_from_bits(bounced);
+                beta = Vec3s::select(mask, beta * Vec3s::gather(&factor), beta);
+                eta_scale = F::select(mask, eta_scale * F::gather(&eta2), eta_scale);
             }
-            let mapped = frame.factor(wi_world);
-            if mapped == 0.0 {
-                break;
-            }
-            beta *= bs.f * (mapped * bs.wi.z.abs() / bs.pdf);
-            if !reflection {
-                eta_scale *= bs.eta * bs.eta;
-            }
-            prev_delta = bs.delta;
-            prev_pdf = bs.pdf;
-            prev_p = hit.p;
-            prev_n = hit.ns;
-            ray = hit.spawn_ray(wi_world);
             depth += 1;
 
-            if depth > self.rr_depth {
-                let q = (beta.max_element() * eta_scale).min(0.95);
-                if sampler.next_1d() >= q {
-                    break;
-                }
-                beta /= q;
+            // Russian roulette, for the paths that bounced.
+            if depth > self.rr_depth && bounced != 0 {
+                let u = F::each(|i| {
+                    if bounced & (1 << i) != 0 {
+                        samplers[i].next_1d()
+                    } else {
+                        0.0
+                    }
+                });
+                let q = (beta.max_element() * eta_scale).min(F::splat(0.95));
+                let ended = F::mask_bits(F::gather(&u).ge(q)) & bounced;
+                live &= !ended;
+                beta = Vec3s::select(F::mask_from_bits(bounced & !ended), beta.over(q), beta);
             }
         }
         l
+    }
+
+    /// Traces one path's `ray`: the surface it hits (`None`: it leaves the
+    /// scene) and the light it finds there, weighed against next-event
+    /// estimation from `previous`, the bounce that sent it.
+    #[inline(always)]
+    fn arrive(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        previous: &Previous,
+        depth: u32,
+        nee: bool,
+    ) -> (Option<SurfaceHit>, Option<Found>) {
+        let shows_emission = scene.settings.shows_emission(depth);
+        let Some(hit) = scene.intersect(ray) else {
+            let (Some(env), true) = (scene.environment_light, shows_emission) else {
+                return (None, None);
+            };
+            let dir = ray.dir.normalize();
+            // (A portal lets in what the ray's origin sees through it.)
+            let found = if nee && !previous.delta {
+                let (le, pdf_dir) = scene.background.eval_pdf_from(previous.p, dir, true);
+                let pdf_light = light_choice_pmf(scene, previous.p, previous.n, env as usize) * pdf_dir;
+                Found {
+                    le,
+                    weight: power_heuristic(previous.pdf, pdf_light),
+                }
+            } else {
+                Found {
+                    le: scene.background.eval_from(ray.origin, dir),
+                    weight: 1.0,
+                }
+            };
+            return (None, Some(found));
+        };
+        let m = &scene.materials[hit.material as usize];
+        let wo_world = -ray.dir.normalize();
+        let mut found = None;
+        if m.is_emissive() && shows_emission && m.emits_toward(&hit, wo_world) {
+            let weight = match hit.light {
+                Some(li) if nee && !previous.delta => {
+                    let pdf_light = light_choice_pmf(scene, previous.p, previous.n, li as usize)
+                        * scene.lights[li as usize].pdf_li(scene, previous.p, &hit);
+                    power_heuristic(previous.pdf, pdf_light)
+                }
+                _ => 1.0,
+            };
+            found = Some(Found {
+                le: m.emission_at(&scene.textures, &TexCoord::at(&hit)),
+                weight,
+            });
+        }
+        (Some(hit), found)
+    }
+
+    /// One path's bounce at `hit`, which its ray reached along `dir`: the
+    /// light next-event estimation finds there, and how the path goes on.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn scatter(
+        &self,
+        scene: &Scene,
+        hit: &SurfaceHit,
+        dir: glam::Vec3,
+        sampler: &mut Sampler,
+        stats: &mut RayStats,
+        strategy: DirectionSampling,
+        nee: bool,
+    ) -> (Option<Direct>, Scatter) {
+        let mode = TransportMode::Radiance;
+        let m = &scene.materials[hit.material as usize];
+        let wo_world = -dir.normalize();
+        let tc = TexCoord::at(hit);
+        // A mask's cut-out part, chosen with probability 1 − α: the path
+        // goes on unchanged (a bounce, as Mitsuba's path counts it).
+        // Shadow rays do not see through masks (nor do Mitsuba's), so
+        // only this way finds the light behind them: weight 1.
+        if m.cut_out(&scene.textures, &tc, || sampler.next_1d()) {
+            return (None, Scatter::Pass(hit.spawn_ray(dir)));
+        }
+        let mut parts = None;
+        let bsdf = scene.bsdf(hit.material, &tc, &mut parts);
+        let frame = m.shading_frame(&scene.textures, hit, wo_world);
+        let wo = frame.to_local(wo_world);
+        if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
+            return (None, Scatter::End); // the back of a one-sided surface is black
+        }
+        let front_o = hit.ng.dot(wo_world) > 0.0;
+
+        // Next-event estimation.
+        let mut direct = None;
+        if nee && bsdf.has_smooth() && !scene.lights.is_empty() {
+            let chosen = choose_light(scene, hit.p, hit.ns, sampler);
+            let sample = match chosen {
+                Some((light_index, _)) => scene.lights[light_index].sample_li_drawing(scene, hit.p, sampler, true),
+                None => {
+                    // No light reaches the point: its numbers are passed over.
+                    sampler.skip_1d();
+                    sampler.skip_2d();
+                    None
+                }
+            };
+            let pmf = chosen.map_or(0.0, |(_, pmf)| pmf);
+            if let Some(ls) = sample {
+                let wi = frame.to_local(ls.wi);
+                let f = bsdf.eval(wo, wi, mode) * frame.factor(ls.wi);
+                // The geometric normal decides reflection or transmission.
+                let front_i = hit.ng.dot(ls.wi) > 0.0;
+                let consistent = (front_i == front_o) == (wi.z * wo.z > 0.0);
+                if f != Rgb::ZERO && ls.li != Rgb::ZERO && consistent {
+                    stats.rays += 1;
+                    let shadow = match ls.target {
+                        ShadowTarget::Point(p) => hit.spawn_ray_to(p),
+                        ShadowTarget::Infinity => hit.spawn_ray(ls.wi),
+                    };
+                    if !scene.occluded(&shadow) {
+                        let pdf_light = ls.pdf * pmf;
+                        let w = if ls.is_delta {
+                            1.0
+                        } else {
+                            power_heuristic(pdf_light, bsdf.pdf(wo, wi))
+                        };
+                        direct = Some(Direct {
+                            f,
+                            li: ls.li,
+                            factor: wi.z.abs() * w / pdf_light,
+                        });
+                    }
+                }
+            }
+        }
+
+        // Continue the path.
+        // The lobe choice, passed over where there is one lobe.
+        let u_lobe = if bsdf.reads_lobe_choice() {
+            sampler.next_1d()
+        } else {
+            sampler.skip_1d();
+            0.0
+        };
+        let Some(bs) = bsdf.sample_with(strategy, wo, u_lobe, sampler.next_2d(), mode) else {
+            return (direct, Scatter::End);
+        };
+        if bs.pdf <= 0.0 || bs.f == Rgb::ZERO || bs.wi.z == 0.0 {
+            return (direct, Scatter::End);
+        }
+        let wi_world = frame.to_world(bs.wi);
+        let reflection = bs.wi.z * wo.z > 0.0;
+        if (hit.ng.dot(wi_world) > 0.0) != (front_o == reflection) {
+            return (direct, Scatter::End); // the shading normal sent the path through the surface
+        }
+        let mapped = frame.factor(wi_world);
+        if mapped == 0.0 {
+            return (direct, Scatter::End);
+        }
+        let scatter = Scatter::Bounce {
+            factor: bs.f * (mapped * bs.wi.z.abs() / bs.pdf),
+            eta2: if reflection { 1.0 } else { bs.eta * bs.eta },
+            previous: Previous {
+                delta: bs.delta,
+                pdf: bs.pdf,
+                p: hit.p,
+                n: hit.ns,
+            },
+            ray: hit.spawn_ray(wi_world),
+        };
+        (direct, scatter)
     }
 }
 

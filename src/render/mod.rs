@@ -32,10 +32,10 @@ use crate::film::splat::{MAX_TAPS, Splat, SplatSum};
 use crate::film::{AovSum, Film, FilmAov, FilmPixel, Image, PixelSum};
 use crate::geometry::Ray;
 use crate::integrator::aov::camera_aov;
-use crate::integrator::{Integrator, Progressive, RayStats, Work};
+use crate::integrator::{Integrator, LANES, Progressive, RayStats, Work};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::io::IsTerminal;
@@ -626,7 +626,10 @@ fn render_passes<I: Integrator>(
         let results: Vec<Option<TileResult>> = tiles
             .par_iter()
             .map(|&tile| {
-                let mut sampler = Sampler::new(s.sampler, s.spp, s.seed);
+                let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| Sampler::new(s.sampler, s.spp, s.seed));
+                let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+                let mut positions = [Vec2::ZERO; LANES];
+                let mut weights = [0.0f32; LANES];
                 let mut rays = RayStats::default();
                 let mut invalid = InvalidSamples::default();
                 let n = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
@@ -662,31 +665,46 @@ fn render_passes<I: Integrator>(
                         let i = (y * w + x) as usize;
                         let mut sum = PixelSum::default();
                         let mut aov = AovSum::default();
-                        for index in first..end {
-                            let (position, ray, weight) =
-                                camera_sample(scene, splat.is_some(), &mut sampler, (x, y, index));
-                            let l = if weight > 0.0 {
-                                integrator.radiance(scene, &ray, &mut sampler, &mut rays) * weight
-                            } else {
-                                Rgb::ZERO
-                            };
-                            if l.is_finite() {
-                                let l = limit_component(l, max_component);
-                                match &splat {
-                                    None => sum.add(l, 1.0),
-                                    Some(sp) => splat_sample(sp, &mut splat_buffer, position, l),
+                        // The pixel's samples, LANES at a time (the
+                        // integrator may trace them together), then
+                        // recorded one by one in order.
+                        for group in (first..end).step_by(LANES) {
+                            let count = (end - group).min(LANES as u32) as usize;
+                            let mut live = 0u32;
+                            for k in 0..count {
+                                let (position, ray, weight) =
+                                    camera_sample(scene, splat.is_some(), &mut samplers[k], (x, y, group + k as u32));
+                                (positions[k], camera_rays[k], weights[k]) = (position, ray, weight);
+                                if weight > 0.0 {
+                                    live |= 1 << k;
                                 }
-                            } else {
-                                invalid.record(InvalidSample { x, y, index, value: l });
                             }
-                            if options.aovs {
-                                let a = camera_aov(scene, &ray);
-                                if a.albedo.is_finite()
-                                    && a.normal.is_finite()
-                                    && a.depth.is_finite()
-                                    && a.steps.is_finite()
-                                {
-                                    aov.add(&a);
+                            let ls = integrator.radiance_lanes(scene, &camera_rays, &mut samplers, live, &mut rays);
+                            for k in 0..count {
+                                let (index, position, ray) = (group + k as u32, positions[k], camera_rays[k]);
+                                let l = if live & (1 << k) != 0 {
+                                    ls[k] * weights[k]
+                                } else {
+                                    Rgb::ZERO
+                                };
+                                if l.is_finite() {
+                                    let l = limit_component(l, max_component);
+                                    match &splat {
+                                        None => sum.add(l, 1.0),
+                                        Some(sp) => splat_sample(sp, &mut splat_buffer, position, l),
+                                    }
+                                } else {
+                                    invalid.record(InvalidSample { x, y, index, value: l });
+                                }
+                                if options.aovs {
+                                    let a = camera_aov(scene, &ray);
+                                    if a.albedo.is_finite()
+                                        && a.normal.is_finite()
+                                        && a.depth.is_finite()
+                                        && a.steps.is_finite()
+                                    {
+                                        aov.add(&a);
+                                    }
                                 }
                             }
                         }

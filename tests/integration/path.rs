@@ -3,13 +3,13 @@
 //! Tolerances come from the per-pixel variance that each render measures,
 //! not from a lucky run.
 
-use trazo::Vec3;
 use trazo::color::{Rgb, luminance};
 use trazo::film::Film;
 use trazo::render::{RenderOptions, render};
 use trazo::scene::builtin::cornell_box;
 use trazo::scene::desc::*;
 use trazo::settings::{IntegratorKind, PathSampling};
+use trazo::{Vec2, Vec3};
 
 fn render_film(d: &SceneDesc) -> Film {
     let scene = trazo::scene::build(d).unwrap();
@@ -556,4 +556,73 @@ fn many_lights_nee_through_the_light_tree_agrees_with_bsdf_sampling() {
         v0 * 10.0 < v1,
         "per-sample variance on the walls: mis {v0} vs bsdf {v1}"
     );
+}
+
+/// The path tracer traces a pixel's samples eight at a time, in lanes
+/// (`Integrator::radiance_lanes`, which the renderer calls): on every
+/// scene of the benchmark suite, each lane's estimate has the bits of the
+/// same path traced alone (`Integrator::radiance`), lanes left out
+/// included.
+#[test]
+fn paths_traced_in_lanes_give_the_bits_of_paths_traced_alone() {
+    use trazo::integrator::{Integrator, LANES, PathTracer, RayStats};
+    use trazo::sampling::Sampler;
+    let suite = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("bench/suite");
+    let mut scenes: Vec<_> = std::fs::read_dir(&suite)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "xml"))
+        .collect();
+    scenes.sort();
+    assert!(scenes.len() >= 10, "the suite has its scenes");
+    let defines = [
+        ("res".to_string(), "12".to_string()),
+        ("spp".to_string(), "8".to_string()),
+    ];
+    for path in &scenes {
+        let d = trazo::scene::load(path, &defines).unwrap();
+        let scene = trazo::scene::build(&d).unwrap();
+        let s = &scene.settings;
+        let tracer = PathTracer {
+            max_depth: s.max_depth,
+            rr_depth: s.rr_depth,
+            sampling: s.sampling,
+        };
+        let fresh = || Sampler::new(s.sampler, s.spp, s.seed);
+        let mut stats = RayStats::default();
+        let (mut lanes_rays, mut alone_rays) = (0, 0);
+        for y in 0..s.height {
+            for x in 0..s.width {
+                // Every lane, then some left out (a lens that blocks a ray).
+                for live in [0xff_u32, 0b1011_0110] {
+                    let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| fresh());
+                    let rays: [trazo::geometry::Ray; LANES] = std::array::from_fn(|k| {
+                        samplers[k].start_pixel_sample(x, y, k as u32);
+                        let u = samplers[k].next_2d();
+                        let film = Vec2::new(x as f32 + u.x, y as f32 + u.y);
+                        scene.camera.generate_ray(film, Vec2::splat(0.5))
+                    });
+                    let mut alone = samplers.clone();
+                    let together = tracer.radiance_lanes(&scene, &rays, &mut samplers, live, &mut stats);
+                    lanes_rays += std::mem::take(&mut stats.rays);
+                    for k in 0..LANES {
+                        let expect = if live & (1 << k) != 0 {
+                            tracer.radiance(&scene, &rays[k], &mut alone[k], &mut stats)
+                        } else {
+                            Rgb::ZERO
+                        };
+                        assert_eq!(
+                            together[k].to_array().map(f32::to_bits),
+                            expect.to_array().map(f32::to_bits),
+                            "{}: pixel ({x}, {y}), lane {k} of {live:#b}",
+                            path.display()
+                        );
+                    }
+                    alone_rays += std::mem::take(&mut stats.rays);
+                }
+            }
+        }
+        assert_eq!(lanes_rays, alone_rays, "{}: rays counted", path.display());
+        assert!(alone_rays > 0);
+    }
 }
