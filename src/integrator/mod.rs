@@ -75,14 +75,27 @@ pub trait Integrator: Sync {
         live: u32,
         stats: &mut RayStats,
     ) -> [Rgb; LANES] {
-        std::array::from_fn(|i| {
-            if live & (1 << i) != 0 {
-                self.radiance(scene, &rays[i], &mut samplers[i], stats)
-            } else {
-                Rgb::ZERO
-            }
-        })
+        one_by_one(self, scene, rays, samplers, live, stats)
     }
+}
+
+/// [`Integrator::radiance_lanes`] by [`Integrator::radiance`], one ray
+/// after the other.
+pub(crate) fn one_by_one<I: Integrator + ?Sized>(
+    integrator: &I,
+    scene: &Scene,
+    rays: &[Ray; LANES],
+    samplers: &mut [Sampler; LANES],
+    live: u32,
+    stats: &mut RayStats,
+) -> [Rgb; LANES] {
+    std::array::from_fn(|i| {
+        if live & (1 << i) != 0 {
+            integrator.radiance(scene, &rays[i], &mut samplers[i], stats)
+        } else {
+            Rgb::ZERO
+        }
+    })
 }
 
 /// Work an algorithm did besides the camera samples' own paths (photon

@@ -81,13 +81,7 @@ impl Integrator for PathTracer {
             // SAFETY: the processor has AVX.
             return unsafe { self.trace_avx(scene, rays, samplers, live, stats) };
         }
-        std::array::from_fn(|i| {
-            if live & (1 << i) != 0 {
-                self.radiance(scene, &rays[i], &mut samplers[i], stats)
-            } else {
-                Rgb::ZERO
-            }
-        })
+        super::one_by_one(self, scene, rays, samplers, live, stats)
     }
 }
 

@@ -56,6 +56,21 @@ fn diffuse(albedo: f32) -> MaterialDesc {
     )
 }
 
+/// Smooth glass of index 1.5 in air, named "glass".
+fn smooth_glass() -> MaterialDesc {
+    MaterialDesc::with_kind(
+        "glass",
+        MaterialKindDesc::Dielectric {
+            ior: 1.5,
+            ext_ior: 1.0,
+            roughness: 0.0,
+            distribution: MicrofacetDistribution::Ggx,
+            reflect_tint: Rgb::ONE,
+            transmit_tint: Rgb::ONE,
+        },
+    )
+}
+
 /// The plane y = 0 of material "diffuse".
 fn diffuse_floor() -> ShapeDesc {
     ShapeDesc::new(
@@ -159,18 +174,7 @@ fn a_mix_of_two_lambertians_renders_their_weighted_albedo() {
 
 #[test]
 fn white_furnace_smooth_glass_renders_one() {
-    let glass = MaterialDesc::with_kind(
-        "glass",
-        MaterialKindDesc::Dielectric {
-            ior: 1.5,
-            ext_ior: 1.0,
-            roughness: 0.0,
-            distribution: MicrofacetDistribution::Ggx,
-            reflect_tint: Rgb::ONE,
-            transmit_tint: Rgb::ONE,
-        },
-    );
-    let f = render_film(&furnace(glass, PathSampling::Mis));
+    let f = render_film(&furnace(smooth_glass(), PathSampling::Mis));
     assert_uniform(&f, 1.0, "smooth dielectric");
 }
 
@@ -558,6 +562,36 @@ fn many_lights_nee_through_the_light_tree_agrees_with_bsdf_sampling() {
     );
 }
 
+/// An ASCII PLY sphere of radius 0.5 at the origin, of `rings` × `segments`
+/// quads split into triangles.
+fn uv_sphere_ply(rings: u32, segments: u32) -> String {
+    let mut vertices = Vec::new();
+    for i in 0..=rings {
+        let theta = std::f32::consts::PI * i as f32 / rings as f32;
+        for j in 0..segments {
+            let phi = std::f32::consts::TAU * j as f32 / segments as f32;
+            let p = 0.5 * Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+            vertices.push(format!("{} {} {}", p.x, p.y, p.z));
+        }
+    }
+    let mut faces = Vec::new();
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b) = (i * segments + j, i * segments + (j + 1) % segments);
+            let (c, d) = (a + segments, b + segments);
+            faces.push(format!("3 {a} {c} {b}"));
+            faces.push(format!("3 {b} {c} {d}"));
+        }
+    }
+    format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n{}\n{}\n",
+        vertices.len(),
+        faces.len(),
+        vertices.join("\n"),
+        faces.join("\n")
+    )
+}
+
 /// The path tracer traces a pixel's samples eight at a time, in lanes
 /// (`Integrator::radiance_lanes`, which the renderer calls): on every
 /// scene of the benchmark suite, each lane's estimate has the bits of the
@@ -579,7 +613,21 @@ fn paths_traced_in_lanes_give_the_bits_of_paths_traced_alone() {
         ("res".to_string(), "12".to_string()),
         ("spp".to_string(), "8".to_string()),
     ];
+    // The suite's large generated mesh (bench/suite_assets.py) is replaced
+    // by a small sphere of the same role.
+    let generated = "../.cache/suite/knotted-blob-v1.ply";
+    let dir = tempfile::tempdir().unwrap();
+    let small_mesh = dir.path().join("blob.ply");
+    std::fs::write(&small_mesh, uv_sphere_ply(12, 24)).unwrap();
     for path in &scenes {
+        let text = std::fs::read_to_string(path).unwrap();
+        let path = &if text.contains(generated) {
+            let copy = dir.path().join(path.file_name().unwrap());
+            std::fs::write(&copy, text.replace(generated, small_mesh.to_str().unwrap())).unwrap();
+            copy
+        } else {
+            path.clone()
+        };
         let d = trazo::scene::load(path, &defines).unwrap();
         let scene = trazo::scene::build(&d).unwrap();
         let s = &scene.settings;
@@ -654,19 +702,8 @@ fn glass_sphere_loses_to_the_depth_limit_what_fresnel_predicts() {
         let perpendicular = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
         0.5 * (parallel * parallel + perpendicular * perpendicular)
     }
-    let glass = MaterialDesc::with_kind(
-        "glass",
-        MaterialKindDesc::Dielectric {
-            ior: 1.5,
-            ext_ior: 1.0,
-            roughness: 0.0,
-            distribution: MicrofacetDistribution::Ggx,
-            reflect_tint: Rgb::ONE,
-            transmit_tint: Rgb::ONE,
-        },
-    );
     let depth = 12;
-    let mut d = furnace(glass, PathSampling::Mis);
+    let mut d = furnace(smooth_glass(), PathSampling::Mis);
     (d.settings.width, d.settings.height, d.settings.spp) = (32, 32, 4096);
     d.settings.max_depth = depth;
     d.settings.rr_depth = 1000;
