@@ -52,8 +52,10 @@
 //! assert!(image.get(16, 12).x > 0.0); // the sphere is lit
 //! ```
 
-// Unsafe code is denied everywhere but in the one module that calls a C
-// library loaded at run time (film::denoise::oidn), which allows it.
+// Unsafe code is denied everywhere but where a module or function allows
+// it, with the reason beside it: the vector intrinsics of geometry::lanes
+// and the AVX entry points that call them, and the C library loaded at run
+// time (film::denoise::oidn).
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
