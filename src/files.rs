@@ -24,6 +24,9 @@ pub const MAX_PLY_BYTES: u64 = 1 << 34;
 /// Largest GLB or external glTF buffer file read, in bytes (a GLB's own
 /// length field cannot describe more).
 pub const MAX_BUFFER_BYTES: u64 = 1 << 32;
+/// Largest NanoVDB grid file read, in bytes (a grid's own bytes are
+/// bounded again by [`crate::media::nanovdb::MAX_GRID_BYTES`]).
+pub const MAX_NANOVDB_BYTES: u64 = 1 << 34;
 /// Largest image file read, in bytes.
 pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 32;
 

@@ -18,7 +18,7 @@ use std::path::Path;
 pub type Target = fn(&[u8]);
 
 /// The fuzzing targets, by name.
-pub const TARGETS: [(&str, Target); 11] = [
+pub const TARGETS: [(&str, Target); 12] = [
     ("native", native),
     ("mitsuba", mitsuba),
     ("pbrt", pbrt),
@@ -26,6 +26,7 @@ pub const TARGETS: [(&str, Target); 11] = [
     ("ply", ply),
     ("serialized", serialized),
     ("sdfgrid", sdfgrid),
+    ("nanovdb", nanovdb),
     ("measured", measured),
     ("gltf", gltf),
     ("image", image),
@@ -148,6 +149,33 @@ pub fn sdfgrid(data: &[u8]) {
                 let _ = (sdf.surface(p), sdf.shading_normal(p));
             }
         }
+    }
+}
+
+/// A NanoVDB file: its grids' names, then the grid "density" (or else
+/// the first) read, looked up, and made dense where that stays small.
+pub fn nanovdb(data: &[u8]) {
+    use crate::media::nanovdb::{NanoVdbGrid, grid_names};
+    let Ok(names) = grid_names(data) else {
+        return;
+    };
+    let name = names
+        .iter()
+        .find(|n| *n == "density")
+        .or(names.first())
+        .cloned()
+        .unwrap_or_default();
+    let Ok(Some(grid)) = NanoVdbGrid::from_file(data, &name) else {
+        return;
+    };
+    let _ = grid.value([0, 0, 0]);
+    let Some((lo, hi)) = grid.active_box() else {
+        return;
+    };
+    let _ = grid.value(lo);
+    let voxels: i64 = (0..3).map(|a| i64::from(hi[a]) - i64::from(lo[a]) + 2).product();
+    if voxels <= 1 << 16 {
+        let _ = grid.to_voxel_grid();
     }
 }
 

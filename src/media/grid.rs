@@ -39,6 +39,9 @@ pub struct VoxelGrid {
     pub file_bounds: (Vec3, Vec3),
     /// How the grid is read past its outermost voxel centres.
     pub edge: GridEdge,
+    /// The box of the unit cube outside which the grid reads 0, if any: a
+    /// NanoVDB grid's active box, to which pbrt-v4 clips its medium.
+    pub support: Option<(Vec3, Vec3)>,
 }
 
 impl VoxelGrid {
@@ -65,6 +68,7 @@ impl VoxelGrid {
             data,
             file_bounds: (Vec3::ZERO, Vec3::ONE),
             edge: GridEdge::Clamp,
+            support: None,
         })
     }
 
@@ -156,6 +160,11 @@ impl VoxelGrid {
     /// [`GridEdge`]).
     #[inline]
     pub fn lookup(&self, p: Vec3) -> Rgb {
+        if let Some((lo, hi)) = self.support {
+            if p.cmplt(lo).any() || p.cmpgt(hi).any() {
+                return Rgb::ZERO;
+            }
+        }
         let zero_edge = self.edge == GridEdge::Zero;
         // Per axis: the two voxel indices either side of `p` (None: outside
         // a zero-edged grid) and the weight of the second.

@@ -23,6 +23,7 @@
 
 pub mod grid;
 pub mod measured;
+pub mod nanovdb;
 pub mod phase;
 
 pub use grid::{GridEdge, VoxelGrid};

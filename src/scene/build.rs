@@ -1187,9 +1187,19 @@ fn to_medium(
                 to_world,
                 use_file_bounds,
             } => {
+                let fail = |e: String| Error::scene(m.locs.key(key), format!("medium[{i}].{key}"), e);
+                // A NanoVDB grid's unit cube is placed in the grid's space
+                // first.
+                let mut grid_to_space = None;
                 let mut grid = match source {
-                    GridSource::MitsubaVol(path) => VoxelGrid::load_mitsuba_vol(&base_dir.join(path))
-                        .map_err(|e| Error::scene(m.locs.key(key), format!("medium[{i}].{key}"), reason_of(e)))?,
+                    GridSource::MitsubaVol(path) => {
+                        VoxelGrid::load_mitsuba_vol(&base_dir.join(path)).map_err(|e| fail(reason_of(e)))?
+                    }
+                    GridSource::NanoVdb { path, grid } => {
+                        let (g, to_space) = load_nanovdb(&base_dir.join(path), grid).map_err(fail)?;
+                        grid_to_space = Some(to_space);
+                        g
+                    }
                     GridSource::Data(g) => (**g).clone(),
                 };
                 memory.textures += grid.data.len() as u64 * 4;
@@ -1202,6 +1212,11 @@ fn to_medium(
                     ));
                 }
                 let mut unit_to_world = place(to_world)?;
+                if let Some(m) = grid_to_space {
+                    unit_to_world = Transform::from_matrix(m)
+                        .map_err(|e| fail(e.to_string()))?
+                        .then(&unit_to_world);
+                }
                 if *use_file_bounds {
                     let (lo, hi) = grid.file_bounds;
                     let file_box = Transform::scale(hi - lo)
@@ -1209,7 +1224,12 @@ fn to_medium(
                         .then(&Transform::translate(lo));
                     unit_to_world = file_box.then(&unit_to_world);
                 }
-                let bounds = unit_cube_in(&unit_to_world);
+                // A grid that reads 0 outside part of its cube bounds the
+                // medium by that part.
+                let bounds = match grid.support {
+                    Some((lo, hi)) => unit_to_world.aabb(&Aabb::new(lo, hi)),
+                    None => unit_cube_in(&unit_to_world),
+                };
                 (Field::Grid(Arc::new(grid), unit_to_world.inverse()), Some(bounds))
             }
             FieldDesc::Cloud {
@@ -1249,6 +1269,27 @@ fn to_medium(
         m.scale,
         Phase::henyey_greenstein(m.g),
     ))
+}
+
+/// The grid named `name` of NanoVDB file `path`, dense, and the map from
+/// its unit cube to the grid's space; a grid with nothing active is one
+/// empty voxel.
+fn load_nanovdb(path: &Path, name: &str) -> std::result::Result<(VoxelGrid, glam::Mat4), String> {
+    use crate::media::nanovdb::{NanoVdbGrid, grid_names};
+    let in_file = |e: String| format!("{}: {e}", path.display());
+    let bytes = crate::files::read_limited(path, crate::files::MAX_NANOVDB_BYTES).map_err(in_file)?;
+    let Some(grid) = NanoVdbGrid::from_file(&bytes, name).map_err(in_file)? else {
+        let names = grid_names(&bytes).map_err(in_file)?;
+        return Err(in_file(format!(
+            "no grid named \"{name}\"{}",
+            crate::scene::desc::suggest(name, names.iter().map(String::as_str))
+        )));
+    };
+    drop(bytes);
+    Ok(match grid.to_voxel_grid().map_err(in_file)? {
+        Some(dense) => dense,
+        None => (VoxelGrid::new([1, 1, 1], 1, vec![0.0])?, glam::Mat4::IDENTITY),
+    })
 }
 
 /// The message of an error without the file name it already carries.

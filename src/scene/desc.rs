@@ -887,6 +887,14 @@ pub struct MediumInterfaceDesc {
 pub enum GridSource {
     /// A Mitsuba `.vol` file, relative to the scene file.
     MitsubaVol(PathBuf),
+    /// The grid named `grid` of a NanoVDB file, relative to the scene
+    /// file, placed by its own index-to-world map before `to_world`.
+    NanoVdb {
+        /// The file.
+        path: PathBuf,
+        /// The grid's name.
+        grid: String,
+    },
     /// Values given in the scene.
     Data(Arc<crate::media::VoxelGrid>),
 }

@@ -1094,7 +1094,9 @@ fn distribution(t: &Table) -> Result<MicrofacetDistribution> {
 
 /// `[[medium]]`: `type = "homogeneous"` (σt and albedo everywhere the
 /// shapes that bound it say), `"grid"` (σt from a Mitsuba `.vol` file
-/// over the unit cube placed by `transform`, empty outside it) or
+/// over the unit cube placed by `transform`, empty outside it; or from the
+/// grid `grid` of a NanoVDB `.nvdb` file, placed by its own map and then
+/// `transform`, empty outside its active voxels) or
 /// `"cloud"` (σt times pbrt-v4's procedural cloud density over the unit
 /// cube placed by `transform`, with its `density`, `wispiness` and
 /// `frequency`).
@@ -1110,11 +1112,31 @@ fn read_medium(t: &Table) -> Result<MediumDesc> {
     let sigma_t = match kind.as_str() {
         // σt comes from the file (times `scale`); a `sigma_t` key is
         // reported as unknown by `finish`.
-        "grid" => FieldDesc::Grid {
-            source: GridSource::MitsubaVol(t.required("file", t.path("file")?)?),
-            to_world,
-            use_file_bounds: false,
-        },
+        "grid" => {
+            let file = t.required("file", t.path("file")?)?;
+            let nanovdb = file.extension().is_some_and(|e| e.eq_ignore_ascii_case("nvdb"));
+            let source = match t.string("grid")? {
+                Some(grid) if nanovdb => GridSource::NanoVdb { path: file, grid },
+                None if nanovdb => GridSource::NanoVdb {
+                    path: file,
+                    grid: "density".into(),
+                },
+                Some(_) => {
+                    let span = t.value("grid").map(|v| v.span()).unwrap_or_default();
+                    return Err(t.err_at(
+                        "grid",
+                        &span,
+                        "names a grid of a NanoVDB (.nvdb) file; a .vol file has one",
+                    ));
+                }
+                None => GridSource::MitsubaVol(file),
+            };
+            FieldDesc::Grid {
+                source,
+                to_world,
+                use_file_bounds: false,
+            }
+        }
         "cloud" => FieldDesc::Cloud {
             value: t.color("sigma_t")?.unwrap_or(Rgb::ONE),
             density: finite_number(t, "density", 1.0)?,

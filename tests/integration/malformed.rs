@@ -500,6 +500,64 @@ fn malformed_sdf_grids_are_errors_naming_the_file() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// NanoVDB files, read as the density of a pbrt-v4 `nanovdb` medium: each
+/// an error (exit 2) naming the scene's line, the file and the problem.
+const NANOVDB_CASES: &[(&str, &[&str])] = &[
+    ("nanovdb/blosc.nvdb", &["blosc.nvdb", "Blosc"]),
+    (
+        "nanovdb/version-29.nvdb",
+        &["version-29.nvdb", "version 29.3.0 is unsupported"],
+    ),
+    (
+        "nanovdb/bad-child-offset.nvdb",
+        &["bad-child-offset.nvdb", "points outside"],
+    ),
+    ("nanovdb/huge-grid-size.nvdb", &["huge-grid-size.nvdb", "more than"]),
+    ("nanovdb/doubles.nvdb", &["doubles.nvdb", "double values"]),
+    ("nanovdb/corrupt-zip.nvdb", &["corrupt-zip.nvdb", "corrupt"]),
+    ("nanovdb/truncated.nvdb", &["truncated.nvdb", "ends inside"]),
+    ("nanovdb/not-nanovdb.nvdb", &["not-nanovdb.nvdb", "not a NanoVDB file"]),
+];
+
+#[test]
+fn malformed_nanovdb_files_are_errors_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("smoke.pbrt");
+    let mut failures = Vec::new();
+    for (rel, parts) in NANOVDB_CASES {
+        std::fs::write(
+            &scene,
+            format!(
+                "WorldBegin\nMakeNamedMedium \"s\" \"string type\" \"nanovdb\" \"string filename\" \"{}\"\nShape \"sphere\"\n",
+                corpus(rel).display()
+            ),
+        )
+        .unwrap();
+        let args = [
+            "render",
+            "smoke.pbrt",
+            "-o",
+            "out.png",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "1",
+            "-q",
+        ];
+        let (code, err) = run(&args, dir.path());
+        if !(code == Some(2)
+            && err.starts_with("error: ")
+            && err.contains("smoke.pbrt:2:")
+            && parts.iter().all(|p| err.contains(p)))
+        {
+            failures.push(format!("{rel}: expected exit 2 with {parts:?}, got {code:?}: {err}"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 /// Image files, read by `trazo diff FILE FILE`: their errors.
 const IMAGE_CASES: &[(&str, Option<&[&str]>)] = &[
     ("image/valid.png", None),
@@ -628,6 +686,7 @@ fn the_corpus_and_the_table_agree() {
         .chain(IMAGE_CASES.iter().map(|c| c.0))
         .chain(VOLUME_CASES.iter().map(|c| c.0))
         .chain(MEASURED_CASES.iter().map(|c| c.0))
+        .chain(NANOVDB_CASES.iter().map(|c| c.0))
         .collect();
     for dir in std::fs::read_dir(corpus("")).unwrap() {
         let dir = dir.unwrap().path();
@@ -661,6 +720,7 @@ fn truncated_files_never_panic_or_allocate_by_untrusted_counts() {
         ("gltf/valid.gltf", trazo::fuzz::gltf),
         ("serialized/good-triangle.serialized", trazo::fuzz::serialized),
         ("sdfgrid/sphere.vol", trazo::fuzz::sdfgrid),
+        ("../data/nanovdb/smoke.nvdb", trazo::fuzz::nanovdb),
     ];
     for (rel, read) in files {
         let bytes = std::fs::read(corpus(rel)).unwrap();

@@ -362,3 +362,77 @@ inside = "cloud"
     let (mean, _) = mean_and_error(&dark.pixels);
     assert!(mean.y < 0.8, "a black cloud lets {} through", mean.y);
 }
+
+/// A NanoVDB grid from trazo's TOML (`type = "grid"` with an `.nvdb`
+/// file): placed by its own map, then `transform`; with albedo 1 it
+/// vanishes in a white furnace, absorbing it darkens the sky; a misspelt
+/// grid name is an error that names the file and the grids it has.
+#[test]
+fn a_toml_nanovdb_grid_vanishes_in_a_furnace_and_absorbs_when_dark() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/nanovdb");
+    let scene = |albedo: f32, grid: &str| {
+        format!(
+            r#"
+[render]
+width = 12
+height = 12
+spp = 48
+max_depth = 256
+integrator = "volpath"
+
+[camera]
+from = [0.25, 0, 6]
+to = [0.25, 0, 0]
+fov = 30
+
+[world]
+background = [1, 1, 1]
+
+[[medium]]
+name = "smoke"
+type = "grid"
+file = "{dir}/smoke.nvdb"
+grid = "{grid}"
+scale = 3
+albedo = {albedo}
+transform = [{{ translate = [0, -1.5, -3] }}]
+
+[[material]]
+name = "boundary"
+type = "null"
+
+[[shape]]
+type = "sphere"
+center = [0.25, 0, 0]
+radius = 2.5
+material = "boundary"
+inside = "smoke"
+"#
+        )
+    };
+    let render = |text: &str| {
+        let d = trazo::scene::native::parse(text, std::path::Path::new("<smoke>")).unwrap();
+        let scene = trazo::scene::build(&d).unwrap();
+        // The grid's world box, [0, 24] × [0, 16] × [0, 16] voxels of
+        // 0.125 from (−1.25, 0.5, 2), moved by the transform.
+        let bounds = scene.media[0].bounds.unwrap();
+        assert!(
+            (bounds.min - Vec3::new(-1.25, -1.0, -1.0)).length() < 1e-4,
+            "{bounds:?}"
+        );
+        assert!((bounds.max - Vec3::new(1.75, 1.0, 1.0)).length() < 1e-4, "{bounds:?}");
+        render_image(&scene).unwrap()
+    };
+    assert_mean(&render(&scene(1.0, "density")).pixels, Rgb::ONE, "white smoke");
+    let (dark, _) = mean_and_error(&render(&scene(0.0, "density")).pixels);
+    assert!(dark.y < 0.9, "black smoke lets {} through", dark.y);
+    let d = trazo::scene::native::parse(&scene(1.0, "densty"), std::path::Path::new("<smoke>")).unwrap();
+    let e = trazo::scene::build(&d).err().unwrap().to_string();
+    assert!(
+        e.contains("medium[0]")
+            && e.contains("smoke.nvdb")
+            && e.contains("no grid named \"densty\"")
+            && e.contains("\"density\""),
+        "{e}"
+    );
+}

@@ -1055,7 +1055,7 @@ impl Parser {
                 let params = parse_params(lx)?;
                 let params = self.with_attributes(params, "medium");
                 self.warn_if_moving(&loc, "medium");
-                self.make_named_medium(&mname, &params, &loc)?;
+                self.make_named_medium(&mname, &params, &loc, dir_rel)?;
                 self.report_unused(&params, &format!("MakeNamedMedium \"{mname}\""));
             }
             "MediumInterface" => {
