@@ -433,13 +433,12 @@ impl NanoVdbGrid {
         self.matrix * p + self.translation
     }
 
-    /// The grid as a dense voxel grid over its active box and one voxel
-    /// past it on the high side (what the trilinear value up to the box's
-    /// far faces reads), zero outside [lo, hi + 1] in index space; and the
-    /// map from that grid's unit cube to the grid's space. An error if the
-    /// box holds more than [`MAX_VOXELS`] voxels; `None` if nothing is
-    /// active.
-    pub fn to_voxel_grid(&self) -> Result<Option<(VoxelGrid, Mat4)>, String> {
+    /// The tree's values on the lattice of voxels over the active box and
+    /// one voxel past it on the high side, [lo, hi + 1] in index space (what
+    /// the trilinear value up to the box's far faces reads), x fastest: the
+    /// lattice's size, its values and `lo`. An error if it holds more than
+    /// [`MAX_VOXELS`] voxels; `None` if nothing is active.
+    pub fn dense(&self) -> Result<Option<Lattice>, String> {
         let Some((lo, hi)) = self.active else {
             return Ok(None);
         };
@@ -452,8 +451,9 @@ impl NanoVdbGrid {
             ));
         }
         let res = res.map(|n| n as usize);
-        let mut data = Vec::new();
-        data.try_reserve_exact(voxels as usize)
+        let mut values = Vec::new();
+        values
+            .try_reserve_exact(voxels as usize)
             .map_err(|_| format!("grid \"{}\": no memory for {voxels} voxels", self.name))?;
         let mut cached: Option<([i32; 3], Block)> = None;
         for z in 0..res[2] as i32 {
@@ -469,24 +469,67 @@ impl NanoVdbGrid {
                             b
                         }
                     };
-                    data.push(match block {
+                    values.push(match block {
                         Block::Leaf(leaf) => self.leaf_value(leaf, ijk),
                         Block::Value(v) => v,
                     });
                 }
             }
         }
-        let mut grid = VoxelGrid::new(res, 1, data)?;
+        Ok(Some(Lattice { res, values, lo }))
+    }
+
+    /// The map from index space to the grid's space, as a matrix.
+    fn index_to_space(&self) -> DMat4 {
+        DMat4::from_translation(self.translation) * DMat4::from_mat3(self.matrix)
+    }
+
+    /// The grid as a dense voxel grid (values at the voxel centres of its
+    /// unit cube, as media read them; [`NanoVdbGrid::dense`]) that reads 0
+    /// outside [lo, hi + 1], and the map from its unit cube to the grid's
+    /// space.
+    pub fn to_voxel_grid(&self) -> Result<Option<(VoxelGrid, Mat4)>, String> {
+        let Some(Lattice { res, values, lo }) = self.dense()? else {
+            return Ok(None);
+        };
+        let mut grid = VoxelGrid::new(res, 1, values)?;
         grid.edge = GridEdge::Zero;
         let n = glam::Vec3::new(res[0] as f32, res[1] as f32, res[2] as f32);
         grid.support = Some((glam::Vec3::splat(0.5) / n, (n - 0.5) / n));
-        // Unit cube → index space (centre of voxel k at lo + k), then the map.
+        // Unit cube → index space (the centre of voxel k at lo + k).
         let lo = DVec3::new(f64::from(lo[0]), f64::from(lo[1]), f64::from(lo[2]));
-        let res_d = DVec3::new(res[0] as f64, res[1] as f64, res[2] as f64);
-        let unit_to_index = DMat4::from_translation(lo - 0.5) * DMat4::from_scale(res_d);
-        let index_to_space = DMat4::from_translation(self.translation) * DMat4::from_mat3(self.matrix);
-        Ok(Some((grid, (index_to_space * unit_to_index).as_mat4())))
+        let res = DVec3::new(res[0] as f64, res[1] as f64, res[2] as f64);
+        let unit_to_index = DMat4::from_translation(lo - 0.5) * DMat4::from_scale(res);
+        Ok(Some((grid, (self.index_to_space() * unit_to_index).as_mat4())))
     }
+
+    /// The map from the unit cube of a lattice's values placed at its
+    /// corners (value k at k / (res − 1), as signed distance grids read
+    /// them) to the grid's space.
+    pub fn lattice_to_space(&self, lattice: &Lattice) -> Mat4 {
+        let lo = DVec3::new(
+            f64::from(lattice.lo[0]),
+            f64::from(lattice.lo[1]),
+            f64::from(lattice.lo[2]),
+        );
+        let cells = DVec3::new(
+            lattice.res[0] as f64 - 1.0,
+            lattice.res[1] as f64 - 1.0,
+            lattice.res[2] as f64 - 1.0,
+        );
+        (self.index_to_space() * DMat4::from_translation(lo) * DMat4::from_scale(cells)).as_mat4()
+    }
+}
+
+/// A grid's values on a dense lattice of voxels ([`NanoVdbGrid::dense`]).
+#[derive(Clone, Debug)]
+pub struct Lattice {
+    /// Voxels along x, y and z.
+    pub res: [usize; 3],
+    /// The values, x fastest.
+    pub values: Vec<f32>,
+    /// The index of the first voxel.
+    pub lo: [i32; 3],
 }
 
 /// The address of a node `offset` bytes from `from`, checked to hold

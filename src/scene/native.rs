@@ -1159,6 +1159,58 @@ fn read_medium(t: &Table) -> Result<MediumDesc> {
     })
 }
 
+/// The level set `name` of a NanoVDB file (where no name is given, its
+/// one level set), its signed distances on the lattice of its active box,
+/// and the map from the lattice's unit cube to the grid's space.
+fn read_level_set(
+    path: &Path,
+    name: Option<&str>,
+) -> std::result::Result<(crate::media::nanovdb::Lattice, glam::Mat4), String> {
+    use crate::media::nanovdb::{CLASS_LEVEL_SET, NanoVdbGrid, grid_names};
+    let in_file = |e: String| format!("{}: {e}", path.display());
+    let bytes = crate::files::read_limited(path, crate::files::MAX_NANOVDB_BYTES).map_err(in_file)?;
+    let names = grid_names(&bytes).map_err(in_file)?;
+    let name = match name {
+        Some(n) => n.to_string(),
+        None => {
+            let level_sets: Vec<&String> = names
+                .iter()
+                .filter(|n| {
+                    NanoVdbGrid::from_file(&bytes, n).is_ok_and(|g| g.is_some_and(|g| g.class == CLASS_LEVEL_SET))
+                })
+                .collect();
+            match level_sets[..] {
+                [one] => one.clone(),
+                _ => {
+                    return Err(in_file(format!(
+                        "it has {} level sets among its grids ({}): name one with `grid`",
+                        level_sets.len(),
+                        names.join(", ")
+                    )));
+                }
+            }
+        }
+    };
+    let Some(grid) = NanoVdbGrid::from_file(&bytes, &name).map_err(in_file)? else {
+        return Err(in_file(format!(
+            "no grid named \"{name}\"{}",
+            suggest(&name, names.iter().map(String::as_str))
+        )));
+    };
+    if grid.class != CLASS_LEVEL_SET {
+        return Err(in_file(format!(
+            "grid \"{name}\" is not a level set (its class is {}): an SDF grid holds signed distances",
+            grid.class
+        )));
+    }
+    let lattice = grid
+        .dense()
+        .map_err(in_file)?
+        .ok_or_else(|| in_file(format!("grid \"{name}\" has no active voxels")))?;
+    let to_space = grid.lattice_to_space(&lattice);
+    Ok((lattice, to_space))
+}
+
 /// Number `key` of `t`, or `default`; an error at the key where it is
 /// not finite.
 fn finite_number(t: &Table, key: &str, default: f32) -> Result<f32> {
@@ -1323,6 +1375,8 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
     let kind = t.choice("type", &types)?;
     // A cut sphere is a quadric about its centre: this moves it there.
     let mut placed_at = None;
+    // A NanoVDB level set's unit cube goes to the grid's space first.
+    let mut placed_by = None;
     let quadric = |q: std::result::Result<crate::geometry::quadric::Quadric, String>| {
         q.map(ShapeKind::Quadric).map_err(|e| t.err_at("type", &t.span, e))
     };
@@ -1487,22 +1541,40 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
         }
         "sdfgrid" => {
             // Mitsuba's `sdfgrid`: a one-channel `.vol` grid of signed
-            // distances over the object's unit cube, read here (relative
-            // to the scene file) so that its errors name this key.
+            // distances over the object's unit cube; or a level set of a
+            // NanoVDB file, placed by the grid's own map. Read here
+            // (relative to the scene file) so that errors name this key.
             let file = t.required("file", t.path("file")?)?;
             let at = t.value("file").map(|v| v.span()).unwrap_or(t.span.clone());
             let path = t.ctx.file.parent().unwrap_or(Path::new("")).join(&file);
             let smooth = t.choice("normals", &["smooth", "analytic"])?.as_deref() != Some("analytic");
-            let grid = crate::media::grid::VoxelGrid::load_mitsuba_vol(&path)
-                .map_err(|e| t.err_at("file", &at, e.to_string()))?;
-            if grid.channels != 1 {
-                return Err(t.err_at(
-                    "file",
-                    &at,
-                    format!("{}: an SDF grid has one channel, not {}", path.display(), grid.channels),
-                ));
-            }
-            let sdf = crate::geometry::sdf_grid::SdfGrid::new(grid.res, grid.data, smooth)
+            let grid_name = t.string("grid")?;
+            let (res, values) = if file.extension().is_some_and(|e| e.eq_ignore_ascii_case("nvdb")) {
+                let (lattice, to_space) =
+                    read_level_set(&path, grid_name.as_deref()).map_err(|e| t.err_at("file", &at, e))?;
+                placed_by = Some(to_space);
+                (lattice.res, lattice.values)
+            } else {
+                if grid_name.is_some() {
+                    let span = t.value("grid").map(|v| v.span()).unwrap_or_default();
+                    return Err(t.err_at(
+                        "grid",
+                        &span,
+                        "names a grid of a NanoVDB (.nvdb) file; a .vol file has one",
+                    ));
+                }
+                let grid = crate::media::grid::VoxelGrid::load_mitsuba_vol(&path)
+                    .map_err(|e| t.err_at("file", &at, e.to_string()))?;
+                if grid.channels != 1 {
+                    return Err(t.err_at(
+                        "file",
+                        &at,
+                        format!("{}: an SDF grid has one channel, not {}", path.display(), grid.channels),
+                    ));
+                }
+                (grid.res, grid.data)
+            };
+            let sdf = crate::geometry::sdf_grid::SdfGrid::new(res, values, smooth)
                 .map_err(|e| t.err_at("file", &at, format!("{}: {e}", path.display())))?;
             ShapeKind::SdfGrid(Arc::new(sdf))
         }
@@ -1556,6 +1628,9 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
     if let Some(center) = placed_at {
         transform.insert(0, TransformOp::Translate(center));
     }
+    if let Some(m) = placed_by {
+        transform.insert(0, TransformOp::Matrix(m));
+    }
     let material = t.string("material")?;
     let flip_normals = t.boolean("flip_normals")?.unwrap_or(false);
     let inside = t.string("inside")?;
@@ -1566,6 +1641,9 @@ fn read_shape(t: &Table) -> Result<Vec<ShapeDesc>> {
             let mut end = read_transform(t, v)?;
             if let Some(center) = placed_at {
                 end.insert(0, TransformOp::Translate(center));
+            }
+            if let Some(m) = placed_by {
+                end.insert(0, TransformOp::Matrix(m));
             }
             let times = t.vec2("motion_times")?.map_or((0.0, 1.0), |v| (v.x, v.y));
             Some(MotionDesc { end, times })

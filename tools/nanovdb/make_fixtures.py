@@ -29,14 +29,17 @@ def sample(vol: wp.uint64, ijk: wp.array(dtype=wp.vec3), world: wp.array(dtype=w
     out[i] = wp.volume_sample_f(vol, ijk[i], wp.Volume.LINEAR)
 
 
-def grid_bytes(values, min_world, voxel_size, name):
+def grid_bytes(values, min_world, voxel_size, name, grid_class=2, background=0.0):
     """The bytes of one float grid built by Warp from a dense array (x, y, z
-    order), renamed `name`."""
+    order), renamed `name` and of class `grid_class` (1: level set, 2: fog
+    volume), reading `background` where the array has no value (Warp fills
+    whole leaves)."""
     v = wp.Volume.load_from_numpy(values.astype(np.float32), min_world=min_world, voxel_size=voxel_size,
-                                  bg_value=0.0, device="cpu")
+                                  bg_value=background, device="cpu")
     data = bytearray(v.array().numpy().tobytes())
     encoded = name.encode() + b"\0"
     data[40:40 + len(encoded)] = encoded  # GridData.mGridName
+    struct.pack_into("<I", data, 632, grid_class)  # GridData.mGridClass
     return v, bytes(data)
 
 
@@ -87,6 +90,18 @@ def main():
                [("density", density_bytes, 1, 2), ("temperature", temperature_bytes, 1, 2)], codec=1)
     points, values = samples(dv, shape, 400, rng)
     t_points, t_values = samples(tv, shape, 100, rng)
+    # A narrow-band level set of a torus (major radius 0.6, minor 0.25,
+    # about the y axis, centred at TORUS_CENTRE), 3 voxels wide either side.
+    h = 0.05
+    centre = np.array([0.3, -0.2, 0.1])
+    lo = centre - np.array([1.0, 0.4, 1.0])
+    ijk = np.stack(np.meshgrid(np.arange(41), np.arange(17), np.arange(41), indexing="ij"), axis=-1)
+    p = lo + h * ijk - centre
+    q = np.sqrt(p[..., 0] ** 2 + p[..., 2] ** 2) - 0.6
+    sdf = np.clip(np.sqrt(q ** 2 + p[..., 1] ** 2) - 0.25, -3 * h, 3 * h)
+    _, torus = grid_bytes(sdf, tuple(lo), h, "surface", grid_class=1, background=3 * h)
+    write_file(os.path.join(OUT, "torus.nvdb"), [("surface", torus, 1, 1)], codec=1)
+
     for grid, (pts, vals) in [("density", (points, values)), ("temperature", (t_points, t_values))]:
         with open(os.path.join(OUT, f"smoke-{grid}.txt"), "w") as f:
             f.write(f"# smoke.nvdb, grid \"{grid}\": world x y z, then the value NVIDIA Warp {wp.__version__}\n")
