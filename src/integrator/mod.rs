@@ -212,23 +212,36 @@ pub fn drive<D: Driver>(scene: &Scene, aovs: bool, cancel: Option<&AtomicBool>, 
 /// of choosing it, or `None` where no light can reach the point. The
 /// choice is drawn from `sampler`, or passed over where the scene has a
 /// single light, which leaves the numbers after it unchanged.
+/// `incomplete` is the estimator's choice for [`crate::light::Light::sample_li`]:
+/// with it, lights that would draw nothing (a constant environment) are
+/// not chosen.
 #[inline(always)]
-pub(crate) fn choose_light(scene: &Scene, p: glam::Vec3, n: glam::Vec3, sampler: &mut Sampler) -> Option<(usize, f32)> {
+pub(crate) fn choose_light(
+    scene: &Scene,
+    p: glam::Vec3,
+    n: glam::Vec3,
+    sampler: &mut Sampler,
+    incomplete: bool,
+) -> Option<(usize, f32)> {
     if scene.lights.len() == 1 {
         sampler.skip_1d();
-        return Some((0, 1.0));
+        return (!incomplete || scene.lights[0].samples_when_incomplete(scene)).then_some((0, 1.0));
     }
-    scene.light_sampler.sample(p, n, sampler.next_1d())
+    scene.light_sampler.sample(p, n, sampler.next_1d(), incomplete)
 }
 
-/// The probability with which [`choose_light`] at (`p`, `n`) chooses
-/// light `light`.
+/// The probability with which [`choose_light`] at (`p`, `n`) with the same
+/// `incomplete` chooses light `light`.
 #[inline]
-pub(crate) fn light_choice_pmf(scene: &Scene, p: glam::Vec3, n: glam::Vec3, light: usize) -> f32 {
+pub(crate) fn light_choice_pmf(scene: &Scene, p: glam::Vec3, n: glam::Vec3, light: usize, incomplete: bool) -> f32 {
     if scene.lights.len() == 1 {
-        return 1.0;
+        return if !incomplete || scene.lights[0].samples_when_incomplete(scene) {
+            1.0
+        } else {
+            0.0
+        };
     }
-    scene.light_sampler.pmf(p, n, light)
+    scene.light_sampler.pmf(p, n, light, incomplete)
 }
 
 /// The adjoint BSDF's factor for shading normals (Veach 1997, eq. 5.21),

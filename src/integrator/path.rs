@@ -319,7 +319,7 @@ impl PathTracer {
             // (A portal lets in what the ray's origin sees through it.)
             let found = if nee && !previous.delta {
                 let (le, pdf_dir) = scene.background.eval_pdf_from(previous.p, dir, true);
-                let pdf_light = light_choice_pmf(scene, previous.p, previous.n, env as usize) * pdf_dir;
+                let pdf_light = light_choice_pmf(scene, previous.p, previous.n, env as usize, true) * pdf_dir;
                 Found {
                     le,
                     weight: power_heuristic(previous.pdf, pdf_light),
@@ -338,7 +338,7 @@ impl PathTracer {
         if m.is_emissive() && shows_emission && m.emits_toward(&hit, wo_world) {
             let weight = match hit.light {
                 Some(li) if nee && !previous.delta => {
-                    let pdf_light = light_choice_pmf(scene, previous.p, previous.n, li as usize)
+                    let pdf_light = light_choice_pmf(scene, previous.p, previous.n, li as usize, true)
                         * scene.lights[li as usize].pdf_li(scene, previous.p, &hit);
                     power_heuristic(previous.pdf, pdf_light)
                 }
@@ -389,7 +389,7 @@ impl PathTracer {
         // Next-event estimation.
         let mut direct = None;
         if nee && bsdf.has_smooth() && !scene.lights.is_empty() {
-            let chosen = choose_light(scene, hit.p, hit.ns, sampler);
+            let chosen = choose_light(scene, hit.p, hit.ns, sampler, true);
             let sample = match chosen {
                 Some((light_index, _)) => scene.lights[light_index].sample_li_drawing(scene, hit.p, sampler, true),
                 None => {

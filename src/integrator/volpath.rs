@@ -120,7 +120,7 @@ impl VolPathTracer {
             Vertex::Surface { hit, .. } => (hit.p, hit.ns),
             Vertex::Medium { p, .. } => (*p, Vec3::ZERO),
         };
-        let chosen = choose_light(scene, p, n, sampler);
+        let chosen = choose_light(scene, p, n, sampler, true);
         let sample = match chosen {
             Some((light, _)) => scene.lights[light].sample_li_drawing(scene, p, sampler, true),
             None => {
@@ -295,7 +295,7 @@ impl Integrator for VolPathTracer {
                         scene.background.eval_pdf_from(prev_p, dir, true)
                     };
                     self.add_emission(&mut s, le, || {
-                        light_choice_pmf(scene, prev_p, prev_n, env as usize) * pdf_dir
+                        light_choice_pmf(scene, prev_p, prev_n, env as usize, true) * pdf_dir
                     });
                 }
                 return s.l;
@@ -307,7 +307,7 @@ impl Integrator for VolPathTracer {
                 let (prev_p, prev_n) = (s.prev_p, s.prev_n);
                 self.add_emission(&mut s, le, || match hit.light {
                     Some(li) => {
-                        light_choice_pmf(scene, prev_p, prev_n, li as usize)
+                        light_choice_pmf(scene, prev_p, prev_n, li as usize, true)
                             * scene.lights[li as usize].pdf_li(scene, prev_p, &hit)
                     }
                     None => 0.0,

@@ -420,10 +420,16 @@ impl Background {
     /// multiple importance sampling, an image is sampled by its
     /// compensated density, which leaves out directions no brighter than
     /// the image's mean.
+    ///
+    /// A constant background's compensated density is zero everywhere:
+    /// with `incomplete` it draws nothing (pbrt-v4's `UniformInfiniteLight`
+    /// with `allowIncompletePDF`), and BSDF sampling, which for a constant
+    /// radiance is the better strategy, finds all of its light.
     #[inline]
     pub fn sample_radiance_from(&self, p: Vec3, u: Vec2, incomplete: bool) -> Option<(Vec3, f32, Rgb)> {
         match self {
             Background::Image(map) => map.sample_radiance(u, incomplete),
+            Background::Constant(_) if incomplete => None,
             _ => {
                 let (wi, pdf) = self.sample_from(p, u)?;
                 Some((wi, pdf, self.eval(wi)))
@@ -438,8 +444,15 @@ impl Background {
     pub fn eval_pdf_from(&self, p: Vec3, dir: Vec3, incomplete: bool) -> (Rgb, f32) {
         match self {
             Background::Image(map) => map.eval_pdf(dir, incomplete),
+            Background::Constant(c) if incomplete => (*c, 0.0),
             _ => (self.eval_from(p, dir), self.pdf_from(p, dir)),
         }
+    }
+
+    /// Whether [`Background::sample_radiance_from`] with `incomplete` draws
+    /// anything (not for a constant background).
+    pub fn samples_when_incomplete(&self) -> bool {
+        !matches!(self, Background::Constant(_))
     }
 
     /// Density of [`Background::sample_from`] for `dir` from `p`.

@@ -819,6 +819,17 @@ impl Light {
         }
     }
 
+    /// Whether [`Light::sample_li`] with `incomplete` can draw anything: not
+    /// for a constant environment, whose compensated density (its radiance
+    /// less its mean) is zero everywhere, so that BSDF sampling alone finds
+    /// its light, as pbrt-v4's `UniformInfiniteLight` does.
+    pub fn samples_when_incomplete(&self, scene: &Scene) -> bool {
+        match self {
+            Light::Environment => scene.background.samples_when_incomplete(),
+            _ => true,
+        }
+    }
+
     /// The density per steradian with which [`Light::sample_li`] at `p`
     /// would pick the direction toward `hit`, a point on this (area) light.
     pub fn pdf_li(&self, scene: &Scene, p: Vec3, hit: &SurfaceHit) -> f32 {

@@ -292,6 +292,11 @@ pub struct LightSampler {
     unbounded_slot: Vec<Option<u32>>,
     /// Probability of choosing from the unbounded lights.
     p_unbounded: f32,
+    /// The same two for estimators that let lights sample incompletely
+    /// (pbrt-v4's `allowIncompletePDF`), which leave out the unbounded
+    /// lights that then draw nothing (a constant environment).
+    unbounded_choice_incomplete: Distribution1D,
+    p_unbounded_incomplete: f32,
 }
 
 /// Levels after which a build splits at the median, which bounds the
@@ -323,18 +328,50 @@ impl LightSampler {
                 }
             }
         }
-        s.unbounded_choice = Distribution1D::new(&unbounded_powers);
-        let n_unbounded = unbounded_powers.iter().filter(|&&p| p > 0.0).count();
-        s.p_unbounded = match (bounded.is_empty(), n_unbounded) {
-            (true, _) => 1.0,
-            (false, 0) => 0.0,
-            (false, n) => n as f32 / (n + 1) as f32,
+        let p_unbounded = |powers: &[f32]| {
+            let n_unbounded = powers.iter().filter(|&&p| p > 0.0).count();
+            match (bounded.is_empty(), n_unbounded) {
+                (true, _) => 1.0,
+                (false, 0) => 0.0,
+                (false, n) => n as f32 / (n + 1) as f32,
+            }
         };
+        s.unbounded_choice = Distribution1D::new(&unbounded_powers);
+        s.p_unbounded = p_unbounded(&unbounded_powers);
+        s.p_unbounded_incomplete = s.p_unbounded;
+        s.unbounded_choice_incomplete = s.unbounded_choice.clone();
         if !bounded.is_empty() {
             let root = build(&mut bounded, 0);
             s.collapse(&root, (0, 0));
         }
         s
+    }
+
+    /// Leaves the unbounded lights `silent` out of the choice for
+    /// estimators that sample incompletely: lights whose compensated
+    /// density is zero everywhere, which would draw nothing there (pbrt-v4
+    /// chooses them and gets no sample; leaving them out gives their share
+    /// to the lights that do sample).
+    pub fn leave_out_when_incomplete(&mut self, silent: &[usize]) {
+        let powers: Vec<f32> = self
+            .unbounded
+            .iter()
+            .enumerate()
+            .map(|(slot, &light)| {
+                if silent.contains(&(light as usize)) {
+                    0.0
+                } else {
+                    self.unbounded_choice.pmf(slot)
+                }
+            })
+            .collect();
+        let n_unbounded = powers.iter().filter(|&&p| p > 0.0).count();
+        self.p_unbounded_incomplete = match (self.nodes.is_empty(), n_unbounded) {
+            (_, 0) => 0.0,
+            (true, _) => 1.0,
+            (false, n) => n as f32 / (n + 1) as f32,
+        };
+        self.unbounded_choice_incomplete = Distribution1D::new(&powers);
     }
 
     /// Whether no light can be chosen.
@@ -385,24 +422,39 @@ impl LightSampler {
         index
     }
 
+    /// The choice among the unbounded lights and its probability, for
+    /// complete or `incomplete` sampling.
+    #[inline]
+    fn unbounded_for(&self, incomplete: bool) -> (&Distribution1D, f32) {
+        if incomplete {
+            (&self.unbounded_choice_incomplete, self.p_unbounded_incomplete)
+        } else {
+            (&self.unbounded_choice, self.p_unbounded)
+        }
+    }
+
     /// A light for the point `p` with surface normal `n` (zero where the
     /// point is in no surface) chosen with `u` ∈ [0, 1), and the probability
-    /// of choosing it; `None` where no light can reach the point.
-    pub fn sample(&self, p: Vec3, n: Vec3, u: f32) -> Option<(usize, f32)> {
-        if u < self.p_unbounded {
-            if self.unbounded.is_empty() {
+    /// of choosing it; `None` where no light can reach the point. With
+    /// `incomplete`, the lights [`LightSampler::leave_out_when_incomplete`]
+    /// names are not chosen.
+    pub fn sample(&self, p: Vec3, n: Vec3, u: f32, incomplete: bool) -> Option<(usize, f32)> {
+        let (unbounded_choice, p_unbounded) = self.unbounded_for(incomplete);
+        if u < p_unbounded {
+            if self.unbounded.is_empty() || p_unbounded == 0.0 {
                 return None;
             }
-            let (i, pmf, _) = self
-                .unbounded_choice
-                .sample((u / self.p_unbounded).min(ONE_MINUS_EPSILON));
-            return Some((self.unbounded[i] as usize, self.p_unbounded * pmf));
+            let (i, pmf, _) = unbounded_choice.sample((u / p_unbounded).min(ONE_MINUS_EPSILON));
+            if pmf <= 0.0 {
+                return None;
+            }
+            return Some((self.unbounded[i] as usize, p_unbounded * pmf));
         }
         if self.nodes.is_empty() {
             return None;
         }
-        let mut u = ((u - self.p_unbounded) / (1.0 - self.p_unbounded)).clamp(0.0, ONE_MINUS_EPSILON);
-        let mut pmf = 1.0 - self.p_unbounded;
+        let mut u = ((u - p_unbounded) / (1.0 - p_unbounded)).clamp(0.0, ONE_MINUS_EPSILON);
+        let mut pmf = 1.0 - p_unbounded;
         let mut node = &self.nodes[0];
         loop {
             if node.count == 1 {
@@ -449,16 +501,21 @@ impl LightSampler {
         }
     }
 
-    /// The probability that [`LightSampler::sample`] at (`p`, `n`) chooses
-    /// `light`: the product of its branches' shares, from its leaf up.
-    pub fn pmf(&self, p: Vec3, n: Vec3, light: usize) -> f32 {
+    /// The probability that [`LightSampler::sample`] at (`p`, `n`) with
+    /// the same `incomplete` chooses `light`: the product of its branches'
+    /// shares, from its leaf up.
+    pub fn pmf(&self, p: Vec3, n: Vec3, light: usize, incomplete: bool) -> f32 {
+        let (unbounded_choice, p_unbounded) = self.unbounded_for(incomplete);
         if let Some(slot) = self.unbounded_slot[light] {
-            return self.p_unbounded * self.unbounded_choice.pmf(slot as usize);
+            if p_unbounded == 0.0 {
+                return 0.0;
+            }
+            return p_unbounded * unbounded_choice.pmf(slot as usize);
         }
         let Some((mut node, mut slot)) = self.leaf_of[light] else {
             return 0.0;
         };
-        let mut pmf = 1.0 - self.p_unbounded;
+        let mut pmf = 1.0 - p_unbounded;
         loop {
             let nd = &self.nodes[node as usize];
             if nd.count > 1 {
@@ -594,47 +651,69 @@ mod tests {
             .collect()
     }
 
+    /// Σ pmf ≤ 1 and stratified draws follow the pmf, for complete choices
+    /// and for incomplete ones that leave some unbounded lights out (those
+    /// then have probability 0 and are never drawn).
     #[test]
     fn pmf_sums_to_one_and_matches_sampling() {
         let mut r = Pcg32::new(11, 7);
-        for n in [1, 2, 3, 7, 100] {
+        for n in [1, 2, 3, 7, 12, 100] {
             let lights = random_lights(&mut r, n);
-            let sampler = LightSampler::new(&lights);
-            for _ in 0..20 {
-                let p = Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 12.0 - 1.0;
-                let nrm = if r.next_f32() < 0.3 {
-                    Vec3::ZERO
-                } else {
-                    Vec3::new(r.next_f32() - 0.5, r.next_f32() - 0.5, r.next_f32() - 0.5).normalize()
-                };
-                let total: f32 = (0..n).map(|i| sampler.pmf(p, nrm, i)).sum();
-                // Below 1 where a node's bounds admit light that none of its
-                // children's do: `sample` then finds no light.
-                assert!(total <= 1.0 + 1e-4, "{n} lights: Σ pmf = {total}");
-                if n == 1 {
-                    assert_eq!(total, 1.0);
-                }
-                let draws = 4000;
-                let mut counts = vec![0u32; n];
-                for k in 0..draws {
-                    let u = (k as f32 + r.next_f32()) / draws as f32;
-                    if let Some((i, pmf)) = sampler.sample(p, nrm, u) {
-                        let expected = sampler.pmf(p, nrm, i);
+            let mut sampler = LightSampler::new(&lights);
+            // Every other unbounded light draws nothing when incomplete.
+            let silent: Vec<usize> = (0..n).filter(|&i| lights[i].0.is_none() && i % 16 == 3).collect();
+            sampler.leave_out_when_incomplete(&silent);
+            for incomplete in [false, true] {
+                for _ in 0..20 {
+                    let p = Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 12.0 - 1.0;
+                    let nrm = if r.next_f32() < 0.3 {
+                        Vec3::ZERO
+                    } else {
+                        Vec3::new(r.next_f32() - 0.5, r.next_f32() - 0.5, r.next_f32() - 0.5).normalize()
+                    };
+                    let total: f32 = (0..n).map(|i| sampler.pmf(p, nrm, i, incomplete)).sum();
+                    // Below 1 where a node's bounds admit light that none of its
+                    // children's do: `sample` then finds no light.
+                    assert!(total <= 1.0 + 1e-4, "{n} lights: Σ pmf = {total}");
+                    if n == 1 {
+                        assert_eq!(total, 1.0);
+                    }
+                    for &i in &silent {
+                        assert_eq!(sampler.pmf(p, nrm, i, true), 0.0);
+                    }
+                    let draws = 4000;
+                    let mut counts = vec![0u32; n];
+                    for k in 0..draws {
+                        let u = (k as f32 + r.next_f32()) / draws as f32;
+                        if let Some((i, pmf)) = sampler.sample(p, nrm, u, incomplete) {
+                            let expected = sampler.pmf(p, nrm, i, incomplete);
+                            assert!(
+                                (pmf - expected).abs() <= 1e-5 * expected.max(1e-3),
+                                "{pmf} vs {expected}"
+                            );
+                            counts[i] += 1;
+                        }
+                    }
+                    // Stratified draws: each count is within a few of its expectation.
+                    for (i, &c) in counts.iter().enumerate() {
+                        let e = sampler.pmf(p, nrm, i, incomplete) * draws as f32;
                         assert!(
-                            (pmf - expected).abs() <= 1e-5 * expected.max(1e-3),
-                            "{pmf} vs {expected}"
+                            (c as f32 - e).abs() <= 2.0 + 0.02 * e,
+                            "light {i}: {c} draws, expected {e}"
                         );
-                        counts[i] += 1;
                     }
                 }
-                // Stratified draws: each count is within a few of its expectation.
-                for (i, &c) in counts.iter().enumerate() {
-                    let e = sampler.pmf(p, nrm, i) * draws as f32;
-                    assert!(
-                        (c as f32 - e).abs() <= 2.0 + 0.02 * e,
-                        "light {i}: {c} draws, expected {e}"
-                    );
-                }
+            }
+            if !silent.is_empty() {
+                // The lights left out give their share to the others.
+                let p = Vec3::splat(5.0);
+                let kept = |incomplete| -> f32 {
+                    (0..n)
+                        .filter(|i| !silent.contains(i))
+                        .map(|i| sampler.pmf(p, Vec3::ZERO, i, incomplete))
+                        .sum()
+                };
+                assert!(kept(true) > kept(false), "{} against {}", kept(true), kept(false));
             }
         }
     }
@@ -677,7 +756,7 @@ mod tests {
                 let reaches = p.y > 1e-3 && corners.iter().any(|&q| (q - p).normalize().dot(n).abs() > 1e-3);
                 if reaches {
                     assert!(
-                        sampler.pmf(p, n, i) > 0.0,
+                        sampler.pmf(p, n, i, false) > 0.0,
                         "light {i} can reach {p} but has probability 0"
                     );
                 }
@@ -685,7 +764,7 @@ mod tests {
             if p.y < -0.1 {
                 // Behind every panel and outside the bounding sphere of each
                 // (radius 0.071): nothing can be chosen.
-                assert!(sampler.sample(p, n, 0.5).is_none());
+                assert!(sampler.sample(p, n, 0.5, false).is_none());
             }
         }
     }
@@ -697,8 +776,8 @@ mod tests {
             .collect();
         let sampler = LightSampler::new(&lights);
         let p = Vec3::new(0.0, 1.0, 0.0);
-        assert!(sampler.pmf(p, Vec3::ZERO, 0) > 20.0 * sampler.pmf(p, Vec3::ZERO, 99));
+        assert!(sampler.pmf(p, Vec3::ZERO, 0, false) > 20.0 * sampler.pmf(p, Vec3::ZERO, 99, false));
         // A power distribution would give each 1/100.
-        assert!(sampler.pmf(p, Vec3::ZERO, 0) > 0.1);
+        assert!(sampler.pmf(p, Vec3::ZERO, 0, false) > 0.1);
     }
 }

@@ -799,6 +799,10 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         .map(|(l, &power)| (l.bounds(&scene, power), power))
         .collect();
     scene.light_sampler = crate::light::LightSampler::new(&bounds);
+    let silent: Vec<usize> = (0..scene.lights.len())
+        .filter(|&i| !scene.lights[i].samples_when_incomplete(&scene))
+        .collect();
+    scene.light_sampler.leave_out_when_incomplete(&silent);
     Ok(scene)
 }
 

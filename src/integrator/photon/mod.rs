@@ -235,7 +235,7 @@ impl<'a> ShadingPoint<'a> {
         if scene.lights.is_empty() {
             return Rgb::ZERO;
         }
-        let Some((light_index, pmf)) = crate::integrator::choose_light(scene, hit.p, hit.ns, sampler) else {
+        let Some((light_index, pmf)) = crate::integrator::choose_light(scene, hit.p, hit.ns, sampler, false) else {
             // No light reaches the point: its numbers are passed over.
             sampler.skip_1d();
             sampler.skip_2d();
