@@ -290,6 +290,14 @@ impl Parser {
         let emission = match temperature {
             Some(t) if le_scale > 0.0 => match t.to_voxel_grid().map_err(in_file)? {
                 Some((t_grid, t_unit_to_grid)) => {
+                    // Three channels a voxel: bounded as a grid file's values are.
+                    if t_grid.data.len() as u64 * 3 > crate::media::grid::MAX_VOXELS {
+                        return Err(in_file(format!(
+                            "grid \"{temperature_name}\" spans {} voxels, more than the {} colours trazo keeps",
+                            t_grid.data.len(),
+                            crate::media::grid::MAX_VOXELS / 3
+                        )));
+                    }
                     self.approximated(
                         &floc,
                         format!("grid \"{temperature_name}\" of {}", path.display()),
