@@ -727,9 +727,11 @@ impl Aggregate {
         let s = &self.shapes[i as usize];
         match (&s.transform, &s.shape) {
             // Rectangles (walls, area lights: transforms are baked into
-            // them) are the commonest shape and the cheapest test, so
-            // theirs is inlined; the other shapes' tests stay a call.
+            // them) and spheres are the commonest shapes and the cheapest
+            // tests, so theirs are inlined; the other shapes' tests stay a
+            // call.
             (None, Shape::Rectangle(r)) => r.intersect(ray),
+            (None, Shape::Sphere(s)) => s.intersect(ray),
             (None, shape) => shape.intersect(ray),
             (Some(t), shape) => match &s.motion {
                 Some(m) => shape.intersect(&m.at(ray.time).inv_ray(ray)),

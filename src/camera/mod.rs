@@ -492,6 +492,7 @@ impl Camera {
     /// length. A realistic camera gives the ray through the centre of its
     /// exit pupil, or along its axis where the lens blocks that (for the
     /// estimates that want a ray per pixel: a photon radius, an AOV).
+    #[inline]
     pub fn generate_ray(&self, film: Vec2, lens: Vec2) -> Ray {
         if let Some(lenses) = &self.lens_system {
             let at = |u: Vec2| lenses.ray((film + self.offset) / self.full_size, u);
@@ -516,6 +517,7 @@ impl Camera {
         }
     }
 
+    #[inline]
     fn unclipped_ray(&self, film: Vec2, lens: Vec2) -> Ray {
         let film = film + self.offset;
         if let (Some(([a, b, c], origin)), true) = (self.pinhole, self.lens_radius <= 0.0) {

@@ -578,10 +578,13 @@ pub(crate) fn sphere_distance<R: Real>(ray: &SphereRay<R>, cx: R, cy: R, cz: R, 
     let [dx, dy, dz] = ray.d;
     let (fx, fy, fz) = (ray.o[0] - cx, ray.o[1] - cy, ray.o[2] - cz);
     let b_half = fx * dx + fy * dy + fz * dz;
-    // b'² − a·c rewritten as a·(r² − |f − (b'/a)·d|²): no cancellation.
-    let k = b_half * ray.inv_a;
-    let (lx, ly, lz) = (fx - dx * k, fy - dy * k, fz - dz * k);
-    let disc = ray.a * (r * r - (lx * lx + ly * ly + lz * lz));
+    // b'² − a·c rewritten as a·r² − |f × d|² = a·(r² − ρ²), ρ the distance
+    // of the ray's line from the centre (Lagrange's identity; Haines et
+    // al. write ρ² as |f − (b'/a)·d|², which takes a division first): no
+    // cancellation between b'² and a·c, and no division on the way to the
+    // square root.
+    let (gx, gy, gz) = (fy * dz - fz * dy, fz * dx - fx * dz, fx * dy - fy * dx);
+    let disc = ray.a * (r * r) - (gx * gx + gy * gy + gz * gz);
     let c = (fx * fx + fy * fy + fz * fz) - r * r;
     // A negative discriminant (a miss) makes q, and every distance, NaN,
     // which the comparisons below reject.

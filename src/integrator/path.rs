@@ -217,7 +217,8 @@ impl PathTracer {
             let mut lit = 0u32;
             for i in lanes(live) {
                 stats.rays += 1;
-                let (hit, light) = self.arrive(scene, &rays.as_ref()[i], &previous.as_ref()[i], depth, nee);
+                let hit = &mut hits.as_mut()[i];
+                let light = self.arrive(scene, &rays.as_ref()[i], &previous.as_ref()[i], depth, nee, hit);
                 if hit.is_none() {
                     live &= !(1 << i);
                 }
@@ -225,7 +226,6 @@ impl PathTracer {
                     found.as_mut()[i] = light;
                     lit |= 1 << i;
                 }
-                hits.as_mut()[i] = hit;
             }
             if lit != 0 {
                 let le = Vec3s::gather(&F::each(|i| found.as_ref()[i].le));
@@ -298,9 +298,12 @@ impl PathTracer {
         l
     }
 
-    /// Traces one path's `ray`: the surface it hits (`None`: it leaves the
-    /// scene) and the light it finds there, weighed against next-event
-    /// estimation from `previous`, the bounce that sent it.
+    /// Traces one path's `ray`: the surface it hits, put in `slot` (`None`:
+    /// it leaves the scene), and the light it finds there, weighed against
+    /// next-event estimation from `previous`, the bounce that sent it.
+    /// The record is written where the loop keeps it, not returned: a
+    /// copy of it read back right after its fields were written waits on
+    /// the stores.
     #[inline(always)]
     fn arrive(
         &self,
@@ -309,11 +312,13 @@ impl PathTracer {
         previous: &Previous,
         depth: u32,
         nee: bool,
-    ) -> (Option<SurfaceHit>, Option<Found>) {
+        slot: &mut Option<SurfaceHit>,
+    ) -> Option<Found> {
         let shows_emission = scene.settings.shows_emission(depth);
-        let Some(hit) = scene.intersect(ray) else {
+        *slot = scene.intersect(ray);
+        let Some(hit) = slot else {
             let (Some(env), true) = (scene.environment_light, shows_emission) else {
-                return (None, None);
+                return None;
             };
             let dir = ray.dir.normalize();
             // (A portal lets in what the ray's origin sees through it.)
@@ -330,26 +335,27 @@ impl PathTracer {
                     weight: 1.0,
                 }
             };
-            return (None, Some(found));
+            return Some(found);
         };
+        let hit = &*hit;
         let m = &scene.materials[hit.material as usize];
         let wo_world = -ray.dir.normalize();
         let mut found = None;
-        if m.is_emissive() && shows_emission && m.emits_toward(&hit, wo_world) {
+        if m.is_emissive() && shows_emission && m.emits_toward(hit, wo_world) {
             let weight = match hit.light {
                 Some(li) if nee && !previous.delta => {
                     let pdf_light = light_choice_pmf(scene, previous.p, previous.n, li as usize, true)
-                        * scene.lights[li as usize].pdf_li(scene, previous.p, &hit);
+                        * scene.lights[li as usize].pdf_li(scene, previous.p, hit);
                     power_heuristic(previous.pdf, pdf_light)
                 }
                 _ => 1.0,
             };
             found = Some(Found {
-                le: m.emission_at(&scene.textures, &TexCoord::at(&hit)),
+                le: m.emission_at(&scene.textures, &TexCoord::at(hit)),
                 weight,
             });
         }
-        (Some(hit), found)
+        found
     }
 
     /// One path's bounce at `hit`, which its ray reached along `dir`: the

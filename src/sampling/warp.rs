@@ -23,13 +23,13 @@ pub fn sample_disk_concentric(u: Vec2) -> Vec2 {
     }
     // θ = φ or π/2 − φ with |φ| ≤ π/4, so cos θ and sin θ are cos φ and
     // sin φ, possibly swapped: short polynomials instead of a libm call.
-    if o.x.abs() > o.y.abs() {
-        let (sin, cos) = sin_cos_quarter_pi(FRAC_PI_4 * (o.y / o.x));
-        o.x * Vec2::new(cos, sin)
-    } else {
-        let (sin, cos) = sin_cos_quarter_pi(FRAC_PI_4 * (o.x / o.y));
-        o.y * Vec2::new(sin, cos)
-    }
+    // Which of the two is a coin toss per sample, so it is chosen by
+    // selects, not a branch the processor would mispredict half the time.
+    let x_wider = o.x.abs() > o.y.abs();
+    let (r, other) = if x_wider { (o.x, o.y) } else { (o.y, o.x) };
+    let (sin, cos) = sin_cos_quarter_pi(FRAC_PI_4 * (other / r));
+    let (a, b) = if x_wider { (cos, sin) } else { (sin, cos) };
+    r * Vec2::new(a, b)
 }
 
 /// (sin x, cos x) for |x| ≤ π/4 by their Taylor series to x⁹ and x⁸,
