@@ -1279,21 +1279,33 @@ fn to_medium(
 /// its unit cube to the grid's space; a grid with nothing active is one
 /// empty voxel.
 fn load_nanovdb(path: &Path, name: &str) -> std::result::Result<(VoxelGrid, glam::Mat4), String> {
-    use crate::media::nanovdb::{NanoVdbGrid, grid_names};
     let in_file = |e: String| format!("{}: {e}", path.display());
     let bytes = crate::files::read_limited(path, crate::files::MAX_NANOVDB_BYTES).map_err(in_file)?;
-    let Some(grid) = NanoVdbGrid::from_file(&bytes, name).map_err(in_file)? else {
-        let names = grid_names(&bytes).map_err(in_file)?;
-        return Err(in_file(format!(
-            "no grid named \"{name}\"{}",
-            crate::scene::desc::suggest(name, names.iter().map(String::as_str))
-        )));
-    };
+    let grid = nanovdb_grid(&bytes, name).map_err(in_file)?;
     drop(bytes);
     Ok(match grid.to_voxel_grid().map_err(in_file)? {
         Some(dense) => dense,
         None => (VoxelGrid::new([1, 1, 1], 1, vec![0.0])?, glam::Mat4::IDENTITY),
     })
+}
+
+/// The grid `name` of a NanoVDB file's contents `bytes`, or an error that
+/// names the grids the file has (the one meant, where it is a near miss).
+pub(crate) fn nanovdb_grid(
+    bytes: &[u8],
+    name: &str,
+) -> std::result::Result<crate::media::nanovdb::NanoVdbGrid, String> {
+    use crate::media::nanovdb::{NanoVdbGrid, grid_names};
+    match NanoVdbGrid::from_file(bytes, name)? {
+        Some(grid) => Ok(grid),
+        None => {
+            let names = grid_names(bytes)?;
+            Err(format!(
+                "no grid named \"{name}\"{}",
+                crate::scene::desc::suggest(name, names.iter().map(String::as_str))
+            ))
+        }
+    }
 }
 
 /// The message of an error without the file name it already carries.

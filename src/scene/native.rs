@@ -1191,12 +1191,7 @@ fn read_level_set(
             }
         }
     };
-    let Some(grid) = NanoVdbGrid::from_file(&bytes, &name).map_err(in_file)? else {
-        return Err(in_file(format!(
-            "no grid named \"{name}\"{}",
-            suggest(&name, names.iter().map(String::as_str))
-        )));
-    };
+    let grid = crate::scene::build::nanovdb_grid(&bytes, &name).map_err(in_file)?;
     if grid.class != CLASS_LEVEL_SET {
         return Err(in_file(format!(
             "grid \"{name}\" is not a level set (its class is {}): an SDF grid holds signed distances",

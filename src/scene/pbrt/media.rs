@@ -231,7 +231,7 @@ impl Parser {
     /// `temperaturescale`), none at 100 K or below. Both grids are placed
     /// by their own index-to-world maps and then the CTM.
     fn nanovdb_medium(&mut self, name: &str, p: &ParamList, loc: &SourceLoc, dir_rel: &std::path::Path) -> Result<()> {
-        use crate::media::nanovdb::{NanoVdbGrid, grid_names};
+        use crate::media::nanovdb::NanoVdbGrid;
         let what = format!("MakeNamedMedium \"{name}\"");
         let Some((file, fprm)) = p.string("filename")? else {
             return Err(crate::error::Error::scene(
@@ -250,13 +250,7 @@ impl Parser {
         let temperature_name = p
             .string("temperaturename")?
             .map_or_else(|| "temperature".to_string(), |g| g.0);
-        let Some(density) = NanoVdbGrid::from_file(&bytes, &grid_name).map_err(in_file)? else {
-            let names = grid_names(&bytes).map_err(in_file)?;
-            return Err(in_file(format!(
-                "no grid named \"{grid_name}\"{}",
-                suggest(&grid_name, names.iter().map(String::as_str))
-            )));
-        };
+        let density = crate::scene::build::nanovdb_grid(&bytes, &grid_name).map_err(in_file)?;
         if !matches!(density.class, 0 | crate::media::nanovdb::CLASS_FOG_VOLUME) {
             return Err(in_file(format!(
                 "grid \"{grid_name}\" is not a fog volume (its class is {}), as pbrt-v4 requires of a medium's density",
