@@ -327,20 +327,7 @@ fn mis_with_a_compensated_sky_agrees_with_bsdf_sampling() {
         }
     });
     let scene = |integrator: IntegratorKind, sampling: PathSampling, spp: u32| {
-        let mut d = SceneDesc::default();
-        d.settings.width = 6;
-        d.settings.height = 6;
-        d.settings.spp = spp;
-        d.settings.max_depth = 3;
-        d.settings.integrator = integrator;
-        d.settings.sampling = sampling;
-        d.camera = CameraDesc {
-            projection: ProjectionDesc::Orthographic { size: 3.0 },
-            from: Vec3::new(0.0, 5.0, 0.0),
-            to: Vec3::ZERO,
-            up: Vec3::Z,
-            ..CameraDesc::default()
-        };
+        let mut d = sky_test_scene(integrator, sampling, spp);
         d.background = BackgroundDesc::Image {
             path: sky.clone(),
             scale: 1.0,
@@ -365,6 +352,26 @@ fn mis_with_a_compensated_sky_agrees_with_bsdf_sampling() {
         let mis = render_film(&scene(integrator, PathSampling::Mis, 256));
         assert_mis_agrees_with_bsdf_sampling(&mis, &bsdf, &format!("{integrator:?}"));
     }
+}
+
+/// The two sky tests' 6 × 6 image, three segments deep, seen from above by
+/// an orthographic camera; each adds its sky, materials and shapes.
+fn sky_test_scene(integrator: IntegratorKind, sampling: PathSampling, spp: u32) -> SceneDesc {
+    let mut d = SceneDesc::default();
+    d.settings.width = 6;
+    d.settings.height = 6;
+    d.settings.spp = spp;
+    d.settings.max_depth = 3;
+    d.settings.integrator = integrator;
+    d.settings.sampling = sampling;
+    d.camera = CameraDesc {
+        projection: ProjectionDesc::Orthographic { size: 3.0 },
+        from: Vec3::new(0.0, 5.0, 0.0),
+        to: Vec3::ZERO,
+        up: Vec3::Z,
+        ..CameraDesc::default()
+    };
+    d
 }
 
 /// `mis` agrees with `bsdf` (BSDF sampling alone) in the image mean within
@@ -405,20 +412,7 @@ fn assert_mis_agrees_with_bsdf_sampling(mis: &Film, bsdf: &Film, what: &str) {
 #[test]
 fn a_constant_sky_is_left_to_bsdf_sampling_and_its_light_choices_to_the_lamp() {
     let scene = |integrator: IntegratorKind, sampling: PathSampling, spp: u32| {
-        let mut d = SceneDesc::default();
-        d.settings.width = 6;
-        d.settings.height = 6;
-        d.settings.spp = spp;
-        d.settings.max_depth = 3;
-        d.settings.integrator = integrator;
-        d.settings.sampling = sampling;
-        d.camera = CameraDesc {
-            projection: ProjectionDesc::Orthographic { size: 3.0 },
-            from: Vec3::new(0.0, 5.0, 0.0),
-            to: Vec3::ZERO,
-            up: Vec3::Z,
-            ..CameraDesc::default()
-        };
+        let mut d = sky_test_scene(integrator, sampling, spp);
         d.background = BackgroundDesc::Constant(Rgb::new(0.1, 0.12, 0.15));
         d.materials.push(diffuse(0.5));
         let mut lamp = diffuse(0.0);
