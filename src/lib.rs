@@ -71,6 +71,7 @@ pub mod geometry;
 pub mod integrator;
 pub mod light;
 pub mod material;
+pub mod math;
 pub mod media;
 pub mod render;
 pub mod sampling;

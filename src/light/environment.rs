@@ -28,6 +28,7 @@
 
 use crate::color::{Rgb, luminance};
 use crate::geometry::Transform;
+use crate::math;
 pub use crate::sampling::warp::{equal_area_sphere_to_square, equal_area_square_to_sphere};
 use crate::sampling::warp::{pdf_sphere_uniform, sample_sphere_uniform};
 use crate::sampling::{BilinearDistribution2D, Distribution2D};
@@ -151,26 +152,29 @@ impl EnvironmentMap {
     fn density_point(&self, uv: Vec2) -> Vec2 {
         let w = self.image.width as f32;
         let x = uv.x - 0.5 / w;
-        Vec2::new(x - x.floor(), uv.y)
+        Vec2::new(x - math::floor(x), uv.y)
     }
 
     fn map_point(&self, p: Vec2) -> Vec2 {
         let x = p.x + 0.5 / self.image.width as f32;
-        Vec2::new(x - x.floor(), p.y)
+        Vec2::new(x - math::floor(x), p.y)
     }
 
-    fn uv_of(&self, dir_world: Vec3) -> Vec2 {
+    /// The map coordinates of direction `dir_world`, and sin θ there.
+    fn uv_of(&self, dir_world: Vec3) -> (Vec2, f32) {
         let d = self.to_world.inv_vector(dir_world).normalize_or_zero();
-        let u = d.x.atan2(-d.z) / (2.0 * PI);
-        let v = d.y.clamp(-1.0, 1.0).acos() / PI;
-        Vec2::new(u - u.floor(), v.clamp(0.0, 1.0))
+        let u = math::atan2(d.x, -d.z) / (2.0 * PI);
+        let y = d.y.clamp(-1.0, 1.0);
+        let v = math::acos(y) / PI;
+        // sin θ = √(1 − cos²θ), the product form exact near the poles.
+        let sin_theta = ((1.0 - y) * (1.0 + y)).sqrt();
+        (Vec2::new(u - math::floor(u), v.clamp(0.0, 1.0)), sin_theta)
     }
 
     fn dir_of(&self, uv: Vec2) -> (Vec3, f32) {
-        let phi = 2.0 * PI * uv.x;
-        let theta = PI * uv.y;
-        let st = theta.sin();
-        let d = Vec3::new(st * phi.sin(), theta.cos(), -st * phi.cos());
+        let (sin_phi, cos_phi) = (2.0 * PI * uv.x).sin_cos();
+        let (st, cos_theta) = (PI * uv.y).sin_cos();
+        let d = Vec3::new(st * sin_phi, cos_theta, -st * cos_phi);
         (self.to_world.vector(d).normalize(), st)
     }
 
@@ -180,7 +184,7 @@ impl EnvironmentMap {
     #[inline]
     pub fn eval(&self, dir: Vec3) -> Rgb {
         match self.layout {
-            EnvironmentLayout::LatLong => self.eval_uv(self.uv_of(dir)),
+            EnvironmentLayout::LatLong => self.eval_uv(self.uv_of(dir).0),
             EnvironmentLayout::EqualAreaOctahedral => {
                 let d = self.to_world.inv_vector(dir).normalize_or_zero();
                 self.nearest(equal_area_sphere_to_square(d))
@@ -200,7 +204,7 @@ impl EnvironmentMap {
         let (w, h) = (self.image.width as i64, self.image.height as i64);
         let x = uv.x * w as f32 - 0.5;
         let y = (uv.y * (h - 1).max(1) as f32).clamp(0.0, (h - 1) as f32);
-        let (x0, y0) = (x.floor(), y.floor());
+        let (x0, y0) = (math::floor(x), math::floor(y));
         let (fx, fy) = (x - x0, y - y0);
         let wrap = |xi: i64| crate::texture::WrapMode::Repeat.apply(xi, w);
         let (xa, xb) = (wrap(x0 as i64), wrap(x0 as i64 + 1));
@@ -282,8 +286,7 @@ impl EnvironmentMap {
             let uv = equal_area_sphere_to_square(d);
             return (self.nearest(uv), self.pixel_density(incomplete).pdf(uv) / (4.0 * PI));
         }
-        let uv = self.uv_of(dir);
-        let sin_theta = (PI * uv.y).sin();
+        let (uv, sin_theta) = self.uv_of(dir);
         let pdf = if sin_theta <= 0.0 {
             0.0
         } else {
@@ -298,8 +301,7 @@ impl EnvironmentMap {
             let d = self.to_world.inv_vector(dir).normalize_or_zero();
             return self.pixel_distribution.pdf(equal_area_sphere_to_square(d)) / (4.0 * PI);
         }
-        let uv = self.uv_of(dir);
-        let sin_theta = (PI * uv.y).sin();
+        let (uv, sin_theta) = self.uv_of(dir);
         if sin_theta <= 0.0 {
             return 0.0;
         }
@@ -511,17 +513,23 @@ mod tests {
         // Up is the top row; −z is u = 0, +x is u = ¼, +z the centre column.
         assert!(map.eval(Vec3::Y).x < 4.0);
         assert!(map.eval(-Vec3::Y).x >= 4.0);
-        let uv = map.uv_of(-Vec3::Z);
+        let (uv, sin_theta) = map.uv_of(-Vec3::Z);
         assert!(uv.x.abs() < 1e-6 && (uv.y - 0.5).abs() < 1e-6, "{uv}");
-        assert!((map.uv_of(Vec3::X).x - 0.25).abs() < 1e-6);
-        assert!((map.uv_of(Vec3::Z).x - 0.5).abs() < 1e-6);
+        assert_eq!(sin_theta, 1.0);
+        assert!((map.uv_of(Vec3::X).0.x - 0.25).abs() < 1e-6);
+        assert!((map.uv_of(Vec3::Z).0.x - 0.5).abs() < 1e-6);
         for d in [
             Vec3::X,
             Vec3::new(0.3, 0.5, -0.8).normalize(),
             Vec3::new(-0.7, -0.2, 0.1).normalize(),
         ] {
-            let (back, _) = map.dir_of(map.uv_of(d));
+            let (uv, sin_theta) = map.uv_of(d);
+            let (back, sin_back) = map.dir_of(uv);
             assert!((back - d).length() < 1e-5, "{d} → {back}");
+            assert!(
+                (sin_theta - sin_back).abs() < 1e-6,
+                "{d}: sin θ {sin_theta} and {sin_back}"
+            );
         }
     }
 

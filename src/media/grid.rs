@@ -175,7 +175,7 @@ impl VoxelGrid {
             let x = p[a] * n as f32 - 0.5;
             if zero_edge {
                 let x = x.clamp(-1.0, n as f32);
-                let i = x.floor() as i64;
+                let i = crate::math::floor(x) as i64;
                 frac[a] = x - i as f32;
                 for (k, slot) in index[a].iter_mut().enumerate() {
                     let j = i + k as i64;
@@ -183,7 +183,7 @@ impl VoxelGrid {
                 }
             } else {
                 let x = x.clamp(0.0, (n - 1) as f32);
-                let i = (x.floor() as i64).min(n - 1);
+                let i = (crate::math::floor(x) as i64).min(n - 1);
                 frac[a] = x - i as f32;
                 index[a] = [Some(i as usize), Some((i + 1).min(n - 1) as usize)];
             }

@@ -134,10 +134,10 @@ impl ImageTexture {
             return self.pixels[0];
         }
         match filter {
-            ImageFilter::Nearest => self.texel(x.floor() as i64, y.floor() as i64, wrap),
+            ImageFilter::Nearest => self.texel(crate::math::floor(x) as i64, crate::math::floor(y) as i64, wrap),
             ImageFilter::Bilinear => {
                 let (x, y) = (x - 0.5, y - 0.5);
-                let (x0, y0) = (x.floor(), y.floor());
+                let (x0, y0) = (crate::math::floor(x), crate::math::floor(y));
                 let (fx, fy) = (x - x0, y - y0);
                 let (xi, yi) = (x0 as i64, y0 as i64);
                 let top = self.texel(xi, yi, wrap) * (1.0 - fx) + self.texel(xi + 1, yi, wrap) * fx;
@@ -157,7 +157,7 @@ impl ImageTexture {
         if filter == ImageFilter::Nearest || !x.is_finite() || !y.is_finite() {
             return Vec2::ZERO;
         }
-        let (x0, y0) = (x.floor(), y.floor());
+        let (x0, y0) = (crate::math::floor(x), crate::math::floor(y));
         let (fx, fy) = (x - x0, y - y0);
         let (xi, yi) = (x0 as i64, y0 as i64);
         let f = |dx: i64, dy: i64| crate::color::luminance(self.texel(xi + dx, yi + dy, wrap) * tint);

@@ -59,7 +59,7 @@ pub fn noise(p: Vec3) -> f32 {
     // cell index fits an integer; a non-finite one reads as 0.
     let wrap = |x: f32| if x.is_finite() { x % (1u32 << 30) as f32 } else { 0.0 };
     let (x, y, z) = (wrap(p.x), wrap(p.y), wrap(p.z));
-    let (fx, fy, fz) = (x.floor(), y.floor(), z.floor());
+    let (fx, fy, fz) = (crate::math::floor(x), crate::math::floor(y), crate::math::floor(z));
     let (dx, dy, dz) = (x - fx, y - fy, z - fz);
     let (ix, iy, iz) = (fx as i32 & 255, fy as i32 & 255, fz as i32 & 255);
     let w000 = gradient(ix, iy, iz, dx, dy, dz);
