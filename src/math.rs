@@ -93,10 +93,9 @@ pub fn asin(x: f32) -> f32 {
     } else {
         (a * a, a)
     };
-    let p = ((((4.216_32e-2 * z + 2.418_131e-2) * z + 4.547_002_6e-2) * z + 7.495_300_3e-2) * z + 1.666_675_2e-1)
-        * z
-        * r
-        + r;
+    let p =
+        ((((4.216_32e-2 * z + 2.418_131e-2) * z + 4.547_002_6e-2) * z + 7.495_300_3e-2) * z + 1.666_675_2e-1) * z * r
+            + r;
     let y = if a > 0.5 { FRAC_PI_2 - 2.0 * p } else { p };
     // NaN stays NaN through copysign; |x| > 1 takes the square root of
     // a negative number above.

@@ -740,6 +740,22 @@ impl Aggregate {
         }
     }
 
+    /// Where `ray` first meets shape `i` alone (whatever else lies in
+    /// the way), with the surface there as a hit on the scene gives it
+    /// (surface coordinates if `uv`): how an emitter without an area
+    /// density is sampled by direction (see `light::Light::Area`).
+    pub fn shape_hit(&self, i: u32, ray: &Ray, uv: bool) -> Option<SurfaceHit> {
+        let t = self.shape_intersect(i, ray)?;
+        Some(self.surface_with(
+            ray,
+            &Hit {
+                t,
+                prim: HitPrim::Shape(i),
+            },
+            |_| uv,
+        ))
+    }
+
     /// The nearest intersection within the ray's interval.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {

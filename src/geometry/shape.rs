@@ -337,7 +337,8 @@ impl Shape {
             Shape::Disk(d) => PI * d.radius * d.radius,
             Shape::Cuboid(c) => Aabb::new(c.min, c.max).surface_area(),
             Shape::Cylinder(c) => 2.0 * PI * c.radius * (c.p1 - c.p0).length(),
-            // Not an emitter (nor in Mitsuba): the scene reader refuses one.
+            // No closed form: an emitter of these is sampled by direction,
+            // its area estimated for its power (`light::crofton_area`).
             Shape::SdfGrid(_) | Shape::Sdf(_) | Shape::Implicit(_) => 0.0,
             Shape::Quadric(q) => q.area(),
             Shape::Bilinear(b) => b.area(),

@@ -30,6 +30,7 @@ use crate::color::{Rgb, luminance};
 use crate::geometry::SurfaceHit;
 use crate::geometry::shape::Shape;
 use crate::material::Frame;
+use crate::sampling::warp::{pdf_sphere_uniform, sample_sphere_uniform};
 use crate::sampling::{Distribution2D, Sampler};
 use crate::scene::Scene;
 use crate::texture::{TexCoord, Texture};
@@ -102,6 +103,14 @@ pub enum Light {
         /// The emitter itself when it is a rectangle in world space, which
         /// is then sampled here rather than through the aggregate.
         parallelogram: Option<Parallelogram>,
+        /// The world-space bounding sphere of an emitter that has no
+        /// density over its area (a distance function or an implicit
+        /// surface), which is sampled by direction instead: uniformly in
+        /// the cone the sphere subtends (over every direction from inside
+        /// it), the light's point the emitter's first along the direction.
+        /// Such an emitter emits no light subpaths or photons (see
+        /// [`Light::emits_rays`]).
+        cone: Option<(Vec3, f32)>,
     },
     /// The background (see [`Background`]), as light from every direction.
     Environment,
@@ -593,20 +602,57 @@ fn area_light_sample(
     })
 }
 
+/// 1 − cos θ_max of the cone whose half-angle has sin²θ_max = `sin2_max`,
+/// through sin² for a tiny cone, where 1 − cos would round away.
+fn one_minus_cos_max(sin2_max: f32) -> f32 {
+    if sin2_max < 0.000_685_23 {
+        sin2_max / 2.0
+    } else {
+        1.0 - (1.0 - sin2_max).max(0.0).sqrt()
+    }
+}
+
 /// Density per steradian of [`sample_sphere_cone`] (0 if `p` is inside).
 fn sphere_cone_pdf(center: Vec3, radius: f32, p: Vec3) -> f32 {
     let dc2 = (center - p).length_squared();
     if dc2 <= radius * radius {
         return 0.0;
     }
-    let sin2_max = radius * radius / dc2;
-    let one_minus_cos_max = if sin2_max < 0.000_685_23 {
-        sin2_max / 2.0
-    } else {
-        1.0 - (1.0 - sin2_max).max(0.0).sqrt()
-    };
-    1.0 / (2.0 * PI * one_minus_cos_max)
+    1.0 / (2.0 * PI * one_minus_cos_max(radius * radius / dc2))
 }
+
+/// A direction from `p` drawn uniformly in the cone that the sphere of
+/// `center` and `radius` subtends, or over the whole sphere of directions
+/// from inside it, and its density per steradian
+/// ([`toward_sphere_pdf`]).
+fn sample_toward_sphere(center: Vec3, radius: f32, p: Vec3, u: Vec2) -> (Vec3, f32) {
+    let to_center = center - p;
+    let dc2 = to_center.length_squared();
+    if dc2 <= radius * radius {
+        return (sample_sphere_uniform(u), pdf_sphere_uniform());
+    }
+    let omc = one_minus_cos_max(radius * radius / dc2);
+    let z = 1.0 - u.x * omc;
+    // sin² θ = (1 − z)(1 + z), exact for the tiny cones.
+    let sin_t = ((u.x * omc) * (1.0 + z)).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    let frame = Frame::from_normal(to_center / dc2.sqrt());
+    (
+        frame.to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), z)),
+        1.0 / (2.0 * PI * omc),
+    )
+}
+
+/// Density per steradian of [`sample_toward_sphere`].
+fn toward_sphere_pdf(center: Vec3, radius: f32, p: Vec3) -> f32 {
+    let pdf = sphere_cone_pdf(center, radius, p);
+    if pdf > 0.0 { pdf } else { pdf_sphere_uniform() }
+}
+
+/// Where a ray drawn toward a bounding sphere of radius `radius` starts,
+/// in units of that radius: past the shading point itself, which may lie
+/// on the emitter.
+const TOWARD_SPHERE_START: f32 = 1e-4;
 
 impl Light {
     /// Samples light arriving at point `p`; `u_pick` and `u` are uniform
@@ -656,6 +702,15 @@ impl Light {
         };
         let u = sampler.next_2d();
         self.sample_li(scene, p, u_pick, u, incomplete)
+    }
+
+    /// Whether the light emits rays of light ([`Light::sample_le`]): all
+    /// but an emitter sampled only by direction (a distance function or
+    /// an implicit surface, which has no density over its area), which
+    /// light subpaths, light tracing and photons therefore never start
+    /// from.
+    pub fn emits_rays(&self) -> bool {
+        !matches!(self, Light::Area { cone: Some(_), .. })
     }
 
     /// Whether [`Light::sample_li`] reads its `u_pick`: only an area
@@ -769,9 +824,25 @@ impl Light {
                 emitter,
                 radiance,
                 two_sided,
+                cone: Some((center, radius)),
+                ..
+            } => {
+                let EmitterRef::Shape(i) = *emitter else {
+                    return None;
+                };
+                let (wi, pdf) = sample_toward_sphere(*center, *radius, p, u);
+                let ray = crate::geometry::Ray::with_interval(p, wi, TOWARD_SPHERE_START * radius, f32::MAX);
+                let hit = scene.geometry.shape_hit(i, &ray, radiance.reads_uv())?;
+                area_light_sample(scene, p, hit.p, hit.ng, *two_sided, hit.uv, Some(pdf), 0.0, radiance)
+            }
+            Light::Area {
+                emitter,
+                radiance,
+                two_sided,
                 area,
                 sphere,
                 parallelogram,
+                cone: None,
             } => {
                 // The point's density: per steradian from cone sampling of
                 // a sphere, per unit area otherwise.
@@ -834,6 +905,7 @@ impl Light {
     /// would pick the direction toward `hit`, a point on this (area) light.
     pub fn pdf_li(&self, scene: &Scene, p: Vec3, hit: &SurfaceHit) -> f32 {
         match self {
+            Light::Area { cone: Some((c, r)), .. } => toward_sphere_pdf(*c, *r, p),
             Light::Area {
                 emitter,
                 area,
@@ -1011,10 +1083,86 @@ pub fn emitter_sphere(scene_geometry: &crate::accel::Aggregate, emitter: Emitter
     }
 }
 
+/// The world-space bounding sphere of an emitter that has no density over
+/// its area (a distance function, a grid of distances or an implicit
+/// surface), which lights then sample by direction
+/// ([`Light::Area`]'s `cone`); `None` for other emitters, and for a moving
+/// one (light samples are drawn at time 0).
+pub fn implicit_emitter_sphere(scene_geometry: &crate::accel::Aggregate, emitter: EmitterRef) -> Option<(Vec3, f32)> {
+    let EmitterRef::Shape(i) = emitter else {
+        return None;
+    };
+    let s = &scene_geometry.shapes[i as usize];
+    if !matches!(s.shape, Shape::Sdf(_) | Shape::SdfGrid(_) | Shape::Implicit(_)) || s.motion.is_some() {
+        return None;
+    }
+    let b = s.shape.bounds()?;
+    let b = s.transform.as_ref().map_or(b, |t| t.aabb(&b));
+    let radius = 0.5 * b.extent().length();
+    (radius.is_finite() && radius > 0.0).then(|| (b.centroid(), radius))
+}
+
+/// An estimate of the area of emitter `emitter` (shape `i`) inside its
+/// bounding `sphere`, for choosing lights by power only: by Crofton's
+/// formula, a line drawn uniformly among those meeting a sphere of area S
+/// crosses a surface of area A inside it 2A/S times on average. Each line
+/// is cast from both ends, which counts every crossing of a convex surface
+/// and at least one of any other (an underestimate there). Deterministic.
+pub fn crofton_area(
+    scene_geometry: &crate::accel::Aggregate,
+    emitter: EmitterRef,
+    (center, radius): (Vec3, f32),
+) -> f32 {
+    const LINES: u32 = 512;
+    let EmitterRef::Shape(i) = emitter else {
+        return 0.0;
+    };
+    let mut rng = crate::sampling::rng::Pcg32::new(0x5eed_c0f7, i as u64);
+    let mut crossings = 0u32;
+    for _ in 0..LINES {
+        let w = sample_sphere_uniform(Vec2::new(rng.next_f32(), rng.next_f32()));
+        let q = crate::sampling::warp::sample_disk_concentric(Vec2::new(rng.next_f32(), rng.next_f32())) * radius;
+        let frame = Frame::from_normal(w);
+        let through = center + frame.to_world(Vec3::new(q.x, q.y, 0.0));
+        for dir in [w, -w] {
+            let ray = crate::geometry::Ray::with_interval(through - 1.5 * radius * dir, dir, 0.0, 3.0 * radius);
+            if scene_geometry.shape_hit(i, &ray, false).is_some() {
+                crossings += 1;
+            }
+        }
+    }
+    // Nothing met: as if one line in all had crossed it (it is small).
+    let mean = crossings.max(1) as f32 / LINES as f32;
+    2.0 * PI * radius * radius * mean
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::sampling::rng::Pcg32;
+
+    #[test]
+    fn directions_toward_a_sphere_stay_in_its_cone_with_its_density() {
+        let (c, r) = (Vec3::new(0.3, 2.0, -0.5), 0.4);
+        let mut rng = Pcg32::new(8, 1);
+        // Outside, far (a tiny cone) and near; inside.
+        for p in [Vec3::ZERO, Vec3::new(0.0, -3000.0, 0.0), Vec3::new(0.3, 2.5, -0.5)] {
+            let to_c = c - p;
+            let cos_max = (1.0 - r * r / to_c.length_squared()).sqrt();
+            for _ in 0..2000 {
+                let (w, pdf) = sample_toward_sphere(c, r, p, Vec2::new(rng.next_f32(), rng.next_f32()));
+                assert!((w.length() - 1.0).abs() < 1e-5, "{w}");
+                assert_eq!(pdf, toward_sphere_pdf(c, r, p));
+                assert!(w.dot(to_c.normalize()) >= cos_max - 1e-6, "{p}: {w} leaves the cone");
+            }
+        }
+        let inside = c + Vec3::new(0.1, 0.0, 0.0);
+        assert_eq!(toward_sphere_pdf(c, r, inside), pdf_sphere_uniform());
+        // A tiny cone's density is its solid angle's inverse, πθ² ≈ πr²/d².
+        let far = Vec3::new(0.3, -3000.0, -0.5);
+        let expected = (c - far).length_squared() / (PI * r * r);
+        assert!((toward_sphere_pdf(c, r, far) / expected - 1.0).abs() < 1e-3);
+    }
 
     #[test]
     fn sphere_cone_samples_hit_the_sphere_with_the_right_density() {

@@ -469,14 +469,21 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 continue;
             }
             if matches!(s.shape, Shape::Sdf(_) | Shape::SdfGrid(_) | Shape::Implicit(_)) {
-                // Its light arrives where paths hit it, unweighted by MIS
-                // (no other strategy finds it), so it is unbiased but not
-                // sampled: noisy where it is small.
+                if s.motion.is_some() {
+                    // Its light arrives where paths hit it, unweighted by
+                    // MIS (no other strategy finds it).
+                    warnings.push(format!(
+                        "shape[{}]: a moving emissive distance function or implicit surface is not sampled as a light: its light reaches what paths that hit it see, noisily where it is small",
+                        shape_desc_index[i]
+                    ));
+                    continue;
+                }
+                // Lit by direction only (see `Light::Area::cone`): no
+                // light subpath or photon starts on it.
                 warnings.push(format!(
-                    "shape[{}]: an emissive distance function or implicit surface is not sampled as a light (it has no area to sample): its light reaches what paths that hit it see (path, volpath, bdpt, vcm, mlt), noisily where it is small, and photon mapping, SPPM and light tracing do not see it",
+                    "shape[{}]: an emissive distance function or implicit surface has no density over its area: the path tracers and direct lighting sample it by direction, but light tracing, photons and the light subpaths of bdpt, vcm and mlt do not start on it (its light reaches them where their camera paths hit it)",
                     shape_desc_index[i]
                 ));
-                continue;
             }
             emitters.push((EmitterRef::Shape(i as u32), s.material));
         }
@@ -492,7 +499,14 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         }
     }
     for (emitter, material) in emitters {
-        let area = geometry.emitter_area(emitter);
+        let cone = crate::light::implicit_emitter_sphere(&geometry, emitter);
+        let area = match cone {
+            Some(sphere) => crate::accel::aggregate::EmitterArea {
+                total: crate::light::crofton_area(&geometry, emitter, sphere),
+                triangles: None,
+            },
+            None => geometry.emitter_area(emitter),
+        };
         if area.total.is_nan() || area.total <= 0.0 {
             warnings.push(format!(
                 "{}: an emissive surface has zero area and emits no light",
@@ -512,6 +526,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             parallelogram: crate::light::Parallelogram::of_emitter(&geometry, emitter, &area),
             area,
             sphere: crate::light::emitter_sphere(&geometry, emitter),
+            cone,
         });
         match emitter {
             EmitterRef::Shape(i) => geometry.shapes[i as usize].light = Some(index),
@@ -790,7 +805,14 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         }
     };
     let powers: Vec<f32> = scene.lights.iter().map(|l| l.power(&scene, radius)).collect();
-    scene.light_distribution = Distribution1D::new(&powers);
+    // Rays of light start only from lights that emit them.
+    let emitting: Vec<f32> = scene
+        .lights
+        .iter()
+        .zip(&powers)
+        .map(|(l, &power)| if l.emits_rays() { power } else { 0.0 })
+        .collect();
+    scene.light_distribution = Distribution1D::new(&emitting);
     // For a shading point, by the light tree.
     let bounds: Vec<_> = scene
         .lights

@@ -1911,9 +1911,9 @@ impl SceneDesc {
                         ShapeKind::Bezier(b) if b.area() > 0.0 => None,
                         ShapeKind::Bezier(_) => Some("a Bézier patch without area (degenerate) cannot emit light"),
                         ShapeKind::Curve(_) => Some("a curve cannot emit light (nor in pbrt-v4)"),
-                        // Distance functions and implicit surfaces emit
-                        // where paths hit them; the build warns that no
-                        // light samples them.
+                        // Distance functions and implicit surfaces emit:
+                        // lights sample them by direction, and the build
+                        // warns that no light subpath starts on them.
                         _ => None,
                     };
                     if let (true, Some(why)) = (emits, why) {

@@ -321,6 +321,8 @@ fn pdf_le(scene: &Scene, bounds: (Vec3, f32), light: u32, p: Vec3, n: Vec3, w: V
         Light::Projector(proj) => (1.0, proj.pdf_emission(w)),
         Light::Goniometric(g) => (1.0, g.pdf_emission(w)),
         Light::Directional { .. } => (disk, 1.0),
+        // Sampled by direction only: no light subpath starts on it.
+        Light::Area { cone: Some(_), .. } => (0.0, 0.0),
         Light::Area {
             emitter,
             area,
@@ -1103,13 +1105,15 @@ impl<'s> Tracer<'s> {
     }
 
     /// Camera vertex `v` on an emitter, as the light vertex a light
-    /// subpath would have started there; `None` where no light is there.
+    /// subpath would have started there; `None` where no light is there,
+    /// or none that light subpaths start from (an emitter sampled by
+    /// direction only: no other strategy makes the path).
     fn as_light(&self, v: &Vertex<'s>) -> Option<Vertex<'s>> {
         match v.kind {
             Kind::Light { .. } => Some(*v),
             Kind::Surface => {
                 let hit = v.hit.as_ref()?;
-                let light = hit.light?;
+                let light = hit.light.filter(|&l| self.scene.lights[l as usize].emits_rays())?;
                 let kind = Kind::Light {
                     light,
                     infinite: false,
