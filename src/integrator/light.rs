@@ -444,7 +444,8 @@ fn trace_path(
     if scene.lights.is_empty() || scene.light_distribution.is_empty() {
         return;
     }
-    let Some((emitted, _, pmf)) = crate::light::sample_scene_emission(scene, bounds, rng) else {
+    let Some((emitted, _, pmf)) = crate::light::sample_scene_emission(scene, &scene.light_distribution, bounds, rng)
+    else {
         return;
     };
     // The light's own point, seen directly (one segment).

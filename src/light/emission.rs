@@ -19,6 +19,7 @@
 //! | spot | its position | uniform inside the outer cone, weighted by the smooth falloff |
 //! | directional | uniform on a disk of the scene's bounding radius, before the scene | the light's direction |
 //! | area | uniform on the emitter (by area) | cosine-weighted about the front normal (for a two-sided emitter about either side's, each with probability ½) |
+//! | area without an area density (distance functions, implicit surfaces) | one of the crossings of a line drawn uniformly through its bounding sphere (weighted by their number) | the line's, turned to the emitting side: cosine-weighted (Crofton) |
 //! | environment | uniform on a disk facing the sampled direction, beyond the scene | importance-sampled from the background |
 //!
 //! A point or spot light with `falloff = false` (the classical constant
@@ -93,16 +94,18 @@ pub fn scene_bounding_sphere(scene: &Scene) -> (Vec3, f32) {
 /// starts on: about 250 ulps, above the rounding error of sampled points.
 const EMITTER_OFFSET: f32 = 3e-5;
 
-/// A ray of light from the whole scene: a light chosen in proportion to
-/// its power, then a point and direction on it ([`Light::sample_le`]), with
-/// the light's index and the probability of that choice; `None` when the
-/// sample carries no light. Draws six numbers from `rng`, in that order.
+/// A ray of light from the whole scene: a light chosen by `lights` (one
+/// of the scene's distributions over its lights, by power), then a point
+/// and direction on it ([`Light::sample_le`]), with the light's index and
+/// the probability of that choice; `None` when the sample carries no
+/// light. Draws six numbers from `rng`, in that order.
 pub fn sample_scene_emission<R: Uniforms>(
     scene: &Scene,
+    lights: &crate::sampling::Distribution1D,
     bounds: (Vec3, f32),
     rng: &mut R,
 ) -> Option<(EmissionSample, usize, f32)> {
-    let (light_index, pmf, _) = scene.light_distribution.sample(rng.next_f32());
+    let (light_index, pmf, _) = lights.sample(rng.next_f32());
     if pmf <= 0.0 {
         return None;
     }
@@ -170,6 +173,44 @@ impl Light {
                 let d = sample_disk_concentric(u_pos) * radius;
                 let origin = center - *direction * radius + frame.to_world(Vec3::new(d.x, d.y, 0.0));
                 (*irradiance * (PI * radius * radius), Ray::new(origin, *direction))
+            }
+            Light::Area {
+                emitter: super::EmitterRef::Shape(i),
+                radiance,
+                two_sided,
+                cone: Some((center, radius)),
+                ..
+            } => {
+                // No density over its area: a line drawn uniformly among
+                // those meeting the bounding sphere crosses the surface
+                // uniformly by area, at directions distributed as |cos θ|
+                // about the normal (Crofton; Cauchy). Of its k crossings
+                // one is taken (k times as much light), and the line's
+                // direction, turned to the emitting side, is the ray's.
+                // The oriented lines' measure M makes E[k·f(x, ω)] =
+                // (2/M)·∫∫ f cos θ dω dA over the emitting hemisphere, so
+                // the point's density is 2π/(M·k) and the ray's direction
+                // cosine-weighted, as an area light's.
+                let line = super::uniform_line(*center, *radius, u_pos, u_dir);
+                let hits = super::line_crossings(&scene.geometry, *i, line, *radius, radiance.reads_uv());
+                let k = hits.len();
+                let hit = hits.get(((u_pick * k as f32) as usize).min(k.checked_sub(1)?))?;
+                let pdf_area = 2.0 * PI / (super::line_measure(*radius) * k as f32);
+                let w = line.1;
+                let (dir, sides) = match (*two_sided, w.dot(hit.ng) >= 0.0) {
+                    (true, _) => (w, 2.0),
+                    (false, true) => (w, 1.0),
+                    (false, false) => (-w, 1.0),
+                };
+                let le = radiance.eval(&scene.textures, &TexCoord::new(hit.uv, hit.p));
+                surface = Some(EmitterPoint {
+                    p: hit.p,
+                    n: hit.ng,
+                    two_sided: *two_sided,
+                    le,
+                    pdf_area,
+                });
+                (le * (sides * PI / pdf_area), hit.spawn_ray(dir))
             }
             Light::Area {
                 emitter,
@@ -350,6 +391,50 @@ mod tests {
                 err[c],
                 expected[c]
             );
+        }
+    }
+
+    /// Emitters without an area density emit from the crossings of lines
+    /// through their bounding spheres: the photons of a distance-function
+    /// torus (up to four crossings a line), a two-sided one, and an
+    /// equation sphere carry π·A·Le (twice that two-sided), A their areas.
+    #[test]
+    fn photons_of_distance_functions_and_equations_carry_their_power() {
+        let cases = [
+            (
+                "type = \"sdf\"\nsdf = { torus = [0.6, 0.2] }\ntransform = [{ rotate = { axis = [1, 0, 0], angle = 30 } }]",
+                4.0 * PI * PI * 0.6 * 0.2,
+                false,
+            ),
+            (
+                "type = \"sdf\"\nsdf = { torus = [0.6, 0.2] }",
+                4.0 * PI * PI * 0.6 * 0.2,
+                true,
+            ),
+            (
+                "type = \"implicit\"\nequation = \"x^2 + y^2 + z^2 - 0.49\"\nbounds = [[-0.8, -0.8, -0.8], [0.8, 0.8, 0.8]]",
+                4.0 * PI * 0.49,
+                false,
+            ),
+        ];
+        for (shape, area, two_sided) in cases {
+            let text = format!(
+                "[[material]]\nname = \"l\"\nemission = [1, 2, 3]\ntwo_sided_emission = {two_sided}\n[[shape]]\n{shape}\nmaterial = \"l\"\n"
+            );
+            let d = crate::scene::native::parse(&text, std::path::Path::new("t.toml")).unwrap();
+            let scene = crate::scene::build(&d).unwrap();
+            let (mean, err) = scene_flux(&scene, 200_000, 4);
+            let sides = if two_sided { 2.0 } else { 1.0 };
+            let expected = (Rgb::new(1.0, 2.0, 3.0) * (sides * PI * area)).as_dvec3();
+            for c in 0..3 {
+                assert!(
+                    (mean[c] - expected[c]).abs() <= 4.0 * err[c] + 2e-3 * expected[c],
+                    "{shape}, channel {c}: {} ± {} vs {}",
+                    mean[c],
+                    err[c],
+                    expected[c]
+                );
+            }
         }
     }
 

@@ -108,8 +108,10 @@ pub enum Light {
         /// surface), which is sampled by direction instead: uniformly in
         /// the cone the sphere subtends (over every direction from inside
         /// it), the light's point the emitter's first along the direction.
-        /// Such an emitter emits no light subpaths or photons (see
-        /// [`Light::emits_rays`]).
+        /// Its rays of light leave from the crossings of lines drawn
+        /// through the sphere ([`Light::sample_le`]); no bidirectional
+        /// light subpath starts on it (see
+        /// [`Light::has_emission_densities`]).
         cone: Option<(Vec3, f32)>,
     },
     /// The background (see [`Background`]), as light from every direction.
@@ -704,12 +706,14 @@ impl Light {
         self.sample_li(scene, p, u_pick, u, incomplete)
     }
 
-    /// Whether the light emits rays of light ([`Light::sample_le`]): all
-    /// but an emitter sampled only by direction (a distance function or
-    /// an implicit surface, which has no density over its area), which
-    /// light subpaths, light tracing and photons therefore never start
-    /// from.
-    pub fn emits_rays(&self) -> bool {
+    /// Whether the densities of the light's emission and light samples
+    /// are ones bidirectional MIS can weigh (per unit area of its points):
+    /// all but an emitter sampled by direction (a distance function or an
+    /// implicit surface, which has no density over its area), from which
+    /// BDPT's, VCM's and MLT's light subpaths therefore never start.
+    /// Photons and light tracing start from it all the same
+    /// ([`Light::sample_le`]).
+    pub fn has_emission_densities(&self) -> bool {
         !matches!(self, Light::Area { cone: Some(_), .. })
     }
 
@@ -831,8 +835,19 @@ impl Light {
                     return None;
                 };
                 let (wi, pdf) = sample_toward_sphere(*center, *radius, p, u);
-                let ray = crate::geometry::Ray::with_interval(p, wi, TOWARD_SPHERE_START * radius, f32::MAX);
-                let hit = scene.geometry.shape_hit(i, &ray, radiance.reads_uv())?;
+                let start = TOWARD_SPHERE_START * radius;
+                let mut ray = crate::geometry::Ray::with_interval(p, wi, start, f32::MAX);
+                let mut hit = scene.geometry.shape_hit(i, &ray, radiance.reads_uv())?;
+                // A crossing at the first step lies on the surface the
+                // point is on (a path bouncing off the emitter): the point
+                // a ray leaving that surface meets is the next one.
+                for _ in 0..2 {
+                    if (hit.p - p).length() > 2.0 * start {
+                        break;
+                    }
+                    ray = hit.spawn_ray(wi);
+                    hit = scene.geometry.shape_hit(i, &ray, radiance.reads_uv())?;
+                }
                 area_light_sample(scene, p, hit.p, hit.ng, *two_sided, hit.uv, Some(pdf), 0.0, radiance)
             }
             Light::Area {
@@ -1102,12 +1117,62 @@ pub fn implicit_emitter_sphere(scene_geometry: &crate::accel::Aggregate, emitter
     (radius.is_finite() && radius > 0.0).then(|| (b.centroid(), radius))
 }
 
+/// Most crossings of one line with an emitter that [`line_crossings`]
+/// finds; those beyond are left out.
+pub const MAX_LINE_CROSSINGS: usize = 32;
+
+/// The measure of the oriented lines that meet a sphere of radius
+/// `radius`: 4π directions times the πr² of its shadow.
+pub fn line_measure(radius: f32) -> f32 {
+    4.0 * PI * PI * radius * radius
+}
+
+/// The oriented line drawn uniformly among those meeting the sphere of
+/// `center` and `radius` (a direction uniform over the sphere from `u_dir`,
+/// a point uniform over the disk of the sphere's shadow from `u_pos`):
+/// where it enters the sphere's bounding cube of side 3r and its direction.
+fn uniform_line(center: Vec3, radius: f32, u_pos: Vec2, u_dir: Vec2) -> (Vec3, Vec3) {
+    let w = sample_sphere_uniform(u_dir);
+    let q = crate::sampling::warp::sample_disk_concentric(u_pos) * radius;
+    let through = center + Frame::from_normal(w).to_world(Vec3::new(q.x, q.y, 0.0));
+    (through - 1.5 * radius * w, w)
+}
+
+/// Where the segment from `start` along unit `w` over 3·`radius` (a line
+/// through an emitter's bounding sphere, from [`uniform_line`]) crosses
+/// shape `i`, in order (at most [`MAX_LINE_CROSSINGS`]), with the surface
+/// there (coordinates if `uv`). Each search after the first starts from
+/// the last crossing as a path's ray leaves a surface.
+pub fn line_crossings(
+    scene_geometry: &crate::accel::Aggregate,
+    i: u32,
+    (start, w): (Vec3, Vec3),
+    radius: f32,
+    uv: bool,
+) -> arrayvec::ArrayVec<SurfaceHit, MAX_LINE_CROSSINGS> {
+    let end = start + 3.0 * radius * w;
+    let mut hits = arrayvec::ArrayVec::new();
+    let mut ray = crate::geometry::Ray::with_interval(start, w, 0.0, 3.0 * radius);
+    while !hits.is_full() {
+        let Some(hit) = scene_geometry.shape_hit(i, &ray, uv) else {
+            break;
+        };
+        let next = hit.spawn_ray(w);
+        let remaining = (end - next.origin).dot(w);
+        hits.push(hit);
+        if remaining <= 0.0 {
+            break;
+        }
+        ray = crate::geometry::Ray::with_interval(next.origin, w, 0.0, remaining);
+    }
+    hits
+}
+
 /// An estimate of the area of emitter `emitter` (shape `i`) inside its
-/// bounding `sphere`, for choosing lights by power only: by Crofton's
-/// formula, a line drawn uniformly among those meeting a sphere of area S
-/// crosses a surface of area A inside it 2A/S times on average. Each line
-/// is cast from both ends, which counts every crossing of a convex surface
-/// and at least one of any other (an underestimate there). Deterministic.
+/// bounding `sphere`, for choosing lights by power: by Crofton's formula,
+/// an oriented line drawn uniformly among those meeting a sphere (of
+/// measure M, [`line_measure`]) crosses a surface of area A inside it
+/// 2πA/M times on average. Deterministic (a fixed seed).
 pub fn crofton_area(
     scene_geometry: &crate::accel::Aggregate,
     emitter: EmitterRef,
@@ -1118,22 +1183,16 @@ pub fn crofton_area(
         return 0.0;
     };
     let mut rng = crate::sampling::rng::Pcg32::new(0x5eed_c0f7, i as u64);
-    let mut crossings = 0u32;
+    let mut crossings = 0usize;
     for _ in 0..LINES {
-        let w = sample_sphere_uniform(Vec2::new(rng.next_f32(), rng.next_f32()));
-        let q = crate::sampling::warp::sample_disk_concentric(Vec2::new(rng.next_f32(), rng.next_f32())) * radius;
-        let frame = Frame::from_normal(w);
-        let through = center + frame.to_world(Vec3::new(q.x, q.y, 0.0));
-        for dir in [w, -w] {
-            let ray = crate::geometry::Ray::with_interval(through - 1.5 * radius * dir, dir, 0.0, 3.0 * radius);
-            if scene_geometry.shape_hit(i, &ray, false).is_some() {
-                crossings += 1;
-            }
-        }
+        let u_pos = Vec2::new(rng.next_f32(), rng.next_f32());
+        let u_dir = Vec2::new(rng.next_f32(), rng.next_f32());
+        let line = uniform_line(center, radius, u_pos, u_dir);
+        crossings += line_crossings(scene_geometry, i, line, radius, false).len();
     }
     // Nothing met: as if one line in all had crossed it (it is small).
     let mean = crossings.max(1) as f32 / LINES as f32;
-    2.0 * PI * radius * radius * mean
+    line_measure(radius) * mean / (2.0 * PI)
 }
 
 #[cfg(test)]

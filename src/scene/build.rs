@@ -478,10 +478,10 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                     ));
                     continue;
                 }
-                // Lit by direction only (see `Light::Area::cone`): no
-                // light subpath or photon starts on it.
+                // Sampled by direction (see `Light::Area::cone`): no
+                // bidirectional light subpath starts on it.
                 warnings.push(format!(
-                    "shape[{}]: an emissive distance function or implicit surface has no density over its area: the path tracers and direct lighting sample it by direction, but light tracing, photons and the light subpaths of bdpt, vcm and mlt do not start on it (its light reaches them where their camera paths hit it)",
+                    "shape[{}]: an emissive distance function or implicit surface has no density over its area: lights sample it by direction and photons leave it from lines drawn through it, but the light subpaths of bdpt, vcm and mlt do not start on it (their camera subpaths find its light where they hit it)",
                     shape_desc_index[i]
                 ));
             }
@@ -792,6 +792,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         settings: desc.settings.clone(),
         warnings,
         light_distribution: Distribution1D::default(),
+        mis_light_distribution: Distribution1D::default(),
         light_sampler: Default::default(),
         environment_light,
     };
@@ -805,14 +806,15 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         }
     };
     let powers: Vec<f32> = scene.lights.iter().map(|l| l.power(&scene, radius)).collect();
-    // Rays of light start only from lights that emit them.
-    let emitting: Vec<f32> = scene
+    scene.light_distribution = Distribution1D::new(&powers);
+    // Bidirectional light subpaths start only where MIS can weigh them.
+    let weighable: Vec<f32> = scene
         .lights
         .iter()
         .zip(&powers)
-        .map(|(l, &power)| if l.emits_rays() { power } else { 0.0 })
+        .map(|(l, &power)| if l.has_emission_densities() { power } else { 0.0 })
         .collect();
-    scene.light_distribution = Distribution1D::new(&emitting);
+    scene.mis_light_distribution = Distribution1D::new(&weighable);
     // For a shading point, by the light tree.
     let bounds: Vec<_> = scene
         .lights

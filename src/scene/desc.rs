@@ -1913,7 +1913,8 @@ impl SceneDesc {
                         ShapeKind::Curve(_) => Some("a curve cannot emit light (nor in pbrt-v4)"),
                         // Distance functions and implicit surfaces emit:
                         // lights sample them by direction, and the build
-                        // warns that no light subpath starts on them.
+                        // warns that no bidirectional light subpath
+                        // starts on them.
                         _ => None,
                     };
                     if let (true, Some(why)) = (emits, why) {

@@ -551,8 +551,9 @@ fn bpt_files_are_read_as_patches() {
 /// cone of their bounding sphere, the point their first along it), and no
 /// light subpath starts on them (a warning says so). A floor lit by an
 /// emitting sphere of either kind is lit as by the analytic sphere, by the
-/// path tracer with MIS, volpath, BDPT, VCM and photon mapping's direct
-/// light; and next-event
+/// path tracer with MIS, volpath, BDPT, VCM, photon mapping, SPPM and
+/// light tracing (the photons' power is checked closely in
+/// `light::emission`'s tests); and next-event
 /// estimation finds the lamp: with MIS the image is about as noisy as the
 /// analytic sphere's, and less than with BSDF sampling alone.
 #[test]
@@ -594,7 +595,7 @@ fn emitting_distance_functions_and_equations_are_sampled_by_direction() {
             e_mis < 0.75 * e_bsdf && e_mis < 1.2 * e_reference,
             "{what}: light samples find the lamp: standard error {e_mis} with MIS, {e_bsdf} with BSDF sampling, {e_reference} for the analytic sphere"
         );
-        for integrator in ["volpath", "bdpt", "vcm", "photon"] {
+        for integrator in ["volpath", "bdpt", "vcm", "photon", "sppm", "light"] {
             let film = lit_by(lamp, &format!("mis\"\nintegrator = \"{integrator}"));
             check_mis_agrees(&reference, &film, &format!("{what}, {integrator}"));
         }

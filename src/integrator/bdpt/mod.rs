@@ -758,12 +758,17 @@ impl<'s> Tracer<'s> {
     ) {
         path.clear();
         let scene = self.scene;
-        if scene.lights.is_empty() || scene.light_distribution.is_empty() || max_vertices == 0 {
+        if scene.lights.is_empty() || scene.mis_light_distribution.is_empty() || max_vertices == 0 {
             return;
         }
-        let Some((emitted, light, pmf)) = crate::light::sample_scene_emission(scene, self.bounds, rng) else {
+        let Some((emitted, light, pmf)) =
+            crate::light::sample_scene_emission(scene, &scene.mis_light_distribution, self.bounds, rng)
+        else {
             return;
         };
+        if !scene.lights[light].has_emission_densities() {
+            return;
+        }
         let light = light as u32;
         let w = emitted.ray.dir;
         let beta = emitted.weight / pmf;
@@ -935,14 +940,17 @@ impl<'s> Tracer<'s> {
         u: Vec2,
     ) -> Option<(Vertex<'s>, Vec3, Rgb, ShadowTarget)> {
         let scene = self.scene;
-        if scene.light_distribution.is_empty() {
+        if scene.mis_light_distribution.is_empty() {
             return None;
         }
-        let (index, pmf, _) = scene.light_distribution.sample(u_light);
+        let (index, pmf, _) = scene.mis_light_distribution.sample(u_light);
         if pmf <= 0.0 {
             return None;
         }
         let light = &scene.lights[index];
+        if !light.has_emission_densities() {
+            return None;
+        }
         let infinite = matches!(light, Light::Environment | Light::Directional { .. });
         let kind = Kind::Light {
             light: index as u32,
@@ -1113,7 +1121,9 @@ impl<'s> Tracer<'s> {
             Kind::Light { .. } => Some(*v),
             Kind::Surface => {
                 let hit = v.hit.as_ref()?;
-                let light = hit.light.filter(|&l| self.scene.lights[l as usize].emits_rays())?;
+                let light = hit
+                    .light
+                    .filter(|&l| self.scene.lights[l as usize].has_emission_densities())?;
                 let kind = Kind::Light {
                     light,
                     infinite: false,
@@ -1547,7 +1557,7 @@ impl<'s> Tracer<'s> {
             return 0.0;
         };
         let scene = self.scene;
-        let pmf = scene.light_distribution.pmf(light as usize);
+        let pmf = scene.mis_light_distribution.pmf(light as usize);
         if infinite {
             return match &scene.lights[light as usize] {
                 Light::Environment => pmf * scene.background.pdf(v.p),

@@ -134,7 +134,8 @@ fn trace_one(
     out: &mut Vec<Photon>,
     rays: &mut u64,
 ) {
-    let Some((emitted, _, pmf)) = crate::light::sample_scene_emission(scene, bounds, rng) else {
+    let Some((emitted, _, pmf)) = crate::light::sample_scene_emission(scene, &scene.light_distribution, bounds, rng)
+    else {
         return;
     };
     let mut beta = emitted.weight / (pmf * count as f32);
