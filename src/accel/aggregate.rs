@@ -1157,7 +1157,9 @@ fn bake_transform(mut s: ShapeInstance) -> ShapeInstance {
 /// Area data of one emitter.
 #[derive(Clone, Debug, Default)]
 pub struct EmitterArea {
-    /// Total area: world-space for meshes, object-space for shapes.
+    /// Total area: world-space for meshes and for shapes sampled by
+    /// direction (an estimate, `light::crofton_area`), object-space for
+    /// other shapes.
     pub total: f32,
     /// Triangle areas, for meshes.
     pub triangles: Option<Distribution1D>,

@@ -396,8 +396,9 @@ mod tests {
 
     /// Emitters without an area density emit from the crossings of lines
     /// through their bounding spheres: the photons of a distance-function
-    /// torus (up to four crossings a line), a two-sided one, and an
-    /// equation sphere carry π·A·Le (twice that two-sided), A their areas.
+    /// torus (up to four crossings a line), a two-sided one, a scaled
+    /// sphere and an equation sphere carry π·A·Le (twice that two-sided),
+    /// A their areas, and their powers for choosing lights are near it.
     #[test]
     fn photons_of_distance_functions_and_equations_carry_their_power() {
         let cases = [
@@ -410,6 +411,11 @@ mod tests {
                 "type = \"sdf\"\nsdf = { torus = [0.6, 0.2] }",
                 4.0 * PI * PI * 0.6 * 0.2,
                 true,
+            ),
+            (
+                "type = \"sdf\"\nsdf = { sphere = 0.3 }\ntransform = [{ scale = [2, 2, 2] }]",
+                4.0 * PI * 0.36,
+                false,
             ),
             (
                 "type = \"implicit\"\nequation = \"x^2 + y^2 + z^2 - 0.49\"\nbounds = [[-0.8, -0.8, -0.8], [0.8, 0.8, 0.8]]",
@@ -426,6 +432,11 @@ mod tests {
             let (mean, err) = scene_flux(&scene, 200_000, 4);
             let sides = if two_sided { 2.0 } else { 1.0 };
             let expected = (Rgb::new(1.0, 2.0, 3.0) * (sides * PI * area)).as_dvec3();
+            // Its power, by which lights are chosen, from its area in the
+            // world (estimated by Crofton's formula).
+            let power = scene.lights[0].power(&scene, 1.0);
+            let exact = sides * PI * area * crate::color::luminance(Rgb::new(1.0, 2.0, 3.0));
+            assert!((power / exact - 1.0).abs() < 0.2, "{shape}: power {power} for {exact}");
             for c in 0..3 {
                 assert!(
                     (mean[c] - expected[c]).abs() <= 4.0 * err[c] + 2e-3 * expected[c],

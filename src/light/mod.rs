@@ -990,11 +990,14 @@ impl Light {
                 radiance,
                 area,
                 two_sided,
+                cone,
                 ..
             } => {
-                // World-space area: exact for meshes, scaled by the
-                // transform's average area factor for shapes.
+                // World-space area: exact for meshes, estimated in world
+                // space for emitters sampled by direction, scaled by the
+                // transform's average area factor for other shapes.
                 let world_area = match emitter {
+                    _ if cone.is_some() => area.total,
                     EmitterRef::Shape(i) => match &scene.geometry.shapes[*i as usize].transform {
                         Some(t) => {
                             let det = glam::Mat3::from_mat4(t.m).determinant().abs();
