@@ -315,7 +315,7 @@ impl PathTracer {
         slot: &mut Option<SurfaceHit>,
     ) -> Option<Found> {
         let shows_emission = scene.settings.shows_emission(depth);
-        *slot = scene.intersect(ray);
+        scene.intersect_into(ray, slot);
         let Some(hit) = slot else {
             let (Some(env), true) = (scene.environment_light, shows_emission) else {
                 return None;

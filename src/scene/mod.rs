@@ -95,12 +95,26 @@ impl Scene {
     /// The nearest surface along `ray`.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
-        let hit = self.geometry.intersect(ray)?;
-        let mut surface = self.geometry.surface_with(ray, &hit, |m| {
+        let mut slot = None;
+        self.intersect_into(ray, &mut slot);
+        slot
+    }
+
+    /// [`Scene::intersect`] written into `slot`. The record is built where
+    /// the caller keeps it: a returned one is copied with wider loads than
+    /// the stores that wrote its fields, and the copy waits on them.
+    #[inline]
+    pub fn intersect_into(&self, ray: &Ray, slot: &mut Option<SurfaceHit>) {
+        // The hit is read where the traversal wrote it, for the same reason.
+        let found = self.geometry.intersect(ray);
+        let Some(hit) = &found else {
+            *slot = None;
+            return;
+        };
+        let surface = slot.insert(self.geometry.surface_with(ray, hit, |m| {
             self.materials_reading_uv.get(m as usize).copied().unwrap_or(true)
-        });
-        self.choose_material(&mut surface, ray.dir);
-        Some(surface)
+        }));
+        self.choose_material(surface, ray.dir);
     }
 
     /// Replaces a mix material of a hit seen along `dir` by the material it
