@@ -759,48 +759,60 @@ impl Aggregate {
     /// The nearest intersection within the ray's interval.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut found = None;
+        self.intersect_into(ray, &mut found);
+        found
+    }
+
+    /// [`Aggregate::intersect`] written into `found`, where the caller
+    /// reads it: a returned hit is copied out with wider loads than the
+    /// stores that wrote its fields, and the copy waits on them.
+    #[inline]
+    pub fn intersect_into(&self, ray: &Ray, found: &mut Option<Hit>) {
+        *found = None;
         // A tree of one leaf (a room) skips the general traversal, and its
         // stack frame of kilobytes.
         if let (Some(leaf), true) = (self.bvh.root_leaf(), self.unbounded.is_empty()) {
-            return self.leaf_hit(leaf, ray, false);
+            self.leaf_hit(leaf, ray, false, found);
+            return;
         }
-        self.intersect_traversed(ray)
+        self.intersect_traversed(ray, found)
     }
 
     /// The nearest (with `any_hit`, some) hit of a tree that is one leaf
     /// (a room: a few blocks of rectangles), without the traversal's stack
     /// frame: what the traversal finds, in the same order.
+    /// The hit goes to `best` (left as it is where there is none).
     #[inline]
     #[allow(unsafe_code)]
-    fn leaf_hit(&self, leaf: (u32, u32), ray: &Ray, any_hit: bool) -> Option<Hit> {
+    fn leaf_hit(&self, leaf: (u32, u32), ray: &Ray, any_hit: bool, best: &mut Option<Hit>) {
         #[cfg(target_arch = "x86_64")]
         if self.blocks.is_some() {
             // SAFETY: blocks exist only where the processor has AVX.
-            return unsafe { self.leaf_hit_avx(leaf, ray, any_hit) };
+            return unsafe { self.leaf_hit_avx(leaf, ray, any_hit, best) };
         }
-        self.leaf_items_hit(leaf, ray, any_hit)
+        self.leaf_items_hit(leaf, ray, any_hit, best)
     }
 
     /// [`Aggregate::leaf_hit`] built for AVX, so that the block tests are
     /// inlined.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
-    fn leaf_hit_avx(&self, leaf: (u32, u32), ray: &Ray, any_hit: bool) -> Option<Hit> {
-        self.leaf_items_hit(leaf, ray, any_hit)
+    fn leaf_hit_avx(&self, leaf: (u32, u32), ray: &Ray, any_hit: bool, best: &mut Option<Hit>) {
+        self.leaf_items_hit(leaf, ray, any_hit, best)
     }
 
     #[inline(always)]
-    fn leaf_items_hit(&self, (first, count): (u32, u32), ray: &Ray, any_hit: bool) -> Option<Hit> {
+    fn leaf_items_hit(&self, (first, count): (u32, u32), ray: &Ray, any_hit: bool, best: &mut Option<Hit>) {
         // A zero direction meets nothing bounded.
         if ray.dir == Vec3::ZERO {
-            return None;
+            return;
         }
         let mut r = *ray;
-        let mut best = None;
         let mut pre = None;
         let mut on_hit = |hit: Hit, r: &mut Ray| {
             r.t_max = hit.t;
-            best = Some(hit);
+            *best = Some(hit);
             true
         };
         for k in first..first + count {
@@ -808,7 +820,6 @@ impl Aggregate {
                 break;
             }
         }
-        best
     }
 
     /// [`Aggregate::intersect`] through the general traversal: built for
@@ -816,40 +827,41 @@ impl Aggregate {
     /// has it), so that the blocks' tests are inlined into it.
     #[inline(never)]
     #[allow(unsafe_code)]
-    fn intersect_traversed(&self, ray: &Ray) -> Option<Hit> {
+    fn intersect_traversed(&self, ray: &Ray, best: &mut Option<Hit>) {
         #[cfg(target_arch = "x86_64")]
         if self.blocks.is_some() {
             // SAFETY: blocks exist only where the processor has AVX.
-            return unsafe { self.intersect_avx(ray) };
+            return unsafe { self.intersect_avx(ray, best) };
         }
-        self.nearest_hit(ray)
+        self.nearest_hit(ray, best)
     }
 
     /// [`Aggregate::nearest_hit`] built for AVX.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
-    fn intersect_avx(&self, ray: &Ray) -> Option<Hit> {
-        self.nearest_hit(ray)
+    fn intersect_avx(&self, ray: &Ray, best: &mut Option<Hit>) {
+        self.nearest_hit(ray, best)
     }
 
-    /// The general traversal for the nearest hit.
+    /// The general traversal for the nearest hit, put in `best` (left as
+    /// it is where there is none).
     #[inline(always)]
-    fn nearest_hit(&self, ray: &Ray) -> Option<Hit> {
+    fn nearest_hit(&self, ray: &Ray, best: &mut Option<Hit>) {
         let mut r = *ray;
-        let mut best = None;
         self.traverse(&mut r, false, |hit, r| {
             r.t_max = hit.t;
-            best = Some(hit);
+            *best = Some(hit);
             true
         });
-        best
     }
 
     /// Whether anything lies on the ray within its interval.
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
         if let (Some(leaf), true) = (self.bvh.root_leaf(), self.unbounded.is_empty()) {
-            return self.leaf_hit(leaf, ray, true).is_some();
+            let mut found = None;
+            self.leaf_hit(leaf, ray, true, &mut found);
+            return found.is_some();
         }
         self.occluded_traversed(ray)
     }

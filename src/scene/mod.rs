@@ -106,7 +106,8 @@ impl Scene {
     #[inline]
     pub fn intersect_into(&self, ray: &Ray, slot: &mut Option<SurfaceHit>) {
         // The hit is read where the traversal wrote it, for the same reason.
-        let found = self.geometry.intersect(ray);
+        let mut found = None;
+        self.geometry.intersect_into(ray, &mut found);
         let Some(hit) = &found else {
             *slot = None;
             return;
