@@ -392,6 +392,13 @@ impl Camera {
         Some(self)
     }
 
+    /// Whether the camera moves during the shutter (`Camera::moved` then
+    /// changes rays).
+    #[inline]
+    pub fn moves(&self) -> bool {
+        self.motion.is_some()
+    }
+
     /// A ray the still camera generated, from where the camera is at the
     /// ray's time: moved by (camera to world at that time) · (camera to
     /// world at the start)⁻¹, its direction unit length again.
@@ -471,20 +478,27 @@ impl Camera {
     }
 
     /// The ray through raster position `film` and lens sample `lens`, as
-    /// [`Camera::generate_ray`], with the weight of what it measures: 1
-    /// for every camera but a realistic one, whose rays carry cos⁴θ·A/d²
-    /// and which the lens can block (`None`).
+    /// [`Camera::generate_ray`], written into `ray`, where the caller keeps
+    /// it (a returned ray is copied with wider loads than the stores that
+    /// wrote it, and the copy waits on them); returns the weight of what it
+    /// measures: 1 for every camera but a realistic one, whose rays carry
+    /// cos⁴θ·A/d², and 0 where its lens blocks the ray (`ray` is then
+    /// [`Camera::generate_ray`]'s).
     #[inline]
-    pub fn generate_weighted_ray(&self, film: Vec2, lens: Vec2) -> Option<(Ray, f32)> {
-        let Some(lenses) = &self.lens_system else {
-            return Some((self.generate_ray(film, lens), 1.0));
-        };
-        let (o, d, weight) = lenses.ray((film + self.offset) / self.full_size, lens)?;
-        let ray = Ray::new(
-            self.camera_to_world.point(o),
-            self.camera_to_world.vector(d).normalize(),
-        );
-        Some((ray, weight))
+    pub fn generate_weighted_ray_into(&self, film: Vec2, lens: Vec2, ray: &mut Ray) -> f32 {
+        if let Some(lenses) = &self.lens_system {
+            if let Some((o, d, weight)) = lenses.ray((film + self.offset) / self.full_size, lens) {
+                *ray = Ray::new(
+                    self.camera_to_world.point(o),
+                    self.camera_to_world.vector(d).normalize(),
+                );
+                return weight;
+            }
+            self.generate_ray_into(film, lens, ray);
+            return 0.0;
+        }
+        self.generate_ray_into(film, lens, ray);
+        1.0
     }
 
     /// The ray through raster position `film` (pixels, continuous), using
@@ -494,18 +508,27 @@ impl Camera {
     /// estimates that want a ray per pixel: a photon radius, an AOV).
     #[inline]
     pub fn generate_ray(&self, film: Vec2, lens: Vec2) -> Ray {
+        let mut ray = Ray::new(Vec3::ZERO, Vec3::Z);
+        self.generate_ray_into(film, lens, &mut ray);
+        ray
+    }
+
+    /// [`Camera::generate_ray`] written into `out`.
+    #[inline]
+    pub fn generate_ray_into(&self, film: Vec2, lens: Vec2, out: &mut Ray) {
         if let Some(lenses) = &self.lens_system {
             let at = |u: Vec2| lenses.ray((film + self.offset) / self.full_size, u);
             let (o, d) = at(lens)
                 .or_else(|| at(Vec2::splat(0.5)))
                 .map_or((Vec3::ZERO, Vec3::Z), |(o, d, _)| (o, d));
-            return Ray::new(
+            *out = Ray::new(
                 self.camera_to_world.point(o),
                 self.camera_to_world.vector(d).normalize(),
             );
+            return;
         }
         let ray = self.unclipped_ray(film, lens);
-        match self.clip {
+        *out = match self.clip {
             None => ray,
             Some((near, far)) => {
                 // Distances along the ray to the planes (Mitsuba's

@@ -490,7 +490,8 @@ fn camera_sample(
     splatting: bool,
     sampler: &mut Sampler,
     (x, y, index): (u32, u32, u32),
-) -> (Vec2, Ray, f32) {
+    ray: &mut Ray,
+) -> (Vec2, f32) {
     // A crop window's pixels draw the numbers of the full image's pixels
     // and find their positions there (the window's are those less its
     // corner, exactly, and the camera adds it back, exactly): they come
@@ -506,16 +507,14 @@ fn camera_sample(
     } - Vec2::new(cx as f32, cy as f32);
     let lens = scene.camera.draw_lens(sampler);
     let time = scene.camera.draw_time(sampler);
-    match scene.camera.generate_weighted_ray(position, lens) {
-        Some((ray, weight)) => (position, scene.camera.moved(ray.at_time(time)), weight),
-        None => (
-            position,
-            scene
-                .camera
-                .moved(scene.camera.generate_ray(position, lens).at_time(time)),
-            0.0,
-        ),
+    // The ray is written where the render loop keeps it (see
+    // `Camera::generate_weighted_ray_into`).
+    let weight = scene.camera.generate_weighted_ray_into(position, lens, ray);
+    ray.time = time;
+    if scene.camera.moves() {
+        *ray = scene.camera.moved(*ray);
     }
+    (position, weight)
 }
 
 /// A tile's splats in this pass: the sums over its pixels and margin, and
@@ -672,9 +671,14 @@ fn render_passes<I: Integrator>(
                             let count = (end - group).min(LANES as u32) as usize;
                             let mut live = 0u32;
                             for k in 0..count {
-                                let (position, ray, weight) =
-                                    camera_sample(scene, splat.is_some(), &mut samplers[k], (x, y, group + k as u32));
-                                (positions[k], camera_rays[k], weights[k]) = (position, ray, weight);
+                                let (position, weight) = camera_sample(
+                                    scene,
+                                    splat.is_some(),
+                                    &mut samplers[k],
+                                    (x, y, group + k as u32),
+                                    &mut camera_rays[k],
+                                );
+                                (positions[k], weights[k]) = (position, weight);
                                 if weight > 0.0 {
                                     live |= 1 << k;
                                 }
