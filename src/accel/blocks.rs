@@ -83,13 +83,10 @@ mod avx {
         pub(crate) fn intersect(&self, ray: &Ray, t_max: f32) -> (u32, F8) {
             let corner = load3(&self.v[0]);
             let frame = [corner, load3(&self.v[1]), load3(&self.v[2]), load3(&self.v[3])];
-            let o = [
-                F8::splat(ray.origin.x),
-                F8::splat(ray.origin.y),
-                F8::splat(ray.origin.z),
-            ];
-            let d = [F8::splat(ray.dir.x), F8::splat(ray.dir.y), F8::splat(ray.dir.z)];
-            let (valid, t) = rectangle_lanes(frame, o, d, F8::splat(ray.t_min), F8::splat(t_max.min(f32::MAX)));
+            let (origin, dir, t_min) = ray.read_by_field();
+            let o = [F8::splat(origin.x), F8::splat(origin.y), F8::splat(origin.z)];
+            let d = [F8::splat(dir.x), F8::splat(dir.y), F8::splat(dir.z)];
+            let (valid, t) = rectangle_lanes(frame, o, d, F8::splat(t_min), F8::splat(t_max.min(f32::MAX)));
             (valid.bits(), t)
         }
     }
@@ -164,15 +161,16 @@ mod avx {
         #[target_feature(enable = "avx")]
         pub(crate) fn new(ray: &Ray, pre: &TriangleRay) -> RayLanes {
             let axes = [pre.kx, pre.ky, pre.kz];
+            let (origin, _, t_min) = ray.read_by_field();
             RayLanes {
                 axes,
                 origin: [
-                    F8::splat(ray.origin[pre.kx]),
-                    F8::splat(ray.origin[pre.ky]),
-                    F8::splat(ray.origin[pre.kz]),
+                    F8::splat(origin[pre.kx]),
+                    F8::splat(origin[pre.ky]),
+                    F8::splat(origin[pre.kz]),
                 ],
                 shear: [F8::splat(pre.sx), F8::splat(pre.sy), F8::splat(pre.sz)],
-                t_min: F8::splat(ray.t_min),
+                t_min: F8::splat(t_min),
             }
         }
 

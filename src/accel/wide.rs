@@ -254,8 +254,8 @@ impl<const W: usize> WideBvh<W> {
         if self.nodes.is_empty() {
             return false;
         }
-        let inv = ray.dir.recip();
-        let org = ray.origin;
+        let (org, dir, _) = ray.read_by_field();
+        let inv = dir.recip();
         let (ox, oy, oz) = (Vec4::splat(org.x), Vec4::splat(org.y), Vec4::splat(org.z));
         let (ix, iy, iz) = (Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z));
         // Per ray, pick which side of each box is entered first, so that a

@@ -542,14 +542,15 @@ impl SphereRay<f64> {
     /// The ray, or `None` for a zero direction, which meets no sphere.
     #[inline(always)]
     pub fn new(ray: &Ray) -> Option<SphereRay<f64>> {
-        let d = ray.dir.as_dvec3();
+        let (origin, dir, t_min) = ray.read_by_field();
+        let d = dir.as_dvec3();
         let a = d.length_squared();
         (a != 0.0).then(|| SphereRay {
-            o: ray.origin.as_dvec3().to_array(),
+            o: origin.as_dvec3().to_array(),
             d: d.to_array(),
             a,
             inv_a: 1.0 / a,
-            t_min: ray.t_min as f64,
+            t_min: t_min as f64,
             t_max: ray.t_max as f64,
         })
     }

@@ -51,10 +51,11 @@ impl TriangleRay {
     /// Precomputes for `ray`; `None` for a zero direction.
     #[inline]
     pub fn new(ray: &Ray) -> Option<TriangleRay> {
-        let kz = ray.dir.abs().max_position();
+        let (_, dir, _) = ray.read_by_field();
+        let kz = dir.abs().max_position();
         let kx = if kz == 2 { 0 } else { kz + 1 };
         let ky = if kx == 2 { 0 } else { kx + 1 };
-        let d = permute(ray.dir, kx, ky, kz);
+        let d = permute(dir, kx, ky, kz);
         if d.z == 0.0 {
             return None;
         }
