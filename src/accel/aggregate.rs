@@ -808,7 +808,7 @@ impl Aggregate {
         if ray.dir == Vec3::ZERO {
             return;
         }
-        let mut r = *ray;
+        let mut r = ray.copy_by_field();
         let mut pre = None;
         let mut on_hit = |hit: Hit, r: &mut Ray| {
             r.t_max = hit.t;
@@ -847,7 +847,7 @@ impl Aggregate {
     /// it is where there is none).
     #[inline(always)]
     fn nearest_hit(&self, ray: &Ray, best: &mut Option<Hit>) {
-        let mut r = *ray;
+        let mut r = ray.copy_by_field();
         self.traverse(&mut r, false, |hit, r| {
             r.t_max = hit.t;
             *best = Some(hit);
@@ -889,7 +889,7 @@ impl Aggregate {
     /// The general traversal for any hit.
     #[inline(always)]
     fn any_hit(&self, ray: &Ray) -> bool {
-        let mut r = *ray;
+        let mut r = ray.copy_by_field();
         self.traverse(&mut r, true, |_, _| true)
     }
 

@@ -151,7 +151,7 @@ impl TriangleBvh {
         let Some(pre) = TriangleRay::new(ray) else {
             return QueryHit::NONE;
         };
-        let mut r = *ray;
+        let mut r = ray.copy_by_field();
         let mut best = MISS;
         let test = |k: u32, r: &mut Ray| match self.blocks[k as usize].intersect(r, &pre) {
             Some((lane, t)) => {
@@ -185,7 +185,7 @@ impl TriangleBvh {
         let Some(pre) = TriangleRay::new(ray) else {
             return false;
         };
-        let mut r = *ray;
+        let mut r = ray.copy_by_field();
         self.bvh.traverse_leaves(&self.blocks, &mut r, true, |k, r| {
             self.blocks[k as usize].intersect(r, &pre).is_some()
         })

@@ -68,6 +68,24 @@ impl Ray {
         )
     }
 
+    /// A copy of the ray made from [`Ray::read_by_field`]'s reads, for a
+    /// traversal that shrinks the copy's interval: a plain copy reads the
+    /// ray with wide loads, which wait on the stores of a ray just written.
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    pub fn copy_by_field(&self) -> Ray {
+        let (origin, dir, t_min) = self.read_by_field();
+        // SAFETY: a reference is valid and aligned for reads.
+        let f = |x: &f32| unsafe { std::ptr::read_volatile(x) };
+        Ray {
+            origin,
+            dir,
+            t_min,
+            t_max: f(&self.t_max),
+            time: f(&self.time),
+        }
+    }
+
     /// The same ray traced at `time`.
     #[inline]
     pub fn at_time(mut self, time: f32) -> Self {
