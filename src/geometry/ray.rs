@@ -54,8 +54,8 @@ impl Ray {
     /// a shadow ray just spawned), and the compiler otherwise merges the
     /// reads of neighbouring coordinates into one wider load, which cannot
     /// take its value from the narrower stores still in flight and waits
-    /// for them to reach the cache (a store-forwarding stall: 8 % of the
-    /// Cornell box's render time). Volatile reads are never merged.
+    /// for them to reach the cache (a store-forwarding stall; its cost is
+    /// in BENCHMARKS.md). Volatile reads are never merged.
     #[inline(always)]
     #[allow(unsafe_code)]
     pub fn read_by_field(&self) -> (Vec3, Vec3, f32) {
