@@ -70,7 +70,7 @@ pub enum Projection {
     /// Rays from the film traced through a system of real lenses (pbrt-v4's
     /// `RealisticCamera`; the [`LensSystem`] is the camera's). Its rays
     /// carry weights and the lens blocks some: drawn by
-    /// [`Camera::generate_weighted_ray`]. Light paths do not connect to it.
+    /// [`Camera::generate_weighted_ray_into`]. Light paths do not connect to it.
     Realistic,
 }
 
