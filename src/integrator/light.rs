@@ -45,8 +45,14 @@ use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-/// Paths per work unit.
-pub(crate) const CHUNK: u32 = 4096;
+/// Paths per work unit for an iteration of `paths` paths: up to 4096, but
+/// small enough that a small image still gives every thread work (a
+/// 40×30 image was one unit, so one thread). The units' splats are
+/// added in path order whatever their length, so the image does not
+/// depend on it.
+pub(crate) fn chunk_len(paths: u32) -> u32 {
+    (paths / 64).clamp(64, 4096)
+}
 
 /// Work units traced before their splats are added to the image.
 const BATCH: u32 = 64;
@@ -168,7 +174,8 @@ impl SplatImage {
         // Chunks in batches, each batch's splats added in chunk order
         // before the next is traced: the splats held at once stay bounded
         // however large the image.
-        let chunks = paths.div_ceil(CHUNK);
+        let chunk = chunk_len(paths);
+        let chunks = paths.div_ceil(chunk);
         for batch in (0..chunks).step_by(BATCH as usize) {
             let parts: Vec<(Splats, u64)> = (batch..(batch + BATCH).min(chunks))
                 .into_par_iter()
@@ -178,7 +185,7 @@ impl SplatImage {
                         return (splats, rays);
                     }
                     let mut scratch = S::default();
-                    for i in c * CHUNK..((c + 1) * CHUNK).min(paths) {
+                    for i in c * chunk..((c + 1) * chunk).min(paths) {
                         let mut rng = Pcg32::new(hash_u64s(&[seed, stream, iteration, i as u64]), 0x5bd1);
                         trace(i, &mut rng, target, &mut scratch, &mut splats, &mut rays);
                     }

@@ -37,7 +37,7 @@
 use super::{Kind, LIGHT_STREAM, STREAM, Subpaths, Tracer, Vertex, delta_before, remap, sq, vertex_f};
 use crate::color::Rgb;
 use crate::film::Film;
-use crate::integrator::light::{CHUNK, SplatImage};
+use crate::integrator::light::{SplatImage, chunk_len};
 use crate::integrator::photon::map::Located;
 use crate::integrator::photon::{PhotonMap, same_surface};
 use crate::integrator::{Progressive, Work};
@@ -361,11 +361,12 @@ fn light_vertices_of(tracer: &Tracer, scene: &Scene, iteration: u32) -> Vec<Ligh
     } else {
         tracer.max_depth as usize
     };
-    let parts: Vec<Vec<LightVertex>> = (0..paths.div_ceil(CHUNK))
+    let chunk = chunk_len(paths);
+    let parts: Vec<Vec<LightVertex>> = (0..paths.div_ceil(chunk))
         .into_par_iter()
         .map(|c| {
             let (mut out, mut rays, mut path) = (Vec::new(), 0u64, Vec::new());
-            for i in c * CHUNK..((c + 1) * CHUNK).min(paths) {
+            for i in c * chunk..((c + 1) * chunk).min(paths) {
                 let mut rng = light_generator(s.seed, iteration, i);
                 let time = tracer.scene.camera.time_from(|| rng.next_f32());
                 tracer.light_subpath(&mut rng, time, vertices, &mut path, &mut rays);
