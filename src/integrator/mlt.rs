@@ -32,7 +32,7 @@
 //! estimate the image.
 
 use super::bdpt::{CAMERA_STREAM, STREAMS, Subpaths, Tracer};
-use super::light::{SplatImage, Splats, gather};
+use super::light::{SplatImage, SplatTarget, Splats, gather};
 use super::state::{StateReader, StateWriter};
 use super::{Progressive, Work};
 use crate::color::{Rgb, luminance};
@@ -51,7 +51,11 @@ const STREAM: u64 = 0x6d6c_7400;
 
 /// Chains advanced side by side before their splats are added to the
 /// image: bounds the splats held at once.
-const CHAIN_BATCH: usize = 32;
+const CHAIN_BATCH: usize = 256;
+
+/// Chains a thread steps in a row, with one working memory and one list
+/// of splats.
+const CHAINS_PER_TASK: usize = 8;
 
 /// Bootstrap samples per parallel task.
 const BOOTSTRAP_CHUNK: usize = 1024;
@@ -61,7 +65,6 @@ const BOOTSTRAP_CHUNK: usize = 1024;
 type Splat = (Vec2, Rgb);
 
 /// One Markov chain.
-#[derive(Clone)]
 struct Chain {
     samples: PrimarySamples,
     /// Draws the acceptances.
@@ -74,6 +77,27 @@ struct Chain {
     importance: f32,
 }
 
+impl Clone for Chain {
+    fn clone(&self) -> Self {
+        Chain {
+            samples: self.samples.clone(),
+            rng: self.rng.clone(),
+            segments: self.segments,
+            current: self.current.clone(),
+            importance: self.importance,
+        }
+    }
+
+    /// Reuses `self`'s storage (see [`Metropolis::backup`]).
+    fn clone_from(&mut self, source: &Self) {
+        self.samples.clone_from(&source.samples);
+        self.rng.clone_from(&source.rng);
+        self.segments = source.segments;
+        self.current.clone_from(&source.current);
+        self.importance = source.importance;
+    }
+}
+
 /// Metropolis light transport: its settings, its chains once bootstrapped
 /// and the image of its iterations.
 pub struct Metropolis {
@@ -83,6 +107,11 @@ pub struct Metropolis {
     image: SplatImage,
     /// The image's brightness b and the chains, once bootstrapped.
     chains: Option<(f32, Vec<Chain>)>,
+    /// The chains as they were before the iteration under way, which a
+    /// cancelled iteration puts back; kept from one iteration to the next
+    /// so that the copy reuses its storage instead of allocating a
+    /// thousand vectors each time.
+    backup: Vec<Chain>,
 }
 
 impl Metropolis {
@@ -95,6 +124,7 @@ impl Metropolis {
             settings: scene.settings.mlt,
             image: SplatImage::new(scene, aovs),
             chains: None,
+            backup: Vec::new(),
         }
     }
 
@@ -128,6 +158,49 @@ impl Metropolis {
         if c.is_finite() { c } else { 0.0 }
     }
 
+    /// One step of `chain`: a proposal from its state, accepted or not
+    /// (Kelemen et al. 2002), both states splatted with their expected
+    /// weights (Veach 1997, §11.5). `work` and `proposed` are working memory.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn mutate<'s>(
+        tracer: &Tracer<'s>,
+        scene: &Scene,
+        chain: &mut Chain,
+        brightness: f32,
+        (target, splats): (&SplatTarget, &mut Splats),
+        work: &mut Subpaths<'s>,
+        proposed: &mut Vec<Splat>,
+        rays: &mut u64,
+    ) {
+        chain.samples.start_iteration();
+        let c = Self::evaluate(tracer, scene, chain.segments, &mut chain.samples, work, rays, proposed);
+        let accept = if chain.importance > 0.0 {
+            (c / chain.importance).min(1.0)
+        } else {
+            1.0
+        };
+        if accept > 0.0 && c > 0.0 {
+            let k = accept / c * brightness;
+            for &(at, l) in proposed.iter() {
+                target.add_splat(at, l * k, &mut splats.image);
+            }
+        }
+        if accept < 1.0 {
+            let k = (1.0 - accept) / chain.importance * brightness;
+            for &(at, l) in &chain.current {
+                target.add_splat(at, l * k, &mut splats.image);
+            }
+        }
+        if chain.rng.next_f32() < accept {
+            chain.samples.accept();
+            std::mem::swap(&mut chain.current, proposed);
+            chain.importance = c;
+        } else {
+            chain.samples.reject();
+        }
+    }
+
     /// The chain-start seed of bootstrap sample `i`.
     fn seed_of(scene: &Scene, i: usize) -> u64 {
         hash_u64s(&[scene.settings.seed, STREAM, i as u64])
@@ -149,22 +222,25 @@ impl Metropolis {
         }
     }
 
-    /// Bootstrap sample `i`: its state in primary sample space, the path
-    /// length it renders, and its luminance c (its contributions in
-    /// `out`). A chain started from sample `i` finds the same again.
+    /// Bootstrap sample `i`: its state in primary sample space (put in
+    /// `samples`, whose storage it reuses), the path length it renders,
+    /// and its luminance c (its contributions in `out`). A chain started
+    /// from sample `i` finds the same again.
+    #[allow(clippy::too_many_arguments)]
     fn first_state<'s>(
         &self,
         tracer: &Tracer<'s>,
         scene: &Scene,
         i: usize,
+        samples: &mut PrimarySamples,
         work: &mut Subpaths<'s>,
         rays: &mut u64,
         out: &mut Vec<Splat>,
-    ) -> (PrimarySamples, usize, f32) {
-        let mut samples = self.samples_of(scene, i);
+    ) -> (usize, f32) {
+        samples.restart(Self::seed_of(scene, i));
         let segments = self.segments_of(i);
-        let c = Self::evaluate(tracer, scene, segments, &mut samples, work, rays, out);
-        (samples, segments, c)
+        let c = Self::evaluate(tracer, scene, segments, samples, work, rays, out);
+        (segments, c)
     }
 
     /// Estimates the brightness b from the bootstrap samples and starts
@@ -184,12 +260,14 @@ impl Metropolis {
             .into_par_iter()
             .map(|chunk| {
                 let (mut work, mut out, mut rays) = (Subpaths::default(), Vec::new(), 0u64);
+                let mut samples = self.samples_of(scene, 0);
                 let mut weights = Vec::with_capacity(BOOTSTRAP_CHUNK);
                 if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                     return (weights, rays);
                 }
                 for i in chunk * BOOTSTRAP_CHUNK..((chunk + 1) * BOOTSTRAP_CHUNK).min(count) {
-                    weights.push(self.first_state(&tracer, scene, i, &mut work, &mut rays, &mut out).2);
+                    let (_, c) = self.first_state(&tracer, scene, i, &mut samples, &mut work, &mut rays, &mut out);
+                    weights.push(c);
                 }
                 (weights, rays)
             })
@@ -217,8 +295,9 @@ impl Metropolis {
                 let u = (j as f32 + rng.next_f32()) / chains as f32;
                 let (index, _, _) = starts.sample(u.min(ONE_MINUS_EPSILON));
                 let (mut work, mut current, mut rays) = (Subpaths::default(), Vec::new(), 0u64);
-                let (samples, segments, importance) =
-                    self.first_state(&tracer, scene, index, &mut work, &mut rays, &mut current);
+                let mut samples = self.samples_of(scene, index);
+                let (segments, importance) =
+                    self.first_state(&tracer, scene, index, &mut samples, &mut work, &mut rays, &mut current);
                 let chain = Chain {
                     samples,
                     rng,
@@ -252,7 +331,9 @@ impl Progressive for Metropolis {
         let brightness = *brightness;
         // An iteration given up leaves the state as it was before it, so
         // that a checkpoint written then continues exactly.
-        let before = cancel.is_some().then(|| chains.clone());
+        if cancel.is_some() {
+            self.backup.clone_from(chains);
+        }
         let tracer = Tracer::new(scene, self.max_depth);
         let target = self.image.target();
         let mut this = self.image.blank();
@@ -260,59 +341,35 @@ impl Progressive for Metropolis {
         let count = chains.len();
         for (batch, group) in chains.chunks_mut(CHAIN_BATCH).enumerate() {
             let parts: Vec<(Splats, u64)> = group
-                .par_iter_mut()
+                .par_chunks_mut(CHAINS_PER_TASK)
                 .enumerate()
-                .map(|(k, chain)| {
+                .map(|(task, part)| {
                     let (mut splats, mut rays) = (Splats::default(), 0u64);
                     if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                         return (splats, rays);
                     }
-                    let j = batch * CHAIN_BATCH + k;
-                    let steps = mutations * (j + 1) / count - mutations * j / count;
                     let (mut work, mut proposed) = (Subpaths::default(), Vec::new());
-                    for _ in 0..steps {
-                        chain.samples.start_iteration();
-                        let c = Self::evaluate(
-                            &tracer,
-                            scene,
-                            chain.segments,
-                            &mut chain.samples,
-                            &mut work,
-                            &mut rays,
-                            &mut proposed,
-                        );
-                        let accept = if chain.importance > 0.0 {
-                            (c / chain.importance).min(1.0)
-                        } else {
-                            1.0
-                        };
-                        if accept > 0.0 && c > 0.0 {
-                            let k = accept / c * brightness;
-                            for &(at, l) in &proposed {
-                                target.add_splat(at, l * k, &mut splats.image);
-                            }
-                        }
-                        if accept < 1.0 {
-                            let k = (1.0 - accept) / chain.importance * brightness;
-                            for &(at, l) in &chain.current {
-                                target.add_splat(at, l * k, &mut splats.image);
-                            }
-                        }
-                        if chain.rng.next_f32() < accept {
-                            chain.samples.accept();
-                            std::mem::swap(&mut chain.current, &mut proposed);
-                            chain.importance = c;
-                        } else {
-                            chain.samples.reject();
+                    for (k, chain) in part.iter_mut().enumerate() {
+                        let j = batch * CHAIN_BATCH + task * CHAINS_PER_TASK + k;
+                        let steps = mutations * (j + 1) / count - mutations * j / count;
+                        for _ in 0..steps {
+                            Self::mutate(
+                                &tracer,
+                                scene,
+                                chain,
+                                brightness,
+                                (&target, &mut splats),
+                                &mut work,
+                                &mut proposed,
+                                &mut rays,
+                            );
                         }
                     }
                     (splats, rays)
                 })
                 .collect();
             if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-                if let Some(before) = before {
-                    *chains = before;
-                }
+                chains.clone_from(&self.backup);
                 return None;
             }
             for (splats, r) in parts {

@@ -48,7 +48,7 @@ pub(crate) struct Coordinate {
 /// when drawn: one not drawn for n small steps takes the n offsets at
 /// once (a normal of deviation σ√n), one not drawn since the last large
 /// step is drawn afresh.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct PrimarySamples {
     pub(crate) rng: Pcg32,
     sigma: f32,
@@ -60,6 +60,41 @@ pub struct PrimarySamples {
     pub(crate) last_large_step: u64,
     stream: u32,
     next: u32,
+}
+
+impl Clone for PrimarySamples {
+    fn clone(&self) -> Self {
+        let mut c = PrimarySamples::new(0, self.streams, self.sigma, self.large_step_probability);
+        c.clone_from(self);
+        c
+    }
+
+    /// Reuses `self`'s coordinates' storage: the renderer backs its
+    /// chains up every iteration.
+    fn clone_from(&mut self, source: &Self) {
+        self.coordinates.clone_from(&source.coordinates);
+        let PrimarySamples {
+            rng,
+            sigma,
+            large_step_probability,
+            streams,
+            coordinates: _,
+            iteration,
+            large_step,
+            last_large_step,
+            stream,
+            next,
+        } = source;
+        (self.rng, self.sigma, self.large_step_probability, self.streams) =
+            (rng.clone(), *sigma, *large_step_probability, *streams);
+        (
+            self.iteration,
+            self.large_step,
+            self.last_large_step,
+            self.stream,
+            self.next,
+        ) = (*iteration, *large_step, *last_large_step, *stream, *next);
+    }
 }
 
 impl PrimarySamples {
@@ -80,6 +115,16 @@ impl PrimarySamples {
             stream: 0,
             next: 0,
         }
+    }
+
+    /// Starts again as [`PrimarySamples::new`] with `seed` would, keeping
+    /// the storage of the coordinates (bootstrapping draws a million
+    /// first states).
+    pub fn restart(&mut self, seed: u64) {
+        self.rng = Pcg32::new(seed, 0x006d_6c74);
+        self.coordinates.clear();
+        (self.iteration, self.large_step, self.last_large_step) = (0, true, 0);
+        (self.stream, self.next) = (0, 0);
     }
 
     /// Proposes the next state: from here on numbers come mutated.
@@ -203,6 +248,37 @@ mod tests {
         draw(&mut a, 0, 3);
         a.reject();
         assert_eq!(state(&a, 5), kept);
+    }
+
+    /// A restarted state is the fresh one of its seed, and a copy made
+    /// over another chain's storage is the original, in what it draws
+    /// next and in what a rejection puts back.
+    #[test]
+    fn restart_and_clone_from_give_the_same_chain() {
+        let mut used = PrimarySamples::new(1, 3, 0.01, 0.3);
+        for _ in 0..20 {
+            used.start_iteration();
+            draw(&mut used, 1, 40);
+            used.accept();
+        }
+        used.restart(9);
+        let mut fresh = PrimarySamples::new(9, 3, 0.01, 0.3);
+        assert_eq!(draw(&mut used, 2, 12), draw(&mut fresh, 2, 12));
+
+        let mut copy = PrimarySamples::new(5, 3, 0.01, 0.3);
+        draw(&mut copy, 0, 90);
+        fresh.start_iteration();
+        draw(&mut fresh, 0, 6);
+        fresh.accept();
+        copy.clone_from(&fresh);
+        assert_eq!(copy.coordinates, fresh.coordinates);
+        for s in [&mut copy, &mut fresh] {
+            s.start_iteration();
+        }
+        assert_eq!(draw(&mut copy, 0, 8), draw(&mut fresh, 0, 8));
+        copy.reject();
+        fresh.reject();
+        assert_eq!(state(&copy, 8), state(&fresh, 8));
     }
 
     /// Small steps move a number by about σ (wrapping around), large steps
