@@ -160,7 +160,7 @@ impl Metropolis {
 
     /// One step of `chain`: a proposal from its state, accepted or not
     /// (Kelemen et al. 2002), both states splatted with their expected
-    /// weights (Veach 1997, §11.5). `work` and `proposed` are working memory.
+    /// weights (Veach 1997, ch. 11). `work` and `proposed` are working memory.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn mutate<'s>(
@@ -457,7 +457,8 @@ impl Progressive for Metropolis {
                     Ok(Coordinate {
                         value,
                         modified,
-                        backup: (value, modified),
+                        backup_value: value,
+                        backup_modified: modified,
                     })
                 })
                 .collect::<Result<_, String>>()?;
