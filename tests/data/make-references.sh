@@ -17,6 +17,9 @@ trazo="$root/target/release/trazo"
 # Veach's door, 40×30, by bidirectional path tracing (the path tracer would
 # take days): the equal-time tests of tests/integration/equal_time.rs.
 "$trazo" render -q "$root/scenes/door.toml" --integrator bdpt --width 40 --height 30 --spp 16384 --seed 104 -o "$here/door-40-ref.exr"
+# The door at its own size, 320×240, by BDPT (Metropolis light transport
+# against BDPT in tests/integration/equal_time.rs; 4.5 min on two cores).
+"$trazo" render -q "$root/scenes/door.toml" --integrator bdpt --spp 1024 --seed 99 -o "$here/door-320-ref.exr"
 # The caustic box, 32×32, path traced (none of the integrators compared there).
 "$trazo" render -q "$root/scenes/caustic-box.toml" --integrator path --width 32 --height 32 --spp 131072 --seed 105 -o "$here/caustic-box-32-ref.exr"
 # The caustic in a glossy mirror, 32×24, by bidirectional path tracing.
