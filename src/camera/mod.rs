@@ -23,6 +23,8 @@ pub mod lens_system;
 
 pub use lens_system::LensSystem;
 
+use crate::geometry::lanes::LANES;
+use crate::geometry::simd::{Floats, Vec3s};
 use crate::geometry::{Ray, Transform};
 use crate::sampling::Sampler;
 use crate::sampling::warp::{equal_area_square_to_sphere, sample_disk_concentric};
@@ -527,6 +529,12 @@ impl Camera {
             );
             return;
         }
+        if let Some((corners, origin)) = self.plain_pinhole() {
+            let film = film + self.offset;
+            let rays = self.pinhole_rays(corners, origin, film.x, film.y);
+            *out = Ray::with_interval(rays.origin.lane(0), rays.dir.lane(0), 0.0, rays.t_max.lane(0));
+            return;
+        }
         let ray = self.unclipped_ray(film, lens);
         *out = match self.clip {
             None => ray,
@@ -540,12 +548,107 @@ impl Camera {
         }
     }
 
+    /// The pinhole's direction map and position where the camera is a
+    /// perspective pinhole without a lens (see [`Camera::pinhole_rays`]).
+    #[inline(always)]
+    fn plain_pinhole(&self) -> Option<(&[Vec3; 3], Vec3)> {
+        match &self.pinhole {
+            Some((corners, origin)) if self.lens_radius <= 0.0 && self.lens_system.is_none() => {
+                Some((corners, *origin))
+            }
+            _ => None,
+        }
+    }
+
+    /// The rays of a pinhole camera through the film points `(x, y)`
+    /// (raster, crop offset added), for one ray (`F = f32`) or for the
+    /// render loop's eight at once (`F8`), which therefore get the same
+    /// bits: their origins, unit directions and lengths, the clipping
+    /// planes applied.
+    #[inline(always)]
+    fn pinhole_rays<F: Floats>(&self, [a, b, c]: &[Vec3; 3], origin: Vec3, x: F, y: F) -> PinholeRays<F> {
+        let s = Vec3s::<F>::splat;
+        let (a, b, c) = (s(*a), s(*b), s(*c));
+        let d = Vec3s {
+            x: a.x * x + b.x * y + c.x,
+            y: a.y * x + b.y * y + c.y,
+            z: a.z * x + b.z * y + c.z,
+        };
+        // glam's `normalize`: d times the reciprocal of its length.
+        let length = (d.x * d.x + d.y * d.y + d.z * d.z).sqrt();
+        let dir = d.scale(F::splat(1.0) / length);
+        let origin = s(origin);
+        match self.clip {
+            None => PinholeRays {
+                origin,
+                dir,
+                t_max: F::splat(f32::INFINITY),
+            },
+            Some((near, far)) => {
+                // Distances along the ray to the planes (Mitsuba's
+                // `near_clip / d.z`, d.z the cosine to the viewing axis).
+                let f = s(self.forward);
+                let cos = dir.x * f.x + dir.y * f.y + dir.z * f.z;
+                let (t_near, t_far) = (F::splat(near) / cos, F::splat(far) / cos);
+                PinholeRays {
+                    origin: origin + dir.scale(t_near),
+                    dir,
+                    t_max: t_far - t_near,
+                }
+            }
+        }
+    }
+
+    /// Rays through the first `count` film points of `film` (as
+    /// [`Camera::generate_weighted_ray_into`] with `lens`) into `rays`, and
+    /// their weights: a pinhole camera's in vector lanes where the
+    /// processor has AVX (all eight, whatever `count`), the others' one
+    /// by one.
+    #[allow(unsafe_code)]
+    pub(crate) fn generate_weighted_rays_into(
+        &self,
+        film: &[Vec2; LANES],
+        lens: &[Vec2; LANES],
+        count: usize,
+        rays: &mut [Ray; LANES],
+        weights: &mut [f32; LANES],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if let (Some((corners, origin)), true) = (self.plain_pinhole(), crate::geometry::lanes::avx_available()) {
+            // SAFETY: the processor has AVX.
+            unsafe { self.pinhole_rays_avx(corners, origin, film, rays) };
+            *weights = [1.0; LANES];
+            return;
+        }
+        for i in 0..count.min(LANES) {
+            weights[i] = self.generate_weighted_ray_into(film[i], lens[i], &mut rays[i]);
+        }
+    }
+
+    /// [`Camera::pinhole_rays`] over eight lanes, written into `rays`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn pinhole_rays_avx(&self, corners: &[Vec3; 3], origin: Vec3, film: &[Vec2; LANES], rays: &mut [Ray; LANES]) {
+        use crate::geometry::lanes::F8;
+        let x = F8::gather(&std::array::from_fn(|i| film[i].x + self.offset.x));
+        let y = F8::gather(&std::array::from_fn(|i| film[i].y + self.offset.y));
+        let r = self.pinhole_rays(corners, origin, x, y);
+        let (ox, oy, oz) = (r.origin.x.to_array(), r.origin.y.to_array(), r.origin.z.to_array());
+        let (dx, dy, dz) = (r.dir.x.to_array(), r.dir.y.to_array(), r.dir.z.to_array());
+        let t_max = r.t_max.to_array();
+        for (i, ray) in rays.iter_mut().enumerate() {
+            *ray = Ray::with_interval(
+                Vec3::new(ox[i], oy[i], oz[i]),
+                Vec3::new(dx[i], dy[i], dz[i]),
+                0.0,
+                t_max[i],
+            );
+        }
+    }
+
     #[inline]
     fn unclipped_ray(&self, film: Vec2, lens: Vec2) -> Ray {
         let film = film + self.offset;
-        if let (Some(([a, b, c], origin)), true) = (self.pinhole, self.lens_radius <= 0.0) {
-            return Ray::new(origin, (a * film.x + b * film.y + c).normalize());
-        }
         if let Projection::Spherical { mapping } = self.projection {
             let dir = mapping.direction(film / self.full_size);
             return Ray::new(
@@ -728,6 +831,13 @@ impl Camera {
     }
 }
 
+/// What [`Camera::pinhole_rays`] computes, in lanes.
+struct PinholeRays<F> {
+    origin: Vec3s<F>,
+    dir: Vec3s<F>,
+    t_max: F,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -782,6 +892,50 @@ mod tests {
                 same.generate_ray(film, Vec2::ZERO),
                 camera.generate_ray(film, Vec2::ZERO)
             );
+        }
+    }
+
+    /// The render loop's eight camera rays at once are, bit for bit, the
+    /// rays made one by one: with and without clipping planes, in a crop
+    /// window, for fewer samples than lanes; and a thin-lens camera's
+    /// (made one by one) too.
+    #[test]
+    fn rays_made_in_lanes_are_the_rays_made_one_by_one() {
+        use crate::geometry::Transform;
+        let to_world = Transform::look_at(Vec3::new(0.3, 1.0, 5.0), Vec3::new(0.1, 0.2, 0.0), Vec3::Y).unwrap();
+        let cropped = Camera::from_transform_cropped(
+            Projection::Perspective { fov_y: 35.0 },
+            to_world,
+            64,
+            48,
+            Some((9, 5, 20, 30)),
+        )
+        .unwrap();
+        let lens = persp(50.0, 64, 48).with_thin_lens(0.1, 4.0);
+        let cameras = [
+            persp(60.0, 64, 48),
+            persp(60.0, 64, 48).with_clipping(0.01, 1e4),
+            cropped.clone().with_clipping(0.5, 7.0),
+            cropped,
+            lens,
+        ];
+        let film: [Vec2; LANES] = std::array::from_fn(|i| Vec2::new(i as f32 * 7.3 + 0.21, 47.9 - i as f32 * 5.1));
+        let lens_u: [Vec2; LANES] = std::array::from_fn(|i| Vec2::new(i as f32 / 8.0, 0.9 - i as f32 / 9.0));
+        for (c, camera) in cameras.iter().enumerate() {
+            for count in [LANES, 3] {
+                let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+                let mut weights = [0.0; LANES];
+                camera.generate_weighted_rays_into(&film, &lens_u, count, &mut rays, &mut weights);
+                for i in 0..count {
+                    let mut one = Ray::new(Vec3::ZERO, Vec3::Z);
+                    let weight = camera.generate_weighted_ray_into(film[i], lens_u[i], &mut one);
+                    let bits = |r: &Ray| {
+                        [r.origin.to_array(), r.dir.to_array(), [r.t_min, r.t_max, r.time]].map(|a| a.map(f32::to_bits))
+                    };
+                    assert_eq!(bits(&rays[i]), bits(&one), "camera {c}, lane {i} of {count}");
+                    assert_eq!(weights[i], weight);
+                }
+            }
         }
     }
 

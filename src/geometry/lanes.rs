@@ -409,6 +409,10 @@ impl super::simd::Floats for F8 {
         out[i]
     }
     #[inline(always)]
+    fn sqrt(self) -> F8 {
+        F8(unsafe { _mm256_sqrt_ps(self.0) })
+    }
+    #[inline(always)]
     fn min(self, other: F8) -> F8 {
         F8(unsafe { _mm256_min_ps(self.0, other.0) })
     }

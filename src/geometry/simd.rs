@@ -34,6 +34,8 @@ pub trait Floats:
     fn gather(values: &Self::Each<f32>) -> Self;
     /// Lane `i`.
     fn lane(self, i: usize) -> f32;
+    /// The square root (correctly rounded in every instance).
+    fn sqrt(self) -> Self;
     /// `if self < other { self } else { other }`.
     fn min(self, other: Self) -> Self;
     /// `if self > other { self } else { other }`.
@@ -68,6 +70,10 @@ impl Floats for f32 {
     #[inline(always)]
     fn lane(self, _i: usize) -> f32 {
         self
+    }
+    #[inline(always)]
+    fn sqrt(self) -> f32 {
+        f32::sqrt(self)
     }
     #[inline(always)]
     fn min(self, other: f32) -> f32 {
@@ -208,7 +214,7 @@ mod tests {
         fn work<F: Floats>(a: Vec3s<F>, b: Vec3s<F>, u: F) -> (Vec3s<F>, u32) {
             let q = (a * b).max_element().min(F::splat(0.95));
             let keep = F::mask_bits(u.ge(q)) ^ ((1 << F::N) - 1);
-            let c = Vec3s::select(F::mask_from_bits(keep), (a + b).over(q), a.scale(u));
+            let c = Vec3s::select(F::mask_from_bits(keep), (a + b).over(q), a.scale(u.sqrt()));
             (c, keep)
         }
         #[target_feature(enable = "avx")]

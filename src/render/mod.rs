@@ -480,18 +480,20 @@ fn limit_component(l: Rgb, max: f32) -> Rgb {
     if m > max { l * (max / m) } else { l }
 }
 
-/// Starts sample `index` of pixel `(x, y)` in `sampler` and draws its
-/// camera ray: the film position (anywhere in the pixel when splatting,
-/// else by the filter's importance), the ray through it and the ray's
-/// weight (1 but for a realistic camera's, 0 where its lens blocks it).
+/// Starts sample `index` of pixel `(x, y)` in `sampler` and draws the
+/// numbers of its camera ray: the film position (anywhere in the pixel
+/// when splatting, else by the filter's importance), the lens point and
+/// the time. The render loop then makes the rays of several samples at
+/// once ([`Camera::generate_weighted_rays_into`]) and [`timed`] them.
+///
+/// [`Camera::generate_weighted_rays_into`]: crate::camera::Camera
 #[inline(always)]
-fn camera_sample(
+fn camera_draws(
     scene: &Scene,
     splatting: bool,
     sampler: &mut Sampler,
     (x, y, index): (u32, u32, u32),
-    ray: &mut Ray,
-) -> (Vec2, f32) {
+) -> (Vec2, Vec2, f32) {
     // A crop window's pixels draw the numbers of the full image's pixels
     // and find their positions there (the window's are those less its
     // corner, exactly, and the camera adds it back, exactly): they come
@@ -507,14 +509,16 @@ fn camera_sample(
     } - Vec2::new(cx as f32, cy as f32);
     let lens = scene.camera.draw_lens(sampler);
     let time = scene.camera.draw_time(sampler);
-    // The ray is written where the render loop keeps it (see
-    // `Camera::generate_weighted_ray_into`).
-    let weight = scene.camera.generate_weighted_ray_into(position, lens, ray);
+    (position, lens, time)
+}
+
+/// The camera ray `ray` made by the still camera, at `time`.
+#[inline(always)]
+fn timed(scene: &Scene, ray: &mut Ray, time: f32) {
     ray.time = time;
     if scene.camera.moves() {
         *ray = scene.camera.moved(*ray);
     }
-    (position, weight)
 }
 
 /// A tile's splats in this pass: the sums over its pixels and margin, and
@@ -628,6 +632,7 @@ fn render_passes<I: Integrator>(
                 let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| Sampler::new(s.sampler, s.spp, s.seed));
                 let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
                 let mut positions = [Vec2::ZERO; LANES];
+                let (mut lenses, mut times) = ([Vec2::ZERO; LANES], [0.0f32; LANES]);
                 let mut weights = [0.0f32; LANES];
                 let mut rays = RayStats::default();
                 let mut invalid = InvalidSamples::default();
@@ -671,15 +676,23 @@ fn render_passes<I: Integrator>(
                             let count = (end - group).min(LANES as u32) as usize;
                             let mut live = 0u32;
                             for k in 0..count {
-                                let (position, weight) = camera_sample(
-                                    scene,
-                                    splat.is_some(),
-                                    &mut samplers[k],
-                                    (x, y, group + k as u32),
-                                    &mut camera_rays[k],
-                                );
-                                (positions[k], weights[k]) = (position, weight);
-                                if weight > 0.0 {
+                                let sample = (x, y, group + k as u32);
+                                let (position, lens, time) =
+                                    camera_draws(scene, splat.is_some(), &mut samplers[k], sample);
+                                (positions[k], lenses[k], times[k]) = (position, lens, time);
+                            }
+                            // The rays are written where the loop keeps
+                            // them (see `Camera::generate_weighted_ray_into`).
+                            scene.camera.generate_weighted_rays_into(
+                                &positions,
+                                &lenses,
+                                count,
+                                &mut camera_rays,
+                                &mut weights,
+                            );
+                            for k in 0..count {
+                                timed(scene, &mut camera_rays[k], times[k]);
+                                if weights[k] > 0.0 {
                                     live |= 1 << k;
                                 }
                             }
