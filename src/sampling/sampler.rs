@@ -65,6 +65,9 @@ pub struct Sampler {
     seed: u64,
     rng: Pcg32,
     pixel_key: u64,
+    /// The pixel `pixel_key` is of: a pixel's samples follow one another,
+    /// so its hash is computed once for them all.
+    keyed_pixel: Option<(u32, u32)>,
     sample_index: u32,
     /// The next Sobol dimension pair of the current sample: each
     /// `next_1d`/`next_2d` call takes a fresh one.
@@ -88,6 +91,7 @@ impl Sampler {
             seed,
             rng: Pcg32::new(0, 0),
             pixel_key: 0,
+            keyed_pixel: None,
             sample_index: 0,
             dimension: 0,
             reversed_index: 0,
@@ -105,7 +109,10 @@ impl Sampler {
     /// returns that sample's numbers.
     #[inline]
     pub fn start_pixel_sample(&mut self, x: u32, y: u32, index: u32) {
-        self.pixel_key = hash_u64s(&[x as u64, y as u64, self.seed]);
+        if self.keyed_pixel != Some((x, y)) {
+            self.pixel_key = hash_u64s(&[x as u64, y as u64, self.seed]);
+            self.keyed_pixel = Some((x, y));
+        }
         self.sample_index = index;
         self.dimension = 0;
         self.reversed_index = index.reverse_bits();
