@@ -15,7 +15,7 @@
 use super::bsdf::{BsdfSample, TransportMode};
 use super::layered::Lobes;
 use super::microfacet::Microfacet;
-use super::optics::{fresnel_dielectric, refract};
+use super::optics::{fresnel_dielectric, fresnel_of_cosines, refracted, snell};
 use crate::color::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -120,11 +120,16 @@ impl DielectricBsdf {
         if wo.z == 0.0 || !(self.eta == 1.0 || self.microfacet.is_smooth()) {
             return None;
         }
-        let r = fresnel_dielectric(wo.z, self.eta);
+        // Snell's law once for the Fresnel reflectance and the refracted
+        // direction (`fresnel_dielectric` and `refract` apart would each
+        // solve it).
+        let (cos_i, etap, cos_t) = snell(wo.z.clamp(-1.0, 1.0), self.eta);
+        let r = cos_t.map_or(1.0, |cos_t| fresnel_of_cosines(cos_i, etap, cos_t));
         if u < r {
             return Some(BsdfSample::mirror(wo, r, self.reflect_tint));
         }
-        let (wi, etap) = refract(wo, Vec3::Z, self.eta)?;
+        let n = if wo.z < 0.0 { -Vec3::Z } else { Vec3::Z };
+        let wi = refracted(wo, n, cos_i, etap, cos_t?);
         let mut f = self.transmit_tint * ((1.0 - r) / wi.z.abs());
         if mode == TransportMode::Radiance {
             f /= etap * etap;

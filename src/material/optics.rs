@@ -21,20 +21,30 @@ pub fn reflect(w: Vec3, n: Vec3) -> Vec3 {
 /// Snell's law η_i sinθ_i = η_t sinθ_t, in vector form (pbrt-v4, eq. 9.4).
 #[inline]
 pub fn refract(wi: Vec3, n: Vec3, eta: f32) -> Option<(Vec3, f32)> {
-    let mut cos_i = n.dot(wi);
-    let (mut eta, mut n) = (eta, n);
-    if cos_i < 0.0 {
-        eta = 1.0 / eta;
-        cos_i = -cos_i;
-        n = -n;
-    }
-    let sin2_i = (1.0 - cos_i * cos_i).max(0.0);
-    let sin2_t = sin2_i / (eta * eta);
-    if sin2_t >= 1.0 {
-        return None;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    Some((-wi / eta + (cos_i / eta - cos_t) * n, eta))
+    let cos = n.dot(wi);
+    let (cos_i, eta, cos_t) = snell(cos, eta);
+    let n = if cos < 0.0 { -n } else { n };
+    Some((refracted(wi, n, cos_i, eta, cos_t?), eta))
+}
+
+/// Snell's law for light arriving with cosine `cos_i` (negative: from the
+/// inside) at an interface of relative index `eta` = η_t / η_i: |cos θ_i|,
+/// the relative index of this crossing (`eta`, or 1/`eta` from the inside)
+/// and |cos θ_t|, `None` under total internal reflection. What
+/// [`refract`] and [`fresnel_dielectric`] share, so that a smooth
+/// dielectric that needs both computes it once.
+#[inline]
+pub fn snell(cos_i: f32, eta: f32) -> (f32, f32, Option<f32>) {
+    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
+    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
+    (cos_i, eta, (sin2_t < 1.0).then(|| (1.0 - sin2_t).sqrt()))
+}
+
+/// The direction `wi` refracts into, from [`snell`]'s cosines and index,
+/// `n` the normal on `wi`'s side (pbrt-v4, eq. 9.4).
+#[inline]
+pub fn refracted(wi: Vec3, n: Vec3, cos_i: f32, eta: f32, cos_t: f32) -> Vec3 {
+    -wi / eta + (cos_i / eta - cos_t) * n
 }
 
 /// Unpolarised Fresnel reflectance of a dielectric interface for light
@@ -42,17 +52,16 @@ pub fn refract(wi: Vec3, n: Vec3, eta: f32) -> Option<(Vec3, f32)> {
 /// index `eta` = η_t / η_i. Returns 1 under total internal reflection.
 #[inline]
 pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
-    let mut cos_i = cos_i.clamp(-1.0, 1.0);
-    let mut eta = eta;
-    if cos_i < 0.0 {
-        eta = 1.0 / eta;
-        cos_i = -cos_i;
+    match snell(cos_i.clamp(-1.0, 1.0), eta) {
+        (cos_i, eta, Some(cos_t)) => fresnel_of_cosines(cos_i, eta, cos_t),
+        (_, _, None) => 1.0,
     }
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+}
+
+/// The Fresnel reflectance from [`snell`]'s cosines and index: the mean
+/// of the parallel and perpendicular polarisations' (pbrt-v4, eq. 9.6).
+#[inline]
+pub fn fresnel_of_cosines(cos_i: f32, eta: f32, cos_t: f32) -> f32 {
     let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     0.5 * (r_parl * r_parl + r_perp * r_perp)
