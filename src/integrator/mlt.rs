@@ -358,7 +358,7 @@ impl Progressive for Metropolis {
                                 scene,
                                 chain,
                                 brightness,
-                                (&target, &mut splats),
+                                (target, &mut splats),
                                 &mut work,
                                 &mut proposed,
                                 &mut rays,
