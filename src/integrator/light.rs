@@ -45,13 +45,11 @@ use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-/// Paths per work unit for an iteration of `paths` paths: up to 4096, but
-/// small enough that a small image still gives every thread work (a
-/// 40×30 image was one unit, so one thread). The units' splats are
-/// added in path order whatever their length, so the image does not
-/// depend on it.
+/// Paths per work unit for an iteration of `paths` paths (see
+/// [`super::work_unit_len`]; the units' splats are added in path order
+/// whatever their length, so the image does not depend on it).
 pub(crate) fn chunk_len(paths: u32) -> u32 {
-    (paths / 64).clamp(64, 4096)
+    super::work_unit_len(paths, 4096)
 }
 
 /// Work units traced before their splats are added to the image.

@@ -157,6 +157,17 @@ pub trait Driver {
     fn iterations<P: Progressive>(self, algorithm: P) -> Self::Output;
 }
 
+/// Items per parallel work unit when `items` are split into units of at
+/// most `most` (at least 64): small enough that a small count still gives
+/// every thread work (a 40×30 image's paths, or its SPPM photons, were
+/// one unit, so one thread), large enough that a unit's overhead stays
+/// small. It depends on the count alone, not on the threads, and the
+/// callers gather the units' results in order: the result is the same
+/// for any unit length.
+pub(crate) fn work_unit_len(items: u32, most: u32) -> u32 {
+    (items / 64).clamp(64, most.max(64))
+}
+
 /// Prepares the algorithm that the scene's settings name and runs it with
 /// `driver`; `aovs` asks for the auxiliary sums. Call it on the threads
 /// that should do the work (inside a rayon pool, that pool's). `None` when

@@ -47,7 +47,7 @@ pub struct PhotonPass {
     pub seconds: f64,
 }
 
-/// Photons per work unit.
+/// Photons per work unit, at most.
 const CHUNK: u32 = 2048;
 
 /// Emits `count` photons and traces each for at most `max_depth` segments.
@@ -83,7 +83,8 @@ pub fn trace_photons_until(
         };
     }
     let bounds = crate::light::scene_bounding_sphere(scene);
-    let chunks = count.div_ceil(CHUNK);
+    let chunk = crate::integrator::work_unit_len(count, CHUNK);
+    let chunks = count.div_ceil(chunk);
     let parts: Vec<(Vec<Photon>, u64)> = (0..chunks)
         .into_par_iter()
         .map(|c| {
@@ -92,7 +93,7 @@ pub fn trace_photons_until(
             if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
                 return (photons, rays);
             }
-            for i in c * CHUNK..((c + 1) * CHUNK).min(count) {
+            for i in c * chunk..((c + 1) * chunk).min(count) {
                 let mut rng = Pcg32::new(hash_u64s(&[seed, pass, i as u64]), 0x9e37);
                 trace_one(
                     scene,
