@@ -486,7 +486,7 @@ fn limit_component(l: Rgb, max: f32) -> Rgb {
 /// the time. The render loop then makes the rays of several samples at
 /// once ([`Camera::generate_weighted_rays_into`]) and [`timed`] them.
 ///
-/// [`Camera::generate_weighted_rays_into`]: crate::camera::Camera
+/// [`Camera::generate_weighted_rays_into`]: crate::camera::Camera::generate_weighted_rays_into
 #[inline(always)]
 fn camera_draws(
     scene: &Scene,
