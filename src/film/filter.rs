@@ -44,7 +44,7 @@ impl Filter {
     #[inline(never)]
     fn sample_1d_shaped(&self, u: f32) -> f32 {
         match *self {
-            Filter::Box { radius } => (2.0 * u - 1.0) * radius,
+            Filter::Box { .. } => self.sample_1d(u),
             Filter::Tent { radius } => {
                 // Inverse CDF of the triangle on [−1, 1].
                 let x = if u < 0.5 {
