@@ -268,6 +268,64 @@ fn path_sample(c: &mut Criterion) {
     });
 }
 
+/// Sphere tracing (and interval root finding) on the gallery's scenes of
+/// distance functions and equations: closest hits, with their surfaces, of
+/// a 160 × 90 grid of camera rays through the scene's own camera, reported
+/// as rays per second; the mean steps per ray (the `--aov steps` count) is
+/// printed once before the timing.
+fn sphere_tracing(c: &mut Criterion) {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut g = c.benchmark_group("sphere tracing closest-hit 160x90 camera rays");
+    for name in ["distance-functions", "implicit-surfaces"] {
+        let d = trazo::scene::load(&root.join(format!("scenes/{name}.toml")), &[]).unwrap();
+        let (w, h) = (d.settings.width as f32, d.settings.height as f32);
+        let scene = trazo::scene::build(&d).unwrap();
+        let rays: Vec<Ray> = (0..90 * 160)
+            .map(|i| {
+                let film = Vec2::new(
+                    ((i % 160) as f32 + 0.5) * w / 160.0,
+                    ((i / 160) as f32 + 0.5) * h / 90.0,
+                );
+                scene.camera.generate_ray(film, Vec2::splat(0.5))
+            })
+            .collect();
+        let trace = || {
+            let mut slot = None;
+            rays.iter()
+                .filter(|ray| {
+                    scene.intersect_into(black_box(ray), &mut slot);
+                    slot.is_some()
+                })
+                .count()
+        };
+        // Steps per ray, and per ray that marched at all (rays that meet
+        // only the floor or the sky take none).
+        let steps = trazo::geometry::sdf::steps_on_this_thread;
+        let mut slot = None;
+        let per_ray: Vec<u64> = rays
+            .iter()
+            .map(|ray| {
+                let before = steps();
+                scene.intersect_into(ray, &mut slot);
+                steps() - before
+            })
+            .collect();
+        let marched = per_ray.iter().filter(|&&n| n > 0).count();
+        let total: u64 = per_ray.iter().sum();
+        eprintln!(
+            "{name}: {:.1} steps per camera ray; {:.0} % of them march, {:.1} steps each; {:.0} % hit",
+            total as f64 / rays.len() as f64,
+            100.0 * marched as f64 / rays.len() as f64,
+            total as f64 / marched.max(1) as f64,
+            100.0 * trace() as f64 / rays.len() as f64
+        );
+        g.throughput(criterion::Throughput::Elements(rays.len() as u64));
+        g.sample_size(10);
+        g.bench_function(name, |b| b.iter(trace));
+    }
+    g.finish();
+}
+
 fn whole_render(c: &mut Criterion) {
     let mut d = cornell_box();
     d.settings.width = 128;
@@ -291,6 +349,7 @@ criterion_group!(
     rectangle_room,
     bsdf_sampling,
     path_sample,
+    sphere_tracing,
     whole_render
 );
 criterion_main!(benches);

@@ -585,7 +585,12 @@ material = "white"
         .pixels
         .iter()
         .zip(&mesh.pixels)
-        .map(|(a, b)| (luminance(a.value()) - luminance(b.value()), a.variance_of_mean() + b.variance_of_mean()))
+        .map(|(a, b)| {
+            (
+                luminance(a.value()) - luminance(b.value()),
+                a.variance_of_mean() + b.variance_of_mean(),
+            )
+        })
         .filter(|&(_, v)| v > 0.0)
         .map(|(d, v)| (d as f64).powi(2) / v)
         .collect();
