@@ -181,22 +181,22 @@ impl Light {
                 cone: Some((center, radius)),
                 ..
             } => {
-                // No density over its area: a line drawn uniformly among
-                // those meeting the bounding sphere crosses the surface
-                // uniformly by area, at directions distributed as |cos θ|
-                // about the normal (Crofton; Cauchy). Of its k crossings
-                // one is taken (k times as much light), and the line's
-                // direction, turned to the emitting side, is the ray's.
-                // The oriented lines' measure M makes E[k·f(x, ω)] =
-                // (2/M)·∫∫ f cos θ dω dA over the emitting hemisphere, so
-                // the point's density is 2π/(M·k) and the ray's direction
-                // cosine-weighted, as an area light's.
-                let line = super::uniform_line(*center, *radius, u_pos, u_dir);
-                let hits = super::line_crossings(&scene.geometry, *i, line, *radius, radiance.reads_uv());
-                let k = hits.len();
-                let hit = hits.get(((u_pick * k as f32) as usize).min(k.checked_sub(1)?))?;
-                let pdf_area = 2.0 * PI / (super::line_measure(*radius) * k as f32);
-                let w = line.1;
+                // Drawn through lines across its bounding sphere
+                // ([`super::sample_on_lines`]): of a line's k crossings one
+                // is taken (k times as much light), at density 2π/(M·k) on
+                // average uniform by area, and the line's direction, turned
+                // to the emitting side, is the ray's, distributed as |cos θ|
+                // about the normal: E[k·f(x, ω)] = (2/M)·∫∫ f cos θ dω dA
+                // over the emitting hemisphere, so the ray is weighed as an
+                // area light's with a cosine-weighted direction.
+                let (hit, pdf_area, w) = super::sample_on_lines(
+                    &scene.geometry,
+                    *i,
+                    (*center, *radius),
+                    u_pick,
+                    (u_pos, u_dir),
+                    radiance.reads_uv(),
+                )?;
                 let (dir, sides) = match (*two_sided, w.dot(hit.ng) >= 0.0) {
                     (true, _) => (w, 2.0),
                     (false, true) => (w, 1.0),

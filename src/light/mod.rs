@@ -108,10 +108,9 @@ pub enum Light {
         /// surface), which is sampled by direction instead: uniformly in
         /// the cone the sphere subtends (over every direction from inside
         /// it), the light's point the emitter's first along the direction.
-        /// Its rays of light leave from the crossings of lines drawn
-        /// through the sphere ([`Light::sample_le`]); no bidirectional
-        /// light subpath starts on it (see
-        /// [`Light::has_emission_densities`]).
+        /// Its rays of light, and the light points of bidirectional
+        /// connections, are drawn through lines across the sphere
+        /// ([`sample_on_lines`]).
         cone: Option<(Vec3, f32)>,
     },
     /// The background (see [`Background`]), as light from every direction.
@@ -706,17 +705,6 @@ impl Light {
         self.sample_li(scene, p, u_pick, u, incomplete)
     }
 
-    /// Whether the densities of the light's emission and light samples
-    /// are ones bidirectional MIS can weigh (per unit area of its points):
-    /// all but an emitter sampled by direction (a distance function or an
-    /// implicit surface, which has no density over its area), from which
-    /// BDPT's, VCM's and MLT's light subpaths therefore never start.
-    /// Photons and light tracing start from it all the same
-    /// ([`Light::sample_le`]).
-    pub fn has_emission_densities(&self) -> bool {
-        !matches!(self, Light::Area { cone: Some(_), .. })
-    }
-
     /// Whether [`Light::sample_li`] reads its `u_pick`: only an area
     /// light that is not a parallelogram can sample its emitter's parts
     /// (a mesh's triangles; a sphere when the point is inside it).
@@ -1169,6 +1157,32 @@ pub fn line_crossings(
         ray = crate::geometry::Ray::with_interval(next.origin, w, 0.0, remaining);
     }
     hits
+}
+
+/// A point of emitter shape `i` drawn through its bounding sphere
+/// (`center`, `radius`): one of the k crossings, chosen by `u_pick`, of a
+/// line drawn uniformly among those meeting the sphere ([`uniform_line`]
+/// from `u_pos` and `u_dir`). Returns the crossing, its density per unit
+/// area 2π/(M·k) for lines of measure M ([`line_measure`]), and the
+/// line's unit direction. That density is the line's, not the point's
+/// (no function of the point gives it), but dividing by it is unbiased:
+/// by Crofton's formula E[k·g(x, ω)] = (1/M)·∫∫ g |cos θ| dω dA, so the
+/// point is drawn uniformly by area on average and the direction as
+/// |cos θ| about its normal.
+pub(crate) fn sample_on_lines(
+    scene_geometry: &crate::accel::Aggregate,
+    i: u32,
+    (center, radius): (Vec3, f32),
+    u_pick: f32,
+    (u_pos, u_dir): (Vec2, Vec2),
+    uv: bool,
+) -> Option<(SurfaceHit, f32, Vec3)> {
+    let line = uniform_line(center, radius, u_pos, u_dir);
+    let mut hits = line_crossings(scene_geometry, i, line, radius, uv);
+    let k = hits.len();
+    let pick = ((u_pick * k as f32) as usize).min(k.checked_sub(1)?);
+    let pdf_area = 2.0 * PI / (line_measure(radius) * k as f32);
+    Some((hits.swap_remove(pick), pdf_area, line.1))
 }
 
 /// An estimate of the area of emitter `emitter` (shape `i`) inside its

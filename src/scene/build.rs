@@ -468,22 +468,14 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 ));
                 continue;
             }
-            if matches!(s.shape, Shape::Sdf(_) | Shape::SdfGrid(_) | Shape::Implicit(_)) {
-                if s.motion.is_some() {
-                    // Its light arrives where paths hit it, unweighted by
-                    // MIS (no other strategy finds it).
-                    warnings.push(format!(
-                        "shape[{}]: a moving emissive distance function or implicit surface is not sampled as a light: its light reaches what paths that hit it see, noisily where it is small",
-                        shape_desc_index[i]
-                    ));
-                    continue;
-                }
-                // Sampled by direction (see `Light::Area::cone`): no
-                // bidirectional light subpath starts on it.
+            if matches!(s.shape, Shape::Sdf(_) | Shape::SdfGrid(_) | Shape::Implicit(_)) && s.motion.is_some() {
+                // Its light arrives where paths hit it, unweighted by MIS
+                // (no other strategy finds it).
                 warnings.push(format!(
-                    "shape[{}]: an emissive distance function or implicit surface has no density over its area: lights sample it by direction and photons leave it from lines drawn through it, but the light subpaths of bdpt, vcm and mlt do not start on it (their camera subpaths find its light where they hit it)",
+                    "shape[{}]: a moving emissive distance function or implicit surface is not sampled as a light: its light reaches what paths that hit it see, noisily where it is small",
                     shape_desc_index[i]
                 ));
+                continue;
             }
             emitters.push((EmitterRef::Shape(i as u32), s.material));
         }
@@ -792,7 +784,6 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         settings: desc.settings.clone(),
         warnings,
         light_distribution: Distribution1D::default(),
-        mis_light_distribution: Distribution1D::default(),
         light_sampler: Default::default(),
         environment_light,
     };
@@ -807,14 +798,6 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     };
     let powers: Vec<f32> = scene.lights.iter().map(|l| l.power(&scene, radius)).collect();
     scene.light_distribution = Distribution1D::new(&powers);
-    // Bidirectional light subpaths start only where MIS can weigh them.
-    let weighable: Vec<f32> = scene
-        .lights
-        .iter()
-        .zip(&powers)
-        .map(|(l, &power)| if l.has_emission_densities() { power } else { 0.0 })
-        .collect();
-    scene.mis_light_distribution = Distribution1D::new(&weighable);
     // For a shading point, by the light tree.
     let bounds: Vec<_> = scene
         .lights

@@ -1912,9 +1912,8 @@ impl SceneDesc {
                         ShapeKind::Bezier(_) => Some("a Bézier patch without area (degenerate) cannot emit light"),
                         ShapeKind::Curve(_) => Some("a curve cannot emit light (nor in pbrt-v4)"),
                         // Distance functions and implicit surfaces emit:
-                        // lights sample them by direction, and the build
-                        // warns that no bidirectional light subpath
-                        // starts on them.
+                        // lights sample them by direction, light subpaths
+                        // start on lines drawn through them.
                         _ => None,
                     };
                     if let (true, Some(why)) = (emits, why) {

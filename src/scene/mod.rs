@@ -59,16 +59,9 @@ pub struct Scene {
     /// ([`Material::reads_uv`](crate::material::Material::reads_uv)):
     /// surface records of the others are made without them.
     pub materials_reading_uv: Vec<bool>,
-    /// Chooses lights in proportion to their power (for emitting photons
-    /// and light tracing).
+    /// Chooses lights in proportion to their power (for emitting photons,
+    /// light tracing and the light subpaths of BDPT, VCM and MLT).
     pub light_distribution: Distribution1D,
-    /// [`Scene::light_distribution`] without the lights whose emission
-    /// has no densities bidirectional MIS can weigh
-    /// ([`Light::has_emission_densities`](crate::light::Light::has_emission_densities)),
-    /// for the light subpaths of BDPT, VCM and MLT (such a light is never
-    /// drawn, unless every weighable light has no power, when the choice
-    /// is uniform and drawing it starts no subpath).
-    pub mis_light_distribution: Distribution1D,
     /// Chooses a light for a shading point (next-event estimation).
     pub light_sampler: crate::light::LightSampler,
     /// Index of the environment light (a background that is not black).

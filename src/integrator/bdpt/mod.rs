@@ -42,6 +42,7 @@ use super::adjoint_shading_factor;
 use super::light::SplatImage;
 use super::state::{StateReader, StateWriter};
 use super::{Progressive, Work};
+use crate::accel::aggregate::EmitterRef;
 use crate::color::Rgb;
 use crate::film::Film;
 use crate::geometry::interaction::SHADOW_EPSILON;
@@ -321,8 +322,27 @@ fn pdf_le(scene: &Scene, bounds: (Vec3, f32), light: u32, p: Vec3, n: Vec3, w: V
         Light::Projector(proj) => (1.0, proj.pdf_emission(w)),
         Light::Goniometric(g) => (1.0, g.pdf_emission(w)),
         Light::Directional { .. } => (disk, 1.0),
-        // Sampled by direction only: no light subpath starts on it.
-        Light::Area { cone: Some(_), .. } => (0.0, 0.0),
+        // A distance function or an implicit surface: its light subpaths
+        // start on lines drawn through it, at a density per unit area that
+        // is the line's rather than the point's but uniform by area on
+        // average ([`crate::light::sample_on_lines`]); MIS weighs its
+        // points by that average, 1/A (A its area by Crofton's formula),
+        // which keeps every strategy's weights a function of the path
+        // alone, so that they still sum to one, while each contribution is
+        // divided by the density its sample actually had.
+        Light::Area {
+            cone: Some(_),
+            area,
+            two_sided,
+            ..
+        } => {
+            let cos = crate::light::emitting_cosine(n, w, *two_sided);
+            let sides = if *two_sided { 2.0 } else { 1.0 };
+            (
+                if area.total > 0.0 { 1.0 / area.total } else { 0.0 },
+                if cos > 0.0 { cos / (sides * PI) } else { 0.0 },
+            )
+        }
         Light::Area {
             emitter,
             area,
@@ -758,17 +778,14 @@ impl<'s> Tracer<'s> {
     ) {
         path.clear();
         let scene = self.scene;
-        if scene.lights.is_empty() || scene.mis_light_distribution.is_empty() || max_vertices == 0 {
+        if scene.lights.is_empty() || scene.light_distribution.is_empty() || max_vertices == 0 {
             return;
         }
         let Some((emitted, light, pmf)) =
-            crate::light::sample_scene_emission(scene, &scene.mis_light_distribution, self.bounds, rng)
+            crate::light::sample_scene_emission(scene, &scene.light_distribution, self.bounds, rng)
         else {
             return;
         };
-        if !scene.lights[light].has_emission_densities() {
-            return;
-        }
         let light = light as u32;
         let w = emitted.ray.dir;
         let beta = emitted.weight / pmf;
@@ -888,7 +905,7 @@ impl<'s> Tracer<'s> {
             if !pt.connectible || !matches!(pt.kind, Kind::Surface | Kind::Medium) {
                 return None;
             }
-            let (vertex, wi, li, shadow) = self.sample_light_vertex(pt, u_light, u_pick, u)?;
+            let (vertex, wi, li, shadow) = self.sample_light_vertex(pt, u_light, u_pick, u, rng)?;
             let l = pt.beta * vertex_f(pt, wi) * li * pt.cos_toward(wi);
             if l == Rgb::ZERO {
                 return None;
@@ -928,29 +945,29 @@ impl<'s> Tracer<'s> {
 
     /// A light point for camera vertex `pt` (strategy s = 1): a light
     /// chosen by power as light subpaths choose it; an area light's point
-    /// drawn by area as its emitted rays draw it, the other lights'
-    /// through [`Light::sample_li`]. The light vertex, the unit direction
-    /// toward it, the light arriving along it over the densities, and the
-    /// shadow ray's end.
-    fn sample_light_vertex(
+    /// drawn as its emitted rays draw it (by area; a distance function's
+    /// or an implicit surface's through a line, whose direction takes two
+    /// more numbers from `rng`), the other lights' through
+    /// [`Light::sample_li`]. The light vertex, the unit direction toward
+    /// it, the light arriving along it over the densities, and the shadow
+    /// ray's end.
+    fn sample_light_vertex<R: Uniforms>(
         &self,
         pt: &Vertex,
         u_light: f32,
         u_pick: f32,
         u: Vec2,
+        rng: &mut R,
     ) -> Option<(Vertex<'s>, Vec3, Rgb, ShadowTarget)> {
         let scene = self.scene;
-        if scene.mis_light_distribution.is_empty() {
+        if scene.light_distribution.is_empty() {
             return None;
         }
-        let (index, pmf, _) = scene.mis_light_distribution.sample(u_light);
+        let (index, pmf, _) = scene.light_distribution.sample(u_light);
         if pmf <= 0.0 {
             return None;
         }
         let light = &scene.lights[index];
-        if !light.has_emission_densities() {
-            return None;
-        }
         let infinite = matches!(light, Light::Environment | Light::Directional { .. });
         let kind = Kind::Light {
             light: index as u32,
@@ -963,24 +980,42 @@ impl<'s> Tracer<'s> {
                 area,
                 radiance,
                 two_sided,
+                cone,
                 ..
             } => {
-                let es = scene
-                    .geometry
-                    .sample_emitter(*emitter, area, u_pick, u, radiance.reads_uv())?;
-                let d = pt.p - es.p;
+                let (p, n, uv, pdf_area) = match (cone, emitter) {
+                    (Some(sphere), EmitterRef::Shape(i)) => {
+                        let u_dir = Vec2::new(rng.next_f32(), rng.next_f32());
+                        let (hit, pdf_area, _) = crate::light::sample_on_lines(
+                            &scene.geometry,
+                            *i,
+                            *sphere,
+                            u_pick,
+                            (u, u_dir),
+                            radiance.reads_uv(),
+                        )?;
+                        (hit.p, hit.ng, hit.uv, pdf_area)
+                    }
+                    _ => {
+                        let es = scene
+                            .geometry
+                            .sample_emitter(*emitter, area, u_pick, u, radiance.reads_uv())?;
+                        (es.p, es.n, es.uv, es.pdf_area)
+                    }
+                };
+                let d = pt.p - p;
                 let d2 = d.length_squared();
-                let cos = crate::light::emitting_cosine(es.n, d, *two_sided) / d2.sqrt();
-                if !(cos > 0.0 && es.pdf_area > 0.0 && d2 > 0.0) {
+                let cos = crate::light::emitting_cosine(n, d, *two_sided) / d2.sqrt();
+                if !(cos > 0.0 && pdf_area > 0.0 && d2 > 0.0) {
                     return None;
                 }
-                let le = radiance.eval(&scene.textures, &TexCoord::new(es.uv, es.p));
-                let vertex = Vertex::endpoint(kind, es.p, es.n, le / (pmf * es.pdf_area), 0.0);
+                let le = radiance.eval(&scene.textures, &TexCoord::new(uv, p));
+                let vertex = Vertex::endpoint(kind, p, n, le / (pmf * pdf_area), 0.0);
                 (
                     vertex,
                     -d / d2.sqrt(),
-                    le * (cos / (pmf * es.pdf_area * d2)),
-                    ShadowTarget::Point(es.p),
+                    le * (cos / (pmf * pdf_area * d2)),
+                    ShadowTarget::Point(p),
                 )
             }
             _ => {
@@ -1121,9 +1156,7 @@ impl<'s> Tracer<'s> {
             Kind::Light { .. } => Some(*v),
             Kind::Surface => {
                 let hit = v.hit.as_ref()?;
-                let light = hit
-                    .light
-                    .filter(|&l| self.scene.lights[l as usize].has_emission_densities())?;
+                let light = hit.light?;
                 let kind = Kind::Light {
                     light,
                     infinite: false,
@@ -1557,7 +1590,7 @@ impl<'s> Tracer<'s> {
             return 0.0;
         };
         let scene = self.scene;
-        let pmf = scene.mis_light_distribution.pmf(light as usize);
+        let pmf = scene.light_distribution.pmf(light as usize);
         if infinite {
             return match &scene.lights[light as usize] {
                 Light::Environment => pmf * scene.background.pdf(v.p),
