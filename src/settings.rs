@@ -421,6 +421,28 @@ pub enum Filter {
         /// Cut-off in pixels.
         radius: f32,
     },
+    /// Mitchell and Netravali's cubic (1988) of parameters `b` and `c`,
+    /// stretched to `radius` (its own support is 2): pbrt-v4's `mitchell`
+    /// and Mitsuba's `mitchell` (B = C = 1/3) and `catmullrom` (B = 0,
+    /// C = 1/2). Negative lobes: always splatted (radius at most
+    /// [`Filter::MAX_SIGNED_RADIUS`]).
+    Mitchell {
+        /// Half-width in pixels.
+        radius: f32,
+        /// B, the blur.
+        b: f32,
+        /// C, the ringing.
+        c: f32,
+    },
+    /// Lanczos' windowed sinc, sinc(x)·sinc(x/τ) within `radius`: pbrt-v4's
+    /// `sinc` (radius 4, τ 3) and Mitsuba's `lanczos` (radius = τ = its
+    /// `lobes`, 3). Negative lobes: always splatted.
+    Lanczos {
+        /// Half-width in pixels.
+        radius: f32,
+        /// The window's width τ.
+        tau: f32,
+    },
 }
 
 impl Default for Filter {
@@ -431,10 +453,15 @@ impl Default for Filter {
 
 impl Filter {
     /// The names accepted in scene files.
-    pub const NAMES: [&'static str; 3] = ["box", "tent", "gaussian"];
+    pub const NAMES: [&'static str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
+
+    /// The widest filter with negative lobes: those are splatted, and a
+    /// splat reaches at most this far.
+    pub const MAX_SIGNED_RADIUS: f32 = 7.5;
 
     /// The filter called `name` with its default size (box 0.5, tent 1,
-    /// Gaussian σ = 0.5 cut off at 4σ, as Mitsuba's).
+    /// Gaussian σ = 0.5 cut off at 4σ, as Mitsuba's; Mitchell's and
+    /// Catmull–Rom's cubics 2, Lanczos 3 lobes, as Mitsuba's).
     pub fn from_name(name: &str) -> Option<Filter> {
         match name {
             "box" => Some(Filter::Box { radius: 0.5 }),
@@ -443,6 +470,17 @@ impl Filter {
                 stddev: 0.5,
                 radius: 2.0,
             }),
+            "mitchell" => Some(Filter::Mitchell {
+                radius: 2.0,
+                b: 1.0 / 3.0,
+                c: 1.0 / 3.0,
+            }),
+            "catmullrom" => Some(Filter::Mitchell {
+                radius: 2.0,
+                b: 0.0,
+                c: 0.5,
+            }),
+            "lanczos" => Some(Filter::Lanczos { radius: 3.0, tau: 3.0 }),
             _ => None,
         }
     }
@@ -450,14 +488,27 @@ impl Filter {
     /// Half-width in pixels.
     pub fn radius(&self) -> f32 {
         match *self {
-            Filter::Box { radius } | Filter::Tent { radius } | Filter::Gaussian { radius, .. } => radius,
+            Filter::Box { radius }
+            | Filter::Tent { radius }
+            | Filter::Gaussian { radius, .. }
+            | Filter::Mitchell { radius, .. }
+            | Filter::Lanczos { radius, .. } => radius,
         }
+    }
+
+    /// Whether the filter has negative lobes, which filter importance
+    /// sampling cannot draw (its samples all count +1): such filters are
+    /// always splatted.
+    pub fn has_negative_lobes(&self) -> bool {
+        matches!(self, Filter::Mitchell { .. } | Filter::Lanczos { .. })
     }
 
     /// Whether samples are splatted into every pixel the filter covers,
     /// and if so how many pixels a tile's buffer reaches beyond the tile on
     /// each side. `None` for the one-pixel box, for which filter importance
-    /// sampling is the same estimator, and for radii outside (0, 8] pixels.
+    /// sampling is the same estimator, and for radii outside (0, 8] pixels
+    /// (scenes keep filters with negative lobes within
+    /// [`Filter::MAX_SIGNED_RADIUS`]).
     pub fn splat_margin(&self) -> Option<u32> {
         let radius = self.radius();
         if matches!(self, Filter::Box { .. }) && radius <= 0.5 || !(radius > 0.0 && radius <= 8.0) {
@@ -536,6 +587,15 @@ mod tests {
         assert_eq!(Filter::from_name("tent").unwrap().splat_margin(), Some(1));
         assert_eq!(Filter::from_name("gaussian").unwrap().splat_margin(), Some(2));
         assert_eq!(Filter::Tent { radius: 9.0 }.splat_margin(), None);
+        for name in ["mitchell", "catmullrom", "lanczos"] {
+            let f = Filter::from_name(name).unwrap();
+            assert!(f.has_negative_lobes() && f.splat_margin().is_some(), "{name}");
+        }
+        let widest = Filter::Lanczos {
+            radius: Filter::MAX_SIGNED_RADIUS,
+            tau: 3.0,
+        };
+        assert_eq!(widest.splat_margin(), Some(7));
     }
 
     #[test]

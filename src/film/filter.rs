@@ -21,6 +21,8 @@ impl Filter {
             Filter::Box { .. } => 1.0,
             Filter::Tent { radius } => 1.0 - x.abs() / radius,
             Filter::Gaussian { stddev, .. } => (-x * x / (2.0 * stddev * stddev)).exp(),
+            Filter::Mitchell { radius, b, c } => mitchell_1d(2.0 * x / radius, b, c),
+            Filter::Lanczos { tau, .. } => sinc(x) * sinc(x / tau),
         }
     }
 
@@ -54,6 +56,12 @@ impl Filter {
                 };
                 x * radius
             }
+            // Splatted (`Filter::splat_margin`): scenes keep them within
+            // the splat's reach, and importance sampling could not give
+            // their negative lobes their sign.
+            Filter::Mitchell { .. } | Filter::Lanczos { .. } => {
+                unreachable!("filters with negative lobes are splatted")
+            }
             Filter::Gaussian { stddev, radius } => {
                 // Inverse CDF of the normal distribution truncated to ±radius,
                 // in f32: pixel offsets need no more, and this runs once per
@@ -67,6 +75,26 @@ impl Filter {
     }
 }
 
+/// Mitchell and Netravali's cubic ("Reconstruction Filters in Computer
+/// Graphics", 1988, eq. 8) at `x`, supported on [−2, 2].
+fn mitchell_1d(x: f32, b: f32, c: f32) -> f32 {
+    let x = x.abs();
+    let (x2, x3) = (x * x, x * x * x);
+    if x <= 1.0 {
+        ((12.0 - 9.0 * b - 6.0 * c) * x3 + (-18.0 + 12.0 * b + 6.0 * c) * x2 + (6.0 - 2.0 * b)) / 6.0
+    } else if x <= 2.0 {
+        ((-b - 6.0 * c) * x3 + (6.0 * b + 30.0 * c) * x2 + (-12.0 * b - 48.0 * c) * x + (8.0 * b + 24.0 * c)) / 6.0
+    } else {
+        0.0
+    }
+}
+
+/// sin(πx)/(πx), 1 at 0.
+fn sinc(x: f32) -> f32 {
+    let px = std::f32::consts::PI * x;
+    if px.abs() < 1e-5 { 1.0 } else { px.sin() / px }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -76,6 +104,42 @@ mod tests {
     /// filter's shape (chi-square over 20 bins per axis).
     /// A filter and its unnormalised profile.
     type Profile = (Filter, fn(f32) -> f32);
+
+    /// Mitchell and Netravali's cubics and Lanczos' sinc against their
+    /// defining properties: the cubic is (6 − 2B)/6 at 0, continuous, and
+    /// its integer translates sum to 1 for every B and C (their paper's
+    /// design condition, which keeps a constant image constant); the sinc
+    /// is 1 at 0 and 0 at the other integers, and negative in its second
+    /// lobe. Stretched to a radius, the cubic's profile scales with it.
+    #[test]
+    fn mitchell_and_lanczos_profiles_keep_their_defining_properties() {
+        for (b, c) in [(1.0 / 3.0, 1.0 / 3.0), (0.0, 0.5), (1.0, 0.0), (0.2, 0.7)] {
+            assert!((mitchell_1d(0.0, b, c) - (6.0 - 2.0 * b) / 6.0).abs() < 1e-6);
+            for k in 0..=100 {
+                let x = k as f32 / 100.0;
+                let sum: f32 = (-3..=3).map(|n| mitchell_1d(x + n as f32, b, c)).sum();
+                assert!((sum - 1.0).abs() < 1e-5, "B {b} C {c}: translates sum to {sum} at {x}");
+            }
+            for edge in [1.0f32, 2.0] {
+                let (below, above) = (mitchell_1d(edge - 1e-4, b, c), mitchell_1d(edge + 1e-4, b, c));
+                assert!((below - above).abs() < 1e-3, "B {b} C {c}: jumps at {edge}");
+            }
+            let stretched = Filter::Mitchell { radius: 3.0, b, c };
+            assert_eq!(stretched.eval_1d(1.5), mitchell_1d(1.0, b, c));
+            assert_eq!(stretched.eval_1d(3.1), 0.0);
+        }
+        // Catmull–Rom interpolates: 1 at 0, 0 at ±1 and ±2.
+        let catmull_rom = Filter::from_name("catmullrom").unwrap();
+        assert!((catmull_rom.eval_1d(0.0) - 1.0).abs() < 1e-6);
+        assert!(catmull_rom.eval_1d(1.0).abs() < 1e-6 && catmull_rom.eval_1d(1.5) < 0.0);
+        let lanczos = Filter::from_name("lanczos").unwrap();
+        assert_eq!(lanczos.eval_1d(0.0), 1.0);
+        for k in 1..=3 {
+            assert!(lanczos.eval_1d(k as f32).abs() < 1e-6, "{k}");
+        }
+        assert!(lanczos.eval_1d(1.5) < -0.1 && lanczos.eval_1d(2.5) > 0.0);
+        assert_eq!(lanczos.eval_1d(3.01), 0.0);
+    }
 
     #[test]
     fn offsets_follow_the_filter() {

@@ -2073,6 +2073,29 @@ impl SceneDesc {
                     return Err(c.err("filter_radius", format!("must be at most 16 pixels, got {radius}")));
                 }
             }
+            Filter::Mitchell { radius, b, c: cc } => {
+                c.positive("filter_radius", radius)?;
+                c.finite("filter_b", b)?;
+                c.finite("filter_c", cc)?;
+                let max = Filter::MAX_SIGNED_RADIUS;
+                if radius > max {
+                    return Err(c.err(
+                        "filter_radius",
+                        format!("must be at most {max} pixels for a filter with negative lobes, got {radius}"),
+                    ));
+                }
+            }
+            Filter::Lanczos { radius, tau } => {
+                c.positive("filter_radius", radius)?;
+                c.positive("filter_tau", tau)?;
+                let max = Filter::MAX_SIGNED_RADIUS;
+                if radius > max {
+                    return Err(c.err(
+                        "filter_radius",
+                        format!("must be at most {max} pixels for a filter with negative lobes, got {radius}"),
+                    ));
+                }
+            }
         }
         Ok(())
     }

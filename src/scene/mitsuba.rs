@@ -1352,6 +1352,24 @@ impl Loader {
                         radius: 4.0 * sd,
                     }
                 }
+                // Mitsuba's cubics are supported on [−2, 2] pixels.
+                "mitchell" => Filter::Mitchell {
+                    radius: 2.0,
+                    b: self.float(f, &rprops, "B", &mut rused)?.unwrap_or(1.0 / 3.0),
+                    c: self.float(f, &rprops, "C", &mut rused)?.unwrap_or(1.0 / 3.0),
+                },
+                "catmullrom" => Filter::from_name("catmullrom").expect("known"),
+                // Its radius is its number of lobes.
+                "lanczos" => {
+                    let lobes = self.integer(f, &rprops, "lobes", &mut rused)?.unwrap_or(3);
+                    if !(1..=7).contains(&lobes) {
+                        return Err(self.err(f, rf, format!("lanczos \"lobes\" must be between 1 and 7, got {lobes}")));
+                    }
+                    Filter::Lanczos {
+                        radius: lobes as f32,
+                        tau: lobes as f32,
+                    }
+                }
                 other => {
                     self.warn(
                         f,
@@ -3416,6 +3434,57 @@ mod tests {
     </shape>
     <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
 </scene>"#;
+
+    /// Mitsuba's cubic and Lanczos filters, with their parameters; a
+    /// Lanczos of too many lobes is an error.
+    #[test]
+    fn reads_mitchell_catmull_rom_and_lanczos_filters() {
+        for (rfilter, filter) in [
+            (
+                r#"<rfilter type="mitchell"/>"#,
+                Filter::Mitchell {
+                    radius: 2.0,
+                    b: 1.0 / 3.0,
+                    c: 1.0 / 3.0,
+                },
+            ),
+            (
+                r#"<rfilter type="mitchell"><float name="B" value="0.5"/><float name="C" value="0.25"/></rfilter>"#,
+                Filter::Mitchell {
+                    radius: 2.0,
+                    b: 0.5,
+                    c: 0.25,
+                },
+            ),
+            (
+                r#"<rfilter type="catmullrom"/>"#,
+                Filter::Mitchell {
+                    radius: 2.0,
+                    b: 0.0,
+                    c: 0.5,
+                },
+            ),
+            (
+                r#"<rfilter type="lanczos"/>"#,
+                Filter::Lanczos { radius: 3.0, tau: 3.0 },
+            ),
+            (
+                r#"<rfilter type="lanczos"><integer name="lobes" value="2"/></rfilter>"#,
+                Filter::Lanczos { radius: 2.0, tau: 2.0 },
+            ),
+        ] {
+            let d = parse_str(&SPHERE.replace(r#"<rfilter type="box"/>"#, rfilter)).unwrap();
+            assert_eq!(d.settings.filter, filter, "{rfilter}");
+            assert!(d.warnings.is_empty(), "{rfilter}: {:?}", d.warnings);
+        }
+        let e = parse_str(&SPHERE.replace(
+            r#"<rfilter type="box"/>"#,
+            r#"<rfilter type="lanczos"><integer name="lobes" value="9"/></rfilter>"#,
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("lobes") && e.contains("between 1 and 7"), "{e}");
+    }
 
     #[test]
     fn reads_settings_camera_and_shapes() {

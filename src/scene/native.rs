@@ -565,18 +565,28 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     }
     let radius = t.number("filter_radius")?;
     let stddev = t.number("filter_stddev")?;
+    let (b, c, tau) = (t.number("filter_b")?, t.number("filter_c")?, t.number("filter_tau")?);
+    // A parameter of another filter than the one chosen is an error.
+    let foreign = |key: &str, owner: &str| -> Result<()> {
+        match t.value(key) {
+            Some(v) => Err(t.err_at(key, &v.span(), format!("only the {owner} filter has `{key}`"))),
+            None => Ok(()),
+        }
+    };
+    if !matches!(s.filter, Filter::Gaussian { .. }) {
+        foreign("filter_stddev", "gaussian")?;
+    }
+    if !matches!(s.filter, Filter::Mitchell { .. }) {
+        foreign("filter_b", "mitchell (or catmullrom)")?;
+        foreign("filter_c", "mitchell (or catmullrom)")?;
+    }
+    if !matches!(s.filter, Filter::Lanczos { .. }) {
+        foreign("filter_tau", "lanczos")?;
+    }
     match &mut s.filter {
         Filter::Box { radius: r } | Filter::Tent { radius: r } => {
             if let Some(v) = radius {
                 *r = v;
-            }
-            if stddev.is_some() {
-                let span = t.value("filter_stddev").map(|v| v.span()).unwrap_or(t.span.clone());
-                return Err(t.err_at(
-                    "filter_stddev",
-                    &span,
-                    "only the gaussian filter has a standard deviation",
-                ));
             }
         }
         Filter::Gaussian { stddev: sd, radius: r } => {
@@ -587,6 +597,23 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
             if let Some(v) = radius {
                 *r = v;
             }
+        }
+        Filter::Mitchell {
+            radius: r,
+            b: fb,
+            c: fc,
+        } => {
+            if let Some(v) = radius {
+                *r = v;
+            }
+            *fb = b.unwrap_or(*fb);
+            *fc = c.unwrap_or(*fc);
+        }
+        Filter::Lanczos { radius: r, tau: ft } => {
+            if let Some(v) = radius {
+                *r = v;
+            }
+            *ft = tau.unwrap_or(*ft);
         }
     }
     Ok(())

@@ -136,6 +136,14 @@ const CASES: &[(&str, Expect)] = &[
     ),
     ("native/absurd-spp.toml", Error(&["render.spp"])),
     (
+        "native/filter-foreign-parameter.toml",
+        Error(&["filter-foreign-parameter.toml:5:", "filter_tau", "lanczos"]),
+    ),
+    (
+        "native/filter-wide-lanczos.toml",
+        Error(&["filter-wide-lanczos.toml:5:", "filter_radius", "negative lobes"]),
+    ),
+    (
         "native/absurd-sphere-mesh.toml",
         Error(&["shape[0].segments", "50 million"]),
     ),

@@ -410,6 +410,29 @@ impl Parser {
                 }
                 Filter::Gaussian { stddev: sigma, radius }
             }
+            // pbrt-v4's `MitchellFilter`: Mitchell1D(2x/radius), B and C
+            // 1/3.
+            "mitchell" => {
+                let b = p.float("B", 1.0 / 3.0)?;
+                let c = p.float("C", 1.0 / 3.0)?;
+                for (name, key) in [("B", "filter_b"), ("C", "filter_c")] {
+                    if let Some((_, prm)) = p.float_opt(name)? {
+                        self.desc.settings_locs.keys.push((key.into(), prm.loc.clone()));
+                    }
+                }
+                Filter::Mitchell { radius, b, c }
+            }
+            // pbrt-v4's `LanczosSincFilter`: sinc(x)·sinc(x/τ), τ 3.
+            "sinc" => {
+                let tau = p.float("tau", 3.0)?;
+                if let Some((_, prm)) = p.float_opt("tau")? {
+                    self.desc
+                        .settings_locs
+                        .keys
+                        .push(("filter_tau".into(), prm.loc.clone()));
+                }
+                Filter::Lanczos { radius, tau }
+            }
             _ => {
                 Self::use_all(p);
                 self.approximated(

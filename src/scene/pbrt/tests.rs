@@ -122,6 +122,38 @@ WorldBegin"#,
             radius: 1.0
         }
     );
+    // Mitchell's cubic and Lanczos' sinc, pbrt-v4's defaults and given.
+    for (text, filter) in [
+        (
+            "PixelFilter \"mitchell\"",
+            Filter::Mitchell {
+                radius: 2.0,
+                b: 1.0 / 3.0,
+                c: 1.0 / 3.0,
+            },
+        ),
+        (
+            "PixelFilter \"mitchell\" \"float B\" 0 \"float C\" 0.5 \"float xradius\" 3 \"float yradius\" 3",
+            Filter::Mitchell {
+                radius: 3.0,
+                b: 0.0,
+                c: 0.5,
+            },
+        ),
+        ("PixelFilter \"sinc\"", Filter::Lanczos { radius: 4.0, tau: 3.0 }),
+        (
+            "PixelFilter \"sinc\" \"float tau\" 2 \"float xradius\" 2 \"float yradius\" 2",
+            Filter::Lanczos { radius: 2.0, tau: 2.0 },
+        ),
+    ] {
+        let f = parse_str(&format!("{text}\nWorldBegin")).unwrap();
+        assert_eq!(f.settings.filter, filter, "{text}");
+        assert!(f.warnings.is_empty(), "{text}: {:?}", f.warnings);
+    }
+    let e = parse_str("PixelFilter \"sinc\" \"float xradius\" 9 \"float yradius\" 9\nWorldBegin")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("test.pbrt:1:") && e.contains("negative lobes"), "{e}");
     let w = d.warnings.join("\n");
     // pbrt-v4's BDPT is trazo's, with its depth.
     assert_eq!(d.settings.integrator, IntegratorKind::Bdpt);
