@@ -2073,28 +2073,20 @@ impl SceneDesc {
                     return Err(c.err("filter_radius", format!("must be at most 16 pixels, got {radius}")));
                 }
             }
-            Filter::Mitchell { radius, b, c: cc } => {
-                c.positive("filter_radius", radius)?;
+            Filter::Mitchell { b, c: cc, .. } => {
                 c.finite("filter_b", b)?;
                 c.finite("filter_c", cc)?;
-                let max = Filter::MAX_SIGNED_RADIUS;
-                if radius > max {
-                    return Err(c.err(
-                        "filter_radius",
-                        format!("must be at most {max} pixels for a filter with negative lobes, got {radius}"),
-                    ));
-                }
             }
-            Filter::Lanczos { radius, tau } => {
-                c.positive("filter_radius", radius)?;
-                c.positive("filter_tau", tau)?;
-                let max = Filter::MAX_SIGNED_RADIUS;
-                if radius > max {
-                    return Err(c.err(
-                        "filter_radius",
-                        format!("must be at most {max} pixels for a filter with negative lobes, got {radius}"),
-                    ));
-                }
+            Filter::Lanczos { tau, .. } => c.positive("filter_tau", tau)?,
+        }
+        if s.filter.has_negative_lobes() {
+            let (radius, max) = (s.filter.radius(), Filter::MAX_SIGNED_RADIUS);
+            c.positive("filter_radius", radius)?;
+            if radius > max {
+                return Err(c.err(
+                    "filter_radius",
+                    format!("must be at most {max} pixels for a filter with negative lobes, got {radius}"),
+                ));
             }
         }
         Ok(())

@@ -457,6 +457,46 @@ fn bent_bilinear_patch_lights_are_sampled_by_their_density() {
     );
 }
 
+/// `shape` (a `[[shape]]` entry, which may use the material "white") on a
+/// white floor at height `floor`, lit by a point light and a grey sky,
+/// rendered with the `[render]` `settings` (and a depth of 3) through
+/// `camera`.
+fn on_lit_floor(settings: &str, camera: &str, floor: f32, shape: &str) -> Film {
+    render_film(
+        &parse(&format!(
+            r#"
+[render]
+{settings}
+max_depth = 3
+
+[camera]
+{camera}
+
+[world]
+background = [0.3, 0.35, 0.4]
+
+[[material]]
+name = "white"
+type = "diffuse"
+reflectance = 0.7
+
+[[light]]
+type = "point"
+position = [1.5, 3, 2]
+intensity = 6
+
+[[shape]]
+type = "plane"
+point = [0, {floor}, 0]
+material = "white"
+
+{shape}
+"#
+        )),
+        false,
+    )
+}
+
 /// A bent bicubic Bézier patch (a saddle with two bulges) in TOML, row by
 /// row.
 const BEZIER_POINTS: &str = "points = [[-1.5, -1.5, 0.9], [-0.5, -1.5, 0.3], [0.5, -1.5, -0.3], [1.5, -1.5, -0.9],
@@ -480,41 +520,16 @@ fn bezier_patches_vanish_in_a_furnace_match_their_tessellation_and_emit() {
 
     // On a lit floor, against 64 × 64 quads of the same patch.
     let lit = |shape: &str| {
-        let d = parse(&format!(
-            r#"
-[render]
-width = 24
-height = 24
-spp = 128
-max_depth = 3
-
-[camera]
-from = [0, 2.5, 4]
-to = [0, 0.5, 0]
-fov = 45
-
-[world]
-background = [0.3, 0.35, 0.4]
-
-[[material]]
-name = "white"
-type = "diffuse"
-reflectance = 0.7
-
-[[light]]
-type = "point"
-position = [1.5, 3, 2]
-intensity = 6
-
-[[shape]]
-type = "plane"
-material = "white"
-
-{shape}
-transform = [{{ scale = 0.5 }}, {{ rotate = {{ axis = [1, 0, 0], angle = -60 }} }}, {{ translate = [0, 0.9, 0] }}]
-"#
-        ));
-        mean_and_error(&render_film(&d, false))
+        let placed = format!(
+            "{shape}\ntransform = [{{ scale = 0.5 }}, {{ rotate = {{ axis = [1, 0, 0], angle = -60 }} }}, {{ translate = [0, 0.9, 0] }}]"
+        );
+        let camera = "from = [0, 2.5, 4]\nto = [0, 0.5, 0]\nfov = 45";
+        mean_and_error(&on_lit_floor(
+            "width = 24\nheight = 24\nspp = 128",
+            camera,
+            0.0,
+            &placed,
+        ))
     };
     let (a, ea) = lit(&patch);
     let (b, eb) = lit(&format!("{patch}tessellate = 64\n"));
@@ -647,43 +662,12 @@ fn the_teapot_from_its_patches_matches_their_tessellation() {
 
     // Independent seeds: equal images then differ by their noise alone.
     let lit = |shape: &str, seed: u32| {
-        render_film(
-            &parse(&format!(
-                r#"
-[render]
-width = 32
-height = 24
-spp = 256
-max_depth = 3
-seed = {seed}
-
-[camera]
-from = [0, 1.5, 5]
-to = [0, -0.1, 0]
-fov = 40
-
-[world]
-background = [0.3, 0.35, 0.4]
-
-[[material]]
-name = "white"
-type = "diffuse"
-reflectance = 0.7
-
-[[light]]
-type = "point"
-position = [1.5, 3, 2]
-intensity = 6
-
-[[shape]]
-type = "plane"
-point = [0, -0.7, 0]
-material = "white"
-
-{shape}
-"#
-            )),
-            false,
+        let settings = format!("width = 32\nheight = 24\nspp = 256\nseed = {seed}");
+        on_lit_floor(
+            &settings,
+            "from = [0, 1.5, 5]\nto = [0, -0.1, 0]\nfov = 40",
+            -0.7,
+            shape,
         )
     };
     let patches = lit(&teapot, 1);
