@@ -2077,7 +2077,15 @@ impl SceneDesc {
                 c.finite("filter_b", b)?;
                 c.finite("filter_c", cc)?;
             }
-            Filter::Lanczos { tau, .. } => c.positive("filter_tau", tau)?,
+            // A window much narrower than the sinc's main lobe leaves a
+            // filter of vanishing integral (min(1, τ)), which splatting
+            // divides by.
+            Filter::Lanczos { tau, .. } => {
+                c.finite("filter_tau", tau)?;
+                if tau < 0.1 {
+                    return Err(c.err("filter_tau", format!("must be at least 0.1 pixels, got {tau}")));
+                }
+            }
         }
         if s.filter.has_negative_lobes() {
             let (radius, max) = (s.filter.radius(), Filter::MAX_SIGNED_RADIUS);

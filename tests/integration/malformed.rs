@@ -140,6 +140,10 @@ const CASES: &[(&str, Expect)] = &[
         Error(&["filter-foreign-parameter.toml:5:", "filter_tau", "lanczos"]),
     ),
     (
+        "native/filter-narrow-lanczos-window.toml",
+        Error(&["filter-narrow-lanczos-window.toml:5:", "filter_tau", "at least 0.1"]),
+    ),
+    (
         "native/filter-wide-lanczos.toml",
         Error(&["filter-wide-lanczos.toml:5:", "filter_radius", "negative lobes"]),
     ),
