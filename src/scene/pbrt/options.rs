@@ -367,6 +367,16 @@ impl Parser {
         Ok(())
     }
 
+    /// A filter's float parameter `name` (`default` where absent), its
+    /// place recorded under the settings key `key` for validation errors.
+    fn filter_parameter(&mut self, p: &ParamList, name: &str, default: f32, key: &str) -> Result<f32> {
+        let value = p.float(name, default)?;
+        if let Some((_, prm)) = p.float_opt(name)? {
+            self.desc.settings_locs.keys.push((key.into(), prm.loc.clone()));
+        }
+        Ok(value)
+    }
+
     pub(super) fn pixel_filter(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {
         let default = match kind {
             "box" => 0.5,
@@ -401,36 +411,19 @@ impl Parser {
             "box" => Filter::Box { radius },
             "triangle" => Filter::Tent { radius },
             "gaussian" => {
-                let sigma = p.float("sigma", 0.5)?;
-                if let Some((_, prm)) = p.float_opt("sigma")? {
-                    self.desc
-                        .settings_locs
-                        .keys
-                        .push(("filter_stddev".into(), prm.loc.clone()));
-                }
+                let sigma = self.filter_parameter(p, "sigma", 0.5, "filter_stddev")?;
                 Filter::Gaussian { stddev: sigma, radius }
             }
             // pbrt-v4's `MitchellFilter`: Mitchell1D(2x/radius), B and C
             // 1/3.
             "mitchell" => {
-                let b = p.float("B", 1.0 / 3.0)?;
-                let c = p.float("C", 1.0 / 3.0)?;
-                for (name, key) in [("B", "filter_b"), ("C", "filter_c")] {
-                    if let Some((_, prm)) = p.float_opt(name)? {
-                        self.desc.settings_locs.keys.push((key.into(), prm.loc.clone()));
-                    }
-                }
+                let b = self.filter_parameter(p, "B", 1.0 / 3.0, "filter_b")?;
+                let c = self.filter_parameter(p, "C", 1.0 / 3.0, "filter_c")?;
                 Filter::Mitchell { radius, b, c }
             }
             // pbrt-v4's `LanczosSincFilter`: sinc(x)·sinc(x/τ), τ 3.
             "sinc" => {
-                let tau = p.float("tau", 3.0)?;
-                if let Some((_, prm)) = p.float_opt("tau")? {
-                    self.desc
-                        .settings_locs
-                        .keys
-                        .push(("filter_tau".into(), prm.loc.clone()));
-                }
+                let tau = self.filter_parameter(p, "tau", 3.0, "filter_tau")?;
                 Filter::Lanczos { radius, tau }
             }
             _ => {
