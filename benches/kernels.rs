@@ -326,6 +326,39 @@ fn sphere_tracing(c: &mut Criterion) {
     g.finish();
 }
 
+/// The environment map of bench/suite/sky-sun.xml (scenes/textures/sky.hdr,
+/// 256 × 128 with a small sun), 4096 directions each: radiance and density
+/// of directions that escape (what a BSDF-sampled ray that leaves the scene
+/// asks), and light samples (what next-event estimation asks), both with
+/// the compensated density the path tracer's MIS uses.
+fn environment_map(c: &mut Criterion) {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let d = trazo::scene::load(&root.join("bench/suite/sky-sun.xml"), &[]).unwrap();
+    let scene = trazo::scene::build(&d).unwrap();
+    let background = &scene.background;
+    let dirs: Vec<Vec3> = random_rays(4096, 7).iter().map(|r| r.dir).collect();
+    let mut r = Pcg32::new(8, 0);
+    let us: Vec<Vec2> = (0..4096).map(|_| Vec2::new(r.next_f32(), r.next_f32())).collect();
+    let mut g = c.benchmark_group("environment map x4096");
+    g.throughput(criterion::Throughput::Elements(4096));
+    g.bench_function("radiance and density of a direction", |b| {
+        b.iter(|| {
+            dirs.iter()
+                .map(|&d| background.eval_pdf_from(Vec3::ZERO, black_box(d), true).1)
+                .sum::<f32>()
+        })
+    });
+    g.bench_function("light sample", |b| {
+        b.iter(|| {
+            us.iter()
+                .filter_map(|&u| background.sample_radiance_from(Vec3::ZERO, black_box(u), true))
+                .map(|(_, pdf, _)| pdf)
+                .sum::<f32>()
+        })
+    });
+    g.finish();
+}
+
 fn whole_render(c: &mut Criterion) {
     let mut d = cornell_box();
     d.settings.width = 128;
@@ -350,6 +383,7 @@ criterion_group!(
     bsdf_sampling,
     path_sample,
     sphere_tracing,
+    environment_map,
     whole_render
 );
 criterion_main!(benches);

@@ -34,8 +34,8 @@ use crate::sampling::warp::{pdf_sphere_uniform, sample_sphere_uniform};
 use crate::sampling::{BilinearDistribution2D, Distribution2D};
 pub use crate::scene::desc::EnvironmentLayout;
 use crate::texture::ImageTexture;
-use glam::{Vec2, Vec3};
-use std::f32::consts::PI;
+use glam::{Vec2, Vec3, Vec4};
+use std::f32::consts::{FRAC_1_PI, PI};
 
 /// An environment map ready for lookup and sampling.
 #[derive(Clone, Debug)]
@@ -46,6 +46,9 @@ pub struct EnvironmentMap {
     pub scale: f32,
     /// Map-to-world rotation.
     pub to_world: Transform,
+    /// Whether `to_world` keeps lengths (a rotation), so that directions
+    /// it turns need no normalising.
+    turns_only: bool,
     /// How pixels map to directions.
     pub layout: EnvironmentLayout,
     distribution: BilinearDistribution2D,
@@ -58,6 +61,13 @@ pub struct EnvironmentMap {
     /// do.
     compensated: Option<BilinearDistribution2D>,
     compensated_pixels: Option<Distribution2D>,
+    /// The latitude–longitude lookup's nodes, the pixel centres (the first
+    /// column again after the last, closing the wrap-around; an image of
+    /// one row as two equal rows): scaled radiance in x, y, z and, in w,
+    /// the node of the density that light samples for MIS draw from
+    /// ([`EnvironmentMap::density`] with `incomplete`). A direction's
+    /// radiance and density are one bilinear interpolation of four of them.
+    grid: Vec<Vec4>,
     average: Rgb,
 }
 
@@ -78,12 +88,14 @@ impl EnvironmentMap {
             average: Rgb::ZERO,
             image,
             scale,
+            turns_only: keeps_lengths(&to_world),
             to_world,
             layout,
             distribution: BilinearDistribution2D::default(),
             pixel_distribution: Distribution2D::default(),
             compensated: None,
             compensated_pixels: None,
+            grid: Vec::new(),
         };
         // The density's nodes are the lookup's: pixel centres, columns at
         // u = (i + ½)/W (one more column, the first again, closes the
@@ -101,6 +113,10 @@ impl EnvironmentMap {
             nodes
         };
         map.distribution = BilinearDistribution2D::new(&node_rows(&|c| luminance(c).max(0.0)), w + 1, rows);
+        map.grid = (0..rows)
+            .flat_map(|j| (0..=w).map(move |i| (j.min(h - 1), i % w)))
+            .map(|(j, i)| (map.image.pixels[j * w + i] * map.scale).extend(0.0))
+            .collect();
         let mut sum = glam::DVec3::ZERO;
         let mut solid_angle = 0.0f64;
         for y in 0..h {
@@ -117,6 +133,10 @@ impl EnvironmentMap {
         let nodes = node_rows(&|c| (luminance(c) - mean).max(0.0));
         if nodes.iter().any(|&v| v > 0.0) {
             map.compensated = Some(BilinearDistribution2D::new(&nodes, w + 1, rows));
+        }
+        let nodes = map.density(true).nodes().to_vec();
+        for (texel, node) in map.grid.iter_mut().zip(nodes) {
+            texel.w = node;
         }
         map
     }
@@ -135,19 +155,21 @@ impl EnvironmentMap {
             pixel_distribution: Distribution2D::new(&weights, w, h),
             distribution: BilinearDistribution2D::default(),
             compensated: None,
+            grid: Vec::new(),
             compensated_pixels: compensated
                 .iter()
                 .any(|&v| v > 0.0)
                 .then(|| Distribution2D::new(&compensated, w, h)),
             image,
             scale,
+            turns_only: keeps_lengths(&to_world),
             to_world,
             layout: EnvironmentLayout::EqualAreaOctahedral,
         }
     }
 
     /// The point of the sampling density's domain (the unit square spanned
-    /// by its nodes) that map coordinates `uv` fall on, and back: the
+    /// by its nodes) that map coordinates `uv` fall on: the
     /// density's columns start half a pixel to the right of u = 0.
     fn density_point(&self, uv: Vec2) -> Vec2 {
         let w = self.image.width as f32;
@@ -155,27 +177,36 @@ impl EnvironmentMap {
         Vec2::new(x - math::floor(x), uv.y)
     }
 
-    fn map_point(&self, p: Vec2) -> Vec2 {
-        let x = p.x + 0.5 / self.image.width as f32;
-        Vec2::new(x - math::floor(x), p.y)
-    }
-
-    /// The map coordinates of direction `dir_world`, and sin θ there.
+    /// The map coordinates of direction `dir_world` (of any length), and
+    /// sin θ there.
+    #[inline]
     fn uv_of(&self, dir_world: Vec3) -> (Vec2, f32) {
-        let d = self.to_world.inv_vector(dir_world).normalize_or_zero();
-        let u = math::atan2(d.x, -d.z) / (2.0 * PI);
-        let y = d.y.clamp(-1.0, 1.0);
-        let v = math::acos(y) / PI;
-        // sin θ = √(1 − cos²θ), the product form exact near the poles.
-        let sin_theta = ((1.0 - y) * (1.0 + y)).sqrt();
-        (Vec2::new(u - math::floor(u), v.clamp(0.0, 1.0)), sin_theta)
+        let d = self.to_world.inv_vector(dir_world);
+        // Both angles as arctangents of the unnormalised direction: no
+        // square root and division before them, as normalising and an
+        // arccosine would need.
+        let across = (d.x * d.x + d.z * d.z).sqrt();
+        let length = (across * across + d.y * d.y).sqrt();
+        let u = math::atan2(d.x, -d.z) * (0.5 * FRAC_1_PI);
+        let v = math::atan2(across, d.y) * FRAC_1_PI;
+        let sin_theta = if length > 0.0 { across / length } else { 0.0 };
+        let u = if u < 0.0 { u + 1.0 } else { u };
+        (Vec2::new(u.min(1.0), v.clamp(0.0, 1.0)), sin_theta)
     }
 
+    /// Direction `d` of the map's frame in the world's, of unit length.
+    #[inline]
+    fn turn(&self, d: Vec3) -> Vec3 {
+        let turned = self.to_world.vector(d);
+        if self.turns_only { turned } else { turned.normalize() }
+    }
+
+    #[inline]
     fn dir_of(&self, uv: Vec2) -> (Vec3, f32) {
         let (sin_phi, cos_phi) = (2.0 * PI * uv.x).sin_cos();
         let (st, cos_theta) = (PI * uv.y).sin_cos();
         let d = Vec3::new(st * sin_phi, cos_theta, -st * cos_phi);
-        (self.to_world.vector(d).normalize(), st)
+        (self.turn(d), st)
     }
 
     /// Radiance arriving from direction `dir`: for a latitude–longitude
@@ -200,40 +231,43 @@ impl EnvironmentMap {
         self.image.pixels[y * w + x] * self.scale
     }
 
+    #[inline]
     fn eval_uv(&self, uv: Vec2) -> Rgb {
-        let (w, h) = (self.image.width as i64, self.image.height as i64);
-        let x = uv.x * w as f32 - 0.5;
-        let y = (uv.y * (h - 1).max(1) as f32).clamp(0.0, (h - 1) as f32);
-        let (x0, y0) = (math::floor(x), math::floor(y));
-        let (fx, fy) = (x - x0, y - y0);
-        let wrap = |xi: i64| crate::texture::WrapMode::Repeat.apply(xi, w);
-        let (xa, xb) = (wrap(x0 as i64), wrap(x0 as i64 + 1));
-        let (ya, yb) = ((y0 as i64).clamp(0, h - 1), (y0 as i64 + 1).clamp(0, h - 1));
-        let px = |xi: i64, yi: i64| self.image.pixels[(yi * w + xi) as usize];
-        let top = px(xa, ya) * (1.0 - fx) + px(xb, ya) * fx;
-        let bottom = px(xa, yb) * (1.0 - fx) + px(xb, yb) * fx;
-        (top * (1.0 - fy) + bottom * fy) * self.scale
+        self.grid_lookup(uv).truncate()
+    }
+
+    /// The bilinear interpolation of the grid at map coordinates `uv`: the
+    /// radiance there and the node value of the MIS light samples' density.
+    #[inline]
+    fn grid_lookup(&self, uv: Vec2) -> Vec4 {
+        let w = self.image.width as usize;
+        let rows = self.grid.len() / (w + 1);
+        // Columns lie at pixel centres, u = (i + ½)/W: left of the first
+        // one lies between the last and the first again, at the end.
+        let mut x = uv.x * w as f32 - 0.5;
+        if x < 0.0 {
+            x += w as f32;
+        }
+        let y = (uv.y * (rows - 1) as f32).clamp(0.0, (rows - 1) as f32);
+        // Truncation is ⌊·⌋ here (x, y ≥ 0; NaN gives 0).
+        let (i, j) = ((x as usize).min(w - 1), (y as usize).min(rows - 2));
+        self.grid_bilerp(j * (w + 1) + i, Vec2::new(x - i as f32, y - j as f32))
+    }
+
+    /// The grid's cell whose first corner is `index`, interpolated at
+    /// fractions `f`.
+    #[inline(always)]
+    fn grid_bilerp(&self, index: usize, f: Vec2) -> Vec4 {
+        let below = index + self.image.width as usize + 1;
+        let top = self.grid[index].lerp(self.grid[index + 1], f.x);
+        let bottom = self.grid[below].lerp(self.grid[below + 1], f.x);
+        top.lerp(bottom, f.y)
     }
 
     /// A direction drawn in proportion to the map's brightness, and its
     /// density per steradian.
     pub fn sample(&self, u: Vec2) -> Option<(Vec3, f32)> {
-        if self.layout == EnvironmentLayout::EqualAreaOctahedral {
-            let (uv, pdf_uv) = self.pixel_distribution.sample(u);
-            if pdf_uv <= 0.0 {
-                return None;
-            }
-            // The map is equal-area: dω = 4π du dv.
-            let d = self.to_world.vector(equal_area_square_to_sphere(uv)).normalize();
-            return Some((d, pdf_uv / (4.0 * PI)));
-        }
-        let (p, pdf_uv) = self.distribution.sample(u);
-        let (d, sin_theta) = self.dir_of(self.map_point(p));
-        if sin_theta <= 0.0 || pdf_uv <= 0.0 {
-            return None;
-        }
-        // dω = 2π² sin θ du dv.
-        Some((d, pdf_uv / (2.0 * PI * PI * sin_theta)))
+        self.sample_radiance(u, false).map(|(d, pdf, _)| (d, pdf))
     }
 
     /// The latitude–longitude density of light samples: the compensated
@@ -265,16 +299,29 @@ impl EnvironmentMap {
             if pdf_uv <= 0.0 {
                 return None;
             }
-            let d = self.to_world.vector(equal_area_square_to_sphere(uv)).normalize();
+            let d = self.turn(equal_area_square_to_sphere(uv));
             return Some((d, pdf_uv / (4.0 * PI), self.nearest(uv)));
         }
-        let (p, pdf_uv) = self.density(incomplete).sample(u);
-        let uv = self.map_point(p);
+        let density = self.density(incomplete);
+        let (x, y, f, pdf_uv) = density.sample_in_cell(u);
+        // The radiance from the grid at the same cell and fractions: the
+        // density's nodes are the grid's.
+        let w = self.image.width as usize;
+        let rows = self.grid.len() / (w + 1);
+        let li = self.grid_bilerp(y * (w + 1) + x, f).truncate();
+        // The density's column x lies half a pixel right of pixel x's left
+        // edge, and its last column, the first pixel again, at u = 1 + ½/W.
+        let mut column = x as f32 + f.x + 0.5;
+        if column >= w as f32 {
+            column -= w as f32;
+        }
+        let uv = Vec2::new(column / w as f32, (y as f32 + f.y) / (rows - 1) as f32);
         let (d, sin_theta) = self.dir_of(uv);
         if sin_theta <= 0.0 || pdf_uv <= 0.0 {
             return None;
         }
-        Some((d, pdf_uv / (2.0 * PI * PI * sin_theta), self.eval_uv(uv)))
+        // dω = 2π² sin θ du dv.
+        Some((d, pdf_uv / (2.0 * PI * PI * sin_theta), li))
     }
 
     /// [`EnvironmentMap::eval`] and the density of
@@ -287,12 +334,20 @@ impl EnvironmentMap {
             return (self.nearest(uv), self.pixel_density(incomplete).pdf(uv) / (4.0 * PI));
         }
         let (uv, sin_theta) = self.uv_of(dir);
+        let texel = self.grid_lookup(uv);
+        // The grid holds the nodes of `density(true)`; the full density,
+        // where that is the compensated one, is interpolated apart.
+        let node = if incomplete || self.compensated.is_none() {
+            texel.w * self.density(incomplete).norm()
+        } else {
+            self.distribution.pdf(self.density_point(uv))
+        };
         let pdf = if sin_theta <= 0.0 {
             0.0
         } else {
-            self.density(incomplete).pdf(self.density_point(uv)) / (2.0 * PI * PI * sin_theta)
+            node / (2.0 * PI * PI * sin_theta)
         };
-        (self.eval_uv(uv), pdf)
+        (texel.truncate(), pdf)
     }
 
     /// Density of [`EnvironmentMap::sample`] for direction `dir`.
@@ -307,6 +362,16 @@ impl EnvironmentMap {
         }
         self.distribution.pdf(self.density_point(uv)) / (2.0 * PI * PI * sin_theta)
     }
+}
+
+/// Whether `t` maps every vector to one of the same length (a rotation,
+/// perhaps a reflection), to the precision of its entries.
+fn keeps_lengths(t: &Transform) -> bool {
+    let m = glam::Mat3::from_mat4(t.m);
+    (m.transpose() * m - glam::Mat3::IDENTITY)
+        .to_cols_array()
+        .iter()
+        .all(|e| e.abs() < 1e-6)
 }
 
 /// What rays that leave the scene see.

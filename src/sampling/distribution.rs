@@ -361,7 +361,19 @@ impl BilinearDistribution2D {
     /// A point of [0, 1]² and its density there (0 where every node is 0).
     #[inline]
     pub fn sample(&self, u: glam::Vec2) -> (glam::Vec2, f32) {
+        let (x, y, f, pdf) = self.sample_in_cell(u);
         let (cx, cy) = (self.nodes_x - 1, self.nodes_y - 1);
+        (
+            glam::Vec2::new((x as f32 + f.x) / cx as f32, (y as f32 + f.y) / cy as f32),
+            pdf,
+        )
+    }
+
+    /// [`BilinearDistribution2D::sample`] as the cell drawn (its column
+    /// and row), the point's fractions within it and its density: what a
+    /// caller needs to interpolate values stored at the same nodes.
+    #[inline]
+    pub fn sample_in_cell(&self, u: glam::Vec2) -> (usize, usize, glam::Vec2, f32) {
         // The cell, then the two numbers rescaled to within it.
         let (y, _, ry) = self.cells.marginal.sample(u.y);
         let (x, _, rx) = self.cells.rows[y].sample(u.x);
@@ -369,8 +381,18 @@ impl BilinearDistribution2D {
         let fy = sample_linear(ry, a + b, c + d);
         let fx = sample_linear(rx, a + (c - a) * fy, b + (d - b) * fy);
         let value = bilerp([a, b, c, d], fx, fy);
-        let p = glam::Vec2::new((x as f32 + fx) / cx as f32, (y as f32 + fy) / cy as f32);
-        (p, value * self.norm)
+        (x, y, glam::Vec2::new(fx, fy), value * self.norm)
+    }
+
+    /// The node values, row-major, as the density interpolates them
+    /// (negative and non-finite ones as 0).
+    pub fn nodes(&self) -> &[f32] {
+        &self.nodes
+    }
+
+    /// The factor that turns an interpolated node value into the density.
+    pub fn norm(&self) -> f32 {
+        self.norm
     }
 
     /// The density at a point of [0, 1]².
