@@ -4,7 +4,10 @@
 
 use super::Scene;
 use super::desc::*;
-use super::memory::{BYTES_PER_TEXEL, MemoryEstimate, light_vertex_bytes, mesh_bytes, photon_bytes, top_level_bytes};
+use super::memory::{
+    BYTES_PER_ENVIRONMENT_TEXEL, BYTES_PER_TEXEL, MemoryEstimate, light_vertex_bytes, mesh_bytes, photon_bytes,
+    top_level_bytes,
+};
 use crate::accel::aggregate::{Aggregate, EmitterRef, MeshInstance, MeshObject, ShapeInstance};
 use crate::camera::{Camera, Projection};
 use crate::color::Rgb;
@@ -640,7 +643,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             let full = base_dir.join(path);
             let mut image = ImageTexture::load(&full, None)
                 .map_err(|e| Error::scene(desc.world_locs.key("background"), "world.background", reason_of(e)))?;
-            memory.textures += image.pixels.len() as u64 * BYTES_PER_TEXEL;
+            memory.textures += image.pixels.len() as u64 * (BYTES_PER_TEXEL + BYTES_PER_ENVIRONMENT_TEXEL);
             memory.check(limits.max_memory)?;
             let bad = image.sanitize();
             if bad > 0 {

@@ -45,6 +45,11 @@ pub const BYTES_PER_MESH: u64 = 512;
 pub const BYTES_PER_VERTEX: u64 = 32;
 /// Bytes per texel of a decoded texture (linear RGB, f32).
 pub const BYTES_PER_TEXEL: u64 = 12;
+/// Bytes per texel of an environment map besides its image: the lookup
+/// grid of radiance and density nodes (16) and two sampling densities, the
+/// full and the compensated one, each with its nodes (4) and the f64
+/// cumulative sums and guide tables of its cells (12).
+pub const BYTES_PER_ENVIRONMENT_TEXEL: u64 = 48;
 /// Photons stored per photon emitted, for the estimate: one at each
 /// diffuse bounce until Russian roulette ends the path. Measured about 2 on
 /// the Cornell box (394 k stored from 200 k emitted); 4 leaves room for
