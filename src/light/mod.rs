@@ -524,6 +524,7 @@ fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
 /// Samples the cone of directions that a sphere subtends from `p`
 /// (pbrt-v4 §6.2.4, with its small-angle care). Returns the point on the
 /// sphere, its normal and the density per steradian; `None` if `p` is inside.
+#[inline]
 fn sample_sphere_cone(center: Vec3, radius: f32, p: Vec3, u: Vec2) -> Option<(Vec3, Vec3, f32)> {
     let to_center = center - p;
     let dc2 = to_center.length_squared();
@@ -531,7 +532,10 @@ fn sample_sphere_cone(center: Vec3, radius: f32, p: Vec3, u: Vec2) -> Option<(Ve
         return None;
     }
     let dc = dc2.sqrt();
-    let sin_max = radius / dc;
+    // Two independent divisions instead of four in a chain: this runs
+    // at every vertex of every path in a scene lit by a sphere.
+    let (inv_dc, inv_sin_max) = (1.0 / dc, dc / radius);
+    let sin_max = radius * inv_dc;
     let sin2_max = sin_max * sin_max;
     let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
     let mut one_minus_cos_max = 1.0 - cos_max;
@@ -544,10 +548,10 @@ fn sample_sphere_cone(center: Vec3, radius: f32, p: Vec3, u: Vec2) -> Option<(Ve
         one_minus_cos_max = sin2_max / 2.0;
     }
     // Angle α from the sphere's centre to the sampled point.
-    let cos_a = sin2_t / sin_max + cos_t * (1.0 - sin2_t / sin2_max).max(0.0).sqrt();
+    let cos_a = sin2_t * inv_sin_max + cos_t * (1.0 - sin2_t * inv_sin_max * inv_sin_max).max(0.0).sqrt();
     let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
     let phi = 2.0 * PI * u.y;
-    let frame = Frame::from_normal(to_center / dc);
+    let frame = Frame::from_normal(to_center * inv_dc);
     let n = frame.to_world(-Vec3::new(sin_a * phi.cos(), sin_a * phi.sin(), cos_a));
     Some((center + radius * n, n, 1.0 / (2.0 * PI * one_minus_cos_max)))
 }
