@@ -45,6 +45,8 @@ pub struct LensSystem {
     /// the points through which rays from a point of the ring on the +x
     /// axis leave the system; `None` where none do.
     exit_pupils: Vec<Option<(Vec2, Vec2)>>,
+    /// The aperture stop's shape, where it is not round.
+    stop_mask: Option<ApertureMask>,
 }
 
 /// Rings of the film with their own exit pupil bounds.
@@ -60,13 +62,14 @@ impl LensSystem {
     /// diameter), its stop opened to `aperture_diameter` (mm; no wider than
     /// the stop), focused on the plane `focus_distance` (m) in front of
     /// it, over a film of `width` × `height` pixels and diagonal
-    /// `film_diagonal` (m).
+    /// `film_diagonal` (m); its stop shaped by `stop_mask`, or round.
     pub fn new(
         numbers: &[f32],
         aperture_diameter: f32,
         focus_distance: f32,
         film_diagonal: f32,
         (width, height): (u32, u32),
+        stop_mask: Option<ApertureMask>,
     ) -> Result<LensSystem, String> {
         if numbers.is_empty() || numbers.len() % 4 != 0 {
             return Err(format!(
@@ -106,6 +109,7 @@ impl LensSystem {
             film_half: Vec2::new(x, aspect * x) / 2.0,
             film_diagonal,
             exit_pupils: Vec::new(),
+            stop_mask,
         };
         let film_distance = lens.focus_thick_lens(focus_distance)?;
         lens.interfaces.last_mut().expect("at least one interface").thickness = film_distance;
@@ -132,15 +136,28 @@ impl LensSystem {
     }
 
     /// The ray (origin, direction) in camera space that leaves the front
-    /// of the lens for the ray from the film `o + t·d`, or `None` where
-    /// an interface blocks it or reflects it totally.
-    pub fn trace_from_film(&self, o: Vec3, d: Vec3) -> Option<(Vec3, Vec3)> {
+    /// of the lens for the ray from the film `o + t·d`, and the share of
+    /// it a shaped stop lets through; `None` where an interface blocks it
+    /// or reflects it totally.
+    pub fn trace_from_film(&self, o: Vec3, d: Vec3) -> Option<(Vec3, Vec3, f32)> {
         // Lens space: z negated, so the scene lies toward −z.
         let (mut o, mut d) = (o * Vec3::new(1.0, 1.0, -1.0), d * Vec3::new(1.0, 1.0, -1.0));
         let mut z = 0.0;
+        let mut weight = 1.0;
         for i in (0..self.interfaces.len()).rev() {
             let e = self.interfaces[i];
             z -= e.thickness;
+            if let (Some(mask), true) = (&self.stop_mask, e.curvature_radius == 0.0) {
+                // A shaped stop replaces the round one (pbrt-v4 tests the
+                // stop against its aperture image alone).
+                let (t, _) = intersect_interface(0.0, z, o, d)?;
+                o += d * t;
+                weight *= mask.weight(o.truncate() / e.aperture_radius);
+                if weight <= 0.0 {
+                    return None;
+                }
+                continue;
+            }
             let ahead = if i > 0 {
                 air_if_zero(self.interfaces[i - 1].eta)
             } else {
@@ -148,7 +165,7 @@ impl LensSystem {
             };
             (o, d) = cross_interface(&e, z, o, d, air_if_zero(e.eta), ahead)?;
         }
-        Some((o * Vec3::new(1.0, 1.0, -1.0), d * Vec3::new(1.0, 1.0, -1.0)))
+        Some((o * Vec3::new(1.0, 1.0, -1.0), d * Vec3::new(1.0, 1.0, -1.0), weight))
     }
 
     /// The ray in camera space that reaches the film for the ray from the
@@ -188,7 +205,8 @@ impl LensSystem {
             self.trace_from_scene(from_scene, Vec3::NEG_Z).ok_or_else(blocked)?,
         );
         let from_film = Vec3::new(x, 0.0, self.rear_z() - 1.0);
-        let (p_scene, _) = cardinal(from_film, self.trace_from_film(from_film, Vec3::Z).ok_or_else(blocked)?);
+        let (o, d, _) = self.trace_from_film(from_film, Vec3::Z).ok_or_else(blocked)?;
+        let (p_scene, _) = cardinal(from_film, (o, d));
         // pbrt-v4's terms: its cardinal points are −z of these.
         let (pz0, fz0, pz1) = (-p_film, -f_film, -p_scene);
         let f = fz0 - pz0;
@@ -249,11 +267,135 @@ impl LensSystem {
         let (sin, cos) = if r > 0.0 { (film.y / r, film.x / r) } else { (0.0, 1.0) };
         let pupil = Vec3::new(cos * q.x - sin * q.y, sin * q.x + cos * q.y, self.rear_z());
         let d = pupil - film;
-        let (o, dir) = self.trace_from_film(film, d)?;
+        let (o, dir, transmitted) = self.trace_from_film(film, d)?;
         let cos_theta = d.normalize().z;
-        let weight = cos_theta.powi(4) * area / (self.rear_z() * self.rear_z());
+        let weight = transmitted * cos_theta.powi(4) * area / (self.rear_z() * self.rear_z());
         Some((o, dir.normalize(), weight))
     }
+}
+
+/// The shape of a realistic camera's aperture stop (pbrt-v4's `aperture`):
+/// a grey image over the square the stop's circle fits in, its top row at
+/// +y, looked up bilinearly (black outside) where a ray crosses the stop,
+/// and scaled so that its mean over the square is π/4, the circle's share:
+/// every shape lets through as much light as the round stop of the same
+/// diameter would. pbrt-v4 draws the built-in shapes on an image of
+/// 256 × 256 with its rows running toward +y, so they appear turned upside
+/// down on the stop (the pentagon's tip toward −y), and so they do here.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ApertureMask {
+    width: usize,
+    height: usize,
+    values: Vec<f32>,
+}
+
+impl ApertureMask {
+    /// Resolution of the built-in shapes.
+    const BUILT_IN: usize = 256;
+
+    /// pbrt-v4's built-in shapes: `gaussian` (exp(−r²) − e⁻¹, zero at the
+    /// rim), `square` (half the stop's width), `pentagon` (a regular one,
+    /// 0.8 of the radius) and `star` (five points, its inner corners on
+    /// the pentagram's circle); `None` for any other name.
+    pub fn built_in(name: &str) -> Option<ApertureMask> {
+        let n = Self::BUILT_IN;
+        // Pixel centres in [−1, 1]², rows along +y.
+        let centre = |i: usize| -1.0 + 2.0 * (i as f32 + 0.5) / n as f32;
+        let draw = |f: &dyn Fn(Vec2) -> f32| -> Vec<f32> {
+            (0..n * n).map(|k| f(Vec2::new(centre(k % n), centre(k / n)))).collect()
+        };
+        let values = match name {
+            "gaussian" => draw(&|p| ((-p.length_squared()).exp() - (-1.0f32).exp()).max(0.0)),
+            "square" => draw(&|p| f32::from(p.x.abs() < 0.5 && p.y.abs() < 0.5)),
+            "pentagon" => {
+                let corners: Vec<Vec2> = (0..5)
+                    .map(|k| {
+                        let a = std::f32::consts::FRAC_PI_2 - k as f32 * 0.4 * std::f32::consts::PI;
+                        0.8 * Vec2::new(a.cos(), a.sin())
+                    })
+                    .collect();
+                draw(&|p| f32::from(inside_polygon(p, &corners)))
+            }
+            "star" => {
+                // The inner corners lie where the pentagram's edges cross:
+                // at cos 72° / cos 36° of the outer radius.
+                let inner = 72f32.to_radians().cos() / 36f32.to_radians().cos();
+                let corners: Vec<Vec2> = (0..10)
+                    .map(|k| {
+                        let a = k as f32 * std::f32::consts::PI / 5.0;
+                        let r = if k % 2 == 1 { 1.0 } else { inner };
+                        r * Vec2::new(a.cos(), a.sin())
+                    })
+                    .collect();
+                draw(&|p| f32::from(inside_polygon(p, &corners)))
+            }
+            _ => return None,
+        };
+        // Read as an image (top row first), as pbrt-v4 reads it.
+        Self::from_image(n, n, values).ok()
+    }
+
+    /// A mask from an image's grey values, row by row from the top;
+    /// an error where no value is positive.
+    pub fn from_image(width: usize, height: usize, values: Vec<f32>) -> Result<ApertureMask, String> {
+        assert_eq!(values.len(), width * height, "one value per pixel");
+        let values: Vec<f32> = values
+            .into_iter()
+            .map(|v| if v.is_finite() { v.max(0.0) } else { 0.0 })
+            .collect();
+        let mean = values.iter().map(|&v| v as f64).sum::<f64>() / values.len().max(1) as f64;
+        if mean <= 0.0 {
+            return Err("the aperture image is black: it lets no light through".into());
+        }
+        let scale = (std::f64::consts::FRAC_PI_4 / mean) as f32;
+        Ok(ApertureMask {
+            width,
+            height,
+            values: values.into_iter().map(|v| v * scale).collect(),
+        })
+    }
+
+    /// The mask at point `p` of the stop, in units of its radius
+    /// ((±1, ±1) the corners of the square around it).
+    pub fn weight(&self, p: Vec2) -> f32 {
+        // Continuous pixel coordinates: pixel centres at integers + ½.
+        let x = (p.x + 1.0) / 2.0 * self.width as f32 - 0.5;
+        let y = (1.0 - p.y) / 2.0 * self.height as f32 - 0.5;
+        if !(x > -1.0 && y > -1.0 && x < self.width as f32 && y < self.height as f32) {
+            return 0.0;
+        }
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let texel = |i: f32, j: f32| {
+            if i < 0.0 || j < 0.0 || i >= self.width as f32 || j >= self.height as f32 {
+                0.0
+            } else {
+                self.values[j as usize * self.width + i as usize]
+            }
+        };
+        let top = texel(x0, y0) * (1.0 - fx) + texel(x0 + 1.0, y0) * fx;
+        let bottom = texel(x0, y0 + 1.0) * (1.0 - fx) + texel(x0 + 1.0, y0 + 1.0) * fx;
+        top * (1.0 - fy) + bottom * fy
+    }
+}
+
+/// Whether `p` lies inside the polygon with `corners` (either winding):
+/// its winding number about `p` is not zero.
+fn inside_polygon(p: Vec2, corners: &[Vec2]) -> bool {
+    let mut winding = 0;
+    for (i, &a) in corners.iter().enumerate() {
+        let b = corners[(i + 1) % corners.len()];
+        // Which side of edge a → b the point lies on.
+        let side = (b - a).perp_dot(p - a);
+        if a.y <= p.y {
+            if b.y > p.y && side > 0.0 {
+                winding += 1;
+            }
+        } else if b.y <= p.y && side < 0.0 {
+            winding -= 1;
+        }
+    }
+    winding != 0
 }
 
 /// The ray (lens space) `o + t·d` across interface `e`, whose vertex lies
@@ -350,7 +492,7 @@ mod tests {
             -100.0, 1.0, 1.0, 40.0, //
             0.0, 50.0, 0.0, 20.0,
         ];
-        LensSystem::new(&numbers, stop_mm, focus, 0.035, (64, 48)).unwrap()
+        LensSystem::new(&numbers, stop_mm, focus, 0.035, (64, 48), None).unwrap()
     }
 
     #[test]
@@ -405,16 +547,100 @@ mod tests {
         let (o, d, _) = lens.ray(Vec2::new(0.5, 0.2), Vec2::splat(0.5)).unwrap();
         let at = o + d * ((lens.front_z() + 2.0 - o.z) / d.z);
         assert!(at.y > 0.0, "{at}");
-        assert!(LensSystem::new(&[1.0, 2.0, 3.0], 1.0, 1.0, 0.035, (4, 4)).is_err());
+        assert!(LensSystem::new(&[1.0, 2.0, 3.0], 1.0, 1.0, 0.035, (4, 4), None).is_err());
         assert!(
             LensSystem::new(
                 &[100.0, 10.0, 1.5, 40.0, -100.0, 1.0, 1.0, 40.0],
                 10.0,
                 0.01,
                 0.035,
-                (4, 4)
+                (4, 4),
+                None
             )
             .is_err()
         );
+    }
+
+    #[test]
+    fn built_in_apertures_have_pbrt_v4s_shapes_and_a_round_stops_mean() {
+        // The share of the square each covers: the square half the width;
+        // the pentagon of circumradius 0.8, (5/2)·0.8²·sin 72°; the star of
+        // ten triangles with sides 1 and cos 72°/cos 36° at 36°; the disc
+        // where the Gaussian is positive.
+        let inner = 72f32.to_radians().cos() / 36f32.to_radians().cos();
+        let star = 5.0 * inner * 36f32.to_radians().sin();
+        for (name, area) in [
+            ("square", 1.0),
+            ("pentagon", 2.5 * 0.64 * 72f32.to_radians().sin()),
+            ("star", star),
+            ("gaussian", std::f32::consts::PI),
+        ] {
+            let mask = ApertureMask::built_in(name).unwrap();
+            let n = mask.values.len() as f32;
+            let mean = mask.values.iter().map(|&v| v as f64).sum::<f64>() / n as f64;
+            assert!((mean - std::f64::consts::FRAC_PI_4).abs() < 1e-5, "{name}: mean {mean}");
+            let covered = mask.values.iter().filter(|&&v| v > 0.0).count() as f32 / n;
+            assert!(
+                (covered - area / 4.0).abs() < 0.01 * area / 4.0,
+                "{name}: covers {covered} of the square, {} expected",
+                area / 4.0
+            );
+            // Nothing outside the stop's square.
+            assert_eq!(mask.weight(Vec2::new(1.05, 0.0)), 0.0);
+            assert_eq!(mask.weight(Vec2::new(0.0, -1.05)), 0.0);
+        }
+        // Drawn with rows toward +y and read top row first, as pbrt-v4
+        // does: the pentagon's tip, at +y as drawn, points to −y on the
+        // stop, its flat side to +y.
+        let pentagon = ApertureMask::built_in("pentagon").unwrap();
+        assert!(pentagon.weight(Vec2::new(0.0, -0.75)) > 0.0);
+        assert_eq!(pentagon.weight(Vec2::new(0.0, 0.7)), 0.0);
+        let square = ApertureMask::built_in("square").unwrap();
+        assert!((square.weight(Vec2::new(0.3, -0.3)) - std::f32::consts::PI).abs() < 1e-4);
+        assert_eq!(square.weight(Vec2::new(0.6, 0.0)), 0.0);
+        assert!(ApertureMask::built_in("hexagon").is_none());
+        assert!(ApertureMask::from_image(2, 2, vec![0.0; 4]).is_err());
+        assert!(ApertureMask::from_image(1, 1, vec![f32::NAN]).is_err());
+    }
+
+    #[test]
+    fn a_shaped_stop_passes_the_light_of_a_round_one_through_its_shape() {
+        // A small stop (2 mm, 51 mm from the film), so cos⁴θ is the same
+        // over it: the film's centre measures the same irradiance through
+        // every shape, each normalised to the round stop's area.
+        let numbers = [
+            100.0, 10.0, 1.5, 40.0, //
+            -100.0, 1.0, 1.0, 40.0, //
+            0.0, 50.0, 0.0, 20.0,
+        ];
+        let irradiance = |mask: Option<ApertureMask>| {
+            let lens = LensSystem::new(&numbers, 2.0, 2.0, 0.035, (64, 48), mask).unwrap();
+            let k = 512;
+            let mut sum = 0.0f64;
+            for i in 0..k * k {
+                let u = Vec2::new(((i % k) as f32 + 0.5) / k as f32, ((i / k) as f32 + 0.5) / k as f32);
+                if let Some((_, _, w)) = lens.ray(Vec2::splat(0.5), u) {
+                    sum += w as f64;
+                }
+            }
+            sum / (k * k) as f64
+        };
+        let round = irradiance(None);
+        assert!(round > 0.0);
+        for name in ["square", "pentagon", "star", "gaussian"] {
+            let shaped = irradiance(ApertureMask::built_in(name));
+            // The grid's error on the shapes' edges, a pixel of 256 wide.
+            assert!((shaped / round - 1.0).abs() < 0.01, "{name}: {shaped} against {round}");
+        }
+        // The square lets rays through only within its half width: the
+        // exit pupil at the film's centre (here the stop itself, the last
+        // interface) shrinks to it, with the bounds' margin.
+        let pupil_reach = |mask: Option<ApertureMask>| {
+            let lens = LensSystem::new(&numbers, 2.0, 2.0, 0.035, (64, 48), mask).unwrap();
+            let (lo, hi) = lens.exit_pupils[0].unwrap();
+            lo.abs().max(hi.abs()).max_element()
+        };
+        let (round, square) = (pupil_reach(None), pupil_reach(ApertureMask::built_in("square")));
+        assert!(round > 0.001 && square < 0.0006, "reach {round} round, {square} square");
     }
 }

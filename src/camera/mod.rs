@@ -21,7 +21,7 @@
 
 pub mod lens_system;
 
-pub use lens_system::LensSystem;
+pub use lens_system::{ApertureMask, LensSystem};
 
 use crate::geometry::lanes::LANES;
 use crate::geometry::simd::{Floats, Vec3s};

@@ -589,6 +589,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             aperture_diameter,
             focus_distance,
             film_diagonal,
+            stop_mask,
         } => {
             if s.integrator == crate::settings::IntegratorKind::Sppm {
                 return Err(Error::scene(
@@ -603,6 +604,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 *focus_distance,
                 *film_diagonal,
                 (full_width, full_height),
+                stop_mask.clone(),
             )
             .map_err(|m| Error::scene(cam.locs.key("lens"), "camera.lens", m))?;
             camera.with_lens_system(lenses)

@@ -78,6 +78,8 @@ pub enum ProjectionDesc {
         focus_distance: f32,
         /// The film's diagonal (m).
         film_diagonal: f32,
+        /// The aperture stop's shape (pbrt-v4's `aperture`); `None`: round.
+        stop_mask: Option<crate::camera::ApertureMask>,
     },
 }
 

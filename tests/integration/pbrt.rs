@@ -132,6 +132,95 @@ fn realistic_cameras_see_the_scene_as_the_perspective_camera_does() {
     assert!(e.contains("missing.dat"), "{e}");
 }
 
+/// A realistic camera's `aperture` shapes its stop as pbrt-v4's does: a
+/// small lamp far out of focus images as the stop's shape (told apart by
+/// the blur's fourth moments), as bright in all as through the round stop;
+/// an image file is read as a grey mask, top row up; a missing or black
+/// one is an error naming it.
+#[test]
+fn realistic_camera_apertures_shape_the_blur_as_pbrt_v4s_do() {
+    let dir = tempfile::tempdir().unwrap();
+    fs::write(
+        dir.path().join("singlet.dat"),
+        "100 10 1.5 40\n-100 1 1 40\n0 50 0 20\n",
+    )
+    .unwrap();
+    // PFM masks, bottom row first: a white square on black, and all black.
+    let pfm = |name: &str, lit: &dyn Fn(usize, usize) -> bool| {
+        let n = 16;
+        let mut bytes = format!("PF\n{n} {n}\n-1.0\n").into_bytes();
+        for row in 0..n {
+            for col in 0..n {
+                let v: f32 = if lit(row, col) { 1.0 } else { 0.0 };
+                for _ in 0..3 {
+                    bytes.extend_from_slice(&v.to_le_bytes());
+                }
+            }
+        }
+        fs::write(dir.path().join(name), bytes).unwrap();
+    };
+    pfm("square.pfm", &|r, c| (4..12).contains(&r) && (4..12).contains(&c));
+    pfm("black.pfm", &|_, _| false);
+    let scene = |aperture: &str| {
+        let text = format!(
+            "LookAt 0 0 5  0 0 0  0 1 0\n\
+             Camera \"realistic\" \"string lensfile\" \"singlet.dat\" \"float aperturediameter\" 20 \"float focusdistance\" 0.5 {aperture}\n\
+             Film \"rgb\" \"integer xresolution\" 48 \"integer yresolution\" 48 \"float diagonal\" 16\n\
+             Sampler \"independent\" \"integer pixelsamples\" 64\nIntegrator \"path\" \"integer maxdepth\" 1\nWorldBegin\n\
+             AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [2000 2000 2000]\nShape \"sphere\" \"float radius\" 0.03\nAttributeEnd\n"
+        );
+        let path = dir.path().join("scene.pbrt");
+        fs::write(&path, text).unwrap();
+        trazo::scene::load(&path, &[])
+    };
+    // The blur's shape by its moments about its centre: E[x⁴]/E[x²y²]
+    // is 3 for a disc and 9/5 for a square along the axes (both have
+    // E[x²] = E[y²]); weighted by every pixel's light, it does not hang on
+    // single noisy pixels.
+    let blur = |aperture: &str| {
+        let desc = scene(aperture).unwrap_or_else(|e| panic!("{e}"));
+        assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
+        let film = render_desc(&desc);
+        let light: Vec<(f64, f64, f64)> = (0..48 * 48)
+            .map(|i| {
+                let l = luminance(film.pixels[i].value()) as f64;
+                ((i % 48) as f64 + 0.5, (i / 48) as f64 + 0.5, l)
+            })
+            .collect();
+        let total: f64 = light.iter().map(|p| p.2).sum();
+        let mean = |f: &dyn Fn(f64, f64) -> f64| light.iter().map(|&(x, y, l)| l * f(x, y)).sum::<f64>() / total;
+        let (cx, cy) = (mean(&|x, _| x), mean(&|_, y| y));
+        let x4 = mean(&|x, y| ((x - cx).powi(4) + (y - cy).powi(4)) / 2.0);
+        let x2y2 = mean(&|x, y| (x - cx).powi(2) * (y - cy).powi(2));
+        let width = mean(&|x, _| (x - cx).powi(2)).sqrt();
+        (x4 / x2y2, width, total)
+    };
+    let (round_ratio, round_width, round_total) = blur("");
+    assert!(
+        round_width > 4.0,
+        "the blur's standard deviation is {round_width} pixels"
+    );
+    assert!((round_ratio - 3.0).abs() < 0.4, "round: E[x⁴]/E[x²y²] = {round_ratio}");
+    // The square's blur: its corners rounded by the lamp's own image and
+    // the singlet's spherical aberration, between the two; the image file
+    // of a square half the width gives the built-in one's.
+    let mut ratios = Vec::new();
+    for square in ["\"string aperture\" \"square\"", "\"string aperture\" \"square.pfm\""] {
+        let (ratio, _, total) = blur(square);
+        assert!(ratio > 1.8 && ratio < 2.6, "{square}: E[x⁴]/E[x²y²] = {ratio}");
+        assert!(
+            (total / round_total - 1.0).abs() < 0.1,
+            "{square}: {total} in all, round {round_total}"
+        );
+        ratios.push(ratio);
+    }
+    assert!((ratios[0] - ratios[1]).abs() < 0.15, "{ratios:?}");
+    let e = scene("\"string aperture\" \"black.pfm\"").unwrap_err().to_string();
+    assert!(e.contains("black.pfm") && e.contains("black"), "{e}");
+    let e = scene("\"string aperture\" \"missing.png\"").unwrap_err().to_string();
+    assert!(e.contains("missing.png"), "{e}");
+}
+
 /// pbrt's `fov` spans the shorter image axis: the rays through the middle
 /// of the image's edges show it.
 #[test]

@@ -472,15 +472,29 @@ impl Parser {
         }
         let aperture_diameter = p.float("aperturediameter", 1.0)?;
         let focus_distance = p.float("focusdistance", 10.0)?;
-        if let Some(prm) = p.find("aperture") {
-            let l = prm.loc.clone();
-            self.unsupported(&l, "\"string aperture\" (a shaped diaphragm)", "the stop is round");
-        }
+        // A shaped stop: one of pbrt-v4's built-in shapes, or an image
+        // (found as textures are; colours averaged to grey).
+        let stop_mask = match p.string("aperture")? {
+            None => None,
+            Some((name, _)) if name.is_empty() => None,
+            Some((name, prm)) => Some(match crate::camera::ApertureMask::built_in(&name) {
+                Some(mask) => mask,
+                None => {
+                    let path = self.top_dir.join(self.resolve(dir_rel, &name));
+                    let image = crate::texture::ImageTexture::load(&path, None)
+                        .map_err(|e| prm.err(format!("cannot read the aperture image: {e}")))?;
+                    let grey = image.pixels.iter().map(|c| (c.x + c.y + c.z) / 3.0).collect();
+                    crate::camera::ApertureMask::from_image(image.width as usize, image.height as usize, grey)
+                        .map_err(|e| prm.err(format!("{}: {e}", path.display())))?
+                }
+            }),
+        };
         Ok(ProjectionDesc::Realistic {
             lenses,
             aperture_diameter,
             focus_distance,
             film_diagonal: self.film_diagonal_mm / 1000.0,
+            stop_mask,
         })
     }
 
