@@ -256,6 +256,25 @@ impl Camera {
         height: u32,
         crop: Option<(u32, u32, u32, u32)>,
     ) -> Result<Camera, String> {
+        Self::from_transform_windowed(projection, camera_to_world, width, height, crop, None)
+    }
+
+    /// [`Camera::from_transform_cropped`] with the screen window
+    /// `[x min, x max, y min, y max]` (pbrt-v4's `screenwindow`) laid over
+    /// the image: on the plane where a perspective projection's
+    /// tan(fov_y/2) is one unit, or in camera units for an orthographic
+    /// one, and off centre or of another aspect than the image's if so
+    /// given. `None`: the window centred, its height the projection's and
+    /// its width following the image's aspect. Other projections have
+    /// none.
+    pub fn from_transform_windowed(
+        projection: Projection,
+        camera_to_world: Transform,
+        width: u32,
+        height: u32,
+        crop: Option<(u32, u32, u32, u32)>,
+        screen_window: Option<[f32; 4]>,
+    ) -> Result<Camera, String> {
         if width == 0 || height == 0 {
             return Err("image size must be at least 1×1".into());
         }
@@ -280,10 +299,26 @@ impl Camera {
             Projection::Spherical { .. } | Projection::Realistic => (orthographic_matrix(0.0, 1.0), 1.0),
         };
         let half_w = half_h * aspect;
-        // Screen (x right, y up) → raster (x right, y down).
+        let projective = matches!(
+            projection,
+            Projection::Perspective { .. } | Projection::Orthographic { .. }
+        );
+        let [x_min, x_max, y_min, y_max] = match screen_window {
+            Some(window) if projective => {
+                if !(window.iter().all(|v| v.is_finite()) && window[0] < window[1] && window[2] < window[3]) {
+                    return Err(format!(
+                        "the screen window {window:?} needs finite bounds with x min < x max and y min < y max"
+                    ));
+                }
+                window
+            }
+            _ => [-half_w, half_w, -half_h, half_h],
+        };
+        // Screen (x right, y up) → raster (x right, y down): the window's
+        // top-left corner to (0, 0).
         let screen_to_raster = Mat4::from_scale(Vec3::new(width as f32, height as f32, 1.0))
-            * Mat4::from_scale(Vec3::new(1.0 / (2.0 * half_w), -1.0 / (2.0 * half_h), 1.0))
-            * Mat4::from_translation(Vec3::new(half_w, -half_h, 0.0));
+            * Mat4::from_scale(Vec3::new(1.0 / (x_max - x_min), -1.0 / (y_max - y_min), 1.0))
+            * Mat4::from_translation(Vec3::new(-x_min, -y_max, 0.0));
         let camera_to_raster = screen_to_raster * camera_to_screen;
         let raster_to_camera = Transform {
             m: camera_to_raster.inverse(),

@@ -553,13 +553,20 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         Some(c) => (c.full_width, c.full_height, Some((c.x, c.y, s.width, s.height))),
         None => (s.width, s.height, None),
     };
-    let camera = Camera::from_transform_cropped(projection, camera_to_world, full_width, full_height, window)
-        .map_err(|m| Error::scene(cam.locs.item.clone(), "camera", m))?
-        .with_thin_lens(
-            cam.aperture_radius,
-            cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
-        )
-        .with_clipping(cam.near_clip, cam.far_clip);
+    let camera = Camera::from_transform_windowed(
+        projection,
+        camera_to_world,
+        full_width,
+        full_height,
+        window,
+        cam.screen_window,
+    )
+    .map_err(|m| Error::scene(cam.locs.key("screen_window"), "camera", m))?
+    .with_thin_lens(
+        cam.aperture_radius,
+        cam.focus_distance.unwrap_or_else(|| (cam.to - cam.from).length()),
+    )
+    .with_clipping(cam.near_clip, cam.far_clip);
     let camera_end = match cam.motion {
         Some((end, times)) => {
             let end = Transform::from_matrix(end)

@@ -98,6 +98,12 @@ pub struct CameraDesc {
     pub aperture_radius: f32,
     /// Distance to the plane in focus; `None`: the distance from `from` to `to`.
     pub focus_distance: Option<f32>,
+    /// The screen window laid over the image (pbrt-v4's `screenwindow`:
+    /// x min, x max, y min, y max; see
+    /// [`crate::camera::Camera::from_transform_windowed`]), for a
+    /// perspective camera on the plane where tan(fov/2) is one unit;
+    /// `None`: centred, following the image's aspect.
+    pub screen_window: Option<[f32; 4]>,
     /// Distance along the viewing axis before which nothing is seen
     /// (Mitsuba's `near_clip`; 0: none).
     pub near_clip: f32,
@@ -128,6 +134,7 @@ impl Default for CameraDesc {
             up: Vec3::Y,
             aperture_radius: 0.0,
             focus_distance: None,
+            screen_window: None,
             near_clip: 0.0,
             far_clip: f32::INFINITY,
             to_world: None,

@@ -221,6 +221,44 @@ fn realistic_camera_apertures_shape_the_blur_as_pbrt_v4s_do() {
     assert!(e.contains("missing.png"), "{e}");
 }
 
+/// pbrt-v4's `screenwindow` frames any part of the screen: the right half
+/// of a 2:1 image's window, rendered on a square image, is the right half
+/// of the full image, for the path tracer and for BDPT (whose light paths
+/// find their pixels through the same window); `frameaspectratio` sets
+/// the window's shape.
+#[test]
+fn screen_windows_frame_the_part_of_the_screen_they_name() {
+    let scene = |camera: &str, w: u32, integrator: &str| {
+        parse(&format!(
+            "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 40 {camera}\n\
+             Film \"rgb\" \"integer xresolution\" {w} \"integer yresolution\" 16\n\
+             Sampler \"independent\" \"integer pixelsamples\" 64\nIntegrator \"{integrator}\" \"integer maxdepth\" 2\nWorldBegin\n\
+             LightSource \"point\" \"point3 from\" [0 0 4] \"rgb I\" [10 10 10]\n\
+             Material \"diffuse\" \"rgb reflectance\" [0.8 0.8 0.8]\n\
+             Shape \"trianglemesh\" \"point3 P\" [-4 -2 0 4 -2 0 4 2 0 -4 2 0] \"integer indices\" [0 1 2 0 2 3]\n\
+             AttributeBegin\nMaterial \"diffuse\" \"rgb reflectance\" [0.8 0.1 0.1]\nTranslate 0.9 0.2 0.5\nShape \"sphere\" \"float radius\" 0.4\nAttributeEnd\n"
+        ))
+    };
+    let full = render_desc(&scene("", 32, "path"));
+    for integrator in ["path", "bdpt"] {
+        let half = render_desc(&scene("\"float screenwindow\" [0 2 -1 1]", 16, integrator));
+        for (x0, y0) in [(0, 0), (8, 0), (0, 8), (8, 8)] {
+            let a = region_mean(&full, (16 + x0, 24 + x0), (y0, y0 + 8));
+            let b = region_mean(&half, (x0, x0 + 8), (y0, y0 + 8));
+            assert!(
+                (a - b).abs().max_element() < 0.05 * a.max_element() + 1e-3,
+                "{integrator}, quadrant ({x0}, {y0}): {b} against the full image's {a}"
+            );
+        }
+    }
+    // A square frame on the 2:1 image: the window [-1, 1]², stretched.
+    let stretched = parse(
+        "Camera \"perspective\" \"float frameaspectratio\" 1\nFilm \"rgb\" \"integer xresolution\" 32 \"integer yresolution\" 16\nWorldBegin",
+    );
+    assert_eq!(stretched.camera.screen_window, Some([-1.0, 1.0, -1.0, 1.0]));
+    assert!(stretched.warnings.is_empty(), "{:?}", stretched.warnings);
+}
+
 /// pbrt's `fov` spans the shorter image axis: the rays through the middle
 /// of the image's edges show it.
 #[test]

@@ -532,41 +532,42 @@ impl Parser {
                 ));
             }
         };
-        // The screen window spans [-1, 1] along the shorter image axis
+        // The screen window spans [-1, 1] along the shorter side of the
+        // frame, whose aspect ratio is the image's unless
+        // `frameaspectratio` says otherwise, or is given by `screenwindow`
         // (pbrt-v4 `CameraBase`/`PerspectiveCamera::Create`).
         let mut frame = w / h;
         if let Some((f, prm)) = p.float_opt("frameaspectratio")? {
             if f <= 0.0 {
                 return Err(prm.err(format!("must be positive, got {f}")));
             }
-            let l = prm.loc.clone();
-            self.approximated(
-                &l,
-                "\"float frameaspectratio\"",
-                "the field of view follows it, but the image keeps the film's aspect ratio",
-            );
             frame = f;
         }
-        let mut half_h = if frame > 1.0 { 1.0 } else { 1.0 / frame };
+        let mut window = if frame > 1.0 {
+            [-frame, frame, -1.0, 1.0]
+        } else {
+            [-1.0, 1.0, -1.0 / frame, 1.0 / frame]
+        };
         if let Some((sw, prm)) = p.floats("screenwindow")? {
             if sw.len() != 4 {
                 return Err(prm.err(format!("needs 4 values (xmin xmax ymin ymax), found {}", sw.len())));
             }
-            if sw[1] <= sw[0] || sw[3] <= sw[2] {
-                return Err(prm.err("needs xmin < xmax and ymin < ymax"));
+            if !(sw[0] < sw[1] && sw[2] < sw[3]) || sw.iter().any(|v| !v.is_finite()) {
+                return Err(prm.err("needs finite values with xmin < xmax and ymin < ymax"));
             }
-            half_h = 0.5 * (sw[3] - sw[2]);
-            let centred = sw[0] == -sw[1] && sw[2] == -sw[3];
-            let same_aspect = ((sw[1] - sw[0]) / (sw[3] - sw[2]) - w / h).abs() < 1e-4 * (w / h);
-            if !(centred && same_aspect) {
-                let l = prm.loc.clone();
-                self.approximated(
-                    &l,
-                    "\"float screenwindow\"",
-                    "trazo centres the window and takes its width from the image's aspect ratio; only its height is used",
-                );
-            }
+            locs.keys.push(("screen_window".into(), prm.loc.clone()));
+            window = [sw[0], sw[1], sw[2], sw[3]];
         }
+        // The window the image's own aspect gives, centred, is trazo's
+        // default framing (and the field of view below is converted to
+        // it); any other is laid over the image as given.
+        let image_window = if w > h {
+            [-w / h, w / h, -1.0, 1.0]
+        } else {
+            [-1.0, 1.0, -h / w, h / w]
+        };
+        let screen_window = (window != image_window).then_some(window);
+        let half_h = window[3];
         let projection = match cam.kind.as_str() {
             "orthographic" => ProjectionDesc::Orthographic { size: 2.0 * half_h },
             "realistic" => self.realistic_camera(p, &cam.dir_rel, &mut locs)?,
@@ -618,11 +619,14 @@ impl Parser {
                     );
                 }
                 // pbrt's fov spans the screen window's shorter side; trazo's
-                // is vertical.
-                let vertical = 2.0 * ((fov.to_radians() * 0.5).tan() * half_h).atan();
-                ProjectionDesc::Perspective {
-                    fov: vertical.to_degrees(),
-                }
+                // is vertical, over its default window. A window of its own
+                // is in units of tan(fov/2), which the fov then gives as is.
+                let vertical = if screen_window.is_some() {
+                    fov
+                } else {
+                    (2.0 * ((fov.to_radians() * 0.5).tan() * half_h).atan()).to_degrees()
+                };
+                ProjectionDesc::Perspective { fov: vertical }
             }
         };
         let lens = p.float_opt("lensradius")?;
@@ -665,8 +669,21 @@ impl Parser {
                 "rays from the eye follow it as in pbrt-v4, but rays from other points of the lens or of an orthographic camera's film are moved by its affine part only",
             );
         }
+        // Only projective cameras have a screen window (pbrt-v4's
+        // realistic and spherical cameras do not read one).
+        let screen_window = match projection {
+            ProjectionDesc::Perspective { .. } | ProjectionDesc::Orthographic { .. } => screen_window,
+            _ => {
+                if let (Some(prm), Some(_)) = (p.find("screenwindow"), screen_window) {
+                    let l = prm.loc.clone();
+                    self.unsupported(&l, "\"float screenwindow\" on this camera", "it has no screen window");
+                }
+                None
+            }
+        };
         self.desc.camera = CameraDesc {
             projection,
+            screen_window,
             aperture_radius,
             focus_distance: Some(focus_distance),
             to_world: Some(world_from_camera),

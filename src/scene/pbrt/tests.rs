@@ -270,12 +270,20 @@ fn orthographic_screen_window_and_lens() {
     let (s, w) = size(200, 100, "\"float screenwindow\" [-4 4 -2 2]");
     assert_eq!(s, 4.0);
     assert!(w.is_empty(), "a centred window of the image's shape is exact: {w:?}");
-    let (s, w) = size(200, 100, "\"float screenwindow\" [0 1 0 3]");
-    assert_eq!(s, 3.0);
-    assert!(
-        w[0].starts_with("test.pbrt:2:23: \"float screenwindow\" is approximated"),
-        "{w:?}"
-    );
+    // Any other window is laid over the image as given.
+    let d = parse_str("Film \"rgb\" \"integer xresolution\" 200 \"integer yresolution\" 100\nCamera \"orthographic\" \"float screenwindow\" [0 1 0 3]\nWorldBegin").unwrap();
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    assert_eq!(d.camera.screen_window, Some([0.0, 1.0, 0.0, 3.0]));
+    let d = parse_str("Film \"rgb\" \"integer xresolution\" 200 \"integer yresolution\" 100\nCamera \"orthographic\" \"float frameaspectratio\" 1\nWorldBegin").unwrap();
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    assert_eq!(d.camera.screen_window, Some([-1.0, 1.0, -1.0, 1.0]));
+    for bad in ["[0 1 2]", "[1 0 0 1]", "[0 1 1 1]"] {
+        let e = parse_str(&format!(
+            "Camera \"orthographic\" \"float screenwindow\" {bad}\nWorldBegin"
+        ))
+        .unwrap_err();
+        assert!(e.to_string().contains("screenwindow"), "{e}");
+    }
 
     let d = parse_str("Camera \"perspective\" \"float lensradius\" 0.1 \"float focaldistance\" 4\nWorldBegin").unwrap();
     assert_eq!(d.camera.aperture_radius, 0.1);
