@@ -73,6 +73,19 @@ AttributeEnd
     assert!(left.y > 20.0 * left.x, "mirrored: {left}");
 }
 
+/// A folder holding singlet.dat: a biconvex singlet (f ≈ 100 mm) and its
+/// stop, as a lens description (radius, thickness, index, aperture
+/// diameter in millimetres).
+fn singlet_lens() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    fs::write(
+        dir.path().join("singlet.dat"),
+        "# a simple lens\n100 10 1.5 40\n-100 1 1 40\n0 50 0 20\n",
+    )
+    .unwrap();
+    dir
+}
+
 /// A realistic camera (a lens description file, `aperturediameter`,
 /// `focusdistance`, the film's `diagonal`) sees the scene as the
 /// perspective camera of the same `LookAt` does, upright and unmirrored (the
@@ -81,14 +94,7 @@ AttributeEnd
 /// missing lens file is an error naming it.
 #[test]
 fn realistic_cameras_see_the_scene_as_the_perspective_camera_does() {
-    let dir = tempfile::tempdir().unwrap();
-    // A biconvex singlet (f ≈ 100 mm) and its stop: radius, thickness,
-    // index, aperture diameter in millimetres.
-    fs::write(
-        dir.path().join("singlet.dat"),
-        "# a simple lens\n100 10 1.5 40\n-100 1 1 40\n0 50 0 20\n",
-    )
-    .unwrap();
+    let dir = singlet_lens();
     let scene = |camera: &str| {
         let text = format!(
             "LookAt 0 0 5  0 0 0  0 1 0\n{camera}\n\
@@ -139,12 +145,7 @@ fn realistic_cameras_see_the_scene_as_the_perspective_camera_does() {
 /// one is an error naming it.
 #[test]
 fn realistic_camera_apertures_shape_the_blur_as_pbrt_v4s_do() {
-    let dir = tempfile::tempdir().unwrap();
-    fs::write(
-        dir.path().join("singlet.dat"),
-        "100 10 1.5 40\n-100 1 1 40\n0 50 0 20\n",
-    )
-    .unwrap();
+    let dir = singlet_lens();
     // PFM masks, bottom row first: a white square on black, and all black.
     let pfm = |name: &str, lit: &dyn Fn(usize, usize) -> bool| {
         let n = 16;
