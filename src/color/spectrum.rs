@@ -127,20 +127,51 @@ fn cie_at(lambda: f64) -> [f64; 4] {
     std::array::from_fn(|k| a[k] + t * (b[k] - a[k]))
 }
 
-/// The chromaticity (x, y) of a blackbody at `kelvin`: Planck's law
-/// integrated against the colour-matching functions of the tables.
-pub fn blackbody_xy(kelvin: f64) -> (f64, f64) {
-    // Second radiation constant hc/k in nm·K.
-    const C2: f64 = 1.438_776_9e7;
+/// CIE XYZ of the spectrum `value(λ)` (λ in nm), times D65 where `d65`
+/// asks: integrated by the tables' [`STEPS`] samples over 360–830 nm and
+/// scaled by 1 / ∫ȳ, so that Y is the spectrum's luminance (a flat
+/// spectrum of 1 weighted by D65 has Y = 1).
+pub fn spectrum_xyz(value: impl Fn(f64) -> f64, d65: bool) -> [f64; 3] {
     let mut xyz = [0.0f64; 3];
     for i in 0..STEPS {
         let lambda = LAMBDA_MIN + (i as f64 / (STEPS - 1) as f64) * (LAMBDA_MAX - LAMBDA_MIN);
-        let b = 1.0 / (lambda.powi(5) * (C2 / (lambda * kelvin)).exp_m1());
-        let [x, y, z, _] = cie_at(lambda);
-        xyz[0] += x * b;
-        xyz[1] += y * b;
-        xyz[2] += z * b;
+        let [x, y, z, illuminant] = cie_at(lambda);
+        let v = value(lambda) * if d65 { illuminant } else { 1.0 };
+        xyz[0] += x * v;
+        xyz[1] += y * v;
+        xyz[2] += z * v;
     }
+    let scale = (LAMBDA_MAX - LAMBDA_MIN) / STEPS as f64 * CIE_Y_NORMALIZATION;
+    xyz.map(|c| c * scale)
+}
+
+/// Linear sRGB of CIE XYZ (the matrix of Mitsuba 3's `xyz_to_srgb`),
+/// unclamped.
+pub fn xyz_to_linear_srgb([x, y, z]: [f64; 3]) -> [f64; 3] {
+    [
+        3.2404790 * x - 1.5371500 * y - 0.4985350 * z,
+        -0.9692560 * x + 1.8759910 * y + 0.0415560 * z,
+        0.0556480 * x - 0.2040430 * y + 1.0573110 * z,
+    ]
+}
+
+/// Planck's law at `nm` for `kelvin`, up to a constant factor; 0 where
+/// it underflows.
+pub fn planck(nm: f64, kelvin: f64) -> f64 {
+    // Second radiation constant hc/k in nm·K.
+    const C2: f64 = 1.438_776_9e7;
+    let b = 1.0 / (nm.powi(5) * (C2 / (nm * kelvin)).exp_m1());
+    if b.is_finite() { b } else { 0.0 }
+}
+
+/// The chromaticity (x, y) of a blackbody at `kelvin`: Planck's law
+/// integrated against the colour-matching functions of the tables.
+pub fn blackbody_xy(kelvin: f64) -> (f64, f64) {
+    // Normalised at the peak (Wien's law) first: cold blackbodies are far
+    // below f64's range in absolute units.
+    const WIEN_NM_K: f64 = 2.897_772_1e6;
+    let peak = planck(WIEN_NM_K / kelvin, kelvin);
+    let xyz = spectrum_xyz(|l| planck(l, kelvin) / peak, false);
     let sum = xyz[0] + xyz[1] + xyz[2];
     (xyz[0] / sum, xyz[1] / sum)
 }
@@ -191,37 +222,31 @@ pub fn sample_weights(wavelengths: &[f32], usage: SpectrumUse) -> Vec<Rgb> {
 
 /// The unclamped linear sRGB of a sampled spectrum.
 fn linear_rgb(samples: &[(f32, f32)], usage: SpectrumUse) -> [f64; 3] {
+    xyz_to_linear_srgb(spectrum_xyz(
+        |lambda| piecewise_linear(samples, lambda),
+        usage != SpectrumUse::Emission,
+    ))
+}
+
+/// `samples` (wavelengths ascending, at least two) at `lambda`: linearly
+/// interpolated, zero outside them (as Mitsuba's and pbrt-v4's
+/// piecewise-linear spectra).
+pub fn piecewise_linear(samples: &[(f32, f32)], lambda: f64) -> f64 {
     let (first, last) = (samples[0].0 as f64, samples[samples.len() - 1].0 as f64);
-    let mut xyz = [0.0f64; 3];
-    let mut segment = 0;
-    for i in 0..STEPS {
-        let lambda = LAMBDA_MIN + (i as f64 / (STEPS - 1) as f64) * (LAMBDA_MAX - LAMBDA_MIN);
-        if lambda < first || lambda > last {
-            continue;
-        }
-        while segment + 2 < samples.len() && samples[segment + 1].0 as f64 <= lambda {
-            segment += 1;
-        }
-        let ((w0, v0), (w1, v1)) = (samples[segment], samples[segment + 1]);
-        let (w0, v0, w1, v1) = (w0 as f64, v0 as f64, w1 as f64, v1 as f64);
-        let v = if w1 > w0 {
-            v0 + (lambda - w0) / (w1 - w0) * (v1 - v0)
-        } else {
-            v1
-        };
-        let [x, y, z, d65] = cie_at(lambda);
-        let weight = v * if usage == SpectrumUse::Emission { 1.0 } else { d65 };
-        xyz[0] += x * weight;
-        xyz[1] += y * weight;
-        xyz[2] += z * weight;
+    if lambda < first || lambda > last {
+        return 0.0;
     }
-    let scale = (LAMBDA_MAX - LAMBDA_MIN) / STEPS as f64 * CIE_Y_NORMALIZATION;
-    let [x, y, z] = xyz.map(|c| c * scale);
-    [
-        3.2404790 * x - 1.5371500 * y - 0.4985350 * z,
-        -0.9692560 * x + 1.8759910 * y + 0.0415560 * z,
-        0.0556480 * x - 0.2040430 * y + 1.0573110 * z,
-    ]
+    let segment = samples
+        .partition_point(|s| (s.0 as f64) <= lambda)
+        .clamp(1, samples.len() - 1)
+        - 1;
+    let ((w0, v0), (w1, v1)) = (samples[segment], samples[segment + 1]);
+    let (w0, v0, w1, v1) = (w0 as f64, v0 as f64, w1 as f64, v1 as f64);
+    if w1 > w0 {
+        v0 + (lambda - w0) / (w1 - w0) * (v1 - v0)
+    } else {
+        v1
+    }
 }
 
 #[cfg(test)]

@@ -4,8 +4,8 @@
 
 use super::params::{FloatValue, Param, ParamList, SpectrumValue};
 use super::spectrum::{
-    blackbody_rgb, glass_ior, illuminant_rgb, metal_of, parse_spd, pbrt_only_metal_ior, sampled_rgb,
-    spectrum_at_rgb_wavelengths,
+    blackbody_reflectance_rgb, blackbody_rgb, glass_ior, illuminant_rgb, metal_of, parse_spd, pbrt_only_metal_ior,
+    sampled_factor_rgb, sampled_rgb, spectrum_at_rgb_wavelengths,
 };
 use super::{MatDef, MatKind, Parser};
 use crate::color::Rgb;
@@ -51,6 +51,15 @@ pub(super) const TEXTURE_CLASSES: &[&str] = &[
     "wrinkled",
 ];
 
+/// Whether `name` is of the families of named spectra that pbrt-v4 ships
+/// (`GetNamedSpectrum`): metals, glasses, illuminants and camera sensors.
+/// Other names are spectrum files.
+fn is_pbrt_spectrum_name(name: &str) -> bool {
+    ["metal-", "glass-", "stdillum-", "illum-", "canon_", "nikon_", "sony_"]
+        .iter()
+        .any(|family| name.starts_with(family))
+}
+
 /// What a colour parameter means, which decides how spectra become RGB.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum ColorUse {
@@ -63,6 +72,18 @@ pub(super) enum ColorUse {
 }
 
 impl Parser {
+    /// The samples of the spectrum file `name` (a pbrt `.spd` file of
+    /// wavelength and value pairs), found from `dir_rel` as textures are.
+    fn spectrum_file(&self, name: &str, dir_rel: &Path, prm: &Param) -> Result<Vec<(f32, f32)>> {
+        let path = self.top_dir.join(self.resolve(dir_rel, name));
+        let text = crate::files::read_limited(&path, crate::files::MAX_SCENE_BYTES).map_err(|e| {
+            prm.err(format!(
+                "\"{name}\" is neither a named spectrum nor a readable file: {e}"
+            ))
+        })?;
+        parse_spd(&String::from_utf8_lossy(&text)).map_err(|e| prm.err(format!("{}: {e}", path.display())))
+    }
+
     /// A colour parameter as a constant or a texture reference; `None` if
     /// the value cannot be used (after a warning).
     pub(super) fn color_value(&mut self, v: SpectrumValue, prm: &Param, use_: ColorUse) -> Result<Option<ColorSource>> {
@@ -78,39 +99,34 @@ impl Parser {
                 }
                 c
             }
-            SpectrumValue::Blackbody { kelvin, scale } => {
-                let c = blackbody_rgb(kelvin);
-                let how = if use_ == ColorUse::Illuminant {
-                    "converted to the linear sRGB colour of the blackbody at luminance 1 (Planck's law against a fit of the CIE 1931 observer)"
-                } else {
-                    "converted to the linear sRGB colour of the blackbody, brightest component 1"
-                };
-                self.approximated(&loc, format!("{what} {kelvin} K"), how);
-                if use_ == ColorUse::Illuminant {
-                    c * scale
-                } else {
-                    c / c.max_element()
+            // Spectra become the RGB that pbrt-v4's RGB film records of
+            // them (`color::spectrum`): emitted ones seen directly,
+            // reflectances and other factors lighting a white (D65)
+            // illuminant.
+            SpectrumValue::Blackbody { kelvin, scale } => match use_ {
+                ColorUse::Illuminant => blackbody_rgb(kelvin) * scale,
+                _ => blackbody_reflectance_rgb(kelvin),
+            },
+            SpectrumValue::Sampled(samples) => match use_ {
+                ColorUse::Illuminant => sampled_rgb(&samples),
+                ColorUse::Albedo | ColorUse::Unbounded => {
+                    let (c, clipped) = sampled_factor_rgb(&samples, use_ == ColorUse::Albedo);
+                    if clipped {
+                        self.approximated(
+                            &loc,
+                            format!("sampled spectrum {what}"),
+                            format!(
+                                "its colour leaves the sRGB gamut{}: clipped to [{} {} {}]",
+                                if use_ == ColorUse::Albedo { " or exceeds 1" } else { "" },
+                                c.x,
+                                c.y,
+                                c.z
+                            ),
+                        );
+                    }
+                    c
                 }
-            }
-            SpectrumValue::Sampled(samples) => {
-                if use_ == ColorUse::Illuminant {
-                    self.approximated(
-                        &loc,
-                        format!("sampled spectrum {what}"),
-                        "converted to its linear sRGB colour at luminance 1 (pbrt-v4 normalises emitters so)",
-                    );
-                    sampled_rgb(&samples)
-                } else {
-                    let mean = samples.iter().map(|s| s.1).sum::<f32>() / samples.len() as f32;
-                    self.approximated(
-                        &loc,
-                        format!("sampled spectrum {what}"),
-                        format!("replaced by the grey of its mean value {mean}"),
-                    );
-                    let mean = mean.max(0.0);
-                    Rgb::splat(if use_ == ColorUse::Albedo { mean.min(1.0) } else { mean })
-                }
-            }
+            },
             SpectrumValue::Named(name) => match (use_, illuminant_rgb(&name)) {
                 (ColorUse::Illuminant, Some((c, exact))) => {
                     if !exact {
@@ -122,13 +138,19 @@ impl Parser {
                     }
                     c
                 }
-                _ => {
+                _ if is_pbrt_spectrum_name(&name) => {
                     self.unsupported(
                         &loc,
                         format!("named spectrum \"{name}\" for {what}"),
                         "the default value is used",
                     );
                     return Ok(None);
+                }
+                // Not a name pbrt-v4 ships: a file of samples, as there.
+                _ => {
+                    let dir = self.directive_dir.clone();
+                    let samples = self.spectrum_file(&name, &dir, prm)?;
+                    return self.color_value(SpectrumValue::Sampled(samples), prm, use_);
                 }
             },
             SpectrumValue::Texture(t) => {
@@ -392,15 +414,7 @@ impl Parser {
                 }
                 // Not a named spectrum: a file of samples, found as
                 // textures are.
-                None => {
-                    let path = self.top_dir.join(self.resolve(dir_rel, &n));
-                    let text = crate::files::read_limited(&path, crate::files::MAX_SCENE_BYTES).map_err(|e| {
-                        prm.err(format!("\"{n}\" is neither a named spectrum nor a readable file: {e}"))
-                    })?;
-                    let samples = parse_spd(&String::from_utf8_lossy(&text))
-                        .map_err(|e| prm.err(format!("{}: {e}", path.display())))?;
-                    spectrum_at_rgb_wavelengths(&samples)
-                }
+                None => spectrum_at_rgb_wavelengths(&self.spectrum_file(&n, dir_rel, prm)?),
             },
             // As trazo's metals are tabulated: at one wavelength per channel.
             SpectrumValue::Sampled(s) => spectrum_at_rgb_wavelengths(&s),

@@ -344,6 +344,10 @@ struct Parser {
     top_dir: PathBuf,
     /// Canonical paths of the files being read, outermost first.
     open_files: Vec<PathBuf>,
+    /// The folder, relative to the top file's, of the file that holds the
+    /// directive being read: spectrum files that its parameters name are
+    /// found from it.
+    directive_dir: Arc<Path>,
     /// Where `WorldBegin` was.
     world: Option<SourceLoc>,
     gs: GraphicsState,
@@ -424,6 +428,7 @@ impl Parser {
             desc,
             top_dir,
             open_files: Vec::new(),
+            directive_dir: Arc::from(Path::new("")),
             world: None,
             gs: GraphicsState::default(),
             pushed: Vec::new(),
@@ -597,6 +602,7 @@ impl Parser {
             // Names are resolved from the folder of the file that holds the
             // directive.
             let dir_rel = lx.dir_of(t.offset);
+            self.directive_dir = dir_rel.clone();
             self.directive(lx, name, t.offset, &dir_rel)?;
         }
         Ok(())

@@ -302,6 +302,12 @@ impl ParamList {
                 }
             }
             ("spectrum", Values::Nums(v)) => {
+                if v.len() < 4 {
+                    return Err(p.err(format!(
+                        "a sampled spectrum needs at least two pairs of wavelength and value, found {} numbers",
+                        v.len()
+                    )));
+                }
                 let pairs: Vec<(f32, f32)> = v.chunks_exact(2).map(|c| (c[0], c[1])).collect();
                 if let Some(w) = pairs.windows(2).find(|w| w[1].0 <= w[0].0) {
                     return Err(p.err(format!("wavelengths must increase, but {} follows {}", w[1].0, w[0].0)));

@@ -2,64 +2,87 @@
 //! blackbody emitters and the named spectra that pbrt-v4 ships
 //! (`GetNamedSpectrum` in pbrt-v4's spectrum.cpp).
 
+use crate::color::spectrum::{SpectrumUse, piecewise_linear, planck, sampled_to_rgb, spectrum_xyz, xyz_to_linear_srgb};
 use crate::color::{Rgb, luminance};
+
+/// Wien's displacement constant in nm·K: a blackbody peaks at this / T.
+const WIEN_NM_K: f64 = 2.897_772_1e6;
+
+/// pbrt-v4's `BlackbodySpectrum` of `kelvin` at `nm`: Planck's law divided
+/// by its value at the peak wavelength, so at most 1.
+fn peak_normalized_planck(nm: f64, kelvin: f64) -> f64 {
+    let peak = planck(WIEN_NM_K / kelvin, kelvin);
+    if peak > 0.0 { planck(nm, kelvin) / peak } else { 0.0 }
+}
+
+/// The linear sRGB an RGB film records of the spectrum `value` seen
+/// directly (CIE 1931 observer, the tables of `color::spectrum`), out-of-
+/// gamut components clipped to 0.
+fn emitted_rgb(value: impl Fn(f64) -> f64) -> Rgb {
+    let [r, g, b] = xyz_to_linear_srgb(spectrum_xyz(value, false)).map(|c| c.max(0.0) as f32);
+    Rgb::new(r, g, b)
+}
+
+/// `c` scaled to luminance 1, or black if it has none.
+fn unit_luminance(c: Rgb) -> Option<Rgb> {
+    let lum = luminance(c);
+    (lum > 0.0 && lum.is_finite()).then(|| c / lum)
+}
 
 /// Linear sRGB colour of a blackbody at `kelvin`, scaled to luminance 1.
 ///
 /// pbrt-v4 divides an emitter's spectrum by its luminance
 /// (`SpectrumToPhotometric`), so a `blackbody` light of any temperature has
-/// luminance equal to its `scale`; this reproduces that. The colour is
-/// Planck's law integrated from 360 to 830 nm in 1 nm steps against the
-/// CIE 1931 colour matching functions, approximated by the multi-lobe
-/// Gaussian fit of Wyman, Sloan and Shirley ("Simple Analytic
-/// Approximations to the CIE XYZ Color Matching Functions", JCGT 2(2),
-/// 2013; errors below 1% of the peak), then mapped from XYZ to linear sRGB
-/// with the IEC 61966-2-1 matrix. Components outside the sRGB gamut (very
-/// low temperatures) are clipped to 0 before normalising.
+/// luminance equal to its `scale`; this reproduces that, as pbrt-v4's RGB
+/// film with its default CIE 1931 sensor records it: Planck's law
+/// integrated over 360–830 nm against the CIE 1931 colour-matching
+/// functions, then XYZ to linear sRGB. Components outside the sRGB gamut
+/// (very low temperatures) are clipped to 0 before normalising.
 pub fn blackbody_rgb(kelvin: f32) -> Rgb {
-    // Second radiation constant hc/k in nm·K.
-    const C2: f64 = 1.438_776_9e7;
     let t = kelvin as f64;
-    let rgb = xyz_to_linear_srgb((360..=830).map(|nm| {
-        let l = nm as f64;
-        // Planck's law up to a constant factor.
-        let b = 1.0 / (l.powi(5) * (C2 / (l * t)).exp_m1());
-        let b = if b.is_finite() { b } else { 0.0 };
-        let (xb, yb, zb) = cie_1931(l);
-        (b * xb, b * yb, b * zb)
-    }));
-    let lum = luminance(rgb);
-    if lum > 0.0 && lum.is_finite() {
-        rgb / lum
-    } else {
-        // Below about 400 K nothing visible is emitted; a dim red is the
-        // honest limit of the hue.
-        Rgb::new(1.0 / 0.2126, 0.0, 0.0)
-    }
+    // Below about 400 K nothing visible is emitted; a dim red is the
+    // honest limit of the hue.
+    unit_luminance(emitted_rgb(|l| peak_normalized_planck(l, t))).unwrap_or(Rgb::new(1.0 / 0.2126, 0.0, 0.0))
 }
 
-/// Linear sRGB colour of pbrt-v4's `BlackbodySpectrum` of `kelvin`: Planck's
-/// law divided by its value at the peak wavelength (Wien's law), so its
-/// luminance is the mean of ȳ weighted by it, ∫B̂ȳ/∫ȳ, as an RGB film
-/// records it (not normalised to luminance 1 as emitters' `blackbody` is).
+/// Linear sRGB colour of pbrt-v4's `BlackbodySpectrum` of `kelvin` (see
+/// [`peak_normalized_planck`]) as an emitted spectrum: its luminance is
+/// ∫B̂ȳ/∫ȳ, as an RGB film records it (not normalised to luminance 1 as
+/// emitters' `blackbody` is).
 pub fn peak_normalized_blackbody_rgb(kelvin: f32) -> Rgb {
-    const C2: f64 = 1.438_776_9e7;
-    const WIEN_NM_K: f64 = 2.897_772_1e6;
     let t = kelvin as f64;
-    let planck = |l: f64| 1.0 / (l.powi(5) * (C2 / (l * t)).exp_m1());
-    let peak = planck(WIEN_NM_K / t);
-    if !(peak.is_finite() && peak > 0.0) {
-        return Rgb::ZERO;
-    }
-    let (mut weighted, mut total) = (0.0, 0.0);
-    for nm in 360..=830 {
-        let l = nm as f64;
-        let y = cie_1931(l).1;
-        let b = planck(l) / peak;
-        weighted += if b.is_finite() { b * y } else { 0.0 };
-        total += y;
-    }
-    blackbody_rgb(kelvin) * (weighted / total) as f32
+    emitted_rgb(|l| peak_normalized_planck(l, t))
+}
+
+/// pbrt-v4's `BlackbodySpectrum` of `kelvin` used as a reflectance (see
+/// [`factor_rgb`]).
+pub fn blackbody_reflectance_rgb(kelvin: f32) -> Rgb {
+    let t = kelvin as f64;
+    factor_rgb(|l| peak_normalized_planck(l, t), true).0
+}
+
+/// The colour of a spectrum that multiplies light (a reflectance where
+/// `bounded`, else a scattering coefficient or a texture's factor): the
+/// colour it gives sRGB's white (D65) as an RGB film records it, divided
+/// channel by channel by that of a flat spectrum of 1, so that a flat
+/// spectrum keeps its value exactly, as it does at every wavelength of
+/// pbrt-v4's spectral rendering. Also says whether a channel was clipped
+/// to [0, 1] (reflectances) or to 0 (out of gamut).
+pub fn factor_rgb(value: impl Fn(f64) -> f64, bounded: bool) -> (Rgb, bool) {
+    let white = xyz_to_linear_srgb(spectrum_xyz(|_| 1.0, true));
+    let rgb = xyz_to_linear_srgb(spectrum_xyz(value, true));
+    let high = if bounded { 1.0 } else { f64::INFINITY };
+    let c: [f64; 3] = std::array::from_fn(|i| rgb[i] / white[i]);
+    // Rounding of a flat spectrum's own ratio is not clipping.
+    let clipped = c.iter().any(|&x| x < -1e-9 || x > high + 1e-9);
+    let [r, g, b] = c.map(|x| x.clamp(0.0, high) as f32);
+    (Rgb::new(r, g, b), clipped)
+}
+
+/// [`factor_rgb`] of a sampled spectrum (wavelengths ascending, at least
+/// two; linearly interpolated, zero outside them).
+pub fn sampled_factor_rgb(samples: &[(f32, f32)], bounded: bool) -> (Rgb, bool) {
+    factor_rgb(|l| piecewise_linear(samples, l), bounded)
 }
 
 /// Linear sRGB colour of a sampled emission spectrum (pairs of wavelength
@@ -67,60 +90,10 @@ pub fn peak_normalized_blackbody_rgb(kelvin: f32) -> Rgb {
 /// `PiecewiseLinearSpectrum`), scaled to luminance 1 as pbrt-v4 scales
 /// emitters; black if nothing visible is emitted.
 pub fn sampled_rgb(samples: &[(f32, f32)]) -> Rgb {
-    let value = |l: f64| -> f64 {
-        let i = samples.partition_point(|&(w, _)| (w as f64) < l);
-        if i == 0 || i == samples.len() {
-            // Exactly at the first sample, or outside the range.
-            return match samples.first() {
-                Some(&(w, v)) if (w as f64 - l).abs() < 1e-9 => v as f64,
-                _ => 0.0,
-            };
-        }
-        let (w0, v0) = samples[i - 1];
-        let (w1, v1) = samples[i];
-        let t = (l - w0 as f64) / (w1 as f64 - w0 as f64);
-        v0 as f64 * (1.0 - t) + v1 as f64 * t
-    };
-    let rgb = xyz_to_linear_srgb((360..=830).map(|nm| {
-        let v = value(nm as f64);
-        let (x, y, z) = cie_1931(nm as f64);
-        (v * x, v * y, v * z)
-    }));
-    let lum = luminance(rgb);
-    if lum > 0.0 && lum.is_finite() {
-        rgb / lum
-    } else {
-        Rgb::ZERO
+    if samples.len() < 2 {
+        return Rgb::ZERO;
     }
-}
-
-/// Sums XYZ samples and converts the total to linear sRGB (IEC 61966-2-1
-/// matrix), clipping negative components.
-fn xyz_to_linear_srgb(samples: impl Iterator<Item = (f64, f64, f64)>) -> Rgb {
-    let (x, y, z) = samples.fold((0.0, 0.0, 0.0), |a, s| (a.0 + s.0, a.1 + s.1, a.2 + s.2));
-    // Normalise in f64 first: very cold blackbodies are far below f32's range.
-    let m = x.max(y).max(z);
-    let (x, y, z) = if m > 0.0 { (x / m, y / m, z / m) } else { (x, y, z) };
-    Rgb::new(
-        (3.240_454_2 * x - 1.537_138_5 * y - 0.498_531_4 * z) as f32,
-        (-0.969_266 * x + 1.876_010_8 * y + 0.041_556 * z) as f32,
-        (0.055_643_4 * x - 0.204_025_9 * y + 1.057_225_2 * z) as f32,
-    )
-    .max(Rgb::ZERO)
-}
-
-/// The CIE 1931 2° colour matching functions x̄, ȳ, z̄ at `nm`, by the
-/// piecewise-Gaussian fit of Wyman, Sloan and Shirley (2013), Eq. 2.
-fn cie_1931(nm: f64) -> (f64, f64, f64) {
-    // A Gaussian with different widths left and right of its mean.
-    let g = |mu: f64, s1: f64, s2: f64| {
-        let s = if nm < mu { s1 } else { s2 };
-        (-0.5 * ((nm - mu) / s).powi(2)).exp()
-    };
-    let x = 1.056 * g(599.8, 37.9, 31.0) + 0.362 * g(442.0, 16.0, 26.7) - 0.065 * g(501.1, 20.4, 26.2);
-    let y = 0.821 * g(568.8, 46.9, 40.5) + 0.286 * g(530.9, 16.3, 31.1);
-    let z = 1.217 * g(437.0, 11.8, 36.0) + 0.681 * g(459.0, 26.0, 13.8);
-    (x, y, z)
+    unit_luminance(sampled_to_rgb(samples, SpectrumUse::Emission).0).unwrap_or(Rgb::ZERO)
 }
 
 /// The index of refraction near the sodium d line (587.6 nm) of pbrt-v4's
@@ -282,17 +255,9 @@ mod tests {
     }
 
     #[test]
-    fn colour_matching_functions_peak_where_cie_tabulates() {
-        // ȳ peaks near 555 nm at about 1; x̄ has its big lobe near 600 nm.
-        let (_, y555, _) = cie_1931(555.0);
-        assert!((y555 - 1.0).abs() < 0.02, "{y555}");
-        let (x600, _, _) = cie_1931(600.0);
-        assert!((x600 - 1.06).abs() < 0.03, "{x600}");
-    }
-
-    #[test]
     fn sampled_spectra_become_colours() {
-        // A flat spectrum is (nearly) white: the fit's white point is E, not D65.
+        // A flat emitted spectrum is (nearly) white: its white point is E,
+        // not D65.
         let flat = sampled_rgb(&[(300.0, 2.0), (900.0, 2.0)]);
         assert!((luminance(flat) - 1.0).abs() < 1e-4);
         assert!(flat.max_element() / flat.min_element() < 1.4, "{flat}");
