@@ -17,6 +17,29 @@ pub fn luminance(c: Rgb) -> f32 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
+/// How the integer values of an image file map to linear ones.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Encoding {
+    /// The sRGB transfer function (IEC 61966-2-1).
+    Srgb,
+    /// Stored linearly.
+    Linear,
+    /// A pure power law: linear = stored^γ (pbrt-v4's `"gamma γ"`).
+    Gamma(f32),
+}
+
+impl Encoding {
+    /// The linear value of a stored value in [0, 1].
+    #[inline]
+    pub fn to_linear(self, v: f32) -> f32 {
+        match self {
+            Encoding::Srgb => srgb_to_linear(v),
+            Encoding::Linear => v,
+            Encoding::Gamma(g) => v.max(0.0).powf(g),
+        }
+    }
+}
+
 /// sRGB-encoded value in [0, 1] to linear.
 #[inline]
 pub fn srgb_to_linear(v: f32) -> f32 {

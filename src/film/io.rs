@@ -10,7 +10,7 @@
 //! (`kill -9`) is removed by the next write to the same file.
 
 use super::Image;
-use crate::color::{Rgb, linear_to_srgb, srgb_to_linear};
+use crate::color::{Encoding, Rgb, linear_to_srgb};
 use crate::error::{Error, Result};
 use crate::files::{MAX_IMAGE_FILE_BYTES, read_limited};
 use crate::settings::Tonemap;
@@ -318,36 +318,36 @@ pub fn decode_image(bytes: &[u8], format: ImageFormat) -> Result<Image, String> 
 pub const MAX_IMAGE_PIXELS: u64 = 16384 * 16384;
 
 /// Decodes a PNG, JPEG, BMP, PPM, Radiance HDR, OpenEXR or PFM image held in memory,
-/// told apart by their first bytes, as linear RGB: integer images from
-/// sRGB unless `srgb` is `Some(false)`, float images as they are unless
-/// `Some(true)`. Sizes in headers are checked before pixels are allocated.
+/// told apart by their first bytes, as linear RGB: decoded by `encoding`,
+/// or where it is `None`, integer images from sRGB and float images as they
+/// are. Sizes in headers are checked before pixels are allocated.
 /// Errors are plain reasons.
-pub fn decode_any(bytes: &[u8], srgb: Option<bool>) -> Result<Image, String> {
-    decode_any_named(bytes, srgb, None)
+pub fn decode_any(bytes: &[u8], encoding: Option<Encoding>) -> Result<Image, String> {
+    decode_any_named(bytes, encoding, None)
 }
 
 /// [`decode_any`] for a file of extension `ext`, which names the format
 /// where the bytes cannot: Truevision TGA files have no signature.
-pub fn decode_any_named(bytes: &[u8], srgb: Option<bool>, ext: Option<&str>) -> Result<Image, String> {
-    decode_any_with_alpha(bytes, srgb, ext).map(|(image, _)| image)
+pub fn decode_any_named(bytes: &[u8], encoding: Option<Encoding>, ext: Option<&str>) -> Result<Image, String> {
+    decode_any_with_alpha(bytes, encoding, ext).map(|(image, _)| image)
 }
 
 /// [`decode_any_named`] with the image's alpha channel where it has one
-/// (formats of the `image` crate only), decoded from sRGB as the colours
-/// are: pbrt-v4 decodes every channel of an 8-bit image by its encoding.
+/// (formats of the `image` crate only), decoded as the colours are:
+/// pbrt-v4 decodes every channel of an 8-bit image by its encoding.
 pub fn decode_any_with_alpha(
     bytes: &[u8],
-    srgb: Option<bool>,
+    encoding: Option<Encoding>,
     ext: Option<&str>,
 ) -> Result<(Image, Option<Vec<f32>>), String> {
     let is_pfm = bytes.starts_with(b"PF") || bytes.starts_with(b"Pf");
     if !bytes.starts_with(&EXR_MAGIC) && !is_pfm {
-        return decode_encoded(bytes, srgb, ext);
+        return decode_encoded(bytes, encoding, ext);
     }
     let mut image = decode_image(bytes, if is_pfm { ImageFormat::Pfm } else { ImageFormat::Exr })?;
-    if srgb == Some(true) {
+    if let Some(e) = encoding.filter(|e| *e != Encoding::Linear) {
         for p in &mut image.pixels {
-            *p = Rgb::new(srgb_to_linear(p.x), srgb_to_linear(p.y), srgb_to_linear(p.z));
+            *p = Rgb::new(e.to_linear(p.x), e.to_linear(p.y), e.to_linear(p.z));
         }
     }
     Ok((image, None))
@@ -355,7 +355,11 @@ pub fn decode_any_with_alpha(
 
 /// [`decode_any`] for the formats of the `image` crate (PNG, JPEG, BMP, HDR,
 /// TGA, PPM/PGM/PBM); `ext` names the format where the first bytes do not.
-fn decode_encoded(bytes: &[u8], srgb: Option<bool>, ext: Option<&str>) -> Result<(Image, Option<Vec<f32>>), String> {
+fn decode_encoded(
+    bytes: &[u8],
+    encoding: Option<Encoding>,
+    ext: Option<&str>,
+) -> Result<(Image, Option<Vec<f32>>), String> {
     let open = || -> Result<_, String> {
         let mut reader = ::image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
@@ -378,8 +382,8 @@ fn decode_encoded(bytes: &[u8], srgb: Option<bool>, ext: Option<&str>) -> Result
     }
     let img = open()?.decode().map_err(|e| format!("cannot decode image: {e}"))?;
     let is_float = matches!(img.color(), ::image::ColorType::Rgb32F | ::image::ColorType::Rgba32F);
-    let decode_srgb = srgb.unwrap_or(!is_float);
-    let decode = |x: f32| if decode_srgb { srgb_to_linear(x) } else { x };
+    let encoding = encoding.unwrap_or(if is_float { Encoding::Linear } else { Encoding::Srgb });
+    let decode = |x: f32| encoding.to_linear(x);
     let alpha = img
         .color()
         .has_alpha()

@@ -104,15 +104,15 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 source,
                 scale,
                 offset,
-                srgb,
+                encoding,
                 tint,
                 wrap,
                 filter,
             } => {
                 let mut img = match source {
-                    ImageSource::File(path) => ImageTexture::load(&base_dir.join(path), *srgb)
+                    ImageSource::File(path) => ImageTexture::load(&base_dir.join(path), *encoding)
                         .map_err(|e| Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e)))?,
-                    ImageSource::FloatFile(path) => ImageTexture::load_float(&base_dir.join(path), *srgb)
+                    ImageSource::FloatFile(path) => ImageTexture::load_float(&base_dir.join(path), *encoding)
                         .map_err(|e| Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e)))?,
                     ImageSource::Data(data) => (**data).clone(),
                 };

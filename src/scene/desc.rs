@@ -6,7 +6,7 @@
 //! which happens once here for all formats, can point at the offending
 //! line, column and key.
 
-use crate::color::Rgb;
+use crate::color::{Encoding, Rgb};
 use crate::error::{Error, Result, SourceLoc};
 use crate::geometry::{Transform, TriangleMesh};
 use crate::light::{ProjectorLaw, SpotProfile};
@@ -195,8 +195,9 @@ pub enum TextureKind {
         scale: Vec2,
         /// Offset in (u, v).
         offset: Vec2,
-        /// Decode from sRGB (`None`: by the file's type).
-        srgb: Option<bool>,
+        /// How the file's values are decoded (`None`: by the file's type,
+        /// integer images from sRGB, float images as linear).
+        encoding: Option<Encoding>,
         /// Colour multiplier.
         tint: Rgb,
         /// How the image continues beyond [0, 1]².

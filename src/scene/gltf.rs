@@ -12,7 +12,7 @@
 
 use super::builtin;
 use super::desc::*;
-use crate::color::Rgb;
+use crate::color::{Encoding, Rgb};
 use crate::error::{Error, Result, SourceLoc};
 use crate::files::{MAX_BUFFER_BYTES, MAX_SCENE_BYTES, io_reason, read_limited};
 use crate::geometry::{Aabb, Transform, TriangleMesh};
@@ -1467,7 +1467,7 @@ impl<'a> Reader<'a> {
                 source,
                 scale,
                 offset,
-                srgb: Some(true),
+                encoding: Some(Encoding::Srgb),
                 tint,
                 wrap: crate::texture::WrapMode::Repeat,
                 filter: crate::texture::ImageFilter::Bilinear,
@@ -1489,7 +1489,7 @@ impl<'a> Reader<'a> {
             // glTF images are colours.
             ImageSource::File(rel) | ImageSource::FloatFile(rel) => {
                 let full = self.base_dir.join(rel);
-                let img = ImageTexture::load(&full, Some(true)).map_err(|e| {
+                let img = ImageTexture::load(&full, Some(Encoding::Srgb)).map_err(|e| {
                     let reason = match e {
                         Error::File { message, .. } => message,
                         other => other.to_string(),

@@ -19,8 +19,8 @@
 //! naming the element and its line, and documented in docs/formats.md.
 
 use super::desc::*;
-use crate::color::Rgb;
 use crate::color::spectrum::{SpectrumUse, sampled_to_rgb};
+use crate::color::{Encoding, Rgb};
 use crate::error::{Error, Result, SourceLoc};
 use crate::files::{MAX_XML_BYTES, io_reason, read_limited};
 use crate::geometry::TriangleMesh;
@@ -1689,7 +1689,7 @@ impl Loader {
                     source: ImageSource::File(path),
                     scale: Vec2::new(scale.x, -scale.y),
                     offset: Vec2::new(offset.x, 1.0 - offset.y),
-                    srgb: if raw { Some(false) } else { None },
+                    encoding: raw.then_some(Encoding::Linear),
                     tint: Rgb::ONE,
                     wrap,
                     filter,

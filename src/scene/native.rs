@@ -6,7 +6,7 @@
 //! validation — names the file, line, column and key.
 
 use super::desc::*;
-use crate::color::Rgb;
+use crate::color::{Encoding, Rgb};
 use crate::error::{Error, Result, SourceLoc};
 use crate::files::{MAX_SCENE_BYTES, io_reason, read_limited};
 use crate::geometry::TriangleMesh;
@@ -773,7 +773,9 @@ fn read_texture(t: &Table) -> Result<Vec<TextureDesc>> {
                 source: ImageSource::File(t.required("file", path)?),
                 scale,
                 offset,
-                srgb: t.boolean("srgb")?,
+                encoding: t
+                    .boolean("srgb")?
+                    .map(|srgb| if srgb { Encoding::Srgb } else { Encoding::Linear }),
                 tint: t.color("tint")?.unwrap_or(Rgb::ONE),
                 wrap,
                 filter,

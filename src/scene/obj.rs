@@ -202,7 +202,7 @@ fn mtl_material(
                     source: ImageSource::File(tex_path),
                     scale: Vec2::ONE,
                     offset: Vec2::ZERO,
-                    srgb: None,
+                    encoding: None,
                     tint: if m.diffuse.is_some() { kd } else { Rgb::ONE },
                     wrap: crate::texture::WrapMode::Repeat,
                     filter: crate::texture::ImageFilter::Bilinear,

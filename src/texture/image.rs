@@ -1,7 +1,7 @@
 //! Image textures: images decoded by `film::io` (8- and 16-bit images from
 //! sRGB, float images as linear) and their filtered lookup.
 
-use crate::color::Rgb;
+use crate::color::{Encoding, Rgb};
 use crate::error::{Error, Result};
 use glam::Vec2;
 use std::path::Path;
@@ -22,14 +22,13 @@ pub const MAX_TEXTURE_PIXELS: u64 = crate::film::io::MAX_IMAGE_PIXELS;
 
 impl ImageTexture {
     /// Reads a PNG, JPEG, BMP, TGA, PPM (PGM, PBM), Radiance HDR, OpenEXR
-    /// or PFM file. Integer images are decoded from sRGB unless `srgb` is
-    /// `Some(false)`; float images are taken as linear unless `srgb` is
-    /// `Some(true)`.
-    pub fn load(path: &Path, srgb: Option<bool>) -> Result<ImageTexture> {
+    /// or PFM file, decoded by `encoding`; where it is `None`, integer
+    /// images from sRGB and float images as linear.
+    pub fn load(path: &Path, encoding: Option<Encoding>) -> Result<ImageTexture> {
         let bytes = crate::files::read_limited(path, crate::files::MAX_IMAGE_FILE_BYTES)
             .map_err(|e| Error::file(path, format!("cannot open image: {e}")))?;
         let ext = path.extension().and_then(|e| e.to_str());
-        let image = crate::film::io::decode_any_named(&bytes, srgb, ext).map_err(|e| Error::file(path, e))?;
+        let image = crate::film::io::decode_any_named(&bytes, encoding, ext).map_err(|e| Error::file(path, e))?;
         Self::from_image(image).map_err(|e| Error::file(path, e))
     }
 
@@ -37,12 +36,12 @@ impl ImageTexture {
     /// `MIPMap::Bilerp<Float>`): one value a texel, in all three channels:
     /// the image's alpha where it has one that is not 1 everywhere, else
     /// the mean of its red, green and blue (for a grey image, its value).
-    pub fn load_float(path: &Path, srgb: Option<bool>) -> Result<ImageTexture> {
+    pub fn load_float(path: &Path, encoding: Option<Encoding>) -> Result<ImageTexture> {
         let bytes = crate::files::read_limited(path, crate::files::MAX_IMAGE_FILE_BYTES)
             .map_err(|e| Error::file(path, format!("cannot open image: {e}")))?;
         let ext = path.extension().and_then(|e| e.to_str());
         let (mut image, alpha) =
-            crate::film::io::decode_any_with_alpha(&bytes, srgb, ext).map_err(|e| Error::file(path, e))?;
+            crate::film::io::decode_any_with_alpha(&bytes, encoding, ext).map_err(|e| Error::file(path, e))?;
         match alpha.filter(|a| a.iter().any(|&x| x != 1.0)) {
             Some(alpha) => {
                 for (p, a) in image.pixels.iter_mut().zip(alpha) {
@@ -62,8 +61,8 @@ impl ImageTexture {
     /// memory (told apart by their first bytes), as [`ImageTexture::load`] does.
     /// The size in the header is checked before any pixel is allocated.
     /// Errors are plain reasons, for the caller to place.
-    pub fn decode(bytes: &[u8], srgb: Option<bool>) -> Result<ImageTexture, String> {
-        Self::from_image(crate::film::io::decode_any(bytes, srgb)?)
+    pub fn decode(bytes: &[u8], encoding: Option<Encoding>) -> Result<ImageTexture, String> {
+        Self::from_image(crate::film::io::decode_any(bytes, encoding)?)
     }
 
     /// A decoded image as a texture, which must have pixels.
@@ -89,7 +88,7 @@ impl ImageTexture {
         if !matches!(format, ::image::ImageFormat::Png | ::image::ImageFormat::Jpeg) {
             return Err("not a PNG or JPEG image".into());
         }
-        Self::decode(bytes, Some(srgb))
+        Self::decode(bytes, Some(if srgb { Encoding::Srgb } else { Encoding::Linear }))
     }
 
     /// Replaces texels that are not finite (NaN or infinite, as float
@@ -252,7 +251,7 @@ mod tests {
             .unwrap()
             .save(&plain)
             .unwrap();
-        let t = ImageTexture::load_float(&plain, Some(false)).unwrap();
+        let t = ImageTexture::load_float(&plain, Some(Encoding::Linear)).unwrap();
         assert_eq!(t.pixels, vec![Rgb::splat(2.0 / 3.0)]);
     }
 
@@ -379,8 +378,12 @@ mod tests {
         assert_eq!((t.width, t.height), (2, 2));
         assert!((t.pixels[0].x - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
         assert_eq!(t.pixels[0].y, 1.0);
-        let lin = ImageTexture::load(&path, Some(false)).unwrap();
+        let lin = ImageTexture::load(&path, Some(Encoding::Linear)).unwrap();
         assert!((lin.pixels[0].x - 128.0 / 255.0).abs() < 1e-6);
+        // A power law: (128/255)^2.2, 1 stays 1 and 0 stays 0.
+        let gamma = ImageTexture::load(&path, Some(Encoding::Gamma(2.2))).unwrap();
+        assert!((gamma.pixels[0].x - (128.0f32 / 255.0).powf(2.2)).abs() < 1e-6);
+        assert_eq!((gamma.pixels[0].y, gamma.pixels[0].z), (1.0, 0.0));
     }
 
     #[test]

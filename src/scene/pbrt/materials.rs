@@ -8,7 +8,7 @@ use super::spectrum::{
     sampled_factor_rgb, sampled_rgb, spectrum_at_rgb_wavelengths,
 };
 use super::{MatDef, MatKind, Parser};
-use crate::color::Rgb;
+use crate::color::{Encoding, Rgb};
 use crate::error::{Error, Result, SourceLoc};
 use crate::material::conductor::metal_ior;
 use crate::scene::desc::*;
@@ -50,6 +50,19 @@ pub(super) const TEXTURE_CLASSES: &[&str] = &[
     "windy",
     "wrinkled",
 ];
+
+/// pbrt-v4's names of colour encodings (`ColorEncoding::Get`): `sRGB`,
+/// `linear` and `gamma γ` for a positive γ.
+fn parse_encoding(name: &str) -> Option<Encoding> {
+    match name {
+        "sRGB" => Some(Encoding::Srgb),
+        "linear" => Some(Encoding::Linear),
+        _ => {
+            let g: f32 = name.strip_prefix("gamma ")?.trim().parse().ok()?;
+            (g.is_finite() && g > 0.0).then_some(Encoding::Gamma(g))
+        }
+    }
+}
 
 /// Whether `name` is of the families of named spectra that pbrt-v4 ships
 /// (`GetNamedSpectrum`): metals, glasses, illuminants and camera sensors.
@@ -498,7 +511,7 @@ impl Parser {
                     source: ImageSource::File(self.resolve(dir_rel, &file)),
                     scale: Vec2::ONE,
                     offset: Vec2::ZERO,
-                    srgb: Some(false),
+                    encoding: Some(Encoding::Linear),
                     tint: Rgb::ONE,
                     wrap: crate::texture::WrapMode::Repeat,
                     filter: crate::texture::ImageFilter::Bilinear,
@@ -1004,17 +1017,22 @@ impl Parser {
                 .expect("read")
                 .err(format!("must not be negative, got {tint}")));
         }
-        let srgb = match p.string("encoding")? {
+        // As pbrt-v4's `Image::Read`: the encoding decodes PNG files (8 or
+        // 16 bits); other integer formats are always sRGB, float formats
+        // linear, whatever it says.
+        let encoding = match p.string("encoding")? {
             None => None,
-            Some((e, prm)) => match e.as_str() {
-                "sRGB" => Some(true),
-                "linear" => Some(false),
-                _ => {
-                    let l = prm.loc.clone();
-                    self.approximated(&l, format!("encoding \"{e}\""), "decoded as sRGB");
-                    Some(true)
-                }
-            },
+            Some((e, prm)) => {
+                let encoding = parse_encoding(&e).ok_or_else(|| {
+                    prm.err(format!(
+                        "unknown encoding \"{e}\": expected \"sRGB\", \"linear\" or \"gamma <value>\""
+                    ))
+                })?;
+                let png = Path::new(&file)
+                    .extension()
+                    .is_some_and(|x| x.eq_ignore_ascii_case("png"));
+                png.then_some(encoding)
+            }
         };
         let wrap = match p.string("wrap")? {
             None => crate::texture::WrapMode::Repeat,
@@ -1057,7 +1075,7 @@ impl Parser {
             },
             scale,
             offset,
-            srgb,
+            encoding,
             tint: Rgb::splat(tint),
             wrap,
             filter,

@@ -447,11 +447,11 @@ impl Parser {
             .find(|t| t.name == name)
             .expect("an area light's image texture was made with it");
         let file_loc = texture.locs.key("file");
-        let TextureKind::Image { source, srgb, .. } = &mut texture.kind else {
+        let TextureKind::Image { source, encoding, .. } = &mut texture.kind else {
             unreachable!("an area light's image is an image texture")
         };
         if let ImageSource::File(path) = source {
-            let image = crate::texture::ImageTexture::load(&top_dir.join(&*path), *srgb)
+            let image = crate::texture::ImageTexture::load(&top_dir.join(&*path), *encoding)
                 .map_err(|e| Error::scene(file_loc, "string filename", crate::scene::build::reason_of(e)))?;
             *source = ImageSource::Data(std::sync::Arc::new(image));
         }

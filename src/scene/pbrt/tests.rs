@@ -2,6 +2,7 @@
 //! errors and warnings of malformed or unsupported input.
 
 use super::*;
+use crate::color::Encoding;
 use crate::texture::TextureNode;
 use glam::{Vec2, Vec3, Vec4};
 
@@ -978,6 +979,39 @@ Shape "sphere""#,
     assert!(e.contains("must not exceed 1"), "{e}");
 }
 
+/// An imagemap's `encoding` decodes PNG files, as pbrt-v4's `Image::Read`
+/// applies it: `sRGB`, `linear` and `gamma γ`; other integer formats stay
+/// sRGB and float formats linear whatever it says (`None`: by the file's
+/// type); an unknown encoding is an error at its place.
+#[test]
+fn imagemap_encodings_decode_png_files_as_pbrt_v4_reads_them() {
+    let encoding_of = |file: &str, encoding: &str| {
+        let d = world(&format!(
+            "Texture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"{file}\" \"string encoding\" \"{encoding}\""
+        ));
+        match &d.textures[0].kind {
+            TextureKind::Image { encoding, .. } => *encoding,
+            k => panic!("{k:?}"),
+        }
+    };
+    assert_eq!(encoding_of("a.png", "sRGB"), Some(Encoding::Srgb));
+    assert_eq!(encoding_of("a.PNG", "linear"), Some(Encoding::Linear));
+    assert_eq!(encoding_of("a.png", "gamma 2.2"), Some(Encoding::Gamma(2.2)));
+    for other in ["a.jpg", "a.tga", "a.exr", "a.pfm"] {
+        assert_eq!(encoding_of(other, "gamma 2.2"), None, "{other}");
+        assert_eq!(encoding_of(other, "linear"), None, "{other}");
+    }
+    for bad in ["gamma", "gamma -1", "srgb", "gamma x"] {
+        let e = error_of(&format!(
+            "WorldBegin\nTexture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"a.png\" \"string encoding\" \"{bad}\""
+        ));
+        assert!(
+            e.contains("test.pbrt:2:") && e.contains(&format!("unknown encoding \"{bad}\"")),
+            "{e}"
+        );
+    }
+}
+
 #[test]
 fn textures() {
     let d = world(
@@ -996,7 +1030,7 @@ Shape "sphere""#,
             source: ImageSource::File(PathBuf::from("textures/wood.png")),
             scale: Vec2::new(2.0, 3.0),
             offset: Vec2::new(0.5, 0.0),
-            srgb: Some(false),
+            encoding: Some(Encoding::Linear),
             tint: Rgb::splat(0.8),
             wrap: crate::texture::WrapMode::Repeat,
             filter: crate::texture::ImageFilter::Bilinear,
@@ -2072,7 +2106,7 @@ Shape "sphere""#,
             source: ImageSource::File(PathBuf::from("textures/bumps.png")),
             scale: Vec2::ONE,
             offset: Vec2::ZERO,
-            srgb: Some(false),
+            encoding: Some(Encoding::Linear),
             tint: Rgb::ONE,
             wrap: crate::texture::WrapMode::Repeat,
             filter: crate::texture::ImageFilter::Bilinear,
