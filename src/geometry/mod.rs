@@ -6,6 +6,7 @@ pub mod bilinear;
 pub mod bounds;
 pub mod catmull_clark;
 pub mod curve;
+pub mod displacement;
 pub mod implicit;
 pub mod interaction;
 #[cfg(target_arch = "x86_64")]

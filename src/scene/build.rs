@@ -25,7 +25,7 @@ use crate::material::{
 use crate::media::{Field, Medium, MediumInterface, Phase, VoxelGrid};
 use crate::sampling::Distribution1D;
 use crate::settings::IntegratorKind;
-use crate::texture::{ImageTexture, MAX_TEXTURE_DEPTH, Texture, TextureStore};
+use crate::texture::{ImageTexture, MAX_TEXTURE_DEPTH, TexCoord, Texture, TextureStore};
 use glam::Vec3;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -152,6 +152,10 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         };
         textures.insert(t.name.as_str(), tex);
     }
+    let heights = Heights {
+        textures: &textures,
+        store: &store,
+    };
     let color = |c: &ColorSource| -> Texture {
         match c {
             ColorSource::Rgb(rgb) => Texture::Constant(*rgb),
@@ -228,7 +232,15 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             ));
             continue;
         }
-        let mesh = load_mesh_source(&m.source, &base_dir, &m.locs, &format!("mesh[{i}]"), &mut warnings)?;
+        let mesh = load_mesh_source(
+            &m.source,
+            &base_dir,
+            &m.locs,
+            &format!("mesh[{i}]"),
+            &mut warnings,
+            &Transform::IDENTITY,
+            &heights,
+        )?;
         named_meshes.insert(m.name.as_str(), mesh);
     }
 
@@ -390,9 +402,15 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         if placed_once && motion.is_none() {
             let mesh = match &s.kind {
                 ShapeKind::Mesh(name) => named_meshes.remove(name.as_str()).expect("loaded"),
-                ShapeKind::InlineMesh(src) => {
-                    load_mesh_source(src, &base_dir, &s.locs, &format!("shape[{i}]"), &mut warnings)?
-                }
+                ShapeKind::InlineMesh(src) => load_mesh_source(
+                    src,
+                    &base_dir,
+                    &s.locs,
+                    &format!("shape[{i}]"),
+                    &mut warnings,
+                    &transform,
+                    &heights,
+                )?,
                 _ => unreachable!(),
             };
             let mesh = if transform.is_identity() {
@@ -426,7 +444,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                     meshes.len() as u32 - 1
                 }),
                 ShapeKind::InlineMesh(src) => {
-                    let mesh = load_mesh_source(src, &base_dir, &s.locs, &what, &mut warnings)?;
+                    let mesh = load_mesh_source(src, &base_dir, &s.locs, &what, &mut warnings, &transform, &heights)?;
                     meshes.push(keep_read_attribute(mesh, read, &attribute_names, &what, &mut warnings));
                     meshes.len() as u32 - 1
                 }
@@ -835,7 +853,7 @@ fn described_mesh_bytes(desc: &SceneDesc) -> u64 {
             2 * *segments as u64 * *rings as u64,
             (*segments as u64 + 1) * (*rings as u64 + 1),
         ),
-        MeshSource::File(_) => 0,
+        MeshSource::File(_) | MeshSource::Displaced { .. } => 0,
     };
     let named: u64 = desc.meshes.iter().map(|m| source_bytes(&m.source)).sum();
     let inline: u64 = desc
@@ -1346,14 +1364,48 @@ pub fn compose(ops: &[TransformOp]) -> Result<Transform, String> {
 }
 
 /// Loads a mesh; a mesh file's warnings go to `warnings`.
+/// What displacing a mesh reads: the textures built, by name.
+struct Heights<'a> {
+    textures: &'a HashMap<&'a str, Texture>,
+    store: &'a TextureStore,
+}
+
+/// Most triangles a displaced mesh may be cut into.
+const MAX_DISPLACED_TRIANGLES: usize = 1 << 25;
+
 fn load_mesh_source(
     src: &MeshSource,
     base_dir: &Path,
     locs: &Locs,
     what: &str,
     warnings: &mut Vec<String>,
+    to_world: &Transform,
+    heights: &Heights,
 ) -> Result<TriangleMesh> {
-    let mesh = read_mesh_source(src, base_dir, locs, what, warnings)?;
+    let mesh = match src {
+        MeshSource::Displaced {
+            mesh,
+            height,
+            edge_length,
+        } => {
+            let base = read_mesh_source(mesh, base_dir, locs, what, warnings)?;
+            let texture = heights.textures[height.as_str()];
+            // As pbrt-v4: edges measured after the shape's transform, the
+            // texture read at the object-space point and its (u, v).
+            crate::geometry::displacement::displace(
+                &base,
+                |a, b| to_world.point(a).distance(to_world.point(b)),
+                *edge_length,
+                |p, uv| {
+                    let c = texture.eval(heights.store, &TexCoord::new(uv, p));
+                    (c.x + c.y + c.z) / 3.0
+                },
+                MAX_DISPLACED_TRIANGLES,
+            )
+            .map_err(|e| Error::scene(locs.key("edge_length").or(locs.item.clone()), what, e.to_string()))?
+        }
+        _ => read_mesh_source(src, base_dir, locs, what, warnings)?,
+    };
     let degenerate = (0..mesh.len())
         .filter(|&i| {
             let [a, b, c] = mesh.vertices(i);
@@ -1379,6 +1431,7 @@ fn read_mesh_source(
 ) -> Result<TriangleMesh> {
     match src {
         MeshSource::Inline(m) => Ok(m.clone()),
+        MeshSource::Displaced { .. } => unreachable!("validation refuses a displaced mesh inside another"),
         MeshSource::UvSphere { segments, rings } => {
             Ok(TriangleMesh::uv_sphere(glam::Vec3::ZERO, 1.0, *segments, *rings))
         }

@@ -537,6 +537,18 @@ pub enum MeshSource {
         /// Divisions from pole to pole.
         rings: u32,
     },
+    /// A mesh displaced along its normals by a float texture, its edges
+    /// first cut shorter than `edge_length` (pbrt-v4's `plymesh`
+    /// `displacement`; `geometry::displacement`).
+    Displaced {
+        /// The mesh before displacement; it needs texture coordinates.
+        mesh: Box<MeshSource>,
+        /// The name of the texture of heights (the mean of its channels).
+        height: String,
+        /// The longest edge left, in world units (after the shape's
+        /// transform).
+        edge_length: f32,
+    },
 }
 
 /// A named mesh that shapes can place, once or many times.
@@ -1895,7 +1907,14 @@ impl SceneDesc {
                         ));
                     }
                 }
-                ShapeKind::InlineMesh(src) => validate_mesh_source(&c, src)?,
+                ShapeKind::InlineMesh(src) => {
+                    validate_mesh_source(&c, src)?;
+                    if let MeshSource::Displaced { height, .. } = src {
+                        if !self.textures.iter().any(|t| &t.name == height) {
+                            return Err(c.err("height", format!("no texture named \"{height}\"")));
+                        }
+                    }
+                }
                 ShapeKind::Bilinear(b) if !b.p.iter().all(|p| p.is_finite()) => {
                     for (p, key) in b.p.iter().zip(["p00", "p10", "p01", "p11"]) {
                         c.vec3(key, p.as_vec3())?;
@@ -2185,6 +2204,18 @@ fn validate_mesh_source(c: &Check, src: &MeshSource) -> Result<()> {
             m.validate().map_err(|e| c.err("indices", e.to_string()))
         }
         MeshSource::File(_) => Ok(()),
+        MeshSource::Displaced { mesh, edge_length, .. } => {
+            if matches!(**mesh, MeshSource::Displaced { .. }) {
+                return Err(c.err("mesh", "a displaced mesh cannot be displaced again"));
+            }
+            if !(*edge_length > 0.0 && edge_length.is_finite()) {
+                return Err(c.err(
+                    "edge_length",
+                    format!("the edge length must be positive and finite, got {edge_length}"),
+                ));
+            }
+            validate_mesh_source(c, mesh)
+        }
         MeshSource::UvSphere { segments, rings } => {
             if *segments < 3 || *rings < 2 {
                 return Err(c.err("segments", "a uv_sphere needs at least 3 segments and 2 rings"));

@@ -578,6 +578,22 @@ impl Parser {
     /// relative to the main file's folder), relative to the main file's
     /// folder. Relative names are looked up next to the file that names
     /// them, then (as pbrt-v4's `ResolveFilename` does) next to the main file.
+    /// The float textures that displace meshes (`plymesh` `displacement`),
+    /// placed or in objects.
+    fn displacement_heights(&self) -> Vec<String> {
+        let shapes = self.shapes.iter().filter_map(|s| match &s.desc.kind {
+            ShapeKind::InlineMesh(src) => Some(src),
+            _ => None,
+        });
+        shapes
+            .chain(self.desc.meshes.iter().map(|m| &m.source))
+            .filter_map(|src| match src {
+                MeshSource::Displaced { height, .. } => Some(height.clone()),
+                _ => None,
+            })
+            .collect()
+    }
+
     fn resolve(&self, dir_rel: &Path, name: &str) -> PathBuf {
         let p = Path::new(name);
         if p.is_absolute() || dir_rel.as_os_str().is_empty() {
@@ -1335,6 +1351,7 @@ impl Parser {
                 ColorSource::Texture(t) => Some(t.clone()),
                 ColorSource::Rgb(_) => None,
             })
+            .chain(self.displacement_heights())
             .collect();
         // Float textures (and their parts) that nothing reads are not
         // loaded; a texture kept keeps its inputs, which are made before it.

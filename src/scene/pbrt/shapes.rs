@@ -14,6 +14,47 @@ use std::path::Path;
 
 impl Parser {
     /// Converts one `Shape` with the current graphics state.
+    /// A `plymesh`'s mesh, displaced where it names a float texture
+    /// `displacement`, its edges first cut shorter than `edgelength` (1),
+    /// as pbrt-v4's `TriQuadMesh::Displace` (done when the scene is built).
+    fn displaced(&mut self, p: &ParamList, source: MeshSource, locs: &mut Locs) -> Result<MeshSource> {
+        let height = match p.float_or_texture("displacement")? {
+            None => {
+                // Read, so that it is not reported as unused: pbrt-v4
+                // ignores it without a displacement.
+                p.float("edgelength", 1.0)?;
+                return Ok(source);
+            }
+            Some((FloatValue::Num(_), prm)) => {
+                return Err(prm.err("a displacement must be a float texture (\"texture displacement\" \"name\")"));
+            }
+            Some((FloatValue::Texture(t), prm)) => match self.float_texture_descs.get(&t) {
+                Some((name, _)) => name.clone(),
+                None => {
+                    return Err(prm.err(format!(
+                        "no float texture named \"{t}\"{}",
+                        suggest(&t, self.float_textures.iter().map(String::as_str))
+                    )));
+                }
+            },
+        };
+        let edge_length = match p.float_opt("edgelength")? {
+            Some((e, prm)) => {
+                if !(e > 0.0 && e.is_finite()) {
+                    return Err(prm.err(format!("must be a positive length, got {e}")));
+                }
+                locs.keys.push(("edge_length".into(), prm.loc.clone()));
+                e
+            }
+            None => 1.0,
+        };
+        Ok(MeshSource::Displaced {
+            mesh: Box::new(source),
+            height,
+            edge_length,
+        })
+    }
+
     pub(super) fn shape(&mut self, kind: &str, p: &ParamList, loc: SourceLoc, dir_rel: &Path) -> Result<()> {
         let mut locs = Locs::at(Some(loc.clone()));
         locs.keys.push(("transform".into(), loc.clone()));
@@ -168,16 +209,17 @@ impl Parser {
                 let path = self.resolve(dir_rel, &file);
                 // An emitter's `power` needs its triangles' areas now.
                 let powered = self.gs.area_light.as_ref().is_some_and(|e| e.power.is_some());
-                if crate::files::is_gzip_name(&path) || powered {
+                let source = if crate::files::is_gzip_name(&path) || powered {
                     // pbrt-v4 reads gzip-compressed PLY files; trazo
                     // decompresses and reads them now, the others when the
                     // scene is built.
                     let at = prm.loc.clone();
                     let mesh = self.gzip_ply(&self.top_dir.join(&path), &at, crate::files::MAX_PLY_BYTES)?;
-                    (ShapeKind::InlineMesh(MeshSource::Inline(mesh)), false)
+                    MeshSource::Inline(mesh)
                 } else {
-                    (ShapeKind::InlineMesh(MeshSource::File(path)), false)
-                }
+                    MeshSource::File(path)
+                };
+                (ShapeKind::InlineMesh(self.displaced(p, source, &mut locs)?), false)
             }
             "loopsubdiv" => {
                 let levels = match p.int_opt("levels")? {

@@ -2291,6 +2291,94 @@ fn reflectance_spectra_are_the_colours_an_rgb_film_records() {
     );
 }
 
+/// `plymesh` `displacement`: the mesh is cut until its edges, measured in
+/// world space, are shorter than `edgelength`, then moved along its
+/// normals by the float texture (pbrt-v4's `TriQuadMesh::Displace`): a
+/// unit square lifted by 0.25 and scaled by 2 ends at z = 0.5, with more
+/// triangles than unscaled. Bad values are errors at their place; a mesh
+/// without (u, v) is an error when the scene is built.
+#[test]
+fn plymesh_displacement_cuts_and_lifts_the_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let square = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nproperty float u\nproperty float v\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0 0 0\n1 0 0 1 0\n1 1 0 1 1\n0 1 0 0 1\n4 0 1 2 3\n";
+    std::fs::write(root.join("square.ply"), square).unwrap();
+    std::fs::write(root.join("plain.ply"), TRIANGLE_PLY).unwrap();
+    let scene = |transform: &str, shape: &str| {
+        std::fs::write(
+            root.join("main.pbrt"),
+            format!(
+                "WorldBegin\nTexture \"h\" \"float\" \"constant\" \"float value\" 0.25\n{transform}\nShape \"plymesh\" {shape}\n"
+            ),
+        )
+        .unwrap();
+        crate::scene::load(&root.join("main.pbrt"), &[])
+    };
+    let displaced = "\"string filename\" \"square.ply\" \"texture displacement\" \"h\" \"float edgelength\" 0.25";
+    let d = scene("", displaced).unwrap();
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    assert!(matches!(
+        &d.shapes[0].kind,
+        ShapeKind::InlineMesh(MeshSource::Displaced { height, edge_length, .. }) if edge_length == &0.25 && !height.is_empty()
+    ));
+    let built = crate::scene::build::build(&d).unwrap();
+    let b = built.geometry.bounds();
+    assert!((b.min.z - 0.25).abs() < 1e-6 && (b.max.z - 0.25).abs() < 1e-6, "{b:?}");
+    let near = built.geometry.stats().triangles;
+    assert!(
+        near >= 2 * 16,
+        "{near}: every edge below 0.25 takes at least 32 triangles"
+    );
+
+    let far = crate::scene::build::build(&scene("Scale 2 2 2", displaced).unwrap()).unwrap();
+    let b = far.geometry.bounds();
+    assert!((b.min.z - 0.5).abs() < 1e-6 && (b.max.z - 0.5).abs() < 1e-6, "{b:?}");
+    assert!(
+        far.geometry.stats().triangles >= 3 * near,
+        "{} vs {near}",
+        far.geometry.stats().triangles
+    );
+
+    // Without a displacement, edgelength is read and nothing changes.
+    let d = scene("", "\"string filename\" \"square.ply\" \"float edgelength\" 0.1").unwrap();
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    assert!(matches!(&d.shapes[0].kind, ShapeKind::InlineMesh(MeshSource::File(_))));
+
+    for (shape, why) in [
+        (
+            "\"string filename\" \"square.ply\" \"texture displacement\" \"h\" \"float edgelength\" 0",
+            "must be a positive length, got 0",
+        ),
+        (
+            "\"string filename\" \"square.ply\" \"texture displacement\" \"nope\"",
+            "no float texture named \"nope\"",
+        ),
+        (
+            "\"string filename\" \"square.ply\" \"float displacement\" 1",
+            "must be a float texture",
+        ),
+    ] {
+        let e = scene("", shape).unwrap_err().to_string();
+        assert!(e.contains("main.pbrt:4:") && e.contains(why), "{shape}: {e}");
+    }
+    let d = scene("", "\"string filename\" \"plain.ply\" \"texture displacement\" \"h\"").unwrap();
+    let e = crate::scene::build::build(&d).unwrap_err().to_string();
+    assert!(
+        e.contains("main.pbrt:4:") && e.contains("needs texture coordinates"),
+        "{e}"
+    );
+    let d = scene(
+        "",
+        "\"string filename\" \"square.ply\" \"texture displacement\" \"h\" \"float edgelength\" 1e-5",
+    )
+    .unwrap();
+    let e = crate::scene::build::build(&d).unwrap_err().to_string();
+    assert!(
+        e.contains("main.pbrt:4:") && e.contains("more than 33554432 triangles"),
+        "{e}"
+    );
+}
+
 #[test]
 fn a_scaled_texture_stays_a_texture() {
     let d = world(
