@@ -209,6 +209,67 @@ impl EnvironmentMap {
         (self.turn(d), st)
     }
 
+    /// The world direction at which [`EnvironmentMap::eval`] returns pixel
+    /// (`x`, `y`) itself: its centre for the equal-area layout; for the
+    /// latitude–longitude one its node of the lookup's grid (rows spread
+    /// from pole to pole, so that the first and last rows' pixels all lie
+    /// at a pole, where the lookup blends them).
+    pub fn pixel_direction(&self, x: u32, y: u32) -> Vec3 {
+        let (w, h) = (self.image.width as f32, self.image.height as f32);
+        match self.layout {
+            EnvironmentLayout::EqualAreaOctahedral => {
+                let uv = Vec2::new((x as f32 + 0.5) / w, (y as f32 + 0.5) / h);
+                self.turn(equal_area_square_to_sphere(uv))
+            }
+            EnvironmentLayout::LatLong => {
+                let v = if self.image.height > 1 {
+                    y as f32 / (h - 1.0)
+                } else {
+                    0.5
+                };
+                self.dir_of(Vec2::new((x as f32 + 0.5) / w, v)).0
+            }
+        }
+    }
+
+    /// The sum of several environments as one map: the largest of `maps`
+    /// (by pixels) keeps its layout, frame and scale, and each of its
+    /// pixels adds the other maps' radiance toward that pixel's direction
+    /// ([`EnvironmentMap::pixel_direction`]) and `constant`. Exact for a
+    /// map and constants; other maps are resampled at its pixels. `None`
+    /// without maps.
+    pub fn summed(maps: Vec<EnvironmentMap>, constant: Rgb) -> Option<EnvironmentMap> {
+        let largest = (0..maps.len()).max_by_key(|&i| maps[i].image.pixels.len())?;
+        let mut maps = maps;
+        let target = maps.swap_remove(largest);
+        if maps.is_empty() && constant == Rgb::ZERO {
+            return Some(target);
+        }
+        let mut image = target.image.clone();
+        let w = image.width;
+        for y in 0..image.height {
+            for x in 0..w {
+                let d = target.pixel_direction(x, y);
+                let added = maps.iter().map(|m| m.eval(d)).sum::<Rgb>() + constant;
+                // The target's scale multiplies its pixels: what is added
+                // is divided by it (a zero scale leaves only the others).
+                let p = &mut image.pixels[(y * w + x) as usize];
+                *p = if target.scale > 0.0 {
+                    *p + added / target.scale
+                } else {
+                    added
+                };
+            }
+        }
+        let scale = if target.scale > 0.0 { target.scale } else { 1.0 };
+        Some(EnvironmentMap::with_layout(
+            image,
+            scale,
+            target.to_world,
+            target.layout,
+        ))
+    }
+
     /// Radiance arriving from direction `dir`: for a latitude–longitude
     /// map bilinear between pixels, wrapping around in longitude, rows
     /// running from pole to pole; for an equal-area map the nearest pixel.
@@ -562,6 +623,77 @@ mod tests {
             2.0,
             Transform::rotate(Vec3::Y, 30.0).unwrap(),
         )
+    }
+
+    /// A random map of `w` × `h` pixels in `layout`, turned.
+    fn random_map(w: u32, h: u32, layout: EnvironmentLayout, seed: u64) -> EnvironmentMap {
+        let mut rng = Pcg32::new(seed, 3);
+        let pixels = (0..w * h)
+            .map(|_| Rgb::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 4.0)
+            .collect();
+        let image = ImageTexture {
+            width: w,
+            height: h,
+            pixels,
+        };
+        let turn = Transform::rotate(Vec3::new(1.0, 2.0, 0.5), 40.0).unwrap();
+        EnvironmentMap::with_layout(image, 1.5, turn, layout)
+    }
+
+    /// Looked up toward [`EnvironmentMap::pixel_direction`], a map gives
+    /// that pixel (scaled), in both layouts; summed with a constant it
+    /// gives its own radiance plus the constant everywhere, and two maps
+    /// of one layout and frame sum exactly at the pixels.
+    #[test]
+    fn pixel_directions_and_sums_of_environments() {
+        let mut rng = Pcg32::new(9, 1);
+        for (w, h, layout) in [
+            (16, 8, EnvironmentLayout::LatLong),
+            (8, 8, EnvironmentLayout::EqualAreaOctahedral),
+        ] {
+            let map = random_map(w, h, layout, 1);
+            // A latitude–longitude map's first and last rows lie at the
+            // poles, where every pixel of the row has the same direction.
+            let rows = if layout == EnvironmentLayout::LatLong {
+                1..h - 1
+            } else {
+                0..h
+            };
+            for y in rows {
+                for x in 0..w {
+                    let got = map.eval(map.pixel_direction(x, y));
+                    let want = map.image.pixels[(y * w + x) as usize] * map.scale;
+                    assert!(
+                        (got - want).abs().max_element() < 1e-4,
+                        "{layout:?} ({x}, {y}): {got} vs {want}"
+                    );
+                }
+            }
+            let c = Rgb::new(0.5, 0.25, 2.0);
+            let sum = EnvironmentMap::summed(vec![map.clone()], c).unwrap();
+            for _ in 0..200 {
+                let d = sample_sphere_uniform(Vec2::new(rng.next_f32(), rng.next_f32()));
+                let (got, want) = (sum.eval(d), map.eval(d) + c);
+                assert!(
+                    (got - want).abs().max_element() < 1e-4,
+                    "{layout:?} {d}: {got} vs {want}"
+                );
+            }
+            let other = random_map(w, h, layout, 2);
+            let both = EnvironmentMap::summed(vec![map.clone(), other.clone()], Rgb::ZERO).unwrap();
+            for (x, y) in [(0, 1), (3, 5), (w - 1, h - 2)] {
+                let d = map.pixel_direction(x, y);
+                let (got, want) = (both.eval(d), map.eval(d) + other.eval(d));
+                assert!(
+                    (got - want).abs().max_element() < 1e-3,
+                    "{layout:?} ({x}, {y}): {got} vs {want}"
+                );
+            }
+            // Its mean is the sum of the means (within the resampling).
+            let (a, b) = (both.average, map.average + other.average);
+            assert!((a - b).abs().max_element() < 0.05 * b.max_element(), "{a} vs {b}");
+        }
+        assert!(EnvironmentMap::summed(Vec::new(), Rgb::ONE).is_none());
     }
 
     #[test]

@@ -655,56 +655,21 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         ));
     }
     let background = match &desc.background {
-        BackgroundDesc::Constant(c) => Background::Constant(*c),
-        BackgroundDesc::Gradient { top, bottom } => Background::Gradient {
-            top: *top,
-            bottom: *bottom,
-        },
-        BackgroundDesc::Image {
-            path,
-            scale,
-            transform,
-            layout,
-            illuminance,
-        } => {
-            let full = base_dir.join(path);
-            let mut image = ImageTexture::load(&full, None)
-                .map_err(|e| Error::scene(desc.world_locs.key("background"), "world.background", reason_of(e)))?;
-            memory.textures += image.pixels.len() as u64 * (BYTES_PER_TEXEL + BYTES_PER_ENVIRONMENT_TEXEL);
-            memory.check(limits.max_memory)?;
-            let bad = image.sanitize();
-            if bad > 0 {
-                warnings.push(format!(
-                    "{}world.background: {bad} texels are NaN, infinite or negative; they are read as black",
-                    desc.world_locs
-                        .key("background")
-                        .map(|l| format!("{l}: "))
-                        .unwrap_or_default()
-                ));
-            }
-            let to_world = compose(transform)
-                .map_err(|e| Error::scene(desc.world_locs.key("background"), "world.background", e))?;
-            if *layout == EnvironmentLayout::EqualAreaOctahedral && image.width != image.height {
-                return Err(Error::scene(
-                    desc.world_locs.key("background"),
-                    "world.background",
-                    format!(
-                        "{}: an equal-area octahedral environment map must be square; this image is {}×{}",
-                        path.display(),
-                        image.width,
-                        image.height
-                    ),
-                ));
-            }
-            let mut scale = *scale;
-            if let Some(e) = illuminance {
-                let k = pbrt_upper_hemisphere_illuminance(&image);
-                if k > 0.0 {
-                    scale *= e / k;
+        BackgroundDesc::Sum(terms) => {
+            let (mut maps, mut constant) = (Vec::new(), Rgb::ZERO);
+            for term in terms {
+                match environment(term, &base_dir, desc, limits, &mut memory, &mut warnings)? {
+                    Background::Image(map) => maps.push(*map),
+                    Background::Constant(c) => constant += c,
+                    _ => unreachable!("validation keeps sums to constants and images"),
                 }
             }
-            Background::Image(Box::new(EnvironmentMap::with_layout(image, scale, to_world, *layout)))
+            match EnvironmentMap::summed(maps, constant) {
+                Some(map) => Background::Image(Box::new(map)),
+                None => Background::Constant(constant),
+            }
         }
+        one => environment(one, &base_dir, desc, limits, &mut memory, &mut warnings)?,
     };
     // A portal: the background resampled into the portal's directions,
     // at the map's resolution (pbrt-v4's; a constant needs one pixel).
@@ -841,6 +806,70 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         .collect();
     scene.light_sampler.leave_out_when_incomplete(&silent);
     Ok(scene)
+}
+
+/// One environment of the description as the scene's background.
+fn environment(
+    background: &BackgroundDesc,
+    base_dir: &Path,
+    desc: &SceneDesc,
+    limits: &BuildLimits,
+    memory: &mut MemoryEstimate,
+    warnings: &mut Vec<String>,
+) -> Result<Background> {
+    Ok(match background {
+        BackgroundDesc::Constant(c) => Background::Constant(*c),
+        BackgroundDesc::Gradient { top, bottom } => Background::Gradient {
+            top: *top,
+            bottom: *bottom,
+        },
+        BackgroundDesc::Image {
+            path,
+            scale,
+            transform,
+            layout,
+            illuminance,
+        } => {
+            let full = base_dir.join(path);
+            let mut image = ImageTexture::load(&full, None)
+                .map_err(|e| Error::scene(desc.world_locs.key("background"), "world.background", reason_of(e)))?;
+            memory.textures += image.pixels.len() as u64 * (BYTES_PER_TEXEL + BYTES_PER_ENVIRONMENT_TEXEL);
+            memory.check(limits.max_memory)?;
+            let bad = image.sanitize();
+            if bad > 0 {
+                warnings.push(format!(
+                    "{}world.background: {bad} texels are NaN, infinite or negative; they are read as black",
+                    desc.world_locs
+                        .key("background")
+                        .map(|l| format!("{l}: "))
+                        .unwrap_or_default()
+                ));
+            }
+            let to_world = compose(transform)
+                .map_err(|e| Error::scene(desc.world_locs.key("background"), "world.background", e))?;
+            if *layout == EnvironmentLayout::EqualAreaOctahedral && image.width != image.height {
+                return Err(Error::scene(
+                    desc.world_locs.key("background"),
+                    "world.background",
+                    format!(
+                        "{}: an equal-area octahedral environment map must be square; this image is {}×{}",
+                        path.display(),
+                        image.width,
+                        image.height
+                    ),
+                ));
+            }
+            let mut scale = *scale;
+            if let Some(e) = illuminance {
+                let k = pbrt_upper_hemisphere_illuminance(&image);
+                if k > 0.0 {
+                    scale *= e / k;
+                }
+            }
+            Background::Image(Box::new(EnvironmentMap::with_layout(image, scale, to_world, *layout)))
+        }
+        BackgroundDesc::Sum(_) => unreachable!("sums are taken apart by the caller"),
+    })
 }
 
 /// Bytes of the meshes a description holds itself (inline meshes and

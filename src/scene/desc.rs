@@ -1037,6 +1037,10 @@ pub enum BackgroundDesc {
         /// it subtends 4π/N).
         illuminance: Option<f32>,
     },
+    /// Several environments lighting the scene together (pbrt-v4's
+    /// infinite lights, of which a scene may have any number): constants
+    /// and images, made into one map (`EnvironmentMap::summed`).
+    Sum(Vec<BackgroundDesc>),
 }
 
 /// How an environment image's pixels map to directions.
@@ -1191,34 +1195,15 @@ impl SceneDesc {
             locs: &self.world_locs,
             prefix: "world.".into(),
         };
-        match &self.background {
-            BackgroundDesc::Constant(c) => w.color("background", *c)?,
-            BackgroundDesc::Gradient { top, bottom } => {
-                w.color("background", *top)?;
-                w.color("background", *bottom)?;
+        let terms = match &self.background {
+            BackgroundDesc::Sum(terms) => terms.as_slice(),
+            one => std::slice::from_ref(one),
+        };
+        for term in terms {
+            if terms.len() > 1 && matches!(term, BackgroundDesc::Gradient { .. }) {
+                return Err(w.err("background", "a sum of environments holds constants and images"));
             }
-            BackgroundDesc::Image {
-                scale,
-                transform,
-                layout,
-                illuminance,
-                ..
-            } => {
-                w.non_negative("background", *scale)?;
-                if let Some(e) = illuminance {
-                    w.positive("background", *e)?;
-                    if *layout != EnvironmentLayout::EqualAreaOctahedral {
-                        return Err(w.err(
-                            "background",
-                            "an illuminance is given only to equal-area maps (pbrt-v4's image infinite lights)",
-                        ));
-                    }
-                }
-                for op in transform {
-                    op.to_transform()
-                        .map_err(|e| w.err("background", format!("transform {}: {e}", op.name())))?;
-                }
-            }
+            validate_background(&w, term)?;
         }
         w.color("ambient", self.ambient)?;
 
@@ -2226,6 +2211,46 @@ fn validate_mesh_source(c: &Check, src: &MeshSource) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// Checks one environment of the scene's background.
+fn validate_background(w: &Check, background: &BackgroundDesc) -> Result<()> {
+    match background {
+        BackgroundDesc::Constant(c) => w.color("background", *c)?,
+        BackgroundDesc::Gradient { top, bottom } => {
+            w.color("background", *top)?;
+            w.color("background", *bottom)?;
+        }
+        BackgroundDesc::Image {
+            scale,
+            transform,
+            layout,
+            illuminance,
+            ..
+        } => {
+            w.non_negative("background", *scale)?;
+            if let Some(e) = illuminance {
+                w.positive("background", *e)?;
+                if *layout != EnvironmentLayout::EqualAreaOctahedral {
+                    return Err(w.err(
+                        "background",
+                        "an illuminance is given only to equal-area maps (pbrt-v4's image infinite lights)",
+                    ));
+                }
+            }
+            for op in transform {
+                op.to_transform()
+                    .map_err(|e| w.err("background", format!("transform {}: {e}", op.name())))?;
+            }
+        }
+        BackgroundDesc::Sum(_) => {
+            return Err(w.err(
+                "background",
+                "a sum of environments holds constants and images, not sums",
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// ", did you mean \"x\"?" for the closest of `candidates` to `name`, if

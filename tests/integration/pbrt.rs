@@ -821,6 +821,61 @@ fn image_infinite_lights_take_pbrt_v4s_illuminance_scaling() {
     assert!((got - 6.0 / PI).abs() < 0.01 * got, "about 2E/π: {got}");
 }
 
+/// pbrt-v4 takes any number of infinite lights, and they add up: a map
+/// and a constant light exactly (the map's radiance plus the constant in
+/// every direction, without a warning), two maps of one size and frame
+/// exactly at the pixels (with a warning: maps of other sizes are
+/// resampled).
+#[test]
+fn infinite_lights_add_up_as_pbrt_v4s_do() {
+    let dir = tempfile::tempdir().unwrap();
+    write_pfm(&dir.path().join("a.pfm"), 16, 16, |x, y| {
+        [x as f32 / 16.0, y as f32 / 16.0, 0.25]
+    });
+    write_pfm(&dir.path().join("b.pfm"), 16, 16, |x, _| [0.5, 0.0, x as f32 / 8.0]);
+    let scene_of = |lights: &str| {
+        let path = dir.path().join("sky.pbrt");
+        fs::write(&path, format!("Camera \"perspective\"\nWorldBegin\n{lights}")).unwrap();
+        let desc = trazo::scene::load(&path, &[]).unwrap_or_else(|e| panic!("{e}"));
+        let scene = trazo::scene::build(&desc).unwrap_or_else(|e| panic!("{e}"));
+        (desc.warnings, scene)
+    };
+    let image_a = "LightSource \"infinite\" \"string filename\" \"a.pfm\" \"float scale\" 2\n";
+    let image_b =
+        "AttributeBegin\nRotate 90 0 0 1\nLightSource \"infinite\" \"string filename\" \"b.pfm\"\nAttributeEnd\n";
+    let constant = "LightSource \"infinite\" \"rgb L\" [0.1 0.2 0.3]\n";
+    let (_, a) = scene_of(image_a);
+    let (_, b) = scene_of(image_b);
+    let (warnings, with_constant) = scene_of(&format!("{constant}{image_a}"));
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let (warnings, both) = scene_of(&format!("{image_a}{constant}{image_b}"));
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("sky.pbrt:7:1") && w.contains("second image infinite light is approximated")),
+        "{warnings:?}"
+    );
+    let c = Vec3::new(0.1, 0.2, 0.3);
+    for y in 0..16 {
+        for x in 0..16 {
+            let uv = Vec2::new((x as f32 + 0.5) / 16.0, (y as f32 + 0.5) / 16.0);
+            let d = trazo::light::environment::equal_area_square_to_sphere(uv);
+            let (one, many) = (a.background.eval(d), with_constant.background.eval(d));
+            assert!(
+                (many - (one + c)).abs().max_element() < 1e-5,
+                "{d}: {many} vs {one} + {c}"
+            );
+            // b is turned about z: its pixels are not a's, and it is
+            // resampled at a's pixel centres (the nearest of its pixels).
+            let sum = both.background.eval(d);
+            let expected = one + c + b.background.eval(d);
+            assert!((sum - expected).abs().max_element() < 1e-4, "{d}: {sum} vs {expected}");
+        }
+    }
+    // Lit by all of them: a light sample's radiance is the sum's.
+    assert!(both.environment_light.is_some());
+}
+
 fn write_gzip(path: &Path, text: &str) {
     use std::io::Write;
     let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());

@@ -319,20 +319,29 @@ impl Parser {
                 (BackgroundDesc::Constant(c * scale), lloc.unwrap_or_else(|| loc.clone()))
             }
         };
-        match (&self.desc.background, &background, &self.infinite_light) {
-            (_, _, None) => self.desc.background = background,
-            (BackgroundDesc::Constant(a), BackgroundDesc::Constant(b), Some(_)) => {
-                // Two uniform environments add up.
-                self.desc.background = BackgroundDesc::Constant(*a + *b);
+        // pbrt-v4 takes any number of infinite lights; trazo sums them
+        // into one environment (`EnvironmentMap::summed`).
+        let previous = std::mem::replace(&mut self.desc.background, BackgroundDesc::Constant(Rgb::ZERO));
+        self.desc.background = match (previous, background, self.infinite_light.is_some()) {
+            (_, b, false) => b,
+            (BackgroundDesc::Constant(a), BackgroundDesc::Constant(b), true) => BackgroundDesc::Constant(a + b),
+            (BackgroundDesc::Sum(mut terms), b, true) => {
+                terms.push(b);
+                BackgroundDesc::Sum(terms)
             }
-            (_, _, Some(first)) => {
-                let first = first.clone();
-                self.unsupported(
+            (a, b, true) => BackgroundDesc::Sum(vec![a, b]),
+        };
+        if let BackgroundDesc::Sum(terms) = &self.desc.background {
+            let images = terms
+                .iter()
+                .filter(|t| matches!(t, BackgroundDesc::Image { .. }))
+                .count();
+            if images > 1 && matches!(terms.last(), Some(BackgroundDesc::Image { .. })) {
+                self.approximated(
                     loc,
-                    "a second infinite light",
-                    format!("trazo has one environment; the one at {first} is kept"),
+                    "a second image infinite light",
+                    "the maps are summed into the largest one, the others resampled at its pixels (exact for maps of one size and frame)",
                 );
-                return Ok(());
             }
         }
         self.infinite_light = Some(loc.clone());
