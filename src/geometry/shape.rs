@@ -487,10 +487,18 @@ impl Sphere {
 
     fn surface(&self, p: Vec3, with_uv: bool) -> LocalSurface {
         // Reproject onto the sphere: the hit point then carries only the
-        // error of this computation (pbrt-v4, section 6.8.5).
-        let dir = (p.as_dvec3() - self.center.as_dvec3()).normalize_or(DVec3::Z);
-        let p = (self.center.as_dvec3() + dir * self.radius as f64).as_vec3();
-        let n = dir.as_vec3();
+        // error of this computation (pbrt-v4, section 6.8.5), in single
+        // precision as there: a few ulps of the centre's and the radius's
+        // magnitudes, which `p_error` bounds.
+        let q = p - self.center;
+        let length_squared = q.length_squared();
+        let n = if length_squared.is_normal() {
+            q * length_squared.sqrt().recip()
+        } else {
+            // Zero, or beyond single precision's range once squared.
+            q.as_dvec3().normalize_or(DVec3::Z).as_vec3()
+        };
+        let p = self.center + n * self.radius;
         let p_error = gamma(5) * ((p - self.center).abs() + self.center.abs());
         // Longitude around +y, latitude from the south pole: v = 1 at the
         // top, in the frame of the surface coordinates.
