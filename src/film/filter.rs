@@ -20,7 +20,9 @@ impl Filter {
         match *self {
             Filter::Box { .. } => 1.0,
             Filter::Tent { radius } => 1.0 - x.abs() / radius,
-            Filter::Gaussian { stddev, .. } => (-x * x / (2.0 * stddev * stddev)).exp(),
+            // Less its value at the radius, as pbrt-v4's and Mitsuba 3's
+            // Gaussians: it falls to 0 there instead of stopping short.
+            Filter::Gaussian { stddev, radius } => (gaussian(x, stddev) - gaussian(radius, stddev)).max(0.0),
             Filter::Mitchell { radius, b, c } => mitchell_1d(2.0 * x / radius, b, c),
             Filter::Lanczos { tau, .. } => sinc(x) * sinc(x / tau),
         }
@@ -31,6 +33,33 @@ impl Filter {
     #[inline]
     pub fn sample(&self, u: Vec2) -> Vec2 {
         Vec2::new(self.sample_1d(u.x), self.sample_1d(u.y))
+    }
+
+    /// The weight of a sample at `offset` drawn by [`Filter::sample`]: the
+    /// filter's profile over the density the offset was drawn from,
+    /// normalised to a mean of 1. That is 1 but for the Gaussian, which is
+    /// drawn from the whole Gaussian cut off at the radius and weighs its
+    /// samples by 1 − g(r)/g(x) so that their expected pixel is the one
+    /// the profile, which subtracts g(r), gives (pbrt-v4 weighs samples by
+    /// f/p as well, for its tabulated filters).
+    #[inline]
+    pub fn sample_weight(&self, offset: Vec2) -> f32 {
+        match *self {
+            Filter::Gaussian { stddev, radius } => {
+                let s = std::f32::consts::SQRT_2 * stddev;
+                // ∫g over [−r, r] and what subtracting g(r) leaves of it.
+                let whole = s * std::f32::consts::PI.sqrt() * erf(radius / s);
+                let edge = gaussian(radius, stddev);
+                let mean = 1.0 - 2.0 * radius * edge / whole;
+                let w = |x: f32| (1.0 - edge / gaussian(x, stddev)).max(0.0);
+                if mean > 0.0 {
+                    w(offset.x) * w(offset.y) / (mean * mean)
+                } else {
+                    1.0
+                }
+            }
+            _ => 1.0,
+        }
     }
 
     /// The box's inverse CDF is one line and inlined into the render loop;
@@ -73,6 +102,12 @@ impl Filter {
             }
         }
     }
+}
+
+/// exp(−x²/2σ²): the Gaussian of standard deviation `stddev`, 1 at 0.
+#[inline]
+fn gaussian(x: f32, stddev: f32) -> f32 {
+    (-x * x / (2.0 * stddev * stddev)).exp()
 }
 
 /// Mitchell and Netravali's cubic ("Reconstruction Filters in Computer
@@ -187,6 +222,68 @@ mod tests {
                 .map(|(c, e)| (c - e).powi(2) / e)
                 .sum();
             assert!(chi2 < 45.0, "{f:?}: χ² = {chi2}"); // ≤ 19 dof, p ≈ 0.001
+        }
+    }
+
+    /// The Gaussian's profile falls to 0 at its radius (pbrt-v4's default,
+    /// σ = 0.5 cut at 1.5, and Mitsuba's, cut at 4σ); samples drawn from
+    /// the whole Gaussian and weighted by [`Filter::sample_weight`] have a
+    /// mean weight of 1 and a weighted histogram that follows the profile,
+    /// per bin within 5 standard errors of the weighted sum (Σw² its
+    /// variance); every other filter weighs 1.
+    #[test]
+    fn weighted_gaussian_samples_follow_the_profile() {
+        for (stddev, radius) in [(0.5f32, 1.5f32), (0.5, 2.0), (0.3, 0.6)] {
+            let f = Filter::Gaussian { stddev, radius };
+            assert_eq!(f.eval_1d(radius), 0.0);
+            let edge = (-radius * radius / (2.0 * stddev * stddev)).exp();
+            assert!((f.eval_1d(0.0) - (1.0 - edge)).abs() < 1e-6);
+            let bins = 12;
+            let (mut sums, mut squares) = (vec![0f64; bins], vec![0f64; bins]);
+            let (mut total, mut total_sq) = (0f64, 0f64);
+            let mut rng = Pcg32::new(11, 2);
+            let n = 400_000;
+            for _ in 0..n {
+                let o = f.sample(Vec2::new(rng.next_f32(), rng.next_f32()));
+                let w = f.sample_weight(o) as f64;
+                let b = (((o.x + radius) / (2.0 * radius) * bins as f32) as usize).min(bins - 1);
+                sums[b] += w;
+                squares[b] += w * w;
+                total += w;
+                total_sq += w * w;
+            }
+            let mean = total / n as f64;
+            let mean_error = ((total_sq / n as f64 - mean * mean) / n as f64).sqrt();
+            assert!(
+                (mean - 1.0).abs() < 5.0 * mean_error,
+                "σ {stddev} r {radius}: mean weight {mean}"
+            );
+            let profile: Vec<f64> = (0..bins)
+                .map(|b| {
+                    (0..200)
+                        .map(|k| {
+                            let x = -radius + 2.0 * radius * (b as f32 + (k as f32 + 0.5) / 200.0) / bins as f32;
+                            f.eval_1d(x) as f64
+                        })
+                        .sum()
+                })
+                .collect();
+            let all: f64 = profile.iter().sum();
+            for b in 0..bins {
+                let expected = n as f64 * profile[b] / all;
+                if expected < 50.0 {
+                    continue;
+                }
+                let error = squares[b].sqrt();
+                assert!(
+                    (sums[b] - expected).abs() < 5.0 * error,
+                    "σ {stddev} r {radius} bin {b}: {} vs {expected} ± {error}",
+                    sums[b]
+                );
+            }
+        }
+        for f in [Filter::Box { radius: 0.5 }, Filter::Tent { radius: 1.0 }] {
+            assert_eq!(f.sample_weight(Vec2::new(0.3, -0.2)), 1.0);
         }
     }
 }

@@ -493,7 +493,7 @@ fn camera_draws(
     splatting: bool,
     sampler: &mut Sampler,
     (x, y, index): (u32, u32, u32),
-) -> (Vec2, Vec2, f32) {
+) -> (Vec2, Vec2, f32, f32) {
     // A crop window's pixels draw the numbers of the full image's pixels
     // and find their positions there (the window's are those less its
     // corner, exactly, and the camera adds it back, exactly): they come
@@ -502,14 +502,20 @@ fn camera_draws(
     let (x, y) = (x + cx, y + cy);
     sampler.start_pixel_sample(x, y, index);
     let u = sampler.pixel_2d();
-    let position = if splatting {
-        Vec2::new(x as f32, y as f32) + u
+    let (position, filter_weight) = if splatting {
+        (Vec2::new(x as f32, y as f32) + u, 1.0)
     } else {
-        Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + scene.settings.filter.sample(u)
-    } - Vec2::new(cx as f32, cy as f32);
+        let filter = &scene.settings.filter;
+        let offset = filter.sample(u);
+        (
+            Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset,
+            filter.sample_weight(offset),
+        )
+    };
+    let position = position - Vec2::new(cx as f32, cy as f32);
     let lens = scene.camera.draw_lens(sampler);
     let time = scene.camera.draw_time(sampler);
-    (position, lens, time)
+    (position, lens, time, filter_weight)
 }
 
 /// The camera ray `ray` made by the still camera, at `time`.
@@ -634,6 +640,7 @@ fn render_passes<I: Integrator>(
                 let mut positions = [Vec2::ZERO; LANES];
                 let (mut lenses, mut times) = ([Vec2::ZERO; LANES], [0.0f32; LANES]);
                 let mut weights = [0.0f32; LANES];
+                let mut filter_weights = [1.0f32; LANES];
                 let mut rays = RayStats::default();
                 let mut invalid = InvalidSamples::default();
                 let n = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
@@ -677,9 +684,10 @@ fn render_passes<I: Integrator>(
                             let mut live = 0u32;
                             for k in 0..count {
                                 let sample = (x, y, group + k as u32);
-                                let (position, lens, time) =
+                                let (position, lens, time, filter_weight) =
                                     camera_draws(scene, splat.is_some(), &mut samplers[k], sample);
                                 (positions[k], lenses[k], times[k]) = (position, lens, time);
+                                filter_weights[k] = filter_weight;
                             }
                             // The rays are written where the loop keeps
                             // them (see `Camera::generate_weighted_ray_into`).
@@ -707,7 +715,9 @@ fn render_passes<I: Integrator>(
                                 if l.is_finite() {
                                     let l = limit_component(l, max_component);
                                     match &splat {
-                                        None => sum.add(l, 1.0),
+                                        // Weighted as pbrt-v4's film weighs
+                                        // samples: Σ w·L / Σ w.
+                                        None => sum.add(l, filter_weights[k]),
                                         Some(sp) => splat_sample(sp, &mut splat_buffer, position, l),
                                     }
                                 } else {

@@ -266,7 +266,7 @@ fn camera_sample(
         px.aov.add(&camera_aov(scene, &camera_ray));
     }
     let mut l = Rgb::ZERO;
-    let mut beta = Rgb::ONE;
+    let mut beta = Rgb::splat(s.filter.sample_weight(offset));
     let mut ray = camera_ray;
     for depth in 1..=s.max_depth {
         let Some((hit, sp)) = camera_segment(scene, &ray, beta, depth, &mut l, rays) else {
