@@ -2170,6 +2170,12 @@ Shape "sphere""#,
     );
 }
 
+/// Writes `text` to `root`/main.pbrt and loads it.
+fn load_main(root: &Path, text: &str) -> Result<SceneDesc> {
+    std::fs::write(root.join("main.pbrt"), text).unwrap();
+    load(&root.join("main.pbrt"), &[])
+}
+
 #[test]
 fn conductor_spectra_from_spd_files_and_samples_are_read_at_the_rgb_wavelengths() {
     let dir = tempfile::tempdir().unwrap();
@@ -2178,14 +2184,12 @@ fn conductor_spectra_from_spd_files_and_samples_are_read_at_the_rgb_wavelengths(
     std::fs::write(root.join("spds/eta.spd"), "# eta\n400 1\n500 2\n600 3\n700 4\n").unwrap();
     std::fs::write(root.join("spds/bad.spd"), "400 1\n300 2\n").unwrap();
     let scene = |eta: &str| {
-        std::fs::write(
-            root.join("main.pbrt"),
-            format!(
+        load_main(
+            root,
+            &format!(
                 "WorldBegin\nMaterial \"conductor\" \"spectrum eta\" {eta} \"spectrum k\" [400 5 700 5]\nShape \"sphere\"\n"
             ),
         )
-        .unwrap();
-        load(&root.join("main.pbrt"), &[])
     };
     let d = scene("\"spds/eta.spd\"").unwrap();
     assert!(d.warnings.is_empty(), "{:?}", d.warnings);
@@ -2225,12 +2229,10 @@ fn reflectance_spectra_are_the_colours_an_rgb_film_records() {
     std::fs::create_dir_all(root.join("spds")).unwrap();
     std::fs::write(root.join("spds/tint.spd"), "400 0.1\n500 0.5\n600 0.9\n700 0.3\n").unwrap();
     let scene = |kd: &str| {
-        std::fs::write(
-            root.join("main.pbrt"),
-            format!("WorldBegin\nMaterial \"diffuse\" \"spectrum reflectance\" {kd}\nShape \"sphere\"\n"),
+        load_main(
+            root,
+            &format!("WorldBegin\nMaterial \"diffuse\" \"spectrum reflectance\" {kd}\nShape \"sphere\"\n"),
         )
-        .unwrap();
-        load(&root.join("main.pbrt"), &[])
     };
     let reflectance = |d: &SceneDesc| match &material(d, 0).kind {
         MaterialKindDesc::Diffuse {
@@ -2305,14 +2307,12 @@ fn plymesh_displacement_cuts_and_lifts_the_mesh() {
     std::fs::write(root.join("square.ply"), square).unwrap();
     std::fs::write(root.join("plain.ply"), TRIANGLE_PLY).unwrap();
     let scene = |transform: &str, shape: &str| {
-        std::fs::write(
-            root.join("main.pbrt"),
-            format!(
+        load_main(
+            root,
+            &format!(
                 "WorldBegin\nTexture \"h\" \"float\" \"constant\" \"float value\" 0.25\n{transform}\nShape \"plymesh\" {shape}\n"
             ),
         )
-        .unwrap();
-        crate::scene::load(&root.join("main.pbrt"), &[])
     };
     let displaced = "\"string filename\" \"square.ply\" \"texture displacement\" \"h\" \"float edgelength\" 0.25";
     let d = scene("", displaced).unwrap();
