@@ -1098,7 +1098,7 @@ fn to_material(
             transmit_tint,
         } => Material::plain(MaterialKind::Dielectric {
             eta: ior / ext_ior,
-            microfacet: Microfacet::new(*distribution, *roughness, *roughness),
+            microfacet: Microfacet::new(*distribution, roughness.0, roughness.1),
             reflect_tint: *reflect_tint,
             transmit_tint: *transmit_tint,
         }),

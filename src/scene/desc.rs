@@ -337,8 +337,8 @@ pub enum MaterialKindDesc {
         ior: f32,
         /// Index of refraction outside.
         ext_ior: f32,
-        /// Microfacet α (0: smooth).
-        roughness: f32,
+        /// Microfacet α along tangent and bitangent (0: smooth).
+        roughness: (f32, f32),
         /// The distribution of microfacet normals.
         distribution: MicrofacetDistribution,
         /// Reflection multiplier.
@@ -1450,7 +1450,8 @@ impl SceneDesc {
                 } => {
                     ior("ior", *int)?;
                     ior("ext_ior", *ext_ior)?;
-                    roughness("roughness", *r)?;
+                    roughness("roughness", r.0)?;
+                    roughness("roughness", r.1)?;
                     c.color("reflect_tint", *reflect_tint)?;
                     c.color("transmit_tint", *transmit_tint)?;
                 }

@@ -1667,7 +1667,7 @@ impl<'a> Reader<'a> {
                 MaterialKindDesc::Dielectric {
                     ior,
                     ext_ior: 1.0,
-                    roughness: alpha,
+                    roughness: (alpha, alpha),
                     distribution: MicrofacetDistribution::Ggx,
                     reflect_tint: Rgb::ONE,
                     transmit_tint,

@@ -2081,13 +2081,10 @@ impl Loader {
             "dielectric" | "roughdielectric" | "thindielectric" => {
                 let (distribution, roughness) = if ty == "roughdielectric" {
                     let (d, a, b, map) = self.alpha(f, node, &props, &mut used)?;
-                    if a != b || map.as_ref().is_some_and(|m| m.u != m.v) {
-                        self.warn(f, node, "anisotropic rough dielectrics are approximated as isotropic");
-                    }
-                    roughness_map = map.map(|m| RoughnessMapDesc { v: m.u.clone(), ..m });
-                    (d, a)
+                    roughness_map = map;
+                    (d, (a, b))
                 } else {
-                    (MicrofacetDistribution::Ggx, 0.0)
+                    (MicrofacetDistribution::Ggx, (0.0, 0.0))
                 };
                 let ior = self.ior(f, node, &props, "int_ior", 1.5046, &mut used)?;
                 let ext_ior = self.ior(f, node, &props, "ext_ior", 1.000277, &mut used)?;
@@ -3746,7 +3743,7 @@ mod tests {
         // Mitsuba's default distribution is Beckmann's.
         assert!(matches!(
             by(4).kind,
-            MaterialKindDesc::Dielectric { roughness, distribution: MicrofacetDistribution::Beckmann, .. } if roughness == 0.3
+            MaterialKindDesc::Dielectric { roughness, distribution: MicrofacetDistribution::Beckmann, .. } if roughness == (0.3, 0.3)
         ));
         assert!(
             !d.warnings.iter().any(|w| w.contains("distribution")),

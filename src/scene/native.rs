@@ -987,7 +987,10 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
         "dielectric" => MaterialKindDesc::Dielectric {
             ior: t.number_or("ior", 1.5)?,
             ext_ior: t.number_or("ext_ior", 1.0)?,
-            roughness: t.number_or("roughness", 0.0)?,
+            roughness: match t.vec2("roughness")? {
+                Some(v) => (v.x, v.y),
+                None => (0.0, 0.0),
+            },
             distribution: distribution(t)?,
             reflect_tint: t.color("reflect_tint")?.unwrap_or(Rgb::ONE),
             transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),

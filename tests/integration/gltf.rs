@@ -392,7 +392,7 @@ fn materials_map_to_conductor_plastic_dielectric_and_diffuse() {
         &MaterialKindDesc::Dielectric {
             ior: 1.6,
             ext_ior: 1.0,
-            roughness: 0.1f32 * 0.1,
+            roughness: (0.1f32 * 0.1, 0.1f32 * 0.1),
             distribution: MicrofacetDistribution::Ggx,
             reflect_tint: Rgb::ONE,
             transmit_tint: Rgb::new(0.9, 1.0, 0.9),

@@ -63,7 +63,7 @@ fn smooth_glass() -> MaterialDesc {
         MaterialKindDesc::Dielectric {
             ior: 1.5,
             ext_ior: 1.0,
-            roughness: 0.0,
+            roughness: (0.0, 0.0),
             distribution: MicrofacetDistribution::Ggx,
             reflect_tint: Rgb::ONE,
             transmit_tint: Rgb::ONE,
@@ -202,7 +202,7 @@ fn white_furnace_rough_glass_and_mirror_conserve_energy() {
             MaterialKindDesc::Dielectric {
                 ior: 1.5,
                 ext_ior: 1.0,
-                roughness: alpha,
+                roughness: (alpha, alpha),
                 distribution: MicrofacetDistribution::Ggx,
                 reflect_tint: Rgb::ONE,
                 transmit_tint: Rgb::ONE,

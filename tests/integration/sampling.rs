@@ -142,6 +142,15 @@ fn bsdfs<'a>(tables: &'a [CoatTables; 2]) -> Vec<(String, Bsdf<'a>)> {
             }),
         ),
         (
+            "rough dielectric anisotropic α=(0.4, 0.1) η=1.5".into(),
+            Bsdf::Dielectric(DielectricBsdf {
+                eta: 1.5,
+                microfacet: Microfacet::new(MicrofacetDistribution::Ggx, 0.4, 0.1),
+                reflect_tint: Rgb::ONE,
+                transmit_tint: Rgb::ONE,
+            }),
+        ),
+        (
             "rough dielectric α=0.5 η=1.33".into(),
             Bsdf::Dielectric(DielectricBsdf {
                 eta: 1.33,

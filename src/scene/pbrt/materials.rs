@@ -319,18 +319,6 @@ impl Parser {
         Ok((alpha[0], alpha[1]))
     }
 
-    /// One isotropic α; anisotropic roughness is averaged with a warning.
-    fn isotropic(&mut self, (au, av): (f32, f32), loc: &SourceLoc, what: &str) -> f32 {
-        if au != av {
-            self.approximated(
-                loc,
-                format!("anisotropic roughness of {what}"),
-                format!("the mean α {} is used", 0.5 * (au + av)),
-            );
-        }
-        0.5 * (au + av)
-    }
-
     /// An index of refraction given as a float or a named or sampled
     /// spectrum (dielectrics).
     fn eta(&mut self, p: &ParamList, name: &str, default: f32, def: &mut MatDef) -> Result<f32> {
@@ -573,8 +561,7 @@ impl Parser {
             },
             "dielectric" => {
                 let ior = self.eta(p, "eta", 1.5, &mut def)?;
-                let r = self.roughness(p, "", &mut def)?;
-                let roughness = self.isotropic(r, loc, &what);
+                let roughness = self.roughness(p, "", &mut def)?;
                 dielectric(ior, roughness)
             }
             "coateddiffuse" => {
@@ -619,8 +606,7 @@ impl Parser {
             }
             "subsurface" => {
                 let ior = p.float("eta", 1.33)?;
-                let r = self.roughness(p, "", &mut def)?;
-                let roughness = self.isotropic(r, loc, &what);
+                let roughness = self.roughness(p, "", &mut def)?;
                 def.subsurface = Some(self.subsurface_medium(p, loc)?);
                 self.approximated(
                     loc,
@@ -714,13 +700,9 @@ impl Parser {
         if def.roughness_map.is_some() {
             match &desc {
                 // A layered material's map is its coat's.
-                MaterialKindDesc::Conductor { .. } | MaterialKindDesc::Layered { .. } => {}
-                MaterialKindDesc::Dielectric { .. } => {
-                    // trazo's rough dielectric is isotropic.
-                    if let Some(m) = &mut def.roughness_map {
-                        m.v = m.u.clone();
-                    }
-                }
+                MaterialKindDesc::Conductor { .. }
+                | MaterialKindDesc::Layered { .. }
+                | MaterialKindDesc::Dielectric { .. } => {}
                 _ => {
                     def.roughness_map = None;
                     self.approximated(
@@ -1356,8 +1338,8 @@ pub(super) fn single_scattering_albedo(a: f32) -> f32 {
 }
 
 /// pbrt-v4's dielectric surface (of `dielectric` and `subsurface`): GGX of
-/// isotropic α, in vacuum.
-fn dielectric(ior: f32, roughness: f32) -> MaterialKindDesc {
+/// α along u and v, in vacuum.
+fn dielectric(ior: f32, roughness: (f32, f32)) -> MaterialKindDesc {
     MaterialKindDesc::Dielectric {
         ior,
         ext_ior: 1.0,

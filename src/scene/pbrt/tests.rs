@@ -804,10 +804,10 @@ Shape "sphere""#,
         }
     );
     assert!(
-        matches!(material(&d, 2).kind, MaterialKindDesc::Dielectric { ior, roughness, .. } if ior == 1.33 && roughness == 0.0)
+        matches!(material(&d, 2).kind, MaterialKindDesc::Dielectric { ior, roughness, .. } if ior == 1.33 && roughness == (0.0, 0.0))
     );
     assert!(
-        matches!(material(&d, 3).kind, MaterialKindDesc::Dielectric { ior, roughness, .. } if ior == 1.5168 && roughness == 0.5)
+        matches!(material(&d, 3).kind, MaterialKindDesc::Dielectric { ior, roughness, .. } if ior == 1.5168 && roughness == (0.5, 0.5))
     );
     assert_eq!(
         material(&d, 4).kind,
@@ -2076,7 +2076,9 @@ Shape "sphere""#,
     );
     let dielectric = material(&d, 1).roughness_map.as_ref().expect("a roughness map");
     assert!(!dielectric.remap_sqrt);
-    assert_eq!(dielectric.v, dielectric.u, "trazo's rough dielectric is isotropic");
+    // Its u is the texture, its v the constant 0.5.
+    assert_eq!(dielectric.u, ColorSource::Texture(t.name.clone()));
+    assert_eq!(dielectric.v, ColorSource::Rgb(Rgb::splat(0.5)));
     // A coated material's is its coat's.
     assert!(material(&d, 2).roughness_map.is_some());
     assert!(
@@ -2377,6 +2379,27 @@ fn plymesh_displacement_cuts_and_lifts_the_mesh() {
         e.contains("main.pbrt:4:") && e.contains("more than 33554432 triangles"),
         "{e}"
     );
+}
+
+/// A dielectric's `uroughness` and `vroughness` stay apart (GGX α along u
+/// and v, as pbrt-v4's), with no warning; so do a texture's.
+#[test]
+fn dielectrics_keep_anisotropic_roughness() {
+    let d = world(
+        "Material \"dielectric\" \"float uroughness\" 0.4 \"float vroughness\" 0.1 \"bool remaproughness\" false\nShape \"sphere\"",
+    );
+    assert!(
+        matches!(material(&d, 0).kind, MaterialKindDesc::Dielectric { roughness, .. } if roughness == (0.4, 0.1)),
+        "{:?}",
+        material(&d, 0).kind
+    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let d = world(
+        "Texture \"ru\" \"float\" \"constant\" \"float value\" 0.3\nTexture \"rv\" \"float\" \"constant\" \"float value\" 0.05\nMaterial \"dielectric\" \"texture uroughness\" \"ru\" \"texture vroughness\" \"rv\"\nShape \"sphere\"",
+    );
+    let map = material(&d, 0).roughness_map.clone().expect("a roughness map");
+    assert_ne!(map.u, map.v, "{map:?}");
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
 }
 
 #[test]
