@@ -11,6 +11,7 @@
 //! `film::filter`, the tone curves in `film::tonemap`, the photon kernels'
 //! weights in `integrator::photon`.
 
+use crate::color::space::ColorSpace;
 use crate::sampling::SamplerKind;
 
 /// Render settings that a scene file may give and the command line may
@@ -50,6 +51,9 @@ pub struct RenderSettings {
     /// balanced for (pbrt-v4's film `whitebalance`: its white becomes
     /// sRGB's, `color::white_balance`); 0: none.
     pub white_balance: f32,
+    /// The RGB space of the image written (pbrt-v4's film colour space):
+    /// trazo renders in linear sRGB and converts at output.
+    pub color_space: ColorSpace,
     /// Photon mapping and SPPM parameters.
     pub photon: PhotonSettings,
     /// The volumetric path tracer's estimator: `None`, delta and ratio
@@ -152,6 +156,7 @@ impl Default for RenderSettings {
             exposure: 0.0,
             max_component_value: f32::INFINITY,
             white_balance: 0.0,
+            color_space: ColorSpace::Srgb,
             photon: PhotonSettings::default(),
             march_step: None,
             hide_emitters: false,

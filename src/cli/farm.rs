@@ -317,7 +317,13 @@ pub(super) fn run_merge(args: MergeArgs) -> Result<()> {
             .filter(|k| *k == 0.0 || crate::color::white_balance::WHITE_BALANCE_RANGE.contains(k))
             .ok_or_else(|| Error::file(&parts[0].path, format!("invalid part file: white balance {v}")))?,
     };
-    film.output_transform = crate::color::white_balance::white_balance(white_balance);
+    // Part files from before output colour spaces existed are sRGB.
+    let color_space = match first.job_value("color_space") {
+        None => crate::color::space::ColorSpace::Srgb,
+        Some(v) => crate::color::space::ColorSpace::from_pbrt_name(v)
+            .ok_or_else(|| Error::file(&parts[0].path, format!("invalid part file: colour space {v}")))?,
+    };
+    film.output_transform = crate::color::white_balance::output_transform(color_space, white_balance);
     let flag = |name: &str| {
         first
             .job_values("arg")

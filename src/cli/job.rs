@@ -146,6 +146,7 @@ impl Job {
             entries.push(("tonemap".into(), scene.settings.tonemap.name().into()));
             entries.push(("exposure".into(), scene.settings.exposure.to_string()));
             entries.push(("white_balance".into(), scene.settings.white_balance.to_string()));
+            entries.push(("color_space".into(), scene.settings.color_space.pbrt_name().into()));
         }
         // The hash first: a path may hold spaces.
         let mut listed: Vec<(String, String)> = files

@@ -4,6 +4,7 @@
 //! convention as Mitsuba's `rgb` variants); colours in scene files are linear
 //! unless they come from an 8-bit image, which is decoded from sRGB.
 
+pub mod space;
 pub mod spectrum;
 pub mod white_balance;
 

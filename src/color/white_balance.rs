@@ -2,7 +2,7 @@
 //! (`PixelSensor`, `WhiteBalance` in pbrt-v4's film.cpp and color.cpp): the
 //! image is taken to have been lit by an illuminant of colour temperature
 //! T, and its colours are adapted so that that illuminant's white becomes
-//! the output's (sRGB's D65), by von Kries scaling in the Bradford cone
+//! the output space's (sRGB's D65, `color::space`), by von Kries scaling in the Bradford cone
 //! space (Lam 1985):
 //!
 //! ```text
@@ -14,31 +14,11 @@
 //! temperature T·1.4388/1.4380 (the locus of CIE 15:2004, eq. 3.3–3.4), and
 //! below 4000 K, where D is not defined, a blackbody of that temperature.
 
+use crate::color::space::{ColorSpace, adapt, xyz_of};
 use glam::{DMat3, DVec3, Mat3};
 
 /// The range of temperatures, in kelvin, that white balance accepts.
 pub const WHITE_BALANCE_RANGE: std::ops::RangeInclusive<f32> = 1000.0..=25000.0;
-
-/// sRGB's white, D65, as chromaticity (IEC 61966-2-1).
-const D65_XY: (f64, f64) = (0.3127, 0.3290);
-
-/// XYZ from linear sRGB, and back (IEC 61966-2-1).
-fn xyz_from_rgb() -> DMat3 {
-    DMat3::from_cols_array(&[
-        0.4124564, 0.2126729, 0.0193339, //
-        0.3575761, 0.7151522, 0.1191920, //
-        0.1804375, 0.0721750, 0.9503041,
-    ])
-}
-
-/// The Bradford cone response matrix (rows L, M, S).
-fn bradford() -> DMat3 {
-    DMat3::from_cols_array(&[
-        0.8951, -0.7502, 0.0389, //
-        0.2664, 1.7135, -0.0685, //
-        -0.1614, 0.0367, 1.0296,
-    ])
-}
 
 /// The chromaticity of the illuminant pbrt-v4 takes for `kelvin`.
 pub fn illuminant_xy(kelvin: f64) -> (f64, f64) {
@@ -54,44 +34,54 @@ pub fn illuminant_xy(kelvin: f64) -> (f64, f64) {
     (x, -3.0 * x * x + 2.870 * x - 0.275)
 }
 
-fn xyz_of((x, y): (f64, f64)) -> DVec3 {
-    DVec3::new(x / y, 1.0, (1.0 - x - y) / y)
-}
-
 /// Linear sRGB of the colour of chromaticity (x, y) at luminance Y = 1.
 pub fn rgb_of_chromaticity(xy: (f64, f64)) -> glam::Vec3 {
     (xyz_from_rgb().inverse() * xyz_of(xy)).as_vec3()
 }
 
+fn xyz_from_rgb() -> DMat3 {
+    ColorSpace::Srgb.xyz_from_rgb()
+}
+
 /// The matrix taking linear sRGB rendered under an illuminant of `kelvin`
 /// to linear sRGB balanced for D65; `None` for 0 (no white balance).
 pub fn white_balance(kelvin: f32) -> Option<Mat3> {
-    (kelvin != 0.0).then(|| balance(kelvin as f64).as_mat3())
+    output_transform(ColorSpace::Srgb, kelvin)
 }
 
-fn balance(kelvin: f64) -> DMat3 {
-    let b = bradford();
-    let src = b * xyz_of(illuminant_xy(kelvin));
-    let dst = b * xyz_of(D65_XY);
-    let adapt = b.inverse() * DMat3::from_diagonal(dst / src) * b;
-    xyz_from_rgb().inverse() * adapt * xyz_from_rgb()
+/// The matrix taking the film's linear sRGB to the linear RGB of the
+/// image it writes in `space`, balanced for `kelvin` (0: not), as pbrt-v4's
+/// `outputRGBFromSensorRGB` for the CIE 1931 sensor: the white of `kelvin`
+/// becomes the output space's white. `None` for the identity.
+pub fn output_transform(space: ColorSpace, kelvin: f32) -> Option<Mat3> {
+    if kelvin == 0.0 {
+        return space.from_srgb();
+    }
+    let to_xyz = adapt(xyz_of(illuminant_xy(kelvin as f64)), space.xyz_from_rgb() * DVec3::ONE) * xyz_from_rgb();
+    Some((space.xyz_from_rgb().inverse() * to_xyz).as_mat3())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The white of T becomes sRGB's white: its RGB, balanced, is that of
-    /// D65 (1, 1, 1 within the rounding of the published chromaticity).
+    /// The white of T becomes the output space's white: its sRGB,
+    /// balanced, is RGB (1, 1, 1) of that space.
     #[test]
-    fn the_illuminants_white_becomes_grey() {
-        for kelvin in [1500.0f32, 2856.0, 3500.0, 4000.0, 5003.0, 6504.0, 9000.0, 20000.0] {
-            let m = balance(kelvin as f64);
-            let white = xyz_from_rgb().inverse() * xyz_of(illuminant_xy(kelvin as f64));
-            let out = m * white;
-            let d65 = xyz_from_rgb().inverse() * xyz_of(D65_XY);
-            assert!((d65 - DVec3::ONE).abs().max_element() < 1e-3);
-            assert!((out - d65).abs().max_element() < 1e-9, "{kelvin} K: {out}");
+    fn the_illuminants_white_becomes_the_outputs_white() {
+        for space in ColorSpace::PBRT_NAMES
+            .iter()
+            .map(|n| ColorSpace::from_pbrt_name(n).unwrap())
+        {
+            for kelvin in [1500.0f32, 2856.0, 3500.0, 4000.0, 5003.0, 6504.0, 9000.0, 20000.0] {
+                let m = output_transform(space, kelvin).unwrap();
+                let white = rgb_of_chromaticity(illuminant_xy(kelvin as f64));
+                let out = m * white;
+                assert!(
+                    (out - glam::Vec3::ONE).abs().max_element() < 1e-5,
+                    "{space:?}, {kelvin} K: {out}"
+                );
+            }
         }
     }
 

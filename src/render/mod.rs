@@ -234,9 +234,10 @@ pub fn render_controlled(scene: &Scene, options: &RenderOptions, control: &mut C
             })
         })
     })??;
-    // White balance applies to the finished estimates, as pbrt-v4's film
-    // applies it when a pixel is read.
-    let balance = crate::color::white_balance::white_balance(scene.settings.white_balance);
+    // White balance and the output's colour space apply to the finished
+    // estimates, as pbrt-v4's film applies them when a pixel is read.
+    let balance =
+        crate::color::white_balance::output_transform(scene.settings.color_space, scene.settings.white_balance);
     out.film.output_transform = balance;
     for (_, film) in &mut out.extra {
         film.output_transform = balance;

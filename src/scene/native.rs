@@ -6,6 +6,7 @@
 //! validation — names the file, line, column and key.
 
 use super::desc::*;
+use crate::color::space::ColorSpace;
 use crate::color::{Encoding, Rgb};
 use crate::error::{Error, Result, SourceLoc};
 use crate::files::{MAX_SCENE_BYTES, io_reason, read_limited};
@@ -490,6 +491,9 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     }
     if let Some(k) = t.number("white_balance")? {
         s.white_balance = k;
+    }
+    if let Some(c) = t.choice("color_space", ColorSpace::PBRT_NAMES)? {
+        s.color_space = ColorSpace::from_pbrt_name(&c).expect("checked");
     }
     if let Some(h) = t.boolean("hide_emitters")? {
         s.hide_emitters = h;

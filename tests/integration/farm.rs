@@ -122,14 +122,15 @@ const RENDER: [&str; 8] = [
     "albedo,depth",
 ];
 
-/// scenes/materials.toml with a Gaussian filter and a white balance (which
-/// `trazo merge` must apply as the whole render does), written into `dir`.
+/// scenes/materials.toml with a Gaussian filter, a white balance and an
+/// output colour space (which `trazo merge` must apply as the whole render
+/// does), written into `dir`.
 fn scene_in(dir: &Path) -> String {
     let text = std::fs::read_to_string(format!("{}/scenes/materials.toml", env!("CARGO_MANIFEST_DIR"))).unwrap();
     let text = text
         .replacen(
             "[render]\n",
-            "[render]\nfilter = \"gaussian\"\nwhite_balance = 4500\n",
+            "[render]\nfilter = \"gaussian\"\nwhite_balance = 4500\ncolor_space = \"rec2020\"\n",
             1,
         )
         .replace(

@@ -344,6 +344,42 @@ fn the_largest_component_of_a_sample_is_limited_after_exposure() {
     assert!(e.contains("max_component_value") && e.contains("positive"), "{e}");
 }
 
+/// An output colour space: a coloured background seen directly comes out
+/// as the space's matrix times its sRGB colour, after the white balance
+/// (whose white becomes the space's), from TOML and from a pbrt-v4
+/// `ColorSpace` before `Film`.
+#[test]
+fn output_colour_spaces_convert_the_finished_image() {
+    use trazo::color::space::ColorSpace;
+    let c = Rgb::new(0.5, 0.2, 0.1);
+    for (space, kelvin) in [("rec2020", 0.0f32), ("aces2065-1", 0.0), ("dci-p3", 4000.0)] {
+        let text = format!(
+            "[render]\nwidth = 4\nheight = 4\nspp = 2\nwhite_balance = {kelvin}\ncolor_space = \"{space}\"\n\
+             [world]\nbackground = [0.5, 0.2, 0.1]\n"
+        );
+        let d = trazo::scene::native::parse(&text, std::path::Path::new("cs.toml")).unwrap();
+        let image = render_desc(&d, None).to_image();
+        let cs = ColorSpace::from_pbrt_name(space).unwrap();
+        let want = trazo::color::white_balance::output_transform(cs, kelvin).unwrap() * c;
+        assert!((want - c).abs().max_element() > 0.01, "{space}: {want}");
+        for p in &image.pixels {
+            assert!(
+                (*p - want).abs().max_element() < 1e-6,
+                "{space}, {kelvin} K: {p} vs {want}"
+            );
+        }
+    }
+    let pbrt = "ColorSpace \"aces2065-1\"\nFilm \"rgb\"\nWorldBegin\n";
+    let d = trazo::scene::pbrt::parse(pbrt, std::path::Path::new("cs.pbrt")).unwrap();
+    assert_eq!(d.settings.color_space, ColorSpace::Aces2065_1);
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let bad = "[render]\ncolor_space = \"p3\"\n";
+    let Err(e) = trazo::scene::native::parse(bad, std::path::Path::new("cs.toml")) else {
+        panic!("an unknown colour space is refused")
+    };
+    assert!(e.to_string().contains("color_space"), "{e}");
+}
+
 /// pbrt-v4's `whitebalance`: a grey background seen directly comes out as
 /// the balance matrix times its colour, through TOML and the pbrt-v4
 /// reader; a temperature outside the range is refused.

@@ -20,7 +20,7 @@ impl Parser {
     /// the colour space's illuminant), with where it was written.
     fn emitted(&mut self, p: &ParamList, name: &str) -> Result<(Rgb, Option<SourceLoc>)> {
         let Some((v, prm)) = p.spectrum(name)? else {
-            return Ok((Rgb::ONE, None));
+            return Ok((self.gs.color_space.to_srgb(true) * Rgb::ONE, None));
         };
         let loc = prm.loc.clone();
         let c = match self.color_value(v, prm, ColorUse::Illuminant)? {

@@ -8,6 +8,7 @@ use super::spectrum::{
     sampled_factor_rgb, sampled_rgb, spectrum_at_rgb_wavelengths,
 };
 use super::{MatDef, MatKind, Parser};
+use crate::color::space::ColorSpace;
 use crate::color::{Encoding, Rgb};
 use crate::error::{Error, Result, SourceLoc};
 use crate::material::conductor::metal_ior;
@@ -110,7 +111,7 @@ impl Parser {
                         c.x, c.y, c.z
                     )));
                 }
-                c
+                self.rgb_in_space(c, use_, &loc, &what)
             }
             // Spectra become the RGB that pbrt-v4's RGB film records of
             // them (`color::spectrum`): emitted ones seen directly,
@@ -184,6 +185,31 @@ impl Parser {
                 )));
             }
         })))
+    }
+
+    /// Linear sRGB of `c`, an RGB value written in the current colour
+    /// space (`ColorSpace`) for `use_`. A colour of a wider space that
+    /// sRGB cannot hold (a negative component, or a reflectance above 1)
+    /// is clipped to it, with a warning.
+    pub(super) fn rgb_in_space(&mut self, c: Rgb, use_: ColorUse, loc: &SourceLoc, what: &str) -> Rgb {
+        let space = self.gs.color_space;
+        if space == ColorSpace::Srgb {
+            return c;
+        }
+        let converted = space.to_srgb(use_ == ColorUse::Illuminant) * c;
+        let top = if use_ == ColorUse::Albedo { 1.0 } else { f32::INFINITY };
+        let clipped = converted.clamp(Rgb::ZERO, Rgb::splat(top));
+        if clipped != converted {
+            self.approximated(
+                loc,
+                format!("{} colour {what}", space.pbrt_name()),
+                format!(
+                    "[{} {} {}] is [{} {} {}] in linear sRGB, which trazo renders in: clipped to [{} {} {}]",
+                    c.x, c.y, c.z, converted.x, converted.y, converted.z, clipped.x, clipped.y, clipped.z
+                ),
+            );
+        }
+        clipped
     }
 
     /// A constant colour where trazo cannot use a texture: a texture stands
@@ -388,7 +414,7 @@ impl Parser {
         let loc = prm.loc.clone();
         let what = format!("\"{}\"", prm.written);
         Ok(match v {
-            SpectrumValue::Rgb(c) => c,
+            SpectrumValue::Rgb(c) => self.rgb_in_space(c, ColorUse::Unbounded, &loc, &what),
             SpectrumValue::Float(x) => Rgb::splat(x),
             SpectrumValue::Named(n) => match metal_of(&n) {
                 Some((metal, part_eta)) => {

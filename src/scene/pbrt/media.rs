@@ -367,7 +367,29 @@ impl Parser {
                 None => Ok(None),
             }
         };
-        let (sigma_a, sigma_s, le) = (grid_of("sigma_a")?, grid_of("sigma_s")?, grid_of("Le")?);
+        let (mut sigma_a, mut sigma_s, mut le) = (grid_of("sigma_a")?, grid_of("sigma_s")?, grid_of("Le")?);
+        // Voxels written in another colour space, as `Parser::rgb_in_space`
+        // converts single colours.
+        let space = self.gs.color_space;
+        let mut clipped = false;
+        for (grid, emitted) in [(&mut sigma_a, false), (&mut sigma_s, false), (&mut le, true)] {
+            let (Some(grid), false) = (grid.as_mut(), space == crate::color::space::ColorSpace::Srgb) else {
+                continue;
+            };
+            let m = space.to_srgb(emitted);
+            for v in grid.iter_mut() {
+                let c = m * *v;
+                clipped |= c.min_element() < 0.0;
+                *v = c.max(Vec3::ZERO);
+            }
+        }
+        if clipped {
+            self.approximated(
+                loc,
+                format!("{what}: {} colours", space.pbrt_name()),
+                "some are outside the sRGB gamut, which trazo renders in: their negative components are clipped to 0",
+            );
+        }
         let mut sigma_t = Vec::with_capacity(3 * voxels);
         let (mut sum_s, mut sum_t) = (Vec3::ZERO, Vec3::ZERO);
         for i in 0..voxels {

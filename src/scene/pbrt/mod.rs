@@ -32,6 +32,7 @@ use self::lexer::{Lexer, Tok};
 use self::params::{Param, ParamList, parse_number, parse_params};
 use super::desc::*;
 use crate::color::Rgb;
+use crate::color::space::ColorSpace;
 use crate::error::{Error, Result, SourceLoc};
 use crate::files::{MAX_SCENE_BYTES, io_reason};
 use crate::sampling::SamplerKind;
@@ -226,6 +227,8 @@ struct GraphicsState {
     media: (Option<String>, Option<String>),
     /// Default parameters from `Attribute "shape"|"light"|"material"|"medium"|"texture"`.
     attributes: HashMap<&'static str, Vec<Param>>,
+    /// The space of the RGB values given from here on (`ColorSpace`).
+    color_space: ColorSpace,
 }
 
 impl Default for GraphicsState {
@@ -239,6 +242,7 @@ impl Default for GraphicsState {
             area_light: None,
             media: (None, None),
             attributes: HashMap::new(),
+            color_space: ColorSpace::Srgb,
         }
     }
 }
@@ -817,6 +821,8 @@ impl Parser {
                 let (kind, koff) = quoted(lx, name, offset)?;
                 let params = parse_params(lx)?;
                 check_kind(lx, koff, "Film", &kind, &["rgb", "gbuffer", "spectral"])?;
+                // The film writes in the colour space of its directive.
+                self.desc.settings.color_space = self.gs.color_space;
                 self.film(&kind, &params, &loc)?;
                 self.report_unused(&params, &format!("Film \"{kind}\""));
             }
@@ -896,14 +902,17 @@ impl Parser {
                 );
             }
             "ColorSpace" => {
-                let (n, _) = quoted(lx, name, offset)?;
-                if n != "srgb" {
-                    self.approximated(
-                        &loc,
-                        format!("ColorSpace \"{n}\""),
-                        "colours are read as linear sRGB (Rec. 709 primaries)",
-                    );
-                }
+                let (n, noff) = quoted(lx, name, offset)?;
+                let Some(space) = ColorSpace::from_pbrt_name(&n) else {
+                    return Err(lx.error(
+                        noff,
+                        format!(
+                            "unknown colour space \"{n}\"{}",
+                            suggest(&n, ColorSpace::PBRT_NAMES.iter().copied())
+                        ),
+                    ));
+                };
+                self.gs.color_space = space;
             }
             "Option" => {
                 let (n, _) = quoted(lx, name, offset)?;

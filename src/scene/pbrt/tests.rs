@@ -3251,3 +3251,71 @@ fn active_transform_gives_shapes_and_instances_their_motion() {
         d.warnings
     );
 }
+
+/// `ColorSpace` as pbrt-v4's: RGB values after it are in that space until
+/// `AttributeEnd` restores the enclosing one; emitted colours keep their
+/// XYZ (ACES white is warmer than D65), reflectances keep white white;
+/// lights without a colour emit the space's white; colours sRGB cannot
+/// hold are clipped with a warning; the film writes in the space of its
+/// directive; an unknown space is an error at its name.
+#[test]
+fn colour_spaces_convert_rgb_values_as_pbrt_v4_reads_them() {
+    use crate::color::space::ColorSpace;
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let d = load_main(
+        root,
+        "ColorSpace \"rec2020\"\nFilm \"rgb\"\nColorSpace \"srgb\"\nWorldBegin\n\
+         ColorSpace \"aces2065-1\"\n\
+         AttributeBegin\nColorSpace \"rec2020\"\nMaterial \"diffuse\" \"rgb reflectance\" [0.5 0.2 0.1]\nShape \"sphere\"\nAttributeEnd\n\
+         Material \"diffuse\" \"rgb reflectance\" [0.7 0.7 0.7]\nShape \"sphere\"\n\
+         LightSource \"point\" \"rgb I\" [1 1 1]\nLightSource \"point\"\n\
+         Material \"diffuse\" \"rgb reflectance\" [0 1 0]\nShape \"sphere\"\n",
+    )
+    .unwrap();
+    assert_eq!(d.settings.color_space, ColorSpace::Rec2020);
+    let reflectance = |i: usize| match &material(&d, i).kind {
+        MaterialKindDesc::Diffuse {
+            reflectance: ColorSource::Rgb(c),
+        } => *c,
+        k => panic!("{k:?}"),
+    };
+    let rec2020 = ColorSpace::Rec2020.to_srgb(false) * Vec3::new(0.5, 0.2, 0.1);
+    assert!((reflectance(0) - rec2020).abs().max_element() < 1e-6);
+    // Rec. 2020's red is redder than sRGB's: more red, less green and blue.
+    assert!(rec2020.x > 0.5 && rec2020.y < 0.2 && rec2020.z < 0.1, "{rec2020}");
+    // ACES after AttributeEnd: a grey stays grey.
+    assert!(
+        (reflectance(1) - Vec3::splat(0.7)).abs().max_element() < 1e-5,
+        "{}",
+        reflectance(1)
+    );
+    let aces_white = ColorSpace::Aces2065_1.to_srgb(true) * Vec3::ONE;
+    for light in &d.lights {
+        let LightKind::Point { intensity, .. } = light.kind else {
+            panic!("{:?}", light.kind)
+        };
+        assert!((intensity - aces_white).abs().max_element() < 1e-6, "{intensity}");
+    }
+    assert!(aces_white.x > 1.0 && aces_white.z < 0.95, "{aces_white}");
+    // ACES green has no sRGB: clipped to 0 and 1, named in a warning.
+    let green = reflectance(2);
+    assert!(
+        green.min_element() >= 0.0 && green.max_element() <= 1.0 && green.y == 1.0,
+        "{green}"
+    );
+    let w = d.warnings.join("\n");
+    assert!(
+        w.contains("main.pbrt:15:20: aces2065-1 colour \"rgb reflectance\" is approximated"),
+        "{w}"
+    );
+    assert_eq!(d.warnings.len(), 1, "{w}");
+
+    let err = load_main(root, "ColorSpace \"p3\"\nWorldBegin\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("main.pbrt:1:12") && err.contains("unknown colour space \"p3\""),
+        "{err}"
+    );
+}
