@@ -4,6 +4,7 @@
 pub mod chi2;
 pub mod distribution;
 pub mod erf;
+pub mod halton;
 pub mod primary;
 pub mod rng;
 pub mod sampler;

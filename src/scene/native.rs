@@ -2277,7 +2277,7 @@ material = "red"
             let d = parse_str(&MINIMAL.replace("spp = 4", &format!("spp = 4\nsampler = \"{name}\""))).unwrap();
             assert_eq!(d.settings.sampler.name(), name);
         }
-        let e = error_of(&MINIMAL.replace("spp = 4", "spp = 4\nsampler = \"halton\""));
+        let e = error_of(&MINIMAL.replace("spp = 4", "spp = 4\nsampler = \"pmj02bn\""));
         assert!(e.starts_with("test.toml:6:") && e.contains("sobol"), "{e}");
     }
 

@@ -117,7 +117,10 @@ fn every_sampler_renders_and_sobol_is_the_default() {
     assert_ne!(render(&["--sampler", "stratified"], "stratified.pfm"), default);
     render(&["--sampler", "independent"], "independent.pfm");
     render(&["--sampler", "center"], "center.pfm");
-    let o = trazo().args(["render", "--sampler", "halton"]).output().unwrap();
+    let halton = render(&["--sampler", "halton"], "halton.pfm");
+    assert_ne!(halton, default);
+    assert_ne!(render(&["--sampler", "halton-owen"], "halton-owen.pfm"), halton);
+    let o = trazo().args(["render", "--sampler", "pmj02bn"]).output().unwrap();
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("sobol"));
 }

@@ -205,6 +205,32 @@ impl Parser {
                     // ZSobol's Morton-ordered indices only change which
                     // scramble a pixel gets.
                     "zsobol" | "paddedsobol" => self.desc.settings.sampler = SamplerKind::Sobol,
+                    "halton" => {
+                        let randomize = p.string("randomize")?;
+                        self.desc.settings.sampler = match randomize
+                            .as_ref()
+                            .map_or("permutedigits", |(r, _)| r.as_str())
+                        {
+                            "permutedigits" => SamplerKind::Halton,
+                            // pbrt-v4's fast variant hashes the digits
+                            // otherwise; both are Owen scrambling.
+                            "owen" | "fastowen" => SamplerKind::HaltonOwen,
+                            "none" => {
+                                self.approximated(
+                                    loc,
+                                    "Sampler \"halton\" with \"randomize\" \"none\"",
+                                    "the digits are randomly permuted, as pbrt-v4's default does",
+                                );
+                                SamplerKind::Halton
+                            }
+                            other => {
+                                let prm = randomize.as_ref().map(|(_, prm)| *prm).expect("given");
+                                return Err(prm.err(format!(
+                                    "unknown randomization \"{other}\": expected \"permutedigits\", \"owen\", \"fastowen\" or \"none\""
+                                )));
+                            }
+                        };
+                    }
                     _ => {
                         self.desc.settings.sampler = SamplerKind::Sobol;
                         self.approximated(

@@ -192,6 +192,31 @@ WorldBegin"#,
     assert_eq!((d.settings.sampler, d.settings.spp), (SamplerKind::Sobol, 8));
     let w = d.warnings.join("\n");
     assert!(w.contains("test.pbrt:1:1: Sampler \"pmj02bn\" is approximated"), "{w}");
+
+    // Halton, with its randomizations.
+    for (randomize, kind) in [
+        ("", SamplerKind::Halton),
+        ("\"string randomize\" \"permutedigits\"", SamplerKind::Halton),
+        ("\"string randomize\" \"owen\"", SamplerKind::HaltonOwen),
+        ("\"string randomize\" \"fastowen\"", SamplerKind::HaltonOwen),
+    ] {
+        let d = parse_str(&format!(
+            "Sampler \"halton\" \"integer pixelsamples\" 32 {randomize}\nWorldBegin"
+        ))
+        .unwrap();
+        assert_eq!((d.settings.sampler, d.settings.spp), (kind, 32), "{randomize}");
+        assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    }
+    let d = parse_str("Sampler \"halton\" \"string randomize\" \"none\"\nWorldBegin").unwrap();
+    assert_eq!(d.settings.sampler, SamplerKind::Halton);
+    assert!(d.warnings.join("\n").contains("is approximated"), "{:?}", d.warnings);
+    let e = parse_str("Sampler \"halton\" \"string randomize\" \"sobol\"\nWorldBegin")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("test.pbrt:1:18") && e.contains("unknown randomization"),
+        "{e}"
+    );
 }
 
 #[test]
