@@ -152,8 +152,30 @@ pub fn illuminant_rgb(name: &str) -> Option<(Rgb, bool)> {
         "stdillum-D65" => Some((Rgb::ONE, true)),
         "stdillum-A" => Some((blackbody_rgb(2856.0), true)),
         "stdillum-D50" => Some((rgb_of_chromaticity(illuminant_xy(5000.0)), true)),
-        n if n.starts_with("stdillum-") || n.starts_with("illum-") => Some((Rgb::ONE, false)),
-        _ => None,
+        // pbrt-v4 normalises a light's spectrum to luminance 1, and its RGB
+        // film records a spectrum's XYZ, which for the CIE 1931 observer
+        // its chromaticity at Y = 1 gives: the F series' published
+        // chromaticities (CIE 15:2004) and the ACES white.
+        n => {
+            let xy = match n {
+                "stdillum-F1" => (0.3131, 0.3373),
+                "stdillum-F2" => (0.3721, 0.3751),
+                "stdillum-F3" => (0.4091, 0.3941),
+                "stdillum-F4" => (0.4402, 0.4031),
+                "stdillum-F5" => (0.3138, 0.3452),
+                "stdillum-F6" => (0.3779, 0.3882),
+                "stdillum-F7" => (0.3129, 0.3292),
+                "stdillum-F8" => (0.3458, 0.3586),
+                "stdillum-F9" => (0.3741, 0.3727),
+                "stdillum-F10" => (0.3458, 0.3588),
+                "stdillum-F11" => (0.3805, 0.3769),
+                "stdillum-F12" => (0.4370, 0.4042),
+                "illum-acesD60" => (0.32168, 0.33767),
+                _ if n.starts_with("stdillum-") || n.starts_with("illum-") => return Some((Rgb::ONE, false)),
+                _ => return None,
+            };
+            Some((rgb_of_chromaticity(xy), true))
+        }
     }
 }
 
@@ -282,5 +304,19 @@ mod tests {
         assert!(exact && (d50 - want).abs().max_element() < 2e-3, "{d50} vs {want}");
         assert!((luminance(d50) - 1.0).abs() < 1e-3);
         assert!(illuminant_rgb("metal-Au-k").is_none());
+        // The fluorescent F2 (cool white, 4230 K) is warmer than D65;
+        // F7 (D65 simulator) nearly white; the ACES white is the colour
+        // space's, at luminance 1.
+        let (f2, exact) = illuminant_rgb("stdillum-F2").unwrap();
+        assert!(
+            exact && f2.x > f2.y && f2.y > f2.z && (luminance(f2) - 1.0).abs() < 1e-3,
+            "{f2}"
+        );
+        let (f7, _) = illuminant_rgb("stdillum-F7").unwrap();
+        assert!((f7 - Rgb::ONE).abs().max_element() < 0.01, "{f7}");
+        let aces = crate::color::space::ColorSpace::Aces2065_1.to_srgb(true) * Rgb::ONE;
+        let (d60, exact) = illuminant_rgb("illum-acesD60").unwrap();
+        assert!(exact && (d60 - aces).abs().max_element() < 1e-5, "{d60} vs {aces}");
+        assert_eq!(illuminant_rgb("stdillum-F13"), Some((Rgb::ONE, false)));
     }
 }
