@@ -192,6 +192,8 @@ pub struct EmitterSample {
     pub pdf_area: f32,
     /// Surface coordinates of the point.
     pub uv: Vec2,
+    /// The mesh attribute's value at the point (0 where none).
+    pub attribute: Vec3,
 }
 
 /// Which geometry an area light is.
@@ -1083,6 +1085,7 @@ impl Aggregate {
                         n: a.n,
                         pdf_area: pdf_obj,
                         uv: a.uv,
+                        attribute: Vec3::ZERO,
                     }),
                     Some(t) => {
                         let (n, jac) = normal_and_area_scale(t, a.n);
@@ -1091,6 +1094,7 @@ impl Aggregate {
                             n,
                             pdf_area: pdf_obj / jac,
                             uv: a.uv,
+                            attribute: Vec3::ZERO,
                         })
                     }
                 }
@@ -1098,19 +1102,20 @@ impl Aggregate {
             EmitterRef::MeshObject(o) => {
                 let m = &self.meshes[self.mesh_objects[o as usize].mesh as usize];
                 let (tri, _, _) = area.triangles.as_ref()?.sample(u_pick);
-                let a = m.sample_triangle(tri, u);
+                let (a, attribute) = m.sample_triangle(tri, u);
                 Some(EmitterSample {
                     p: a.p,
                     n: a.n,
                     pdf_area: 1.0 / area.total,
                     uv: a.uv,
+                    attribute,
                 })
             }
             EmitterRef::Instance(i) => {
                 let inst = &self.instances[i as usize];
                 let m = &self.meshes[inst.mesh as usize];
                 let (tri, _, _) = area.triangles.as_ref()?.sample(u_pick);
-                let a = m.sample_triangle(tri, u);
+                let (a, attribute) = m.sample_triangle(tri, u);
                 let (mut n, _) = normal_and_area_scale(&inst.transform, a.n);
                 if inst.flip_normals {
                     n = -n;
@@ -1120,6 +1125,7 @@ impl Aggregate {
                     n,
                     pdf_area: 1.0 / area.total,
                     uv: a.uv,
+                    attribute,
                 })
             }
         }

@@ -277,8 +277,9 @@ impl TriangleMesh {
         (b[0] * self.normals[ia] + b[1] * self.normals[ib] + b[2] * self.normals[ic]).try_normalize()
     }
 
-    /// A point uniformly distributed on triangle `i`.
-    pub fn sample_triangle(&self, i: usize, u: Vec2) -> AreaSample {
+    /// A point uniformly distributed on triangle `i`, and the mesh
+    /// attribute's value there.
+    pub fn sample_triangle(&self, i: usize, u: Vec2) -> (AreaSample, Vec3) {
         let b = sample_triangle_uniform(u);
         let [p0, p1, p2] = self.vertices(i);
         let mut n = (p1 - p0).cross(p2 - p0).normalize_or_zero();
@@ -293,11 +294,12 @@ impl TriangleMesh {
             let [ia, ib, ic] = self.indices[i].map(|x| x as usize);
             b[0] * self.uvs[ia] + b[1] * self.uvs[ib] + b[2] * self.uvs[ic]
         };
-        AreaSample {
+        let sample = AreaSample {
             p: b[0] * p0 + b[1] * p1 + b[2] * p2,
             n,
             uv,
-        }
+        };
+        (sample, self.attribute(i, b))
     }
 
     /// The mesh with its vertices and normals transformed (for meshes that

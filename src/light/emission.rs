@@ -202,7 +202,7 @@ impl Light {
                     (false, true) => (w, 1.0),
                     (false, false) => (-w, 1.0),
                 };
-                let le = radiance.eval(&scene.textures, &TexCoord::new(hit.uv, hit.p));
+                let le = radiance.eval(&scene.textures, &TexCoord::at(&hit));
                 surface = Some(EmitterPoint {
                     p: hit.p,
                     n: hit.ng,
@@ -237,7 +237,7 @@ impl Light {
                     return None;
                 }
                 let dir = Frame::from_normal(side).to_world(local);
-                let le = radiance.eval(&scene.textures, &TexCoord::new(s.uv, s.p));
+                let le = radiance.eval(&scene.textures, &TexCoord::new(s.uv, s.p).with_attribute(s.attribute));
                 let point = EmitterPoint {
                     p: s.p,
                     n: s.n,

@@ -575,7 +575,7 @@ fn area_light_sample(
     lp: Vec3,
     ln: Vec3,
     two_sided: bool,
-    uv: Vec2,
+    (uv, attribute): (Vec2, Vec3),
     pdf_solid_angle: Option<f32>,
     pdf_area: f32,
     radiance: &Texture,
@@ -600,7 +600,7 @@ fn area_light_sample(
     }
     Some(LightSample {
         wi,
-        li: radiance.eval(&scene.textures, &TexCoord::new(uv, lp)),
+        li: radiance.eval(&scene.textures, &TexCoord::new(uv, lp).with_attribute(attribute)),
         pdf,
         is_delta: false,
         target: ShadowTarget::Point(lp),
@@ -683,7 +683,17 @@ impl Light {
         } = self
         {
             let lp = r.corner + u.x * r.edge_u + u.y * r.edge_v;
-            return area_light_sample(scene, p, lp, r.normal, *two_sided, u, None, r.pdf_area, radiance);
+            return area_light_sample(
+                scene,
+                p,
+                lp,
+                r.normal,
+                *two_sided,
+                (u, Vec3::ZERO),
+                None,
+                r.pdf_area,
+                radiance,
+            );
         }
         self.sample_li_other(scene, p, u_pick, u, incomplete)
     }
@@ -840,7 +850,17 @@ impl Light {
                     ray = hit.spawn_ray(wi);
                     hit = scene.geometry.shape_hit(i, &ray, radiance.reads_uv())?;
                 }
-                area_light_sample(scene, p, hit.p, hit.ng, *two_sided, hit.uv, Some(pdf), 0.0, radiance)
+                area_light_sample(
+                    scene,
+                    p,
+                    hit.p,
+                    hit.ng,
+                    *two_sided,
+                    (hit.uv, hit.attribute),
+                    Some(pdf),
+                    0.0,
+                    radiance,
+                )
             }
             Light::Area {
                 emitter,
@@ -858,7 +878,7 @@ impl Light {
                     (
                         r.corner + u.x * r.edge_u + u.y * r.edge_v,
                         r.normal,
-                        u,
+                        (u, Vec3::ZERO),
                         None,
                         r.pdf_area,
                     )
@@ -866,7 +886,7 @@ impl Light {
                     match sphere.and_then(|(c, r)| sample_sphere_cone(c, r, p, u)) {
                         Some((lp, ln, pdf)) => {
                             let uv = if radiance.reads_uv() { sphere_uv(ln) } else { Vec2::ZERO };
-                            (lp, ln, uv, Some(pdf), 0.0)
+                            (lp, ln, (uv, Vec3::ZERO), Some(pdf), 0.0)
                         }
                         None => {
                             let s = scene
@@ -875,7 +895,7 @@ impl Light {
                             if s.pdf_area.is_nan() || s.pdf_area <= 0.0 {
                                 return None;
                             }
-                            (s.p, s.n, s.uv, None, s.pdf_area)
+                            (s.p, s.n, (s.uv, s.attribute), None, s.pdf_area)
                         }
                     }
                 };

@@ -54,6 +54,12 @@ impl TexCoord {
         }
     }
 
+    /// The same look-up on a surface whose mesh attribute is `attribute`.
+    #[inline]
+    pub fn with_attribute(self, attribute: Rgb) -> TexCoord {
+        TexCoord { attribute, ..self }
+    }
+
     /// Where a surface hit looks up its textures.
     #[inline]
     pub fn at(hit: &crate::geometry::SurfaceHit) -> TexCoord {

@@ -994,13 +994,13 @@ impl<'s> Tracer<'s> {
                             (u, u_dir),
                             radiance.reads_uv(),
                         )?;
-                        (hit.p, hit.ng, hit.uv, pdf_area)
+                        (hit.p, hit.ng, (hit.uv, hit.attribute), pdf_area)
                     }
                     _ => {
                         let es = scene
                             .geometry
                             .sample_emitter(*emitter, area, u_pick, u, radiance.reads_uv())?;
-                        (es.p, es.n, es.uv, es.pdf_area)
+                        (es.p, es.n, (es.uv, es.attribute), es.pdf_area)
                     }
                 };
                 let d = pt.p - p;
@@ -1009,7 +1009,8 @@ impl<'s> Tracer<'s> {
                 if !(cos > 0.0 && pdf_area > 0.0 && d2 > 0.0) {
                     return None;
                 }
-                let le = radiance.eval(&scene.textures, &TexCoord::new(uv, p));
+                let (uv, attribute) = uv;
+                let le = radiance.eval(&scene.textures, &TexCoord::new(uv, p).with_attribute(attribute));
                 let vertex = Vertex::endpoint(kind, p, n, le / (pmf * pdf_area), 0.0);
                 (
                     vertex,

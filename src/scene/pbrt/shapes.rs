@@ -12,6 +12,10 @@ use crate::scene::desc::*;
 use glam::{Vec2, Vec3};
 use std::path::Path;
 
+/// The mesh attribute that holds the per-triangle radiance of pbrt-v4's
+/// `power` on a mesh of unequal triangles.
+const PBRT_POWER_ATTRIBUTE: &str = "face_pbrt_power_radiance";
+
 impl Parser {
     /// Converts one `Shape` with the current graphics state.
     /// A `plymesh`'s mesh, displaced where it names a float texture
@@ -62,7 +66,7 @@ impl Parser {
         // A bilinearmesh of bent patches is a shape per patch: those after
         // the first.
         let mut extra_patches = Vec::new();
-        let (shape, analytic) = match kind {
+        let (mut shape, analytic) = match kind {
             "sphere" => {
                 let r = p.float_opt("radius")?;
                 let radius = r.as_ref().map_or(1.0, |(v, _)| *v);
@@ -343,7 +347,7 @@ impl Parser {
         };
         let mut emission = self.gs.area_light.clone();
         if let Some(e) = emission.as_mut() {
-            self.apply_power(e, &shape, &what)?;
+            self.apply_power(e, &mut shape, &what)?;
         }
         if emission.is_some() && self.current_object.is_some() {
             emission = None;
@@ -398,11 +402,12 @@ impl Parser {
     /// pbrt-v4's shapes report it — in object space for spheres, disks,
     /// cylinders and quadrics, in world space for triangles and patches —
     /// and k the mean luminance of the light's image (1 without one).
-    /// pbrt-v4 makes each triangle of a mesh a light of that power: for a
-    /// mesh of equal triangles that is exact, for unequal ones the mean
-    /// triangle is used (warning). An image light's shape gets its own
-    /// copy of the image's texture, tinted by its factor.
-    fn apply_power(&mut self, e: &mut Emission, shape: &ShapeKind, what: &str) -> Result<()> {
+    /// pbrt-v4 makes each triangle of a mesh a light of that power, so a
+    /// mesh of unequal triangles gets a per-triangle radiance (a mesh
+    /// attribute its emission reads; with an image, the mean triangle's,
+    /// with a warning). An image light's shape gets its own copy of the
+    /// image's texture, tinted by its factor.
+    fn apply_power(&mut self, e: &mut Emission, shape: &mut ShapeKind, what: &str) -> Result<()> {
         let Some((power, at)) = e.power.take() else {
             return Ok(());
         };
@@ -412,7 +417,7 @@ impl Parser {
         };
         let ctm = self.gs.ctm;
         let world = |p: Vec3| ctm.transform_point3(p);
-        let area = match shape {
+        let area = match &*shape {
             ShapeKind::Sphere { radius, .. } => 4.0 * std::f32::consts::PI * radius * radius,
             ShapeKind::Disk { radius, .. } => std::f32::consts::PI * radius * radius,
             ShapeKind::Cylinder { p0, p1, radius } => 2.0 * std::f32::consts::PI * radius * (*p1 - *p0).length(),
@@ -429,11 +434,39 @@ impl Parser {
                     })
                     .collect();
                 let mean = areas.iter().sum::<f32>() / areas.len().max(1) as f32;
+                if areas.iter().any(|a| (a - mean).abs() > 1e-3 * mean) && image_luminance.is_none() {
+                    // Each triangle's own radiance, L·power/(π·sides·A).
+                    let sides = if e.two_sided { 2.0 } else { 1.0 };
+                    let per_face = |a: f32| {
+                        let k_e = std::f32::consts::PI * sides * a;
+                        if k_e > 0.0 && k_e.is_finite() {
+                            e.radiance * (power / k_e)
+                        } else {
+                            Rgb::ZERO // a degenerate triangle, never hit
+                        }
+                    };
+                    let ShapeKind::InlineMesh(MeshSource::Inline(mesh)) = shape else {
+                        unreachable!("matched above")
+                    };
+                    mesh.attributes.push(crate::geometry::mesh::MeshAttribute {
+                        name: PBRT_POWER_ATTRIBUTE.into(),
+                        per_face: true,
+                        channels: 3,
+                        values: areas.iter().flat_map(|&a| per_face(a).to_array()).collect(),
+                    });
+                    let name = format!("radiance of {what} with power {}", self.desc.textures.len());
+                    let kind = TextureKind::MeshAttribute {
+                        name: PBRT_POWER_ATTRIBUTE.into(),
+                    };
+                    self.push_texture(&name, &at, Locs::at(Some(at.clone())), (kind, per_face(mean)))?;
+                    e.image = Some(name);
+                    return Ok(());
+                }
                 if areas.iter().any(|a| (a - mean).abs() > 1e-3 * mean) {
                     self.approximated(
                         &at,
                         format!("\"power\" of {what}"),
-                        "pbrt-v4 gives each triangle that power, so its radiance varies with the triangle's area; trazo gives every triangle the radiance of the mean one",
+                        "pbrt-v4 gives each triangle that power, so its radiance varies with the triangle's area; with an image, trazo gives every triangle the radiance of the mean one",
                     );
                 }
                 mean

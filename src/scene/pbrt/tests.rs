@@ -3089,15 +3089,35 @@ fn area_light_power_sets_each_shapes_radiance() {
         );
         assert!(warnings.is_empty(), "{shape}: {warnings:?}");
     }
-    // Unequal triangles: the mean one, with a warning.
-    let (_, w) = emission(
-        "\"rgb L\" [1 1 1] \"float power\" 10",
-        "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0 4 0 0 0 4 0] \"integer indices\" [0 1 2 0 3 4]",
+    // Unequal triangles (areas 0.5 and 8): each its own radiance, as pbrt-v4
+    // makes each a light of that power, held per triangle in a mesh
+    // attribute that the emission reads.
+    let d = world(
+        "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 0.5 1] \"float power\" 10\n\
+         Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0 2 0 0 6 0 0 2 4 0] \"integer indices\" [0 1 2 3 4 5]\nAttributeEnd",
     );
-    assert!(
-        w.iter().any(|w| w.contains("\"power\"") && w.contains("approximated")),
-        "{w:?}"
-    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let ColorSource::Texture(name) = &material(&d, 0).emission else {
+        panic!("{:?}", material(&d, 0).emission)
+    };
+    let texture = d.textures.iter().find(|t| &t.name == name).unwrap();
+    let TextureKind::MeshAttribute { name: attribute } = &texture.kind else {
+        panic!("{:?}", texture.kind)
+    };
+    let ShapeKind::InlineMesh(MeshSource::Inline(mesh)) = &d.shapes[0].kind else {
+        panic!("{:?}", d.shapes[0].kind)
+    };
+    let a = mesh.attributes.iter().find(|a| &a.name == attribute).unwrap();
+    assert!(a.per_face && a.channels == 3);
+    for (face, area) in [0.5f32, 8.0].into_iter().enumerate() {
+        let l = 10.0 / (PI * area);
+        let want = [l, 0.5 * l, l];
+        let got = &a.values[3 * face..3 * face + 3];
+        assert!(
+            got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-5 * w),
+            "{got:?} vs {want:?}"
+        );
+    }
     // Zero or negative: none, as in pbrt-v4.
     let (plain, _) = emission("\"rgb L\" [1 1 1]", "Shape \"disk\"");
     assert_eq!(
