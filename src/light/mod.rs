@@ -1020,7 +1020,29 @@ impl Light {
                     _ => area.total,
                 };
                 let sides = if *two_sided { 2.0 } else { 1.0 };
-                sides * PI * world_area * luminance(radiance.average(&scene.textures))
+                // A radiance per triangle or vertex (a mesh attribute) is
+                // known from the mesh: its mean over the area, each
+                // triangle's the value at its centroid (exact for values
+                // interpolated linearly).
+                let g = &scene.geometry;
+                let mesh = match *emitter {
+                    EmitterRef::MeshObject(o) => Some(&g.meshes[g.mesh_objects[o as usize].mesh as usize]),
+                    EmitterRef::Instance(i) => Some(&g.meshes[g.instances[i as usize].mesh as usize]),
+                    EmitterRef::Shape(_) => None,
+                };
+                let mean_radiance = match (radiance, mesh) {
+                    (Texture::MeshAttribute(_), Some(m)) => {
+                        let (mut sum, mut total) = (Rgb::ZERO, 0.0f32);
+                        for i in 0..m.indices.len() {
+                            let a = m.triangle_area(i);
+                            sum += a * m.attribute(i, [1.0 / 3.0; 3]);
+                            total += a;
+                        }
+                        if total > 0.0 { sum / total } else { Rgb::ZERO }
+                    }
+                    _ => radiance.average(&scene.textures),
+                };
+                sides * PI * world_area * luminance(mean_radiance)
             }
             Light::Environment => disk * luminance(scene.background.average()) * 4.0,
         }

@@ -1296,7 +1296,8 @@ Shape "bilinearmesh" "point3 P" [-0.5 2 0.5  0.5 2 0.5  -0.5 2 2  0.5 2 2]
 
 /// pbrt-v4's `power` on a mesh of unequal triangles makes each triangle a
 /// light of that power: seen directly, the small triangle (area 0.5) is 10
-/// times as bright as the large one (area 5), L·power/(π·2·A) each.
+/// times as bright as the large one (area 5), L·power/(π·2·A) each, and
+/// the light tree takes the mesh to emit twice the power.
 #[test]
 fn power_on_unequal_triangles_gives_each_its_own_radiance() {
     let d = parse(
@@ -1307,6 +1308,10 @@ fn power_on_unequal_triangles_gives_each_its_own_radiance() {
          Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0  2 0 0 4.5 0 0 2 4 0] \"integer indices\" [0 1 2 3 4 5]\n",
     );
     assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    // The light tree weighs the mesh by its power, each triangle's 10 W.
+    let scene = trazo::scene::build(&d).unwrap();
+    let power = scene.lights[0].power(&scene, 1.0);
+    assert!((power - 20.0).abs() < 1e-3 * 20.0, "{power}");
     let film = render_desc(&d);
     let near = |v: f32, want: f32| (v - want).abs() < 0.01 * want;
     let (small, large) = (10.0 / (PI * 2.0 * 0.5), 10.0 / (PI * 2.0 * 5.0));
