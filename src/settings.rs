@@ -37,8 +37,12 @@ pub struct RenderSettings {
     pub seed: u64,
     /// Placement of samples within pixels.
     pub sampler: SamplerKind,
-    /// Pixel reconstruction filter.
+    /// Pixel reconstruction filter (along x; see `filter_y_radius`).
     pub filter: Filter,
+    /// The filter's radius along y where it differs from its radius along
+    /// x (pbrt-v4's `yradius`); `None`: the same. See
+    /// [`RenderSettings::pixel_filter`].
+    pub filter_y_radius: Option<f32>,
     /// Tone mapping for 8-bit output.
     pub tonemap: Tonemap,
     /// Exposure compensation in stops, applied before tone mapping.
@@ -152,6 +156,7 @@ impl Default for RenderSettings {
             seed: 0,
             sampler: SamplerKind::default(),
             filter: Filter::default(),
+            filter_y_radius: None,
             tonemap: Tonemap::default(),
             exposure: 0.0,
             max_component_value: f32::INFINITY,
@@ -508,6 +513,41 @@ impl Filter {
         matches!(self, Filter::Mitchell { .. } | Filter::Lanczos { .. })
     }
 
+    /// The same filter with half-width `radius`.
+    pub fn with_radius(self, radius: f32) -> Filter {
+        match self {
+            Filter::Box { .. } => Filter::Box { radius },
+            Filter::Tent { .. } => Filter::Tent { radius },
+            Filter::Gaussian { stddev, .. } => Filter::Gaussian { stddev, radius },
+            Filter::Mitchell { b, c, .. } => Filter::Mitchell { radius, b, c },
+            Filter::Lanczos { tau, .. } => Filter::Lanczos { radius, tau },
+        }
+    }
+
+    /// [`PixelFilter::splat_margin`] of this filter along both axes.
+    pub fn splat_margin(&self) -> Option<u32> {
+        PixelFilter::same(*self).splat_margin()
+    }
+}
+
+/// A separable pixel filter: a profile along x and one along y, which
+/// differ only in their radii (pbrt-v4's filters of two radii: the
+/// profile along each axis is the filter's 1D profile cut off at that
+/// axis's radius).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelFilter {
+    /// Along x.
+    pub x: Filter,
+    /// Along y.
+    pub y: Filter,
+}
+
+impl PixelFilter {
+    /// `filter` along both axes.
+    pub fn same(filter: Filter) -> PixelFilter {
+        PixelFilter { x: filter, y: filter }
+    }
+
     /// Whether samples are splatted into every pixel the filter covers,
     /// and if so how many pixels a tile's buffer reaches beyond the tile on
     /// each side. `None` for the one-pixel box, for which filter importance
@@ -515,11 +555,24 @@ impl Filter {
     /// (scenes keep filters with negative lobes within
     /// [`Filter::MAX_SIGNED_RADIUS`]).
     pub fn splat_margin(&self) -> Option<u32> {
-        let radius = self.radius();
-        if matches!(self, Filter::Box { .. }) && radius <= 0.5 || !(radius > 0.0 && radius <= 8.0) {
+        let one_pixel_box = |f: &Filter| matches!(f, Filter::Box { .. }) && f.radius() <= 0.5;
+        let splattable = |f: &Filter| f.radius() > 0.0 && f.radius() <= 8.0;
+        let (x, y) = (&self.x, &self.y);
+        if one_pixel_box(x) && one_pixel_box(y) || !(splattable(x) && splattable(y)) {
             return None;
         }
-        Some((radius - 0.5).ceil().max(0.0) as u32)
+        Some((x.radius().max(y.radius()) - 0.5).ceil().max(0.0) as u32)
+    }
+}
+
+impl RenderSettings {
+    /// The pixel filter: `filter` along x, and along y the same filter
+    /// with `filter_y_radius` where that is given.
+    pub fn pixel_filter(&self) -> PixelFilter {
+        PixelFilter {
+            x: self.filter,
+            y: self.filter_y_radius.map_or(self.filter, |r| self.filter.with_radius(r)),
+        }
     }
 }
 
@@ -601,6 +654,13 @@ mod tests {
             tau: 3.0,
         };
         assert_eq!(widest.splat_margin(), Some(7));
+        // Two radii: the wider decides; a one-pixel box along one axis
+        // still splats along the other.
+        let tent = Filter::Tent { radius: 1.0 };
+        let two = |x: Filter, y: Filter| PixelFilter { x, y }.splat_margin();
+        assert_eq!(two(tent, tent.with_radius(2.6)), Some(3));
+        assert_eq!(two(Filter::default(), Filter::Box { radius: 1.5 }), Some(1));
+        assert_eq!(two(tent, tent.with_radius(9.0)), None);
     }
 
     #[test]

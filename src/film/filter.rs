@@ -6,7 +6,7 @@
 //! pixel, tiles stay independent and renders deterministic.
 
 use crate::sampling::erf::{erf, erf_inv};
-use crate::settings::Filter;
+use crate::settings::{Filter, PixelFilter};
 use glam::Vec2;
 
 impl Filter {
@@ -32,18 +32,24 @@ impl Filter {
     /// `u` ∈ [0,1)² (stratification of `u` carries over).
     #[inline]
     pub fn sample(&self, u: Vec2) -> Vec2 {
-        Vec2::new(self.sample_1d(u.x), self.sample_1d(u.y))
+        PixelFilter::same(*self).sample(u)
     }
 
-    /// The weight of a sample at `offset` drawn by [`Filter::sample`]: the
-    /// filter's profile over the density the offset was drawn from,
-    /// normalised to a mean of 1. That is 1 but for the Gaussian, which is
-    /// drawn from the whole Gaussian cut off at the radius and weighs its
-    /// samples by 1 − g(r)/g(x) so that their expected pixel is the one
-    /// the profile, which subtracts g(r), gives (pbrt-v4 weighs samples by
-    /// f/p as well, for its tabulated filters).
+    /// [`PixelFilter::sample_weight`] of this filter along both axes.
     #[inline]
     pub fn sample_weight(&self, offset: Vec2) -> f32 {
+        PixelFilter::same(*self).sample_weight(offset)
+    }
+
+    /// The weight along one axis of an offset `x` drawn by
+    /// [`Filter::sample_1d`], as a fraction: the filter's profile over the
+    /// density the offset was drawn from, and its mean. That is 1 but for
+    /// the Gaussian, which is drawn from the whole Gaussian cut off at the
+    /// radius and weighs its samples by 1 − g(r)/g(x) so that their
+    /// expected pixel is the one the profile, which subtracts g(r), gives
+    /// (pbrt-v4 weighs samples by f/p as well, for its tabulated filters).
+    #[inline]
+    fn sample_weight_1d(&self, x: f32) -> (f32, f32) {
         match *self {
             Filter::Gaussian { stddev, radius } => {
                 let s = std::f32::consts::SQRT_2 * stddev;
@@ -51,14 +57,13 @@ impl Filter {
                 let whole = s * std::f32::consts::PI.sqrt() * erf(radius / s);
                 let edge = gaussian(radius, stddev);
                 let mean = 1.0 - 2.0 * radius * edge / whole;
-                let w = |x: f32| (1.0 - edge / gaussian(x, stddev)).max(0.0);
                 if mean > 0.0 {
-                    w(offset.x) * w(offset.y) / (mean * mean)
+                    ((1.0 - edge / gaussian(x, stddev)).max(0.0), mean)
                 } else {
-                    1.0
+                    (1.0, 1.0)
                 }
             }
-            _ => 1.0,
+            _ => (1.0, 1.0),
         }
     }
 
@@ -100,6 +105,29 @@ impl Filter {
                 let x = s * erf_inv((2.0 * u - 1.0) * erf(radius / s));
                 x.clamp(-radius, radius)
             }
+        }
+    }
+}
+
+impl PixelFilter {
+    /// An offset from the pixel centre distributed like the filter, from
+    /// `u` ∈ [0,1)² (stratification of `u` carries over).
+    #[inline]
+    pub fn sample(&self, u: Vec2) -> Vec2 {
+        Vec2::new(self.x.sample_1d(u.x), self.y.sample_1d(u.y))
+    }
+
+    /// The weight of a sample at `offset` drawn by [`PixelFilter::sample`]
+    /// (the product of the axes' weights, see `Filter::sample_weight_1d`):
+    /// 1 but for Gaussians.
+    #[inline]
+    pub fn sample_weight(&self, offset: Vec2) -> f32 {
+        match (self.x, self.y) {
+            (Filter::Gaussian { .. }, _) | (_, Filter::Gaussian { .. }) => {
+                let ((wx, mx), (wy, my)) = (self.x.sample_weight_1d(offset.x), self.y.sample_weight_1d(offset.y));
+                wx * wy / (mx * my)
+            }
+            _ => 1.0,
         }
     }
 }

@@ -12,7 +12,7 @@
 //! deterministic on any number of threads.
 
 use super::PixelSum;
-use crate::settings::Filter;
+use crate::settings::{Filter, PixelFilter};
 use glam::{DVec3, Vec4};
 
 /// Sub-pixel phases tabulated: a sample's weights along an axis depend
@@ -25,9 +25,16 @@ pub const MAX_TAPS: usize = 16;
 /// A separable filter's weights, tabulated for splatting.
 #[derive(Clone, Debug)]
 pub struct Splat {
-    radius: f32,
+    /// Along x and along y.
+    axes: [SplatAxis; 2],
     /// Pixels a tile's buffer extends beyond the tile on each side.
     pub margin: u32,
+}
+
+/// One axis's profile, tabulated.
+#[derive(Clone, Debug)]
+struct SplatAxis {
+    radius: f32,
     /// Row `j` holds the weights of the pixel centres at x = −radius +
     /// j/PHASES + k (k = 0, 1, …) from a sample, the filter's profile
     /// divided by its integral (zero beyond the radius). A sample's
@@ -39,8 +46,34 @@ pub struct Splat {
 impl Splat {
     /// Splatting for `filter`, or `None` for the one-pixel box, for which
     /// filter importance sampling is the same estimator.
-    pub fn new(filter: &Filter) -> Option<Splat> {
+    pub fn new(filter: &PixelFilter) -> Option<Splat> {
         let margin = filter.splat_margin()?;
+        Some(Splat {
+            axes: [SplatAxis::new(&filter.x), SplatAxis::new(&filter.y)],
+            margin,
+        })
+    }
+
+    /// [`Splat::new`] with `filter` along both axes.
+    pub fn same(filter: &Filter) -> Option<Splat> {
+        Splat::new(&PixelFilter::same(*filter))
+    }
+
+    /// [`SplatAxis::taps`] along x.
+    #[inline(always)]
+    pub fn taps_x<'w>(&self, p: f32, lo: u32, hi: u32, weights: &'w mut [f32; MAX_TAPS]) -> (u32, &'w [f32]) {
+        self.axes[0].taps(p, lo, hi, weights)
+    }
+
+    /// [`SplatAxis::taps`] along y.
+    #[inline(always)]
+    pub fn taps_y<'w>(&self, p: f32, lo: u32, hi: u32, weights: &'w mut [f32; MAX_TAPS]) -> (u32, &'w [f32]) {
+        self.axes[1].taps(p, lo, hi, weights)
+    }
+}
+
+impl SplatAxis {
+    fn new(filter: &Filter) -> SplatAxis {
         let radius = filter.radius();
         // Normalise the profile so that a sample's weights sum to about 1:
         // a pixel's total weight is then about its number of samples.
@@ -52,16 +85,16 @@ impl Splat {
                 *w = (filter.eval_1d(x) as f64 / integral) as f32;
             }
         }
-        Some(Splat { radius, margin, rows })
+        SplatAxis { radius, rows }
     }
 
     /// The pixels in `[lo, hi)` whose centres lie within the radius of
-    /// position `p` along one axis, which are consecutive: writes their
+    /// position `p` along the axis, which are consecutive: writes their
     /// weights to `weights` and returns the first pixel and the weights.
     /// Always inlined: a plain `inline` was not taken, which left two calls
     /// a sample in the tile loop (commit fa0cc16).
     #[inline(always)]
-    pub fn taps<'w>(&self, p: f32, lo: u32, hi: u32, weights: &'w mut [f32; MAX_TAPS]) -> (u32, &'w [f32]) {
+    fn taps<'w>(&self, p: f32, lo: u32, hi: u32, weights: &'w mut [f32; MAX_TAPS]) -> (u32, &'w [f32]) {
         // The first and last centres within the radius, before clipping.
         let first = ceil_in_film(p - self.radius - 0.5);
         let last = floor_in_film(p + self.radius - 0.5);
@@ -220,7 +253,7 @@ mod tests {
             stddev: 0.5,
             radius: 2.0,
         };
-        let s = Splat::new(&g).unwrap();
+        let s = Splat::same(&g).unwrap();
         assert_eq!(s.margin, 2);
         let integral = profile_integral(&g) as f32;
         let mut weights = [0.0; MAX_TAPS];
@@ -230,7 +263,7 @@ mod tests {
             .into_iter()
             .chain((0..2000).map(|_| 10.0 + 5.0 * rng.next_f32()))
         {
-            let (first, w) = s.taps(p, 0, 100, &mut weights);
+            let (first, w) = s.taps_x(p, 0, 100, &mut weights);
             assert!((4..=5).contains(&w.len()), "{p}: {}", w.len());
             let sum: f32 = w.iter().sum();
             assert!((sum - 1.0).abs() < 0.02, "{p}: {sum}");
@@ -244,24 +277,24 @@ mod tests {
             }
         }
         // At the image's edge only pixels inside are touched.
-        let (first, w) = s.taps(0.3, 0, 100, &mut weights);
+        let (first, w) = s.taps_x(0.3, 0, 100, &mut weights);
         assert_eq!((first, w.len()), (0, 2));
-        let (first, w) = s.taps(99.9, 0, 100, &mut weights);
+        let (first, w) = s.taps_x(99.9, 0, 100, &mut weights);
         assert_eq!((first, w.len()), (98, 2));
         // A one-pixel image, and a position outside every pixel's reach.
-        assert_eq!(s.taps(0.5, 0, 1, &mut weights).1.len(), 1);
-        assert!(s.taps(150.0, 0, 100, &mut weights).1.is_empty());
+        assert_eq!(s.taps_x(0.5, 0, 1, &mut weights).1.len(), 1);
+        assert!(s.taps_x(150.0, 0, 100, &mut weights).1.is_empty());
         // The one-pixel box is left to filter importance sampling.
-        assert!(Splat::new(&Filter::Box { radius: 0.5 }).is_none());
-        let tent = Splat::new(&Filter::Tent { radius: 1.0 }).unwrap();
+        assert!(Splat::same(&Filter::Box { radius: 0.5 }).is_none());
+        let tent = Splat::same(&Filter::Tent { radius: 1.0 }).unwrap();
         assert_eq!(tent.margin, 1);
-        let (first, w) = tent.taps(5.5, 0, 10, &mut weights);
+        let (first, w) = tent.taps_x(5.5, 0, 10, &mut weights);
         // The unit tent's taps at a pixel centre: that pixel (weight 1) and
         // its neighbours at the tent's edge (weight 0).
         assert_eq!((first, w), (4, &[0.0, 1.0, 0.0][..]));
         // The widest filter: sixteen taps.
-        let wide = Splat::new(&Filter::Box { radius: 8.0 }).unwrap();
-        let (_, w) = wide.taps(50.3, 0, 100, &mut weights);
+        let wide = Splat::same(&Filter::Box { radius: 8.0 }).unwrap();
+        let (_, w) = wide.taps_x(50.3, 0, 100, &mut weights);
         assert_eq!(w.len(), 16);
         assert!(w.iter().all(|&w| (w - 1.0 / 16.0).abs() < 1e-6), "{w:?}");
     }

@@ -131,13 +131,16 @@ impl SplatImage {
             target: SplatTarget {
                 width: s.width,
                 height: s.height,
-                splat: Splat::new(&s.filter),
+                splat: Splat::new(&s.pixel_filter()),
             },
             sums: vec![DVec3::ZERO; n],
             lum_sq: vec![0.0; n],
             aovs: aovs.then(|| vec![AovSum::default(); n]),
-            inside: match Splat::new(&s.filter) {
-                Some(_) => (share_inside(&s.filter, s.width), share_inside(&s.filter, s.height)),
+            inside: match Splat::new(&s.pixel_filter()) {
+                Some(_) => (
+                    share_inside(&s.pixel_filter().x, s.width),
+                    share_inside(&s.pixel_filter().y, s.height),
+                ),
                 None => (vec![1.0; s.width as usize], vec![1.0; s.height as usize]),
             },
             iterations: 0,
@@ -385,8 +388,8 @@ impl SplatTarget {
             }
             Some(splat) => {
                 let (mut wx, mut wy) = ([0.0; MAX_TAPS], [0.0; MAX_TAPS]);
-                let (x0, xs) = splat.taps(raster.x, 0, w, &mut wx);
-                let (y0, ys) = splat.taps(raster.y, 0, h, &mut wy);
+                let (x0, xs) = splat.taps_x(raster.x, 0, w, &mut wx);
+                let (y0, ys) = splat.taps_y(raster.y, 0, h, &mut wy);
                 for (dy, fy) in ys.iter().enumerate() {
                     for (dx, fx) in xs.iter().enumerate() {
                         if fx * fy != 0.0 {

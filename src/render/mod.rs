@@ -506,7 +506,7 @@ fn camera_draws(
     let (position, filter_weight) = if splatting {
         (Vec2::new(x as f32, y as f32) + u, 1.0)
     } else {
-        let filter = &scene.settings.filter;
+        let filter = scene.settings.pixel_filter();
         let offset = filter.sample(u);
         (
             Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset,
@@ -545,8 +545,8 @@ fn splat_sample(splat: &Splat, buffer: &mut SplatBuffer, position: Vec2, l: Rgb)
     let width = (rect.x1 - rect.x0) as usize;
     let y_l = crate::color::luminance(l);
     let (rgb_one, y_sq) = (l.extend(1.0), y_l * y_l);
-    let (x0, wxs) = splat.taps(position.x, rect.x0, rect.x1, &mut buffer.weights_x);
-    let (y0, wys) = splat.taps(position.y, rect.y0, rect.y1, &mut buffer.weights_y);
+    let (x0, wxs) = splat.taps_x(position.x, rect.x0, rect.x1, &mut buffer.weights_x);
+    let (y0, wys) = splat.taps_y(position.y, rect.y0, rect.y1, &mut buffer.weights_y);
     // A sample's pixels are a block: one row slice at a time.
     let mut start = (y0 - rect.y0) as usize * width + (x0 - rect.x0) as usize;
     for &wy in wys {
@@ -599,7 +599,7 @@ fn render_passes<I: Integrator>(
     stats.threads = rayon::current_num_threads();
     let earlier_seconds = stats.seconds;
     let tiles = tiles(w, h, options.tile_size);
-    let splat = Splat::new(&s.filter);
+    let splat = Splat::new(&s.pixel_filter());
     let time_budget = options
         .time_limit
         .or_else(|| control.deadline.map(|d| d.saturating_duration_since(start)));

@@ -54,7 +54,7 @@ pub fn build(desc: &SceneDesc) -> Result<Scene> {
 /// and before the BVH is built.
 pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     desc.validate()?;
-    let margin = desc.settings.filter.splat_margin().unwrap_or(0);
+    let margin = desc.settings.pixel_filter().splat_margin().unwrap_or(0);
     let mut memory = MemoryEstimate::for_filtered_film(desc.settings.width, desc.settings.height, limits.aovs, margin);
     memory.geometry = described_mesh_bytes(desc);
     let (st, ph) = (&desc.settings, &desc.settings.photon);

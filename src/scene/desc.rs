@@ -2075,19 +2075,8 @@ impl SceneDesc {
             ));
         }
         match s.filter {
-            Filter::Box { radius } | Filter::Tent { radius } => {
-                c.positive("filter_radius", radius)?;
-                if radius > 16.0 {
-                    return Err(c.err("filter_radius", format!("must be at most 16 pixels, got {radius}")));
-                }
-            }
-            Filter::Gaussian { stddev, radius } => {
-                c.positive("filter_stddev", stddev)?;
-                c.positive("filter_radius", radius)?;
-                if radius > 16.0 {
-                    return Err(c.err("filter_radius", format!("must be at most 16 pixels, got {radius}")));
-                }
-            }
+            Filter::Box { .. } | Filter::Tent { .. } => {}
+            Filter::Gaussian { stddev, .. } => c.positive("filter_stddev", stddev)?,
             Filter::Mitchell { b, c: cc, .. } => {
                 c.finite("filter_b", b)?;
                 c.finite("filter_c", cc)?;
@@ -2102,14 +2091,21 @@ impl SceneDesc {
                 }
             }
         }
-        if s.filter.has_negative_lobes() {
-            let (radius, max) = (s.filter.radius(), Filter::MAX_SIGNED_RADIUS);
-            c.positive("filter_radius", radius)?;
-            if radius > max {
-                return Err(c.err(
-                    "filter_radius",
-                    format!("must be at most {max} pixels for a filter with negative lobes, got {radius}"),
-                ));
+        // The radius along each axis.
+        let filter = s.pixel_filter();
+        for (f, key) in [(filter.x, "filter_radius"), (filter.y, "filter_y_radius")] {
+            let radius = f.radius();
+            c.positive(key, radius)?;
+            if f.has_negative_lobes() {
+                let max = Filter::MAX_SIGNED_RADIUS;
+                if radius > max {
+                    return Err(c.err(
+                        key,
+                        format!("must be at most {max} pixels for a filter with negative lobes, got {radius}"),
+                    ));
+                }
+            } else if radius > 16.0 {
+                return Err(c.err(key, format!("must be at most 16 pixels, got {radius}")));
             }
         }
         Ok(())

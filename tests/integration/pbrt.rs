@@ -1358,3 +1358,32 @@ fn lights_with_per_triangle_radiance_are_sampled_with_it() {
         "mis {mis}, bsdf {bsdf}, standard error {se}"
     );
 }
+
+/// A filter with a radius per axis blurs along each axis by its own: a
+/// vertical edge stays sharp under a box of x radius 0.5 and y radius 3,
+/// and spreads over about six columns with the radii swapped.
+#[test]
+fn pixel_filters_have_a_radius_per_axis() {
+    let columns_between = |xr: f32, yr: f32| {
+        let d = parse(&format!(
+            "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-10 10 -10 10]\n\
+             Film \"rgb\" \"integer xresolution\" 20 \"integer yresolution\" 20\n\
+             Sampler \"independent\" \"integer pixelsamples\" 16\n\
+             PixelFilter \"box\" \"float xradius\" {xr} \"float yradius\" {yr}\nWorldBegin\n\
+             AreaLightSource \"diffuse\" \"rgb L\" [1 1 1] \"bool twosided\" true\n\
+             Shape \"trianglemesh\" \"point3 P\" [0 -20 0 20 -20 0 0 20 0 20 20 0] \"integer indices\" [0 1 2 2 1 3]\n"
+        ));
+        assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+        let film = render_desc(&d);
+        let row = 10 * film.width;
+        (0..film.width)
+            .filter(|&x| {
+                let v = film.pixels[(row + x) as usize].value().x;
+                v > 0.01 && v < 0.99
+            })
+            .count()
+    };
+    assert_eq!(columns_between(0.5, 3.0), 0);
+    let blurred = columns_between(3.0, 0.5);
+    assert!((4..=6).contains(&blurred), "{blurred} columns between");
+}

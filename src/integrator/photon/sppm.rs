@@ -253,7 +253,8 @@ fn camera_sample(
 ) {
     let s = &scene.settings;
     sampler.start_pixel_sample(x, y, iteration);
-    let offset = s.filter.sample(sampler.pixel_2d());
+    let filter = s.pixel_filter();
+    let offset = filter.sample(sampler.pixel_2d());
     let lens = scene.camera.draw_lens(sampler);
     let time = scene.camera.draw_time(sampler);
     let camera_ray = scene.camera.moved(
@@ -266,7 +267,7 @@ fn camera_sample(
         px.aov.add(&camera_aov(scene, &camera_ray));
     }
     let mut l = Rgb::ZERO;
-    let mut beta = Rgb::splat(s.filter.sample_weight(offset));
+    let mut beta = Rgb::splat(filter.sample_weight(offset));
     let mut ray = camera_ray;
     for depth in 1..=s.max_depth {
         let Some((hit, sp)) = camera_segment(scene, &ray, beta, depth, &mut l, rays) else {

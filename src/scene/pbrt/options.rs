@@ -412,27 +412,15 @@ impl Parser {
         };
         let x = p.float_opt("xradius")?;
         let y = p.float_opt("yradius")?;
-        let rx = x.as_ref().map_or(default, |(v, _)| *v);
-        let ry = y.as_ref().map_or(default, |(v, _)| *v);
-        if let Some((_, prm)) = x.as_ref().or(y.as_ref()) {
-            self.desc
-                .settings_locs
-                .keys
-                .push(("filter_radius".into(), prm.loc.clone()));
+        let radius = x.as_ref().map_or(default, |(v, _)| *v);
+        let y_radius = y.as_ref().map_or(default, |(v, _)| *v);
+        for (given, key) in [(&x, "filter_radius"), (&y, "filter_y_radius")] {
+            if let Some((_, prm)) = given {
+                self.desc.settings_locs.keys.push((key.into(), prm.loc.clone()));
+            }
         }
-        let radius = if rx == ry {
-            rx
-        } else {
-            self.approximated(
-                loc,
-                format!("PixelFilter \"{kind}\" with different x and y radii"),
-                format!(
-                    "trazo's filters are symmetric; the mean radius {} is used",
-                    0.5 * (rx + ry)
-                ),
-            );
-            0.5 * (rx + ry)
-        };
+        // pbrt-v4's filters have a radius per axis.
+        self.desc.settings.filter_y_radius = (y_radius != radius).then_some(y_radius);
         self.desc.settings.filter = match kind {
             "box" => Filter::Box { radius },
             "triangle" => Filter::Tent { radius },

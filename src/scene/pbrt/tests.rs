@@ -155,6 +155,26 @@ WorldBegin"#,
         .unwrap_err()
         .to_string();
     assert!(e.contains("test.pbrt:1:") && e.contains("negative lobes"), "{e}");
+    // A radius per axis, as pbrt-v4's filters have.
+    let f = parse_str("PixelFilter \"gaussian\" \"float xradius\" 1 \"float yradius\" 2.5\nWorldBegin").unwrap();
+    assert!(f.warnings.is_empty(), "{:?}", f.warnings);
+    assert_eq!(
+        f.settings.pixel_filter(),
+        crate::settings::PixelFilter {
+            x: Filter::Gaussian {
+                stddev: 0.5,
+                radius: 1.0
+            },
+            y: Filter::Gaussian {
+                stddev: 0.5,
+                radius: 2.5
+            },
+        }
+    );
+    let e = parse_str("PixelFilter \"sinc\" \"float xradius\" 2 \"float yradius\" 9\nWorldBegin")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("test.pbrt:1:38") && e.contains("negative lobes"), "{e}");
     let w = d.warnings.join("\n");
     // pbrt-v4's BDPT is trazo's, with its depth.
     assert_eq!(d.settings.integrator, IntegratorKind::Bdpt);
