@@ -483,7 +483,7 @@ fn limit_component(l: Rgb, max: f32) -> Rgb {
 
 /// Starts sample `index` of pixel `(x, y)` in `sampler` and draws the
 /// numbers of its camera ray: the film position (anywhere in the pixel
-/// when splatting, else by the filter's importance), the lens point and
+/// when splatting, else by the importance of `filter`), the lens point and
 /// the time. The render loop then makes the rays of several samples at
 /// once ([`Camera::generate_weighted_rays_into`]) and [`timed`] them.
 ///
@@ -491,6 +491,7 @@ fn limit_component(l: Rgb, max: f32) -> Rgb {
 #[inline(always)]
 fn camera_draws(
     scene: &Scene,
+    filter: &crate::settings::PixelFilter,
     splatting: bool,
     sampler: &mut Sampler,
     (x, y, index): (u32, u32, u32),
@@ -506,7 +507,6 @@ fn camera_draws(
     let (position, filter_weight) = if splatting {
         (Vec2::new(x as f32, y as f32) + u, 1.0)
     } else {
-        let filter = scene.settings.pixel_filter();
         let offset = filter.sample(u);
         (
             Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + offset,
@@ -599,7 +599,8 @@ fn render_passes<I: Integrator>(
     stats.threads = rayon::current_num_threads();
     let earlier_seconds = stats.seconds;
     let tiles = tiles(w, h, options.tile_size);
-    let splat = Splat::new(&s.pixel_filter());
+    let pixel_filter = s.pixel_filter();
+    let splat = Splat::new(&pixel_filter);
     let time_budget = options
         .time_limit
         .or_else(|| control.deadline.map(|d| d.saturating_duration_since(start)));
@@ -687,7 +688,7 @@ fn render_passes<I: Integrator>(
                             for k in 0..count {
                                 let sample = (x, y, group + k as u32);
                                 let (position, lens, time, filter_weight) =
-                                    camera_draws(scene, splat.is_some(), &mut samplers[k], sample);
+                                    camera_draws(scene, &pixel_filter, splat.is_some(), &mut samplers[k], sample);
                                 (positions[k], lenses[k], times[k]) = (position, lens, time);
                                 filter_weights[k] = filter_weight;
                             }
