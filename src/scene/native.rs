@@ -567,7 +567,17 @@ fn read_render(t: &Table, s: &mut RenderSettings) -> Result<()> {
     if let Some(f) = t.choice("filter", &Filter::NAMES)? {
         s.filter = Filter::from_name(&f).expect("checked");
     }
-    let radius = t.number("filter_radius")?;
+    // One radius, or [x, y]: one per axis, as pbrt-v4's filters have.
+    let radii = t.vec2("filter_radius")?;
+    let radius = radii.map(|r| r.x);
+    s.filter_y_radius = radii.and_then(|r| (r.y != r.x).then_some(r.y));
+    if s.filter_y_radius.is_some() {
+        // The y radius's errors point at the pair.
+        let mut locs = t.locs.borrow_mut();
+        if let Some(loc) = locs.key("filter_radius") {
+            locs.keys.push(("filter_y_radius".into(), loc));
+        }
+    }
     let stddev = t.number("filter_stddev")?;
     let (b, c, tau) = (t.number("filter_b")?, t.number("filter_c")?, t.number("filter_tau")?);
     // A parameter of another filter than the one chosen is an error.
@@ -2279,6 +2289,30 @@ material = "red"
         }
         let e = error_of(&MINIMAL.replace("spp = 4", "spp = 4\nsampler = \"pmj02bn\""));
         assert!(e.starts_with("test.toml:6:") && e.contains("sobol"), "{e}");
+    }
+
+    /// `filter_radius` is one radius or one per axis.
+    #[test]
+    fn filter_radii_per_axis() {
+        let with = |radius: &str| {
+            parse_str(&MINIMAL.replace(
+                "spp = 4",
+                &format!("spp = 4\nfilter = \"tent\"\nfilter_radius = {radius}"),
+            ))
+            .unwrap()
+            .settings
+            .pixel_filter()
+        };
+        assert_eq!(
+            with("1.5"),
+            crate::settings::PixelFilter::same(Filter::Tent { radius: 1.5 })
+        );
+        assert_eq!(with("[1.5, 1.5]"), with("1.5"));
+        let two = with("[1, 2.5]");
+        assert_eq!(
+            (two.x, two.y),
+            (Filter::Tent { radius: 1.0 }, Filter::Tent { radius: 2.5 })
+        );
     }
 
     #[test]

@@ -148,6 +148,14 @@ const CASES: &[(&str, Expect)] = &[
         Error(&["filter-wide-lanczos.toml:5:", "filter_radius", "negative lobes"]),
     ),
     (
+        "native/filter-wide-y-radius.toml",
+        Error(&[
+            "filter-wide-y-radius.toml:5:17",
+            "filter_y_radius",
+            "at most 16 pixels, got 20",
+        ]),
+    ),
+    (
         "native/absurd-sphere-mesh.toml",
         Error(&["shape[0].segments", "50 million"]),
     ),
