@@ -672,7 +672,7 @@ impl Light {
     pub fn sample_li(&self, scene: &Scene, p: Vec3, u_pick: f32, u: Vec2, incomplete: bool) -> Option<LightSample> {
         // A rectangle light, a room's usual light, is sampled in the
         // caller's code; the other kinds behind a call. (Inlining the
-        // whole match into the path loop made renders 5–8% slower.)
+        // whole match into the path loop was measured slower.)
         // `inline(always)`: with a plain `inline`, LLVM's choice flipped
         // with unrelated changes elsewhere, putting the call back.
         if let Light::Area {
