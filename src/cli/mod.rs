@@ -125,9 +125,11 @@ struct SceneArgs {
     seed: Option<u64>,
 
     /// How samples are placed: sobol (Owen-scrambled Sobol points,
-    /// stratified in every dimension of a path; the default), stratified
-    /// (jittered grid of pixel positions), independent (random) or center
-    /// (one ray through each pixel centre: aliasing).
+    /// stratified in every dimension of a path; the default), halton and
+    /// halton-owen (pbrt-v4's Halton sampler, digits permuted or
+    /// Owen-scrambled), stratified (jittered grid of pixel positions),
+    /// independent (random) or center (one ray through each pixel centre:
+    /// aliasing).
     #[arg(long, value_name = "KIND", value_parser = SamplerKind::NAMES)]
     sampler: Option<String>,
 

@@ -122,13 +122,19 @@ impl PixelFilter {
     /// 1 but for Gaussians.
     #[inline]
     pub fn sample_weight(&self, offset: Vec2) -> f32 {
-        match (self.x, self.y) {
-            (Filter::Gaussian { .. }, _) | (_, Filter::Gaussian { .. }) => {
-                let ((wx, mx), (wy, my)) = (self.x.sample_weight_1d(offset.x), self.y.sample_weight_1d(offset.y));
-                wx * wy / (mx * my)
-            }
-            _ => 1.0,
+        if matches!(self.x, Filter::Gaussian { .. }) || matches!(self.y, Filter::Gaussian { .. }) {
+            self.weight_of_gaussians(offset)
+        } else {
+            1.0
         }
+    }
+
+    /// [`PixelFilter::sample_weight`] where an axis is Gaussian, out of
+    /// line (the render loop inlines the rest).
+    #[inline(never)]
+    fn weight_of_gaussians(&self, offset: Vec2) -> f32 {
+        let ((wx, mx), (wy, my)) = (self.x.sample_weight_1d(offset.x), self.y.sample_weight_1d(offset.y));
+        wx * wy / (mx * my)
     }
 }
 

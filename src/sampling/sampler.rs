@@ -135,14 +135,38 @@ impl Sampler {
         matches!(self.kind, SamplerKind::Halton | SamplerKind::HaltonOwen)
     }
 
-    /// Dimension `dim` of the current Halton point.
-    #[inline]
+    /// Dimension `dim` of the current Halton point. The Halton paths are
+    /// kept out of line, so that the others' stay small enough to be
+    /// inlined into the render loop.
+    #[inline(never)]
     fn halton_dimension(&self, dim: u32) -> f32 {
         let scramble = match &self.permutations {
             Some(permutations) => Scramble::PermuteDigits(permutations),
             None => Scramble::Owen { seed: self.seed },
         };
         halton::scrambled_radical_inverse(dim, self.halton_index, scramble)
+    }
+
+    /// [`Sampler::start_pixel_sample`] for the Halton kinds: dimensions 0
+    /// and 1 chose the pixel; they give the position in it.
+    #[inline(never)]
+    fn start_halton_sample(&mut self, x: u32, y: u32, index: u32) {
+        self.halton_index = self.halton.index(x, y, index);
+        self.dimension = 2;
+    }
+
+    /// A pair of dimensions of the current Halton point.
+    #[inline(never)]
+    fn halton_2d(&mut self) -> Vec2 {
+        let d = self.next_halton_dimension(2);
+        Vec2::new(self.halton_dimension(d), self.halton_dimension(d + 1))
+    }
+
+    /// The position in its pixel of the current Halton point.
+    #[inline(never)]
+    fn halton_pixel_2d(&self) -> Vec2 {
+        let (x, y) = self.halton.pixel_position(self.halton_index);
+        Vec2::new(x, y)
     }
 
     /// The next Halton dimension, or pair of dimensions (`count` 2), the
@@ -165,7 +189,7 @@ impl Sampler {
 
     /// Starts sample `index` of pixel `(x, y)`: from here on the sampler
     /// returns that sample's numbers.
-    #[inline]
+    #[inline(always)]
     pub fn start_pixel_sample(&mut self, x: u32, y: u32, index: u32) {
         if self.keyed_pixel != Some((x, y)) {
             self.pixel_key = hash_u64s(&[x as u64, y as u64, self.seed]);
@@ -175,17 +199,14 @@ impl Sampler {
         self.dimension = 0;
         self.reversed_index = index.reverse_bits();
         if self.is_halton() {
-            // Dimensions 0 and 1 chose the pixel; they give the position
-            // in it.
-            self.halton_index = self.halton.index(x, y, index);
-            self.dimension = 2;
+            self.start_halton_sample(x, y, index);
         } else if self.kind != SamplerKind::Sobol {
             self.rng = Pcg32::new(hash_u64s(&[self.pixel_key, index as u64]), 0);
         }
     }
 
     /// A uniform number in [0, 1).
-    #[inline]
+    #[inline(always)]
     pub fn next_1d(&mut self) -> f32 {
         if self.kind == SamplerKind::Sobol {
             let seeds = self.next_pair_seeds();
@@ -199,7 +220,7 @@ impl Sampler {
     }
 
     /// A uniform point in [0, 1)².
-    #[inline]
+    #[inline(always)]
     pub fn next_2d(&mut self) -> Vec2 {
         if self.kind == SamplerKind::Sobol {
             let seeds = self.next_pair_seeds();
@@ -207,8 +228,7 @@ impl Sampler {
             return Vec2::new(fraction_to_f32(x), fraction_to_f32(y));
         }
         if self.is_halton() {
-            let d = self.next_halton_dimension(2);
-            return Vec2::new(self.halton_dimension(d), self.halton_dimension(d + 1));
+            return self.halton_2d();
         }
         let x = self.rng.next_f32();
         let y = self.rng.next_f32();
@@ -255,17 +275,14 @@ impl Sampler {
     }
 
     /// The sample's position inside its pixel, in [0, 1)².
-    #[inline]
+    #[inline(always)]
     pub fn pixel_2d(&mut self) -> Vec2 {
         match self.kind {
             SamplerKind::Center => Vec2::splat(0.5),
             // The first dimension pair of a sample is its pixel position
             // (pixel_2d is the first call after start_pixel_sample).
             SamplerKind::Independent | SamplerKind::Sobol => self.next_2d(),
-            SamplerKind::Halton | SamplerKind::HaltonOwen => {
-                let (x, y) = self.halton.pixel_position(self.halton_index);
-                Vec2::new(x, y)
-            }
+            SamplerKind::Halton | SamplerKind::HaltonOwen => self.halton_pixel_2d(),
             SamplerKind::Stratified => {
                 // Each pixel visits the cells in its own random order, so
                 // that the first k samples of an interrupted render are
