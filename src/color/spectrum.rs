@@ -249,6 +249,97 @@ pub fn piecewise_linear(samples: &[(f32, f32)], lambda: f64) -> f64 {
     }
 }
 
+/// A wavelength drawn for a path whose transport from then on depends on
+/// it (a dispersive glass), and the RGB weight that keeps the path's
+/// estimate unbiased in every channel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WavelengthSample {
+    /// The wavelength, in nm.
+    pub nm: f32,
+    /// The path's throughput is multiplied by this, channel by channel:
+    /// the share of the channel's response that falls at `nm` over the
+    /// density of `nm`. Its expectation is (1, 1, 1).
+    pub weight: Rgb,
+}
+
+/// Wavelength bins of 1 nm over the tables' range.
+const WAVELENGTH_BINS: usize = 470;
+
+/// The distribution [`sample_visible_wavelength`] draws from: per bin, its
+/// cumulative probability and its weight.
+struct VisibleWavelengths {
+    /// `cdf[i]`: the probability of the bins before bin i (`cdf[BINS]` = 1).
+    cdf: Vec<f32>,
+    weight: Vec<Rgb>,
+}
+
+fn visible_wavelengths() -> &'static VisibleWavelengths {
+    static TABLE: std::sync::OnceLock<VisibleWavelengths> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        // A channel's response to light of one wavelength carrying a
+        // D65-shaped spectrum: the sRGB channel of the colour-matching
+        // functions times D65. Each channel is normalised so that its
+        // bins sum to 1: light that is the same at every wavelength keeps
+        // its colour, and an RGB path's channels are read as
+        // D65-weighted spectra, as pbrt-v4's RGB illuminants are.
+        let response: Vec<[f64; 3]> = (0..WAVELENGTH_BINS)
+            .map(|i| {
+                let [x, y, z, d65] = cie_at(LAMBDA_MIN + i as f64 + 0.5);
+                xyz_to_linear_srgb([x * d65, y * d65, z * d65])
+            })
+            .collect();
+        let sums = response
+            .iter()
+            .fold([0.0f64; 3], |s, r| std::array::from_fn(|k| s[k] + r[k]));
+        let response: Vec<[f64; 3]> = response
+            .iter()
+            .map(|r| std::array::from_fn(|k| r[k] / sums[k]))
+            .collect();
+        // Bins drawn in proportion to the channels' summed magnitude, so
+        // that no weight grows far beyond the others.
+        let density: Vec<f64> = response.iter().map(|r| r.iter().map(|c| c.abs()).sum()).collect();
+        let total: f64 = density.iter().sum();
+        let mut cdf = Vec::with_capacity(WAVELENGTH_BINS + 1);
+        let mut acc = 0.0f64;
+        cdf.push(0.0f32);
+        for d in &density {
+            acc += d / total;
+            cdf.push(acc as f32);
+        }
+        cdf[WAVELENGTH_BINS] = 1.0;
+        let weight = response
+            .iter()
+            .zip(&density)
+            .map(|(r, d)| {
+                let p = d / total;
+                Rgb::new((r[0] / p) as f32, (r[1] / p) as f32, (r[2] / p) as f32)
+            })
+            .collect();
+        VisibleWavelengths { cdf, weight }
+    })
+}
+
+/// A wavelength over 360–830 nm for the uniform number `u` (the spectral
+/// sampling of a path that meets dispersion: pbrt-v4 terminates its
+/// secondary wavelengths there, trazo draws its one wavelength there),
+/// with the weight that turns the path's RGB throughput into its share
+/// at that wavelength.
+pub fn sample_visible_wavelength(u: f32) -> WavelengthSample {
+    let table = visible_wavelengths();
+    let u = u.clamp(0.0, 1.0);
+    let bin = (table.cdf.partition_point(|&c| c <= u).max(1) - 1).min(WAVELENGTH_BINS - 1);
+    let (lo, hi) = (table.cdf[bin], table.cdf[bin + 1]);
+    let within = if hi > lo {
+        ((u - lo) / (hi - lo)).clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
+    WavelengthSample {
+        nm: LAMBDA_MIN as f32 + bin as f32 + within,
+        weight: table.weight[bin],
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -276,5 +367,49 @@ mod tests {
         // Out of gamut: a narrow green line clamps its red and blue.
         let (line, clamped) = sampled_to_rgb(&[(520.0, 0.0), (525.0, 1.0), (530.0, 0.0)], SpectrumUse::Bounded);
         assert!(clamped && line.x == 0.0 && line.z == 0.0 && line.y > 0.0, "{line}");
+    }
+
+    #[test]
+    fn wavelength_weights_average_to_white() {
+        // The expectation over u of the weight is exactly (1, 1, 1): each
+        // bin's weight times its probability sums to 1 per channel.
+        let table = visible_wavelengths();
+        let mut mean = [0.0f64; 3];
+        for (i, w) in table.weight.iter().enumerate() {
+            let p = (table.cdf[i + 1] - table.cdf[i]) as f64;
+            for k in 0..3 {
+                mean[k] += p * w[k] as f64;
+            }
+        }
+        for m in mean {
+            assert!((m - 1.0).abs() < 1e-4, "{mean:?}");
+        }
+        // And so does a plain average over evenly spaced u.
+        let n = 200_000;
+        let sum = (0..n).fold(Rgb::ZERO, |s, i| {
+            s + sample_visible_wavelength((i as f32 + 0.5) / n as f32).weight
+        });
+        let avg = sum / n as f32;
+        assert!((avg - Rgb::ONE).abs().max_element() < 2e-3, "{avg}");
+    }
+
+    #[test]
+    fn sampled_wavelengths_cover_the_visible_range_in_order() {
+        let mut last = 0.0;
+        for i in 0..=1000 {
+            let s = sample_visible_wavelength(i as f32 / 1000.0);
+            assert!((360.0..=830.0).contains(&s.nm) && s.nm >= last, "{} at {i}", s.nm);
+            assert!(s.weight.is_finite());
+            last = s.nm;
+        }
+        // Red light is red: 650 nm weighs red, 450 nm blue, 530 nm green.
+        let at = |nm: f32| {
+            let t = visible_wavelengths();
+            t.weight[(nm - 360.0) as usize]
+        };
+        let (r, g, b) = (at(650.0), at(530.0), at(450.0));
+        assert!(r.x > 0.0 && r.x > 10.0 * r.y.abs() && r.x > 10.0 * r.z.abs(), "{r}");
+        assert!(g.y > g.x.abs() && g.y > g.z.abs(), "{g}");
+        assert!(b.z > b.x.abs() && b.z > b.y.abs(), "{b}");
     }
 }

@@ -143,6 +143,15 @@ impl<F: Floats> Vec3s<F> {
         self.x.max(self.y).max(self.z)
     }
 
+    /// The largest magnitude of a component: [`Vec3s::max_element`]
+    /// where no component is negative (a throughput that a wavelength's
+    /// weight made negative in a channel still counts by its size).
+    #[inline(always)]
+    pub fn max_magnitude(self) -> F {
+        let min = self.x.min(self.y).min(self.z);
+        self.max_element().max(F::splat(0.0) - min)
+    }
+
     /// Lane-wise `if mask { a } else { b }`.
     #[inline(always)]
     pub fn select(mask: F::Mask, a: Self, b: Self) -> Self {

@@ -241,6 +241,38 @@ pub(crate) fn choose_light(
     scene.light_sampler.sample(p, n, sampler.next_1d(), incomplete)
 }
 
+/// The BSDF of material `m` at a hit, for a path that carries the
+/// wavelength `wavelength` once it has met a dispersive glass (`None`
+/// before). A path meeting its first one draws its wavelength there from
+/// `sampler` (pbrt-v4 terminates the secondary wavelengths there) and its
+/// throughput is multiplied by `spectral` from this hit on; elsewhere
+/// `spectral` is left as it is. (The BSDF alone is returned: returned
+/// with the weight, it was copied, and the copy waited on its stores.)
+#[inline(always)]
+pub(crate) fn path_bsdf<'s>(
+    scene: &'s Scene,
+    m: u32,
+    tc: &crate::texture::TexCoord,
+    parts: &'s mut Option<[crate::material::Bsdf<'s>; 2]>,
+    wavelength: &mut Option<f32>,
+    sampler: &mut Sampler,
+    spectral: &mut Rgb,
+) -> crate::material::Bsdf<'s> {
+    if !scene.disperses(m) {
+        return scene.bsdf(m, tc, parts);
+    }
+    let nm = match *wavelength {
+        Some(nm) => nm,
+        None => {
+            let s = crate::color::spectrum::sample_visible_wavelength(sampler.next_1d());
+            *wavelength = Some(s.nm);
+            *spectral = s.weight;
+            s.nm
+        }
+    };
+    scene.bsdf_at_wavelength(m, tc, parts, nm)
+}
+
 /// The probability with which [`choose_light`] at (`p`, `n`) with the same
 /// `incomplete` chooses light `light`.
 #[inline]

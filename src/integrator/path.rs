@@ -28,7 +28,7 @@
 //! radiance scaling of refraction so that paths inside glass are not
 //! killed for it).
 
-use super::{Integrator, LANES, RayStats, choose_light, light_choice_pmf};
+use super::{Integrator, LANES, RayStats, choose_light, light_choice_pmf, path_bsdf};
 use crate::color::Rgb;
 use crate::geometry::simd::{Floats, Vec3s};
 use crate::geometry::{Ray, SurfaceHit};
@@ -211,6 +211,8 @@ impl PathTracer {
         });
         let mut factor = F::each(|_| Rgb::ONE);
         let mut eta2 = F::each(|_| 1.0f32);
+        // Each path's wavelength, once it has met a dispersive glass.
+        let mut wavelengths = F::each(|_| None::<f32>);
 
         while depth <= self.max_depth && live != 0 {
             // Where the rays end, and the light they find there.
@@ -242,7 +244,9 @@ impl PathTracer {
             for i in lanes(live) {
                 let Some(hit) = &hits.as_ref()[i] else { continue };
                 let ray = &mut rays.as_mut()[i];
-                let (light, scatter) = self.scatter(scene, hit, ray.dir, &mut samplers[i], stats, strategy, nee);
+                let wavelength = &mut wavelengths.as_mut()[i];
+                let (light, scatter) =
+                    self.scatter(scene, hit, ray.dir, &mut samplers[i], wavelength, stats, strategy, nee);
                 if let Some(light) = light {
                     direct.as_mut()[i] = light;
                     lit |= 1 << i;
@@ -289,7 +293,7 @@ impl PathTracer {
                         0.0
                     }
                 });
-                let q = (beta.max_element() * eta_scale).min(F::splat(0.95));
+                let q = (beta.max_magnitude() * eta_scale).min(F::splat(0.95));
                 let ended = F::mask_bits(F::gather(&u).ge(q)) & bounced;
                 live &= !ended;
                 beta = Vec3s::select(F::mask_from_bits(bounced & !ended), beta.over(q), beta);
@@ -368,6 +372,7 @@ impl PathTracer {
         hit: &SurfaceHit,
         dir: glam::Vec3,
         sampler: &mut Sampler,
+        wavelength: &mut Option<f32>,
         stats: &mut RayStats,
         strategy: DirectionSampling,
         nee: bool,
@@ -384,7 +389,8 @@ impl PathTracer {
             return (None, Scatter::Pass(hit.spawn_ray(dir)));
         }
         let mut parts = None;
-        let bsdf = scene.bsdf(hit.material, &tc, &mut parts);
+        let mut spectral = Rgb::ONE;
+        let bsdf = path_bsdf(scene, hit.material, &tc, &mut parts, wavelength, sampler, &mut spectral);
         let frame = m.shading_frame(&scene.textures, hit, wo_world);
         let wo = frame.to_local(wo_world);
         if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
@@ -426,7 +432,7 @@ impl PathTracer {
                             power_heuristic(pdf_light, bsdf.pdf(wo, wi))
                         };
                         direct = Some(Direct {
-                            f,
+                            f: f * spectral,
                             li: ls.li,
                             factor: wi.z.abs() * w / pdf_light,
                         });
@@ -459,7 +465,7 @@ impl PathTracer {
             return (direct, Scatter::End);
         }
         let scatter = Scatter::Bounce {
-            factor: bs.f * (mapped * bs.wi.z.abs() / bs.pdf),
+            factor: bs.f * spectral * (mapped * bs.wi.z.abs() / bs.pdf),
             eta2: if reflection { 1.0 } else { bs.eta * bs.eta },
             previous: Previous {
                 delta: bs.delta,

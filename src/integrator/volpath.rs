@@ -26,7 +26,7 @@
 //! bounce (Mitsuba's `volpath` does the same): `max_depth` counts the
 //! segments between scattering events, as in [`super::path`].
 
-use super::{Integrator, RayStats, choose_light, light_choice_pmf};
+use super::{Integrator, RayStats, choose_light, light_choice_pmf, path_bsdf};
 use crate::color::Rgb;
 use crate::geometry::interaction::SHADOW_EPSILON;
 use crate::geometry::{Ray, SurfaceHit};
@@ -248,6 +248,8 @@ impl Integrator for VolPathTracer {
             prev_n: Vec3::ZERO,
         };
         let mut eta_scale = 1.0f32;
+        // The path's wavelength, once it has met a dispersive glass.
+        let mut wavelength = None;
         let mut medium = scene.camera_medium;
         let mut ray = *camera_ray;
 
@@ -330,7 +332,17 @@ impl Integrator for VolPathTracer {
 
             let tc = TexCoord::at(&hit);
             let mut parts = None;
-            let bsdf = scene.bsdf(hit.material, &tc, &mut parts);
+            let mut spectral = Rgb::ONE;
+            let bsdf = path_bsdf(
+                scene,
+                hit.material,
+                &tc,
+                &mut parts,
+                &mut wavelength,
+                sampler,
+                &mut spectral,
+            );
+            s.beta *= spectral;
             let frame = m.shading_frame(&scene.textures, &hit, wo_world);
             let wo = frame.to_local(wo_world);
             if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
@@ -773,7 +785,7 @@ impl VolPathTracer {
         if s.depth < self.rr_depth {
             return true;
         }
-        let q = (s.beta * eta_scale / mean(s.r_u)).max_element().min(0.95);
+        let q = (s.beta * eta_scale / mean(s.r_u)).abs().max_element().min(0.95);
         if u >= q {
             return false;
         }

@@ -22,6 +22,7 @@ pub mod classic;
 pub mod conductor;
 pub mod dielectric;
 pub mod diffuse_transmission;
+pub mod dispersion;
 pub mod frame;
 pub mod hair;
 pub mod lambert;
@@ -93,7 +94,8 @@ pub enum MaterialKind {
     },
     /// Glass, smooth or rough.
     Dielectric {
-        /// Relative index of refraction, inside over outside.
+        /// Relative index of refraction, inside over outside (at the
+        /// sodium d line where it disperses).
         eta: f32,
         /// Microfacet roughness.
         microfacet: Microfacet,
@@ -101,6 +103,9 @@ pub enum MaterialKind {
         reflect_tint: Rgb,
         /// Transmission multiplier.
         transmit_tint: Rgb,
+        /// The index as it varies with wavelength; `None`: the same at
+        /// every wavelength.
+        dispersion: Option<Box<dispersion::Dispersion>>,
     },
     /// A diffuse base under a dielectric coat.
     Plastic {
@@ -496,6 +501,15 @@ impl Material {
         })
     }
 
+    /// How its index varies with wavelength, where it does.
+    #[inline]
+    pub fn dispersion(&self) -> Option<&dispersion::Dispersion> {
+        match &self.kind {
+            MaterialKind::Dielectric { dispersion, .. } => dispersion.as_deref(),
+            _ => None,
+        }
+    }
+
     /// Whether light passes through the surface.
     #[inline]
     pub fn is_transmissive(&self) -> bool {
@@ -856,6 +870,7 @@ impl Material {
                 microfacet,
                 reflect_tint,
                 transmit_tint,
+                ..
             } => Bsdf::Dielectric(DielectricBsdf {
                 eta: *eta,
                 microfacet: self.microfacet_at(*microfacet, textures, tc),

@@ -755,6 +755,23 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             desc.settings.integrator.name()
         ));
     }
+    if let Some(m) = desc.materials.iter().find(|m| {
+        matches!(
+            m.kind,
+            MaterialKindDesc::Dielectric {
+                dispersion: Some(_),
+                ..
+            }
+        )
+    }) && !path_tracers.contains(&desc.settings.integrator)
+    {
+        warnings.push(format!(
+            "{}material \"{}\" disperses light, which only \"path\" and \"volpath\" render; \"{}\" uses its index at 587.6 nm at every wavelength",
+            m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default(),
+            m.name,
+            desc.settings.integrator.name()
+        ));
+    }
     // Empty where nothing mixes, so that a hit looks no mix up.
     if material_mixes.iter().all(Option::is_none) {
         material_mixes.clear();
@@ -763,6 +780,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     }
     let mut scene = Scene {
         any_blend: material_mixes.iter().flatten().any(|m| m.exact),
+        any_dispersive: materials.iter().any(|m| m.dispersion().is_some()),
         material_mixes,
         media,
         material_media,
@@ -1096,11 +1114,18 @@ fn to_material(
             distribution,
             reflect_tint,
             transmit_tint,
+            dispersion,
         } => Material::plain(MaterialKind::Dielectric {
             eta: ior / ext_ior,
             microfacet: Microfacet::new(*distribution, roughness.0, roughness.1),
             reflect_tint: *reflect_tint,
             transmit_tint: *transmit_tint,
+            dispersion: dispersion.as_ref().map(|inside| {
+                Box::new(crate::material::dispersion::Dispersion {
+                    inside: inside.clone(),
+                    outside: *ext_ior,
+                })
+            }),
         }),
         MaterialKindDesc::Plastic {
             diffuse,

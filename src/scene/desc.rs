@@ -345,6 +345,10 @@ pub enum MaterialKindDesc {
         reflect_tint: Rgb,
         /// Transmission multiplier.
         transmit_tint: Rgb,
+        /// The inside's index as it varies with wavelength (`ior` is then
+        /// its value at the sodium d line); `None`: `ior` at every
+        /// wavelength.
+        dispersion: Option<crate::material::dispersion::IorSpectrum>,
     },
     /// Diffuse base under a dielectric coat.
     Plastic {
@@ -1446,10 +1450,20 @@ impl SceneDesc {
                     roughness: r,
                     reflect_tint,
                     transmit_tint,
+                    dispersion,
                     ..
                 } => {
                     ior("ior", *int)?;
                     ior("ext_ior", *ext_ior)?;
+                    if let Some(d) = dispersion {
+                        let (lo, hi) = d.visible_range();
+                        if !(lo > 0.0 && hi.is_finite()) {
+                            return Err(c.err(
+                                "ior",
+                                format!("index of refraction must be positive and finite over 360-830 nm, ranges over {lo}..{hi}"),
+                            ));
+                        }
+                    }
                     roughness("roughness", r.0)?;
                     roughness("roughness", r.1)?;
                     c.color("reflect_tint", *reflect_tint)?;

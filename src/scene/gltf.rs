@@ -1665,6 +1665,7 @@ impl<'a> Reader<'a> {
                 };
                 locs.keys.push(("transmit_tint".into(), self.loc(&base_at)));
                 MaterialKindDesc::Dielectric {
+                    dispersion: None,
                     ior,
                     ext_ior: 1.0,
                     roughness: (alpha, alpha),

@@ -2113,6 +2113,7 @@ impl Loader {
                     });
                 }
                 MaterialKindDesc::Dielectric {
+                    dispersion: None,
                     ior,
                     ext_ior,
                     roughness,

@@ -82,6 +82,8 @@ pub struct Scene {
     /// Whether any mix is blended exactly: where none is, [`Scene::bsdf`]
     /// looks no mix up.
     pub any_blend: bool,
+    /// Whether any material disperses light ([`Scene::disperses`]).
+    pub any_dispersive: bool,
 }
 
 impl Scene {
@@ -159,11 +161,60 @@ impl Scene {
         if self.any_blend {
             if let Some(mix) = self.material_mixes.get(m as usize).and_then(Option::as_ref) {
                 if mix.exact {
-                    return self.blend(mix, tc, parts);
+                    return self.blend(mix, tc, parts, None);
                 }
             }
         }
         self.materials[m as usize].bsdf(&self.textures, tc)
+    }
+
+    /// Whether the BSDF of material `m` (or of a part of its blend)
+    /// depends on wavelength: a dielectric that disperses.
+    #[inline]
+    pub fn disperses(&self, m: u32) -> bool {
+        if !self.any_dispersive {
+            return false;
+        }
+        let mix = self
+            .material_mixes
+            .get(m as usize)
+            .and_then(Option::as_ref)
+            .filter(|mix| mix.exact);
+        match mix {
+            Some(mix) => mix.materials.iter().any(|&k| self.disperses(k)),
+            None => self.materials[m as usize].dispersion().is_some(),
+        }
+    }
+
+    /// [`Scene::bsdf`] for a path of wavelength `nm`: dispersive
+    /// dielectrics take their index at it.
+    #[inline(never)]
+    pub fn bsdf_at_wavelength<'s>(
+        &'s self,
+        m: u32,
+        tc: &crate::texture::TexCoord,
+        parts: &'s mut Option<[crate::material::Bsdf<'s>; 2]>,
+        nm: f32,
+    ) -> crate::material::Bsdf<'s> {
+        if let Some(mix) = self
+            .material_mixes
+            .get(m as usize)
+            .and_then(Option::as_ref)
+            .filter(|mix| mix.exact)
+        {
+            return self.blend(mix, tc, parts, Some(nm));
+        }
+        self.material_bsdf_at(m, tc, nm)
+    }
+
+    /// Material `m`'s own BSDF at wavelength `nm`.
+    fn material_bsdf_at(&self, m: u32, tc: &crate::texture::TexCoord, nm: f32) -> crate::material::Bsdf<'_> {
+        let material = &self.materials[m as usize];
+        let mut bsdf = material.bsdf(&self.textures, tc);
+        if let (Some(d), crate::material::Bsdf::Dielectric(glass)) = (material.dispersion(), &mut bsdf) {
+            glass.eta = d.eta(nm);
+        }
+        bsdf
     }
 
     #[inline(never)]
@@ -172,12 +223,13 @@ impl Scene {
         mix: &crate::material::MaterialMix,
         tc: &crate::texture::TexCoord,
         parts: &'s mut Option<[crate::material::Bsdf<'s>; 2]>,
+        nm: Option<f32>,
     ) -> crate::material::Bsdf<'s> {
         let weight = mix.weight.eval(&self.textures, tc).x.clamp(0.0, 1.0);
-        let parts = parts.insert(
-            mix.materials
-                .map(|k| self.materials[k as usize].bsdf(&self.textures, tc)),
-        );
+        let parts = parts.insert(mix.materials.map(|k| match nm {
+            Some(nm) => self.material_bsdf_at(k, tc, nm),
+            None => self.materials[k as usize].bsdf(&self.textures, tc),
+        }));
         crate::material::Bsdf::Blend(crate::material::blend::BlendBsdf { weight, parts })
     }
 

@@ -12,6 +12,7 @@ use crate::error::{Error, Result, SourceLoc};
 use crate::files::{MAX_SCENE_BYTES, io_reason, read_limited};
 use crate::geometry::TriangleMesh;
 use crate::geometry::sdf::{self, SdfBuilder};
+use crate::material::dispersion::{D_LINE_NM, IorSpectrum};
 use crate::sampling::SamplerKind;
 use crate::settings::{Filter, IntegratorKind, PathSampling, PhotonKernel, RenderSettings, Tonemap};
 use crate::texture::{Mapping2D, NoisePattern, TextureNode};
@@ -238,6 +239,49 @@ impl<'a> Table<'a> {
 
     fn number_or(&self, key: &str, default: f32) -> Result<f32> {
         Ok(self.number(key)?.unwrap_or(default))
+    }
+
+    /// An index of refraction: a number, the name of a glass that
+    /// disperses (`"BK7"`, pbrt-v4's `"glass-BK7"` …) or `[nm, index]`
+    /// pairs; with the index at the sodium d line and how it varies.
+    fn ior_spectrum(&self, key: &str, default: f32) -> Result<(f32, Option<IorSpectrum>)> {
+        let Some(v) = self.value(key) else {
+            return Ok((default, None));
+        };
+        match v.get_ref() {
+            DeValue::String(name) => {
+                let full = if name.starts_with("glass-") {
+                    name.to_string()
+                } else {
+                    format!("glass-{name}")
+                };
+                let spectrum = IorSpectrum::named_glass(&full).ok_or_else(|| {
+                    self.err_at(
+                        key,
+                        &v.span(),
+                        format!("unknown glass \"{name}\": expected a number, [nm, index] pairs or one of BK7, BAF10, FK51A, LASF9, F5, F10, F11"),
+                    )
+                })?;
+                Ok((spectrum.at(D_LINE_NM), Some(spectrum)))
+            }
+            DeValue::Array(pairs) => {
+                let mut samples = Vec::with_capacity(pairs.len());
+                for p in pairs.iter() {
+                    let x = self.numbers_of(key, p, 2)?;
+                    if samples.last().is_some_and(|&(l, _): &(f32, f32)| x[0] <= l) {
+                        return Err(self.err_at(key, &p.span(), "wavelengths must increase"));
+                    }
+                    samples.push((x[0], x[1]));
+                }
+                if samples.len() < 2 {
+                    return Err(self.err_at(key, &v.span(), "expected at least two [nm, index] pairs"));
+                }
+                let spectrum = IorSpectrum::sampled(&samples);
+                let d = spectrum.as_ref().map_or(samples[0].1, |s| s.at(D_LINE_NM));
+                Ok((d, spectrum))
+            }
+            _ => Ok((self.number_of(key, v)?, None)),
+        }
     }
 
     fn required<T>(&self, key: &str, v: Option<T>) -> Result<T> {
@@ -998,17 +1042,21 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
                 distribution: distribution(t)?,
             }
         }
-        "dielectric" => MaterialKindDesc::Dielectric {
-            ior: t.number_or("ior", 1.5)?,
-            ext_ior: t.number_or("ext_ior", 1.0)?,
-            roughness: match t.vec2("roughness")? {
-                Some(v) => (v.x, v.y),
-                None => (0.0, 0.0),
-            },
-            distribution: distribution(t)?,
-            reflect_tint: t.color("reflect_tint")?.unwrap_or(Rgb::ONE),
-            transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
-        },
+        "dielectric" => {
+            let (ior, dispersion) = t.ior_spectrum("ior", 1.5)?;
+            MaterialKindDesc::Dielectric {
+                ior,
+                dispersion,
+                ext_ior: t.number_or("ext_ior", 1.0)?,
+                roughness: match t.vec2("roughness")? {
+                    Some(v) => (v.x, v.y),
+                    None => (0.0, 0.0),
+                },
+                distribution: distribution(t)?,
+                reflect_tint: t.color("reflect_tint")?.unwrap_or(Rgb::ONE),
+                transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
+            }
+        }
         "thin" => MaterialKindDesc::Thin {
             ior: t.number_or("ior", 1.5)?,
             ext_ior: t.number_or("ext_ior", 1.0)?,
@@ -2434,6 +2482,82 @@ material = "red"
         }
         let e = error_of(&MINIMAL.replace("width = 64", "width = 0"));
         assert!(e.starts_with("test.toml:3:9: `render.width`"), "{e}");
+    }
+
+    /// `ior` of a dielectric: a number, a glass's name or [nm, index]
+    /// pairs, the last two dispersing; and what `path` alone renders.
+    #[test]
+    fn dielectric_indices_disperse_by_name_or_samples() {
+        let glass = |ior: &str| {
+            MINIMAL.replace(
+                "name = \"red\"\ndiffuse = [0.8, 0.1, 0.1]",
+                &format!("name = \"red\"\ntype = \"dielectric\"\nior = {ior}"),
+            )
+        };
+        let kind = |ior: &str| parse_str(&glass(ior)).unwrap().materials[0].kind.clone();
+        let MaterialKindDesc::Dielectric { ior, dispersion, .. } = kind("\"BK7\"") else {
+            panic!()
+        };
+        assert!((ior - 1.5168).abs() < 1e-4 && dispersion == IorSpectrum::named_glass("glass-BK7"));
+        let MaterialKindDesc::Dielectric {
+            dispersion: by_pbrt_name,
+            ..
+        } = kind("\"glass-F11\"")
+        else {
+            panic!()
+        };
+        assert_eq!(by_pbrt_name, IorSpectrum::named_glass("glass-F11"));
+        let MaterialKindDesc::Dielectric {
+            ior,
+            dispersion: Some(s),
+            ..
+        } = kind("[[400, 1.6], [700, 1.5]]")
+        else {
+            panic!()
+        };
+        assert!((ior - s.at(D_LINE_NM)).abs() < 1e-6 && s.at(550.0) == 1.55);
+        assert!(matches!(
+            kind("1.4"),
+            MaterialKindDesc::Dielectric {
+                ior: 1.4,
+                dispersion: None,
+                ..
+            }
+        ));
+        for (bad, what) in [
+            ("\"BK8\"", "unknown glass \"BK8\""),
+            ("[[400, 1.6], [400, 1.5]]", "wavelengths must increase"),
+            ("[[400, 1.6]]", "at least two"),
+            ("[[400, 1.6, 2], [500, 1.5]]", "expected 2 numbers"),
+        ] {
+            let e = error_of(&glass(bad));
+            assert!(
+                e.starts_with("test.toml:14:") && e.contains("material[0].ior") && e.contains(what),
+                "{bad}: {e}"
+            );
+        }
+        let e = error_of(&glass("[[400, 1.6], [700, 1.5], [800, -1]]"));
+        assert!(
+            e.starts_with(
+                "test.toml:14:7: `material[0].ior`: index of refraction must be positive and finite over 360-830 nm"
+            ),
+            "{e}"
+        );
+        // Only the path tracers disperse; the others say so.
+        let mut d = parse_str(&glass("\"F5\"")).unwrap();
+        assert!(
+            !crate::scene::build(&d)
+                .unwrap()
+                .warnings
+                .join("\n")
+                .contains("disperses")
+        );
+        d.settings.integrator = IntegratorKind::Bdpt;
+        let w = crate::scene::build(&d).unwrap().warnings.join("\n");
+        assert!(
+            w.contains("test.toml:11:1: material \"red\" disperses light, which only"),
+            "{w}"
+        );
     }
 
     #[test]

@@ -396,6 +396,7 @@ fn materials_map_to_conductor_plastic_dielectric_and_diffuse() {
             distribution: MicrofacetDistribution::Ggx,
             reflect_tint: Rgb::ONE,
             transmit_tint: Rgb::new(0.9, 1.0, 0.9),
+            dispersion: None,
         }
     );
     assert!(matches!(kind("materials[4]"), MaterialKindDesc::Diffuse { .. }));

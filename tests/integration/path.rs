@@ -67,6 +67,7 @@ fn smooth_glass() -> MaterialDesc {
             distribution: MicrofacetDistribution::Ggx,
             reflect_tint: Rgb::ONE,
             transmit_tint: Rgb::ONE,
+            dispersion: None,
         },
     )
 }
@@ -206,6 +207,7 @@ fn white_furnace_rough_glass_and_mirror_conserve_energy() {
                 distribution: MicrofacetDistribution::Ggx,
                 reflect_tint: Rgb::ONE,
                 transmit_tint: Rgb::ONE,
+                dispersion: None,
             },
         );
         mean_and_error(&render_film(&furnace(m, PathSampling::Mis)))
@@ -808,4 +810,198 @@ fn glass_sphere_loses_to_the_depth_limit_what_fresnel_predicts() {
         (lost - expected).abs() < 4.0 * sigma,
         "lost {lost:.4e} of the furnace at depth {depth}, the closed form says {expected:.4e} (σ {sigma:.1e})"
     );
+}
+
+/// SF11 (pbrt-v4's `glass-F11`), a strongly dispersive glass.
+fn dispersive_glass(name: &str) -> MaterialDesc {
+    let spectrum = trazo::material::dispersion::IorSpectrum::named_glass("glass-F11").unwrap();
+    MaterialDesc::with_kind(
+        name,
+        MaterialKindDesc::Dielectric {
+            ior: spectrum.at(trazo::material::dispersion::D_LINE_NM),
+            ext_ior: 1.0,
+            roughness: (0.0, 0.0),
+            distribution: MicrofacetDistribution::Ggx,
+            reflect_tint: Rgb::ONE,
+            transmit_tint: Rgb::ONE,
+            dispersion: Some(spectrum),
+        },
+    )
+}
+
+/// Per channel, the mean over the image's pixels and its standard error
+/// from their spread. (A pixel's own variance is kept for its luminance
+/// only, and a wavelength's weights move the channels more than that.)
+fn channel_means(f: &Film) -> [(f64, f64); 3] {
+    let n = f.pixels.len() as f64;
+    std::array::from_fn(|k| {
+        let values: Vec<f64> = f.pixels.iter().map(|p| p.value()[k] as f64).collect();
+        let mean = values.iter().sum::<f64>() / n;
+        let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        (mean, (var / n).sqrt())
+    })
+}
+
+/// A dispersive glass sphere in a white furnace vanishes in every channel:
+/// each wavelength's path is lossless, and the wavelengths' weights
+/// average to white. Both path tracers draw the wavelength.
+#[test]
+fn white_furnace_dispersive_glass_renders_one_in_every_channel() {
+    for integrator in [IntegratorKind::Path, IntegratorKind::VolPath] {
+        let mut d = furnace(dispersive_glass("glass"), PathSampling::Mis);
+        d.camera.projection = ProjectionDesc::Perspective { fov: 15.0 };
+        d.settings.integrator = integrator;
+        d.settings.spp = 256;
+        let f = render_film(&d);
+        for (k, (mean, err)) in channel_means(&f).into_iter().enumerate() {
+            assert!(
+                (mean - 1.0).abs() <= 5.0 * err + 1e-4,
+                "{}: channel {k}: {mean} ± {err}",
+                integrator.name()
+            );
+        }
+        // The channels do differ pixel by pixel: the glass dispersed them.
+        let spread = f
+            .pixels
+            .iter()
+            .map(|p| (p.value().x - p.value().z).abs())
+            .fold(0.0f32, f32::max);
+        assert!(
+            spread > 0.01,
+            "{}: no pixel shows dispersion ({spread})",
+            integrator.name()
+        );
+    }
+}
+
+/// An orthographic camera looks at θ = 60° from the normal into a block of
+/// SF11 glass and sees, one refraction down, a thin emitting strip at
+/// depth D. Light of index n is refracted by φ = asin(sin θ / n), so the
+/// strip appears displaced along the film by D·(tan φ_d − tan φ(λ))·cos θ
+/// from where light of the d line shows it. Each channel's image of the
+/// strip is centred where its wavelengths' responses, times the Fresnel
+/// transmittance, put it on average: red less refracted than blue, by the
+/// amounts Snell's law and the index's Sellmeier curve predict.
+#[test]
+fn a_dispersive_interface_shifts_each_channel_as_snell_predicts() {
+    use trazo::material::dispersion::{D_LINE_NM, IorSpectrum};
+    let (theta, depth, strip): (f32, f32, f32) = (60f32.to_radians(), 4.0, 0.02);
+    let (width, height, pixel) = (160u32, 16u32, 0.0025f32);
+    let spectrum = IorSpectrum::named_glass("glass-F11").unwrap();
+    let tan_phi = |n: f32| (theta.sin() / n).asin().tan();
+    // Where the strip's centre appears on the film, against the d line's.
+    let film_offset = |n: f32| depth * (tan_phi(spectrum.at(D_LINE_NM)) - tan_phi(n)) * theta.cos();
+    // Fresnel transmittance of unpolarised light entering at θ.
+    let transmittance = |n: f32| {
+        let (ci, ct) = (theta.cos(), (theta.sin() / n).asin().cos());
+        let rs = ((ci - n * ct) / (ci + n * ct)).powi(2);
+        let rp = ((n * ci - ct) / (n * ci + ct)).powi(2);
+        1.0 - 0.5 * (rs + rp)
+    };
+    let mut predicted = [0.0f64; 3];
+    let mut norm = [0.0f64; 3];
+    let steps = 200_000;
+    for i in 0..steps {
+        let s = trazo::color::spectrum::sample_visible_wavelength((i as f32 + 0.5) / steps as f32);
+        let n = spectrum.at(s.nm);
+        for k in 0..3 {
+            let w = (s.weight[k] * transmittance(n)) as f64;
+            predicted[k] += w * film_offset(n) as f64;
+            norm[k] += w;
+        }
+    }
+    let predicted: [f64; 3] = std::array::from_fn(|k| predicted[k] / norm[k]);
+
+    let scene = |glass: MaterialDesc| {
+        let mut d = SceneDesc::default();
+        d.settings.width = width;
+        d.settings.height = height;
+        d.settings.spp = 256;
+        d.settings.max_depth = 2; // one refraction, then the strip
+        d.settings.integrator = IntegratorKind::Path;
+        d.settings.filter = trazo::settings::Filter::Box { radius: 0.5 };
+        d.background = BackgroundDesc::Constant(Rgb::ZERO);
+        let dir = Vec3::new(theta.sin(), 0.0, -theta.cos());
+        // The film's centre looks at the entry point from which light of
+        // the d line reaches the strip's centre.
+        let entry = Vec3::new(strip / 2.0 - depth * tan_phi(spectrum.at(D_LINE_NM)), 0.0, 0.0);
+        d.camera.from = entry - 5.0 * dir;
+        d.camera.to = entry;
+        d.camera.up = Vec3::Y;
+        d.camera.projection = ProjectionDesc::Orthographic {
+            size: height as f32 * pixel,
+        };
+        d.materials.push(glass);
+        let mut light = MaterialDesc::with_kind(
+            "strip",
+            MaterialKindDesc::Diffuse {
+                reflectance: ColorSource::Rgb(Rgb::ZERO),
+            },
+        );
+        light.emission = ColorSource::Rgb(Rgb::ONE);
+        d.materials.push(light);
+        d.shapes.push(ShapeDesc::new(
+            ShapeKind::Cuboid {
+                min: Vec3::new(-50.0, -50.0, -50.0),
+                max: Vec3::new(50.0, 50.0, 0.0),
+            },
+            Some("glass"),
+        ));
+        d.shapes.push(ShapeDesc::new(
+            ShapeKind::Rectangle {
+                corner: Vec3::new(0.0, -1.0, -depth),
+                edge_u: Vec3::new(strip, 0.0, 0.0),
+                edge_v: Vec3::new(0.0, 2.0, 0.0),
+            },
+            Some("strip"),
+        ));
+        render_film(&d)
+    };
+    // Per row, the centroid along the film of each channel; then their
+    // mean over the rows and its standard error.
+    let centroids = |f: &Film| -> [(f64, f64); 3] {
+        std::array::from_fn(|k| {
+            let rows: Vec<f64> = (0..height as usize)
+                .map(|y| {
+                    let (mut sum, mut moment) = (0.0f64, 0.0f64);
+                    for x in 0..width as usize {
+                        let v = f.pixels[y * width as usize + x].value()[k] as f64;
+                        let s = ((x as f64 + 0.5) - width as f64 / 2.0) * pixel as f64;
+                        sum += v;
+                        moment += v * s;
+                    }
+                    moment / sum
+                })
+                .collect();
+            let n = rows.len() as f64;
+            let mean = rows.iter().sum::<f64>() / n;
+            let var = rows.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (n - 1.0);
+            (mean, (var / n).sqrt())
+        })
+    };
+
+    // Without dispersion every channel sees the strip where the d line does.
+    let mut plain = dispersive_glass("glass");
+    if let MaterialKindDesc::Dielectric { dispersion, .. } = &mut plain.kind {
+        *dispersion = None;
+    }
+    let flat = centroids(&scene(plain));
+    for (k, (c, err)) in flat.iter().enumerate() {
+        assert!(
+            c.abs() <= 5.0 * err + 0.05 * pixel as f64,
+            "no dispersion, channel {k}: {c} ± {err}"
+        );
+    }
+    let dispersed = centroids(&scene(dispersive_glass("glass")));
+    for k in 0..3 {
+        let (c, err) = dispersed[k];
+        assert!(
+            (c - predicted[k]).abs() <= 5.0 * err + 0.05 * pixel as f64,
+            "channel {k}: centred at {c} ± {err}, Snell's law predicts {} (all: {dispersed:?} against {predicted:?})",
+            predicted[k]
+        );
+    }
+    // The channels are pixels apart: red, refracted least, is seen
+    // farthest back along the film.
+    assert!(predicted[2] - predicted[0] > 3.0 * pixel as f64, "{predicted:?}");
 }

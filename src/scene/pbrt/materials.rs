@@ -4,7 +4,7 @@
 
 use super::params::{FloatValue, Param, ParamList, SpectrumValue};
 use super::spectrum::{
-    blackbody_reflectance_rgb, blackbody_rgb, glass_ior, illuminant_rgb, metal_of, parse_spd, pbrt_only_metal_ior,
+    blackbody_reflectance_rgb, blackbody_rgb, illuminant_rgb, metal_of, parse_spd, pbrt_only_metal_ior,
     sampled_factor_rgb, sampled_rgb, spectrum_at_rgb_wavelengths,
 };
 use super::{MatDef, MatKind, Parser};
@@ -12,6 +12,7 @@ use crate::color::space::ColorSpace;
 use crate::color::{Encoding, Rgb};
 use crate::error::{Error, Result, SourceLoc};
 use crate::material::conductor::metal_ior;
+use crate::material::dispersion::{D_LINE_NM, IorSpectrum};
 use crate::scene::desc::*;
 use crate::texture::{Mapping2D, NoisePattern, TextureNode};
 use glam::{Affine3A, Mat3, Mat4, Vec2, Vec3};
@@ -346,42 +347,76 @@ impl Parser {
     }
 
     /// An index of refraction given as a float or a named or sampled
-    /// spectrum (dielectrics).
-    fn eta(&mut self, p: &ParamList, name: &str, default: f32, def: &mut MatDef) -> Result<f32> {
+    /// spectrum, where trazo renders one index at every wavelength (coats
+    /// and thin sheets): a spectrum's index at 587.6 nm, or its mean.
+    fn eta(&mut self, p: &ParamList, name: &str, default: f32, def: &mut MatDef, dir_rel: &Path) -> Result<f32> {
+        Ok(self.eta_spectrum(p, name, default, def, dir_rel, false)?.0)
+    }
+
+    /// An index of refraction given as a float or a named or sampled
+    /// spectrum: its value at 587.6 nm (or its mean) and, where
+    /// `dispersive` asks (dielectrics, which trazo disperses), how it
+    /// varies with wavelength.
+    fn eta_spectrum(
+        &mut self,
+        p: &ParamList,
+        name: &str,
+        default: f32,
+        def: &mut MatDef,
+        dir_rel: &Path,
+        dispersive: bool,
+    ) -> Result<(f32, Option<IorSpectrum>)> {
         let Some((v, prm)) = p.spectrum(name)? else {
-            return Ok(default);
+            return Ok((default, None));
+        };
+        // A name that is not a glass's: a file of samples, found as
+        // textures are.
+        let v = match v {
+            SpectrumValue::Named(n) if IorSpectrum::named_glass(&n).is_none() => {
+                SpectrumValue::Sampled(self.spectrum_file(&n, dir_rel, prm)?)
+            }
+            v => v,
         };
         def.locs.keys.push(("ior".into(), prm.loc.clone()));
         let loc = prm.loc.clone();
         let what = format!("\"{}\"", prm.written);
+        let mut spectrum = None;
         let eta = match v {
             SpectrumValue::Float(e) => e,
-            SpectrumValue::Named(n) => match glass_ior(&n) {
-                Some(e) => {
-                    self.approximated(
-                        &loc,
-                        format!("{what} \"{n}\""),
-                        format!("dispersion is ignored; the index {e} at 587.6 nm is used at every wavelength"),
-                    );
+            SpectrumValue::Named(n) => match IorSpectrum::named_glass(&n) {
+                Some(glass) => {
+                    let e = glass.at(D_LINE_NM);
+                    if dispersive {
+                        spectrum = Some(glass);
+                    } else {
+                        self.approximated(
+                            &loc,
+                            format!("{what} \"{n}\""),
+                            format!("trazo disperses light in \"dielectric\" only; the index {e} at 587.6 nm is used at every wavelength"),
+                        );
+                    }
                     e
                 }
-                None => {
-                    self.unsupported(
-                        &loc,
-                        format!("{what} \"{n}\""),
-                        format!("unknown spectrum; {default} is used"),
-                    );
-                    default
-                }
+                None => unreachable!("other names were read as files"),
             },
             SpectrumValue::Sampled(s) => {
                 let mean = s.iter().map(|x| x.1).sum::<f32>() / s.len() as f32;
-                self.approximated(
-                    &loc,
-                    format!("sampled spectrum {what}"),
-                    format!("dispersion is ignored; the mean index {mean} is used"),
-                );
-                mean
+                match IorSpectrum::sampled(&s) {
+                    Some(varying) if dispersive => {
+                        let e = varying.at(D_LINE_NM);
+                        spectrum = Some(varying);
+                        e
+                    }
+                    Some(_) => {
+                        self.approximated(
+                            &loc,
+                            format!("sampled spectrum {what}"),
+                            format!("trazo disperses light in \"dielectric\" only; the mean index {mean} is used"),
+                        );
+                        mean
+                    }
+                    None => mean,
+                }
             }
             SpectrumValue::Rgb(c) => {
                 let mean = (c.x + c.y + c.z) / 3.0;
@@ -400,7 +435,14 @@ impl Parser {
         if !(eta > 0.0 && eta.is_finite()) {
             return Err(prm.err(format!("an index of refraction must be positive, got {eta}")));
         }
-        Ok(eta)
+        if let Some((lo, hi)) = spectrum.as_ref().map(IorSpectrum::visible_range) {
+            if !(lo > 0.0 && hi.is_finite()) {
+                return Err(prm.err(format!(
+                    "an index of refraction must be positive over 360-830 nm, got {lo} to {hi}"
+                )));
+            }
+        }
+        Ok((eta, spectrum))
     }
 
     /// η or k of a conductor: RGB, a named metal spectrum such as
@@ -566,7 +608,7 @@ impl Parser {
                 };
                 // The conductor's roughness texture, apart from the coat's.
                 let roughness_map = def.roughness_map.take();
-                let coat_ior = self.eta(p, "interface.eta", 1.5, &mut def)?;
+                let coat_ior = self.eta(p, "interface.eta", 1.5, &mut def, dir_rel)?;
                 let coat_roughness = self.roughness(p, "interface.", &mut def)?;
                 self.layered(
                     p,
@@ -580,20 +622,24 @@ impl Parser {
                 )?
             }
             "thindielectric" => MaterialKindDesc::Thin {
-                ior: self.eta(p, "eta", 1.5, &mut def)?,
+                ior: self.eta(p, "eta", 1.5, &mut def, dir_rel)?,
                 ext_ior: 1.0,
                 reflect_tint: Rgb::ONE,
                 transmit_tint: Rgb::ONE,
             },
             "dielectric" => {
-                let ior = self.eta(p, "eta", 1.5, &mut def)?;
+                let (ior, dispersion) = self.eta_spectrum(p, "eta", 1.5, &mut def, dir_rel, true)?;
                 let roughness = self.roughness(p, "", &mut def)?;
-                dielectric(ior, roughness)
+                let mut d = dielectric(ior, roughness);
+                if let MaterialKindDesc::Dielectric { dispersion: slot, .. } = &mut d {
+                    *slot = dispersion;
+                }
+                d
             }
             "coateddiffuse" => {
                 let diffuse = self.albedo(p, "reflectance", 0.5, "diffuse", &mut def)?;
                 let coat_roughness = self.roughness(p, "", &mut def)?;
-                let coat_ior = self.eta(p, "eta", 1.5, &mut def)?;
+                let coat_ior = self.eta(p, "eta", 1.5, &mut def, dir_rel)?;
                 self.layered(p, LayeredBaseDesc::Diffuse(diffuse), coat_ior, coat_roughness)?
             }
             "diffusetransmission" => {
@@ -1373,5 +1419,6 @@ fn dielectric(ior: f32, roughness: (f32, f32)) -> MaterialKindDesc {
         distribution: MicrofacetDistribution::Ggx,
         reflect_tint: Rgb::ONE,
         transmit_tint: Rgb::ONE,
+        dispersion: None,
     }
 }

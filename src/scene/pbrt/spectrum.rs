@@ -96,23 +96,6 @@ pub fn sampled_rgb(samples: &[(f32, f32)]) -> Rgb {
     unit_luminance(sampled_to_rgb(samples, SpectrumUse::Emission).0).unwrap_or(Rgb::ZERO)
 }
 
-/// The index of refraction near the sodium d line (587.6 nm) of pbrt-v4's
-/// named glass spectra (Schott glasses; pbrt's F5, F10 and F11 are SF5,
-/// SF10 and SF11), read from pbrt-v4's tables; trazo uses it for every
-/// wavelength.
-pub fn glass_ior(name: &str) -> Option<f32> {
-    Some(match name {
-        "glass-BK7" => 1.5168,
-        "glass-BAF10" => 1.6700,
-        "glass-FK51A" => 1.4866,
-        "glass-LASF9" => 1.8503,
-        "glass-F5" => 1.6727,
-        "glass-F10" => 1.7283,
-        "glass-F11" => 1.7847,
-        _ => return None,
-    })
-}
-
 /// η and k at trazo's three wavelengths (650, 550 and 450 nm, see
 /// [`spectrum_at_rgb_wavelengths`]) of pbrt-v4's named spectra of brass,
 /// magnesium oxide and titanium dioxide (`metal-CuZn-eta` …), which
@@ -291,8 +274,6 @@ mod tests {
 
     #[test]
     fn named_spectra() {
-        assert_eq!(glass_ior("glass-BK7"), Some(1.5168));
-        assert_eq!(glass_ior("glass-XYZ"), None);
         assert_eq!(metal_of("metal-Au-eta"), Some(("Au", true)));
         assert_eq!(metal_of("metal-CuZn-k"), Some(("CuZn", false)));
         assert_eq!(metal_of("glass-BK7"), None);

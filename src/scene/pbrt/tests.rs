@@ -826,6 +826,12 @@ Shape "sphere"
 Material "coateddiffuse" "rgb reflectance" [0.2 0.3 0.4] "float roughness" 0
 Shape "sphere"
 Material "conductor"
+Shape "sphere"
+Material "coateddiffuse" "spectrum eta" "glass-F11"
+Shape "sphere"
+Material "dielectric" "spectrum eta" [400 1.6 700 1.5]
+Shape "sphere"
+Material "dielectric" "spectrum eta" [400 1.45 700 1.45]
 Shape "sphere""#,
     );
     let (au_eta, au_k) = crate::material::conductor::metal_ior("Au").unwrap();
@@ -851,9 +857,25 @@ Shape "sphere""#,
     assert!(
         matches!(material(&d, 2).kind, MaterialKindDesc::Dielectric { ior, roughness, .. } if ior == 1.33 && roughness == (0.0, 0.0))
     );
+    // Named glasses and varying sampled indices disperse; the index at
+    // the d line stands for them where one index is needed.
+    let bk7 = crate::material::dispersion::IorSpectrum::named_glass("glass-BK7");
     assert!(
-        matches!(material(&d, 3).kind, MaterialKindDesc::Dielectric { ior, roughness, .. } if ior == 1.5168 && roughness == (0.5, 0.5))
+        matches!(&material(&d, 3).kind, MaterialKindDesc::Dielectric { ior, roughness, dispersion, .. }
+            if (ior - 1.5168).abs() < 1e-4 && *roughness == (0.5, 0.5) && *dispersion == bk7)
     );
+    assert!(
+        matches!(&material(&d, 7).kind, MaterialKindDesc::Dielectric { ior, dispersion: Some(s), .. }
+        if (ior - s.at(587.56)).abs() < 1e-6 && s.at(400.0) == 1.6)
+    );
+    assert!(matches!(
+        &material(&d, 8).kind,
+        MaterialKindDesc::Dielectric {
+            ior: 1.45,
+            dispersion: None,
+            ..
+        }
+    ));
     assert_eq!(
         material(&d, 4).kind,
         MaterialKindDesc::Layered {
@@ -874,11 +896,12 @@ Shape "sphere""#,
         MaterialKindDesc::Conductor { fresnel: ConductorDesc::Complex { eta, k }, .. } if eta == cu_eta && k == cu_k
     ));
     let w = d.warnings.join("\n");
+    // A coat renders one index: its dispersion is left out, with a warning.
     assert!(
-        w.contains("test.pbrt:8:23: \"spectrum eta\" \"glass-BK7\" is approximated"),
+        w.contains("test.pbrt:14:26: \"spectrum eta\" \"glass-F11\" is approximated: trazo disperses light in \"dielectric\" only"),
         "{w}"
     );
-    assert!(!w.contains("coateddiffuse"), "{w}");
+    assert!(!w.contains("glass-BK7") && !w.contains("[400"), "{w}");
 }
 
 #[test]
