@@ -340,10 +340,14 @@ pub(super) fn run_merge(args: MergeArgs) -> Result<()> {
             .map(|a| Aov::from_name(a).ok_or_else(|| Error::file(&parts[0].path, format!("unknown image {a}"))))
             .collect::<Result<_>>()?,
     };
+    if let Some(w) = super::color_space_warning(color_space, &output) {
+        eprintln!("warning: {w}");
+    }
     let images = ImageOutputs {
         output: &output,
         tonemap,
         exposure,
+        color_space,
         denoiser,
         aovs: &aovs,
     };

@@ -7,7 +7,7 @@ mod job;
 
 use crate::error::{Error, Result};
 use crate::film::denoise::{DenoiserKind, denoise_film};
-use crate::film::io::{ImageFormat, read_image, write_atomic, write_image};
+use crate::film::io::{ImageFormat, read_image, write_atomic, write_image, write_image_in};
 use crate::film::{Aov, Film, plot};
 use crate::render::checkpoint::checkpoint_path;
 use crate::render::compare::{Budget, Contestant, compare, convergence_curves, side_by_side, table};
@@ -778,6 +778,9 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
+    if let Some(w) = color_space_warning(scene.settings.color_space, &output) {
+        eprintln!("warning: {w}");
+    }
     if args.scene.verbose {
         print_scene_stats(&scene, load_seconds);
     }
@@ -857,6 +860,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         output: &output,
         tonemap: s.tonemap,
         exposure: s.exposure,
+        color_space: s.color_space,
         denoiser,
         aovs: &aovs,
     };
@@ -1014,10 +1018,24 @@ fn display_frame(film: &Film, image: &crate::film::Image, exposure: f32, aovs: &
 
 /// The images a render writes from its film: the image (denoised, with
 /// the noisy one beside it, if asked) and the auxiliary images.
+/// What to tell the user whose image in `space` goes to `output`, a
+/// format that cannot record a colour space.
+pub(crate) fn color_space_warning(space: crate::color::space::ColorSpace, output: &Path) -> Option<String> {
+    (space != crate::color::space::ColorSpace::Srgb && !crate::film::io::records_color_space(output)).then(|| {
+        format!(
+            "{}: only OpenEXR images record a colour space; the image is written in sRGB, not {}",
+            output.display(),
+            space.pbrt_name()
+        )
+    })
+}
+
 struct ImageOutputs<'a> {
     output: &'a Path,
     tonemap: Tonemap,
     exposure: f32,
+    /// The colour space the film's image is in (its output transform's).
+    color_space: crate::color::space::ColorSpace,
     denoiser: Option<DenoiserKind>,
     aovs: &'a [Aov],
 }
@@ -1038,14 +1056,15 @@ impl ImageOutputs<'_> {
         let (output, tonemap, exposure) = (self.output, self.tonemap, self.exposure);
         let mut note = None;
         let mut image = film.to_image();
+        let space = self.color_space;
         match self.denoiser {
-            None => write_image(output, &image, tonemap, exposure)?,
+            None => write_image_in(output, &image, tonemap, exposure, space)?,
             Some(kind) => {
                 let noisy = sibling_path(output, "noisy");
-                write_image(&noisy, &film.to_image(), tonemap, exposure)?;
+                write_image_in(&noisy, &film.to_image(), tonemap, exposure, space)?;
                 let start = Instant::now();
                 let d = denoise_film(film, kind)?;
-                write_image(output, &d.image, tonemap, exposure)?;
+                write_image_in(output, &d.image, tonemap, exposure, space)?;
                 image = d.image;
                 note = Some(format!(
                     "denoised with {} in {:.2} s (the noisy image: {})",

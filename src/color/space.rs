@@ -71,6 +71,32 @@ impl ColorSpace {
         }
     }
 
+    /// The chromaticities of the red, green and blue primaries and the
+    /// white, as an OpenEXR file's `chromaticities` attribute holds them.
+    pub fn primaries_and_white(self) -> [(f32, f32); 4] {
+        self.chromaticities().map(|(x, y)| (x as f32, y as f32))
+    }
+
+    /// The space whose primaries and white are `c` (red, green, blue,
+    /// white), each coordinate within a relative 10⁻³ as pbrt-v4's
+    /// `RGBColorSpace::Lookup` matches them; `None` for another space.
+    pub fn from_primaries_and_white(c: [(f32, f32); 4]) -> Option<ColorSpace> {
+        let close = |a: f32, b: f64| a as f64 == b || ((a as f64 - b) / b).abs() < 1e-3;
+        [
+            ColorSpace::Aces2065_1,
+            ColorSpace::DciP3,
+            ColorSpace::Rec2020,
+            ColorSpace::Srgb,
+        ]
+        .into_iter()
+        .find(|s| {
+            s.chromaticities()
+                .iter()
+                .zip(c)
+                .all(|(&(x, y), (cx, cy))| close(cx, x) && close(cy, y))
+        })
+    }
+
     /// The XYZ of the space's white at Y = 1.
     fn white_xyz(self) -> DVec3 {
         xyz_of(self.chromaticities()[3])
@@ -131,6 +157,27 @@ mod tests {
 
     fn close(a: glam::Vec3, b: glam::Vec3, tol: f32) -> bool {
         (a - b).abs().max_element() <= tol
+    }
+
+    #[test]
+    fn spaces_are_found_by_their_chromaticities() {
+        for s in [
+            ColorSpace::Srgb,
+            ColorSpace::Rec2020,
+            ColorSpace::DciP3,
+            ColorSpace::Aces2065_1,
+        ] {
+            assert_eq!(ColorSpace::from_primaries_and_white(s.primaries_and_white()), Some(s));
+            // Within pbrt-v4's tolerance, and not beyond it.
+            let mut near = s.primaries_and_white();
+            near[0].0 *= 1.0005;
+            assert_eq!(ColorSpace::from_primaries_and_white(near), Some(s));
+            near[0].0 *= 1.002;
+            assert_eq!(ColorSpace::from_primaries_and_white(near), None);
+        }
+        // Adobe RGB (1998) is none of them.
+        let adobe = [(0.64, 0.33), (0.21, 0.71), (0.15, 0.06), (0.3127, 0.329)];
+        assert_eq!(ColorSpace::from_primaries_and_white(adobe), None);
     }
 
     /// The matrices derived from the chromaticities are the published

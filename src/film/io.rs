@@ -10,6 +10,7 @@
 //! (`kill -9`) is removed by the next write to the same file.
 
 use super::Image;
+use crate::color::space::ColorSpace;
 use crate::color::{Encoding, Rgb, linear_to_srgb};
 use crate::error::{Error, Result};
 use crate::files::{MAX_IMAGE_FILE_BYTES, read_limited};
@@ -63,12 +64,36 @@ pub fn exposure_scale(exposure: f32) -> f32 {
     2f32.powf(exposure)
 }
 
-/// Writes `image` in the format its extension names. 8-bit formats get
-/// `exposure` (stops) and `tonemap` applied, then the sRGB curve; float
-/// formats get the exposure only.
+/// Writes `image` (linear sRGB) in the format its extension names. 8-bit
+/// formats get `exposure` (stops) and `tonemap` applied, then the sRGB
+/// curve; float formats get the exposure only.
 pub fn write_image(path: &Path, image: &Image, tonemap: Tonemap, exposure: f32) -> Result<()> {
+    write_image_in(path, image, tonemap, exposure, ColorSpace::Srgb)
+}
+
+/// Whether an image written to `path` can record its colour space (only
+/// OpenEXR's `chromaticities` can): [`write_image_in`] writes the others
+/// in sRGB.
+pub fn records_color_space(path: &Path) -> bool {
+    ImageFormat::from_path(path).is_ok_and(|f| f == ImageFormat::Exr)
+}
+
+/// [`write_image`] for an image whose pixels are in `space`: OpenEXR files
+/// record it in their `chromaticities` attribute; the other formats, which
+/// cannot, get the pixels converted back to sRGB (their XYZ kept), as
+/// pbrt-v4 writes them.
+pub fn write_image_in(path: &Path, image: &Image, tonemap: Tonemap, exposure: f32, space: ColorSpace) -> Result<()> {
     let format = ImageFormat::from_path(path)?;
     let scale = exposure_scale(exposure);
+    if space != ColorSpace::Srgb && format != ImageFormat::Exr {
+        let to_srgb = space.to_srgb(true);
+        let srgb = Image {
+            width: image.width,
+            height: image.height,
+            pixels: image.pixels.iter().map(|&p| to_srgb * p).collect(),
+        };
+        return write_image_in(path, &srgb, tonemap, exposure, ColorSpace::Srgb);
+    }
     match format {
         ImageFormat::Png => {
             let bytes = encode_png(image, tonemap, scale)?;
@@ -109,10 +134,18 @@ pub fn write_image(path: &Path, image: &Image, tonemap: Tonemap, exposure: f32) 
                 line_order: LineOrder::Increasing,
                 ..Encoding::FAST_LOSSLESS
             };
-            ExrImage::from_encoded_channels((w, image.height as usize), encoding, channels)
-                .write()
-                .to_file(tmp)
-                .map_err(|e| e.to_string())
+            let mut exr = ExrImage::from_encoded_channels((w, image.height as usize), encoding, channels);
+            if space != ColorSpace::Srgb {
+                let v = |(x, y): (f32, f32)| exr::math::Vec2(x, y);
+                let [red, green, blue, white] = space.primaries_and_white().map(v);
+                exr.attributes.chromaticities = Some(exr::meta::attribute::Chromaticities {
+                    red,
+                    green,
+                    blue,
+                    white,
+                });
+            }
+            exr.write().to_file(tmp).map_err(|e| e.to_string())
         }),
     }
 }
@@ -401,6 +434,18 @@ fn decode_encoded(
         },
         alpha,
     ))
+}
+
+/// The primaries and white (red, green, blue, white) of an OpenEXR file's
+/// `chromaticities` attribute, where it has one; `None` also for bytes
+/// that are not an OpenEXR file.
+pub fn exr_chromaticities(bytes: &[u8]) -> Option<[(f32, f32); 4]> {
+    if !bytes.starts_with(&EXR_MAGIC) {
+        return None;
+    }
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false).ok()?;
+    let c = meta.headers.first()?.shared_attributes.chromaticities?;
+    Some([c.red, c.green, c.blue, c.white].map(|v| (v.0, v.1)))
 }
 
 /// Reads the first RGB(A) layer of an OpenEXR file.

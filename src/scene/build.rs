@@ -25,7 +25,7 @@ use crate::material::{
 use crate::media::{Field, Medium, MediumInterface, Phase, VoxelGrid};
 use crate::sampling::Distribution1D;
 use crate::settings::IntegratorKind;
-use crate::texture::{ImageTexture, MAX_TEXTURE_DEPTH, TexCoord, Texture, TextureStore};
+use crate::texture::{ImageColors, ImageTexture, MAX_TEXTURE_DEPTH, TexCoord, Texture, TextureStore};
 use glam::Vec3;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -110,8 +110,24 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 filter,
             } => {
                 let mut img = match source {
-                    ImageSource::File(path) => ImageTexture::load(&base_dir.join(path), *encoding)
-                        .map_err(|e| Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e)))?,
+                    ImageSource::File(path) | ImageSource::EmissionFile(path) | ImageSource::DataFile(path) => {
+                        let colors = match source {
+                            ImageSource::EmissionFile(_) => ImageColors::Emission,
+                            ImageSource::DataFile(_) => ImageColors::Data,
+                            _ => ImageColors::Reflectance,
+                        };
+                        let (img, note) =
+                            ImageTexture::load_colors(&base_dir.join(path), *encoding, colors).map_err(|e| {
+                                Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e))
+                            })?;
+                        if let Some(note) = note {
+                            warnings.push(format!(
+                                "{}{note}",
+                                t.locs.key("file").map(|l| format!("{l}: ")).unwrap_or_default()
+                            ));
+                        }
+                        img
+                    }
                     ImageSource::FloatFile(path) => ImageTexture::load_float(&base_dir.join(path), *encoding)
                         .map_err(|e| Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e)))?,
                     ImageSource::Data(data) => (**data).clone(),
@@ -849,8 +865,16 @@ fn environment(
             illuminance,
         } => {
             let full = base_dir.join(path);
-            let mut image = ImageTexture::load(&full, None)
+            let (mut image, note) = ImageTexture::load_colors(&full, None, ImageColors::Emission)
                 .map_err(|e| Error::scene(desc.world_locs.key("background"), "world.background", reason_of(e)))?;
+            if let Some(note) = note {
+                let at = desc
+                    .world_locs
+                    .key("background")
+                    .map(|l| format!("{l}: "))
+                    .unwrap_or_default();
+                warnings.push(format!("{at}{note}"));
+            }
             memory.textures += image.pixels.len() as u64 * (BYTES_PER_TEXEL + BYTES_PER_ENVIRONMENT_TEXEL);
             memory.check(limits.max_memory)?;
             let bad = image.sanitize();

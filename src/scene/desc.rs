@@ -221,6 +221,13 @@ pub enum TextureKind {
 pub enum ImageSource {
     /// A file, relative to the scene file.
     File(PathBuf),
+    /// A file of emitted light (a light's image), relative to the scene
+    /// file: its colours convert from another colour space as emitted
+    /// light does ([`crate::texture::ImageColors`]).
+    EmissionFile(PathBuf),
+    /// A file of numbers that are not colours (a normal map), relative to
+    /// the scene file: no colour space converts them.
+    DataFile(PathBuf),
     /// A file read as pbrt-v4 reads a float image texture: its alpha where
     /// it has one that is not 1 everywhere, else the mean of its colour
     /// channels, as a grey ([`crate::texture::ImageTexture::load_float`]).

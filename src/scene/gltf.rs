@@ -1487,7 +1487,10 @@ impl<'a> Reader<'a> {
         match self.image_source(root, image)? {
             ImageSource::Data(img) => Ok(img.average()),
             // glTF images are colours.
-            ImageSource::File(rel) | ImageSource::FloatFile(rel) => {
+            ImageSource::File(rel)
+            | ImageSource::FloatFile(rel)
+            | ImageSource::EmissionFile(rel)
+            | ImageSource::DataFile(rel) => {
                 let full = self.base_dir.join(rel);
                 let img = ImageTexture::load(&full, Some(Encoding::Srgb)).map_err(|e| {
                     let reason = match e {

@@ -1686,7 +1686,12 @@ impl Loader {
                 // Mitsuba looks images up with v = 0 at the top row, trazo
                 // at the bottom: flip v after Mitsuba's to_uv.
                 TextureKind::Image {
-                    source: ImageSource::File(path),
+                    // `raw` images hold numbers, which no colour space converts.
+                    source: if raw {
+                        ImageSource::DataFile(path)
+                    } else {
+                        ImageSource::File(path)
+                    },
                     scale: Vec2::new(scale.x, -scale.y),
                     offset: Vec2::new(offset.x, 1.0 - offset.y),
                     encoding: raw.then_some(Encoding::Linear),

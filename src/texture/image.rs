@@ -1,6 +1,7 @@
 //! Image textures: images decoded by `film::io` (8- and 16-bit images from
 //! sRGB, float images as linear) and their filtered lookup.
 
+use crate::color::space::ColorSpace;
 use crate::color::{Encoding, Rgb};
 use crate::error::{Error, Result};
 use glam::Vec2;
@@ -17,6 +18,18 @@ pub struct ImageTexture {
     pub pixels: Vec<Rgb>,
 }
 
+/// What an image's colours are, which decides how they convert from
+/// another colour space (see [`crate::color::space`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageColors {
+    /// Reflectances and other factors: the space's white stays white.
+    Reflectance,
+    /// Emitted light: its XYZ is kept.
+    Emission,
+    /// Not colours (a normal map's vectors): read as they are.
+    Data,
+}
+
 /// Largest texture accepted, in pixels (a 16k × 16k image).
 pub const MAX_TEXTURE_PIXELS: u64 = crate::film::io::MAX_IMAGE_PIXELS;
 
@@ -30,6 +43,49 @@ impl ImageTexture {
         let ext = path.extension().and_then(|e| e.to_str());
         let image = crate::film::io::decode_any_named(&bytes, encoding, ext).map_err(|e| Error::file(path, e))?;
         Self::from_image(image).map_err(|e| Error::file(path, e))
+    }
+
+    /// [`ImageTexture::load`] with the colours converted to linear sRGB
+    /// from the colour space an OpenEXR file's `chromaticities` name
+    /// (Rec. 2020, DCI-P3, ACES2065-1), as `colors` says the image is used
+    /// (`color::space`). Chromaticities of another space leave the colours
+    /// as they are, read as sRGB (as pbrt-v4 does): the second value then
+    /// says so, for a warning.
+    pub fn load_colors(
+        path: &Path,
+        encoding: Option<Encoding>,
+        colors: ImageColors,
+    ) -> Result<(ImageTexture, Option<String>)> {
+        let bytes = crate::files::read_limited(path, crate::files::MAX_IMAGE_FILE_BYTES)
+            .map_err(|e| Error::file(path, format!("cannot open image: {e}")))?;
+        let ext = path.extension().and_then(|e| e.to_str());
+        let image = crate::film::io::decode_any_named(&bytes, encoding, ext).map_err(|e| Error::file(path, e))?;
+        let mut texture = Self::from_image(image).map_err(|e| Error::file(path, e))?;
+        let chromaticities = crate::film::io::exr_chromaticities(&bytes).filter(|_| colors != ImageColors::Data);
+        let Some(c) = chromaticities else {
+            return Ok((texture, None));
+        };
+        match ColorSpace::from_primaries_and_white(c) {
+            Some(space) => {
+                if space != ColorSpace::Srgb {
+                    let m = space.to_srgb(colors == ImageColors::Emission);
+                    for p in &mut texture.pixels {
+                        *p = m * *p;
+                    }
+                }
+                Ok((texture, None))
+            }
+            None => {
+                let [r, g, b, w] = c;
+                Ok((
+                    texture,
+                    Some(format!(
+                        "{}: the colour space of chromaticities r {r:?} g {g:?} b {b:?} white {w:?} is unsupported: its colours are read as sRGB",
+                        path.display()
+                    )),
+                ))
+            }
+        }
     }
 
     /// Reads an image as pbrt-v4 reads a float image texture (its
@@ -229,6 +285,89 @@ pub enum ImageFilter {
 mod tests {
     use super::*;
     use crate::color::srgb_to_linear;
+
+    /// An OpenEXR image names its colour space by its chromaticities:
+    /// written in one, it is read back into linear sRGB as its use asks;
+    /// a space trazo does not know is read as sRGB, with a note; other
+    /// formats cannot name a space and are written in sRGB.
+    #[test]
+    fn exr_chromaticities_convert_images_to_srgb() {
+        use crate::film::io::{exr_chromaticities, read_image, write_image, write_image_in};
+        use crate::settings::Tonemap;
+        let dir = tempfile::tempdir().unwrap();
+        let colours = vec![Rgb::new(0.5, 0.25, 0.125), Rgb::new(0.1, 0.7, 0.2), Rgb::ONE];
+        let image = crate::film::Image {
+            width: 3,
+            height: 1,
+            pixels: colours.clone(),
+        };
+        for space in [ColorSpace::Aces2065_1, ColorSpace::Rec2020, ColorSpace::DciP3] {
+            let path = dir.path().join(format!("{}.exr", space.pbrt_name()));
+            write_image_in(&path, &image, Tonemap::Clamp, 0.0, space).unwrap();
+            let bytes = std::fs::read(&path).unwrap();
+            let c = exr_chromaticities(&bytes).unwrap();
+            assert_eq!(ColorSpace::from_primaries_and_white(c), Some(space));
+            for (colors, emitted) in [(ImageColors::Reflectance, false), (ImageColors::Emission, true)] {
+                let (t, note) = ImageTexture::load_colors(&path, None, colors).unwrap();
+                assert!(note.is_none());
+                for (got, c) in t.pixels.iter().zip(&colours) {
+                    let want = space.to_srgb(emitted) * *c;
+                    assert!(
+                        (*got - want).abs().max_element() < 1e-6,
+                        "{space:?} {colors:?}: {got} against {want}"
+                    );
+                }
+            }
+            // A reflectance of 1 stays white in every space.
+            let (t, _) = ImageTexture::load_colors(&path, None, ImageColors::Reflectance).unwrap();
+            assert!(
+                (t.pixels[2] - Rgb::ONE).abs().max_element() < 1e-4,
+                "{space:?}: {}",
+                t.pixels[2]
+            );
+            let (t, _) = ImageTexture::load_colors(&path, None, ImageColors::Data).unwrap();
+            assert_eq!(t.pixels, colours);
+            // A PNG cannot say it is in another space: its pixels are
+            // converted back to sRGB, as the same light written in sRGB.
+            let png = dir.path().join("out.png");
+            let srgb_png = dir.path().join("srgb.png");
+            write_image_in(&png, &image, Tonemap::Clamp, 0.0, space).unwrap();
+            let to_srgb = space.to_srgb(true);
+            let back = crate::film::Image {
+                width: 3,
+                height: 1,
+                pixels: colours.iter().map(|c| to_srgb * *c).collect(),
+            };
+            write_image(&srgb_png, &back, Tonemap::Clamp, 0.0).unwrap();
+            assert_eq!(read_image(&png).unwrap().pixels, read_image(&srgb_png).unwrap().pixels);
+        }
+        // sRGB files carry no attribute.
+        let path = dir.path().join("srgb.exr");
+        write_image(&path, &image, Tonemap::Clamp, 0.0).unwrap();
+        assert_eq!(exr_chromaticities(&std::fs::read(&path).unwrap()), None);
+        // Adobe RGB: unknown, read as sRGB, with a note naming the file.
+        let adobe = dir.path().join("adobe.exr");
+        {
+            use exr::prelude::{Encoding, Image as ExrImage, SpecificChannels, WritableImage};
+            let channels = SpecificChannels::rgb(|exr::math::Vec2(x, _y): exr::math::Vec2<usize>| {
+                let c = colours[x];
+                (c.x, c.y, c.z)
+            });
+            let mut exr = ExrImage::from_encoded_channels((3, 1), Encoding::FAST_LOSSLESS, channels);
+            let v = |x: f32, y: f32| exr::math::Vec2(x, y);
+            exr.attributes.chromaticities = Some(exr::meta::attribute::Chromaticities {
+                red: v(0.64, 0.33),
+                green: v(0.21, 0.71),
+                blue: v(0.15, 0.06),
+                white: v(0.3127, 0.329),
+            });
+            exr.write().to_file(&adobe).unwrap();
+        }
+        let (t, note) = ImageTexture::load_colors(&adobe, None, ImageColors::Emission).unwrap();
+        assert_eq!(t.pixels, colours);
+        let note = note.unwrap();
+        assert!(note.contains("adobe.exr") && note.contains("read as sRGB"), "{note}");
+    }
 
     #[test]
     fn float_images_are_their_alpha_or_the_mean_of_their_colours() {

@@ -14,7 +14,7 @@ pub mod image;
 pub mod noise;
 
 pub use self::graph::{MAX_TEXTURE_DEPTH, Mapping2D, NoisePattern, TextureNode};
-pub use self::image::{ImageFilter, ImageTexture, WrapMode};
+pub use self::image::{ImageColors, ImageFilter, ImageTexture, WrapMode};
 
 use crate::color::Rgb;
 use glam::{Vec2, Vec3};

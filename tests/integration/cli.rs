@@ -208,6 +208,49 @@ fn float_formats_and_verbose_statistics() {
     }
 }
 
+/// An image rendered in another colour space names it in its OpenEXR
+/// file; a PNG, which cannot, is written in sRGB, with a warning.
+#[test]
+fn output_colour_spaces_are_recorded_in_exr_files() {
+    use trazo::color::space::ColorSpace;
+    let dir = tempfile::tempdir().unwrap();
+    let text = SPHERE.replace("spp = 1", "spp = 1\ncolor_space = \"rec2020\"");
+    let scene = write_scene(dir.path(), "s.toml", &text);
+    let plain = write_scene(dir.path(), "plain.toml", SPHERE);
+    let render = |scene: &Path, out: &Path| {
+        let o = trazo().args(["render", "-o"]).arg(out).arg(scene).output().unwrap();
+        assert!(o.status.success());
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let exr = dir.path().join("x.exr");
+    let err = render(&scene, &exr);
+    assert!(!err.contains("colour space"), "{err}");
+    let c = trazo::film::io::exr_chromaticities(&fs::read(&exr).unwrap()).unwrap();
+    assert_eq!(ColorSpace::from_primaries_and_white(c), Some(ColorSpace::Rec2020));
+    let png = dir.path().join("x.png");
+    let err = render(&scene, &png);
+    assert!(
+        err.contains("x.png: only OpenEXR images record a colour space; the image is written in sRGB, not rec2020"),
+        "{err}"
+    );
+    let srgb = dir.path().join("srgb.png");
+    render(&plain, &srgb);
+    let (a, b) = (
+        trazo::film::io::read_image(&png).unwrap(),
+        trazo::film::io::read_image(&srgb).unwrap(),
+    );
+    let most = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(p, q)| (*p - *q).abs().max_element())
+        .fold(0.0, f32::max);
+    assert!(
+        most <= 1.0 / 255.0 + 1e-6,
+        "the PNG differs from the sRGB render by {most}"
+    );
+}
+
 #[test]
 fn threads_do_not_change_the_image() {
     let dir = tempfile::tempdir().unwrap();

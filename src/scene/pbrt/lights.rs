@@ -174,7 +174,7 @@ impl Parser {
             (glam::Vec2::ONE, glam::Vec2::ZERO)
         };
         let kind = TextureKind::Image {
-            source: ImageSource::File(self.resolve(dir_rel, file)),
+            source: ImageSource::EmissionFile(self.resolve(dir_rel, file)),
             scale,
             offset,
             encoding: None,
@@ -419,7 +419,7 @@ impl Parser {
                 let mut locs = Locs::at(Some(loc.clone()));
                 locs.keys.push(("file".into(), prm.loc.clone()));
                 let kind = TextureKind::Image {
-                    source: ImageSource::File(self.resolve(dir_rel, &file)),
+                    source: ImageSource::EmissionFile(self.resolve(dir_rel, &file)),
                     scale: Vec2::ONE,
                     offset: Vec2::ZERO,
                     encoding: None,

@@ -564,7 +564,7 @@ impl Parser {
             self.desc.textures.push(TextureDesc {
                 name: texture.clone(),
                 kind: TextureKind::Image {
-                    source: ImageSource::File(self.resolve(dir_rel, &file)),
+                    source: ImageSource::DataFile(self.resolve(dir_rel, &file)),
                     scale: Vec2::ONE,
                     offset: Vec2::ZERO,
                     encoding: Some(Encoding::Linear),

@@ -525,10 +525,16 @@ impl Parser {
         let TextureKind::Image { source, encoding, .. } = &mut texture.kind else {
             unreachable!("an area light's image is an image texture")
         };
-        if let ImageSource::File(path) = source {
-            let image = crate::texture::ImageTexture::load(&top_dir.join(&*path), *encoding)
-                .map_err(|e| Error::scene(file_loc, "string filename", crate::scene::build::reason_of(e)))?;
+        let mut note = None;
+        if let ImageSource::EmissionFile(path) = source {
+            let (image, unsupported) = crate::texture::ImageTexture::load_colors(
+                &top_dir.join(&*path),
+                *encoding,
+                crate::texture::ImageColors::Emission,
+            )
+            .map_err(|e| Error::scene(file_loc.clone(), "string filename", crate::scene::build::reason_of(e)))?;
             *source = ImageSource::Data(std::sync::Arc::new(image));
+            note = unsupported;
         }
         let ImageSource::Data(image) = source else {
             unreachable!("an area light's image is a file")
@@ -539,7 +545,12 @@ impl Parser {
             .filter(|c| c.is_finite())
             .map(|&c| f64::from(crate::color::luminance(c.max(Rgb::ZERO))))
             .sum();
-        Ok((sum / image.pixels.len().max(1) as f64) as f32)
+        let mean = (sum / image.pixels.len().max(1) as f64) as f32;
+        if let Some(note) = note {
+            let at = file_loc.map(|l| format!("{l}: ")).unwrap_or_default();
+            self.desc.warnings.push(format!("{at}{note}"));
+        }
+        Ok(mean)
     }
 
     /// The triangles of a gzip-compressed PLY file, decompressed through

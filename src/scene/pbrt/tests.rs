@@ -2173,7 +2173,7 @@ Shape "sphere""#,
     assert_eq!(
         t.kind,
         TextureKind::Image {
-            source: ImageSource::File(PathBuf::from("textures/bumps.png")),
+            source: ImageSource::DataFile(PathBuf::from("textures/bumps.png")),
             scale: Vec2::ONE,
             offset: Vec2::ZERO,
             encoding: Some(Encoding::Linear),
