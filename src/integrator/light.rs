@@ -36,7 +36,7 @@ use crate::geometry::Ray;
 use crate::geometry::interaction::SHADOW_EPSILON;
 use crate::integrator::aov::camera_aov;
 use crate::integrator::state::{StateReader, StateWriter};
-use crate::integrator::{Progressive, Work, adjoint_shading_factor};
+use crate::integrator::{Progressive, Work, adjoint_shading_factor, material_path_bsdf};
 use crate::material::TransportMode;
 use crate::sampling::rng::{Pcg32, hash_u64s};
 use crate::scene::Scene;
@@ -480,6 +480,8 @@ fn trace_path(
     // Segments of the path once it reaches the camera from the next
     // vertex: light → vertex → camera.
     let mut segments = 2u32;
+    // The path's wavelength, once it has met a dispersive glass.
+    let mut wavelength = None;
     while segments <= max_depth {
         *rays += 1;
         let Some(mut hit) = scene.intersect(&ray) else {
@@ -495,7 +497,16 @@ fn trace_path(
             segments += 1;
             continue;
         }
-        let bsdf = m.bsdf(&scene.textures, &tc);
+        let mut spectral = Rgb::ONE;
+        let bsdf = material_path_bsdf(
+            scene,
+            hit.material,
+            &tc,
+            &mut wavelength,
+            || rng.next_f32(),
+            &mut spectral,
+        );
+        beta *= spectral;
         let wo_world = -ray.dir.normalize();
         if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
             return; // the back of a one-sided surface absorbs

@@ -241,13 +241,30 @@ pub(crate) fn choose_light(
     scene.light_sampler.sample(p, n, sampler.next_1d(), incomplete)
 }
 
+/// The wavelength of a path that meets a dispersive glass: the one it
+/// carries (`wavelength`), or, at its first such glass, one drawn from the
+/// number `draw` gives (pbrt-v4 terminates the secondary wavelengths
+/// there), which the path keeps and whose weight goes to `spectral`: the
+/// path's throughput is multiplied by it from this vertex on.
+#[inline(never)]
+pub(crate) fn path_wavelength(wavelength: &mut Option<f32>, draw: impl FnOnce() -> f32, spectral: &mut Rgb) -> f32 {
+    match *wavelength {
+        Some(nm) => nm,
+        None => {
+            let s = crate::color::spectrum::sample_visible_wavelength(draw());
+            *wavelength = Some(s.nm);
+            *spectral = s.weight;
+            s.nm
+        }
+    }
+}
+
 /// The BSDF of material `m` at a hit, for a path that carries the
 /// wavelength `wavelength` once it has met a dispersive glass (`None`
-/// before). A path meeting its first one draws its wavelength there from
-/// `sampler` (pbrt-v4 terminates the secondary wavelengths there) and its
-/// throughput is multiplied by `spectral` from this hit on; elsewhere
-/// `spectral` is left as it is. (The BSDF alone is returned: returned
-/// with the weight, it was copied, and the copy waited on its stores.)
+/// before): see [`path_wavelength`], whose weight goes to `spectral` (left
+/// as it is where the material does not disperse). (The BSDF alone is
+/// returned: returned with the weight, it was copied, and the copy waited
+/// on its stores.)
 #[inline(always)]
 pub(crate) fn path_bsdf<'s>(
     scene: &'s Scene,
@@ -255,22 +272,34 @@ pub(crate) fn path_bsdf<'s>(
     tc: &crate::texture::TexCoord,
     parts: &'s mut Option<[crate::material::Bsdf<'s>; 2]>,
     wavelength: &mut Option<f32>,
-    sampler: &mut Sampler,
+    draw: impl FnOnce() -> f32,
     spectral: &mut Rgb,
 ) -> crate::material::Bsdf<'s> {
     if !scene.disperses(m) {
         return scene.bsdf(m, tc, parts);
     }
-    let nm = match *wavelength {
-        Some(nm) => nm,
-        None => {
-            let s = crate::color::spectrum::sample_visible_wavelength(sampler.next_1d());
-            *wavelength = Some(s.nm);
-            *spectral = s.weight;
-            s.nm
-        }
-    };
+    let nm = path_wavelength(wavelength, draw, spectral);
     scene.bsdf_at_wavelength(m, tc, parts, nm)
+}
+
+/// The BSDF of material `m` (not a blend) at a hit, for a path of
+/// `wavelength` as [`path_bsdf`] takes it: for the light paths and the
+/// photon mappers, which choose one material of a blend per point.
+#[inline]
+pub(crate) fn material_path_bsdf<'s>(
+    scene: &'s Scene,
+    m: u32,
+    tc: &crate::texture::TexCoord,
+    wavelength: &mut Option<f32>,
+    draw: impl FnOnce() -> f32,
+    spectral: &mut Rgb,
+) -> crate::material::Bsdf<'s> {
+    let material = &scene.materials[m as usize];
+    if material.dispersion().is_none() {
+        return material.bsdf(&scene.textures, tc);
+    }
+    let nm = path_wavelength(wavelength, draw, spectral);
+    scene.material_bsdf_at(m, tc, nm)
 }
 
 /// The probability with which [`choose_light`] at (`p`, `n`) with the same
@@ -336,7 +365,8 @@ pub(crate) fn scatter_light(
     }
     let correction = adjoint_shading_factor(hit.ng, wo_world, wo.z, wi_world, bs.wi.z);
     let next = beta * bs.f * (frame.factor(wo_world) * bs.wi.z.abs() * correction / bs.pdf);
-    let q = (next.max_element() / beta.max_element()).min(1.0);
+    // By magnitude: a wavelength's weight may make a channel negative.
+    let q = (next.abs().max_element() / beta.abs().max_element()).min(1.0);
     if q.is_nan() || q <= 0.0 || rng.next_f32() >= q {
         return None;
     }

@@ -390,7 +390,15 @@ impl PathTracer {
         }
         let mut parts = None;
         let mut spectral = Rgb::ONE;
-        let bsdf = path_bsdf(scene, hit.material, &tc, &mut parts, wavelength, sampler, &mut spectral);
+        let bsdf = path_bsdf(
+            scene,
+            hit.material,
+            &tc,
+            &mut parts,
+            wavelength,
+            || sampler.next_1d(),
+            &mut spectral,
+        );
         let frame = m.shading_frame(&scene.textures, hit, wo_world);
         let wo = frame.to_local(wo_world);
         if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {

@@ -339,7 +339,7 @@ impl Integrator for VolPathTracer {
                 &tc,
                 &mut parts,
                 &mut wavelength,
-                sampler,
+                || sampler.next_1d(),
                 &mut spectral,
             );
             s.beta *= spectral;

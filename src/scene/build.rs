@@ -760,6 +760,14 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             desc.settings.integrator.name()
         ));
     }
+    // Whose paths draw a wavelength at their first dispersive glass.
+    const DISPERSIVE_INTEGRATORS: [IntegratorKind; 5] = [
+        IntegratorKind::Path,
+        IntegratorKind::VolPath,
+        IntegratorKind::Light,
+        IntegratorKind::Photon,
+        IntegratorKind::Sppm,
+    ];
     let path_tracers = [IntegratorKind::Path, IntegratorKind::VolPath];
     if let Some(m) = desc.materials.iter().find(|m| m.opacity.is_some())
         && !(path_tracers.contains(&desc.settings.integrator) || desc.settings.integrator.splats_light_paths())
@@ -779,10 +787,10 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                 ..
             }
         )
-    }) && !path_tracers.contains(&desc.settings.integrator)
+    }) && !DISPERSIVE_INTEGRATORS.contains(&desc.settings.integrator)
     {
         warnings.push(format!(
-            "{}material \"{}\" disperses light, which only \"path\" and \"volpath\" render; \"{}\" uses its index at 587.6 nm at every wavelength",
+            "{}material \"{}\" disperses light, which only \"path\", \"volpath\", \"light\", \"photon\" and \"sppm\" render; \"{}\" uses its index at 587.6 nm at every wavelength",
             m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default(),
             m.name,
             desc.settings.integrator.name()

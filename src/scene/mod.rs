@@ -208,7 +208,7 @@ impl Scene {
     }
 
     /// Material `m`'s own BSDF at wavelength `nm`.
-    fn material_bsdf_at(&self, m: u32, tc: &crate::texture::TexCoord, nm: f32) -> crate::material::Bsdf<'_> {
+    pub fn material_bsdf_at(&self, m: u32, tc: &crate::texture::TexCoord, nm: f32) -> crate::material::Bsdf<'_> {
         let material = &self.materials[m as usize];
         let mut bsdf = material.bsdf(&self.textures, tc);
         if let (Some(d), crate::material::Bsdf::Dielectric(glass)) = (material.dispersion(), &mut bsdf) {

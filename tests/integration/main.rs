@@ -6,6 +6,7 @@ mod bdpt;
 mod bench_rays;
 mod cli;
 mod denoise;
+mod dispersion;
 mod display;
 mod equal_time;
 mod farm;

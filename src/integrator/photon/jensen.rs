@@ -161,10 +161,15 @@ impl PhotonMapper {
         let mut l = Rgb::ZERO;
         let mut beta = Rgb::ONE;
         let mut ray = *camera_ray;
+        let mut wavelength = None;
         for depth in 1..=self.max_depth {
-            let Some((hit, sp)) = camera_segment(scene, &ray, beta, depth, &mut l, &mut stats.rays) else {
+            let draw = || sampler.next_1d();
+            let Some((hit, sp)) =
+                camera_segment(scene, &ray, beta, depth, &mut l, &mut stats.rays, &mut wavelength, draw)
+            else {
                 break;
             };
+            beta *= sp.spectral;
             if sp.bsdf.has_smooth() {
                 let k = self.settings.gather as usize;
                 let kernel = self.settings.kernel;
@@ -173,7 +178,7 @@ impl PhotonMapper {
                 } else {
                     let direct = sp.direct_light(scene, &hit, sampler, &mut stats.rays);
                     let caustic = sp.photon_radiance(&hit, &self.caustic, k, self.max_r2, kernel, found);
-                    let indirect = self.final_gather(scene, &hit, &sp, sampler, stats, found);
+                    let indirect = self.final_gather(scene, &hit, &sp, wavelength, sampler, stats, found);
                     l += beta * (direct + caustic + indirect);
                 }
             }
@@ -192,11 +197,13 @@ impl PhotonMapper {
     /// Indirect diffuse light at `hit` by final gathering (Jensen 2001,
     /// §9.3.4): the mean over gather rays of f·cos/pdf times the global
     /// map's radiance where each ray lands.
+    #[allow(clippy::too_many_arguments)]
     fn final_gather(
         &self,
         scene: &Scene,
         hit: &SurfaceHit,
         sp: &ShadingPoint,
+        path_wavelength: Option<f32>,
         sampler: &mut Sampler,
         stats: &mut RayStats,
         found: &mut Nearest,
@@ -219,15 +226,20 @@ impl PhotonMapper {
             }
             let mut weight = bs.f * (bs.wi.z.abs() / bs.pdf);
             let mut ray = hit.spawn_ray(wi_world);
+            // Each gather ray continues the camera path on its own.
+            let mut wavelength = path_wavelength;
             for _ in 0..MAX_GATHER_SPECULAR {
                 stats.rays += 1;
                 let Some(mut h) = scene.intersect(&ray) else {
                     break;
                 };
                 scene.choose_any_material(&mut h, ray.dir);
-                let Some(sp2) = ShadingPoint::new(scene, &h, -ray.dir.normalize()) else {
+                let Some(sp2) =
+                    ShadingPoint::new(scene, &h, -ray.dir.normalize(), &mut wavelength, || sampler.next_1d())
+                else {
                     break;
                 };
+                weight *= sp2.spectral;
                 if sp2.bsdf.has_smooth() {
                     sum += weight * self.irradiance_radiance(&h, &sp2, found);
                 }

@@ -122,7 +122,10 @@ pub(crate) fn same_surface(photon_n: Vec3, n: Vec3) -> bool {
 /// environment on a miss, emission from the front of an emitter, unless
 /// the settings hide them from the camera) weighted by `beta`, and returns
 /// the surface to go on from; `None` where the path ends (a miss, the last
-/// segment, the back of a one-sided surface).
+/// segment, the back of a one-sided surface). The path carries
+/// `wavelength` past dispersive glass (drawn from `draw` at the first);
+/// the shading point's `spectral` weight then multiplies its throughput.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn camera_segment<'a>(
     scene: &'a Scene,
     ray: &Ray,
@@ -130,6 +133,8 @@ pub(crate) fn camera_segment<'a>(
     depth: u32,
     l: &mut Rgb,
     rays: &mut u64,
+    wavelength: &mut Option<f32>,
+    draw: impl FnOnce() -> f32,
 ) -> Option<(SurfaceHit, ShadingPoint<'a>)> {
     *rays += 1;
     let last = depth >= scene.settings.max_depth;
@@ -151,7 +156,7 @@ pub(crate) fn camera_segment<'a>(
     if last {
         return None;
     }
-    let sp = ShadingPoint::new(scene, &hit, wo_world)?;
+    let sp = ShadingPoint::new(scene, &hit, wo_world, wavelength, draw)?;
     Some((hit, sp))
 }
 
@@ -163,14 +168,28 @@ pub(crate) struct ShadingPoint<'a> {
     pub(crate) wo: Vec3,
     /// Whether `wo` is on the geometric front.
     pub(crate) front_o: bool,
+    /// What the path's throughput is multiplied by from here on: the
+    /// weight of the wavelength drawn here, at the path's first
+    /// dispersive glass (see [`crate::integrator::path_wavelength`]); 1
+    /// elsewhere.
+    pub(crate) spectral: Rgb,
 }
 
 impl<'a> ShadingPoint<'a> {
-    /// The shading point of `hit` seen along `-wo_world`; `None` for the
-    /// back of a one-sided opaque surface, which is black.
-    pub(crate) fn new(scene: &'a Scene, hit: &SurfaceHit, wo_world: Vec3) -> Option<ShadingPoint<'a>> {
+    /// The shading point of `hit` seen along `-wo_world` by a path of
+    /// `wavelength` (drawn from `draw` at its first dispersive glass);
+    /// `None` for the back of a one-sided opaque surface, which is black.
+    pub(crate) fn new(
+        scene: &'a Scene,
+        hit: &SurfaceHit,
+        wo_world: Vec3,
+        wavelength: &mut Option<f32>,
+        draw: impl FnOnce() -> f32,
+    ) -> Option<ShadingPoint<'a>> {
         let m = &scene.materials[hit.material as usize];
-        let bsdf = m.bsdf(&scene.textures, &crate::texture::TexCoord::at(hit));
+        let tc = crate::texture::TexCoord::at(hit);
+        let mut spectral = Rgb::ONE;
+        let bsdf = crate::integrator::material_path_bsdf(scene, hit.material, &tc, wavelength, draw, &mut spectral);
         if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
             return None;
         }
@@ -180,6 +199,7 @@ impl<'a> ShadingPoint<'a> {
             frame,
             wo: frame.to_local(wo_world),
             front_o: hit.ng.dot(wo_world) > 0.0,
+            spectral,
         })
     }
 

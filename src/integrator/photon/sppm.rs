@@ -269,10 +269,13 @@ fn camera_sample(
     let mut l = Rgb::ZERO;
     let mut beta = Rgb::splat(filter.sample_weight(offset));
     let mut ray = camera_ray;
+    let mut wavelength = None;
     for depth in 1..=s.max_depth {
-        let Some((hit, sp)) = camera_segment(scene, &ray, beta, depth, &mut l, rays) else {
+        let draw = || sampler.next_1d();
+        let Some((hit, sp)) = camera_segment(scene, &ray, beta, depth, &mut l, rays, &mut wavelength, draw) else {
             break;
         };
+        beta *= sp.spectral;
         if sp.bsdf.has_smooth() {
             let p_delta = sp.bsdf.delta_probability(sp.wo).clamp(0.0, 1.0);
             let u = if p_delta > 0.0 { sampler.next_1d() } else { 1.0 };

@@ -14,6 +14,8 @@
 //! a pass is identical for any number of threads.
 
 use super::Photon;
+use crate::color::Rgb;
+use crate::integrator::material_path_bsdf;
 use crate::sampling::rng::{Pcg32, hash_u64s};
 use crate::scene::Scene;
 use rayon::prelude::*;
@@ -143,6 +145,8 @@ fn trace_one(
     // Photons of a moving scene leave at times spread over the shutter.
     let mut ray = emitted.ray.at_time(scene.camera.time_from(|| rng.next_f32()));
     let mut only_specular = true;
+    // The photon's wavelength, once it has met a dispersive glass.
+    let mut wavelength = None;
     for depth in 0..max_depth {
         *rays += 1;
         let Some(mut hit) = scene.intersect(&ray) else {
@@ -152,7 +156,15 @@ fn trace_one(
         scene.choose_any_material(&mut hit, ray.dir);
         let m = &scene.materials[hit.material as usize];
         let tc = crate::texture::TexCoord::at(&hit);
-        let bsdf = m.bsdf(&scene.textures, &tc);
+        let mut spectral = Rgb::ONE;
+        let bsdf = material_path_bsdf(
+            scene,
+            hit.material,
+            &tc,
+            &mut wavelength,
+            || rng.next_f32(),
+            &mut spectral,
+        );
         let wo_world = -ray.dir.normalize();
         if !m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world) {
             return; // the back of a one-sided surface absorbs
@@ -177,7 +189,8 @@ fn trace_one(
         // scales the scattering by its factor toward the light (Mitsuba's
         // radiance convention, applied to the photon's own direction).
         let frame = m.shading_frame(&scene.textures, &hit, wo_world);
-        let Some((next, next_ray, delta)) = crate::integrator::scatter_light(&hit, &bsdf, &frame, wo_world, beta, rng)
+        let Some((next, next_ray, delta)) =
+            crate::integrator::scatter_light(&hit, &bsdf, &frame, wo_world, beta * spectral, rng)
         else {
             return;
         };
