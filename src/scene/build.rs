@@ -761,12 +761,17 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         ));
     }
     // Whose paths draw a wavelength at their first dispersive glass.
-    const DISPERSIVE_INTEGRATORS: [IntegratorKind; 5] = [
+    const DISPERSIVE_INTEGRATORS: [IntegratorKind; 9] = [
         IntegratorKind::Path,
         IntegratorKind::VolPath,
         IntegratorKind::Light,
         IntegratorKind::Photon,
         IntegratorKind::Sppm,
+        IntegratorKind::Bdpt,
+        IntegratorKind::Mlt,
+        IntegratorKind::Pssmlt,
+        // (No glass at all.)
+        IntegratorKind::AmbientOcclusion,
     ];
     let path_tracers = [IntegratorKind::Path, IntegratorKind::VolPath];
     if let Some(m) = desc.materials.iter().find(|m| m.opacity.is_some())
@@ -790,7 +795,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     }) && !DISPERSIVE_INTEGRATORS.contains(&desc.settings.integrator)
     {
         warnings.push(format!(
-            "{}material \"{}\" disperses light, which only \"path\", \"volpath\", \"light\", \"photon\" and \"sppm\" render; \"{}\" uses its index at 587.6 nm at every wavelength",
+            "{}material \"{}\" disperses light, which \"vcm\" and \"whitted\" do not render; \"{}\" uses its index at 587.6 nm at every wavelength",
             m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default(),
             m.name,
             desc.settings.integrator.name()

@@ -2543,21 +2543,24 @@ material = "red"
             ),
             "{e}"
         );
-        // Only the path tracers disperse; the others say so.
+        // Every integrator but VCM and Whitted's disperses; those two say
+        // they do not.
         let mut d = parse_str(&glass("\"F5\"")).unwrap();
-        assert!(
-            !crate::scene::build(&d)
-                .unwrap()
-                .warnings
-                .join("\n")
-                .contains("disperses")
-        );
-        d.settings.integrator = IntegratorKind::Bdpt;
-        let w = crate::scene::build(&d).unwrap().warnings.join("\n");
-        assert!(
-            w.contains("test.toml:11:1: material \"red\" disperses light, which only"),
-            "{w}"
-        );
+        for kind in IntegratorKind::NAMES
+            .iter()
+            .map(|n| IntegratorKind::from_name(n).unwrap())
+        {
+            d.settings.integrator = kind;
+            let w = crate::scene::build(&d).unwrap().warnings.join("\n");
+            if matches!(kind, IntegratorKind::Vcm | IntegratorKind::Whitted) {
+                assert!(
+                    w.contains("test.toml:11:1: material \"red\" disperses light, which \"vcm\" and"),
+                    "{w}"
+                );
+            } else {
+                assert!(!w.contains("disperses"), "{}: {w}", kind.name());
+            }
+        }
     }
 
     #[test]

@@ -246,6 +246,9 @@ fn camera_paths_through_a_dispersive_interface_follow_snell() {
         IntegratorKind::VolPath,
         IntegratorKind::Photon,
         IntegratorKind::Sppm,
+        IntegratorKind::Bdpt,
+        IntegratorKind::Mlt,
+        IntegratorKind::Pssmlt,
     ] {
         let found = centroids(&scene(dispersive_glass("glass"), integrator), pixel as f64);
         assert_centred(integrator.name(), found, predicted, 0.05 * pixel as f64);
@@ -346,6 +349,7 @@ material = "black"
     // samples.)
     for (integrator, spp, slack) in [
         (IntegratorKind::Light, 256, 0.05),
+        (IntegratorKind::Bdpt, 64, 0.05),
         (IntegratorKind::Sppm, 256, 0.2),
         (IntegratorKind::Photon, 16, 0.2),
     ] {

@@ -44,6 +44,7 @@ use super::state::{StateReader, StateWriter};
 use super::{Progressive, Work};
 use crate::accel::aggregate::EmitterRef;
 use crate::color::Rgb;
+use crate::color::spectrum::WavelengthSample;
 use crate::film::Film;
 use crate::geometry::interaction::SHADOW_EPSILON;
 use crate::geometry::{Ray, SurfaceHit};
@@ -122,6 +123,9 @@ struct Vertex<'s> {
     medium: Option<u32>,
     /// For medium vertices, the medium's phase function.
     phase: Option<Phase>,
+    /// Whether its BSDF depends on the sample's wavelength (a dispersive
+    /// glass): a path through it is weighted by the wavelength's weight.
+    disperses: bool,
 }
 
 impl<'s> Vertex<'s> {
@@ -150,6 +154,7 @@ impl<'s> Vertex<'s> {
             time: 0.0,
             medium: None,
             phase: None,
+            disperses: false,
         }
     }
 
@@ -267,11 +272,17 @@ fn outer_medium(scene: &Scene) -> Option<u32> {
     medium
 }
 
-/// The BSDF at a surface vertex, in its shading frame.
-fn surface_bsdf<'s>(scene: &'s Scene, hit: &SurfaceHit, wo: Vec3) -> (Bsdf<'s>, ShadingFrame) {
+/// The BSDF at a surface vertex, in its shading frame, for a sample of
+/// wavelength `nm` (drawn where the scene disperses light), and whether it
+/// depends on it.
+fn surface_bsdf<'s>(scene: &'s Scene, hit: &SurfaceHit, wo: Vec3, nm: Option<f32>) -> (Bsdf<'s>, ShadingFrame, bool) {
     let m = &scene.materials[hit.material as usize];
     let tc = TexCoord::at(hit);
-    (m.bsdf(&scene.textures, &tc), m.shading_frame(&scene.textures, hit, wo))
+    let frame = m.shading_frame(&scene.textures, hit, wo);
+    match nm.filter(|_| m.dispersion().is_some()) {
+        Some(nm) => (scene.material_bsdf_at(hit.material, &tc, nm), frame, true),
+        None => (m.bsdf(&scene.textures, &tc), frame, false),
+    }
 }
 
 /// The BSDF of surface vertex `v` from its previous vertex toward unit
@@ -615,6 +626,8 @@ impl<'s> Tracer<'s> {
         let scene = self.scene;
         let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
         let time = scene.camera.time_from(|| rng.next_f32());
+        let wavelength = self.draw_wavelength(rng);
+        let nm = wavelength.map(|w| w.nm);
         let camera_vertices = self.max_depth as usize + 1;
         work.glow.clear();
         self.camera_subpath(
@@ -626,14 +639,16 @@ impl<'s> Tracer<'s> {
             &mut work.camera,
             Some(&mut work.glow),
             rays,
+            nm,
         );
         rng.start_stream(LIGHT_STREAM);
         let light_vertices = if self.max_depth < 2 { 0 } else { self.max_depth as usize };
-        self.light_subpath(rng, time, light_vertices, &mut work.light, rays);
+        self.light_subpath(rng, time, light_vertices, &mut work.light, rays, nm);
         rng.start_stream(CONNECTION_STREAM);
         let (nc, nl) = (work.camera.len(), work.light.len());
         // Emission of media, found only by the camera's flights: weight 1.
         for &(t, l) in &work.glow {
+            let l = l * Self::spectral(wavelength, work, 0, t);
             if l.is_finite() && l != Rgb::ZERO {
                 each(0, t, None, l, l);
             }
@@ -650,6 +665,7 @@ impl<'s> Tracer<'s> {
                     continue;
                 }
                 if let Some((unweighted, w, at)) = self.connect(s, t, work, rng, rays) {
+                    let unweighted = unweighted * Self::spectral(wavelength, work, s, t);
                     let l = unweighted * w;
                     if l.is_finite() && l != Rgb::ZERO {
                         each(s, t, at, l, unweighted);
@@ -689,6 +705,8 @@ impl<'s> Tracer<'s> {
         let raster = Vec2::new(rng.next_f32() * width, rng.next_f32() * height);
         let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
         let time = scene.camera.time_from(|| rng.next_f32());
+        let wavelength = self.draw_wavelength(rng);
+        let nm = wavelength.map(|w| w.nm);
         work.glow.clear();
         self.camera_subpath(
             raster,
@@ -699,11 +717,13 @@ impl<'s> Tracer<'s> {
             &mut work.camera,
             Some(&mut work.glow),
             rays,
+            nm,
         );
         // Emission of media on the camera subpath's last segment is this
         // length's (0, t) too.
         let glow: Rgb = if s == 0 {
-            work.glow.iter().filter(|(g, _)| *g == t).map(|(_, l)| *l).sum()
+            let l: Rgb = work.glow.iter().filter(|(g, _)| *g == t).map(|(_, l)| *l).sum();
+            l * Self::spectral(wavelength, work, 0, t)
         } else {
             Rgb::ZERO
         };
@@ -712,7 +732,7 @@ impl<'s> Tracer<'s> {
             return (l.is_finite() && l != Rgb::ZERO).then_some((raster, l));
         }
         rng.start_stream(LIGHT_STREAM);
-        self.light_subpath(rng, time, if s >= 2 { s } else { 0 }, &mut work.light, rays);
+        self.light_subpath(rng, time, if s >= 2 { s } else { 0 }, &mut work.light, rays, nm);
         if s >= 2 && work.light.len() != s {
             return None;
         }
@@ -721,11 +741,38 @@ impl<'s> Tracer<'s> {
             return None;
         }
         let (l, at) = match self.connect(s, t, work, rng, rays) {
-            Some((unweighted, w, at)) => (unweighted * w + glow, at),
+            Some((unweighted, w, at)) => (unweighted * Self::spectral(wavelength, work, s, t) * w + glow, at),
             None => (glow, None),
         };
         let l = l * strategies as f32;
         (l.is_finite() && l != Rgb::ZERO).then(|| (at.unwrap_or(raster), l))
+    }
+
+    /// One wavelength for both subpaths of a sample, where the scene has a
+    /// dispersive glass (pbrt-v4 samples a spectral path's wavelengths
+    /// once for both subpaths); drawn from the camera stream. Not where
+    /// light subpaths are merged (VCM): those come from other samples,
+    /// and VCM renders glass at its index at 587.6 nm.
+    fn draw_wavelength<R: Uniforms>(&self, rng: &mut R) -> Option<WavelengthSample> {
+        (self.scene.any_dispersive && self.merge_eta == 0.0)
+            .then(|| crate::color::spectrum::sample_visible_wavelength(rng.next_f32()))
+    }
+
+    /// The weight of the sample's wavelength for the path that strategy
+    /// (s, t) makes of the first s light and t camera vertices: its
+    /// [`WavelengthSample::weight`] where one of them disperses, 1
+    /// elsewhere (such a path does not depend on the wavelength).
+    fn spectral(wavelength: Option<WavelengthSample>, work: &Subpaths, s: usize, t: usize) -> Rgb {
+        let Some(w) = wavelength else {
+            return Rgb::ONE;
+        };
+        let light = &work.light[..s.min(work.light.len())];
+        let camera = &work.camera[..t.min(work.camera.len())];
+        if light.iter().chain(camera).any(|v| v.disperses) {
+            w.weight
+        } else {
+            Rgb::ONE
+        }
     }
 
     /// The camera subpath through raster position `raster`, traced at `time`.
@@ -740,6 +787,7 @@ impl<'s> Tracer<'s> {
         path: &mut Vec<Vertex<'s>>,
         glow: Option<&mut Vec<(usize, Rgb)>>,
         rays: &mut u64,
+        nm: Option<f32>,
     ) {
         path.clear();
         let camera = &self.scene.camera;
@@ -762,12 +810,14 @@ impl<'s> Tracer<'s> {
             path,
             glow,
             rays,
+            nm,
         );
     }
 
     /// The light subpath of up to `max_vertices` vertices: a light chosen
     /// by power, a point and direction on it ([`Light::sample_le`]), then
     /// the walk, traced at `time`.
+    #[allow(clippy::too_many_arguments)]
     fn light_subpath<R: Uniforms>(
         &self,
         rng: &mut R,
@@ -775,6 +825,7 @@ impl<'s> Tracer<'s> {
         max_vertices: usize,
         path: &mut Vec<Vertex<'s>>,
         rays: &mut u64,
+        nm: Option<f32>,
     ) {
         path.clear();
         let scene = self.scene;
@@ -835,6 +886,7 @@ impl<'s> Tracer<'s> {
             path,
             None,
             rays,
+            nm,
         );
         // The first surface of a path from infinity was found by a point
         // on the disk the light shines from.
@@ -1189,6 +1241,7 @@ impl<'s> Tracer<'s> {
         path: &mut Vec<Vertex<'s>>,
         mut glow: Option<&mut Vec<(usize, Rgb)>>,
         rays: &mut u64,
+        nm: Option<f32>,
     ) {
         let scene = self.scene;
         let mut crossings = 0;
@@ -1275,7 +1328,7 @@ impl<'s> Tracer<'s> {
             }
             let wo_world = -ray.dir.normalize();
             let ng_wo = hit.ng.dot(wo_world);
-            let (bsdf, frame) = surface_bsdf(scene, &hit, wo_world);
+            let (bsdf, frame, disperses) = surface_bsdf(scene, &hit, wo_world, nm);
             if ng_wo == 0.0 || (!m.two_sided && !bsdf.transmits() && !hit.is_front(wo_world)) {
                 return; // the back of a one-sided surface is black
             }
@@ -1298,6 +1351,7 @@ impl<'s> Tracer<'s> {
                 mode,
                 medium,
                 phase: None,
+                disperses,
             };
             v.pdf_fwd = self.convert(pdf_dir, &path[prev], &v);
             path.push(v);
@@ -1630,7 +1684,7 @@ mod tests {
         for _ in 0..trials {
             let raster = Vec2::new(rng.next_f32() * w, rng.next_f32() * h);
             let lens = Vec2::new(rng.next_f32(), rng.next_f32());
-            tracer.camera_subpath(raster, lens, 0.0, 9, &mut rng, &mut path, None, &mut rays);
+            tracer.camera_subpath(raster, lens, 0.0, 9, &mut rng, &mut path, None, &mut rays, None);
             for t in 3..=path.len() {
                 let Some(light_end) = tracer.as_light(&path[t - 1]) else {
                     continue;

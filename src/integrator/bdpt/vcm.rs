@@ -369,7 +369,7 @@ fn light_vertices_of(tracer: &Tracer, scene: &Scene, iteration: u32) -> Vec<Ligh
             for i in c * chunk..((c + 1) * chunk).min(paths) {
                 let mut rng = light_generator(s.seed, iteration, i);
                 let time = tracer.scene.camera.time_from(|| rng.next_f32());
-                tracer.light_subpath(&mut rng, time, vertices, &mut path, &mut rays);
+                tracer.light_subpath(&mut rng, time, vertices, &mut path, &mut rays, None);
                 tracer.light_vertices(&path, &mut out);
             }
             out
