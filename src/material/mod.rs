@@ -145,6 +145,9 @@ pub enum MaterialKind {
         max_depth: u32,
         /// Walks per evaluation.
         samples: u32,
+        /// The coat's index as it varies with wavelength; `None`: the
+        /// same at every wavelength.
+        coat_dispersion: Option<Box<dispersion::Dispersion>>,
     },
     /// Disney's principled BSDF, as Mitsuba 3's `principled`.
     Principled {
@@ -172,6 +175,9 @@ pub enum MaterialKind {
         reflect_tint: Rgb,
         /// Transmission multiplier.
         transmit_tint: Rgb,
+        /// The sheet's index as it varies with wavelength; `None`: the
+        /// same at every wavelength.
+        dispersion: Option<Box<dispersion::Dispersion>>,
     },
 }
 
@@ -505,7 +511,10 @@ impl Material {
     #[inline]
     pub fn dispersion(&self) -> Option<&dispersion::Dispersion> {
         match &self.kind {
-            MaterialKind::Dielectric { dispersion, .. } => dispersion.as_deref(),
+            MaterialKind::Dielectric { dispersion, .. } | MaterialKind::Thin { dispersion, .. } => {
+                dispersion.as_deref()
+            }
+            MaterialKind::Layered { coat_dispersion, .. } => coat_dispersion.as_deref(),
             _ => None,
         }
     }
@@ -793,6 +802,7 @@ impl Material {
                 eta,
                 reflect_tint,
                 transmit_tint,
+                ..
             } => {
                 // Reflection and transmission at normal incidence; the
                 // sheet does not bend rays (index 1).
@@ -905,6 +915,7 @@ impl Material {
                 phase,
                 max_depth,
                 samples,
+                ..
             } => Bsdf::Layered(LayeredBsdf {
                 coat: DielectricBsdf {
                     eta: *coat_eta,
@@ -943,6 +954,7 @@ impl Material {
                 eta,
                 reflect_tint,
                 transmit_tint,
+                ..
             } => Bsdf::Thin(ThinBsdf {
                 eta: *eta,
                 reflect_tint: *reflect_tint,

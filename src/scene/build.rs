@@ -1189,6 +1189,7 @@ fn to_material(
             g,
             max_depth,
             samples,
+            coat_dispersion,
         } => Material::plain(MaterialKind::Layered {
             base: match base {
                 LayeredBaseDesc::Diffuse(r) => LayerBaseKind::Diffuse(color(r)),
@@ -1235,16 +1236,29 @@ fn to_material(
             phase: Phase::henyey_greenstein(*g),
             max_depth: *max_depth,
             samples: *samples,
+            coat_dispersion: coat_dispersion.as_ref().map(|inside| {
+                Box::new(crate::material::dispersion::Dispersion {
+                    inside: inside.clone(),
+                    outside: 1.0,
+                })
+            }),
         }),
         MaterialKindDesc::Thin {
             ior,
             ext_ior,
             reflect_tint,
             transmit_tint,
+            dispersion,
         } => Material::plain(MaterialKind::Thin {
             eta: ior / ext_ior,
             reflect_tint: *reflect_tint,
             transmit_tint: *transmit_tint,
+            dispersion: dispersion.as_ref().map(|inside| {
+                Box::new(crate::material::dispersion::Dispersion {
+                    inside: inside.clone(),
+                    outside: *ext_ior,
+                })
+            }),
         }),
         MaterialKindDesc::Hair(h) => Material::plain(MaterialKind::Hair(*h)),
         MaterialKindDesc::Measured { file } => Material::plain(MaterialKind::Measured {

@@ -394,6 +394,10 @@ pub enum MaterialKindDesc {
         max_depth: u32,
         /// Walks per evaluation.
         samples: u32,
+        /// The coat's index as it varies with wavelength (`coat_ior` is
+        /// then its value at the sodium d line); `None`: the same at every
+        /// wavelength.
+        coat_dispersion: Option<crate::material::dispersion::IorSpectrum>,
     },
     /// Hair fibres (pbrt-v4's `hair`; Chiang et al. 2016), for curves.
     Hair(crate::material::hair::HairParams),
@@ -414,6 +418,10 @@ pub enum MaterialKindDesc {
         reflect_tint: Rgb,
         /// Transmission multiplier.
         transmit_tint: Rgb,
+        /// The sheet's index as it varies with wavelength (`ior` is then
+        /// its value at the sodium d line); `None`: the same at every
+        /// wavelength.
+        dispersion: Option<crate::material::dispersion::IorSpectrum>,
     },
     /// One of two materials at each point, the second with the weight's
     /// first channel as its probability: on average (1 − w)·f₀ + w·f₁
@@ -449,6 +457,7 @@ impl MaterialKindDesc {
         ext_ior: 1.0,
         reflect_tint: Rgb::ONE,
         transmit_tint: Rgb::ONE,
+        dispersion: None,
     };
 }
 
@@ -1379,6 +1388,19 @@ impl SceneDesc {
                 }
                 Ok(())
             };
+            // An index that varies must stay physical over the visible range.
+            let dispersion_range = |key: &str, d: Option<&crate::material::dispersion::IorSpectrum>| -> Result<()> {
+                let Some((lo, hi)) = d.map(|d| d.visible_range()) else {
+                    return Ok(());
+                };
+                if lo > 0.0 && hi.is_finite() {
+                    return Ok(());
+                }
+                Err(c.err(
+                    key,
+                    format!("index of refraction must be positive and finite over 360-830 nm, ranges over {lo}..{hi}"),
+                ))
+            };
             let roughness = |key: &str, v: f32| -> Result<()> {
                 c.non_negative(key, v)?;
                 if v > 1.0 {
@@ -1462,15 +1484,7 @@ impl SceneDesc {
                 } => {
                     ior("ior", *int)?;
                     ior("ext_ior", *ext_ior)?;
-                    if let Some(d) = dispersion {
-                        let (lo, hi) = d.visible_range();
-                        if !(lo > 0.0 && hi.is_finite()) {
-                            return Err(c.err(
-                                "ior",
-                                format!("index of refraction must be positive and finite over 360-830 nm, ranges over {lo}..{hi}"),
-                            ));
-                        }
-                    }
+                    dispersion_range("ior", dispersion.as_ref())?;
                     roughness("roughness", r.0)?;
                     roughness("roughness", r.1)?;
                     c.color("reflect_tint", *reflect_tint)?;
@@ -1502,7 +1516,9 @@ impl SceneDesc {
                     g,
                     max_depth,
                     samples,
+                    coat_dispersion,
                 } => {
+                    dispersion_range("coat_ior", coat_dispersion.as_ref())?;
                     match base {
                         LayeredBaseDesc::Diffuse(r) => texture("reflectance", r)?,
                         LayeredBaseDesc::Conductor {
@@ -1555,9 +1571,11 @@ impl SceneDesc {
                     ext_ior,
                     reflect_tint,
                     transmit_tint,
+                    dispersion,
                 } => {
                     ior("ior", *int)?;
                     ior("ext_ior", *ext_ior)?;
+                    dispersion_range("ior", dispersion.as_ref())?;
                     c.color("reflect_tint", *reflect_tint)?;
                     c.color("transmit_tint", *transmit_tint)?;
                 }

@@ -2111,6 +2111,7 @@ impl Loader {
                             ext_ior,
                             reflect_tint,
                             transmit_tint,
+                            dispersion: None,
                         },
                         two_sided: true,
                         material: None,

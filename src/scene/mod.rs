@@ -209,10 +209,28 @@ impl Scene {
 
     /// Material `m`'s own BSDF at wavelength `nm`.
     pub fn material_bsdf_at(&self, m: u32, tc: &crate::texture::TexCoord, nm: f32) -> crate::material::Bsdf<'_> {
+        use crate::material::Bsdf;
         let material = &self.materials[m as usize];
         let mut bsdf = material.bsdf(&self.textures, tc);
-        if let (Some(d), crate::material::Bsdf::Dielectric(glass)) = (material.dispersion(), &mut bsdf) {
-            glass.eta = d.eta(nm);
+        let Some(d) = material.dispersion() else {
+            return bsdf;
+        };
+        let eta = d.eta(nm);
+        match &mut bsdf {
+            Bsdf::Dielectric(glass) => glass.eta = eta,
+            Bsdf::Thin(sheet) => sheet.eta = eta,
+            Bsdf::Layered(layers) => {
+                // A conductor base's indices are relative to the coat's.
+                if let crate::material::layered::LayerBase::Conductor(base) = &mut layers.base {
+                    if let crate::material::conductor::ConductorFresnel::Complex { eta: n, k } = &mut base.fresnel {
+                        let ratio = layers.coat.eta / eta;
+                        *n *= ratio;
+                        *k *= ratio;
+                    }
+                }
+                layers.coat.eta = eta;
+            }
+            _ => {}
         }
         bsdf
     }

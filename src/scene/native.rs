@@ -1057,12 +1057,16 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
                 transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
             }
         }
-        "thin" => MaterialKindDesc::Thin {
-            ior: t.number_or("ior", 1.5)?,
-            ext_ior: t.number_or("ext_ior", 1.0)?,
-            reflect_tint: t.color("reflect_tint")?.unwrap_or(Rgb::ONE),
-            transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
-        },
+        "thin" => {
+            let (ior, dispersion) = t.ior_spectrum("ior", 1.5)?;
+            MaterialKindDesc::Thin {
+                ior,
+                ext_ior: t.number_or("ext_ior", 1.0)?,
+                reflect_tint: t.color("reflect_tint")?.unwrap_or(Rgb::ONE),
+                transmit_tint: t.color("transmit_tint")?.unwrap_or(Rgb::ONE),
+                dispersion,
+            }
+        }
         "null" => MaterialKindDesc::NULL,
         "hair" => {
             let beta_n = t.number_or("beta_n", 0.3)?;

@@ -347,16 +347,9 @@ impl Parser {
     }
 
     /// An index of refraction given as a float or a named or sampled
-    /// spectrum, where trazo renders one index at every wavelength (coats
-    /// and thin sheets): a spectrum's index at 587.6 nm, or its mean.
-    fn eta(&mut self, p: &ParamList, name: &str, default: f32, def: &mut MatDef, dir_rel: &Path) -> Result<f32> {
-        Ok(self.eta_spectrum(p, name, default, def, dir_rel, false)?.0)
-    }
-
-    /// An index of refraction given as a float or a named or sampled
-    /// spectrum: its value at 587.6 nm (or its mean) and, where
-    /// `dispersive` asks (dielectrics, which trazo disperses), how it
-    /// varies with wavelength.
+    /// spectrum (glasses, thin sheets, coats): its value at 587.6 nm (for
+    /// an RGB value, the mean) and how it varies with wavelength, where it
+    /// does.
     fn eta_spectrum(
         &mut self,
         p: &ParamList,
@@ -364,7 +357,6 @@ impl Parser {
         default: f32,
         def: &mut MatDef,
         dir_rel: &Path,
-        dispersive: bool,
     ) -> Result<(f32, Option<IorSpectrum>)> {
         let Some((v, prm)) = p.spectrum(name)? else {
             return Ok((default, None));
@@ -383,41 +375,21 @@ impl Parser {
         let mut spectrum = None;
         let eta = match v {
             SpectrumValue::Float(e) => e,
-            SpectrumValue::Named(n) => match IorSpectrum::named_glass(&n) {
-                Some(glass) => {
-                    let e = glass.at(D_LINE_NM);
-                    if dispersive {
-                        spectrum = Some(glass);
-                    } else {
-                        self.approximated(
-                            &loc,
-                            format!("{what} \"{n}\""),
-                            format!("trazo disperses light in \"dielectric\" only; the index {e} at 587.6 nm is used at every wavelength"),
-                        );
-                    }
+            SpectrumValue::Named(n) => {
+                let glass = IorSpectrum::named_glass(&n).expect("other names were read as files");
+                let e = glass.at(D_LINE_NM);
+                spectrum = Some(glass);
+                e
+            }
+            SpectrumValue::Sampled(s) => match IorSpectrum::sampled(&s) {
+                Some(varying) => {
+                    let e = varying.at(D_LINE_NM);
+                    spectrum = Some(varying);
                     e
                 }
-                None => unreachable!("other names were read as files"),
+                // The same index at every wavelength.
+                None => s[0].1,
             },
-            SpectrumValue::Sampled(s) => {
-                let mean = s.iter().map(|x| x.1).sum::<f32>() / s.len() as f32;
-                match IorSpectrum::sampled(&s) {
-                    Some(varying) if dispersive => {
-                        let e = varying.at(D_LINE_NM);
-                        spectrum = Some(varying);
-                        e
-                    }
-                    Some(_) => {
-                        self.approximated(
-                            &loc,
-                            format!("sampled spectrum {what}"),
-                            format!("trazo disperses light in \"dielectric\" only; the mean index {mean} is used"),
-                        );
-                        mean
-                    }
-                    None => mean,
-                }
-            }
             SpectrumValue::Rgb(c) => {
                 let mean = (c.x + c.y + c.z) / 3.0;
                 self.approximated(&loc, format!("RGB {what}"), format!("the mean index {mean} is used"));
@@ -608,7 +580,7 @@ impl Parser {
                 };
                 // The conductor's roughness texture, apart from the coat's.
                 let roughness_map = def.roughness_map.take();
-                let coat_ior = self.eta(p, "interface.eta", 1.5, &mut def, dir_rel)?;
+                let coat_ior = self.eta_spectrum(p, "interface.eta", 1.5, &mut def, dir_rel)?;
                 let coat_roughness = self.roughness(p, "interface.", &mut def)?;
                 self.layered(
                     p,
@@ -621,14 +593,18 @@ impl Parser {
                     coat_roughness,
                 )?
             }
-            "thindielectric" => MaterialKindDesc::Thin {
-                ior: self.eta(p, "eta", 1.5, &mut def, dir_rel)?,
-                ext_ior: 1.0,
-                reflect_tint: Rgb::ONE,
-                transmit_tint: Rgb::ONE,
-            },
+            "thindielectric" => {
+                let (ior, dispersion) = self.eta_spectrum(p, "eta", 1.5, &mut def, dir_rel)?;
+                MaterialKindDesc::Thin {
+                    ior,
+                    ext_ior: 1.0,
+                    reflect_tint: Rgb::ONE,
+                    transmit_tint: Rgb::ONE,
+                    dispersion,
+                }
+            }
             "dielectric" => {
-                let (ior, dispersion) = self.eta_spectrum(p, "eta", 1.5, &mut def, dir_rel, true)?;
+                let (ior, dispersion) = self.eta_spectrum(p, "eta", 1.5, &mut def, dir_rel)?;
                 let roughness = self.roughness(p, "", &mut def)?;
                 let mut d = dielectric(ior, roughness);
                 if let MaterialKindDesc::Dielectric { dispersion: slot, .. } = &mut d {
@@ -639,7 +615,7 @@ impl Parser {
             "coateddiffuse" => {
                 let diffuse = self.albedo(p, "reflectance", 0.5, "diffuse", &mut def)?;
                 let coat_roughness = self.roughness(p, "", &mut def)?;
-                let coat_ior = self.eta(p, "eta", 1.5, &mut def, dir_rel)?;
+                let coat_ior = self.eta_spectrum(p, "eta", 1.5, &mut def, dir_rel)?;
                 self.layered(p, LayeredBaseDesc::Diffuse(diffuse), coat_ior, coat_roughness)?
             }
             "diffusetransmission" => {
@@ -797,7 +773,7 @@ impl Parser {
         &mut self,
         p: &ParamList,
         base: LayeredBaseDesc,
-        coat_ior: f32,
+        (coat_ior, coat_dispersion): (f32, Option<IorSpectrum>),
         coat_roughness: (f32, f32),
     ) -> Result<MaterialKindDesc> {
         let thickness = self.float_param(p, "thickness", 0.01)?.map_or(0.01, |(v, _)| v);
@@ -833,6 +809,7 @@ impl Parser {
             g,
             max_depth,
             samples,
+            coat_dispersion,
         })
     }
 

@@ -887,6 +887,7 @@ Shape "sphere""#,
             g: 0.0,
             max_depth: 10,
             samples: 1,
+            coat_dispersion: None,
         }
     );
     // pbrt-v4's default conductor is copper.
@@ -896,12 +897,12 @@ Shape "sphere""#,
         MaterialKindDesc::Conductor { fresnel: ConductorDesc::Complex { eta, k }, .. } if eta == cu_eta && k == cu_k
     ));
     let w = d.warnings.join("\n");
-    // A coat renders one index: its dispersion is left out, with a warning.
+    // Coats disperse too.
     assert!(
-        w.contains("test.pbrt:14:26: \"spectrum eta\" \"glass-F11\" is approximated: trazo disperses light in \"dielectric\" only"),
-        "{w}"
+        matches!(&material(&d, 6).kind, MaterialKindDesc::Layered { coat_ior, coat_dispersion: Some(f11), .. }
+        if (coat_ior - 1.7847).abs() < 1e-4 && f11.at(450.0) > f11.at(650.0))
     );
-    assert!(!w.contains("glass-BK7") && !w.contains("[400"), "{w}");
+    assert!(!w.contains("glass-") && !w.contains("[400"), "{w}");
 }
 
 #[test]
@@ -933,6 +934,7 @@ Shape "sphere""#,
             g: -0.3,
             max_depth: 20,
             samples: 4,
+            coat_dispersion: None,
         }
     );
     let (cu_eta, cu_k) = crate::material::conductor::metal_ior("Cu").unwrap();
@@ -3406,4 +3408,60 @@ fn colour_spaces_convert_rgb_values_as_pbrt_v4_reads_them() {
         err.contains("main.pbrt:1:12") && err.contains("unknown colour space \"p3\""),
         "{err}"
     );
+}
+
+/// Thin sheets and coats of a glass that disperses take their index at the
+/// path's wavelength, as glass does; a coated conductor's base keeps its
+/// indices relative to the coat's index at that wavelength.
+#[test]
+fn thin_sheets_and_coats_disperse() {
+    use crate::material::Bsdf;
+    use crate::material::conductor::ConductorFresnel;
+    use crate::material::layered::LayerBase;
+    let d = world(
+        r#"Material "thindielectric" "spectrum eta" "glass-F11"
+Shape "sphere"
+Material "coatedconductor" "spectrum interface.eta" "glass-F11" "rgb conductor.eta" [0.2 0.3 0.4] "rgb conductor.k" [3 3 3]
+Shape "sphere""#,
+    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let scene = crate::scene::build(&d).unwrap();
+    let f11 = crate::material::dispersion::IorSpectrum::named_glass("glass-F11").unwrap();
+    let tc = crate::texture::TexCoord::new(glam::Vec2::ZERO, glam::Vec3::ZERO);
+    let material_of = |s: usize| {
+        scene
+            .materials
+            .iter()
+            .position(|m| {
+                m.dispersion().is_some() && {
+                    matches!(
+                        (s, &m.kind),
+                        (0, crate::material::MaterialKind::Thin { .. })
+                            | (1, crate::material::MaterialKind::Layered { .. })
+                    )
+                }
+            })
+            .unwrap() as u32
+    };
+    for nm in [450.0, 650.0] {
+        let Bsdf::Thin(sheet) = scene.material_bsdf_at(material_of(0), &tc, nm) else {
+            panic!()
+        };
+        assert_eq!(sheet.eta, f11.at(nm));
+        let Bsdf::Layered(coated) = scene.material_bsdf_at(material_of(1), &tc, nm) else {
+            panic!()
+        };
+        assert_eq!(coated.coat.eta, f11.at(nm));
+        let LayerBase::Conductor(base) = coated.base else {
+            panic!()
+        };
+        let ConductorFresnel::Complex { eta, k } = base.fresnel else {
+            panic!()
+        };
+        let want = glam::Vec3::new(0.2, 0.3, 0.4) / f11.at(nm);
+        assert!(
+            (eta - want).abs().max_element() < 1e-5 && (k.x - 3.0 / f11.at(nm)).abs() < 1e-5,
+            "{eta} {k}"
+        );
+    }
 }
