@@ -784,15 +784,8 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             desc.settings.integrator.name()
         ));
     }
-    if let Some(m) = desc.materials.iter().find(|m| {
-        matches!(
-            m.kind,
-            MaterialKindDesc::Dielectric {
-                dispersion: Some(_),
-                ..
-            }
-        )
-    }) && !DISPERSIVE_INTEGRATORS.contains(&desc.settings.integrator)
+    if let Some(m) = desc.materials.iter().find(|m| m.kind.disperses())
+        && !DISPERSIVE_INTEGRATORS.contains(&desc.settings.integrator)
     {
         warnings.push(format!(
             "{}material \"{}\" disperses light, which \"vcm\" and \"whitted\" do not render; \"{}\" uses its index at 587.6 nm at every wavelength",

@@ -450,6 +450,24 @@ pub enum MaterialKindDesc {
 pub const MAX_MIX_DEPTH: usize = 16;
 
 impl MaterialKindDesc {
+    /// Whether its index of refraction varies with wavelength (a glass, a
+    /// thin sheet or a coat that disperses light).
+    pub fn disperses(&self) -> bool {
+        matches!(
+            self,
+            MaterialKindDesc::Dielectric {
+                dispersion: Some(_),
+                ..
+            } | MaterialKindDesc::Thin {
+                dispersion: Some(_),
+                ..
+            } | MaterialKindDesc::Layered {
+                coat_dispersion: Some(_),
+                ..
+            }
+        )
+    }
+
     /// The surface that is not there: it bounds a medium and does not
     /// scatter (Mitsuba's `null` BSDF, pbrt-v4's `interface` material).
     pub const NULL: MaterialKindDesc = MaterialKindDesc::Thin {
