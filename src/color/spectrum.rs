@@ -340,6 +340,121 @@ pub fn sample_visible_wavelength(u: f32) -> WavelengthSample {
     }
 }
 
+/// A smooth spectrum `s(λ) = σ(c₀t² + c₁t + c₂)`, t = (λ − 360 nm)/470 nm
+/// and σ(x) = ½ + x / (2√(1 + x²)): the space Jakob and Hanika (2019, "A
+/// Low-Dimensional Function Space for Efficient Spectral Upsampling") lift
+/// RGB colours into, as pbrt-v4's `RGBSigmoidPolynomial` (which writes the
+/// polynomial in λ itself).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SigmoidSpectrum {
+    /// c₀, c₁, c₂.
+    pub coeffs: [f64; 3],
+}
+
+/// Newton steps per point of the continuation of [`SigmoidSpectrum::fit`].
+const FIT_STEPS: usize = 12;
+/// Points on the way from grey to the target colour.
+const FIT_STAGES: usize = 16;
+
+impl SigmoidSpectrum {
+    /// Its value at `nm` nanometres, in (0, 1).
+    pub fn at(&self, nm: f64) -> f64 {
+        sigmoid(self.polynomial((nm - LAMBDA_MIN) / (LAMBDA_MAX - LAMBDA_MIN)))
+    }
+
+    fn polynomial(&self, t: f64) -> f64 {
+        let [c0, c1, c2] = self.coeffs;
+        (c0 * t + c1) * t + c2
+    }
+
+    /// The spectrum whose colour as a reflectance under D65 (as
+    /// [`sampled_to_rgb`] takes one, [`SpectrumUse::Bounded`]) is `rgb`,
+    /// linear sRGB with every channel in (0, 1): the solution of the three
+    /// equations in three unknowns by Newton's method, followed from grey
+    /// (σ ≡ ½) to `rgb` in [`FIT_STAGES`] steps as Jakob and Hanika's
+    /// optimiser follows its table from the centre outward. `None` where
+    /// no sigmoid spectrum has that colour (to 10⁻⁶).
+    pub fn fit(rgb: [f64; 3]) -> Option<SigmoidSpectrum> {
+        if !rgb.iter().all(|&c| c > 0.0 && c < 1.0) {
+            return None;
+        }
+        let mut s = SigmoidSpectrum { coeffs: [0.0; 3] };
+        let (grey, _) = s.rgb_and_jacobian();
+        for stage in 1..=FIT_STAGES {
+            let f = stage as f64 / FIT_STAGES as f64;
+            let target: [f64; 3] = std::array::from_fn(|k| grey[k] + f * (rgb[k] - grey[k]));
+            for _ in 0..FIT_STEPS {
+                let (now, jacobian) = s.rgb_and_jacobian();
+                let residual: [f64; 3] = std::array::from_fn(|k| target[k] - now[k]);
+                if residual.iter().all(|r| r.abs() < 1e-12) {
+                    break;
+                }
+                let step = solve3(jacobian, residual)?;
+                s.coeffs = std::array::from_fn(|k| s.coeffs[k] + step[k]);
+            }
+        }
+        let (now, _) = s.rgb_and_jacobian();
+        let fits = (0..3).all(|k| (now[k] - rgb[k]).abs() < 1e-6) && s.coeffs.iter().all(|c| c.is_finite());
+        fits.then_some(s)
+    }
+
+    /// The linear sRGB of the spectrum as a reflectance under D65, and its
+    /// derivatives by the coefficients (`jacobian[channel][coefficient]`).
+    fn rgb_and_jacobian(&self) -> ([f64; 3], [[f64; 3]; 3]) {
+        let mut xyz = [0.0f64; 3];
+        let mut d_xyz = [[0.0f64; 3]; 3];
+        for i in 0..STEPS {
+            let t = i as f64 / (STEPS - 1) as f64;
+            let lambda = LAMBDA_MIN + t * (LAMBDA_MAX - LAMBDA_MIN);
+            let [x, y, z, d65] = cie_at(lambda);
+            let p = self.polynomial(t);
+            let (v, dv) = (sigmoid(p), sigmoid_derivative(p));
+            let powers = [t * t, t, 1.0];
+            for (k, w) in [x, y, z].into_iter().enumerate() {
+                xyz[k] += w * d65 * v;
+                for (c, power) in powers.iter().enumerate() {
+                    d_xyz[k][c] += w * d65 * dv * power;
+                }
+            }
+        }
+        let scale = (LAMBDA_MAX - LAMBDA_MIN) / STEPS as f64 * CIE_Y_NORMALIZATION;
+        let rgb = xyz_to_linear_srgb(xyz.map(|c| c * scale));
+        let columns: [[f64; 3]; 3] =
+            std::array::from_fn(|c| xyz_to_linear_srgb([d_xyz[0][c], d_xyz[1][c], d_xyz[2][c]].map(|d| d * scale)));
+        (rgb, std::array::from_fn(|k| std::array::from_fn(|c| columns[c][k])))
+    }
+}
+
+fn sigmoid(x: f64) -> f64 {
+    if x.is_infinite() {
+        return if x > 0.0 { 1.0 } else { 0.0 };
+    }
+    0.5 + x / (2.0 * (1.0 + x * x).sqrt())
+}
+
+fn sigmoid_derivative(x: f64) -> f64 {
+    0.5 / (1.0 + x * x).powf(1.5)
+}
+
+/// `m⁻¹ b` by Cramer's rule; `None` for a singular `m`.
+fn solve3(m: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
+    let det3 = |a: [[f64; 3]; 3]| {
+        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    };
+    let det = det3(m);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    Some(std::array::from_fn(|c| {
+        let mut mc = m;
+        for (row, value) in mc.iter_mut().zip(b) {
+            row[c] = value;
+        }
+        det3(mc) / det
+    }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -411,5 +526,36 @@ mod tests {
         assert!(r.x > 0.0 && r.x > 10.0 * r.y.abs() && r.x > 10.0 * r.z.abs(), "{r}");
         assert!(g.y > g.x.abs() && g.y > g.z.abs(), "{g}");
         assert!(b.z > b.x.abs() && b.z > b.y.abs(), "{b}");
+    }
+
+    #[test]
+    fn sigmoid_spectra_reproduce_the_colours_they_are_fitted_to() {
+        for rgb in [
+            [0.5, 0.5, 0.5],
+            [0.468, 0.484, 0.5],
+            [0.25, 0.5, 0.25],
+            [0.5, 0.1, 0.05],
+            [0.05, 0.2, 0.5],
+            [0.9, 0.9, 0.02],
+            [0.02, 0.6, 0.9],
+        ] {
+            let s = SigmoidSpectrum::fit(rgb).unwrap_or_else(|| panic!("no fit for {rgb:?}"));
+            // Its colour, integrated independently of the fit's Jacobian.
+            let back = xyz_to_linear_srgb(spectrum_xyz(|l| s.at(l), true));
+            for k in 0..3 {
+                assert!((back[k] - rgb[k]).abs() < 1e-6, "{rgb:?}: {back:?} ({:?})", s.coeffs);
+            }
+            assert!((360..=830).all(|nm| (0.0..=1.0).contains(&s.at(nm as f64))));
+        }
+        // Grey is nearly flat (D65 is sRGB's white to the tables' precision
+        // only); colours beyond the sigmoids' reach are refused.
+        let grey = SigmoidSpectrum::fit([0.5, 0.5, 0.5]).expect("grey");
+        assert!(
+            (360..=830).all(|nm| (grey.at(nm as f64) - 0.5).abs() < 1e-3),
+            "{:?}",
+            grey.coeffs
+        );
+        assert_eq!(SigmoidSpectrum::fit([0.0, 0.5, 0.5]), None);
+        assert_eq!(SigmoidSpectrum::fit([1.2, 0.5, 0.5]), None);
     }
 }

@@ -4,6 +4,8 @@
 //! as pbrt-v4 terminates a spectral path's secondary wavelengths at a
 //! dispersive interface.
 
+use crate::color::spectrum::SigmoidSpectrum;
+
 /// An index of refraction as a function of wavelength.
 #[derive(Clone, Debug, PartialEq)]
 pub enum IorSpectrum {
@@ -18,6 +20,14 @@ pub enum IorSpectrum {
     /// Samples (wavelength in nm ascending, index), linearly interpolated
     /// and held constant beyond the first and last.
     Sampled(Vec<(f32, f32)>),
+    /// `scale` times a smooth spectrum in (0, 1): pbrt-v4's
+    /// `RGBUnboundedSpectrum`, which an index given as an RGB colour is.
+    Smooth {
+        /// The spectrum.
+        spectrum: SigmoidSpectrum,
+        /// Its factor.
+        scale: f32,
+    },
 }
 
 /// The wavelength of the sodium d line, at which a glass's catalogue index
@@ -72,6 +82,7 @@ impl IorSpectrum {
                 let n2 = 1.0 + (0..3).map(|i| b[i] * l2 / (l2 - c[i])).sum::<f64>();
                 n2.max(0.0).sqrt() as f32
             }
+            IorSpectrum::Smooth { spectrum, scale } => scale * spectrum.at(nm as f64) as f32,
             IorSpectrum::Sampled(s) => {
                 let (first, last) = (s[0], s[s.len() - 1]);
                 if nm <= first.0 {
@@ -96,6 +107,22 @@ impl IorSpectrum {
     pub fn sampled(samples: &[(f32, f32)]) -> Option<IorSpectrum> {
         let varies = samples.windows(2).any(|w| w[0].1 != w[1].1);
         (samples.len() >= 2 && varies).then(|| IorSpectrum::Sampled(samples.to_vec()))
+    }
+
+    /// The index that an RGB colour of positive channels stands for, as
+    /// pbrt-v4 reads `"rgb eta"` (its `RGBUnboundedSpectrum`): twice the
+    /// largest channel times the smooth spectrum whose colour as a
+    /// reflectance is the colour over that ([`SigmoidSpectrum::fit`]), so
+    /// that the colour stays the spectrum's own. `None` for grey, the same
+    /// index (the channels') at every wavelength, and where no smooth
+    /// spectrum has the colour.
+    pub fn from_rgb(rgb: [f32; 3]) -> Option<IorSpectrum> {
+        if rgb[0] == rgb[1] && rgb[1] == rgb[2] {
+            return None;
+        }
+        let scale = 2.0 * rgb[0].max(rgb[1]).max(rgb[2]);
+        let spectrum = SigmoidSpectrum::fit(rgb.map(|c| (c / scale) as f64))?;
+        Some(IorSpectrum::Smooth { spectrum, scale })
     }
 
     /// The smallest and largest index over the visible range (360–830

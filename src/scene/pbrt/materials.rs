@@ -391,9 +391,31 @@ impl Parser {
                 None => s[0].1,
             },
             SpectrumValue::Rgb(c) => {
-                let mean = (c.x + c.y + c.z) / 3.0;
-                self.approximated(&loc, format!("RGB {what}"), format!("the mean index {mean} is used"));
-                mean
+                let rgb = [c.x, c.y, c.z];
+                if !rgb.iter().all(|&c| c > 0.0 && c.is_finite()) {
+                    return Err(prm.err(format!(
+                        "every channel of an index of refraction must be positive, got {} {} {}",
+                        c.x, c.y, c.z
+                    )));
+                }
+                match IorSpectrum::from_rgb(rgb) {
+                    Some(smooth) => {
+                        let e = smooth.at(D_LINE_NM);
+                        spectrum = Some(smooth);
+                        e
+                    }
+                    // Grey: the same index at every wavelength.
+                    None if c.x == c.y && c.y == c.z => c.x,
+                    None => {
+                        let mean = (c.x + c.y + c.z) / 3.0;
+                        self.approximated(
+                            &loc,
+                            format!("RGB {what}"),
+                            format!("no smooth spectrum has this colour; the mean index {mean} is used"),
+                        );
+                        mean
+                    }
+                }
             }
             SpectrumValue::Blackbody { .. } | SpectrumValue::Texture(_) => {
                 self.unsupported(

@@ -906,6 +906,55 @@ Shape "sphere""#,
 }
 
 #[test]
+fn rgb_indices_disperse_as_pbrt_v4s_unbounded_rgb_spectra() {
+    let d = world(
+        r#"Material "dielectric" "rgb eta" [1.45 1.5 1.6]
+Shape "sphere"
+Material "dielectric" "rgb eta" [1.5 1.5 1.5]
+Shape "sphere"
+Material "thindielectric" "rgb eta" [1.6 1.5 1.45]
+Shape "sphere""#,
+    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    // Twice the largest channel times the smooth spectrum whose colour is
+    // the rest: the colour of the index's spectrum (as a reflectance, the
+    // fit's measure) is the colour given, and blue light bends more.
+    let MaterialKindDesc::Dielectric {
+        ior,
+        dispersion: Some(s),
+        ..
+    } = &material(&d, 0).kind
+    else {
+        panic!("{:?}", material(&d, 0).kind);
+    };
+    assert!((ior - s.at(587.56)).abs() < 1e-6);
+    assert!(s.at(450.0) > s.at(550.0) && s.at(550.0) > s.at(650.0), "{s:?}");
+    let rgb = crate::color::spectrum::xyz_to_linear_srgb(crate::color::spectrum::spectrum_xyz(
+        |nm| s.at(nm as f32) as f64 / 3.2,
+        true,
+    ));
+    for (k, want) in [1.45, 1.5, 1.6].into_iter().enumerate() {
+        assert!((rgb[k] * 3.2 - want).abs() < 1e-4, "{rgb:?}");
+    }
+    // Grey is one index; a thin sheet disperses the other way round.
+    assert!(matches!(
+        &material(&d, 1).kind,
+        MaterialKindDesc::Dielectric {
+            ior: 1.5,
+            dispersion: None,
+            ..
+        }
+    ));
+    assert!(matches!(
+        &material(&d, 2).kind,
+        MaterialKindDesc::Thin { dispersion: Some(s), .. } if s.at(650.0) > s.at(450.0)
+    ));
+    // A channel that is not positive is an error at its place.
+    let e = error_of("WorldBegin\nMaterial \"dielectric\" \"rgb eta\" [1.5 0 1.5]\nShape \"sphere\"\n");
+    assert!(e.contains("2:") && e.contains("must be positive"), "{e}");
+}
+
+#[test]
 fn coated_materials_are_pbrt_v4s_layered_bsdf() {
     let d = world(
         r#"Material "coatedconductor" "spectrum conductor.eta" [400 0.2 700 0.2] "spectrum conductor.k" [400 3 700 3]
