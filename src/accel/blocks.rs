@@ -2,8 +2,8 @@
 //! vector lanes: what the leaves of a scene's top-level tree hold
 //! ([`Aggregate`](super::Aggregate)). Each kind is laid out as structure of arrays (Embree's
 //! "triangle8" layout) and tested without a branch that depends on the
-//! primitive: spheres in double precision (the refined quadratic of
-//! [`Sphere::intersect`], the same bits), rectangles (the operations of
+//! primitive: spheres (the refined quadratic of [`Sphere::intersect`],
+//! the same bits), rectangles (the operations of
 //! [`Rectangle::intersect`] in the same order) and triangles (the
 //! watertight test of [`Triangle4`](crate::geometry::triangle::Triangle4)).
 //!
@@ -17,7 +17,7 @@ pub(crate) use avx::*;
 #[cfg(target_arch = "x86_64")]
 mod avx {
     use crate::geometry::bounds::gamma;
-    use crate::geometry::lanes::{D4, F8, LANES, Lanes, M8, avx_available};
+    use crate::geometry::lanes::{F8, LANES, Lanes, M8, avx_available};
     use crate::geometry::shape::{SphereRay, sphere_distance};
     use crate::geometry::triangle::TriangleRay;
     use crate::geometry::{Ray, Rectangle, Sphere};
@@ -289,15 +289,13 @@ mod avx {
         best
     }
 
-    /// Eight spheres: centres `c[axis]` and radii in f64, four lanes a
-    /// register, and the caller's numbers. An empty lane has a NaN radius,
-    /// which no ray meets; a block of at most four tests one register.
+    /// Eight spheres: centres `c[axis]` and radii in lanes, and the
+    /// caller's numbers. An empty lane has a NaN radius, which no ray
+    /// meets.
     #[derive(Clone, Copy, Debug)]
     pub(crate) struct Sphere8 {
-        c: [[[f64; 4]; 3]; 2],
-        r: [[f64; 4]; 2],
-        /// Whether lanes 4 to 7 hold spheres.
-        full: bool,
+        c: [Lanes; 3],
+        r: Lanes,
         pub(crate) ids: [u32; LANES],
     }
 
@@ -306,17 +304,15 @@ mod avx {
         pub(crate) fn new(members: &[(Sphere, u32)]) -> Sphere8 {
             assert!(members.len() <= LANES, "a block holds at most eight spheres");
             let mut block = Sphere8 {
-                c: [[[0.0; 4]; 3]; 2],
-                r: [[f64::NAN; 4]; 2],
-                full: members.len() > 4,
+                c: [Lanes([0.0; LANES]); 3],
+                r: Lanes([f32::NAN; LANES]),
                 ids: [u32::MAX; LANES],
             };
             for (lane, (s, id)) in members.iter().enumerate() {
-                let (half, l) = (lane / 4, lane % 4);
                 for axis in 0..3 {
-                    block.c[half][axis][l] = s.center[axis] as f64;
+                    block.c[axis].0[lane] = s.center[axis];
                 }
-                block.r[half][l] = s.radius as f64;
+                block.r.0[lane] = s.radius;
                 block.ids[lane] = *id;
             }
             block
@@ -326,18 +322,11 @@ mod avx {
         /// its interval: [`Sphere::intersect`] on eight lanes.
         #[inline]
         #[target_feature(enable = "avx")]
-        fn intersect(&self, ray: &SphereRay<f64>) -> ([f64; LANES], u32) {
-            let lanes = ray.splat(D4::splat(0.0));
-            let mut t = [f64::INFINITY; LANES];
-            let mut bits = 0;
-            for half in 0..1 + self.full as usize {
-                let [cx, cy, cz] = &self.c[half];
-                let (cx, cy, cz) = (D4::load(*cx), D4::load(*cy), D4::load(*cz));
-                let (th, hit) = sphere_distance(&lanes, cx, cy, cz, D4::load(self.r[half]));
-                t[4 * half..4 * half + 4].copy_from_slice(&th.to_array());
-                bits |= hit.bits() << (4 * half);
-            }
-            (t, bits)
+        fn intersect(&self, ray: &SphereRay<f32>) -> ([f32; LANES], u32) {
+            let lanes = ray.splat(F8::splat(0.0));
+            let [cx, cy, cz] = load3(&self.c);
+            let (t, hit) = sphere_distance(&lanes, cx, cy, cz, F8::load(&self.r));
+            (t.to_array(), hit.bits())
         }
     }
 
@@ -415,12 +404,12 @@ mod avx {
         #[inline]
         #[allow(unsafe_code)]
         pub(crate) fn spheres(&self, (first, count): BlockRange, ray: &Ray, any_hit: bool) -> Option<BlockHit> {
-            let mut lanes = SphereRay::new(ray)?;
+            let mut one = SphereRay::new(ray)?;
             let mut found = None;
             for b in &self.spheres[first as usize..(first + count) as usize] {
                 // SAFETY: blocks exist only where the processor has AVX.
-                let (t, mut mask) = unsafe { b.intersect(&lanes) };
-                let mut best: Option<(usize, f64)> = None;
+                let (t, mut mask) = unsafe { b.intersect(&one) };
+                let mut best: Option<(usize, f32)> = None;
                 while mask != 0 {
                     let lane = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
@@ -432,12 +421,11 @@ mod avx {
                     }
                 }
                 if let Some((lane, t)) = best {
-                    let t = t as f32;
                     found = Some((b.ids[lane], t, [0.0; 3]));
                     if any_hit {
                         break;
                     }
-                    lanes.t_max = t as f64;
+                    one.t_max = t;
                 }
             }
             found

@@ -1,7 +1,7 @@
 //! Eight `f32` lanes in one AVX register ([`F8`]), for the eight-wide
-//! rectangle and triangle tests of primitive blocks (`accel::blocks`), and
-//! four `f64` lanes ([`D4`]), for the sphere blocks, which run the one
-//! sphere test written over [`Real`](super::real::Real).
+//! rectangle, triangle and sphere tests of primitive blocks
+//! (`accel::blocks`); the sphere blocks run the one sphere test written
+//! over [`Real`](super::real::Real).
 //!
 //! Every operation is a function built for AVX: it may only run where the
 //! processor has AVX, which the compiler enforces by letting only other
@@ -243,125 +243,60 @@ pub fn prefetch<T>(value: &T, lines: usize) {
 
 use super::real::Real;
 
-/// Four `f64` lanes in one AVX register. A value exists only where the
-/// processor has AVX: the only ways to make one, [`D4::load`] and
-/// [`D4::splat`], are functions built for AVX, which the compiler lets
-/// only other AVX code call. Its arithmetic (the operator traits and
-/// [`Real`], which cannot be marked for AVX themselves) relies on that,
-/// and is inlined into the AVX functions that use it.
-#[derive(Clone, Copy, Debug)]
-pub struct D4(__m256d);
-
-/// Four lane booleans of [`D4`]: each lane all ones or zero.
-#[derive(Clone, Copy, Debug)]
-pub struct M4(__m256d);
-
-impl D4 {
-    /// The four values.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn load(x: [f64; 4]) -> D4 {
-        D4(_mm256_setr_pd(x[0], x[1], x[2], x[3]))
-    }
-
-    /// `x` in every lane.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    pub fn splat(x: f64) -> D4 {
-        D4(_mm256_set1_pd(x))
-    }
-
-    /// The lanes as an array.
+impl std::ops::BitAnd for M8 {
+    type Output = M8;
     #[inline(always)]
-    pub fn to_array(self) -> [f64; 4] {
-        let mut out = [0.0f64; 4];
-        // SAFETY: a `D4` exists only where the processor has AVX (see the
-        // type); `out` holds four f64, and the store is unaligned.
-        unsafe { _mm256_storeu_pd(out.as_mut_ptr(), self.0) };
-        out
-    }
-}
-
-impl M4 {
-    /// Bit `i` set where lane `i` is true.
-    #[inline(always)]
-    pub fn bits(self) -> u32 {
+    fn bitand(self, other: M8) -> M8 {
         // SAFETY: a mask exists only where the processor has AVX.
-        unsafe { _mm256_movemask_pd(self.0) as u32 }
+        M8(unsafe { _mm256_and_ps(self.0, other.0) })
     }
 }
 
-macro_rules! d4_operator {
-    ($trait:ident, $method:ident, $intrinsic:ident) => {
-        impl std::ops::$trait for D4 {
-            type Output = D4;
-            #[inline(always)]
-            fn $method(self, other: D4) -> D4 {
-                // SAFETY: a `D4` exists only where the processor has AVX.
-                D4(unsafe { $intrinsic(self.0, other.0) })
-            }
-        }
-    };
-}
-d4_operator!(Add, add, _mm256_add_pd);
-d4_operator!(Sub, sub, _mm256_sub_pd);
-d4_operator!(Mul, mul, _mm256_mul_pd);
-d4_operator!(Div, div, _mm256_div_pd);
-
-impl std::ops::BitAnd for M4 {
-    type Output = M4;
-    #[inline(always)]
-    fn bitand(self, other: M4) -> M4 {
-        // SAFETY: a mask exists only where the processor has AVX.
-        M4(unsafe { _mm256_and_pd(self.0, other.0) })
-    }
-}
-
-// SAFETY (every block below): a `D4` or `M4` exists only where the
+// SAFETY (every block below): an `F8` or `M8` exists only where the
 // processor has AVX (see the type).
-impl Real for D4 {
-    type Mask = M4;
+impl Real for F8 {
+    type Mask = M8;
     #[inline(always)]
-    fn like(self, x: f64) -> D4 {
-        D4(unsafe { _mm256_set1_pd(x) })
+    fn like(self, x: f32) -> F8 {
+        F8(unsafe { _mm256_set1_ps(x) })
     }
     #[inline(always)]
-    fn sqrt(self) -> D4 {
-        D4(unsafe { _mm256_sqrt_pd(self.0) })
+    fn sqrt(self) -> F8 {
+        F8(unsafe { _mm256_sqrt_ps(self.0) })
     }
     #[inline(always)]
-    fn copysign(self, sign: D4) -> D4 {
+    fn copysign(self, sign: F8) -> F8 {
         unsafe {
-            let sign_bit = _mm256_set1_pd(-0.0);
-            D4(_mm256_or_pd(
-                _mm256_andnot_pd(sign_bit, self.0),
-                _mm256_and_pd(sign_bit, sign.0),
+            let sign_bit = _mm256_set1_ps(-0.0);
+            F8(_mm256_or_ps(
+                _mm256_andnot_ps(sign_bit, self.0),
+                _mm256_and_ps(sign_bit, sign.0),
             ))
         }
     }
     #[inline(always)]
-    fn min(self, other: D4) -> D4 {
-        D4(unsafe { _mm256_min_pd(self.0, other.0) })
+    fn min(self, other: F8) -> F8 {
+        F8(unsafe { _mm256_min_ps(self.0, other.0) })
     }
     #[inline(always)]
-    fn max(self, other: D4) -> D4 {
-        D4(unsafe { _mm256_max_pd(self.0, other.0) })
+    fn max(self, other: F8) -> F8 {
+        F8(unsafe { _mm256_max_ps(self.0, other.0) })
     }
     #[inline(always)]
-    fn eq(self, other: D4) -> M4 {
-        M4(unsafe { _mm256_cmp_pd::<_CMP_EQ_OQ>(self.0, other.0) })
+    fn eq(self, other: F8) -> M8 {
+        M8(unsafe { _mm256_cmp_ps::<_CMP_EQ_OQ>(self.0, other.0) })
     }
     #[inline(always)]
-    fn gt(self, other: D4) -> M4 {
-        M4(unsafe { _mm256_cmp_pd::<_CMP_GT_OQ>(self.0, other.0) })
+    fn gt(self, other: F8) -> M8 {
+        M8(unsafe { _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, other.0) })
     }
     #[inline(always)]
-    fn le(self, other: D4) -> M4 {
-        M4(unsafe { _mm256_cmp_pd::<_CMP_LE_OQ>(self.0, other.0) })
+    fn le(self, other: F8) -> M8 {
+        M8(unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, other.0) })
     }
     #[inline(always)]
-    fn select(mask: M4, a: D4, b: D4) -> D4 {
-        D4(unsafe { _mm256_blendv_pd(b.0, a.0, mask.0) })
+    fn select(mask: M8, a: F8, b: F8) -> F8 {
+        F8(unsafe { _mm256_blendv_ps(b.0, a.0, mask.0) })
     }
 }
 

@@ -1,7 +1,7 @@
 //! Numbers of one lane or several, for geometry written once.
 
 /// Real numbers of one lane or several, for geometry written once and run
-/// on one value (`f64`) or on four in a vector register (`lanes::D4`, on x86-64 with AVX): the
+/// on one value (`f32`) or on eight in a vector register (`lanes::F8`, on x86-64 with AVX): the
 /// sphere test of `shape::sphere_distance`
 /// is one function for the one-sphere test and the sphere blocks, so both
 /// compute the same bits. `min` and `max` are SSE's (`if a < b { a } else
@@ -16,7 +16,7 @@ pub trait Real:
     /// Per-lane booleans.
     type Mask: Copy + std::ops::BitAnd<Output = Self::Mask>;
     /// `x` in every lane (the receiver only says which type).
-    fn like(self, x: f64) -> Self;
+    fn like(self, x: f32) -> Self;
     /// Square root.
     fn sqrt(self) -> Self;
     /// The magnitude of `self` with the sign of `sign`.
@@ -35,42 +35,42 @@ pub trait Real:
     fn select(mask: Self::Mask, a: Self, b: Self) -> Self;
 }
 
-impl Real for f64 {
+impl Real for f32 {
     type Mask = bool;
     #[inline(always)]
-    fn like(self, x: f64) -> f64 {
+    fn like(self, x: f32) -> f32 {
         x
     }
     #[inline(always)]
-    fn sqrt(self) -> f64 {
-        f64::sqrt(self)
+    fn sqrt(self) -> f32 {
+        f32::sqrt(self)
     }
     #[inline(always)]
-    fn copysign(self, sign: f64) -> f64 {
-        f64::copysign(self, sign)
+    fn copysign(self, sign: f32) -> f32 {
+        f32::copysign(self, sign)
     }
     #[inline(always)]
-    fn min(self, other: f64) -> f64 {
+    fn min(self, other: f32) -> f32 {
         if self < other { self } else { other }
     }
     #[inline(always)]
-    fn max(self, other: f64) -> f64 {
+    fn max(self, other: f32) -> f32 {
         if self > other { self } else { other }
     }
     #[inline(always)]
-    fn eq(self, other: f64) -> bool {
+    fn eq(self, other: f32) -> bool {
         self == other
     }
     #[inline(always)]
-    fn gt(self, other: f64) -> bool {
+    fn gt(self, other: f32) -> bool {
         self > other
     }
     #[inline(always)]
-    fn le(self, other: f64) -> bool {
+    fn le(self, other: f32) -> bool {
         self <= other
     }
     #[inline(always)]
-    fn select(mask: bool, a: f64, b: f64) -> f64 {
+    fn select(mask: bool, a: f32, b: f32) -> f32 {
         if mask { a } else { b }
     }
 }
