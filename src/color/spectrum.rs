@@ -260,6 +260,9 @@ pub struct WavelengthSample {
     /// the share of the channel's response that falls at `nm` over the
     /// density of `nm`. Its expectation is (1, 1, 1).
     pub weight: Rgb,
+    /// The 1-nm bin `nm` was drawn in, which names the weight
+    /// ([`visible_wavelength_weight`]) where a record must stay small.
+    pub bin: u16,
 }
 
 /// Wavelength bins of 1 nm over the tables' range.
@@ -337,7 +340,14 @@ pub fn sample_visible_wavelength(u: f32) -> WavelengthSample {
     WavelengthSample {
         nm: LAMBDA_MIN as f32 + bin as f32 + within,
         weight: table.weight[bin],
+        bin: bin as u16,
     }
+}
+
+/// The weight of a wavelength drawn in bin `bin` of
+/// [`sample_visible_wavelength`] (its [`WavelengthSample::weight`]).
+pub fn visible_wavelength_weight(bin: u16) -> Rgb {
+    visible_wavelengths().weight[(bin as usize).min(WAVELENGTH_BINS - 1)]
 }
 
 /// A smooth spectrum `s(λ) = σ(c₀t² + c₁t + c₂)`, t = (λ − 360 nm)/470 nm

@@ -761,13 +761,14 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         ));
     }
     // Whose paths draw a wavelength at their first dispersive glass.
-    const DISPERSIVE_INTEGRATORS: [IntegratorKind; 9] = [
+    const DISPERSIVE_INTEGRATORS: [IntegratorKind; 10] = [
         IntegratorKind::Path,
         IntegratorKind::VolPath,
         IntegratorKind::Light,
         IntegratorKind::Photon,
         IntegratorKind::Sppm,
         IntegratorKind::Bdpt,
+        IntegratorKind::Vcm,
         IntegratorKind::Mlt,
         IntegratorKind::Pssmlt,
         // (No glass at all.)
@@ -788,7 +789,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
         && !DISPERSIVE_INTEGRATORS.contains(&desc.settings.integrator)
     {
         warnings.push(format!(
-            "{}material \"{}\" disperses light, which \"vcm\" and \"whitted\" do not render; \"{}\" uses its index at 587.6 nm at every wavelength",
+            "{}material \"{}\" disperses light, which \"whitted\" does not render; \"{}\" uses its index at 587.6 nm at every wavelength",
             m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default(),
             m.name,
             desc.settings.integrator.name()

@@ -26,7 +26,7 @@ fn sf11() -> IorSpectrum {
 }
 
 /// SF11 (pbrt-v4's `glass-F11`), a strongly dispersive glass.
-fn dispersive_glass(name: &str) -> MaterialDesc {
+pub(crate) fn dispersive_glass(name: &str) -> MaterialDesc {
     MaterialDesc::with_kind(
         name,
         MaterialKindDesc::Dielectric {
@@ -65,6 +65,7 @@ fn white_furnace_dispersive_glass_renders_one_in_every_channel() {
         IntegratorKind::VolPath,
         IntegratorKind::Photon,
         IntegratorKind::Sppm,
+        IntegratorKind::Vcm,
     ] {
         let mut d = SceneDesc::default();
         d.settings.width = 16;
@@ -247,6 +248,7 @@ fn camera_paths_through_a_dispersive_interface_follow_snell() {
         IntegratorKind::Photon,
         IntegratorKind::Sppm,
         IntegratorKind::Bdpt,
+        IntegratorKind::Vcm,
         IntegratorKind::Mlt,
         IntegratorKind::Pssmlt,
     ] {
@@ -350,6 +352,7 @@ material = "black"
     for (integrator, spp, slack) in [
         (IntegratorKind::Light, 256, 0.05),
         (IntegratorKind::Bdpt, 64, 0.05),
+        (IntegratorKind::Vcm, 64, 0.2),
         (IntegratorKind::Sppm, 256, 0.2),
         (IntegratorKind::Photon, 16, 0.2),
     ] {

@@ -191,10 +191,27 @@ fn progressive_renders_resume_exactly() {
     use std::sync::atomic::{AtomicBool, Ordering};
     use trazo::render::checkpoint::Checkpoint;
     use trazo::render::{Control, Stop, render_controlled};
-    for integrator in SPLATTING.into_iter().chain([IntegratorKind::Sppm]) {
+    // VCM once more with a dispersive glass ball, whose light subpaths,
+    // traced again on resuming, draw their wavelengths anew.
+    let runs = SPLATTING
+        .into_iter()
+        .chain([IntegratorKind::Sppm])
+        .map(|k| (k, false))
+        .chain([(IntegratorKind::Vcm, true)]);
+    for (integrator, dispersive) in runs {
         let mut d = small_cornell();
         (d.settings.width, d.settings.height, d.settings.spp) = (20, 16, 5);
         d.settings.integrator = integrator;
+        if dispersive {
+            d.materials.push(crate::dispersion::dispersive_glass("sf11"));
+            d.shapes.push(ShapeDesc::new(
+                ShapeKind::Sphere {
+                    center: trazo::Vec3::new(0.3, 0.2, 0.4),
+                    radius: 0.15,
+                },
+                Some("sf11"),
+            ));
+        }
         d.settings.bdpt_strategies = integrator == IntegratorKind::Bdpt;
         d.settings.mlt.bootstrap = 2000;
         d.settings.mlt.chains = 40;
@@ -221,7 +238,7 @@ fn progressive_renders_resume_exactly() {
         };
         let partial = render_controlled(&scene, &options(2), &mut control).unwrap();
         drop(control);
-        let name = integrator.name();
+        let name = format!("{}{}", integrator.name(), if dispersive { ", dispersive" } else { "" });
         assert_eq!(
             (partial.stopped, partial.stats.spp),
             (Some(Stop::Interrupted), 2),

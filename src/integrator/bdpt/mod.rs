@@ -534,6 +534,8 @@ pub(crate) struct Subpaths<'s> {
     /// Light the camera subpath's flights gathered from emitting media:
     /// (t, light) for the strategy (0, t) whose last segment it lay on.
     glow: Vec<(usize, Rgb)>,
+    /// The sample's wavelength, where the scene disperses light.
+    wavelength: Option<WavelengthSample>,
 }
 
 /// What [`Tracer::mis_weight`] changes in the subpaths, to be put back.
@@ -577,6 +579,11 @@ pub(crate) struct Tracer<'s> {
     /// both sides times η, for N light paths merged within radius r);
     /// zero where paths are only connected (BDPT, MLT).
     merge_eta: f32,
+    /// Whether the sample's wavelength is the first number of its light
+    /// subpath's stream (vertex connection and merging, whose light
+    /// subpaths are traced again without their camera subpaths when a
+    /// render resumes) rather than of the camera's.
+    wavelength_from_light: bool,
     /// Whether subpaths and connections go through participating media
     /// (the scene has some; VCM merges on surfaces only).
     media: bool,
@@ -594,6 +601,7 @@ impl<'s> Tracer<'s> {
             bounds: crate::light::scene_bounding_sphere(scene),
             max_depth,
             merge_eta: 0.0,
+            wavelength_from_light: false,
             media,
             outer_medium: if media { outer_medium(scene) } else { None },
         }
@@ -604,6 +612,7 @@ impl<'s> Tracer<'s> {
     /// (π r² times the light paths merged).
     pub(crate) fn merging(mut self, eta: f32) -> Tracer<'s> {
         self.merge_eta = eta;
+        self.wavelength_from_light = true;
         self
     }
 
@@ -626,7 +635,15 @@ impl<'s> Tracer<'s> {
         let scene = self.scene;
         let u_lens = Vec2::new(rng.next_f32(), rng.next_f32());
         let time = scene.camera.time_from(|| rng.next_f32());
-        let wavelength = self.draw_wavelength(rng);
+        let wavelength = if self.wavelength_from_light {
+            rng.start_stream(LIGHT_STREAM);
+            let w = self.draw_wavelength(rng);
+            rng.start_stream(CAMERA_STREAM);
+            w
+        } else {
+            self.draw_wavelength(rng)
+        };
+        work.wavelength = wavelength;
         let nm = wavelength.map(|w| w.nm);
         let camera_vertices = self.max_depth as usize + 1;
         work.glow.clear();
@@ -750,11 +767,12 @@ impl<'s> Tracer<'s> {
 
     /// One wavelength for both subpaths of a sample, where the scene has a
     /// dispersive glass (pbrt-v4 samples a spectral path's wavelengths
-    /// once for both subpaths); drawn from the camera stream. Not where
-    /// light subpaths are merged (VCM): those come from other samples,
-    /// and VCM renders glass at its index at 587.6 nm.
-    fn draw_wavelength<R: Uniforms>(&self, rng: &mut R) -> Option<WavelengthSample> {
-        (self.scene.any_dispersive && self.merge_eta == 0.0)
+    /// once for both subpaths). A merge joins a camera subpath with a
+    /// light vertex of another sample, each weighted by its own
+    /// wavelength where it disperses, as photon mapping joins them.
+    pub(super) fn draw_wavelength<R: Uniforms>(&self, rng: &mut R) -> Option<WavelengthSample> {
+        self.scene
+            .any_dispersive
             .then(|| crate::color::spectrum::sample_visible_wavelength(rng.next_f32()))
     }
 
@@ -1751,6 +1769,7 @@ mod tests {
                         light,
                         stored: Vec::new(),
                         glow: Vec::new(),
+                        wavelength: None,
                     };
                     sum += tracer.mis_weight(&mut work, s, t, sampled) as f64;
                 }
@@ -1772,7 +1791,7 @@ mod tests {
                         })
                         .collect();
                     let mut stored = Vec::new();
-                    tracer.light_vertices(&light, &mut stored);
+                    tracer.light_vertices(&light, None, &mut stored);
                     let y = stored.last().expect("x_i has a non-delta lobe");
                     let camera: Vec<Vertex> = (i..=k)
                         .rev()

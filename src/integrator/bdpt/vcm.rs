@@ -29,6 +29,13 @@
 //! subpath when the photon is stored ([`LightVertex`]), where Georgiev's
 //! implementation carries them as its recursive dVCM, dVC, dVM.
 //!
+//! Where glass disperses, a pixel's camera and light subpaths share one
+//! wavelength, drawn first from the light subpath's numbers (so that a
+//! resumed render traces the stored light subpaths again alike); a merge
+//! weights the camera subpath by its wavelength and the light vertex by
+//! its own where each disperses, as photon mapping joins photons and
+//! camera paths.
+//!
 //! The radius shrinks as r_i = r₁ · i^((α−1)/2) over the iterations
 //! (Knaus and Zwicker 2011), so the bias of merging vanishes and the
 //! image converges; r₁ and α are photon mapping's (`photon_radius`, by
@@ -36,6 +43,7 @@
 
 use super::{Kind, LIGHT_STREAM, STREAM, Subpaths, Tracer, Vertex, delta_before, remap, sq, vertex_f};
 use crate::color::Rgb;
+use crate::color::spectrum::{WavelengthSample, visible_wavelength_weight};
 use crate::film::Film;
 use crate::integrator::light::{SplatImage, chunk_len};
 use crate::integrator::photon::map::Located;
@@ -84,6 +92,28 @@ pub(crate) struct LightVertex {
     /// vertex of their squared density ratio to the one ending at it
     /// ([`Tracer::mis_weight`]'s light-side sum, stopped one vertex short).
     earlier: f32,
+    /// The bin of the light subpath's wavelength where a vertex before
+    /// this one disperses ([`visible_wavelength_weight`]), else
+    /// [`NOT_DISPERSED`]: two bytes that fit beside `prev_delta`.
+    wavelength_bin: u16,
+}
+
+// The bin costs a stored vertex nothing (`BYTES_PER_LIGHT_VERTEX` counts these).
+const _: () = assert!(std::mem::size_of::<LightVertex>() == 76);
+
+/// [`LightVertex::wavelength_bin`] of light that no glass dispersed.
+const NOT_DISPERSED: u16 = u16::MAX;
+
+impl LightVertex {
+    /// The weight of its light subpath's wavelength, where that matters.
+    #[inline]
+    fn spectral(&self) -> Rgb {
+        if self.wavelength_bin == NOT_DISPERSED {
+            Rgb::ONE
+        } else {
+            visible_wavelength_weight(self.wavelength_bin)
+        }
+    }
 }
 
 impl Located for LightVertex {
@@ -112,12 +142,24 @@ impl<'s> Tracer<'s> {
     /// Appends the vertices of light subpath `light` where merging can
     /// happen (surfaces with a non-delta lobe), each with the sums over
     /// the subpath behind it.
-    pub(super) fn light_vertices(&self, light: &[Vertex], out: &mut Vec<LightVertex>) {
+    pub(super) fn light_vertices(
+        &self,
+        light: &[Vertex],
+        wavelength: Option<WavelengthSample>,
+        out: &mut Vec<LightVertex>,
+    ) {
         // Σ_{i ≤ j−2} strategies(i) · Π_{m=i}^{j−2} (rev_m / fwd_m)², the
         // light-side sum of the weights up to vertex j − 2.
         let mut earlier = 0.0f32;
+        let mut wavelength_bin = NOT_DISPERSED;
         for j in 1..light.len() {
             let (y, prev) = (&light[j], &light[j - 1]);
+            // The light reaching y depends on the wavelength where a vertex
+            // before y scattered it dispersively (y's own BSDF is x's in a
+            // merge).
+            if let (Some(w), true) = (wavelength, prev.disperses) {
+                wavelength_bin = w.bin;
+            }
             let prev_strategies = self.strategies_at(light, j - 1);
             if y.kind == Kind::Surface && y.connectible {
                 out.push(LightVertex {
@@ -132,6 +174,7 @@ impl<'s> Tracer<'s> {
                     prev_delta: prev.delta,
                     prev_strategies,
                     earlier,
+                    wavelength_bin,
                 });
             }
             // prev's reverse density is the walk's: the one from y.
@@ -228,8 +271,13 @@ impl<'s> Tracer<'s> {
     fn merges(&self, map: &PhotonMap<LightVertex>, r2: f32, work: &Subpaths) -> Rgb {
         let camera = &work.camera;
         let mut total = Rgb::ZERO;
+        let mut spectral = Rgb::ONE;
         for t in 2..=camera.len() {
             let x = &camera[t - 1];
+            // x's BSDF is evaluated at the camera subpath's wavelength too.
+            if let (Some(w), true) = (work.wavelength, x.disperses || camera[t - 2].disperses) {
+                spectral = w.weight;
+            }
             // Light segments the path has room for.
             let room = (self.max_depth as usize + 1).saturating_sub(t);
             if x.kind != Kind::Surface || !x.connectible || room == 0 {
@@ -248,7 +296,7 @@ impl<'s> Tracer<'s> {
                 let f = vertex_f(x, y.wi);
                 if f != Rgb::ZERO {
                     let w = self.merge_weight(camera, &site, y, frame.to_local(y.wi));
-                    total += x.beta * f * y.beta * w;
+                    total += x.beta * f * y.beta * (spectral * y.spectral() * w);
                 }
             });
         }
@@ -368,9 +416,12 @@ fn light_vertices_of(tracer: &Tracer, scene: &Scene, iteration: u32) -> Vec<Ligh
             let (mut out, mut rays, mut path) = (Vec::new(), 0u64, Vec::new());
             for i in c * chunk..((c + 1) * chunk).min(paths) {
                 let mut rng = light_generator(s.seed, iteration, i);
+                // In the order of the sample's light stream: the
+                // wavelength first.
+                let wavelength = tracer.draw_wavelength(&mut rng);
                 let time = tracer.scene.camera.time_from(|| rng.next_f32());
-                tracer.light_subpath(&mut rng, time, vertices, &mut path, &mut rays, None);
-                tracer.light_vertices(&path, &mut out);
+                tracer.light_subpath(&mut rng, time, vertices, &mut path, &mut rays, wavelength.map(|w| w.nm));
+                tracer.light_vertices(&path, wavelength, &mut out);
             }
             out
         })
@@ -416,7 +467,7 @@ impl Progressive for Vcm {
                     target.add_splat(raster, sum, &mut out.image);
                 }
                 work.stored.clear();
-                next.light_vertices(&work.light, &mut work.stored);
+                next.light_vertices(&work.light, work.wavelength, &mut work.stored);
                 if !work.stored.is_empty() {
                     let mut all = stored.lock().unwrap_or_else(|e| e.into_inner());
                     all.extend(work.stored.iter().map(|v| (i, *v)));
