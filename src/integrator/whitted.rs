@@ -21,6 +21,13 @@
 //! Area lights (emissive shapes) are sampled at one random point per light
 //! per pixel sample, so supersampling gives them soft shadows.
 //!
+//! **Dispersion.** Glass whose index varies with wavelength draws one
+//! wavelength at the first such glass a ray meets (as the path tracer
+//! does, `color::spectrum::sample_visible_wavelength`): both its
+//! reflected and refracted rays, and every glass below them, take their
+//! index there, and their light is weighted by the wavelength's weight,
+//! so that supersampling averages the spectrum.
+//!
 //! **Shadow rays and transparent occluders.** A shadow ray is not bent by
 //! refraction. It passes through transmissive surfaces, attenuated at each
 //! crossing by `kt·(1 − F)`, and is blocked by any opaque surface. A glass
@@ -29,6 +36,7 @@
 
 use super::{Integrator, RayStats};
 use crate::color::Rgb;
+use crate::color::spectrum::sample_visible_wavelength;
 use crate::geometry::Ray;
 use crate::geometry::interaction::SurfaceHit;
 use crate::light::{Light, LightSample, ShadowTarget};
@@ -50,13 +58,22 @@ impl Integrator for Whitted {
         if self.max_depth == 0 {
             return Rgb::ZERO;
         }
-        self.trace(scene, ray, 1, sampler, stats)
+        self.trace(scene, ray, 1, sampler, stats, None)
     }
 }
 
 impl Whitted {
-    /// Radiance along `ray`, the `depth`-th segment of its path.
-    fn trace(&self, scene: &Scene, ray: &Ray, depth: u32, sampler: &mut Sampler, stats: &mut RayStats) -> Rgb {
+    /// Radiance along `ray`, the `depth`-th segment of its path, at
+    /// wavelength `nm` where a dispersive glass above chose one.
+    fn trace(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        depth: u32,
+        sampler: &mut Sampler,
+        stats: &mut RayStats,
+        nm: Option<f32>,
+    ) -> Rgb {
         stats.rays += 1;
         let shows_emission = scene.settings.shows_emission(depth);
         let Some(mut hit) = scene.intersect(ray) else {
@@ -107,28 +124,38 @@ impl Whitted {
                 if f == Rgb::ZERO || ls.li == Rgb::ZERO {
                     continue;
                 }
-                let vis = shadow_transmittance(scene, &hit, &ls, stats);
+                let vis = shadow_transmittance(scene, &hit, &ls, stats, nm);
                 l += f * ls.li * vis * (cos / ls.pdf);
             }
         }
 
         if c.kr != Rgb::ZERO {
             let r = hit.spawn_ray(reflect(wo, n));
-            l += c.kr * self.trace(scene, &r, depth + 1, sampler, stats);
+            l += c.kr * self.trace(scene, &r, depth + 1, sampler, stats, nm);
         }
         if c.kt != Rgb::ZERO {
+            // A dispersive glass: its index at the wavelength, drawn here
+            // if no glass above drew one.
+            let (ior, nm, weight) = match (m.dispersion().filter(|_| scene.disperses(hit.material)), nm) {
+                (Some(d), Some(nm)) => (d.eta(nm), Some(nm), Rgb::ONE),
+                (Some(d), None) => {
+                    let w = sample_visible_wavelength(sampler.next_1d());
+                    (d.eta(w.nm), Some(w.nm), w.weight)
+                }
+                (None, nm) => (c.ior, nm, Rgb::ONE),
+            };
             // Fresnel with the outward normal: cosθ < 0 means leaving the inside.
             let cos_i = ns.dot(wo);
-            let fresnel = fresnel_dielectric(cos_i, c.ior);
+            let fresnel = fresnel_dielectric(cos_i, ior);
             let reflected = hit.spawn_ray(reflect(wo, n));
             let mut through = Rgb::ZERO;
-            if let Some((wt, _)) = refract(wo, ns, c.ior) {
+            if let Some((wt, _)) = refract(wo, ns, ior) {
                 if fresnel < 1.0 {
-                    through = (1.0 - fresnel) * self.trace(scene, &hit.spawn_ray(wt), depth + 1, sampler, stats);
+                    through = (1.0 - fresnel) * self.trace(scene, &hit.spawn_ray(wt), depth + 1, sampler, stats, nm);
                 }
             }
-            let back = fresnel * self.trace(scene, &reflected, depth + 1, sampler, stats);
-            l += c.kt * (back + through);
+            let back = fresnel * self.trace(scene, &reflected, depth + 1, sampler, stats, nm);
+            l += c.kt * (back + through) * weight;
         }
         l
     }
@@ -139,8 +166,15 @@ impl Whitted {
 const MAX_SHADOW_CROSSINGS: u32 = 64;
 
 /// Fraction of a light sample's light that reaches `hit`: 0 behind an
-/// opaque surface, `Π kt·(1 − F)` over the transmissive ones crossed.
-fn shadow_transmittance(scene: &Scene, hit: &SurfaceHit, ls: &LightSample, stats: &mut RayStats) -> Rgb {
+/// opaque surface, `Π kt·(1 − F)` over the transmissive ones crossed
+/// (F of a dispersive glass at wavelength `nm` where one was drawn).
+fn shadow_transmittance(
+    scene: &Scene,
+    hit: &SurfaceHit,
+    ls: &LightSample,
+    stats: &mut RayStats,
+    nm: Option<f32>,
+) -> Rgb {
     stats.rays += 1;
     let mut ray = match ls.target {
         ShadowTarget::Point(p) => hit.spawn_ray_to(p),
@@ -164,7 +198,11 @@ fn shadow_transmittance(scene: &Scene, hit: &SurfaceHit, ls: &LightSample, stats
         }
         let c = m.classic(&scene.textures, &TexCoord::at(&s));
         let cos = s.ns.dot(-ray.dir.normalize());
-        transmittance *= c.kt * (1.0 - fresnel_dielectric(cos, c.ior));
+        let ior = match (m.dispersion().filter(|_| scene.disperses(s.material)), nm) {
+            (Some(d), Some(nm)) => d.eta(nm),
+            _ => c.ior,
+        };
+        transmittance *= c.kt * (1.0 - fresnel_dielectric(cos, ior));
         if transmittance == Rgb::ZERO {
             return Rgb::ZERO;
         }

@@ -760,36 +760,12 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             desc.settings.integrator.name()
         ));
     }
-    // Whose paths draw a wavelength at their first dispersive glass.
-    const DISPERSIVE_INTEGRATORS: [IntegratorKind; 10] = [
-        IntegratorKind::Path,
-        IntegratorKind::VolPath,
-        IntegratorKind::Light,
-        IntegratorKind::Photon,
-        IntegratorKind::Sppm,
-        IntegratorKind::Bdpt,
-        IntegratorKind::Vcm,
-        IntegratorKind::Mlt,
-        IntegratorKind::Pssmlt,
-        // (No glass at all.)
-        IntegratorKind::AmbientOcclusion,
-    ];
     let path_tracers = [IntegratorKind::Path, IntegratorKind::VolPath];
     if let Some(m) = desc.materials.iter().find(|m| m.opacity.is_some())
         && !(path_tracers.contains(&desc.settings.integrator) || desc.settings.integrator.splats_light_paths())
     {
         warnings.push(format!(
             "{}material \"{}\" has an opacity mask, which only \"path\", \"volpath\", \"light\", \"bdpt\", \"mlt\" and \"pssmlt\" render; \"{}\" renders it opaque",
-            m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default(),
-            m.name,
-            desc.settings.integrator.name()
-        ));
-    }
-    if let Some(m) = desc.materials.iter().find(|m| m.kind.disperses())
-        && !DISPERSIVE_INTEGRATORS.contains(&desc.settings.integrator)
-    {
-        warnings.push(format!(
-            "{}material \"{}\" disperses light, which \"whitted\" does not render; \"{}\" uses its index at 587.6 nm at every wavelength",
             m.locs.item.as_ref().map(|l| format!("{l}: ")).unwrap_or_default(),
             m.name,
             desc.settings.integrator.name()

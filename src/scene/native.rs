@@ -2547,8 +2547,7 @@ material = "red"
             ),
             "{e}"
         );
-        // Every integrator but Whitted's disperses; that one says it does
-        // not.
+        // Every integrator disperses: none warns.
         let mut d = parse_str(&glass("\"F5\"")).unwrap();
         for kind in IntegratorKind::NAMES
             .iter()
@@ -2556,14 +2555,7 @@ material = "red"
         {
             d.settings.integrator = kind;
             let w = crate::scene::build(&d).unwrap().warnings.join("\n");
-            if kind == IntegratorKind::Whitted {
-                assert!(
-                    w.contains("test.toml:11:1: material \"red\" disperses light, which \"whitted\" does not"),
-                    "{w}"
-                );
-            } else {
-                assert!(!w.contains("disperses"), "{}: {w}", kind.name());
-            }
+            assert!(!w.contains("disperses"), "{}: {w}", kind.name());
         }
     }
 

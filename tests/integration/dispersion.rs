@@ -251,6 +251,7 @@ fn camera_paths_through_a_dispersive_interface_follow_snell() {
         IntegratorKind::Vcm,
         IntegratorKind::Mlt,
         IntegratorKind::Pssmlt,
+        IntegratorKind::Whitted,
     ] {
         let found = centroids(&scene(dispersive_glass("glass"), integrator), pixel as f64);
         assert_centred(integrator.name(), found, predicted, 0.05 * pixel as f64);
