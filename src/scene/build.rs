@@ -436,7 +436,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             };
             let mesh = if s.flip_normals { mesh.flipped() } else { mesh };
             let what = format!("shape[{i}]");
-            let read = read_attribute(material, &materials, &material_mixes);
+            let read = read_attribute(material, &materials, &material_mixes, &store);
             meshes.push(keep_read_attribute(mesh, read, &attribute_names, &what, &mut warnings));
             mesh_objects.push(MeshObject {
                 mesh: meshes.len() as u32 - 1,
@@ -447,7 +447,7 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
             // A moving mesh, or one placed many times: an instance (a mesh
             // placed many times is moved, not copied, and held once).
             let what = format!("shape[{i}]");
-            let read = read_attribute(material, &materials, &material_mixes);
+            let read = read_attribute(material, &materials, &material_mixes, &store);
             let mesh = match &s.kind {
                 ShapeKind::Mesh(name) if placed_once => {
                     let mesh = named_meshes.remove(name.as_str()).expect("loaded");
@@ -1064,14 +1064,22 @@ fn deciding_textures<'a>(m: u32, materials: &'a [Material], mixes: &'a [Option<M
 }
 
 /// The mesh attribute (by number) a surface with material `m` reads, the
-/// first if several.
-fn read_attribute(m: u32, materials: &[Material], mixes: &[Option<MaterialMix>]) -> Option<u32> {
+/// first if several, also as the input of a texture node (a light's image
+/// scaled per triangle, say).
+fn read_attribute(m: u32, materials: &[Material], mixes: &[Option<MaterialMix>], store: &TextureStore) -> Option<u32> {
+    fn within(t: &Texture, store: &TextureStore, depth: usize) -> Option<u32> {
+        match t {
+            Texture::MeshAttribute(k) => Some(*k),
+            Texture::Node(i) if depth < MAX_TEXTURE_DEPTH => store.nodes[*i as usize]
+                .inputs()
+                .into_iter()
+                .find_map(|(_, input)| within(input, store, depth + 1)),
+            _ => None,
+        }
+    }
     let mut t = Vec::new();
     deciding_textures(m, materials, mixes, &mut t);
-    t.iter().find_map(|t| match t {
-        Texture::MeshAttribute(k) => Some(*k),
-        _ => None,
-    })
+    t.iter().find_map(|t| within(t, store, 0))
 }
 
 /// The render-time material of a description.

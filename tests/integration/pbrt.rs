@@ -1321,6 +1321,40 @@ fn power_on_unequal_triangles_gives_each_its_own_radiance() {
     assert!(count(large) >= 350, "{} pixels at {large}", count(large));
 }
 
+/// With an image as well, each triangle's light is the image scaled by
+/// power/(k·π·sides·A), k the image's mean luminance: a constant image of
+/// colour c (luminance k) shows c·10/(k·2π·A) on each triangle.
+#[test]
+fn power_on_unequal_triangles_with_an_image_scales_the_image_per_triangle() {
+    let dir = tempfile::tempdir().unwrap();
+    let c = [0.5f32, 0.25, 1.0];
+    let mut pfm = b"PF\n2 1\n-1.0\n".to_vec();
+    for _ in 0..2 {
+        for v in c {
+            pfm.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(dir.path().join("glow.pfm"), pfm).unwrap();
+    std::fs::write(
+        dir.path().join("scene.pbrt"),
+        "LookAt 2 2 5  2 2 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-3 3 -3 3]\n\
+         Film \"rgb\" \"integer xresolution\" 60 \"integer yresolution\" 60\n\
+         Sampler \"independent\" \"integer pixelsamples\" 4\nPixelFilter \"box\"\nWorldBegin\n\
+         AreaLightSource \"diffuse\" \"string filename\" \"glow.pfm\" \"float power\" 10 \"bool twosided\" true\n\
+         Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0  2 0 0 4.5 0 0 2 4 0] \"integer indices\" [0 1 2 3 4 5]\n",
+    )
+    .unwrap();
+    let d = trazo::scene::load(&dir.path().join("scene.pbrt"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let film = render_desc(&d);
+    let k = luminance(Rgb::new(c[0], c[1], c[2]));
+    let near = |v: Rgb, scale: f32| (0..3).all(|i| (v[i] - c[i] * scale).abs() < 0.01 * c[i] * scale);
+    let (small, large) = (10.0 / (k * PI * 2.0 * 0.5), 10.0 / (k * PI * 2.0 * 5.0));
+    let count = |scale: f32| film.pixels.iter().filter(|p| near(p.value(), scale)).count();
+    assert!(count(small) >= 25, "{} pixels at {small}", count(small));
+    assert!(count(large) >= 350, "{} pixels at {large}", count(large));
+}
+
 /// Lit by such a mesh, a floor gets the same light from next-event
 /// estimation (which reads each sampled triangle's radiance) as from BSDF
 /// sampling alone: the image means of `mis` and `bsdf` agree within five

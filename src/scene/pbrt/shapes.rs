@@ -404,9 +404,9 @@ impl Parser {
     /// and k the mean luminance of the light's image (1 without one).
     /// pbrt-v4 makes each triangle of a mesh a light of that power, so a
     /// mesh of unequal triangles gets a per-triangle radiance (a mesh
-    /// attribute its emission reads; with an image, the mean triangle's,
-    /// with a warning). An image light's shape gets its own copy of the
-    /// image's texture, tinted by its factor.
+    /// attribute its emission reads; with an image, a per-triangle factor
+    /// that scales the image). An image light's other shapes get their own
+    /// copy of the image's texture, tinted by its factor.
     fn apply_power(&mut self, e: &mut Emission, shape: &mut ShapeKind, what: &str) -> Result<()> {
         let Some((power, at)) = e.power.take() else {
             return Ok(());
@@ -434,16 +434,24 @@ impl Parser {
                     })
                     .collect();
                 let mean = areas.iter().sum::<f32>() / areas.len().max(1) as f32;
-                if areas.iter().any(|a| (a - mean).abs() > 1e-3 * mean) && image_luminance.is_none() {
-                    // Each triangle's own radiance, L·power/(π·sides·A).
+                if areas.iter().any(|a| (a - mean).abs() > 1e-3 * mean) {
+                    // Each triangle's own factor power/(k·π·sides·A): its
+                    // radiance L times that, or with an image the image
+                    // scaled by it.
                     let sides = if e.two_sided { 2.0 } else { 1.0 };
-                    let per_face = |a: f32| {
-                        let k_e = std::f32::consts::PI * sides * a;
+                    let k = image_luminance.unwrap_or(1.0);
+                    let factor = |a: f32| {
+                        let k_e = k * std::f32::consts::PI * sides * a;
                         if k_e > 0.0 && k_e.is_finite() {
-                            e.radiance * (power / k_e)
+                            power / k_e
                         } else {
-                            Rgb::ZERO // a degenerate triangle, never hit
+                            0.0 // a degenerate triangle, never hit
                         }
+                    };
+                    let image = e.image.take();
+                    let per_face = |a: f32| match image {
+                        None => e.radiance * factor(a),
+                        Some(_) => Rgb::splat(factor(a)),
                     };
                     let ShapeKind::InlineMesh(MeshSource::Inline(mesh)) = shape else {
                         unreachable!("matched above")
@@ -459,15 +467,20 @@ impl Parser {
                         name: PBRT_POWER_ATTRIBUTE.into(),
                     };
                     self.push_texture(&name, &at, Locs::at(Some(at.clone())), (kind, per_face(mean)))?;
-                    e.image = Some(name);
+                    e.image = Some(match image {
+                        None => name,
+                        Some(image) => {
+                            let typical = self.texture_colors.get(&image).copied().unwrap_or(Rgb::ONE) * factor(mean);
+                            let scaled = format!("{image} with power {}", self.desc.textures.len());
+                            let kind = TextureKind::Node(crate::texture::TextureNode::Scale {
+                                tex: ColorSource::Texture(image),
+                                scale: ColorSource::Texture(name),
+                            });
+                            self.push_texture(&scaled, &at, Locs::at(Some(at.clone())), (kind, typical))?;
+                            scaled
+                        }
+                    });
                     return Ok(());
-                }
-                if areas.iter().any(|a| (a - mean).abs() > 1e-3 * mean) {
-                    self.approximated(
-                        &at,
-                        format!("\"power\" of {what}"),
-                        "pbrt-v4 gives each triangle that power, so its radiance varies with the triangle's area; with an image, trazo gives every triangle the radiance of the mean one",
-                    );
                 }
                 mean
             }
