@@ -1470,12 +1470,13 @@ fn load_mesh_source(
             mesh,
             height,
             edge_length,
+            power,
         } => {
             let base = read_mesh_source(mesh, base_dir, locs, what, warnings)?;
             let texture = heights.textures[height.as_str()];
             // As pbrt-v4: edges measured after the shape's transform, the
             // texture read at the object-space point and its (u, v).
-            crate::geometry::displacement::displace(
+            let displaced = crate::geometry::displacement::displace(
                 &base,
                 |a, b| to_world.point(a).distance(to_world.point(b)),
                 *edge_length,
@@ -1485,7 +1486,11 @@ fn load_mesh_source(
                 },
                 MAX_DISPLACED_TRIANGLES,
             )
-            .map_err(|e| Error::scene(locs.key("edge_length").or(locs.item.clone()), what, e.to_string()))?
+            .map_err(|e| Error::scene(locs.key("edge_length").or(locs.item.clone()), what, e.to_string()))?;
+            match power {
+                None => displaced,
+                Some(p) => with_triangle_power(displaced, p, to_world),
+            }
         }
         _ => read_mesh_source(src, base_dir, locs, what, warnings)?,
     };
@@ -1503,6 +1508,31 @@ fn load_mesh_source(
         ));
     }
     Ok(mesh)
+}
+
+/// `mesh` with the per-face attribute of [`TrianglePower`]: each
+/// triangle's radiance from its area after `to_world` (zero for a
+/// degenerate one, which is never hit).
+fn with_triangle_power(mut mesh: TriangleMesh, p: &TrianglePower, to_world: &Transform) -> TriangleMesh {
+    let values = (0..mesh.len())
+        .flat_map(|i| {
+            let [a, b, c] = mesh.vertices(i).map(|v| to_world.point(v));
+            let k_e = p.per_area * 0.5 * (b - a).cross(c - a).length();
+            let l = if k_e > 0.0 && k_e.is_finite() {
+                p.radiance * (p.power / k_e)
+            } else {
+                Rgb::ZERO
+            };
+            l.to_array()
+        })
+        .collect();
+    mesh.attributes.push(crate::geometry::mesh::MeshAttribute {
+        name: p.attribute.clone(),
+        per_face: true,
+        channels: 3,
+        values,
+    });
+    mesh
 }
 
 fn read_mesh_source(

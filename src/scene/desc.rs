@@ -586,7 +586,28 @@ pub enum MeshSource {
         /// The longest edge left, in world units (after the shape's
         /// transform).
         edge_length: f32,
+        /// pbrt-v4's area light `power` given each displaced triangle,
+        /// whose radiance then follows from its area after displacement.
+        power: Option<TrianglePower>,
     },
+}
+
+/// pbrt-v4's area light `power` on each triangle of a mesh whose
+/// triangles are known only when the scene is built (a displaced mesh):
+/// the build gives the mesh a per-face attribute of `radiance` ×
+/// `power` / (`per_area` × the triangle's world-space area), which its
+/// emission reads.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrianglePower {
+    /// The power, in watts.
+    pub power: f32,
+    /// k·π·sides: the luminance of the light's image (1 without one)
+    /// times π, times 2 for a two-sided light.
+    pub per_area: f32,
+    /// The radiance scaled (white where the attribute scales an image).
+    pub radiance: Rgb,
+    /// The name of the attribute.
+    pub attribute: String,
 }
 
 /// A named mesh that shapes can place, once or many times.

@@ -1355,6 +1355,54 @@ fn power_on_unequal_triangles_with_an_image_scales_the_image_per_triangle() {
     assert!(count(large) >= 350, "{} pixels at {large}", count(large));
 }
 
+/// On a displaced mesh, whose triangles exist only once the build has cut
+/// and moved them, each of them is a light of that power too: a unit
+/// square cut into N triangles emits N times the power, each triangle's
+/// radiance from its area after displacement (and its transform).
+#[test]
+fn power_on_a_displaced_mesh_is_each_displaced_triangles() {
+    let dir = tempfile::tempdir().unwrap();
+    let square = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+                  property float u\nproperty float v\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\
+                  0 0 0 0 0\n1 0 0 1 0\n1 1 0 1 1\n0 1 0 0 1\n4 0 1 2 3\n";
+    std::fs::write(dir.path().join("square.ply"), square).unwrap();
+    std::fs::write(
+        dir.path().join("scene.pbrt"),
+        "LookAt 1 1 5  1 1 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-1.5 1.5 -1.5 1.5]\n\
+         Film \"rgb\" \"integer xresolution\" 40 \"integer yresolution\" 40\n\
+         Sampler \"independent\" \"integer pixelsamples\" 4\nPixelFilter \"box\"\nWorldBegin\n\
+         Texture \"h\" \"float\" \"constant\" \"float value\" 0.25\n\
+         AreaLightSource \"diffuse\" \"rgb L\" [1 1 1] \"float power\" 10 \"bool twosided\" true\n\
+         Scale 2 2 2\n\
+         Shape \"plymesh\" \"string filename\" \"square.ply\" \"texture displacement\" \"h\" \"float edgelength\" 0.6\n",
+    )
+    .unwrap();
+    let d = trazo::scene::load(&dir.path().join("scene.pbrt"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let scene = trazo::scene::build(&d).unwrap();
+    let n = scene.geometry.stats().triangles as f32;
+    assert!(n >= 8.0, "{n} triangles");
+    let power = scene.lights[0].power(&scene, 1.0);
+    assert!((power - 10.0 * n).abs() < 1e-3 * 10.0 * n, "{power} for {n} triangles");
+    // Seen directly, the square (area 4 after the scale) shows radiances
+    // whose mean over its area is N·10/(2π·4).
+    let film = render_desc(&d);
+    let inside: Vec<f32> = film
+        .pixels
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| {
+            let (x, y) = ((i % 40) as f32 + 0.5, (i / 40) as f32 + 0.5);
+            let (wx, wy) = (-0.5 + x * 3.0 / 40.0, -0.5 + y * 3.0 / 40.0);
+            (0.1..1.9).contains(&wx) && (0.1..1.9).contains(&wy)
+        })
+        .map(|(_, p)| p.value().x)
+        .collect();
+    let mean = inside.iter().sum::<f32>() / inside.len() as f32;
+    let want = n * 10.0 / (2.0 * PI * 4.0);
+    assert!((mean - want).abs() < 0.1 * want, "{mean} against {want}");
+}
+
 /// Lit by such a mesh, a floor gets the same light from next-event
 /// estimation (which reads each sampled triangle's radiance) as from BSDF
 /// sampling alone: the image means of `mis` and `bsdf` agree within five

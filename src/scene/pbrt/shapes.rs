@@ -56,6 +56,7 @@ impl Parser {
             mesh: Box::new(source),
             height,
             edge_length,
+            power: None,
         })
     }
 
@@ -417,6 +418,23 @@ impl Parser {
         };
         let ctm = self.gs.ctm;
         let world = |p: Vec3| ctm.transform_point3(p);
+        if let ShapeKind::InlineMesh(MeshSource::Displaced { power: slot, .. }) = shape {
+            // Its triangles are known once the build has displaced it:
+            // each gets its radiance from its area there.
+            let sides = if e.two_sided { 2.0 } else { 1.0 };
+            let per_area = image_luminance.unwrap_or(1.0) * std::f32::consts::PI * sides;
+            let image = e.image.take();
+            let radiance = if image.is_some() { Rgb::ONE } else { e.radiance };
+            *slot = Some(crate::scene::desc::TrianglePower {
+                power,
+                per_area,
+                radiance,
+                attribute: PBRT_POWER_ATTRIBUTE.into(),
+            });
+            // (Its typical radiance: that of a triangle of unit area.)
+            let typical = radiance * (power / per_area);
+            return self.per_triangle_emission(e, image, &at, what, typical);
+        }
         let area = match &*shape {
             ShapeKind::Sphere { radius, .. } => 4.0 * std::f32::consts::PI * radius * radius,
             ShapeKind::Disk { radius, .. } => std::f32::consts::PI * radius * radius,
@@ -462,24 +480,8 @@ impl Parser {
                         channels: 3,
                         values: areas.iter().flat_map(|&a| per_face(a).to_array()).collect(),
                     });
-                    let name = format!("radiance of {what} with power {}", self.desc.textures.len());
-                    let kind = TextureKind::MeshAttribute {
-                        name: PBRT_POWER_ATTRIBUTE.into(),
-                    };
-                    self.push_texture(&name, &at, Locs::at(Some(at.clone())), (kind, per_face(mean)))?;
-                    e.image = Some(match image {
-                        None => name,
-                        Some(image) => {
-                            let typical = self.texture_colors.get(&image).copied().unwrap_or(Rgb::ONE) * factor(mean);
-                            let scaled = format!("{image} with power {}", self.desc.textures.len());
-                            let kind = TextureKind::Node(crate::texture::TextureNode::Scale {
-                                tex: ColorSource::Texture(image),
-                                scale: ColorSource::Texture(name),
-                            });
-                            self.push_texture(&scaled, &at, Locs::at(Some(at.clone())), (kind, typical))?;
-                            scaled
-                        }
-                    });
+                    let typical = per_face(mean);
+                    self.per_triangle_emission(e, image, &at, what, typical)?;
                     return Ok(());
                 }
                 mean
@@ -519,6 +521,39 @@ impl Parser {
                 e.image = Some(texture.name);
             }
         }
+        Ok(())
+    }
+
+    /// Makes the emission of an area light whose triangles each carry
+    /// their own radiance or factor in the mesh attribute
+    /// [`PBRT_POWER_ATTRIBUTE`] read it: the attribute itself, or with
+    /// `image` the image scaled by it. `typical` is a typical value.
+    fn per_triangle_emission(
+        &mut self,
+        e: &mut Emission,
+        image: Option<String>,
+        at: &SourceLoc,
+        what: &str,
+        typical: Rgb,
+    ) -> Result<()> {
+        let name = format!("radiance of {what} with power {}", self.desc.textures.len());
+        let kind = TextureKind::MeshAttribute {
+            name: PBRT_POWER_ATTRIBUTE.into(),
+        };
+        self.push_texture(&name, at, Locs::at(Some(at.clone())), (kind, typical))?;
+        e.image = Some(match image {
+            None => name,
+            Some(image) => {
+                let typical = self.texture_colors.get(&image).copied().unwrap_or(Rgb::ONE) * typical;
+                let scaled = format!("{image} with power {}", self.desc.textures.len());
+                let kind = TextureKind::Node(crate::texture::TextureNode::Scale {
+                    tex: ColorSource::Texture(image),
+                    scale: ColorSource::Texture(name),
+                });
+                self.push_texture(&scaled, at, Locs::at(Some(at.clone())), (kind, typical))?;
+                scaled
+            }
+        });
         Ok(())
     }
 
