@@ -63,7 +63,7 @@ def main():
     ap.add_argument("--ref-spp", type=int, default=8192)
     ap.add_argument("--spp", default="16,64")
     ap.add_argument("--seeds", type=int, default=8)
-    ap.add_argument("--samplers", default="independent,stratified,sobol,halton,halton-owen")
+    ap.add_argument("--samplers", default="independent,stratified,sobol,halton,halton-owen,halton-plain")
     args = ap.parse_args()
 
     tmp = tempfile.mkdtemp(prefix="trazo-samplers-")

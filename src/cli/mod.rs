@@ -125,9 +125,10 @@ struct SceneArgs {
     seed: Option<u64>,
 
     /// How samples are placed: sobol (Owen-scrambled Sobol points,
-    /// stratified in every dimension of a path; the default), halton and
-    /// halton-owen (pbrt-v4's Halton sampler, digits permuted or
-    /// Owen-scrambled), stratified (jittered grid of pixel positions),
+    /// stratified in every dimension of a path; the default), halton,
+    /// halton-owen and halton-plain (pbrt-v4's Halton sampler, digits
+    /// permuted, Owen-scrambled or as they are), stratified (jittered grid
+    /// of pixel positions),
     /// independent (random) or center (one ray through each pixel centre:
     /// aliasing).
     #[arg(long, value_name = "KIND", value_parser = SamplerKind::NAMES)]

@@ -38,11 +38,22 @@ pub enum SamplerKind {
     /// The Halton sequence with Owen-scrambled digits (pbrt-v4's `halton`
     /// with `randomize "owen"`).
     HaltonOwen,
+    /// The Halton sequence as it is, the same points for every seed
+    /// (pbrt-v4's `halton` with `randomize "none"`).
+    HaltonPlain,
 }
 
 impl SamplerKind {
     /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 6] = ["center", "independent", "stratified", "sobol", "halton", "halton-owen"];
+    pub const NAMES: [&'static str; 7] = [
+        "center",
+        "independent",
+        "stratified",
+        "sobol",
+        "halton",
+        "halton-owen",
+        "halton-plain",
+    ];
 
     /// Parses one of [`SamplerKind::NAMES`].
     pub fn from_name(s: &str) -> Option<Self> {
@@ -53,6 +64,7 @@ impl SamplerKind {
             "sobol" => Some(SamplerKind::Sobol),
             "halton" => Some(SamplerKind::Halton),
             "halton-owen" => Some(SamplerKind::HaltonOwen),
+            "halton-plain" => Some(SamplerKind::HaltonPlain),
             _ => None,
         }
     }
@@ -66,6 +78,7 @@ impl SamplerKind {
             SamplerKind::Sobol => "sobol",
             SamplerKind::Halton => "halton",
             SamplerKind::HaltonOwen => "halton-owen",
+            SamplerKind::HaltonPlain => "halton-plain",
         }
     }
 }
@@ -132,7 +145,10 @@ impl Sampler {
     /// Whether the kind is a Halton sampler.
     #[inline]
     fn is_halton(&self) -> bool {
-        matches!(self.kind, SamplerKind::Halton | SamplerKind::HaltonOwen)
+        matches!(
+            self.kind,
+            SamplerKind::Halton | SamplerKind::HaltonOwen | SamplerKind::HaltonPlain
+        )
     }
 
     /// Dimension `dim` of the current Halton point. The Halton paths are
@@ -140,9 +156,10 @@ impl Sampler {
     /// inlined into the render loop.
     #[inline(never)]
     fn halton_dimension(&self, dim: u32) -> f32 {
-        let scramble = match &self.permutations {
-            Some(permutations) => Scramble::PermuteDigits(permutations),
-            None => Scramble::Owen { seed: self.seed },
+        let scramble = match (&self.permutations, self.kind) {
+            (Some(permutations), _) => Scramble::PermuteDigits(permutations),
+            (None, SamplerKind::HaltonPlain) => return halton::radical_inverse(dim, self.halton_index),
+            (None, _) => Scramble::Owen { seed: self.seed },
         };
         halton::scrambled_radical_inverse(dim, self.halton_index, scramble)
     }
@@ -282,7 +299,7 @@ impl Sampler {
             // The first dimension pair of a sample is its pixel position
             // (pixel_2d is the first call after start_pixel_sample).
             SamplerKind::Independent | SamplerKind::Sobol => self.next_2d(),
-            SamplerKind::Halton | SamplerKind::HaltonOwen => self.halton_pixel_2d(),
+            SamplerKind::Halton | SamplerKind::HaltonOwen | SamplerKind::HaltonPlain => self.halton_pixel_2d(),
             SamplerKind::Stratified => {
                 // Each pixel visits the cells in its own random order, so
                 // that the first k samples of an interrupted render are
@@ -445,6 +462,35 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Unrandomised Halton points are the sequence's own (pbrt-v4's
+    /// `randomize "none"`): the radical inverses of the point's index, the
+    /// same for every seed, the pixel positions stratified as the others'.
+    #[test]
+    fn plain_halton_points_are_the_radical_inverses() {
+        let mut a = Sampler::new(SamplerKind::HaltonPlain, 64, 9).for_image(200, 150);
+        let mut b = Sampler::new(SamplerKind::HaltonPlain, 64, 1234).for_image(200, 150);
+        for (px, py, i) in [(0u32, 0u32, 0u32), (17, 3, 5), (199, 149, 63)] {
+            a.start_pixel_sample(px, py, i);
+            b.start_pixel_sample(px, py, i);
+            let index = a.halton_index;
+            assert_eq!(a.pixel_2d(), b.pixel_2d());
+            for d in [2u32, 4, 6] {
+                let (ua, ub) = (a.next_2d(), b.next_2d());
+                assert_eq!(ua, ub);
+                let want = Vec2::new(halton::radical_inverse(d, index), halton::radical_inverse(d + 1, index));
+                assert_eq!(ua, want, "dimensions {d}, {}", d + 1);
+            }
+        }
+        let mut xs: Vec<u32> = (0..16)
+            .map(|i| {
+                a.start_pixel_sample(30, 40, i);
+                (a.pixel_2d().x * 16.0) as u32
+            })
+            .collect();
+        xs.sort();
+        assert_eq!(xs, (0..16).collect::<Vec<_>>());
     }
 
     #[test]

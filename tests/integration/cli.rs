@@ -120,6 +120,13 @@ fn every_sampler_renders_and_sobol_is_the_default() {
     let halton = render(&["--sampler", "halton"], "halton.pfm");
     assert_ne!(halton, default);
     assert_ne!(render(&["--sampler", "halton-owen"], "halton-owen.pfm"), halton);
+    // Unrandomised points are the same for every seed.
+    let plain = render(&["--sampler", "halton-plain"], "halton-plain.pfm");
+    assert_ne!(plain, halton);
+    assert_eq!(
+        render(&["--sampler", "halton-plain", "--seed", "7"], "halton-plain-7.pfm"),
+        plain
+    );
     let o = trazo().args(["render", "--sampler", "pmj02bn"]).output().unwrap();
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("sobol"));

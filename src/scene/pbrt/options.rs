@@ -215,14 +215,7 @@ impl Parser {
                             // pbrt-v4's fast variant hashes the digits
                             // otherwise; both are Owen scrambling.
                             "owen" | "fastowen" => SamplerKind::HaltonOwen,
-                            "none" => {
-                                self.approximated(
-                                    loc,
-                                    "Sampler \"halton\" with \"randomize\" \"none\"",
-                                    "the digits are randomly permuted, as pbrt-v4's default does",
-                                );
-                                SamplerKind::Halton
-                            }
+                            "none" => SamplerKind::HaltonPlain,
                             other => {
                                 let prm = randomize.as_ref().map(|(_, prm)| *prm).expect("given");
                                 return Err(prm.err(format!(
