@@ -362,6 +362,31 @@ impl Parser {
             if let Some(seed) = seed {
                 s.seed = seed;
             }
+        } else if kind == "randomwalk" {
+            // pbrt-v4's RandomWalkIntegrator: uniformly sampled directions,
+            // emission found by hitting it: trazo's uniform estimator.
+            s.sampling = PathSampling::Uniform;
+        } else if kind == "simplepath" {
+            // pbrt-v4's SimplePathIntegrator: light sampling for direct
+            // light (without MIS: trazo weighs it against BSDF sampling,
+            // the same image with less noise), BSDF sampling or uniform
+            // directions onward.
+            let lights = p.bool("samplelights", true)?;
+            let bsdf = p.bool("samplebsdf", true)?;
+            let sampling = match (lights, bsdf) {
+                (true, true) => PathSampling::Mis,
+                (false, true) => PathSampling::Bsdf,
+                (false, false) => PathSampling::Uniform,
+                (true, false) => {
+                    self.approximated(
+                        loc,
+                        "Integrator \"simplepath\" with \"samplebsdf\" false and light sampling",
+                        "next-event estimation with MIS and BSDF sampling (the same image)",
+                    );
+                    PathSampling::Mis
+                }
+            };
+            self.desc.settings.sampling = sampling;
         } else if !matches!(kind, "path" | "volpath" | "bdpt" | "mlt") {
             self.approximated(
                 loc,

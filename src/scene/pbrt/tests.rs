@@ -65,6 +65,30 @@ WorldBegin"#,
     );
     assert!(d.warnings.is_empty(), "{:?}", d.warnings);
 
+    // pbrt-v4's teaching integrators are the path tracer's estimators:
+    // uniform directions (random walk), BSDF sampling alone, light
+    // sampling with BSDF sampling.
+    for (kind, sampling) in [
+        ("\"randomwalk\"", PathSampling::Uniform),
+        ("\"simplepath\"", PathSampling::Mis),
+        ("\"simplepath\" \"bool samplelights\" false", PathSampling::Bsdf),
+        (
+            "\"simplepath\" \"bool samplelights\" false \"bool samplebsdf\" false",
+            PathSampling::Uniform,
+        ),
+    ] {
+        let d = parse_str(&format!("Integrator {kind} \"integer maxdepth\" 3\nWorldBegin")).unwrap();
+        assert_eq!(
+            (d.settings.integrator, d.settings.sampling, d.settings.max_depth),
+            (IntegratorKind::Path, sampling, 4),
+            "{kind}"
+        );
+        assert!(d.warnings.is_empty(), "{kind}: {:?}", d.warnings);
+    }
+    let d = parse_str("Integrator \"simplepath\" \"bool samplebsdf\" false\nWorldBegin").unwrap();
+    assert_eq!(d.settings.sampling, PathSampling::Mis);
+    assert!(d.warnings.join("\n").contains("is approximated"), "{:?}", d.warnings);
+
     // pbrt-v4's ambient occlusion, with its distance.
     let d = parse_str("Integrator \"ambientocclusion\" \"float maxdistance\" 0.5 \"bool cossample\" false\nWorldBegin")
         .unwrap();
