@@ -859,7 +859,6 @@ impl Parser {
                     &kind,
                     &[
                         "ambientocclusion",
-                        "aov",
                         "bdpt",
                         "function",
                         "lightpath",

@@ -259,7 +259,7 @@ impl Parser {
         s.integrator = IntegratorKind::Path;
         s.sampling = PathSampling::Mis;
         // Media are known only once the world is read (`finish`).
-        self.volpath = kind == "volpath";
+        self.volpath = matches!(kind, "volpath" | "simplevolpath");
         if kind == "lightpath" {
             // pbrt-v4's LightPathIntegrator: light tracing, with the same
             // depth.
@@ -387,6 +387,13 @@ impl Parser {
                 }
             };
             self.desc.settings.sampling = sampling;
+        } else if kind == "simplevolpath" {
+            // pbrt-v4's SimpleVolPathIntegrator: delta tracking through
+            // media, emission found by hitting it, no light sampling, and
+            // surfaces that scatter refused (it stops with an error at
+            // the first BSDF sample). trazo's volumetric path tracer
+            // estimates the same image with next-event estimation: less
+            // noise, and it renders scattering surfaces too.
         } else if !matches!(kind, "path" | "volpath" | "bdpt" | "mlt") {
             self.approximated(
                 loc,

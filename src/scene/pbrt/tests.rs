@@ -89,6 +89,22 @@ WorldBegin"#,
     assert_eq!(d.settings.sampling, PathSampling::Mis);
     assert!(d.warnings.join("\n").contains("is approximated"), "{:?}", d.warnings);
 
+    // pbrt-v4's simple volumetric path tracer is the volumetric one where
+    // there are media (the same image, with light sampling), the path
+    // tracer where there are none, as for `volpath`.
+    let fog = "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\"\nMediumInterface \"\" \"fog\"";
+    for (media, kind) in [(fog, IntegratorKind::VolPath), ("", IntegratorKind::Path)] {
+        let d = parse_str(&format!(
+            "Integrator \"simplevolpath\" \"integer maxdepth\" 3\n{media}\nCamera \"perspective\"\nWorldBegin"
+        ))
+        .unwrap();
+        assert_eq!((d.settings.integrator, d.settings.max_depth), (kind, 4), "{media}");
+        assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    }
+    // pbrt-v4 knows no "aov" integrator (only its warnings name one).
+    let e = parse_str("Integrator \"aov\"\nWorldBegin").unwrap_err().to_string();
+    assert!(e.contains("unknown Integrator type \"aov\""), "{e}");
+
     // pbrt-v4's ambient occlusion, with its distance.
     let d = parse_str("Integrator \"ambientocclusion\" \"float maxdistance\" 0.5 \"bool cossample\" false\nWorldBegin")
         .unwrap();
