@@ -37,6 +37,13 @@ pub struct RenderSettings {
     pub seed: u64,
     /// Placement of samples within pixels.
     pub sampler: SamplerKind,
+    /// The stratified sampler's grid of 2D strata, `[x, y]` (pbrt-v4's
+    /// `xsamples`, `ysamples`), where its product is `spp`; otherwise (and
+    /// `None`) one derived from `spp` (`sampling::strata_grid`).
+    pub strata: Option<[u32; 2]>,
+    /// Whether the stratified sampler jitters samples inside their strata
+    /// (pbrt-v4's `jitter`); false: at their centres.
+    pub jitter: bool,
     /// Pixel reconstruction filter (along x; see `filter_y_radius`).
     pub filter: Filter,
     /// The filter's radius along y where it differs from its radius along
@@ -155,6 +162,8 @@ impl Default for RenderSettings {
             rr_depth: 5,
             seed: 0,
             sampler: SamplerKind::default(),
+            strata: None,
+            jitter: true,
             filter: Filter::default(),
             filter_y_radius: None,
             tonemap: Tonemap::default(),

@@ -127,10 +127,9 @@ struct SceneArgs {
     /// How samples are placed: sobol (Owen-scrambled Sobol points,
     /// stratified in every dimension of a path; the default), halton,
     /// halton-owen and halton-plain (pbrt-v4's Halton sampler, digits
-    /// permuted, Owen-scrambled or as they are), stratified (jittered grid
-    /// of pixel positions),
-    /// independent (random) or center (one ray through each pixel centre:
-    /// aliasing).
+    /// permuted, Owen-scrambled or as they are), stratified (every
+    /// dimension in jittered strata, as pbrt-v4's), independent (random)
+    /// or center (one ray through each pixel centre: aliasing).
     #[arg(long, value_name = "KIND", value_parser = SamplerKind::NAMES)]
     sampler: Option<String>,
 

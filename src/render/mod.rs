@@ -637,8 +637,11 @@ fn render_passes<I: Integrator>(
         let results: Vec<Option<TileResult>> = tiles
             .par_iter()
             .map(|&tile| {
-                let mut samplers: [Sampler; LANES] =
-                    std::array::from_fn(|_| Sampler::new(s.sampler, s.spp, s.seed).for_image(s.width, s.height));
+                let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| {
+                    Sampler::new(s.sampler, s.spp, s.seed)
+                        .for_image(s.width, s.height)
+                        .with_strata(s.strata, s.jitter)
+                });
                 let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
                 let mut positions = [Vec2::ZERO; LANES];
                 let (mut lenses, mut times) = ([Vec2::ZERO; LANES], [0.0f32; LANES]);

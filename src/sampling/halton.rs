@@ -50,7 +50,7 @@ pub fn base(dim: u32) -> u32 {
 }
 
 /// The largest f32 below 1.
-const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+pub(super) const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// How the digits of each dimension are randomised.
 #[derive(Clone, Copy, Debug)]

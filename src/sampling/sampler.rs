@@ -5,7 +5,7 @@
 //! this is what makes renders bit-identical for any thread count and lets an
 //! interrupted render resume exactly.
 
-use super::halton::{self, DigitPermutations, HaltonPixels, Scramble};
+use super::halton::{self, DigitPermutations, HaltonPixels, ONE_MINUS_EPSILON, Scramble};
 use super::rng::{Pcg32, hash_u64s};
 use super::sobol::{PairSeeds, fraction_to_f32, sobol_1d, sobol_2d};
 use glam::Vec2;
@@ -19,9 +19,13 @@ pub enum SamplerKind {
     Center,
     /// Independent uniform jitter inside the pixel.
     Independent,
-    /// Jittered stratification: the pixel is divided into about `spp`
-    /// cells and each sample is jittered inside its own cell. Only the pixel
-    /// position is stratified; the path's other numbers are independent.
+    /// Jittered stratification of every dimension, as pbrt-v4's
+    /// `stratified` sampler: a 1D number falls in one of `spp` equal
+    /// intervals, a 2D point (the pixel position included) in one cell of
+    /// an `x × y = spp` grid; each pixel and dimension visits the strata
+    /// in its own random order (a sample's strata in different dimensions
+    /// are unrelated, and the first k samples of an interrupted render are
+    /// spread over the strata), jittered inside them or at their centres.
     Stratified,
     /// Owen-scrambled Sobol points (Burley 2020): every 2D dimension pair
     /// of a pixel, the pixel position included, is a shuffled and scrambled
@@ -100,9 +104,13 @@ pub struct Sampler {
     dimension: u32,
     /// `sample_index` with its bits reversed, as the Sobol scrambles take it.
     reversed_index: u32,
-    /// Stratification grid: `cols × rows ≥ spp` cells.
+    /// Stratification grid of the 2D dimensions: `cols × rows = spp`
+    /// cells.
     cols: u32,
     rows: u32,
+    /// Whether stratified samples are jittered inside their strata (else
+    /// at their centres).
+    jitter: bool,
     /// The Halton samplers' tiling of the image, and the current sample's
     /// index in their sequence.
     halton: HaltonPixels,
@@ -115,8 +123,7 @@ impl Sampler {
     /// A sampler for `spp` samples per pixel with the user's `seed`.
     pub fn new(kind: SamplerKind, spp: u32, seed: u64) -> Self {
         let spp = spp.max(1);
-        let cols = (spp as f64).sqrt().floor().max(1.0) as u32;
-        let rows = spp.div_ceil(cols);
+        let [cols, rows] = strata_grid(spp);
         Sampler {
             kind,
             spp,
@@ -129,6 +136,7 @@ impl Sampler {
             reversed_index: 0,
             cols,
             rows,
+            jitter: true,
             halton: HaltonPixels::new(u32::MAX, u32::MAX),
             halton_index: 0,
             permutations: (kind == SamplerKind::Halton).then(|| DigitPermutations::shared(seed)),
@@ -139,6 +147,17 @@ impl Sampler {
     /// Halton samplers tile as pbrt-v4's does (the others ignore it).
     pub fn for_image(mut self, width: u32, height: u32) -> Self {
         self.halton = HaltonPixels::new(width, height);
+        self
+    }
+
+    /// The stratified sampler's 2D grid `[x, y]` where its product is the
+    /// samples per pixel (pbrt-v4's `xsamples` × `ysamples`; otherwise the
+    /// grid of [`strata_grid`] stays), and whether it jitters.
+    pub fn with_strata(mut self, grid: Option<[u32; 2]>, jitter: bool) -> Self {
+        if let Some([x, y]) = grid.filter(|&[x, y]| x >= 1 && y >= 1 && x.checked_mul(y) == Some(self.spp)) {
+            (self.cols, self.rows) = (x, y);
+        }
+        self.jitter = jitter;
         self
     }
 
@@ -233,6 +252,9 @@ impl Sampler {
             let d = self.next_halton_dimension(1);
             return self.halton_dimension(d);
         }
+        if self.kind == SamplerKind::Stratified {
+            return self.stratified_1d();
+        }
         self.rng.next_f32()
     }
 
@@ -247,9 +269,49 @@ impl Sampler {
         if self.is_halton() {
             return self.halton_2d();
         }
+        if self.kind == SamplerKind::Stratified {
+            return self.stratified_2d();
+        }
         let x = self.rng.next_f32();
         let y = self.rng.next_f32();
         Vec2::new(x, y)
+    }
+
+    /// The stratum, of `spp`, of the current sample in the next
+    /// dimension: element `sample_index` of that pixel's and dimension's
+    /// permutation of the strata (pbrt-v4's `StratifiedSampler`).
+    #[inline]
+    fn next_stratum(&mut self) -> u32 {
+        let key = hash_u64s(&[self.pixel_key, self.dimension as u64]);
+        self.dimension = self.dimension.wrapping_add(1);
+        permutation_element(self.sample_index % self.spp, self.spp, key as u32)
+    }
+
+    /// Where in its stratum a stratified number lies: jittered, or the
+    /// centre.
+    #[inline]
+    fn stratum_offset(&mut self) -> f32 {
+        if self.jitter { self.rng.next_f32() } else { 0.5 }
+    }
+
+    /// A stratified number: in one of `spp` equal intervals.
+    #[inline(never)]
+    fn stratified_1d(&mut self) -> f32 {
+        let stratum = self.next_stratum();
+        // Below 1 also where rounding would reach it.
+        ((stratum as f32 + self.stratum_offset()) / self.spp as f32).min(ONE_MINUS_EPSILON)
+    }
+
+    /// A stratified point: in one cell of the `cols × rows` grid.
+    #[inline(never)]
+    fn stratified_2d(&mut self) -> Vec2 {
+        let stratum = self.next_stratum();
+        let (cx, cy) = (stratum % self.cols, stratum / self.cols);
+        let (dx, dy) = (self.stratum_offset(), self.stratum_offset());
+        Vec2::new(
+            ((cx as f32 + dx) / self.cols as f32).min(ONE_MINUS_EPSILON),
+            ((cy as f32 + dy) / self.rows as f32).min(ONE_MINUS_EPSILON),
+        )
     }
 
     /// Passes over the number [`Sampler::next_1d`] would return, without
@@ -264,6 +326,11 @@ impl Sampler {
             self.dimension = self.dimension.wrapping_add(1);
         } else if self.is_halton() {
             self.next_halton_dimension(1);
+        } else if self.kind == SamplerKind::Stratified {
+            self.dimension = self.dimension.wrapping_add(1);
+            if self.jitter {
+                self.rng.skip();
+            }
         } else {
             self.rng.skip();
         }
@@ -277,6 +344,12 @@ impl Sampler {
             self.dimension = self.dimension.wrapping_add(1);
         } else if self.is_halton() {
             self.next_halton_dimension(2);
+        } else if self.kind == SamplerKind::Stratified {
+            self.dimension = self.dimension.wrapping_add(1);
+            if self.jitter {
+                self.rng.skip();
+                self.rng.skip();
+            }
         } else {
             self.rng.skip();
             self.rng.skip();
@@ -298,22 +371,24 @@ impl Sampler {
             SamplerKind::Center => Vec2::splat(0.5),
             // The first dimension pair of a sample is its pixel position
             // (pixel_2d is the first call after start_pixel_sample).
-            SamplerKind::Independent | SamplerKind::Sobol => self.next_2d(),
+            SamplerKind::Independent | SamplerKind::Sobol | SamplerKind::Stratified => self.next_2d(),
             SamplerKind::Halton | SamplerKind::HaltonOwen | SamplerKind::HaltonPlain => self.halton_pixel_2d(),
-            SamplerKind::Stratified => {
-                // Each pixel visits the cells in its own random order, so
-                // that the first k samples of an interrupted render are
-                // spread over the pixel rather than filling its top rows.
-                let cell = permutation_element(self.sample_index % self.spp, self.spp, self.pixel_key as u32);
-                let (cx, cy) = (cell % self.cols, cell / self.cols);
-                let j = self.next_2d();
-                Vec2::new(
-                    (cx as f32 + j.x) / self.cols as f32,
-                    (cy as f32 + j.y) / self.rows as f32,
-                )
-            }
         }
     }
+}
+
+/// The stratified sampler's grid for `spp` samples: `[x, y]` with
+/// `x · y = spp` and y the largest divisor of `spp` not above its square
+/// root, as pbrt-v4 divides a sample count given on its command line. Every
+/// cell holds one sample: a grid with more cells than samples would leave
+/// part of the pixel unsampled.
+pub fn strata_grid(spp: u32) -> [u32; 2] {
+    let spp = spp.max(1);
+    let mut y = (spp as f64).sqrt().floor() as u32;
+    while spp % y != 0 {
+        y -= 1;
+    }
+    [spp / y, y]
 }
 
 /// Element `i` of a pseudo-random permutation of `[0, n)` chosen by `seed`
@@ -370,8 +445,9 @@ mod tests {
             SamplerKind::Halton,
             SamplerKind::HaltonOwen,
         ] {
-            for index in [0u32, 1, 5, 63] {
-                let (mut taken, mut skipped) = (Sampler::new(kind, 64, 3), Sampler::new(kind, 64, 3));
+            for (index, jitter) in [(0u32, true), (1, true), (5, false), (63, true), (63, false)] {
+                let new = || Sampler::new(kind, 64, 3).with_strata(None, jitter);
+                let (mut taken, mut skipped) = (new(), new());
                 taken.start_pixel_sample(7, 2, index);
                 skipped.start_pixel_sample(7, 2, index);
                 assert_eq!(taken.pixel_2d(), skipped.pixel_2d());
@@ -523,19 +599,66 @@ mod tests {
         assert_ne!(a.pixel_2d(), c.pixel_2d(), "the seed changes the numbers");
     }
 
+    /// Every dimension of the stratified sampler, 1D and 2D, the pixel
+    /// position included, puts one of a pixel's samples in each stratum,
+    /// for square and oblong grids, jittered or at the centres.
     #[test]
-    fn stratified_puts_one_sample_in_each_cell() {
-        let spp = 16;
-        let mut s = Sampler::new(SamplerKind::Stratified, spp, 1);
-        let mut cells = [0u32; 16];
-        for i in 0..spp {
-            s.start_pixel_sample(3, 4, i);
-            let p = s.pixel_2d();
-            assert!(p.cmpge(Vec2::ZERO).all() && p.cmplt(Vec2::ONE).all());
-            let c = (p.x * 4.0) as usize + 4 * (p.y * 4.0) as usize;
-            cells[c] += 1;
+    fn stratified_puts_one_sample_in_each_stratum_of_every_dimension() {
+        for (spp, grid) in [(16, None), (12, None), (6, Some([3, 2])), (6, Some([1, 6])), (7, None)] {
+            for jitter in [true, false] {
+                let [nx, ny] = grid.unwrap_or(strata_grid(spp));
+                let mut s = Sampler::new(SamplerKind::Stratified, spp, 1).with_strata(grid, jitter);
+                // Per dimension: the strata its samples fell in.
+                let mut cells = vec![vec![0u32; spp as usize]; 6];
+                for i in 0..spp {
+                    s.start_pixel_sample(3, 4, i);
+                    for (d, counts) in cells.iter_mut().enumerate() {
+                        let stratum = if d % 2 == 0 {
+                            let p = if d == 0 { s.pixel_2d() } else { s.next_2d() };
+                            assert!(p.cmpge(Vec2::ZERO).all() && p.cmplt(Vec2::ONE).all());
+                            let (fx, fy) = (p.x * nx as f32, p.y * ny as f32);
+                            if !jitter {
+                                assert_eq!((fx.fract(), fy.fract()), (0.5, 0.5), "centres");
+                            }
+                            fx as usize + nx as usize * fy as usize
+                        } else {
+                            let u = s.next_1d();
+                            assert!((0.0..1.0).contains(&u));
+                            let f = u * spp as f32;
+                            if !jitter {
+                                assert!((f.fract() - 0.5).abs() < 1e-5, "centre: {f}");
+                            }
+                            f as usize
+                        };
+                        counts[stratum] += 1;
+                    }
+                }
+                for (d, c) in cells.iter().enumerate() {
+                    assert!(c.iter().all(|&n| n == 1), "spp {spp} {grid:?} dim {d}: {c:?}");
+                }
+            }
         }
-        assert!(cells.iter().all(|&c| c == 1), "{cells:?}");
+    }
+
+    /// The grid for a sample count is exact, its y the largest divisor not
+    /// above the square root (pbrt-v4's rule); a scene's grid is kept only
+    /// where it holds the samples.
+    #[test]
+    fn strata_grids_hold_every_sample() {
+        for (spp, grid) in [
+            (1, [1, 1]),
+            (16, [4, 4]),
+            (8, [4, 2]),
+            (12, [4, 3]),
+            (7, [7, 1]),
+            (1024, [32, 32]),
+        ] {
+            assert_eq!(strata_grid(spp), grid, "{spp}");
+        }
+        let s = Sampler::new(SamplerKind::Stratified, 6, 1).with_strata(Some([3, 2]), true);
+        assert_eq!((s.cols, s.rows), (3, 2));
+        let s = Sampler::new(SamplerKind::Stratified, 8, 1).with_strata(Some([3, 2]), false);
+        assert_eq!((s.cols, s.rows, s.jitter), (4, 2, false));
     }
 
     /// The first `n` points of dimension pair `pair` (0 is pixel_2d) of

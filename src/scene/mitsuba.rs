@@ -1424,7 +1424,12 @@ impl Loader {
         if let Some(seed) = self.integer(f, &props, "seed", &mut used)? {
             self.desc.settings.seed = seed.max(0) as u64;
         }
-        for ignored in ["jitter", "scramble_seed", "dimension"] {
+        // The stratified samplers' jitter inside strata (Mitsuba's default:
+        // on); false puts samples at the strata's centres.
+        if let Some(jitter) = self.boolean(f, &props, "jitter", &mut used)? {
+            self.desc.settings.jitter = jitter;
+        }
+        for ignored in ["scramble_seed", "dimension"] {
             let _ = Self::find(&props, ignored, &mut used);
         }
         self.unused(f, node, &props, &used);
@@ -3546,7 +3551,18 @@ mod tests {
                 warns,
                 "{ty}"
             );
+            assert!(d.settings.jitter, "{ty}");
         }
+        // Stratified samples at the strata's centres.
+        let d = parse_str(&SPHERE.replace(
+            "<sampler type=\"independent\">",
+            "<sampler type=\"stratified\"><boolean name=\"jitter\" value=\"false\"/>",
+        ))
+        .unwrap();
+        assert_eq!(
+            (d.settings.sampler, d.settings.jitter),
+            (SamplerKind::Stratified, false)
+        );
     }
 
     #[test]

@@ -141,7 +141,9 @@ impl Progressive for Sppm {
             .par_chunks_mut(w)
             .enumerate()
             .map(|(y, row)| {
-                let mut sampler = Sampler::new(s.sampler, s.spp, s.seed).for_image(s.width, s.height);
+                let mut sampler = Sampler::new(s.sampler, s.spp, s.seed)
+                    .for_image(s.width, s.height)
+                    .with_strata(s.strata, s.jitter);
                 let mut rays = 0u64;
                 for (x, px) in row.iter_mut().enumerate() {
                     camera_sample(

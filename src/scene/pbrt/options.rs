@@ -162,6 +162,7 @@ impl Parser {
 
     pub(super) fn sampler(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {
         let s = &mut self.desc.settings;
+        (s.strata, s.jitter) = (None, true);
         match kind {
             "stratified" => {
                 // pbrt-v4: xsamples × ysamples strata (default 4 × 4).
@@ -177,13 +178,8 @@ impl Parser {
                 }
                 s.spp = (nx * ny) as u32;
                 s.sampler = SamplerKind::Stratified;
-                if !p.bool("jitter", true)? {
-                    self.approximated(
-                        loc,
-                        "Sampler \"stratified\" with \"bool jitter\" false",
-                        "samples are jittered within their strata",
-                    );
-                }
+                s.strata = Some([nx as u32, ny as u32]);
+                s.jitter = p.bool("jitter", true)?;
             }
             _ => {
                 let default = if kind == "independent" { 4 } else { 16 };

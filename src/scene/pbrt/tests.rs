@@ -146,6 +146,18 @@ WorldBegin"#,
         }
     );
 
+    // pbrt-v4's stratified sampler: its grid and jitter.
+    let d = parse_str(
+        "Sampler \"stratified\" \"integer xsamples\" 3 \"integer ysamples\" 2 \"bool jitter\" false\nWorldBegin",
+    )
+    .unwrap();
+    let s = &d.settings;
+    assert_eq!(
+        (s.sampler, s.spp, s.strata, s.jitter),
+        (SamplerKind::Stratified, 6, Some([3, 2]), false)
+    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+
     let d = parse_str(
         r#"Sampler "stratified" "integer xsamples" 3 "integer ysamples" 5
 PixelFilter "gaussian" "float sigma" 0.25 "float xradius" 1 "float yradius" 1
@@ -155,6 +167,11 @@ WorldBegin"#,
     )
     .unwrap();
     assert_eq!(d.settings.spp, 32);
+    assert_eq!(
+        (d.settings.strata, d.settings.jitter),
+        (None, true),
+        "the last sampler's"
+    );
     assert_eq!(d.settings.max_depth, 3);
     assert_eq!(
         d.settings.filter,
