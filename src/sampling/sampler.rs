@@ -31,8 +31,8 @@ pub enum SamplerKind {
     /// of a pixel, the pixel position included, is a shuffled and scrambled
     /// (0,2)-sequence, so the first 2^k samples are stratified in every
     /// elementary interval of area 2^-k; 1D dimensions are stratified too.
-    /// The default: on the Cornell box it has about half the error of
-    /// stratified sampling at 16–64 spp (BENCHMARKS.md, "Samplers").
+    /// The default: the least error of trazo's samplers on the Cornell
+    /// boxes at 16–64 spp (BENCHMARKS.md, "Samplers").
     #[default]
     Sobol,
     /// The Halton sequence over the whole image, each dimension's digits
