@@ -304,8 +304,13 @@ impl RoughnessMap {
 /// of one shading point, and independent of the sampler's dimensions.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MaterialMix {
-    /// The share of `materials[1]` (first channel, clamped to [0, 1]).
+    /// The share of `materials[1]` (first channel, clamped to [0, 1]);
+    /// unread where `by_side`.
     pub weight: Texture,
+    /// Whether the side a ray arrives from chooses, not the weight:
+    /// `materials[0]` at the front (the side the geometric normal faces),
+    /// `materials[1]` at the back.
+    pub by_side: bool,
     /// The two materials (indices into the scene's).
     pub materials: [u32; 2],
     /// Whether the two are blended as one BSDF rather than chosen between.
@@ -313,9 +318,13 @@ pub struct MaterialMix {
 }
 
 impl MaterialMix {
-    /// The material chosen at a point seen from direction `dir`.
+    /// The material chosen at a point of geometric normal `ng` seen from
+    /// direction `dir`.
     #[inline]
-    pub fn choose(&self, textures: &TextureStore, tc: &TexCoord, dir: Vec3) -> u32 {
+    pub fn choose(&self, textures: &TextureStore, tc: &TexCoord, dir: Vec3, ng: Vec3) -> u32 {
+        if self.by_side {
+            return self.materials[(dir.dot(ng) > 0.0) as usize];
+        }
         let w = self.weight.eval(textures, tc).x;
         if w <= 0.0 {
             return self.materials[0];

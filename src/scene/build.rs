@@ -983,7 +983,7 @@ fn resolve_mixes(
     let mut mixes: Vec<Option<MaterialMix>> = vec![None; materials.len()];
     for (i, m) in desc.materials.iter().enumerate() {
         let MaterialKindDesc::Mix {
-            weight,
+            choice,
             materials: names,
         } = &m.kind
         else {
@@ -1034,14 +1034,20 @@ fn resolve_mixes(
                 && !m.is_emissive()
                 && !matches!(m.kind, MaterialKind::Thin { .. })
         };
+        let by_side = *choice == MixChoice::Side;
         let exact = !overrides
+            && !by_side
             && parts.iter().all(|&k| plain(k))
             && materials[parts[0] as usize].two_sided == materials[parts[1] as usize].two_sided;
         let mut stand_in = materials[parts[0] as usize].clone();
         stand_in.emission = own.emission;
         materials[i] = stand_in;
         mixes[i] = Some(MaterialMix {
-            weight: color(weight),
+            weight: match choice {
+                MixChoice::Weight(weight) => color(weight),
+                MixChoice::Side => Texture::Constant(Rgb::ZERO),
+            },
+            by_side,
             materials: parts,
             exact,
         });

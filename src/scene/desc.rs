@@ -423,14 +423,12 @@ pub enum MaterialKindDesc {
         /// wavelength.
         dispersion: Option<crate::material::dispersion::IorSpectrum>,
     },
-    /// One of two materials at each point, the second with the weight's
-    /// first channel as its probability: on average (1 − w)·f₀ + w·f₁
-    /// (Mitsuba's `blendbsdf`, pbrt-v4's `mix`, which chooses likewise).
-    /// Its own emission, sidedness, opacity and normal map, where given,
-    /// apply to both.
+    /// One of two materials at each point, chosen at random or by the
+    /// side a ray arrives from ([`MixChoice`]). Its own emission,
+    /// sidedness, opacity and normal map, where given, apply to both.
     Mix {
-        /// The probability of the second material (first channel).
-        weight: ColorSource,
+        /// How the material is chosen.
+        choice: MixChoice,
         /// The two materials' names.
         materials: [String; 2],
     },
@@ -477,6 +475,19 @@ impl MaterialKindDesc {
         transmit_tint: Rgb::ONE,
         dispersion: None,
     };
+}
+
+/// How a mix material chooses between its two materials.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MixChoice {
+    /// The second with the weight's first channel as its probability: on
+    /// average (1 − w)·f₀ + w·f₁ (Mitsuba's `blendbsdf`, pbrt-v4's `mix`,
+    /// which chooses likewise).
+    Weight(ColorSource),
+    /// The first where a ray arrives at the front of the surface (the side
+    /// its geometric normal faces), the second at the back, each seen as
+    /// from its front (Mitsuba's `twosided` with two BSDFs).
+    Side,
 }
 
 /// A named material (see [`crate::material::Material`]).
@@ -1644,8 +1655,10 @@ impl SceneDesc {
                         return Err(c.err("file", "names no file"));
                     }
                 }
-                MaterialKindDesc::Mix { weight, materials } => {
-                    texture("weight", weight)?;
+                MaterialKindDesc::Mix { choice, materials } => {
+                    if let MixChoice::Weight(weight) = choice {
+                        texture("weight", weight)?;
+                    }
                     for name in materials {
                         if !self.materials.iter().any(|other| &other.name == name) {
                             return Err(c.err(

@@ -1913,23 +1913,46 @@ impl Loader {
         let mut roughness_map = None;
         let kind = match ty.as_str() {
             "twosided" => {
-                let inner = nested().ok_or_else(|| self.err(f, node, "twosided needs a nested BSDF"))?;
-                let count = node
+                let inner: Vec<Node> = node
                     .children()
-                    .filter(|c| c.is_element() && c.tag_name().name() == "bsdf")
-                    .count();
-                if count > 1 {
-                    self.warn(
-                        f,
-                        node,
-                        "a different BSDF for the back side is unsupported; the front one is used on both",
-                    );
+                    .filter(|c| {
+                        c.is_element() && matches!(c.tag_name().name(), "bsdf" | "ref") && !c.has_attribute("name")
+                    })
+                    .collect();
+                match inner.as_slice() {
+                    [one] => {
+                        let mut def = self.bsdf(f, *one)?;
+                        def.two_sided = true;
+                        def.material = None;
+                        def.loc = loc;
+                        return Ok(def);
+                    }
+                    // The front's BSDF and the back's, each seeing its side
+                    // as its front, as Mitsuba flips the directions for
+                    // the back's.
+                    [front, back] => {
+                        let [mut front, mut back] = [self.bsdf(f, *front)?, self.bsdf(f, *back)?];
+                        for def in [&mut front, &mut back] {
+                            def.two_sided = true;
+                            def.material = None;
+                        }
+                        let materials = [
+                            self.material_for(Some((front, None)), None),
+                            self.material_for(Some((back, None)), None),
+                        ];
+                        MaterialKindDesc::Mix {
+                            choice: MixChoice::Side,
+                            materials,
+                        }
+                    }
+                    _ => {
+                        return Err(self.err(
+                            f,
+                            node,
+                            format!("twosided takes one or two nested BSDFs, not {}", inner.len()),
+                        ));
+                    }
                 }
-                let mut def = self.bsdf(f, inner)?;
-                def.two_sided = true;
-                def.material = None;
-                def.loc = loc;
-                return Ok(def);
             }
             "principled" | "principledthin" => {
                 let thin = ty == "principledthin";
@@ -2274,7 +2297,10 @@ impl Loader {
                     self.material_for(Some((first, None)), None),
                     self.material_for(Some((second, None)), None),
                 ];
-                MaterialKindDesc::Mix { weight, materials }
+                MaterialKindDesc::Mix {
+                    choice: MixChoice::Weight(weight),
+                    materials,
+                }
             }
             other => {
                 self.warn(
@@ -2291,8 +2317,16 @@ impl Loader {
             }
         };
         self.unused(f, node, &props, &used);
-        // Mitsuba's BSDFs are one-sided, but for its thin sheet.
-        let two_sided = matches!(kind, MaterialKindDesc::Principled { thin: true, .. });
+        // Mitsuba's BSDFs are one-sided, but for its thin sheet and
+        // `twosided`.
+        let two_sided = matches!(
+            kind,
+            MaterialKindDesc::Principled { thin: true, .. }
+                | MaterialKindDesc::Mix {
+                    choice: MixChoice::Side,
+                    ..
+                }
+        );
         Ok(BsdfDef {
             opacity: None,
             normal_map: None,
@@ -3377,7 +3411,11 @@ mod tests {
                 ("face_weight".to_string(), true, 1)
             ]
         );
-        let MaterialKindDesc::Mix { weight, materials } = &material_of(&d, 3).kind else {
+        let MaterialKindDesc::Mix {
+            choice: MixChoice::Weight(weight),
+            materials,
+        } = &material_of(&d, 3).kind
+        else {
             panic!("{:?}", material_of(&d, 3).kind)
         };
         let ColorSource::Texture(w) = weight else {
@@ -3533,6 +3571,55 @@ mod tests {
         assert!(matches!(d.background, BackgroundDesc::Constant(c) if c == Rgb::ONE));
         let m = &d.materials[0];
         assert!(!m.two_sided, "Mitsuba BSDFs are one-sided");
+    }
+
+    /// `twosided` with two BSDFs: a mix chosen by the side a ray arrives
+    /// from, each part two-sided; a ray from the front meets the first, one
+    /// from the back the second.
+    #[test]
+    fn twosided_with_two_bsdfs_chooses_by_side() {
+        let d = parse_str(
+            r#"<scene version="3.0.0"><shape type="rectangle"><bsdf type="twosided">
+              <bsdf type="diffuse"><rgb name="reflectance" value="0.7, 0.1, 0.1"/></bsdf>
+              <bsdf type="roughconductor"><float name="alpha" value="0.3"/></bsdf></bsdf></shape></scene>"#,
+        )
+        .unwrap();
+        let m = material_of(&d, 0);
+        let MaterialKindDesc::Mix {
+            choice: MixChoice::Side,
+            materials,
+        } = &m.kind
+        else {
+            panic!("{:?}", m.kind)
+        };
+        let part = |i: usize| d.materials.iter().find(|m| m.name == materials[i]).unwrap();
+        assert!(matches!(part(0).kind, MaterialKindDesc::Diffuse { .. }) && part(0).two_sided);
+        assert!(matches!(part(1).kind, MaterialKindDesc::Conductor { .. }) && part(1).two_sided);
+        assert!(!d.warnings.iter().any(|w| w.contains("BSDF")), "{:?}", d.warnings);
+        // The rectangle faces +z.
+        let scene = crate::scene::build(&d).unwrap();
+        let kind_of = |name: &str| {
+            let index = d.materials.iter().position(|m| m.name == name).unwrap();
+            std::mem::discriminant(&scene.materials[index].kind)
+        };
+        for (origin, expected) in [(Vec3::Z, 0), (-Vec3::Z, 1)] {
+            let ray = crate::geometry::Ray::new(origin, -origin);
+            let mut hit = scene.intersect(&ray).expect("the ray meets the rectangle");
+            scene.choose_any_material(&mut hit, ray.dir);
+            let chosen = &scene.materials[hit.material as usize];
+            assert_eq!(
+                std::mem::discriminant(&chosen.kind),
+                kind_of(&materials[expected]),
+                "from {origin}"
+            );
+            assert!(chosen.two_sided, "from {origin}");
+        }
+        let e = parse_str(
+            r#"<scene version="3.0.0"><bsdf type="twosided" id="t"><bsdf type="diffuse"/><bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf></scene>"#,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("twosided takes one or two nested BSDFs, not 3"), "{e}");
     }
 
     #[test]

@@ -144,7 +144,7 @@ impl Scene {
             if keep_blends && mix.exact {
                 return;
             }
-            hit.material = mix.choose(&self.textures, &crate::texture::TexCoord::at(hit), dir);
+            hit.material = mix.choose(&self.textures, &crate::texture::TexCoord::at(hit), dir, hit.ng);
         }
     }
 

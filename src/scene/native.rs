@@ -1145,7 +1145,7 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
                 ));
             };
             MaterialKindDesc::Mix {
-                weight: t.color_source("weight")?.unwrap_or(ColorSource::Rgb(Rgb::splat(0.5))),
+                choice: MixChoice::Weight(t.color_source("weight")?.unwrap_or(ColorSource::Rgb(Rgb::splat(0.5)))),
                 materials,
             }
         }

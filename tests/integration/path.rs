@@ -165,7 +165,7 @@ fn a_mix_of_two_lambertians_renders_their_weighted_albedo() {
     let mix = MaterialDesc::with_kind(
         "mix",
         MaterialKindDesc::Mix {
-            weight: ColorSource::Rgb(Rgb::splat(0.25)),
+            choice: MixChoice::Weight(ColorSource::Rgb(Rgb::splat(0.25))),
             materials: ["dark".into(), "light".into()],
         },
     );

@@ -1589,7 +1589,7 @@ impl Parser {
             MatKind::Desc(k) => k.clone(),
             // Named materials keep their names in the description.
             MatKind::Mix { names, amount, .. } => MaterialKindDesc::Mix {
-                weight: amount.clone(),
+                choice: MixChoice::Weight(amount.clone()),
                 materials: names.clone(),
             },
         };

@@ -1113,7 +1113,7 @@ Shape "sphere""#,
     assert_eq!(
         material(&d, 1).kind,
         MaterialKindDesc::Mix {
-            weight: ColorSource::Rgb(Rgb::splat(0.8)),
+            choice: MixChoice::Weight(ColorSource::Rgb(Rgb::splat(0.8))),
             materials: ["later".to_string(), "metal".to_string()],
         }
     );
