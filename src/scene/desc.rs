@@ -1311,6 +1311,9 @@ impl SceneDesc {
             let mapping = |m: &Mapping2D| -> Result<()> {
                 let finite = match m {
                     Mapping2D::Uv { scale, offset } => scale.is_finite() && offset.is_finite(),
+                    Mapping2D::UvAffine { u_axis, v_axis, offset } => {
+                        u_axis.is_finite() && v_axis.is_finite() && offset.is_finite()
+                    }
                     Mapping2D::Spherical { to_texture } | Mapping2D::Cylindrical { to_texture } => {
                         to_texture.is_finite()
                     }

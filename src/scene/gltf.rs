@@ -1405,22 +1405,28 @@ impl<'a> Reader<'a> {
         let mut tex_coord = info.tex_coord;
         let mut scale = Vec2::ONE;
         let mut offset = Vec2::ZERO;
+        let mut turned = None;
         if let Some(tt) = info.extensions.as_ref().and_then(|e| e.texture_transform.as_ref()) {
             let tt_at = format!("{at}.extensions.KHR_texture_transform");
-            let (s, o) = (Vec2::from(tt.scale.0), Vec2::from(tt.offset.0));
-            if !s.is_finite() || !o.is_finite() || !tt.rotation.0.is_finite() {
+            let (s, o, r) = (Vec2::from(tt.scale.0), Vec2::from(tt.offset.0), tt.rotation.0);
+            if !s.is_finite() || !o.is_finite() || !r.is_finite() {
                 return Err(self.err(&tt_at, "has a NaN or infinite value"));
             }
-            // glTF samples at o + s·(u, v) with v down; trazo's mesh holds
-            // v' = 1 − v and samples with v up, so the same texel is at
+            // glTF samples at o + R·(s·(u, v)) with v down, R turning
+            // (1, 0) to (cos r, sin r) (the extension's matrix); trazo's
+            // mesh holds v' = 1 − v and samples with v up, so the same texel
+            // is at (o.x − sin r·s.y, 1 − o.y − cos r·s.y) + u·(cos r·s.x,
+            // −sin r·s.x) + v'·(sin r·s.y, cos r·s.y): without a rotation,
             // (o.x + s.x·u, (1 − o.y − s.y) + s.y·v').
             scale = s;
             offset = Vec2::new(o.x, 1.0 - o.y - s.y);
-            if tt.rotation.0 != 0.0 {
-                self.warn(
-                    &format!("{tt_at}.rotation"),
-                    "a texture transform's rotation is unsupported: offset and scale are applied, the rotation is ignored",
-                );
+            if r != 0.0 {
+                let (sin, cos) = r.sin_cos();
+                turned = Some(crate::texture::Mapping2D::UvAffine {
+                    u_axis: Vec2::new(cos * s.x, -sin * s.x),
+                    v_axis: Vec2::new(sin * s.y, cos * s.y),
+                    offset: Vec2::new(o.x - sin * s.y, 1.0 - o.y - cos * s.y),
+                });
             }
             if let Some(tc) = tt.tex_coord {
                 tex_coord = tc;
@@ -1461,8 +1467,21 @@ impl<'a> Reader<'a> {
         let source = self.image_source(root, image)?;
         let name = at.to_string();
         let image_at = format!("images[{image}]");
+        let locs = Locs {
+            item: Some(self.loc(at)),
+            keys: vec![("file".into(), self.loc(&format!("{image_at}.uri")))],
+        };
+        // A rotated transform reads the image through a mapped node.
+        let image_name = if turned.is_some() {
+            format!("{at} image")
+        } else {
+            name.clone()
+        };
+        if turned.is_some() {
+            (scale, offset) = (Vec2::ONE, Vec2::ZERO);
+        }
         self.desc.textures.push(TextureDesc {
-            name: name.clone(),
+            name: image_name.clone(),
             kind: TextureKind::Image {
                 source,
                 scale,
@@ -1472,11 +1491,18 @@ impl<'a> Reader<'a> {
                 wrap: crate::texture::WrapMode::Repeat,
                 filter: crate::texture::ImageFilter::Bilinear,
             },
-            locs: Locs {
-                item: Some(self.loc(at)),
-                keys: vec![("file".into(), self.loc(&format!("{image_at}.uri")))],
-            },
+            locs: locs.clone(),
         });
+        if let Some(mapping) = turned {
+            self.desc.textures.push(TextureDesc {
+                name: name.clone(),
+                kind: TextureKind::Node(crate::texture::TextureNode::Mapped {
+                    tex: ColorSource::Texture(image_name),
+                    mapping,
+                }),
+                locs,
+            });
+        }
         Ok(name)
     }
 

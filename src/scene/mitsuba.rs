@@ -1645,14 +1645,21 @@ impl Loader {
         let props = Self::props(node);
         let mut used = Vec::new();
         let to_uv = self.transform(f, &props, "to_uv", &mut used)?.unwrap_or(Mat4::IDENTITY);
-        // trazo's textures take a scale and an offset in (u, v).
+        // Mitsuba maps (u, v) by the transform's 2D part: the upper-left
+        // 2 × 2 block and the translation.
         let scale = Vec2::new(to_uv.x_axis.x, to_uv.y_axis.y);
         let offset = Vec2::new(to_uv.w_axis.x, to_uv.w_axis.y);
-        if to_uv.x_axis.y != 0.0 || to_uv.y_axis.x != 0.0 {
+        let turned = to_uv.x_axis.y != 0.0 || to_uv.y_axis.x != 0.0;
+        let affine = |k: f32| crate::texture::Mapping2D::UvAffine {
+            u_axis: k * to_uv.x_axis.truncate().truncate(),
+            v_axis: k * to_uv.y_axis.truncate().truncate(),
+            offset: k * offset,
+        };
+        if turned && !matches!(ty.as_str(), "bitmap" | "checkerboard") {
             self.warn(
                 f,
                 node,
-                "rotated or sheared to_uv transforms are unsupported; only scale and offset are used",
+                format!("a rotated or sheared to_uv on a \"{ty}\" texture is unsupported; only its scale and offset are used"),
             );
         }
         let kind = match ty.as_str() {
@@ -1690,12 +1697,12 @@ impl Loader {
                 };
                 // Mitsuba looks images up with v = 0 at the top row, trazo
                 // at the bottom: flip v after Mitsuba's to_uv.
-                TextureKind::Image {
+                let image = |scale: Vec2, offset: Vec2| TextureKind::Image {
                     // `raw` images hold numbers, which no colour space converts.
                     source: if raw {
-                        ImageSource::DataFile(path)
+                        ImageSource::DataFile(path.clone())
                     } else {
-                        ImageSource::File(path)
+                        ImageSource::File(path.clone())
                     },
                     scale: Vec2::new(scale.x, -scale.y),
                     offset: Vec2::new(offset.x, 1.0 - offset.y),
@@ -1703,6 +1710,21 @@ impl Loader {
                     tint: Rgb::ONE,
                     wrap,
                     filter,
+                };
+                if turned {
+                    // The image read at the turned (u, v): a mapped node.
+                    let name = self.fresh_name("mitsuba-texture");
+                    self.desc.textures.push(TextureDesc {
+                        name: name.clone(),
+                        kind: image(Vec2::ONE, Vec2::ZERO),
+                        locs: Locs::at(Some(f.loc_of(node))),
+                    });
+                    TextureKind::Node(crate::texture::TextureNode::Mapped {
+                        tex: ColorSource::Texture(name),
+                        mapping: affine(1.0),
+                    })
+                } else {
+                    image(scale, offset)
                 }
             }
             "checkerboard" => {
@@ -1716,7 +1738,7 @@ impl Loader {
                 // (u, v) wide; color0 is where both fractions are below ½
                 // (as a colour; see `float_texture`).
                 match (&c0, &c1) {
-                    (ColorSource::Rgb(even), ColorSource::Rgb(odd)) if offset == Vec2::ZERO => {
+                    (ColorSource::Rgb(even), ColorSource::Rgb(odd)) if offset == Vec2::ZERO && !turned => {
                         TextureKind::Checkerboard {
                             even: *even,
                             odd: *odd,
@@ -1728,9 +1750,13 @@ impl Loader {
                     _ => TextureKind::Node(crate::texture::TextureNode::Checkerboard {
                         even: c0,
                         odd: c1,
-                        mapping: crate::texture::Mapping2D::Uv {
-                            scale: 2.0 * scale,
-                            offset: 2.0 * offset,
+                        mapping: if turned {
+                            affine(2.0)
+                        } else {
+                            crate::texture::Mapping2D::Uv {
+                                scale: 2.0 * scale,
+                                offset: 2.0 * offset,
+                            }
                         },
                     }),
                 }

@@ -31,6 +31,17 @@ pub enum Mapping2D {
         /// Added after scaling.
         offset: Vec2,
     },
+    /// (s, t) = u·u_axis + v·v_axis + offset: any affine map of (u, v),
+    /// rotations and shears included (Mitsuba's `to_uv`, glTF's
+    /// `KHR_texture_transform`).
+    UvAffine {
+        /// Where (1, 0) goes, less the offset.
+        u_axis: Vec2,
+        /// Where (0, 1) goes, less the offset.
+        v_axis: Vec2,
+        /// Where (0, 0) goes.
+        offset: Vec2,
+    },
     /// (θ/π, φ/2π) of the point's direction from the texture space's
     /// origin (θ from +z, φ from +x toward +y).
     Spherical {
@@ -60,6 +71,7 @@ impl Mapping2D {
     pub fn map(&self, tc: &TexCoord) -> Vec2 {
         match *self {
             Mapping2D::Uv { scale, offset } => tc.uv * scale + offset,
+            Mapping2D::UvAffine { u_axis, v_axis, offset } => tc.uv.x * u_axis + tc.uv.y * v_axis + offset,
             Mapping2D::Spherical { to_texture } => {
                 let d = to_texture.transform_point3(tc.p).normalize_or_zero();
                 let mut phi = d.y.atan2(d.x);

@@ -519,6 +519,29 @@ fn emission_is_factor_times_texture_times_strength_and_texture_transforms_apply(
     assert!(close(img.get(0, 0), Rgb::new(0.0, 1.0, 0.0)), "{}", img.get(0, 0));
     assert!(close(img.get(0, 1), Rgb::ONE), "{}", img.get(0, 1));
 
+    // Turned a quarter: the extension's R takes (u, v) to (−v, u), so the
+    // pixel at glTF (u, v) shows the texel at (1 − v, u) (repeating):
+    // green, white over red, blue.
+    let mut a = Asset::default();
+    let body = textured_square_body(
+        &mut a,
+        r#"[{"uri":"my%20tex.png"}]"#,
+        r#","extensions":{"KHR_texture_transform":{"rotation":1.5707963267948966}}"#,
+        1.0,
+    );
+    a.write_embedded(&path, &body);
+    let d = load(&path, &[]).unwrap();
+    assert!(!d.warnings.iter().any(|w| w.contains("rotation")), "{:?}", d.warnings);
+    let img = render_2x2(d);
+    for ((x, y), texel) in [
+        ((0, 0), Rgb::new(0.0, 1.0, 0.0)),
+        ((1, 0), Rgb::ONE),
+        ((0, 1), Rgb::new(1.0, 0.0, 0.0)),
+        ((1, 1), Rgb::new(0.0, 0.0, 1.0)),
+    ] {
+        assert!(close(img.get(x, y), texel), "({x}, {y}): {}", img.get(x, y));
+    }
+
     // A plain emissive factor.
     let mut a = Asset::default();
     let prim = a.floor();
