@@ -465,9 +465,55 @@ fn solve3(m: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
     }))
 }
 
+/// The samples of a spectrum file (pbrt-v4's `.spd`, Mitsuba 3's
+/// spectrum files): whitespace-separated pairs of wavelength (nm,
+/// increasing) and value; `#` starts a comment.
+pub fn parse_spd(text: &str) -> Result<Vec<(f32, f32)>, String> {
+    let mut numbers = Vec::new();
+    for (line_no, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("");
+        for word in line.split_whitespace() {
+            let x: f32 = word
+                .parse()
+                .map_err(|_| format!("line {}: \"{word}\" is not a number", line_no + 1))?;
+            if !x.is_finite() {
+                return Err(format!("line {}: {word} is not finite", line_no + 1));
+            }
+            numbers.push(x);
+        }
+    }
+    if numbers.len() < 2 || numbers.len() % 2 != 0 {
+        return Err(format!(
+            "needs pairs of wavelength and value, found {} numbers",
+            numbers.len()
+        ));
+    }
+    let pairs: Vec<(f32, f32)> = numbers.chunks_exact(2).map(|c| (c[0], c[1])).collect();
+    if let Some(w) = pairs.windows(2).find(|w| w[1].0 <= w[0].0) {
+        return Err(format!("wavelengths must increase, but {} follows {}", w[1].0, w[0].0));
+    }
+    Ok(pairs)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn spectrum_files_are_increasing_pairs() {
+        let s = parse_spd("# gold\n400 1.0\n500 3.0 # comment\n600 2.0\n").unwrap();
+        assert_eq!(s, vec![(400.0, 1.0), (500.0, 3.0), (600.0, 2.0)]);
+        for (bad, why) in [
+            ("400 1 500", "found 3 numbers"),
+            ("400 1 x 2", "line 1: \"x\" is not a number"),
+            ("500 1\n400 2", "wavelengths must increase"),
+            ("400 inf 500 1", "line 1: inf is not finite"),
+            ("", "found 0 numbers"),
+        ] {
+            let e = parse_spd(bad).unwrap_err();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
+    }
 
     fn close(a: Rgb, b: [f32; 3], tol: f32) -> bool {
         (a - Rgb::new(b[0], b[1], b[2])).abs().max_element() <= tol * b.iter().fold(1.0f32, |m, &x| m.max(x))

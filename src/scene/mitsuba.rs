@@ -865,9 +865,14 @@ impl Loader {
                 Ok(Rgb::splat(n[0]))
             }
             "spectrum" => {
-                if self.attr(f, p, "filename")?.is_some() {
-                    self.warn(f, p, "spectra from files are unsupported; using 1");
-                    return Ok(Rgb::ONE);
+                if let Some(file) = self.attr(f, p, "filename")? {
+                    // Mitsuba's spectrum files: wavelength and value pairs.
+                    let path = self.resolve(&file);
+                    let text = read_limited(&path, MAX_XML_BYTES)
+                        .map_err(|e| self.err(f, p, format!("cannot read spectrum file {}: {e}", path.display())))?;
+                    let pairs = crate::color::spectrum::parse_spd(&String::from_utf8_lossy(&text))
+                        .map_err(|e| self.err(f, p, format!("spectrum file {}: {e}", path.display())))?;
+                    return Ok(self.sampled_spectrum_rgb(f, p, &pairs));
                 }
                 let v = self.required_attr(f, p, "value")?;
                 if !v.contains(':') {
@@ -903,24 +908,32 @@ impl Loader {
                 if pairs.len() < 2 {
                     return Err(self.err(f, p, "a sampled spectrum needs at least two wavelength:value pairs"));
                 }
-                let usage = if self.in_emitter {
-                    SpectrumUse::Emission
-                } else if matches!(
-                    p.attribute("name"),
-                    Some("eta" | "k" | "int_ior" | "ext_ior" | "sigma_t" | "sigma_a" | "sigma_s" | "value")
-                ) {
-                    SpectrumUse::Unbounded
-                } else {
-                    SpectrumUse::Bounded
-                };
-                let (rgb, clamped) = sampled_to_rgb(&pairs, usage);
-                if clamped {
-                    self.warn(f, p, format!("the spectrum's colour is out of gamut; clamped to {rgb}"));
-                }
-                Ok(rgb)
+                Ok(self.sampled_spectrum_rgb(f, p, &pairs))
             }
             other => Err(self.err(f, p, format!("expected a colour, found <{other}>"))),
         }
+    }
+
+    /// The RGB of a sampled spectrum given at `p`, as Mitsuba's RGB
+    /// variants take it there: an emitter's light, an index or coefficient
+    /// (unbounded), or a reflectance (clipped to the gamut, with a
+    /// warning).
+    fn sampled_spectrum_rgb(&mut self, f: &FileCtx, p: Node, pairs: &[(f32, f32)]) -> Rgb {
+        let usage = if self.in_emitter {
+            SpectrumUse::Emission
+        } else if matches!(
+            p.attribute("name"),
+            Some("eta" | "k" | "int_ior" | "ext_ior" | "sigma_t" | "sigma_a" | "sigma_s" | "value")
+        ) {
+            SpectrumUse::Unbounded
+        } else {
+            SpectrumUse::Bounded
+        };
+        let (rgb, clamped) = sampled_to_rgb(pairs, usage);
+        if clamped {
+            self.warn(f, p, format!("the spectrum's colour is out of gamut; clamped to {rgb}"));
+        }
+        rgb
     }
 
     /// A colour or a texture (nested or `<ref>`).
@@ -4305,6 +4318,42 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("test.xml:1:") && e.contains("at least two"), "{e}");
+    }
+
+    /// A spectrum file (wavelength and value pairs) gives the colour its
+    /// samples give inline; an unreadable or malformed one is an error
+    /// naming the file.
+    #[test]
+    fn spectra_from_files_convert_as_their_samples() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("paint.spd"),
+            "# a red paint\n400 0.1\n500 0.5\n600 0.9\n700 0.3\n",
+        )
+        .unwrap();
+        std::fs::write(dir.path().join("bad.spd"), "400 0.1 500").unwrap();
+        let scene = |spectrum: &str| {
+            let main = dir.path().join("s.xml");
+            std::fs::write(
+                &main,
+                format!(r#"<scene version="3.0.0"><shape type="sphere"><bsdf type="diffuse">{spectrum}</bsdf></shape></scene>"#),
+            )
+            .unwrap();
+            load(&main, &[]).map(|d| material_of(&d, 0).kind.clone())
+        };
+        let from_file = scene(r#"<spectrum name="reflectance" filename="paint.spd"/>"#).unwrap();
+        let inline = scene(r#"<spectrum name="reflectance" value="400:0.1, 500:0.5, 600:0.9, 700:0.3"/>"#).unwrap();
+        assert_eq!(from_file, inline);
+        assert!(matches!(from_file, MaterialKindDesc::Diffuse { reflectance: ColorSource::Rgb(c) } if c != Rgb::ONE));
+        for (file, why) in [
+            ("missing.spd", "cannot read spectrum file"),
+            ("bad.spd", "found 3 numbers"),
+        ] {
+            let e = scene(&format!(r#"<spectrum name="reflectance" filename="{file}"/>"#))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("s.xml:1:") && e.contains(why) && e.contains(file), "{e}");
+        }
     }
 
     /// A moment integrator renders with its nested integrator's settings.

@@ -4,11 +4,12 @@
 
 use super::params::{FloatValue, Param, ParamList, SpectrumValue};
 use super::spectrum::{
-    blackbody_reflectance_rgb, blackbody_rgb, illuminant_rgb, metal_of, parse_spd, pbrt_only_metal_ior,
-    sampled_factor_rgb, sampled_rgb, spectrum_at_rgb_wavelengths,
+    blackbody_reflectance_rgb, blackbody_rgb, illuminant_rgb, metal_of, pbrt_only_metal_ior, sampled_factor_rgb,
+    sampled_rgb, spectrum_at_rgb_wavelengths,
 };
 use super::{MatDef, MatKind, Parser};
 use crate::color::space::ColorSpace;
+use crate::color::spectrum::parse_spd;
 use crate::color::{Encoding, Rgb};
 use crate::error::{Error, Result, SourceLoc};
 use crate::material::conductor::metal_ior;

@@ -186,38 +186,10 @@ pub fn spectrum_at_rgb_wavelengths(pairs: &[(f32, f32)]) -> Rgb {
     Rgb::new(r, g, b)
 }
 
-/// The samples of a pbrt `.spd` file: whitespace-separated pairs of
-/// wavelength (nm, increasing) and value; `#` starts a comment.
-pub fn parse_spd(text: &str) -> Result<Vec<(f32, f32)>, String> {
-    let mut numbers = Vec::new();
-    for (line_no, line) in text.lines().enumerate() {
-        let line = line.split('#').next().unwrap_or("");
-        for word in line.split_whitespace() {
-            let x: f32 = word
-                .parse()
-                .map_err(|_| format!("line {}: \"{word}\" is not a number", line_no + 1))?;
-            if !x.is_finite() {
-                return Err(format!("line {}: {word} is not finite", line_no + 1));
-            }
-            numbers.push(x);
-        }
-    }
-    if numbers.len() < 2 || numbers.len() % 2 != 0 {
-        return Err(format!(
-            "needs pairs of wavelength and value, found {} numbers",
-            numbers.len()
-        ));
-    }
-    let pairs: Vec<(f32, f32)> = numbers.chunks_exact(2).map(|c| (c[0], c[1])).collect();
-    if let Some(w) = pairs.windows(2).find(|w| w[1].0 <= w[0].0) {
-        return Err(format!("wavelengths must increase, but {} follows {}", w[1].0, w[0].0));
-    }
-    Ok(pairs)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::color::spectrum::parse_spd;
 
     #[test]
     fn spd_files_are_pairs_sampled_linearly() {
@@ -227,15 +199,6 @@ mod tests {
         assert_eq!(sample_spectrum(&s, 300.0), 1.0);
         assert_eq!(sample_spectrum(&s, 700.0), 2.0);
         assert_eq!(spectrum_at_rgb_wavelengths(&s), Rgb::new(2.0, 2.5, 2.0));
-        for (bad, why) in [
-            ("400 1 500", "found 3 numbers"),
-            ("400 1 x 2", "line 1: \"x\" is not a number"),
-            ("500 1\n400 2", "wavelengths must increase"),
-            ("", "found 0 numbers"),
-        ] {
-            let e = parse_spd(bad).unwrap_err();
-            assert!(e.contains(why), "{bad}: {e}");
-        }
     }
 
     #[test]
