@@ -872,8 +872,9 @@ impl Material {
                 reflectance,
                 transmittance,
             } => Bsdf::DiffuseTransmission(diffuse_transmission::DiffuseTransmissionBsdf {
-                reflectance: reflectance.eval(textures, tc),
-                transmittance: transmittance.eval(textures, tc),
+                // In [0, 1], as pbrt-v4 clamps them: a texture may exceed 1.
+                reflectance: reflectance.eval(textures, tc).clamp(Rgb::ZERO, Rgb::ONE),
+                transmittance: transmittance.eval(textures, tc).clamp(Rgb::ZERO, Rgb::ONE),
             }),
             MaterialKind::Conductor {
                 fresnel,
@@ -1047,6 +1048,25 @@ mod tests {
         ] {
             assert!(matches!(m.kind, MaterialKind::Classic { .. }), "{:?}", m.kind);
         }
+    }
+
+    /// Diffuse transmission's reflectance and transmittance are clamped to
+    /// [0, 1] where the BSDF is made, as pbrt-v4 clamps them: a scaled
+    /// texture may exceed 1.
+    #[test]
+    fn diffuse_transmission_clamps_its_colours() {
+        let tc = TexCoord::new(Vec2::ZERO, Vec3::ZERO);
+        let m = Material::plain(MaterialKind::DiffuseTransmission {
+            reflectance: Texture::Constant(Rgb::new(2.0, 0.5, -1.0)),
+            transmittance: Texture::Constant(Rgb::new(0.3, 1.5, 0.0)),
+        });
+        let Bsdf::DiffuseTransmission(b) = m.bsdf(&crate::texture::TextureStore::default(), &tc) else {
+            panic!("a diffuse transmitter")
+        };
+        assert_eq!(
+            (b.reflectance, b.transmittance),
+            (Rgb::new(1.0, 0.5, 0.0), Rgb::new(0.3, 1.0, 0.0))
+        );
     }
 
     /// Lambert's sampling ignores the lobe choice, which integrators then

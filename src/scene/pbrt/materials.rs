@@ -656,20 +656,26 @@ impl Parser {
                     }
                     None => 1.0,
                 };
-                let scaled = |this: &mut Self, c: ColorSource| match c {
-                    ColorSource::Rgb(rgb) => ColorSource::Rgb((rgb * scale).clamp(Rgb::ZERO, Rgb::ONE)),
-                    other if scale == 1.0 => other,
-                    other => {
-                        this.approximated(
-                            loc,
-                            format!("{what} \"scale\" {scale} over a texture"),
-                            "the texture is not scaled",
-                        );
-                        other
-                    }
+                // Over a texture: a scale node, clamped where the BSDF is
+                // made (`MaterialKind::DiffuseTransmission`).
+                let scaled = |this: &mut Self, c: ColorSource| -> Result<ColorSource> {
+                    Ok(match c {
+                        ColorSource::Rgb(rgb) => ColorSource::Rgb((rgb * scale).clamp(Rgb::ZERO, Rgb::ONE)),
+                        other if scale == 1.0 => other,
+                        ColorSource::Texture(tex) => {
+                            let typical = this.texture_colors.get(&tex).copied().unwrap_or(Rgb::ONE) * scale;
+                            let name = format!("{tex} scaled by {scale} ({})", this.desc.textures.len());
+                            let kind = TextureKind::Node(TextureNode::Scale {
+                                tex: ColorSource::Texture(tex),
+                                scale: ColorSource::Rgb(Rgb::splat(scale)),
+                            });
+                            this.push_texture(&name, loc, Locs::at(Some(loc.clone())), (kind, typical))?;
+                            ColorSource::Texture(name)
+                        }
+                    })
                 };
-                let reflectance = scaled(self, reflectance);
-                let transmittance = scaled(self, transmittance);
+                let reflectance = scaled(self, reflectance)?;
+                let transmittance = scaled(self, transmittance)?;
                 MaterialKindDesc::DiffuseTransmission {
                     reflectance,
                     transmittance,

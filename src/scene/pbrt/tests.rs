@@ -1084,6 +1084,28 @@ fn other_materials_are_approximated_with_warnings() {
         }
     );
     assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    // Its scale multiplies constants (clamped to 1) and textures (a scale
+    // node; the BSDF clamps).
+    let d = world(
+        "Texture \"grid\" \"spectrum\" \"checkerboard\"\nMaterial \"diffusetransmission\" \"texture reflectance\" \"grid\" \"rgb transmittance\" [0.2 0.4 0.8] \"float scale\" 2\nShape \"sphere\"",
+    );
+    let MaterialKindDesc::DiffuseTransmission {
+        reflectance: ColorSource::Texture(scaled),
+        transmittance,
+    } = &material(&d, 0).kind
+    else {
+        panic!("{:?}", material(&d, 0).kind)
+    };
+    assert_eq!(*transmittance, ColorSource::Rgb(Rgb::new(0.4, 0.8, 1.0)));
+    let node = d.textures.iter().find(|t| &t.name == scaled).unwrap();
+    assert_eq!(
+        node.kind,
+        TextureKind::Node(TextureNode::Scale {
+            tex: ColorSource::Texture("grid".into()),
+            scale: ColorSource::Rgb(Rgb::splat(2.0)),
+        })
+    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
     // subsurface is a dielectric over a medium, with a warning.
     let d = world("Material \"subsurface\"\nShape \"sphere\"");
     assert!(matches!(material(&d, 0).kind, MaterialKindDesc::Dielectric { .. }));
