@@ -1438,29 +1438,31 @@ impl<'a> Reader<'a> {
                 format!("texture coordinate set {tex_coord} is approximated: TEXCOORD_0 is used"),
             );
         }
+        let mut wrap = crate::texture::WrapMode::Repeat;
+        let mut filter = crate::texture::ImageFilter::Bilinear;
         if let Some(s) = texture.sampler {
+            use crate::texture::WrapMode;
             use json::texture::{MagFilter, WrappingMode};
             let sampler = &root.samplers[s.value()];
             let s_at = format!("samplers[{}]", s.value());
-            for (key, wrap) in [("wrapS", sampler.wrap_s), ("wrapT", sampler.wrap_t)] {
-                if let Checked::Valid(mode @ (WrappingMode::ClampToEdge | WrappingMode::MirroredRepeat)) = wrap {
-                    self.warn(
-                        &format!("{s_at}.{key}"),
-                        format!(
-                            "texture wrap mode {} is approximated: the texture repeats",
-                            match mode {
-                                WrappingMode::ClampToEdge => "CLAMP_TO_EDGE",
-                                _ => "MIRRORED_REPEAT",
-                            }
-                        ),
-                    );
-                }
-            }
-            if let Some(Checked::Valid(MagFilter::Nearest)) = sampler.mag_filter {
+            let mode = |w: Checked<WrappingMode>| match w {
+                Checked::Valid(WrappingMode::ClampToEdge) => WrapMode::Clamp,
+                Checked::Valid(WrappingMode::MirroredRepeat) => WrapMode::Mirror,
+                _ => WrapMode::Repeat,
+            };
+            let (s_mode, t_mode) = (mode(sampler.wrap_s), mode(sampler.wrap_t));
+            wrap = s_mode;
+            // trazo's images wrap alike along both axes.
+            if t_mode != s_mode {
                 self.warn(
-                    &format!("{s_at}.magFilter"),
-                    "nearest-texel filtering is approximated: textures are filtered bilinearly",
+                    &format!("{s_at}.wrapT"),
+                    format!("a wrap mode along t unlike the one along s is approximated: {s_mode:?} along both"),
                 );
+            }
+            // Images are not minified through mipmaps, so the
+            // magnification filter is the one that applies.
+            if let Some(Checked::Valid(MagFilter::Nearest)) = sampler.mag_filter {
+                filter = crate::texture::ImageFilter::Nearest;
             }
         }
         let image = texture.source.value();
@@ -1488,8 +1490,8 @@ impl<'a> Reader<'a> {
                 offset,
                 encoding: Some(Encoding::Srgb),
                 tint,
-                wrap: crate::texture::WrapMode::Repeat,
-                filter: crate::texture::ImageFilter::Bilinear,
+                wrap,
+                filter,
             },
             locs: locs.clone(),
         });

@@ -563,6 +563,45 @@ fn emission_is_factor_times_texture_times_strength_and_texture_transforms_apply(
     );
 }
 
+/// A sampler's wrap modes and nearest-texel filter reach the image: the
+/// 2 × 2 texture shifted by half its width repeats, or clamps to its right
+/// column; halved, a bilinear look-up between texels blends them, a
+/// nearest one does not.
+#[test]
+fn sampler_wrap_modes_and_nearest_filtering_apply() {
+    let dir = tmp();
+    std::fs::write(dir.path().join("t.png"), png_2x2()).unwrap();
+    let path = dir.path().join("s.gltf");
+    let render = |sampler: &str, transform: &str| {
+        let mut a = Asset::default();
+        let body = textured_square_body(
+            &mut a,
+            r#"[{"uri":"t.png"}]"#,
+            &format!(r#","extensions":{{"KHR_texture_transform":{transform}}}"#),
+            1.0,
+        )
+        .replace(
+            r#""textures":[{"source":0}]"#,
+            &format!(r#""samplers":[{sampler}],"textures":[{{"source":0,"sampler":0}}]"#),
+        );
+        a.write_embedded(&path, &body);
+        let d = load(&path, &[]).unwrap();
+        assert!(!d.warnings.iter().any(|w| w.contains("samplers")), "{:?}", d.warnings);
+        render_2x2(d)
+    };
+    let (red, green) = (Rgb::new(1.0, 0.0, 0.0), Rgb::new(0.0, 1.0, 0.0));
+    let shifted = r#"{"offset":[0.5,0]}"#;
+    let img = render(r#"{"wrapS":10497,"wrapT":10497}"#, shifted);
+    assert!(close(img.get(1, 0), red), "repeat: {}", img.get(1, 0));
+    let img = render(r#"{"wrapS":33071,"wrapT":33071}"#, shifted);
+    assert!(close(img.get(1, 0), green), "clamp: {}", img.get(1, 0));
+    let halved = r#"{"scale":[0.5,0.5]}"#;
+    let img = render(r#"{"magFilter":9728}"#, halved);
+    assert!(close(img.get(1, 0), red), "nearest: {}", img.get(1, 0));
+    let img = render(r#"{"magFilter":9729}"#, halved);
+    assert!(!close(img.get(1, 0), red), "bilinear: {}", img.get(1, 0));
+}
+
 /// A floor under a point light 1 unit above it, seen by the framing camera.
 fn lit_floor(intensity: f32) -> (SceneDesc, trazo::film::Image) {
     let dir = tmp();
