@@ -244,37 +244,44 @@ impl Sampler {
     /// A uniform number in [0, 1).
     #[inline(always)]
     pub fn next_1d(&mut self) -> f32 {
-        if self.kind == SamplerKind::Sobol {
-            let seeds = self.next_pair_seeds();
-            return fraction_to_f32(sobol_1d(self.reversed_index, seeds));
+        match self.kind {
+            SamplerKind::Sobol => {
+                let seeds = self.next_pair_seeds();
+                fraction_to_f32(sobol_1d(self.reversed_index, seeds))
+            }
+            SamplerKind::Independent | SamplerKind::Center => self.rng.next_f32(),
+            _ => self.sequence_1d(),
         }
-        if self.is_halton() {
-            let d = self.next_halton_dimension(1);
-            return self.halton_dimension(d);
-        }
+    }
+
+    /// [`Sampler::next_1d`] for the Halton and stratified kinds, out of
+    /// line (see [`Sampler::halton_dimension`]).
+    #[inline(never)]
+    fn sequence_1d(&mut self) -> f32 {
         if self.kind == SamplerKind::Stratified {
             return self.stratified_1d();
         }
-        self.rng.next_f32()
+        let d = self.next_halton_dimension(1);
+        self.halton_dimension(d)
     }
 
     /// A uniform point in [0, 1)².
     #[inline(always)]
     pub fn next_2d(&mut self) -> Vec2 {
-        if self.kind == SamplerKind::Sobol {
-            let seeds = self.next_pair_seeds();
-            let (x, y) = sobol_2d(self.reversed_index, seeds);
-            return Vec2::new(fraction_to_f32(x), fraction_to_f32(y));
+        match self.kind {
+            SamplerKind::Sobol => {
+                let seeds = self.next_pair_seeds();
+                let (x, y) = sobol_2d(self.reversed_index, seeds);
+                Vec2::new(fraction_to_f32(x), fraction_to_f32(y))
+            }
+            SamplerKind::Independent | SamplerKind::Center => {
+                let x = self.rng.next_f32();
+                let y = self.rng.next_f32();
+                Vec2::new(x, y)
+            }
+            SamplerKind::Stratified => self.stratified_2d(),
+            _ => self.halton_2d(),
         }
-        if self.is_halton() {
-            return self.halton_2d();
-        }
-        if self.kind == SamplerKind::Stratified {
-            return self.stratified_2d();
-        }
-        let x = self.rng.next_f32();
-        let y = self.rng.next_f32();
-        Vec2::new(x, y)
     }
 
     /// The stratum, of `spp`, of the current sample in the next
@@ -322,17 +329,18 @@ impl Sampler {
     /// of a scrambled Sobol point.
     #[inline]
     pub fn skip_1d(&mut self) {
-        if self.kind == SamplerKind::Sobol {
-            self.dimension = self.dimension.wrapping_add(1);
-        } else if self.is_halton() {
-            self.next_halton_dimension(1);
-        } else if self.kind == SamplerKind::Stratified {
-            self.dimension = self.dimension.wrapping_add(1);
-            if self.jitter {
-                self.rng.skip();
+        match self.kind {
+            SamplerKind::Sobol => self.dimension = self.dimension.wrapping_add(1),
+            SamplerKind::Independent | SamplerKind::Center => self.rng.skip(),
+            SamplerKind::Stratified => {
+                self.dimension = self.dimension.wrapping_add(1);
+                if self.jitter {
+                    self.rng.skip();
+                }
             }
-        } else {
-            self.rng.skip();
+            _ => {
+                self.next_halton_dimension(1);
+            }
         }
     }
 
@@ -340,19 +348,22 @@ impl Sampler {
     /// [`Sampler::skip_1d`].
     #[inline]
     pub fn skip_2d(&mut self) {
-        if self.kind == SamplerKind::Sobol {
-            self.dimension = self.dimension.wrapping_add(1);
-        } else if self.is_halton() {
-            self.next_halton_dimension(2);
-        } else if self.kind == SamplerKind::Stratified {
-            self.dimension = self.dimension.wrapping_add(1);
-            if self.jitter {
+        match self.kind {
+            SamplerKind::Sobol => self.dimension = self.dimension.wrapping_add(1),
+            SamplerKind::Independent | SamplerKind::Center => {
                 self.rng.skip();
                 self.rng.skip();
             }
-        } else {
-            self.rng.skip();
-            self.rng.skip();
+            SamplerKind::Stratified => {
+                self.dimension = self.dimension.wrapping_add(1);
+                if self.jitter {
+                    self.rng.skip();
+                    self.rng.skip();
+                }
+            }
+            _ => {
+                self.next_halton_dimension(2);
+            }
         }
     }
 
