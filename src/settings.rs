@@ -294,6 +294,14 @@ pub enum PathSampling {
     Cosine,
     /// BSDF importance sampling, emission on hits only.
     Bsdf,
+    /// Next-event estimation (a shadow ray to a sampled light point at
+    /// every vertex) and BSDF sampling onward, without MIS: emission that
+    /// next-event estimation could have found counts on hits only from the
+    /// camera and after delta bounces (pbrt-v4's `simplepath`).
+    Nee,
+    /// Next-event estimation as `Nee`, uniform directions onward (pbrt-v4's
+    /// `simplepath` with `samplebsdf` false).
+    NeeUniform,
     /// Next-event estimation and BSDF sampling combined by MIS.
     #[default]
     Mis,
@@ -301,7 +309,7 @@ pub enum PathSampling {
 
 impl PathSampling {
     /// The names accepted on the command line and in scene files.
-    pub const NAMES: [&'static str; 4] = ["uniform", "cosine", "bsdf", "mis"];
+    pub const NAMES: [&'static str; 6] = ["uniform", "cosine", "bsdf", "nee", "nee-uniform", "mis"];
 
     /// Parses one of [`PathSampling::NAMES`].
     pub fn from_name(s: &str) -> Option<PathSampling> {
@@ -309,6 +317,8 @@ impl PathSampling {
             "uniform" => Some(PathSampling::Uniform),
             "cosine" => Some(PathSampling::Cosine),
             "bsdf" => Some(PathSampling::Bsdf),
+            "nee" => Some(PathSampling::Nee),
+            "nee-uniform" => Some(PathSampling::NeeUniform),
             "mis" => Some(PathSampling::Mis),
             _ => None,
         }
@@ -320,6 +330,8 @@ impl PathSampling {
             PathSampling::Uniform => "uniform",
             PathSampling::Cosine => "cosine",
             PathSampling::Bsdf => "bsdf",
+            PathSampling::Nee => "nee",
+            PathSampling::NeeUniform => "nee-uniform",
             PathSampling::Mis => "mis",
         }
     }

@@ -32,7 +32,7 @@ def render(
     *,
     spp: Optional[int] = None,
     integrator: Optional[Literal["whitted", "path", "photon", "sppm", "volpath", "light", "ao"]] = None,
-    sampling: Optional[Literal["uniform", "cosine", "bsdf", "mis"]] = None,
+    sampling: Optional[Literal["uniform", "cosine", "bsdf", "nee", "nee-uniform", "mis"]] = None,
     seed: Optional[int] = None,
     threads: Optional[int] = None,
     width: Optional[int] = None,

@@ -256,8 +256,9 @@ struct RenderArgs {
     integrator: Option<String>,
 
     /// The path tracer's estimator: uniform or cosine hemisphere sampling,
-    /// BSDF importance sampling, or next-event estimation with multiple
-    /// importance sampling (mis).
+    /// BSDF importance sampling, next-event estimation without MIS and
+    /// BSDF sampling (nee) or uniform directions (nee-uniform) onward, or
+    /// next-event estimation with multiple importance sampling (mis).
     #[arg(long, value_name = "NAME", value_parser = PathSampling::NAMES)]
     sampling: Option<String>,
 

@@ -5,7 +5,7 @@
 //! L(x, ωo) = Le(x, ωo) + ∫ f(x, ωo, ωi) L(x', −ωi) |cos θi| dωi,
 //! ```
 //!
-//! followed one random direction per bounce. Four estimators are offered,
+//! followed one random direction per bounce. Six estimators are offered,
 //! from the textbook one to the one production renderers use:
 //!
 //! | `sampling` | direction at each bounce | light collected |
@@ -13,12 +13,15 @@
 //! | `uniform` | uniform over the hemisphere, pdf 1/(2π) | only when a path hits an emitter |
 //! | `cosine` | cosine-weighted, pdf cos θ/π | only when a path hits an emitter |
 //! | `bsdf` | the BSDF's own importance sampling | only when a path hits an emitter |
+//! | `nee` | the BSDF's own importance sampling | by next-event estimation (a shadow ray to a light chosen in proportion to power); a hit on a light counts only from the camera or after a delta bounce |
+//! | `nee-uniform` | uniform over the hemisphere | as `nee` |
 //! | `mis` | the BSDF's own importance sampling | also by next-event estimation: a shadow ray to a light chosen in proportion to power; the two strategies combined by the power heuristic (Veach and Guibas 1995) |
 //!
 //! Delta lobes (mirrors, smooth glass) are always sampled exactly: a random
 //! direction has zero probability of finding them. Delta lights (point,
-//! spot, directional) have zero size, so a path never hits them: only `mis`,
-//! which samples them directly, sees their light.
+//! spot, directional) have zero size, so a path never hits them: only the
+//! estimators with next-event estimation, which sample them directly, see
+//! their light.
 //!
 //! `max_depth` is the longest path in segments from the camera (1: emitters
 //! seen directly, 2: direct lighting, …), as in Mitsuba. After `rr_depth`
@@ -39,6 +42,34 @@ use crate::scene::Scene;
 use crate::texture::TexCoord;
 
 pub use crate::settings::PathSampling;
+
+/// How a path gathers the light of emitters, besides the directions it
+/// samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Gathering {
+    /// Only by hitting them.
+    Hits,
+    /// By next-event estimation at every vertex; a hit on a light it
+    /// samples counts only from the camera or after a delta bounce.
+    Nee,
+    /// By both, weighted by the power heuristic.
+    Mis,
+}
+
+impl Gathering {
+    /// The weight of emission found by a path's hit after a non-delta
+    /// bounce of density `pdf_bsdf`, on a light that next-event estimation
+    /// samples with density `pdf_light` (per solid angle).
+    #[inline]
+    fn hit_weight(self, pdf_bsdf: f32, pdf_light: f32) -> f32 {
+        match self {
+            Gathering::Mis => power_heuristic(pdf_bsdf, pdf_light),
+            // What next-event estimation can reach it finds there.
+            Gathering::Nee if pdf_light > 0.0 => 0.0,
+            _ => 1.0,
+        }
+    }
+}
 
 /// The power heuristic with β = 2 (Veach 1997, eq. 9.13).
 #[inline]
@@ -181,11 +212,15 @@ impl PathTracer {
         stats: &mut RayStats,
     ) -> Vec3s<F> {
         let strategy = match self.sampling {
-            PathSampling::Uniform => DirectionSampling::Uniform,
+            PathSampling::Uniform | PathSampling::NeeUniform => DirectionSampling::Uniform,
             PathSampling::Cosine => DirectionSampling::Cosine,
-            PathSampling::Bsdf | PathSampling::Mis => DirectionSampling::Bsdf,
+            PathSampling::Bsdf | PathSampling::Nee | PathSampling::Mis => DirectionSampling::Bsdf,
         };
-        let nee = self.sampling == PathSampling::Mis;
+        let nee = match self.sampling {
+            PathSampling::Uniform | PathSampling::Cosine | PathSampling::Bsdf => Gathering::Hits,
+            PathSampling::Nee | PathSampling::NeeUniform => Gathering::Nee,
+            PathSampling::Mis => Gathering::Mis,
+        };
         debug_assert_eq!(samplers.len(), F::N, "a sampler a lane");
 
         let mut l = Vec3s::<F>::splat(Rgb::ZERO);
@@ -315,7 +350,7 @@ impl PathTracer {
         ray: &Ray,
         previous: &Previous,
         depth: u32,
-        nee: bool,
+        nee: Gathering,
         slot: &mut Option<SurfaceHit>,
     ) -> Option<Found> {
         let shows_emission = scene.settings.shows_emission(depth);
@@ -326,12 +361,12 @@ impl PathTracer {
             };
             let dir = ray.dir.normalize();
             // (A portal lets in what the ray's origin sees through it.)
-            let found = if nee && !previous.delta {
+            let found = if nee != Gathering::Hits && !previous.delta {
                 let (le, pdf_dir) = scene.background.eval_pdf_from(previous.p, dir, true);
                 let pdf_light = light_choice_pmf(scene, previous.p, previous.n, env as usize, true) * pdf_dir;
                 Found {
                     le,
-                    weight: power_heuristic(previous.pdf, pdf_light),
+                    weight: nee.hit_weight(previous.pdf, pdf_light),
                 }
             } else {
                 Found {
@@ -347,10 +382,10 @@ impl PathTracer {
         let mut found = None;
         if m.is_emissive() && shows_emission && m.emits_toward(hit, wo_world) {
             let weight = match hit.light {
-                Some(li) if nee && !previous.delta => {
+                Some(li) if nee != Gathering::Hits && !previous.delta => {
                     let pdf_light = light_choice_pmf(scene, previous.p, previous.n, li as usize, true)
                         * scene.lights[li as usize].pdf_li(scene, previous.p, hit);
-                    power_heuristic(previous.pdf, pdf_light)
+                    nee.hit_weight(previous.pdf, pdf_light)
                 }
                 _ => 1.0,
             };
@@ -375,7 +410,7 @@ impl PathTracer {
         wavelength: &mut Option<f32>,
         stats: &mut RayStats,
         strategy: DirectionSampling,
-        nee: bool,
+        nee: Gathering,
     ) -> (Option<Direct>, Scatter) {
         let mode = TransportMode::Radiance;
         let m = &scene.materials[hit.material as usize];
@@ -408,7 +443,7 @@ impl PathTracer {
 
         // Next-event estimation.
         let mut direct = None;
-        if nee && bsdf.has_smooth() && !scene.lights.is_empty() {
+        if nee != Gathering::Hits && bsdf.has_smooth() && !scene.lights.is_empty() {
             let chosen = choose_light(scene, hit.p, hit.ns, sampler, true);
             let sample = match chosen {
                 Some((light_index, _)) => scene.lights[light_index].sample_li_drawing(scene, hit.p, sampler, true),
@@ -434,7 +469,7 @@ impl PathTracer {
                     };
                     if !scene.occluded(&shadow) {
                         let pdf_light = ls.pdf * pmf;
-                        let w = if ls.is_delta {
+                        let w = if ls.is_delta || nee != Gathering::Mis {
                             1.0
                         } else {
                             power_heuristic(pdf_light, bsdf.pdf(wo, wi))

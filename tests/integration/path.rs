@@ -107,6 +107,8 @@ fn assert_uniform(f: &Film, expect: f32, what: &str) {
 fn white_furnace_lambertian_albedo_one_renders_one() {
     for sampling in [
         PathSampling::Mis,
+        PathSampling::Nee,
+        PathSampling::NeeUniform,
         PathSampling::Bsdf,
         PathSampling::Cosine,
         PathSampling::Uniform,
@@ -247,6 +249,8 @@ fn sphere_light_over_a_plane_matches_the_closed_form() {
     let expect = rho * le * (r / h) * (r / h);
     for (sampling, spp) in [
         (PathSampling::Mis, 64),
+        (PathSampling::Nee, 64),
+        (PathSampling::NeeUniform, 64),
         (PathSampling::Bsdf, 1024),
         (PathSampling::Cosine, 1024),
         (PathSampling::Uniform, 2048),
@@ -469,8 +473,9 @@ fn per_sample_variance(f: &Film) -> f64 {
     f.pixels.iter().map(|p| p.variance_of_mean() * p.weight()).sum::<f64>() / f.pixels.len() as f64
 }
 
-/// All four estimators converge to the same image; MIS has the lowest
-/// variance, the textbook uniform estimator the highest.
+/// All six estimators converge to the same image; MIS has the lowest
+/// variance of the first four, the textbook uniform estimator the highest,
+/// and next-event estimation, with or without MIS, beats hits alone.
 #[test]
 fn estimators_agree_on_the_cornell_box_and_mis_is_best() {
     let runs: Vec<(PathSampling, Film)> = [
@@ -478,6 +483,8 @@ fn estimators_agree_on_the_cornell_box_and_mis_is_best() {
         (PathSampling::Bsdf, 512),
         (PathSampling::Cosine, 512),
         (PathSampling::Uniform, 512),
+        (PathSampling::Nee, 64),
+        (PathSampling::NeeUniform, 128),
     ]
     .into_iter()
     .map(|(s, spp)| (s, small_cornell(s, spp)))
@@ -491,9 +498,10 @@ fn estimators_agree_on_the_cornell_box_and_mis_is_best() {
     let v: Vec<f64> = runs.iter().map(|(_, f)| per_sample_variance(f)).collect();
     assert!(
         v[0] < v[1] && v[0] < v[2] && v[0] < v[3],
-        "variances mis/bsdf/cosine/uniform: {v:?}"
+        "variances mis/bsdf/cosine/uniform/nee/nee-uniform: {v:?}"
     );
     assert!(v[2] < v[3], "cosine beats uniform on diffuse walls: {v:?}");
+    assert!(v[4] < v[1] && v[5] < v[3], "light sampling beats hits alone: {v:?}");
 }
 
 #[test]

@@ -364,25 +364,16 @@ impl Parser {
             s.sampling = PathSampling::Uniform;
         } else if kind == "simplepath" {
             // pbrt-v4's SimplePathIntegrator: light sampling for direct
-            // light (without MIS: trazo weighs it against BSDF sampling,
-            // the same image with less noise), BSDF sampling or uniform
-            // directions onward.
+            // light without MIS, BSDF sampling or uniform directions
+            // onward.
             let lights = p.bool("samplelights", true)?;
             let bsdf = p.bool("samplebsdf", true)?;
-            let sampling = match (lights, bsdf) {
-                (true, true) => PathSampling::Mis,
+            self.desc.settings.sampling = match (lights, bsdf) {
+                (true, true) => PathSampling::Nee,
+                (true, false) => PathSampling::NeeUniform,
                 (false, true) => PathSampling::Bsdf,
                 (false, false) => PathSampling::Uniform,
-                (true, false) => {
-                    self.approximated(
-                        loc,
-                        "Integrator \"simplepath\" with \"samplebsdf\" false and light sampling",
-                        "next-event estimation with MIS and BSDF sampling (the same image)",
-                    );
-                    PathSampling::Mis
-                }
             };
-            self.desc.settings.sampling = sampling;
         } else if kind == "simplevolpath" {
             // pbrt-v4's SimpleVolPathIntegrator: delta tracking through
             // media, emission found by hitting it, no light sampling, and

@@ -70,7 +70,8 @@ WorldBegin"#,
     // sampling with BSDF sampling.
     for (kind, sampling) in [
         ("\"randomwalk\"", PathSampling::Uniform),
-        ("\"simplepath\"", PathSampling::Mis),
+        ("\"simplepath\"", PathSampling::Nee),
+        ("\"simplepath\" \"bool samplebsdf\" false", PathSampling::NeeUniform),
         ("\"simplepath\" \"bool samplelights\" false", PathSampling::Bsdf),
         (
             "\"simplepath\" \"bool samplelights\" false \"bool samplebsdf\" false",
@@ -85,9 +86,6 @@ WorldBegin"#,
         );
         assert!(d.warnings.is_empty(), "{kind}: {:?}", d.warnings);
     }
-    let d = parse_str("Integrator \"simplepath\" \"bool samplebsdf\" false\nWorldBegin").unwrap();
-    assert_eq!(d.settings.sampling, PathSampling::Mis);
-    assert!(d.warnings.join("\n").contains("is approximated"), "{:?}", d.warnings);
 
     // pbrt-v4's simple volumetric path tracer is the volumetric one where
     // there are media (the same image, with light sampling), the path
