@@ -1640,13 +1640,9 @@ impl<'a> Reader<'a> {
             ],
         };
         let base_texture_at = format!("{pbr_at}.baseColorTexture");
-        let kind = if metallic >= 0.5 {
-            if metallic < 1.0 {
-                self.warn(
-                    &format!("{pbr_at}.metallicFactor"),
-                    "a metallic factor between 0 and 1 is approximated: ≥ 0.5 is taken as a metal, < 0.5 as a dielectric",
-                );
-            }
+        // glTF's BRDF is the blend (1 − m)·dielectric + m·metal (§B.3.5):
+        // one of the two for m = 0 or 1, else a mix of both.
+        let metal = if metallic > 0.0 {
             let reflectance = match &pbr.base_color_texture {
                 Some(info) => {
                     self.warn(
@@ -1665,12 +1661,11 @@ impl<'a> Reader<'a> {
                 distribution: MicrofacetDistribution::Ggx,
             }
         } else {
-            if metallic > 0.0 {
-                self.warn(
-                    &format!("{pbr_at}.metallicFactor"),
-                    "a metallic factor between 0 and 1 is approximated: ≥ 0.5 is taken as a metal, < 0.5 as a dielectric",
-                );
+            MaterialKindDesc::Diffuse {
+                reflectance: ColorSource::Rgb(Rgb::ZERO),
             }
+        };
+        let dielectric = if metallic < 1.0 {
             if transmission_factor > 0.0 && transmission_factor < 1.0 {
                 self.warn(
                     &format!("{at}.extensions.KHR_materials_transmission.transmissionFactor"),
@@ -1725,6 +1720,30 @@ impl<'a> Reader<'a> {
                         nonlinear: false,
                     }
                 }
+            }
+        } else {
+            MaterialKindDesc::Diffuse {
+                reflectance: ColorSource::Rgb(Rgb::ZERO),
+            }
+        };
+        let kind = if metallic >= 1.0 {
+            metal
+        } else if metallic <= 0.0 {
+            dielectric
+        } else {
+            let mut part = |kind: MaterialKindDesc, which: &str| {
+                let part_name = format!("{name} ({which})");
+                self.desc.materials.push(MaterialDesc {
+                    two_sided: mat.double_sided,
+                    locs: locs.clone(),
+                    ..MaterialDesc::with_kind(part_name.clone(), kind)
+                });
+                part_name
+            };
+            let materials = [part(dielectric, "dielectric part"), part(metal, "metal part")];
+            MaterialKindDesc::Mix {
+                choice: MixChoice::Weight(ColorSource::Rgb(Rgb::splat(metallic))),
+                materials,
             }
         };
 

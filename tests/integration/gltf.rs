@@ -602,6 +602,67 @@ fn sampler_wrap_modes_and_nearest_filtering_apply() {
     assert!(!close(img.get(1, 0), red), "bilinear: {}", img.get(1, 0));
 }
 
+/// glTF's BRDF blends the dielectric and the metal by the metallic factor:
+/// between 0 and 1 it is a mix of the two weighted by it, so a floor's
+/// image at 0.5 is the mean of its images at 0 and 1, within the renders'
+/// standard errors.
+#[test]
+fn metallic_factors_between_0_and_1_blend_the_dielectric_and_the_metal() {
+    let dir = tmp();
+    let path = dir.path().join("m.gltf");
+    let load_with = |metallic: f32| {
+        let mut a = Asset::default();
+        let prim = a.floor();
+        let body = format!(
+            r#""extensionsUsed":["KHR_lights_punctual"],
+            "extensions":{{"KHR_lights_punctual":{{"lights":[{{"type":"point","intensity":2}}]}}}},
+            "scenes":[{{"nodes":[0,1]}}],
+            "nodes":[{{"mesh":0}},{{"translation":[0.2,1,0],"extensions":{{"KHR_lights_punctual":{{"light":0}}}}}}],
+            "materials":[{{"pbrMetallicRoughness":{{"baseColorFactor":[0.8,0.6,0.3,1],"metallicFactor":{metallic},"roughnessFactor":0.6}}}}],
+            "meshes":[{{"primitives":[{{{prim},"material":0}}]}}]"#
+        );
+        a.write_embedded(&path, &body);
+        let mut d = load(&path, &[]).unwrap();
+        (d.settings.width, d.settings.height, d.settings.spp) = (16, 12, 2048);
+        d
+    };
+    let d = load_with(0.3);
+    assert!(!d.warnings.iter().any(|w| w.contains("metallic")), "{:?}", d.warnings);
+    let kind = |name: &str| &d.materials.iter().find(|m| m.name == name).unwrap().kind;
+    let MaterialKindDesc::Mix {
+        choice: MixChoice::Weight(ColorSource::Rgb(w)),
+        materials: [dielectric, metal],
+    } = kind(d.shapes[0].material.as_deref().unwrap())
+    else {
+        panic!("{:?}", d.materials)
+    };
+    assert_eq!(*w, Rgb::splat(0.3));
+    assert!(
+        matches!(kind(dielectric), MaterialKindDesc::Plastic { .. }),
+        "{:?}",
+        kind(dielectric)
+    );
+    assert!(
+        matches!(kind(metal), MaterialKindDesc::Conductor { .. }),
+        "{:?}",
+        kind(metal)
+    );
+
+    let [(m0, e0), (m1, e1), (half, e_half)] =
+        [0.0, 1.0, 0.5].map(|m| crate::path::mean_and_error(&crate::path::render_film(&load_with(m))));
+    let expected = 0.5 * (m0 + m1);
+    let tol = 4.0 * (e_half * e_half + 0.25 * (e0 * e0 + e1 * e1)).sqrt();
+    assert!(
+        (half - expected).abs() <= tol,
+        "metallic 0.5: {half} ± {e_half}, expected {expected} ± {tol} (0: {m0}, 1: {m1})"
+    );
+    // Rounding the factor to either end would miss by half the gap.
+    assert!(
+        0.5 * (m0 - m1).abs() > 3.0 * tol,
+        "the two ends differ: {m0} against {m1}, ± {tol}"
+    );
+}
+
 /// A floor under a point light 1 unit above it, seen by the framing camera.
 fn lit_floor(intensity: f32) -> (SceneDesc, trazo::film::Image) {
     let dir = tmp();

@@ -11,13 +11,13 @@ use trazo::scene::desc::*;
 use trazo::settings::{IntegratorKind, PathSampling};
 use trazo::{Vec2, Vec3};
 
-fn render_film(d: &SceneDesc) -> Film {
+pub(crate) fn render_film(d: &SceneDesc) -> Film {
     let scene = trazo::scene::build(d).unwrap();
     render(&scene, &RenderOptions::default()).unwrap().film
 }
 
 /// Mean luminance of the image and the standard error of that mean.
-fn mean_and_error(f: &Film) -> (f64, f64) {
+pub(crate) fn mean_and_error(f: &Film) -> (f64, f64) {
     let n = f.pixels.len() as f64;
     let mean = f.pixels.iter().map(|p| luminance(p.value()) as f64).sum::<f64>() / n;
     let var: f64 = f.pixels.iter().map(|p| p.variance_of_mean()).sum::<f64>() / (n * n);
