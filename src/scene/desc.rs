@@ -1362,6 +1362,11 @@ impl SceneDesc {
                 }
                 TextureKind::Node(node) => match node {
                     TextureNode::Scale { .. } | TextureNode::Mix { .. } | TextureNode::Invert(_) => {}
+                    TextureNode::Channel { channel, .. } => {
+                        if *channel > 2 {
+                            return Err(c.err("channel", format!("must be 0, 1 or 2, got {channel}")));
+                        }
+                    }
                     TextureNode::DirectionMix { dir, .. } => {
                         if !dir.is_finite() || dir.length_squared() == 0.0 {
                             return Err(c.err("direction", "must be a finite, non-zero direction"));

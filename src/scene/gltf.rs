@@ -1398,8 +1398,22 @@ impl<'a> Reader<'a> {
     }
 
     /// Adds a texture for the texture reference at `at` multiplied by
-    /// `tint`, and returns its name.
+    /// `tint`, and returns its name. Colours are sRGB-encoded, as glTF
+    /// stores them.
     fn texture(&mut self, root: &json::Root, info: &json::texture::Info, at: &str, tint: Rgb) -> Result<String> {
+        self.texture_encoded(root, info, at, tint, Encoding::Srgb)
+    }
+
+    /// [`Reader::texture`] for an image of `encoding` (linear for data
+    /// such as metalness and roughness).
+    fn texture_encoded(
+        &mut self,
+        root: &json::Root,
+        info: &json::texture::Info,
+        at: &str,
+        tint: Rgb,
+        encoding: Encoding,
+    ) -> Result<String> {
         let t = info.index.value();
         let texture = &root.textures[t];
         let mut tex_coord = info.tex_coord;
@@ -1488,7 +1502,7 @@ impl<'a> Reader<'a> {
                 source,
                 scale,
                 offset,
-                encoding: Some(Encoding::Srgb),
+                encoding: Some(encoding),
                 tint,
                 wrap,
                 filter,
@@ -1612,11 +1626,69 @@ impl<'a> Reader<'a> {
             ),
             _ => {}
         }
-        if pbr.metallic_roughness_texture.is_some() {
-            self.warn(
-                &format!("{pbr_at}.metallicRoughnessTexture"),
-                "metallicRoughnessTexture is approximated: the metallic and roughness factors are used alone",
+        // The metallic-roughness image (linear): roughness in green, times
+        // its factor and squared for α; metalness in blue, times its factor
+        // (§3.9.2).
+        let mut metal_map = None;
+        let mut roughness_map = None;
+        if let Some(info) = &pbr.metallic_roughness_texture {
+            let mr_at = format!("{pbr_at}.metallicRoughnessTexture");
+            let image = self.texture_encoded(root, info, &mr_at, Rgb::ONE, Encoding::Linear)?;
+            let node = |this: &mut Self, suffix: &str, node: crate::texture::TextureNode<ColorSource>| {
+                let name = format!("{mr_at} {suffix}");
+                this.desc.textures.push(TextureDesc {
+                    name: name.clone(),
+                    kind: TextureKind::Node(node),
+                    locs: Locs::at(Some(this.loc(&mr_at))),
+                });
+                ColorSource::Texture(name)
+            };
+            use crate::texture::TextureNode::{Channel, Scale};
+            let green = node(
+                self,
+                "green",
+                Channel {
+                    tex: ColorSource::Texture(image.clone()),
+                    channel: 1,
+                },
             );
+            let r = node(
+                self,
+                "roughness",
+                Scale {
+                    tex: green,
+                    scale: ColorSource::Rgb(Rgb::splat(roughness)),
+                },
+            );
+            let alpha = node(
+                self,
+                "alpha",
+                Scale {
+                    tex: r.clone(),
+                    scale: r,
+                },
+            );
+            roughness_map = Some(RoughnessMapDesc {
+                u: alpha.clone(),
+                v: alpha,
+                remap_sqrt: false,
+            });
+            let blue = node(
+                self,
+                "blue",
+                Channel {
+                    tex: ColorSource::Texture(image),
+                    channel: 2,
+                },
+            );
+            metal_map = Some(node(
+                self,
+                "metalness",
+                Scale {
+                    tex: blue,
+                    scale: ColorSource::Rgb(Rgb::splat(metallic)),
+                },
+            ));
         }
         if mat.normal_texture.is_some() {
             self.warn(
@@ -1665,7 +1737,8 @@ impl<'a> Reader<'a> {
                 reflectance: ColorSource::Rgb(Rgb::ZERO),
             }
         };
-        let dielectric = if metallic < 1.0 {
+        // With a metalness image, the dielectric shows where it is below 1.
+        let dielectric = if metallic < 1.0 || metal_map.is_some() {
             if transmission_factor > 0.0 && transmission_factor < 1.0 {
                 self.warn(
                     &format!("{at}.extensions.KHR_materials_transmission.transmissionFactor"),
@@ -1726,23 +1799,41 @@ impl<'a> Reader<'a> {
                 reflectance: ColorSource::Rgb(Rgb::ZERO),
             }
         };
-        let kind = if metallic >= 1.0 {
+        // Glass takes the roughness image as the metal does; the plastic
+        // coat and the diffuse base take none.
+        let glass = matches!(dielectric, MaterialKindDesc::Dielectric { .. });
+        if roughness_map.is_some() && metallic < 1.0 && !glass {
+            self.warn(
+                &format!("{pbr_at}.metallicRoughnessTexture"),
+                "the roughness of metallicRoughnessTexture is approximated on the dielectric: its coat takes the roughness factor (it varies on the metal)",
+            );
+        }
+        let dielectric_roughness = if glass { roughness_map.clone() } else { None };
+        let mut own_roughness_map = None;
+        let kind = if metallic >= 1.0 && metal_map.is_none() {
+            own_roughness_map = roughness_map;
             metal
         } else if metallic <= 0.0 {
+            own_roughness_map = dielectric_roughness;
             dielectric
         } else {
-            let mut part = |kind: MaterialKindDesc, which: &str| {
+            let weight = metal_map.unwrap_or(ColorSource::Rgb(Rgb::splat(metallic)));
+            let mut part = |kind: MaterialKindDesc, which: &str, roughness_map: Option<RoughnessMapDesc>| {
                 let part_name = format!("{name} ({which})");
                 self.desc.materials.push(MaterialDesc {
                     two_sided: mat.double_sided,
                     locs: locs.clone(),
+                    roughness_map,
                     ..MaterialDesc::with_kind(part_name.clone(), kind)
                 });
                 part_name
             };
-            let materials = [part(dielectric, "dielectric part"), part(metal, "metal part")];
+            let materials = [
+                part(dielectric, "dielectric part", dielectric_roughness),
+                part(metal, "metal part", roughness_map),
+            ];
             MaterialKindDesc::Mix {
-                choice: MixChoice::Weight(ColorSource::Rgb(Rgb::splat(metallic))),
+                choice: MixChoice::Weight(weight),
                 materials,
             }
         };
@@ -1801,7 +1892,7 @@ impl<'a> Reader<'a> {
             opacity: None,
             normal_map: None,
             bump_map: None,
-            roughness_map: None,
+            roughness_map: own_roughness_map,
             locs,
         })
     }

@@ -325,6 +325,15 @@ pub enum TextureNode<T = Texture> {
     },
     /// max(0, 1 − `tex`), channel by channel (an image's `invert`).
     Invert(T),
+    /// One channel of `tex` (0, 1 or 2) in all three: a glTF
+    /// metallic-roughness image holds roughness in green, metalness in
+    /// blue.
+    Channel {
+        /// The texture read.
+        tex: T,
+        /// Which channel.
+        channel: u8,
+    },
     /// `tex` read at (u, v) = the mapping's (s, t): an image or checks
     /// placed by the point.
     Mapped {
@@ -348,7 +357,9 @@ impl<T> TextureNode<T> {
                 vec![("even", even), ("odd", odd)]
             }
             TextureNode::Dots { inside, outside, .. } => vec![("inside", inside), ("outside", outside)],
-            TextureNode::Invert(tex) | TextureNode::Mapped { tex, .. } => vec![("texture", tex)],
+            TextureNode::Invert(tex) | TextureNode::Mapped { tex, .. } | TextureNode::Channel { tex, .. } => {
+                vec![("texture", tex)]
+            }
             TextureNode::Bilerp { .. } | TextureNode::Noise { .. } => vec![],
         }
     }
@@ -398,6 +409,10 @@ impl<T> TextureNode<T> {
                 to_texture: *to_texture,
             },
             TextureNode::Invert(tex) => TextureNode::Invert(f(tex)),
+            TextureNode::Channel { tex, channel } => TextureNode::Channel {
+                tex: f(tex),
+                channel: *channel,
+            },
             TextureNode::Mapped { tex, mapping } => TextureNode::Mapped {
                 tex: f(tex),
                 mapping: *mapping,
@@ -425,6 +440,7 @@ impl<T> TextureNode<T> {
             TextureNode::Bilerp { corners, .. } => corners.iter().sum::<Rgb>() / 4.0,
             TextureNode::Noise { pattern, .. } => pattern.average(),
             TextureNode::Invert(tex) => (Rgb::ONE - mean(tex)).max(Rgb::ZERO),
+            TextureNode::Channel { tex, channel } => Rgb::splat(mean(tex)[(*channel).min(2) as usize]),
             TextureNode::Mapped { tex, .. } => mean(tex),
         }
     }
@@ -492,6 +508,7 @@ impl TextureNode {
             }
             TextureNode::Noise { pattern, to_texture } => pattern.eval(to_texture.transform_point3(tc.p)),
             TextureNode::Invert(tex) => (Rgb::ONE - tex.eval(store, tc)).max(Rgb::ZERO),
+            TextureNode::Channel { tex, channel } => Rgb::splat(tex.eval(store, tc)[channel.min(2) as usize]),
             TextureNode::Mapped { tex, mapping } => {
                 let mut moved = *tc;
                 moved.uv = mapping.map(tc);

@@ -663,6 +663,63 @@ fn metallic_factors_between_0_and_1_blend_the_dielectric_and_the_metal() {
     );
 }
 
+/// A metallic-roughness image (linear) drives the blend and the metal's
+/// roughness: its blue channel times the metallic factor weighs the metal,
+/// its green channel times the roughness factor, squared, is the metal's α.
+#[test]
+fn metallic_roughness_textures_weigh_the_metal_and_roughen_it() {
+    let dir = tmp();
+    // Left column: metal (blue 255), green 128; right: dielectric, green 255.
+    let mut img = image::RgbImage::new(2, 1);
+    img.put_pixel(0, 0, image::Rgb([0, 128, 255]));
+    img.put_pixel(1, 0, image::Rgb([0, 255, 0]));
+    img.save(dir.path().join("mr.png")).unwrap();
+    let mut a = Asset::default();
+    let prim = a.square();
+    let body = format!(
+        r#""scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "images":[{{"uri":"mr.png"}}],"textures":[{{"source":0}}],
+        "materials":[{{"pbrMetallicRoughness":{{"baseColorFactor":[0.9,0.7,0.2,1],"metallicFactor":0.8,"roughnessFactor":0.5,
+          "metallicRoughnessTexture":{{"index":0}}}},"doubleSided":true}}],
+        "meshes":[{{"primitives":[{{{prim},"material":0}}]}}]"#
+    );
+    let path = dir.path().join("mr.gltf");
+    a.write_embedded(&path, &body);
+    let d = load(&path, &[]).unwrap();
+    // Only the plastic coat's roughness stays the factor, with a warning.
+    let mr: Vec<_> = d
+        .warnings
+        .iter()
+        .filter(|w| w.contains("metallicRoughnessTexture"))
+        .collect();
+    assert!(mr.len() == 1 && mr[0].contains("on the dielectric"), "{:?}", d.warnings);
+    let scene = build(&d).unwrap();
+    let m = d
+        .materials
+        .iter()
+        .position(|m| Some(&m.name) == d.shapes[0].material.as_ref())
+        .unwrap();
+    let mix = scene.material_mixes[m].as_ref().expect("a mix of dielectric and metal");
+    // The square's (u, v) runs over the image; texel centres at u = ¼, ¾.
+    let at = |u: f32| trazo::texture::TexCoord::new(trazo::Vec2::new(u, 0.5), Vec3::ZERO);
+    let weight = |u: f32| mix.weight.eval(&scene.textures, &at(u));
+    assert!(
+        (weight(0.25) - Rgb::splat(0.8)).abs().max_element() < 1e-3,
+        "{}",
+        weight(0.25)
+    );
+    assert!(weight(0.75).abs().max_element() < 1e-3, "{}", weight(0.75));
+    let metal = &scene.materials[mix.materials[1] as usize];
+    let map = metal.roughness_map.as_ref().expect("the metal's roughness varies");
+    let r = 0.5 * 128.0 / 255.0;
+    assert!((map.u.eval(&scene.textures, &at(0.25)).x - r * r).abs() < 1e-3);
+    assert!((map.u.eval(&scene.textures, &at(0.75)).x - 0.25).abs() < 1e-3);
+    assert!(
+        scene.materials[mix.materials[0] as usize].roughness_map.is_none(),
+        "the plastic's is the factor"
+    );
+}
+
 /// A floor under a point light 1 unit above it, seen by the framing camera.
 fn lit_floor(intensity: f32) -> (SceneDesc, trazo::film::Image) {
     let dir = tmp();
