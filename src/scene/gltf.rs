@@ -572,8 +572,9 @@ struct Reader<'a> {
     bin: Option<&'a [u8]>,
     /// Buffer contents, loaded when first needed.
     buffers: Vec<Option<Cow<'a, [u8]>>>,
-    /// Decoded embedded images, by image index.
-    images: HashMap<usize, Arc<ImageTexture>>,
+    /// Decoded embedded images, by image index and whether they were
+    /// decoded as sRGB colours (or as linear data).
+    images: HashMap<(usize, bool), Arc<ImageTexture>>,
     /// Names of the materials converted so far (`None`: glTF's default).
     materials: HashMap<Option<usize>, String>,
     /// Warnings without repeats: (message, how many more times it came).
@@ -1350,10 +1351,12 @@ impl<'a> Reader<'a> {
     }
 
     /// The pixels of image `i`: a file name for the build step to load, or
-    /// decoded pixels for embedded images. Missing files are reported here,
-    /// where the image's place in the JSON is known.
-    fn image_source(&mut self, root: &json::Root, i: usize) -> Result<ImageSource> {
-        if let Some(img) = self.images.get(&i) {
+    /// decoded pixels for embedded images, sRGB-decoded where `srgb` (colour
+    /// textures, §3.9.2) and read as they are otherwise (data such as
+    /// metalness and roughness). Missing files are reported here, where the
+    /// image's place in the JSON is known.
+    fn image_source(&mut self, root: &json::Root, i: usize, srgb: bool) -> Result<ImageSource> {
+        if let Some(img) = self.images.get(&(i, srgb)) {
             return Ok(ImageSource::Data(img.clone()));
         }
         let image = &root.images[i];
@@ -1389,11 +1392,10 @@ impl<'a> Reader<'a> {
             }
             (None, None) => return Err(self.err(&at, "has neither a uri nor a bufferView")),
         };
-        // Colour textures (base colour, emission) are sRGB-encoded (§3.9.2).
-        let img = ImageTexture::from_encoded(&bytes, true)
+        let img = ImageTexture::from_encoded(&bytes, srgb)
             .map_err(|m| self.err(&at, format!("cannot decode the embedded image: {m}")))?;
         let img = Arc::new(img);
-        self.images.insert(i, img.clone());
+        self.images.insert((i, srgb), img.clone());
         Ok(ImageSource::Data(img))
     }
 
@@ -1480,7 +1482,7 @@ impl<'a> Reader<'a> {
             }
         }
         let image = texture.source.value();
-        let source = self.image_source(root, image)?;
+        let source = self.image_source(root, image, encoding == Encoding::Srgb)?;
         let name = at.to_string();
         let image_at = format!("images[{image}]");
         let locs = Locs {
@@ -1526,7 +1528,7 @@ impl<'a> Reader<'a> {
     /// materials that cannot vary over a surface).
     fn texture_average(&mut self, root: &json::Root, info: &json::texture::Info) -> Result<Rgb> {
         let image = root.textures[info.index.value()].source.value();
-        match self.image_source(root, image)? {
+        match self.image_source(root, image, true)? {
             ImageSource::Data(img) => Ok(img.average()),
             // glTF images are colours.
             ImageSource::File(rel)

@@ -673,12 +673,24 @@ fn metallic_roughness_textures_weigh_the_metal_and_roughen_it() {
     let mut img = image::RgbImage::new(2, 1);
     img.put_pixel(0, 0, image::Rgb([0, 128, 255]));
     img.put_pixel(1, 0, image::Rgb([0, 255, 0]));
-    img.save(dir.path().join("mr.png")).unwrap();
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    std::fs::write(dir.path().join("mr.png"), &png).unwrap();
+    // A file beside the glTF, and embedded (decoded by the reader), read
+    // linear alike.
+    let embedded = format!("data:image/png;base64,{}", base64(&png));
+    for uri in ["mr.png", embedded.as_str()] {
+        metallic_roughness_image_case(&dir, uri);
+    }
+}
+
+fn metallic_roughness_image_case(dir: &tempfile::TempDir, uri: &str) {
     let mut a = Asset::default();
     let prim = a.square();
     let body = format!(
         r#""scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
-        "images":[{{"uri":"mr.png"}}],"textures":[{{"source":0}}],
+        "images":[{{"uri":"{uri}"}}],"textures":[{{"source":0}}],
         "materials":[{{"pbrMetallicRoughness":{{"baseColorFactor":[0.9,0.7,0.2,1],"metallicFactor":0.8,"roughnessFactor":0.5,
           "metallicRoughnessTexture":{{"index":0}}}},"doubleSided":true}}],
         "meshes":[{{"primitives":[{{{prim},"material":0}}]}}]"#
