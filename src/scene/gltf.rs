@@ -1617,16 +1617,28 @@ impl<'a> Reader<'a> {
             None => 0.0,
         };
 
-        match mat.alpha_mode {
-            Checked::Valid(AlphaMode::Mask) => self.warn(
+        // Coverage from the base colour's alpha (§3.9.4): MASK cuts the
+        // surface out below the cutoff, BLEND lets light through the rest
+        // (trazo's cut-out masks, which pass light with probability 1 − α).
+        // An alpha that a base colour texture varies is not read.
+        let coverage = f[3];
+        let mut opacity = None;
+        let blends = matches!(mat.alpha_mode, Checked::Valid(AlphaMode::Mask | AlphaMode::Blend));
+        if blends && pbr.base_color_texture.is_some() {
+            self.warn(
                 &format!("{at}.alphaMode"),
-                "alphaMode MASK is approximated: the surface is opaque (no cut-outs)",
-            ),
-            Checked::Valid(AlphaMode::Blend) => self.warn(
-                &format!("{at}.alphaMode"),
-                "alphaMode BLEND is approximated: the surface is opaque",
-            ),
-            _ => {}
+                "alpha from a baseColorTexture is approximated: the surface is opaque where the texture is",
+            );
+        } else if let Checked::Valid(AlphaMode::Mask) = mat.alpha_mode {
+            let cutoff = mat.alpha_cutoff.map_or(0.5, |c| c.0);
+            if !cutoff.is_finite() {
+                return Err(self.err(&format!("{at}.alphaCutoff"), format!("must be a number, got {cutoff}")));
+            }
+            if coverage < cutoff {
+                opacity = Some(ColorSource::Rgb(Rgb::ZERO));
+            }
+        } else if matches!(mat.alpha_mode, Checked::Valid(AlphaMode::Blend)) && coverage < 1.0 {
+            opacity = Some(ColorSource::Rgb(Rgb::splat(coverage)));
         }
         // The metallic-roughness image (linear): roughness in green, times
         // its factor and squared for α; metalness in blue, times its factor
@@ -1891,7 +1903,7 @@ impl<'a> Reader<'a> {
             // both sides.
             emits_both_sides: mat.double_sided,
             two_sided: mat.double_sided,
-            opacity: None,
+            opacity,
             normal_map: None,
             bump_map: None,
             roughness_map: own_roughness_map,

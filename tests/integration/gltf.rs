@@ -835,6 +835,59 @@ fn scenes_without_lights_get_studio_lights_and_a_warning() {
     assert!(d.warnings.iter().any(|w| w.contains("-D x")), "{:?}", d.warnings);
 }
 
+/// The base colour's alpha as coverage (§3.9.4): MASK cuts the surface
+/// out below the cutoff (0.5 by default), BLEND makes it that opaque; an
+/// alpha a texture varies is approximated by an opaque surface, with a
+/// warning.
+#[test]
+fn alpha_modes_make_cut_outs_and_partial_coverage() {
+    let dir = tmp();
+    std::fs::write(dir.path().join("t.png"), png_2x2()).unwrap();
+    let path = dir.path().join("alpha.gltf");
+    let opacity = |material: &str| {
+        let mut a = Asset::default();
+        let prim = a.floor();
+        let body = format!(
+            r#""scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],"images":[{{"uri":"t.png"}}],"textures":[{{"source":0}}],
+            "materials":[{material}],"meshes":[{{"primitives":[{{{prim},"material":0}}]}}]"#
+        );
+        a.write_embedded(&path, &body);
+        let d = load(&path, &[]).unwrap();
+        let m = d
+            .materials
+            .iter()
+            .find(|m| Some(&m.name) == d.shapes[0].material.as_ref())
+            .unwrap();
+        let warned = d.warnings.iter().any(|w| w.contains("alpha from a baseColorTexture"));
+        (m.opacity.clone(), warned)
+    };
+    let factor = |a: f32| format!(r#""pbrMetallicRoughness":{{"baseColorFactor":[1,1,1,{a}],"metallicFactor":0}}"#);
+    let cut = Some(ColorSource::Rgb(Rgb::ZERO));
+    for (material, expected) in [
+        (
+            format!(r#"{{{},"alphaMode":"MASK"}}"#, factor(0.3)),
+            (cut.clone(), false),
+        ),
+        (format!(r#"{{{},"alphaMode":"MASK"}}"#, factor(0.7)), (None, false)),
+        (
+            format!(r#"{{{},"alphaMode":"MASK","alphaCutoff":0.8}}"#, factor(0.7)),
+            (cut, false),
+        ),
+        (
+            format!(r#"{{{},"alphaMode":"BLEND"}}"#, factor(0.4)),
+            (Some(ColorSource::Rgb(Rgb::splat(0.4))), false),
+        ),
+        (format!(r#"{{{}}}"#, factor(0.4)), (None, false)),
+        (
+            r#"{"pbrMetallicRoughness":{"baseColorTexture":{"index":0},"metallicFactor":0},"alphaMode":"BLEND"}"#
+                .to_string(),
+            (None, true),
+        ),
+    ] {
+        assert_eq!(opacity(&material), expected, "{material}");
+    }
+}
+
 #[test]
 fn unsupported_features_warn_with_their_place() {
     let dir = tmp();
@@ -858,7 +911,6 @@ fn unsupported_features_warn_with_their_place() {
     let w = has("normalTexture is unsupported");
     assert!(w.starts_with(&format!("{}:3:", path.display())), "{w}");
     assert!(has("KHR_materials_clearcoat is unsupported").contains(":1:"));
-    has("alphaMode MASK is approximated");
     assert!(has("LINES primitives are unsupported").contains(":5:"));
 
     // A primitive without POSITION is skipped (§3.7.2.1), the rest drawn.
