@@ -507,30 +507,21 @@ fn emission_is_factor_times_texture_times_strength_and_texture_transforms_apply(
 
     // KHR_texture_transform: offset by half the texture in u → the
     // columns swap.
-    let mut a = Asset::default();
-    let body = textured_square_body(
-        &mut a,
-        r#"[{"uri":"my%20tex.png"}]"#,
-        r#","extensions":{"KHR_texture_transform":{"offset":[0.5,0]}}"#,
-        1.0,
-    );
-    a.write_embedded(&path, &body);
-    let img = render_2x2(load(&path, &[]).unwrap());
+    let transformed = |transform: &str| {
+        let mut a = Asset::default();
+        let extension = format!(r#","extensions":{{"KHR_texture_transform":{transform}}}"#);
+        let body = textured_square_body(&mut a, r#"[{"uri":"my%20tex.png"}]"#, &extension, 1.0);
+        a.write_embedded(&path, &body);
+        load(&path, &[]).unwrap()
+    };
+    let img = render_2x2(transformed(r#"{"offset":[0.5,0]}"#));
     assert!(close(img.get(0, 0), Rgb::new(0.0, 1.0, 0.0)), "{}", img.get(0, 0));
     assert!(close(img.get(0, 1), Rgb::ONE), "{}", img.get(0, 1));
 
     // Turned a quarter: the extension's R takes (u, v) to (−v, u), so the
     // pixel at glTF (u, v) shows the texel at (1 − v, u) (repeating):
     // green, white over red, blue.
-    let mut a = Asset::default();
-    let body = textured_square_body(
-        &mut a,
-        r#"[{"uri":"my%20tex.png"}]"#,
-        r#","extensions":{"KHR_texture_transform":{"rotation":1.5707963267948966}}"#,
-        1.0,
-    );
-    a.write_embedded(&path, &body);
-    let d = load(&path, &[]).unwrap();
+    let d = transformed(r#"{"rotation":1.5707963267948966}"#);
     assert!(!d.warnings.iter().any(|w| w.contains("rotation")), "{:?}", d.warnings);
     let img = render_2x2(d);
     for ((x, y), texel) in [
