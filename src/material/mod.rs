@@ -214,14 +214,54 @@ pub struct Material {
     /// A cut-out mask: the probability (first channel) that light meets
     /// the surface rather than passing it unchanged; `None`: opaque.
     pub opacity: Option<Texture>,
-    /// A tangent-space normal map (colour c: the normal 2c − 1 in the
-    /// frame of tangent, bitangent and shading normal); `None`: none.
-    pub normal_map: Option<Texture>,
+    /// A tangent-space normal map; `None`: none.
+    pub normal_map: Option<NormalMap>,
     /// A bump map: heights that tilt the shading normal; `None`: none.
     pub bump_map: Option<BumpMap>,
     /// Microfacet roughness that varies over the surface; it replaces the
     /// constant α of a conductor or a dielectric. `None`: constant.
     pub roughness_map: Option<RoughnessMap>,
+}
+
+/// A tangent-space normal map: the colour c at a point means the normal
+/// (s·(2c_x − 1), ±s·(2c_y − 1), 2c_z − 1), normalised, in the frame of the
+/// tangent along u, the bitangent and the shading normal, for the `scale`
+/// s. The bitangent is n × tangent (Mitsuba's and pbrt-v4's frame), or,
+/// with `bitangent_along_v`, that vector turned toward increasing v: glTF's
+/// tangent space (MikkTSpace), whose bitangent follows the texture's v on
+/// mirrored texture coordinates too.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NormalMap {
+    /// The colours (read raw, without sRGB decoding).
+    pub texture: Texture,
+    /// Scale of the normal's tangential part (glTF's `normalTexture.scale`).
+    pub scale: f32,
+    /// Whether the bitangent follows increasing v.
+    pub bitangent_along_v: bool,
+}
+
+impl NormalMap {
+    /// Mitsuba's and pbrt-v4's normal map of `texture`.
+    pub fn new(texture: Texture) -> NormalMap {
+        NormalMap {
+            texture,
+            scale: 1.0,
+            bitangent_along_v: false,
+        }
+    }
+
+    /// The mapped normal at `hit` in the local coordinates of `base` (its
+    /// frame of tangent, n × tangent and shading normal), or `None` where
+    /// a black texel names no direction.
+    #[inline]
+    fn local_normal(&self, textures: &TextureStore, hit: &SurfaceHit, base: &Frame) -> Option<Vec3> {
+        let c = self.texture.eval(textures, &TexCoord::at(hit));
+        let mut y = self.scale * (2.0 * c.y - 1.0);
+        if self.bitangent_along_v && hit.dpdv.dot(base.t) < 0.0 {
+            y = -y;
+        }
+        Vec3::new(self.scale * (2.0 * c.x - 1.0), y, 2.0 * c.z - 1.0).try_normalize()
+    }
 }
 
 /// Heights over the surface (a texture's luminance times `scale`) that
@@ -581,7 +621,7 @@ impl Material {
             all.extend([&map.u, &map.v]);
         }
         all.extend(self.opacity.as_ref());
-        all.extend(self.normal_map.as_ref());
+        all.extend(self.normal_map.as_ref().map(|n| &n.texture));
         all.extend(self.bump_map.as_ref().map(|b| &b.height));
         if let Some(r) = &self.roughness_map {
             all.extend([&r.u, &r.v]);
@@ -640,9 +680,7 @@ impl Material {
             unmapped: None,
         };
         let local = if let Some(map) = &self.normal_map {
-            let c = map.eval(textures, &TexCoord::at(hit));
-            // A black texel names no direction.
-            Vec3::new(2.0 * c.x - 1.0, 2.0 * c.y - 1.0, 2.0 * c.z - 1.0).try_normalize()
+            map.local_normal(textures, hit, &base)
         } else if let Some(bump) = &self.bump_map {
             bump.normal(textures, hit).map(|n| base.to_local(n))
         } else {
@@ -1240,13 +1278,13 @@ mod tests {
         assert_eq!(plain.factor(Vec3::new(0.9, 0.0, 0.1).normalize()), 1.0);
 
         // The identity map changes nothing.
-        m.normal_map = Some(Texture::Constant(Rgb::new(0.5, 0.5, 1.0)));
+        m.normal_map = Some(NormalMap::new(Texture::Constant(Rgb::new(0.5, 0.5, 1.0))));
         let same = m.shading_frame(&crate::texture::TextureStore::default(), &hit, view);
         assert!((same.n - Vec3::Z).length() < 1e-6 && (same.s - Vec3::X).length() < 1e-6);
         assert_eq!(same.factor(Vec3::new(0.6, 0.0, 0.8)), 1.0);
 
         // Tilted towards +x (the tangent), seen from the +x side.
-        m.normal_map = Some(Texture::Constant(Rgb::new(0.85, 0.5, 0.75)));
+        m.normal_map = Some(NormalMap::new(Texture::Constant(Rgb::new(0.85, 0.5, 0.75))));
         let tilted = Vec3::new(0.7, 0.0, 0.5).normalize();
         let f = m.shading_frame(&crate::texture::TextureStore::default(), &hit, Vec3::new(0.6, 0.0, 0.8));
         assert!((f.n - tilted).length() < 1e-5, "{}", f.n);

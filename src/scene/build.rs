@@ -1014,7 +1014,7 @@ fn resolve_mixes(
                 }
                 copy.two_sided |= own.two_sided;
                 copy.opacity = own.opacity.or(copy.opacity);
-                copy.normal_map = own.normal_map.or(copy.normal_map);
+                copy.normal_map = own.normal_map.clone().or(copy.normal_map);
                 copy.bump_map = own.bump_map.clone().or(copy.bump_map);
                 materials.push(copy);
                 mixes.push(None);
@@ -1263,7 +1263,11 @@ fn to_material(
     mat.emits_both_sides = m.emits_both_sides;
     mat.two_sided = m.two_sided;
     mat.opacity = m.opacity.as_ref().map(color);
-    mat.normal_map = m.normal_map.as_ref().map(color);
+    mat.normal_map = m.normal_map.as_ref().map(|n| crate::material::NormalMap {
+        texture: color(&n.texture),
+        scale: n.scale,
+        bitangent_along_v: n.bitangent_along_v,
+    });
     mat.bump_map = m.bump_map.as_ref().map(|b| crate::material::BumpMap {
         height: color(&b.height),
         scale: b.scale,

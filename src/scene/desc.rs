@@ -508,10 +508,8 @@ pub struct MaterialDesc {
     /// below 1 light passes the surface unchanged with the rest (Mitsuba's
     /// `mask` BSDF); `None`: opaque.
     pub opacity: Option<ColorSource>,
-    /// A tangent-space normal map: colours c in [0, 1]³ meaning the normal
-    /// 2c − 1 in the frame of (tangent along u, bitangent, shading normal),
-    /// read raw (no sRGB decoding); `None`: the surface's own normal.
-    pub normal_map: Option<ColorSource>,
+    /// A tangent-space normal map; `None`: the surface's own normal.
+    pub normal_map: Option<NormalMapDesc>,
     /// A bump map: a texture whose luminance times `scale` is a height
     /// over the surface, tilting the shading normal; `None`: none.
     pub bump_map: Option<BumpMapDesc>,
@@ -533,6 +531,30 @@ pub struct RoughnessMapDesc {
     pub v: ColorSource,
     /// The textures hold pbrt-v4's roughness r, whose α is √r.
     pub remap_sqrt: bool,
+}
+
+/// A material's normal map (see [`crate::material::NormalMap`]): colours c
+/// in [0, 1]³ meaning the normal 2c − 1 in the frame of (tangent along u,
+/// bitangent, shading normal), read raw (no sRGB decoding).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NormalMapDesc {
+    /// The colours.
+    pub texture: ColorSource,
+    /// Scale of the normal's tangential part (1: as stored).
+    pub scale: f32,
+    /// glTF's tangent space: the bitangent follows increasing v.
+    pub bitangent_along_v: bool,
+}
+
+impl NormalMapDesc {
+    /// Mitsuba's and pbrt-v4's normal map: scale 1, bitangent n × tangent.
+    pub fn new(texture: ColorSource) -> NormalMapDesc {
+        NormalMapDesc {
+            texture,
+            scale: 1.0,
+            bitangent_along_v: false,
+        }
+    }
 }
 
 /// A material's bump map (see [`crate::material::BumpMap`]).
@@ -1470,7 +1492,8 @@ impl SceneDesc {
                 texture("opacity", o)?;
             }
             if let Some(n) = &m.normal_map {
-                texture("normal_map", n)?;
+                texture("normal_map", &n.texture)?;
+                c.finite("normal_scale", n.scale)?;
             }
             if let Some(b) = &m.bump_map {
                 texture("bump_map", &b.height)?;

@@ -366,6 +366,12 @@ impl<'t> Locator<'t> {
         }
     }
 
+    /// Whether the element at `path` is written (an object member, or an
+    /// array element that is an object or an array).
+    fn contains(&self, path: &str) -> bool {
+        self.offsets.contains_key(&path_segments(path).join("\0"))
+    }
+
     /// Where `path` is written; for an element that is not written (a
     /// missing key, say), where its nearest written ancestor is.
     fn loc(&self, path: &str) -> SourceLoc {
@@ -952,6 +958,9 @@ impl<'a> Reader<'a> {
             );
             return Ok(None);
         }
+        let normal_mapped = prim
+            .material
+            .is_some_and(|i| root.materials[i.value()].normal_texture.is_some());
         let mut position = None;
         let mut normal = None;
         let mut uv = None;
@@ -965,10 +974,12 @@ impl<'a> Reader<'a> {
                     &attr_at(&format!("TEXCOORD_{n}")),
                     format!("TEXCOORD_{n} is unsupported: only TEXCOORD_0 is read"),
                 ),
-                Checked::Valid(Semantic::Tangents) => self.warn(
+                // Tangents serve normal maps alone.
+                Checked::Valid(Semantic::Tangents) if normal_mapped => self.warn(
                     &attr_at("TANGENT"),
-                    "TANGENT is unsupported: ignored (tangents serve normal maps, which are unsupported)",
+                    "TANGENT is approximated: normal maps take each triangle's tangent along its texture coordinates' u",
                 ),
+                Checked::Valid(Semantic::Tangents) => {}
                 Checked::Valid(Semantic::Colors(n)) => self.warn(
                     &attr_at(&format!("COLOR_{n}")),
                     format!("vertex colours (COLOR_{n}) are unsupported: ignored"),
@@ -1704,11 +1715,35 @@ impl<'a> Reader<'a> {
                 },
             ));
         }
-        if mat.normal_texture.is_some() {
-            self.warn(
-                &format!("{at}.normalTexture"),
-                "normalTexture is unsupported: ignored (shading normals come from the mesh)",
-            );
+        // The normal texture (linear), in glTF's tangent space: its
+        // bitangent follows increasing v (§3.9.3; the tangents themselves
+        // come from the texture coordinates, see the TANGENT warning).
+        let mut normal_map = None;
+        if let Some(n) = &mat.normal_texture {
+            let n_at = format!("{at}.normalTexture");
+            if !n.scale.is_finite() {
+                return Err(self.err(&format!("{n_at}.scale"), format!("must be a number, got {}", n.scale)));
+            }
+            // The gltf crate reads no extensions of a normal texture.
+            let tt_at = format!("{n_at}.extensions.KHR_texture_transform");
+            if self.locator.contains(&tt_at) {
+                self.warn(
+                    &tt_at,
+                    "KHR_texture_transform on a normal texture is unsupported: ignored (the image is read untransformed)",
+                );
+            }
+            let info = json::texture::Info {
+                index: n.index,
+                tex_coord: n.tex_coord,
+                extensions: None,
+                extras: Default::default(),
+            };
+            let image = self.texture_encoded(root, &info, &n_at, Rgb::ONE, Encoding::Linear)?;
+            normal_map = Some(NormalMapDesc {
+                texture: ColorSource::Texture(image),
+                scale: n.scale,
+                bitangent_along_v: true,
+            });
         }
         if mat.occlusion_texture.is_some() {
             self.warn(
@@ -1904,7 +1939,7 @@ impl<'a> Reader<'a> {
             emits_both_sides: mat.double_sided,
             two_sided: mat.double_sided,
             opacity,
-            normal_map: None,
+            normal_map,
             bump_map: None,
             roughness_map: own_roughness_map,
             locs,

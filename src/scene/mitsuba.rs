@@ -2618,7 +2618,7 @@ impl Loader {
         let mut m = MaterialDesc::with_kind(name.clone(), def.kind.clone());
         m.two_sided = def.two_sided;
         m.opacity = def.opacity.clone();
-        m.normal_map = def.normal_map.clone();
+        m.normal_map = def.normal_map.clone().map(NormalMapDesc::new);
         m.bump_map = def.bump_map.clone();
         m.roughness_map = def.roughness_map.clone();
         m.locs = Locs::at(if def.loc.line > 0 { Some(def.loc.clone()) } else { None });
@@ -3901,7 +3901,10 @@ mod tests {
         );
         // A normal map keeps its nested BSDF and adds its texture.
         assert!(matches!(by(5).kind, MaterialKindDesc::Diffuse { .. }));
-        assert_eq!(by(5).normal_map, Some(ColorSource::Rgb(Rgb::new(0.6, 0.5, 0.9))));
+        assert_eq!(
+            by(5).normal_map,
+            Some(NormalMapDesc::new(ColorSource::Rgb(Rgb::new(0.6, 0.5, 0.9))))
+        );
         assert!(by(0).normal_map.is_none());
         assert!(!d.warnings.iter().any(|w| w.contains("normalmap")), "{:?}", d.warnings);
         // The emitting shape gets its own material; the plain one is shared.

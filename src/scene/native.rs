@@ -1164,7 +1164,7 @@ fn read_material(t: &Table) -> Result<MaterialDesc> {
     m.emits_both_sides = t.boolean("two_sided_emission")?.unwrap_or(false);
     m.two_sided = t.boolean("two_sided")?.unwrap_or(true);
     m.opacity = t.color_source("opacity")?;
-    m.normal_map = t.color_source("normal_map")?;
+    m.normal_map = t.color_source("normal_map")?.map(NormalMapDesc::new);
     if let Some(height) = t.color_source("bump_map")? {
         m.bump_map = Some(BumpMapDesc {
             height,
@@ -2433,7 +2433,7 @@ material = "red"
         let d = parse_str(&with("plastic", "normal_map = [0.5, 0.6, 0.9]")).unwrap();
         assert_eq!(
             d.materials[0].normal_map,
-            Some(ColorSource::Rgb(Rgb::new(0.5, 0.6, 0.9)))
+            Some(NormalMapDesc::new(ColorSource::Rgb(Rgb::new(0.5, 0.6, 0.9))))
         );
         let e = error_of(&with("conductor", "distribution = \"phong\""));
         assert!(e.starts_with("test.toml:") && e.contains("beckmann"), "{e}");

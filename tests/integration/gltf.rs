@@ -64,12 +64,18 @@ impl Asset {
     /// coordinates ((0, 0) at its top-left corner); returns the JSON of a
     /// primitive's `attributes` and `indices`.
     fn square(&mut self) -> String {
+        self.square_with_uv(&[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+    }
+
+    /// [`Asset::square`] with the texture coordinates `uv` at its corners
+    /// (bottom-left, bottom-right, top-right, top-left).
+    fn square_with_uv(&mut self, uv: &[f32; 8]) -> String {
         let p = self.floats(
             &[-0.5, -0.5, 0.0, 0.5, -0.5, 0.0, 0.5, 0.5, 0.0, -0.5, 0.5, 0.0],
             "VEC3",
         );
         let n = self.floats(&[0.0, 0.0, 1.0].repeat(4), "VEC3");
-        let t = self.floats(&[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0], "VEC2");
+        let t = self.floats(uv, "VEC2");
         let i = self.indices(&[0, 1, 2, 0, 2, 3]);
         format!(r#""attributes":{{"POSITION":{p},"NORMAL":{n},"TEXCOORD_0":{t}}},"indices":{i}"#)
     }
@@ -723,6 +729,61 @@ fn metallic_roughness_image_case(dir: &tempfile::TempDir, uri: &str) {
     );
 }
 
+#[test]
+fn normal_textures_tilt_the_normal_in_gltf_tangent_space() {
+    // One texel: the tangent-space normal (0.004, 0.506, 1) (green up the
+    // image), read linear.
+    let dir = tmp();
+    let mut img = image::RgbImage::new(1, 1);
+    img.put_pixel(0, 0, image::Rgb([128, 192, 255]));
+    img.save(dir.path().join("n.png")).unwrap();
+    let mut a = Asset::default();
+    // The same square twice: up the image is up the square (+y), then,
+    // with v mirrored, down it.
+    let upright = a.square();
+    let mirrored = a.square_with_uv(&[0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0]);
+    for (scale, tilt) in [(None, 0.506f32.atan()), (Some(2.0), (2.0f32 * 0.506).atan())] {
+        let scale_json = scale.map(|s| format!(r#","scale":{s}"#)).unwrap_or_default();
+        let body = format!(
+            r#""scenes":[{{"nodes":[0,1]}}],"nodes":[{{"mesh":0,"translation":[-1,0,0]}},{{"mesh":1,"translation":[1,0,0]}}],
+            "images":[{{"uri":"n.png"}}],"textures":[{{"source":0}}],
+            "materials":[{{"normalTexture":{{"index":0{scale_json}}},"doubleSided":true}}],
+            "meshes":[{{"primitives":[{{{upright},"material":0}}]}},{{"primitives":[{{{mirrored},"material":0}}]}}]"#
+        );
+        let path = dir.path().join("normals.gltf");
+        a.write_embedded(&path, &body);
+        let d = load(&path, &[]).unwrap();
+        assert!(
+            !d.warnings.iter().any(|w| w.contains("normalTexture")),
+            "{:?}",
+            d.warnings
+        );
+        let scene = build(&d).unwrap();
+        for (x, up) in [(-1.0f32, 1.0f32), (1.0, -1.0)] {
+            let ray = trazo::geometry::Ray::new(Vec3::new(x, 0.1, 3.0), Vec3::NEG_Z);
+            let hit = scene.intersect(&ray).expect("the square");
+            let m = &scene.materials[hit.material as usize];
+            let n = m.shading_frame(&scene.textures, &hit, Vec3::Z).n;
+            let expected = Vec3::new(0.0, up * tilt.sin(), tilt.cos());
+            assert!(
+                (n - expected).length() < 0.01,
+                "scale {scale:?}, square at x = {x}: {n} against {expected}"
+            );
+        }
+    }
+    // A texture transform on it is named, not applied.
+    let body = format!(
+        r#""scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "images":[{{"uri":"n.png"}}],"textures":[{{"source":0}}],
+        "materials":[{{"normalTexture":{{"index":0,"extensions":{{"KHR_texture_transform":{{"scale":[2,2]}}}}}}}}],
+        "meshes":[{{"primitives":[{{{upright},"material":0}}]}}]"#
+    );
+    let path = dir.path().join("turned.gltf");
+    a.write_embedded(&path, &body);
+    let d = load(&path, &[]).unwrap();
+    has_warning(&d, "KHR_texture_transform on a normal texture is unsupported");
+}
+
 /// A floor under a point light 1 unit above it, seen by the framing camera.
 fn lit_floor(intensity: f32) -> (SceneDesc, trazo::film::Image) {
     let dir = tmp();
@@ -886,7 +947,7 @@ fn unsupported_features_warn_with_their_place() {
     let prim = a.floor();
     let body = format!(
         "\"extensionsUsed\":[\"KHR_materials_clearcoat\"],\n\"scenes\":[{{\"nodes\":[0]}}],\"nodes\":[{{\"mesh\":0}}],\n\
-         \"materials\":[{{\"normalTexture\":{{\"index\":0}},\"alphaMode\":\"MASK\"}}],\n\
+         \"materials\":[{{\"occlusionTexture\":{{\"index\":0}},\"alphaMode\":\"MASK\"}}],\n\
          \"textures\":[{{\"source\":0}}],\"images\":[{{\"uri\":\"n.png\"}}],\n\
          \"meshes\":[{{\"primitives\":[{{{prim},\"material\":0}},{{{prim},\"mode\":1}}]}}]"
     );
@@ -899,7 +960,7 @@ fn unsupported_features_warn_with_their_place() {
             .find(|w| w.contains(s))
             .unwrap_or_else(|| panic!("{s}: {:?}", d.warnings))
     };
-    let w = has("normalTexture is unsupported");
+    let w = has("occlusionTexture is unsupported");
     assert!(w.starts_with(&format!("{}:3:", path.display())), "{w}");
     assert!(has("KHR_materials_clearcoat is unsupported").contains(":1:"));
     assert!(has("LINES primitives are unsupported").contains(":5:"));

@@ -1595,7 +1595,7 @@ impl Parser {
         };
         let mut m = MaterialDesc::with_kind(name, kind);
         m.locs = def.locs.clone();
-        m.normal_map = def.normal_map.clone();
+        m.normal_map = def.normal_map.clone().map(NormalMapDesc::new);
         m.bump_map = def.bump_map.clone();
         m.roughness_map = def.roughness_map.clone();
         if let Some(e) = emission {

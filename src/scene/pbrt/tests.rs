@@ -2292,7 +2292,12 @@ fn normal_maps_are_linear_images_on_the_material() {
 Shape "sphere""#,
     );
     let m = &d.materials[0];
-    let Some(ColorSource::Texture(name)) = &m.normal_map else {
+    let Some(NormalMapDesc {
+        texture: ColorSource::Texture(name),
+        scale: 1.0,
+        bitangent_along_v: false,
+    }) = &m.normal_map
+    else {
         panic!("no normal map: {:?}", m.normal_map)
     };
     let t = d.textures.iter().find(|t| &t.name == name).expect("its texture");
