@@ -708,7 +708,9 @@ impl Material {
     /// Whether the surface emits.
     #[inline]
     pub fn is_emissive(&self) -> bool {
-        self.emission != Texture::Constant(Rgb::ZERO)
+        // A pattern, not `!=`: the derived comparison of textures is a call,
+        // and this is asked at every hit.
+        !matches!(self.emission, Texture::Constant(c) if c == Rgb::ZERO)
     }
 
     /// Whether the surface's emission (if any) leaves `hit` toward `wo`
