@@ -946,7 +946,7 @@ impl Aggregate {
                         (r.surface(ray.at(hit.t)), None)
                     }
                     (_, None) => {
-                        tangent = s.shape.constant_tangent();
+                        tangent = s.shape.tangent_at(ray.at(hit.t));
                         let ls = s.shape.surface_at_hit(ray, hit.t, uv);
                         (ls, s.shape.shading_normal(ls.p))
                     }

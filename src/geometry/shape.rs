@@ -347,12 +347,14 @@ impl Shape {
         }
     }
 
-    /// The surface's unit tangent where it is the same at every point
-    /// (rectangles), so that surface records need not compute it.
+    /// The unit tangent along u (dp/du normalised) at the point of the
+    /// surface nearest `p`, where it comes cheaper than from dp/du and the
+    /// normal: a rectangle's constant one, a sphere's ([`Sphere::tangent_at`]).
     #[inline]
-    pub fn constant_tangent(&self) -> Option<Vec3> {
+    pub fn tangent_at(&self, p: Vec3) -> Option<Vec3> {
         match self {
             Shape::Rectangle(r) => Some(r.tangent),
+            Shape::Sphere(s) => Some(s.tangent_at(p)),
             _ => None,
         }
     }
@@ -487,6 +489,25 @@ impl Sphere {
         let c = self.center;
         let (t, hit) = sphere_distance(&SphereRay::new(ray)?, c.x, c.y, c.z, self.radius);
         hit.then_some(t)
+    }
+
+    /// The unit tangent along u at the sphere's point nearest `p`: dp/du
+    /// normalised, the direction of a × (p − centre) for the axis a of the
+    /// coordinates. Made from p − centre, not from the unit normal, so that
+    /// its square root and division run alongside the normal's instead of
+    /// after them (which finishing the record from dp/du would wait for).
+    /// At the poles, where dp/du vanishes, a tangent of the normal's frame.
+    #[inline]
+    pub fn tangent_at(&self, p: Vec3) -> Vec3 {
+        let q = p - self.center;
+        let local = self.uv_frame.transpose() * q;
+        let along = self.uv_frame * Vec3::new(-local.z, 0.0, local.x);
+        let len2 = along.length_squared();
+        if len2 > 1e-6 * q.length_squared() {
+            along * (1.0 / len2.sqrt())
+        } else {
+            orthonormal_basis(q.normalize_or(Vec3::Z)).0
+        }
     }
 
     fn surface(&self, p: Vec3, with_uv: bool) -> LocalSurface {
@@ -1017,8 +1038,35 @@ mod tests {
             assert!(t.dot(r.edge_u().normalize()) > 0.0);
             let dpdu = Shape::Rectangle(r).surface(r.corner() + 0.5 * r.edge_u()).dpdu;
             assert_eq!(t, crate::geometry::interaction::unit_tangent(dpdu, r.normal()));
-            assert_eq!(Shape::Rectangle(r).constant_tangent(), Some(t));
+            assert_eq!(Shape::Rectangle(r).tangent_at(v()), Some(t));
         }
+    }
+
+    #[test]
+    fn sphere_tangent_is_its_surface_tangent() {
+        // Unit length, perpendicular to the normal and along dp/du, on
+        // spheres with turned coordinates, far from their origin; a tangent
+        // of the normal at the poles.
+        let mut rng = Pcg32::new(3, 9);
+        let mut u = || rng.next_f32();
+        for _ in 0..1000 {
+            let mut s = Sphere::new(Vec3::new(u(), u(), u()) * 2e3 - 1e3, 0.1 + 100.0 * u());
+            s.uv_frame = Mat3::from_quat(glam::Quat::from_euler(
+                glam::EulerRot::XYZ,
+                7.0 * u(),
+                7.0 * u(),
+                7.0 * u(),
+            ));
+            let d = sample_sphere_uniform(Vec2::new(u(), u()));
+            let ls = Shape::Sphere(s).surface(s.center + d * s.radius);
+            let t = Shape::Sphere(s).tangent_at(s.center + d * s.radius).unwrap();
+            assert!((t.length() - 1.0).abs() < 1e-5, "{t}");
+            assert!(t.dot(ls.n).abs() < 1e-3, "{t} against {}", ls.n);
+            assert!((t - ls.dpdu.normalize()).length() < 1e-3, "{t} against {}", ls.dpdu);
+        }
+        let s = Sphere::new(Vec3::ONE, 2.0);
+        let pole = s.tangent_at(Vec3::new(1.0, 3.0, 1.0));
+        assert!((pole.length() - 1.0).abs() < 1e-6 && pole.y.abs() < 1e-6, "{pole}");
     }
 
     #[test]
