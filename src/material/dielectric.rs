@@ -132,7 +132,8 @@ impl DielectricBsdf {
         let wi = refracted(wo, n, cos_i, etap, cos_t?);
         let mut f = self.transmit_tint * ((1.0 - r) / wi.z.abs());
         if mode == TransportMode::Radiance {
-            f /= etap * etap;
+            // (A factor known ahead of `f`, not a division after it.)
+            f *= 1.0 / (etap * etap);
         }
         Some(BsdfSample {
             wi,

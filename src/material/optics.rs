@@ -35,8 +35,15 @@ pub fn refract(wi: Vec3, n: Vec3, eta: f32) -> Option<(Vec3, f32)> {
 /// dielectric that needs both computes it once.
 #[inline]
 pub fn snell(cos_i: f32, eta: f32) -> (f32, f32, Option<f32>) {
-    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
-    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
+    // Divisions by the index only, which is known before the cosine, so
+    // that they run ahead of the cosine's arithmetic instead of after it.
+    let inv_eta = 1.0 / eta;
+    let (cos_i, eta, inv_eta) = if cos_i < 0.0 {
+        (-cos_i, inv_eta, eta)
+    } else {
+        (cos_i, eta, inv_eta)
+    };
+    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) * (inv_eta * inv_eta);
     (cos_i, eta, (sin2_t < 1.0).then(|| (1.0 - sin2_t).sqrt()))
 }
 
@@ -44,7 +51,9 @@ pub fn snell(cos_i: f32, eta: f32) -> (f32, f32, Option<f32>) {
 /// `n` the normal on `wi`'s side (pbrt-v4, eq. 9.4).
 #[inline]
 pub fn refracted(wi: Vec3, n: Vec3, cos_i: f32, eta: f32, cos_t: f32) -> Vec3 {
-    -wi / eta + (cos_i / eta - cos_t) * n
+    // (The reciprocal, as in `snell`, ahead of the cosines.)
+    let inv_eta = 1.0 / eta;
+    -wi * inv_eta + (cos_i * inv_eta - cos_t) * n
 }
 
 /// Unpolarised Fresnel reflectance of a dielectric interface for light
