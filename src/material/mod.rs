@@ -708,9 +708,7 @@ impl Material {
     /// Whether the surface emits.
     #[inline]
     pub fn is_emissive(&self) -> bool {
-        // A pattern, not `!=`: the derived comparison of textures is a call,
-        // and this is asked at every hit.
-        !matches!(self.emission, Texture::Constant(c) if c == Rgb::ZERO)
+        self.emission != Texture::Constant(Rgb::ZERO)
     }
 
     /// Whether the surface's emission (if any) leaves `hit` toward `wo`
