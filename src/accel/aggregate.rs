@@ -785,7 +785,10 @@ impl Aggregate {
     /// (a room: a few blocks of rectangles), without the traversal's stack
     /// frame: what the traversal finds, in the same order.
     /// The hit goes to `best` (left as it is where there is none).
-    #[inline]
+    /// Kept out of line: inlined into the path tracer's loop (which
+    /// LLVM does or does not as that loop's other code changes size), its
+    /// shadow-ray test made that loop slower on rooms.
+    #[inline(never)]
     #[allow(unsafe_code)]
     fn leaf_hit(&self, leaf: (u32, u32), ray: &Ray, any_hit: bool, best: &mut Option<Hit>) {
         #[cfg(target_arch = "x86_64")]
