@@ -130,6 +130,8 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
                     }
                     ImageSource::FloatFile(path) => ImageTexture::load_float(&base_dir.join(path), *encoding)
                         .map_err(|e| Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e)))?,
+                    ImageSource::AlphaFile(path) => ImageTexture::load_alpha(&base_dir.join(path))
+                        .map_err(|e| Error::scene(t.locs.key("file"), format!("texture[{i}].file"), reason_of(e)))?,
                     ImageSource::Data(data) => (**data).clone(),
                 };
                 memory.textures += img.pixels.len() as u64 * BYTES_PER_TEXEL;

@@ -232,6 +232,10 @@ pub enum ImageSource {
     /// it has one that is not 1 everywhere, else the mean of its colour
     /// channels, as a grey ([`crate::texture::ImageTexture::load_float`]).
     FloatFile(PathBuf),
+    /// A file whose alpha channel is read, as a grey (1 where the image
+    /// has none): glTF's coverage in a base colour image
+    /// ([`crate::texture::ImageTexture::load_alpha`]).
+    AlphaFile(PathBuf),
     /// Pixels already decoded (images embedded in a glTF binary, say).
     Data(Arc<crate::texture::ImageTexture>),
 }
@@ -1384,6 +1388,7 @@ impl SceneDesc {
                 }
                 TextureKind::Node(node) => match node {
                     TextureNode::Scale { .. } | TextureNode::Mix { .. } | TextureNode::Invert(_) => {}
+                    TextureNode::Cutoff { cutoff, .. } => c.finite("cutoff", *cutoff)?,
                     TextureNode::Channel { channel, .. } => {
                         if *channel > 2 {
                             return Err(c.err("channel", format!("must be 0, 1 or 2, got {channel}")));

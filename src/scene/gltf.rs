@@ -313,6 +313,17 @@ fn split_glb<'b>(path: &Path, bytes: &'b [u8]) -> Result<(&'b [u8], Option<&'b [
     Ok((&json[..json_end], bin))
 }
 
+/// How an image's pixels are read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum ImageRead {
+    /// Colours, decoded from sRGB (base colour, emission).
+    Srgb,
+    /// Data as stored (metalness and roughness, normals).
+    Linear,
+    /// The alpha channel as a grey, 1 where there is none (coverage).
+    Alpha,
+}
+
 /// A JSON syntax or type error from serde_json, at its line and column.
 fn json_syntax_error(file: &Arc<Path>, e: &json::Error) -> Error {
     let full = e.to_string();
@@ -578,9 +589,8 @@ struct Reader<'a> {
     bin: Option<&'a [u8]>,
     /// Buffer contents, loaded when first needed.
     buffers: Vec<Option<Cow<'a, [u8]>>>,
-    /// Decoded embedded images, by image index and whether they were
-    /// decoded as sRGB colours (or as linear data).
-    images: HashMap<(usize, bool), Arc<ImageTexture>>,
+    /// Decoded embedded images, by image index and how they were read.
+    images: HashMap<(usize, ImageRead), Arc<ImageTexture>>,
     /// Names of the materials converted so far (`None`: glTF's default).
     materials: HashMap<Option<usize>, String>,
     /// Warnings without repeats: (message, how many more times it came).
@@ -1366,8 +1376,8 @@ impl<'a> Reader<'a> {
     /// textures, §3.9.2) and read as they are otherwise (data such as
     /// metalness and roughness). Missing files are reported here, where the
     /// image's place in the JSON is known.
-    fn image_source(&mut self, root: &json::Root, i: usize, srgb: bool) -> Result<ImageSource> {
-        if let Some(img) = self.images.get(&(i, srgb)) {
+    fn image_source(&mut self, root: &json::Root, i: usize, read: ImageRead) -> Result<ImageSource> {
+        if let Some(img) = self.images.get(&(i, read)) {
             return Ok(ImageSource::Data(img.clone()));
         }
         let image = &root.images[i];
@@ -1381,7 +1391,12 @@ impl<'a> Reader<'a> {
                 let rel = uri_to_path(uri).map_err(|m| self.err(&format!("{at}.uri"), m))?;
                 let full = self.base_dir.join(&rel);
                 match std::fs::metadata(&full) {
-                    Ok(meta) if meta.is_file() => return Ok(ImageSource::File(rel)),
+                    Ok(meta) if meta.is_file() => {
+                        return Ok(match read {
+                            ImageRead::Alpha => ImageSource::AlphaFile(rel),
+                            ImageRead::Srgb | ImageRead::Linear => ImageSource::File(rel),
+                        });
+                    }
                     Ok(_) => {
                         return Err(self.err(
                             &format!("{at}.uri"),
@@ -1403,10 +1418,13 @@ impl<'a> Reader<'a> {
             }
             (None, None) => return Err(self.err(&at, "has neither a uri nor a bufferView")),
         };
-        let img = ImageTexture::from_encoded(&bytes, srgb)
-            .map_err(|m| self.err(&at, format!("cannot decode the embedded image: {m}")))?;
+        let img = match read {
+            ImageRead::Alpha => ImageTexture::alpha_from_encoded(&bytes),
+            _ => ImageTexture::from_encoded(&bytes, read == ImageRead::Srgb),
+        }
+        .map_err(|m| self.err(&at, format!("cannot decode the embedded image: {m}")))?;
         let img = Arc::new(img);
-        self.images.insert((i, srgb), img.clone());
+        self.images.insert((i, read), img.clone());
         Ok(ImageSource::Data(img))
     }
 
@@ -1414,18 +1432,33 @@ impl<'a> Reader<'a> {
     /// `tint`, and returns its name. Colours are sRGB-encoded, as glTF
     /// stores them.
     fn texture(&mut self, root: &json::Root, info: &json::texture::Info, at: &str, tint: Rgb) -> Result<String> {
-        self.texture_encoded(root, info, at, tint, Encoding::Srgb)
+        self.texture_encoded(root, info, at, tint, ImageRead::Srgb)
     }
 
-    /// [`Reader::texture`] for an image of `encoding` (linear for data
-    /// such as metalness and roughness).
+    /// [`Reader::texture`] for an image read as `read` (linear for data
+    /// such as metalness and roughness, alpha for coverage).
     fn texture_encoded(
         &mut self,
         root: &json::Root,
         info: &json::texture::Info,
         at: &str,
         tint: Rgb,
-        encoding: Encoding,
+        read: ImageRead,
+    ) -> Result<String> {
+        self.texture_named(root, info, at, at, tint, read)
+    }
+
+    /// [`Reader::texture_encoded`] of the reference at `at` under the
+    /// texture name `name` (a second reading of one reference: the base
+    /// colour image's alpha).
+    fn texture_named(
+        &mut self,
+        root: &json::Root,
+        info: &json::texture::Info,
+        at: &str,
+        name: &str,
+        tint: Rgb,
+        read: ImageRead,
     ) -> Result<String> {
         let t = info.index.value();
         let texture = &root.textures[t];
@@ -1493,8 +1526,13 @@ impl<'a> Reader<'a> {
             }
         }
         let image = texture.source.value();
-        let source = self.image_source(root, image, encoding == Encoding::Srgb)?;
-        let name = at.to_string();
+        let source = self.image_source(root, image, read)?;
+        let encoding = if read == ImageRead::Srgb {
+            Encoding::Srgb
+        } else {
+            Encoding::Linear
+        };
+        let name = name.to_string();
         let image_at = format!("images[{image}]");
         let locs = Locs {
             item: Some(self.loc(at)),
@@ -1502,7 +1540,7 @@ impl<'a> Reader<'a> {
         };
         // A rotated transform reads the image through a mapped node.
         let image_name = if turned.is_some() {
-            format!("{at} image")
+            format!("{name} image")
         } else {
             name.clone()
         };
@@ -1539,11 +1577,12 @@ impl<'a> Reader<'a> {
     /// materials that cannot vary over a surface).
     fn texture_average(&mut self, root: &json::Root, info: &json::texture::Info) -> Result<Rgb> {
         let image = root.textures[info.index.value()].source.value();
-        match self.image_source(root, image, true)? {
+        match self.image_source(root, image, ImageRead::Srgb)? {
             ImageSource::Data(img) => Ok(img.average()),
             // glTF images are colours.
             ImageSource::File(rel)
             | ImageSource::FloatFile(rel)
+            | ImageSource::AlphaFile(rel)
             | ImageSource::EmissionFile(rel)
             | ImageSource::DataFile(rel) => {
                 let full = self.base_dir.join(rel);
@@ -1631,25 +1670,38 @@ impl<'a> Reader<'a> {
         // Coverage from the base colour's alpha (§3.9.4): MASK cuts the
         // surface out below the cutoff, BLEND lets light through the rest
         // (trazo's cut-out masks, which pass light with probability 1 − α).
-        // An alpha that a base colour texture varies is not read.
+        // The alpha is the factor's times the base colour image's (§3.9.2),
+        // read through the same sampler and transform.
         let coverage = f[3];
         let mut opacity = None;
-        let blends = matches!(mat.alpha_mode, Checked::Valid(AlphaMode::Mask | AlphaMode::Blend));
-        if blends && pbr.base_color_texture.is_some() {
-            self.warn(
-                &format!("{at}.alphaMode"),
-                "alpha from a baseColorTexture is approximated: the surface is opaque where the texture is",
-            );
-        } else if let Checked::Valid(AlphaMode::Mask) = mat.alpha_mode {
-            let cutoff = mat.alpha_cutoff.map_or(0.5, |c| c.0);
-            if !cutoff.is_finite() {
-                return Err(self.err(&format!("{at}.alphaCutoff"), format!("must be a number, got {cutoff}")));
+        let mask = matches!(mat.alpha_mode, Checked::Valid(AlphaMode::Mask));
+        let blend = matches!(mat.alpha_mode, Checked::Valid(AlphaMode::Blend));
+        let cutoff = mat.alpha_cutoff.map_or(0.5, |c| c.0);
+        if mask && !cutoff.is_finite() {
+            return Err(self.err(&format!("{at}.alphaCutoff"), format!("must be a number, got {cutoff}")));
+        }
+        match &pbr.base_color_texture {
+            Some(info) if mask || blend => {
+                let base_at = format!("{pbr_at}.baseColorTexture");
+                let alpha = format!("{base_at} alpha");
+                self.texture_named(root, info, &base_at, &alpha, Rgb::splat(coverage), ImageRead::Alpha)?;
+                opacity = Some(ColorSource::Texture(alpha.clone()));
+                if mask {
+                    let cut = format!("{base_at} mask");
+                    self.desc.textures.push(TextureDesc {
+                        name: cut.clone(),
+                        kind: TextureKind::Node(crate::texture::TextureNode::Cutoff {
+                            tex: ColorSource::Texture(alpha),
+                            cutoff,
+                        }),
+                        locs: Locs::at(Some(self.loc(&format!("{at}.alphaCutoff")))),
+                    });
+                    opacity = Some(ColorSource::Texture(cut));
+                }
             }
-            if coverage < cutoff {
-                opacity = Some(ColorSource::Rgb(Rgb::ZERO));
-            }
-        } else if matches!(mat.alpha_mode, Checked::Valid(AlphaMode::Blend)) && coverage < 1.0 {
-            opacity = Some(ColorSource::Rgb(Rgb::splat(coverage)));
+            _ if mask && coverage < cutoff => opacity = Some(ColorSource::Rgb(Rgb::ZERO)),
+            _ if blend && coverage < 1.0 => opacity = Some(ColorSource::Rgb(Rgb::splat(coverage))),
+            _ => {}
         }
         // The metallic-roughness image (linear): roughness in green, times
         // its factor and squared for α; metalness in blue, times its factor
@@ -1658,7 +1710,7 @@ impl<'a> Reader<'a> {
         let mut roughness_map = None;
         if let Some(info) = &pbr.metallic_roughness_texture {
             let mr_at = format!("{pbr_at}.metallicRoughnessTexture");
-            let image = self.texture_encoded(root, info, &mr_at, Rgb::ONE, Encoding::Linear)?;
+            let image = self.texture_encoded(root, info, &mr_at, Rgb::ONE, ImageRead::Linear)?;
             let node = |this: &mut Self, suffix: &str, node: crate::texture::TextureNode<ColorSource>| {
                 let name = format!("{mr_at} {suffix}");
                 this.desc.textures.push(TextureDesc {
@@ -1738,7 +1790,7 @@ impl<'a> Reader<'a> {
                 extensions: None,
                 extras: Default::default(),
             };
-            let image = self.texture_encoded(root, &info, &n_at, Rgb::ONE, Encoding::Linear)?;
+            let image = self.texture_encoded(root, &info, &n_at, Rgb::ONE, ImageRead::Linear)?;
             normal_map = Some(NormalMapDesc {
                 texture: ColorSource::Texture(image),
                 scale: n.scale,

@@ -334,6 +334,14 @@ pub enum TextureNode<T = Texture> {
         /// Which channel.
         channel: u8,
     },
+    /// 1 where the first channel of `tex` is at least `cutoff`, else 0:
+    /// glTF's alpha mask (`alphaMode` MASK), which cuts after filtering.
+    Cutoff {
+        /// The texture read.
+        tex: T,
+        /// The least value that counts as 1.
+        cutoff: f32,
+    },
     /// `tex` read at (u, v) = the mapping's (s, t): an image or checks
     /// placed by the point.
     Mapped {
@@ -357,9 +365,10 @@ impl<T> TextureNode<T> {
                 vec![("even", even), ("odd", odd)]
             }
             TextureNode::Dots { inside, outside, .. } => vec![("inside", inside), ("outside", outside)],
-            TextureNode::Invert(tex) | TextureNode::Mapped { tex, .. } | TextureNode::Channel { tex, .. } => {
-                vec![("texture", tex)]
-            }
+            TextureNode::Invert(tex)
+            | TextureNode::Mapped { tex, .. }
+            | TextureNode::Channel { tex, .. }
+            | TextureNode::Cutoff { tex, .. } => vec![("texture", tex)],
             TextureNode::Bilerp { .. } | TextureNode::Noise { .. } => vec![],
         }
     }
@@ -413,6 +422,10 @@ impl<T> TextureNode<T> {
                 tex: f(tex),
                 channel: *channel,
             },
+            TextureNode::Cutoff { tex, cutoff } => TextureNode::Cutoff {
+                tex: f(tex),
+                cutoff: *cutoff,
+            },
             TextureNode::Mapped { tex, mapping } => TextureNode::Mapped {
                 tex: f(tex),
                 mapping: *mapping,
@@ -441,6 +454,8 @@ impl<T> TextureNode<T> {
             TextureNode::Noise { pattern, .. } => pattern.average(),
             TextureNode::Invert(tex) => (Rgb::ONE - mean(tex)).max(Rgb::ZERO),
             TextureNode::Channel { tex, channel } => Rgb::splat(mean(tex)[(*channel).min(2) as usize]),
+            // (The mean's own cut: a typical value, not the covered share.)
+            TextureNode::Cutoff { tex, cutoff } => Rgb::splat(if mean(tex).x >= *cutoff { 1.0 } else { 0.0 }),
             TextureNode::Mapped { tex, .. } => mean(tex),
         }
     }
@@ -509,6 +524,7 @@ impl TextureNode {
             TextureNode::Noise { pattern, to_texture } => pattern.eval(to_texture.transform_point3(tc.p)),
             TextureNode::Invert(tex) => (Rgb::ONE - tex.eval(store, tc)).max(Rgb::ZERO),
             TextureNode::Channel { tex, channel } => Rgb::splat(tex.eval(store, tc)[channel.min(2) as usize]),
+            TextureNode::Cutoff { tex, cutoff } => Rgb::splat(if tex.eval(store, tc).x >= cutoff { 1.0 } else { 0.0 }),
             TextureNode::Mapped { tex, mapping } => {
                 let mut moved = *tc;
                 moved.uv = mapping.map(tc);

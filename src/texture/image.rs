@@ -113,6 +113,39 @@ impl ImageTexture {
         Self::from_image(image).map_err(|e| Error::file(path, e))
     }
 
+    /// Reads an image's alpha channel as a grey texture, 1 where the image
+    /// has none: glTF's coverage, which its base colour image carries.
+    pub fn load_alpha(path: &Path) -> Result<ImageTexture> {
+        let bytes = crate::files::read_limited(path, crate::files::MAX_IMAGE_FILE_BYTES)
+            .map_err(|e| Error::file(path, format!("cannot open image: {e}")))?;
+        let ext = path.extension().and_then(|e| e.to_str());
+        Self::alpha_of(&bytes, ext).map_err(|e| Error::file(path, e))
+    }
+
+    /// [`ImageTexture::load_alpha`] of an image held in memory (a PNG or
+    /// JPEG embedded in a glTF file). Errors are plain reasons.
+    pub fn alpha_from_encoded(bytes: &[u8]) -> Result<ImageTexture, String> {
+        let format = ::image::guess_format(bytes).map_err(|e| format!("cannot read image: {e}"))?;
+        if !matches!(format, ::image::ImageFormat::Png | ::image::ImageFormat::Jpeg) {
+            return Err("not a PNG or JPEG image".into());
+        }
+        Self::alpha_of(bytes, None)
+    }
+
+    fn alpha_of(bytes: &[u8], ext: Option<&str>) -> Result<ImageTexture, String> {
+        // Alpha is coverage, not a colour: read linear.
+        let (mut image, alpha) = crate::film::io::decode_any_with_alpha(bytes, Some(Encoding::Linear), ext)?;
+        match alpha {
+            Some(alpha) => {
+                for (p, a) in image.pixels.iter_mut().zip(alpha) {
+                    *p = Rgb::splat(a);
+                }
+            }
+            None => image.pixels.fill(Rgb::ONE),
+        }
+        Self::from_image(image)
+    }
+
     /// Decodes a PNG, JPEG, BMP, Radiance HDR, OpenEXR or PFM image held in
     /// memory (told apart by their first bytes), as [`ImageTexture::load`] does.
     /// The size in the header is checked before any pixel is allocated.

@@ -910,34 +910,82 @@ fn alpha_modes_make_cut_outs_and_partial_coverage() {
             .iter()
             .find(|m| Some(&m.name) == d.shapes[0].material.as_ref())
             .unwrap();
-        let warned = d.warnings.iter().any(|w| w.contains("alpha from a baseColorTexture"));
-        (m.opacity.clone(), warned)
+        m.opacity.clone()
     };
     let factor = |a: f32| format!(r#""pbrMetallicRoughness":{{"baseColorFactor":[1,1,1,{a}],"metallicFactor":0}}"#);
     let cut = Some(ColorSource::Rgb(Rgb::ZERO));
     for (material, expected) in [
-        (
-            format!(r#"{{{},"alphaMode":"MASK"}}"#, factor(0.3)),
-            (cut.clone(), false),
-        ),
-        (format!(r#"{{{},"alphaMode":"MASK"}}"#, factor(0.7)), (None, false)),
+        (format!(r#"{{{},"alphaMode":"MASK"}}"#, factor(0.3)), cut.clone()),
+        (format!(r#"{{{},"alphaMode":"MASK"}}"#, factor(0.7)), None),
         (
             format!(r#"{{{},"alphaMode":"MASK","alphaCutoff":0.8}}"#, factor(0.7)),
-            (cut, false),
+            cut,
         ),
         (
             format!(r#"{{{},"alphaMode":"BLEND"}}"#, factor(0.4)),
-            (Some(ColorSource::Rgb(Rgb::splat(0.4))), false),
+            Some(ColorSource::Rgb(Rgb::splat(0.4))),
         ),
-        (format!(r#"{{{}}}"#, factor(0.4)), (None, false)),
-        (
-            r#"{"pbrMetallicRoughness":{"baseColorTexture":{"index":0},"metallicFactor":0},"alphaMode":"BLEND"}"#
-                .to_string(),
-            (None, true),
-        ),
+        (format!(r#"{{{}}}"#, factor(0.4)), None),
     ] {
         assert_eq!(opacity(&material), expected, "{material}");
     }
+}
+
+#[test]
+fn alpha_from_the_base_colour_image_masks_and_blends() {
+    let dir = tmp();
+    // Alpha 1 on the left texel, 64/255 on the right.
+    let mut img = image::RgbaImage::new(2, 1);
+    img.put_pixel(0, 0, image::Rgba([200, 10, 10, 255]));
+    img.put_pixel(1, 0, image::Rgba([10, 200, 10, 64]));
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    std::fs::write(dir.path().join("rgba.png"), &png).unwrap();
+    std::fs::write(dir.path().join("rgb.png"), png_2x2()).unwrap();
+    let embedded = format!("data:image/png;base64,{}", base64(&png));
+    let path = dir.path().join("alpha.gltf");
+    // The opacity at the left and right texel centres.
+    let opacity = |uri: &str, mode: &str| {
+        let mut a = Asset::default();
+        let prim = a.square();
+        let body = format!(
+            r#""scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],"images":[{{"uri":"{uri}"}}],"textures":[{{"source":0}}],
+            "materials":[{{"pbrMetallicRoughness":{{"baseColorFactor":[1,1,1,0.8],"baseColorTexture":{{"index":0}},"metallicFactor":0}},{mode}}}],
+            "meshes":[{{"primitives":[{{{prim},"material":0}}]}}]"#
+        );
+        a.write_embedded(&path, &body);
+        let d = load(&path, &[]).unwrap();
+        assert!(!d.warnings.iter().any(|w| w.contains("alphaMode")), "{:?}", d.warnings);
+        let scene = build(&d).unwrap();
+        let m = d
+            .materials
+            .iter()
+            .position(|m| Some(&m.name) == d.shapes[0].material.as_ref())
+            .unwrap();
+        let at = |u: f32| trazo::texture::TexCoord::new(trazo::Vec2::new(u, 0.5), Vec3::ZERO);
+        let m = &scene.materials[m];
+        [
+            m.opacity_at(&scene.textures, &at(0.25)),
+            m.opacity_at(&scene.textures, &at(0.75)),
+        ]
+    };
+    let near = |a: [f32; 2], b: [f32; 2]| (a[0] - b[0]).abs() < 1e-3 && (a[1] - b[1]).abs() < 1e-3;
+    let quarter = 64.0 / 255.0;
+    for uri in ["rgba.png", embedded.as_str()] {
+        // BLEND: the factor's alpha times the image's.
+        let blend = opacity(uri, r#""alphaMode":"BLEND""#);
+        assert!(near(blend, [0.8, 0.8 * quarter]), "{blend:?}");
+        // MASK: cut where that product is below the cutoff (0.5 by default).
+        let mask = opacity(uri, r#""alphaMode":"MASK""#);
+        assert!(near(mask, [1.0, 0.0]), "{mask:?}");
+        let mask = opacity(uri, r#""alphaMode":"MASK","alphaCutoff":0.9"#);
+        assert!(near(mask, [0.0, 0.0]), "{mask:?}");
+        // OPAQUE ignores alpha.
+        assert!(near(opacity(uri, r#""alphaMode":"OPAQUE""#), [1.0, 1.0]));
+    }
+    // An image without alpha covers everywhere: the factor alone.
+    assert!(near(opacity("rgb.png", r#""alphaMode":"BLEND""#), [0.8, 0.8]));
 }
 
 #[test]
