@@ -35,6 +35,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_emissive_strength",
     "KHR_materials_ior",
     "KHR_materials_transmission",
+    "KHR_materials_volume",
     "KHR_mesh_quantization",
     "KHR_texture_transform",
 ];
@@ -106,6 +107,7 @@ pub fn parse_bytes(bytes: &[u8], path: &Path, defines: &[(String, String)]) -> R
         bin,
         buffers: vec![None; root.buffers.len()],
         images: HashMap::new(),
+        volumes: HashMap::new(),
         materials: HashMap::new(),
         warnings: Vec::new(),
         warning_index: HashMap::new(),
@@ -593,6 +595,9 @@ struct Reader<'a> {
     images: HashMap<(usize, ImageRead), Arc<ImageTexture>>,
     /// Names of the materials converted so far (`None`: glTF's default).
     materials: HashMap<Option<usize>, String>,
+    /// The absorbing medium inside each material's shapes that has one
+    /// (KHR_materials_volume), by material name.
+    volumes: HashMap<String, String>,
     /// Warnings without repeats: (message, how many more times it came).
     warnings: Vec<(String, usize)>,
     warning_index: HashMap<String, usize>,
@@ -905,9 +910,12 @@ impl<'a> Reader<'a> {
                 self.desc.shapes.push(ShapeDesc {
                     kind,
                     transform: transform.clone(),
+                    media: self.volumes.get(material.as_str()).map(|inside| MediumInterfaceDesc {
+                        inside: Some(inside.clone()),
+                        outside: None,
+                    }),
                     material: Some(material.clone()),
                     flip_normals: false,
-                    media: None,
                     motion: None,
                     locs,
                 });
@@ -1616,6 +1624,56 @@ impl<'a> Reader<'a> {
         Ok(name)
     }
 
+    /// The medium inside a transmissive material's shapes from its
+    /// KHR_materials_volume: white light turns into `attenuationColor`
+    /// over `attenuationDistance` (world units), so the medium absorbs
+    /// with σa = −ln(colour)/distance per channel and scatters nothing
+    /// (Beer–Lambert). A zero thickness (thin-walled) or an infinite
+    /// distance has none. `thickness`, which a rasteriser needs, is not
+    /// read: paths measure the distances in the mesh itself.
+    fn volume(&mut self, volume: Option<&json::extensions::material::Volume>, at: &str, name: &str) -> Result<()> {
+        let Some(v) = volume else { return Ok(()) };
+        let v_at = format!("{at}.extensions.KHR_materials_volume");
+        let thickness = v.thickness_factor.0;
+        if !thickness.is_finite() || thickness < 0.0 {
+            return Err(self.err(
+                &format!("{v_at}.thicknessFactor"),
+                format!("must be a number of at least 0, got {thickness}"),
+            ));
+        }
+        let distance = v.attenuation_distance.0;
+        if distance.is_nan() || distance <= 0.0 {
+            return Err(self.err(
+                &format!("{v_at}.attenuationDistance"),
+                format!("must be above 0, got {distance}"),
+            ));
+        }
+        let c_at = format!("{v_at}.attenuationColor");
+        let [r, g, b] = v.attenuation_color.0;
+        let color = Rgb::new(self.unit(&c_at, r)?, self.unit(&c_at, g)?, self.unit(&c_at, b)?);
+        if thickness == 0.0 || distance.is_infinite() || color == Rgb::ONE {
+            return Ok(());
+        }
+        // A black channel absorbs everything it meets: a coefficient of
+        // some thousand per attenuation distance stands for infinity.
+        let sigma_a = color.max(Rgb::splat(1e-3)).map(|c| -c.ln() / distance);
+        let medium = format!("{name} volume");
+        self.desc.media.push(MediumDesc {
+            name: medium.clone(),
+            sigma_t: FieldDesc::Constant(sigma_a),
+            albedo: FieldDesc::Constant(Rgb::ZERO),
+            emission: None,
+            scale: Rgb::ONE,
+            g: 0.0,
+            locs: Locs::at(Some(self.loc(&v_at))),
+        });
+        self.volumes.insert(name.to_string(), medium);
+        // Media need the volumetric path tracer, which renders the same
+        // surfaces as the path tracer elsewhere.
+        self.desc.settings.integrator = crate::settings::IntegratorKind::VolPath;
+        Ok(())
+    }
+
     /// A factor in [0, 1] (the schema's range for colours and strengths).
     fn unit(&self, at: &str, v: f32) -> Result<f32> {
         if (0.0..=1.0).contains(&v) {
@@ -1853,6 +1911,7 @@ impl<'a> Reader<'a> {
                 );
             }
             if transmission_factor > 0.5 {
+                self.volume(ext.and_then(|e| e.volume.as_ref()), at, name)?;
                 let transmit_tint = match &pbr.base_color_texture {
                     Some(info) => {
                         self.warn(

@@ -784,6 +784,98 @@ fn normal_textures_tilt_the_normal_in_gltf_tangent_space() {
     has_warning(&d, "KHR_texture_transform on a normal texture is unsupported");
 }
 
+#[test]
+fn volumes_absorb_as_beer_lambert_inside_transmissive_meshes() {
+    let dir = tmp();
+    let mut a = Asset::default();
+    // A unit cube (outward winding), and a glowing square behind it.
+    let h = 0.5f32;
+    let corners: Vec<f32> = [
+        [-h, -h, -h],
+        [h, -h, -h],
+        [h, h, -h],
+        [-h, h, -h],
+        [-h, -h, h],
+        [h, -h, h],
+        [h, h, h],
+        [-h, h, h],
+    ]
+    .concat();
+    let p = a.floats(&corners, "VEC3");
+    let i = a.indices(&[
+        0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4, 3, 7, 6, 3, 6, 2, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5,
+    ]);
+    let square = a.square();
+    // Index-matched (no refraction, no reflection), so a ray straight
+    // through crosses one attenuation distance of the medium.
+    let body = format!(
+        r#""extensionsUsed":["KHR_materials_volume","KHR_materials_transmission","KHR_materials_ior"],
+        "scenes":[{{"nodes":[0,1,2]}}],"nodes":[{{"camera":0,"translation":[0,0,3]}},{{"mesh":0}},
+          {{"mesh":1,"translation":[0,0,-2],"scale":[3,3,3]}}],
+        "cameras":[{{"type":"orthographic","orthographic":{{"xmag":0.3,"ymag":0.3,"znear":0,"zfar":10}}}}],
+        "materials":[{{"pbrMetallicRoughness":{{"metallicFactor":0,"roughnessFactor":0}},
+            "extensions":{{"KHR_materials_transmission":{{"transmissionFactor":1}},"KHR_materials_ior":{{"ior":1}},
+              "KHR_materials_volume":{{"thicknessFactor":1,"attenuationDistance":1,"attenuationColor":[0.5,0.25,0.8]}}}}}},
+          {GLOW}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":{p}}},"indices":{i},"material":0}}]}},
+          {{"primitives":[{{{square},"material":1}}]}}]"#
+    );
+    let path = dir.path().join("glass.gltf");
+    a.write_embedded(&path, &body);
+    let mut d = load(&path, &[]).unwrap();
+    assert!(!d.warnings.iter().any(|w| w.contains("volume")), "{:?}", d.warnings);
+    assert_eq!(d.settings.integrator, trazo::settings::IntegratorKind::VolPath);
+    assert_eq!(d.media.len(), 1);
+    let FieldDesc::Constant(sigma) = d.media[0].sigma_t else {
+        panic!("{:?}", d.media[0].sigma_t)
+    };
+    assert!(
+        (sigma - Rgb::new(0.5f32.ln(), 0.25f32.ln(), 0.8f32.ln()) * -1.0)
+            .abs()
+            .max_element()
+            < 1e-6
+    );
+    let inside: Vec<_> = d
+        .shapes
+        .iter()
+        .map(|s| s.media.as_ref().and_then(|m| m.inside.clone()))
+        .collect();
+    assert_eq!(inside.iter().filter(|m| m.is_some()).count(), 1, "{inside:?}");
+    // The light through the cube: the glow times the attenuation colour.
+    // Each sample passes or is absorbed, so the image's mean over its
+    // 8 × 8 × 256 samples has a standard deviation below
+    // √(0.25/16384) ≈ 0.004 per channel.
+    d.settings.width = 8;
+    d.settings.height = 8;
+    d.settings.spp = 256;
+    let img = render_image(&build(&d).unwrap()).unwrap();
+    let mean = img.pixels.iter().sum::<Rgb>() / img.pixels.len() as f32;
+    assert!((mean - Rgb::new(0.5, 0.25, 0.8)).abs().max_element() < 0.02, "{mean}");
+
+    // A thin-walled volume (thickness 0) and an infinite distance have no
+    // medium.
+    for volume in [
+        r#"{"thicknessFactor":0,"attenuationDistance":1,"attenuationColor":[0.5,0.5,0.5]}"#,
+        r#"{"thicknessFactor":1,"attenuationColor":[0.5,0.5,0.5]}"#,
+    ] {
+        let thin = body.replace(
+            r#"{"thicknessFactor":1,"attenuationDistance":1,"attenuationColor":[0.5,0.25,0.8]}"#,
+            volume,
+        );
+        a.write_embedded(&path, &thin);
+        let d = load(&path, &[]).unwrap();
+        assert!(
+            d.media.is_empty() && d.shapes.iter().all(|s| s.media.is_none()),
+            "{volume}"
+        );
+    }
+    // A distance of 0 is an error naming it.
+    let bad = body.replace(r#""attenuationDistance":1,"#, r#""attenuationDistance":0,"#);
+    a.write_embedded(&path, &bad);
+    let e = load(&path, &[]).unwrap_err().to_string();
+    assert!(e.contains("attenuationDistance") && e.contains("above 0"), "{e}");
+}
+
 /// A floor under a point light 1 unit above it, seen by the framing camera.
 fn lit_floor(intensity: f32) -> (SceneDesc, trazo::film::Image) {
     let dir = tmp();
