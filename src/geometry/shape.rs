@@ -492,7 +492,7 @@ impl Sphere {
     }
 
     /// The unit tangent along u at the sphere's point nearest `p`: dp/du
-    /// normalised, the direction of a × (p − centre) for the axis a of the
+    /// normalised, the direction of (p − centre) × a for the axis a of the
     /// coordinates. Made from p − centre, not from the unit normal, so that
     /// its square root and division run alongside the normal's instead of
     /// after them (which finishing the record from dp/du would wait for).

@@ -1654,8 +1654,9 @@ impl<'a> Reader<'a> {
         if thickness == 0.0 || distance.is_infinite() || color == Rgb::ONE {
             return Ok(());
         }
-        // A black channel absorbs everything it meets: a coefficient of
-        // some thousand per attenuation distance stands for infinity.
+        // A black channel would absorb everything it meets (an infinite
+        // coefficient): a transmittance of 10⁻³ per attenuation distance
+        // stands for it.
         let sigma_a = color.max(Rgb::splat(1e-3)).map(|c| -c.ln() / distance);
         let medium = format!("{name} volume");
         self.desc.media.push(MediumDesc {
