@@ -166,6 +166,15 @@ fn base64(data: &[u8]) -> String {
 const GLOW: &str =
     r#"{"pbrMetallicRoughness":{"baseColorFactor":[0,0,0,1],"metallicFactor":0},"emissiveFactor":[1,1,1]}"#;
 
+/// The index of the first shape's material, in the description and in
+/// the scene built from it.
+fn first_shape_material(d: &SceneDesc) -> usize {
+    d.materials
+        .iter()
+        .position(|m| Some(&m.name) == d.shapes[0].material.as_ref())
+        .expect("the first shape's material")
+}
+
 fn tmp() -> tempfile::TempDir {
     tempfile::tempdir().unwrap()
 }
@@ -703,11 +712,7 @@ fn metallic_roughness_image_case(dir: &tempfile::TempDir, uri: &str) {
         .collect();
     assert!(mr.len() == 1 && mr[0].contains("on the dielectric"), "{:?}", d.warnings);
     let scene = build(&d).unwrap();
-    let m = d
-        .materials
-        .iter()
-        .position(|m| Some(&m.name) == d.shapes[0].material.as_ref())
-        .unwrap();
+    let m = first_shape_material(&d);
     let mix = scene.material_mixes[m].as_ref().expect("a mix of dielectric and metal");
     // The square's (u, v) runs over the image; texel centres at u = ¼, ¾.
     let at = |u: f32| trazo::texture::TexCoord::new(trazo::Vec2::new(u, 0.5), Vec3::ZERO);
@@ -997,11 +1002,7 @@ fn alpha_modes_make_cut_outs_and_partial_coverage() {
         );
         a.write_embedded(&path, &body);
         let d = load(&path, &[]).unwrap();
-        let m = d
-            .materials
-            .iter()
-            .find(|m| Some(&m.name) == d.shapes[0].material.as_ref())
-            .unwrap();
+        let m = &d.materials[first_shape_material(&d)];
         m.opacity.clone()
     };
     let factor = |a: f32| format!(r#""pbrMetallicRoughness":{{"baseColorFactor":[1,1,1,{a}],"metallicFactor":0}}"#);
@@ -1050,11 +1051,7 @@ fn alpha_from_the_base_colour_image_masks_and_blends() {
         let d = load(&path, &[]).unwrap();
         assert!(!d.warnings.iter().any(|w| w.contains("alphaMode")), "{:?}", d.warnings);
         let scene = build(&d).unwrap();
-        let m = d
-            .materials
-            .iter()
-            .position(|m| Some(&m.name) == d.shapes[0].material.as_ref())
-            .unwrap();
+        let m = first_shape_material(&d);
         let at = |u: f32| trazo::texture::TexCoord::new(trazo::Vec2::new(u, 0.5), Vec3::ZERO);
         let m = &scene.materials[m];
         [
