@@ -431,6 +431,15 @@ fn materials_map_to_conductor_plastic_dielectric_and_diffuse() {
     assert!(build(&d).is_ok());
 }
 
+/// An image encoded as PNG.
+fn png_bytes(img: impl Into<image::DynamicImage>) -> Vec<u8> {
+    let mut png = Vec::new();
+    img.into()
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    png
+}
+
 /// A 2 × 2 PNG: red, green / blue, white (top row first).
 fn png_2x2() -> Vec<u8> {
     let mut img = image::RgbImage::new(2, 2);
@@ -438,10 +447,7 @@ fn png_2x2() -> Vec<u8> {
     img.put_pixel(1, 0, image::Rgb([0, 255, 0]));
     img.put_pixel(0, 1, image::Rgb([0, 0, 255]));
     img.put_pixel(1, 1, image::Rgb([255, 255, 255]));
-    let mut png = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .unwrap();
-    png
+    png_bytes(img)
 }
 
 /// The glowing square seen face-on by an orthographic camera that frames
@@ -679,9 +685,7 @@ fn metallic_roughness_textures_weigh_the_metal_and_roughen_it() {
     let mut img = image::RgbImage::new(2, 1);
     img.put_pixel(0, 0, image::Rgb([0, 128, 255]));
     img.put_pixel(1, 0, image::Rgb([0, 255, 0]));
-    let mut png = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .unwrap();
+    let png = png_bytes(img);
     std::fs::write(dir.path().join("mr.png"), &png).unwrap();
     // A file beside the glTF, and embedded (decoded by the reader), read
     // linear alike.
@@ -1031,9 +1035,7 @@ fn alpha_from_the_base_colour_image_masks_and_blends() {
     let mut img = image::RgbaImage::new(2, 1);
     img.put_pixel(0, 0, image::Rgba([200, 10, 10, 255]));
     img.put_pixel(1, 0, image::Rgba([10, 200, 10, 64]));
-    let mut png = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .unwrap();
+    let png = png_bytes(img);
     std::fs::write(dir.path().join("rgba.png"), &png).unwrap();
     std::fs::write(dir.path().join("rgb.png"), png_2x2()).unwrap();
     let embedded = format!("data:image/png;base64,{}", base64(&png));
