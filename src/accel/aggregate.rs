@@ -11,6 +11,8 @@
 //! processor has AVX; a room of a few dozen rectangles is a tree of one
 //! leaf.
 
+#[cfg(target_arch = "x86_64")]
+use super::blocks::PACKET;
 use super::blocks::{BlockRange, Blocks};
 use super::bvh::{ALONE, Bvh, SahCosts};
 use super::queries::TriangleBvh;
@@ -233,6 +235,10 @@ pub struct Aggregate {
     triangle_vertices: Vec<[Vec3; 3]>,
     unbounded: Vec<u32>,
     bvh: Bvh4,
+    /// Where the tree is one leaf with items that rays can be tested
+    /// against together (blocks of spheres or rectangles, lone
+    /// untransformed spheres), the fewest primitives such an item holds.
+    packet_items: Option<u32>,
     bounds: Aabb,
     stats: BuildStats,
 }
@@ -467,7 +473,7 @@ impl Aggregate {
             .iter()
             .map(|m| m.positions.len() * 12 + m.normals.len() * 12 + m.uvs.len() * 8 + m.indices.len() * 12)
             .sum();
-        Aggregate {
+        let mut aggregate = Aggregate {
             meshes,
             shapes,
             mesh_objects,
@@ -481,9 +487,33 @@ impl Aggregate {
             triangle_vertices,
             unbounded,
             bvh,
+            packet_items: None,
             bounds: scene_bounds,
             stats,
+        };
+        aggregate.packet_items = aggregate.smallest_packet_item();
+        aggregate
+    }
+
+    /// See `Aggregate::packet_items`.
+    fn smallest_packet_item(&self) -> Option<u32> {
+        #[cfg(target_arch = "x86_64")]
+        if let (Some((first, count)), true, Some(blocks)) =
+            (self.bvh.root_leaf(), self.unbounded.is_empty(), &self.blocks)
+        {
+            let range = |(b, n): BlockRange| b..b + n;
+            return (first..first + count)
+                .flat_map(|k| -> Vec<u32> {
+                    match self.items[k as usize] {
+                        LeafItem::Spheres(r) => range(r).map(|b| blocks.sphere_count(b)).collect(),
+                        LeafItem::Rectangles(r) => range(r).map(|b| blocks.rectangle_count(b)).collect(),
+                        LeafItem::Prim(p) => self.lone_sphere(p).map(|_| 1).into_iter().collect(),
+                        LeafItem::Triangles(_) => Vec::new(),
+                    }
+                })
+                .min();
         }
+        None
     }
 
     /// Figures from the build.
@@ -781,6 +811,153 @@ impl Aggregate {
         self.intersect_traversed(ray, found)
     }
 
+    /// Whether `count` rays, those of `live`, are better tested together
+    /// ([`Aggregate::intersect_together`]): eight rays, a tree of one leaf,
+    /// and some item of the leaf holding fewer primitives than there are
+    /// rays, which is then tested against all rays at once.
+    #[inline]
+    pub fn tests_together(&self, count: usize, live: u32) -> bool {
+        matches!(self.packet_items, Some(smallest) if count == 8 && live.count_ones() > smallest)
+    }
+
+    /// [`Aggregate::intersect_into`] for the rays of `rays` whose bits are
+    /// set in `live` (a path tracer's lanes), each hit written to the
+    /// same place in `found`, where [`Aggregate::tests_together`]: whether
+    /// they were. The leaf's items that hold fewer primitives than there
+    /// are rays are tested against all rays at once, in vector lanes, the
+    /// others ray by ray (see [`Aggregate::leaf_hit_packet`]). Each ray
+    /// finds what it finds by itself.
+    #[inline]
+    #[allow(unsafe_code)]
+    pub fn intersect_together(&self, rays: &[Ray], live: u32, found: &mut [Option<Hit>]) -> bool {
+        if !self.tests_together(rays.len(), live) {
+            return false;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if let (Some(leaf), Ok(rays), Ok(found)) = (
+            self.bvh.root_leaf(),
+            <&[Ray; PACKET]>::try_from(rays),
+            <&mut [Option<Hit>; PACKET]>::try_from(&mut *found),
+        ) {
+            // SAFETY: the leaf has blocks, which exist only where the
+            // processor has AVX.
+            unsafe { self.leaf_hit_packet(leaf, rays, live, found) };
+            return true;
+        }
+        false
+    }
+
+    /// [`Aggregate::leaf_hit`]'s nearest hits for a packet of rays (see
+    /// [`Aggregate::intersect_together`]): the leaf's items in order, each
+    /// block of spheres or rectangles that holds fewer primitives than
+    /// there are rays, and each lone untransformed sphere, tested against
+    /// all rays at once (a packet test costs about what one ray's test of
+    /// a block costs), the others ray by ray.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    #[inline(never)]
+    fn leaf_hit_packet(
+        &self,
+        (first, count): (u32, u32),
+        rays: &[Ray; PACKET],
+        mut live: u32,
+        found: &mut [Option<Hit>; PACKET],
+    ) {
+        use super::blocks::{BlockHit, RayPacket};
+        let mut t_max = [f32::NAN; PACKET];
+        for i in bits(live) {
+            found[i] = None;
+            t_max[i] = rays[i].t_max;
+            // A zero direction meets nothing bounded.
+            if rays[i].dir == Vec3::ZERO {
+                live &= !(1 << i);
+            }
+        }
+        let Some(blocks) = &self.blocks else { return };
+        let ray_count = live.count_ones();
+        if ray_count == 0 {
+            return;
+        }
+        // Made where a primitive is first tested against all rays.
+        let mut packet: Option<RayPacket> = None;
+        let as_hit = |(id, t, _): BlockHit| Hit {
+            t,
+            prim: HitPrim::Shape(id),
+        };
+        // Each ray's set-up of the triangle test, made where it first
+        // meets a triangle.
+        let mut pre: [Option<Option<TriangleRay>>; PACKET] = [None; PACKET];
+        for k in first..first + count {
+            match self.items[k as usize] {
+                LeafItem::Spheres(range) => {
+                    for step in blocks_in_turn(range, |b| blocks.sphere_count(b) < ray_count) {
+                        match step {
+                            BlockStep::Packet(b) => {
+                                let packet = packet.get_or_insert_with(|| RayPacket::new(rays, live));
+                                blocks.spheres_packet(b, packet, &mut t_max, |bits, t, id| {
+                                    record_hits(found, bits, t, id)
+                                });
+                            }
+                            BlockStep::OneByOne(run) => one_by_one(rays, live, &mut t_max, found, |_, r| {
+                                blocks.spheres(run, r, false).map(as_hit)
+                            }),
+                        }
+                    }
+                }
+                LeafItem::Rectangles(range) => {
+                    for step in blocks_in_turn(range, |b| blocks.rectangle_count(b) < ray_count) {
+                        match step {
+                            BlockStep::Packet(b) => {
+                                let packet = packet.get_or_insert_with(|| RayPacket::new(rays, live));
+                                blocks.rectangles_packet(b, packet, &mut t_max, |bits, t, id| {
+                                    record_hits(found, bits, t, id)
+                                });
+                            }
+                            BlockStep::OneByOne(run) => one_by_one(rays, live, &mut t_max, found, |_, r| {
+                                blocks.rectangles(run, r, false).map(as_hit)
+                            }),
+                        }
+                    }
+                }
+                item => match (item, ray_count > 1) {
+                    (LeafItem::Prim(p), true) if self.lone_sphere(p).is_some() => {
+                        let (id, sphere) = self.lone_sphere(p).expect("a sphere");
+                        let packet = packet.get_or_insert_with(|| RayPacket::new(rays, live));
+                        let (bits, t) = packet.sphere(sphere.center.to_array(), sphere.radius, &mut t_max);
+                        record_hits(found, bits, &t, id);
+                    }
+                    _ => one_by_one(rays, live, &mut t_max, found, |i, r| {
+                        let mut hit = None;
+                        self.test_item(k, r, &mut pre[i], false, &mut |h: Hit, r: &mut Ray| {
+                            r.t_max = h.t;
+                            hit = Some(h);
+                            true
+                        });
+                        hit
+                    }),
+                },
+            }
+        }
+    }
+
+    /// The shape number and sphere of top-level primitive `p` if it is an
+    /// untransformed sphere, which [`Aggregate::shape_intersect`] tests
+    /// with the sphere's own test.
+    #[inline]
+    fn lone_sphere(&self, p: u32) -> Option<(u32, crate::geometry::Sphere)> {
+        match self.prims[p as usize] {
+            PrimRef::Shape(i) => match &self.shapes[i as usize] {
+                ShapeInstance {
+                    shape: Shape::Sphere(s),
+                    transform: None,
+                    ..
+                } => Some((i, *s)),
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+
     /// The nearest (with `any_hit`, some) hit of a tree that is one leaf
     /// (a room: a few blocks of rectangles), without the traversal's stack
     /// frame: what the traversal finds, in the same order.
@@ -925,7 +1102,7 @@ impl Aggregate {
     /// [`Aggregate::surface`], with surface coordinates only where
     /// `reads_uv(material)` (elsewhere a sphere's, and its dp/dv, are
     /// zero: they cost an arc tangent, an arc sine and a division).
-    #[inline]
+    #[inline(always)]
     pub fn surface_with(&self, ray: &Ray, hit: &Hit, reads_uv: impl Fn(u32) -> bool) -> SurfaceHit {
         let (material, light) = self.material_and_light(&hit.prim);
         let uv = reads_uv(material);
@@ -1208,6 +1385,90 @@ fn transform_surface(t: &Transform, ls: LocalSurface) -> LocalSurface {
     }
 }
 
+/// The lanes whose bits are set in `live`, in order.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn bits(mut live: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (live != 0).then(|| {
+            let i = live.trailing_zeros() as usize;
+            live &= live - 1;
+            i
+        })
+    })
+}
+
+/// How a block of a packet's leaf is tested.
+#[cfg(target_arch = "x86_64")]
+enum BlockStep {
+    /// Against all rays at once.
+    Packet(u32),
+    /// Ray by ray, with the blocks after it of the same range.
+    OneByOne(BlockRange),
+}
+
+/// The blocks of `range` in order: each for which `by_packet(block)`
+/// holds by itself, each run of consecutive others together.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn blocks_in_turn((first, count): BlockRange, by_packet: impl Fn(u32) -> bool) -> impl Iterator<Item = BlockStep> {
+    let end = first + count;
+    let mut b = first;
+    std::iter::from_fn(move || {
+        if b >= end {
+            return None;
+        }
+        if by_packet(b) {
+            b += 1;
+            return Some(BlockStep::Packet(b - 1));
+        }
+        let run_start = b;
+        while b < end && !by_packet(b) {
+            b += 1;
+        }
+        Some(BlockStep::OneByOne((run_start, b - run_start)))
+    })
+}
+
+/// Tests each ray of `rays` whose bit is set in `live` by itself, over
+/// its interval so far (`t_max`): `test(lane, ray)` gives its hit, if
+/// nearer, which `t_max` and `found` then take.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn one_by_one(
+    rays: &[Ray; PACKET],
+    live: u32,
+    t_max: &mut [f32; PACKET],
+    found: &mut [Option<Hit>; PACKET],
+    mut test: impl FnMut(usize, &mut Ray) -> Option<Hit>,
+) {
+    for i in bits(live) {
+        let mut r = Ray {
+            t_max: t_max[i],
+            ..rays[i]
+        };
+        if let Some(h) = test(i, &mut r) {
+            t_max[i] = h.t;
+            found[i] = Some(h);
+        }
+    }
+}
+
+/// Records, for each lane whose bit is set in `bits`, a hit at its
+/// distance in `t` on shape `id`.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+fn record_hits(found: &mut [Option<Hit>; PACKET], bits: u32, t: &[f32; PACKET], id: u32) {
+    for (i, slot) in found.iter_mut().enumerate() {
+        if bits & (1 << i) != 0 {
+            *slot = Some(Hit {
+                t: t[i],
+                prim: HitPrim::Shape(id),
+            });
+        }
+    }
+}
+
 /// Completes a surface record: orients the shading normal into the
 /// geometric normal's hemisphere and builds a tangent perpendicular to it,
 /// unless the shape gave its `tangent` and there is no shading normal.
@@ -1408,6 +1669,131 @@ mod tests {
                 }
             }
             assert!(hits > 300, "scene {scene}: {hits} hits");
+        }
+    }
+
+    /// Eight rays tested together through a tree of one leaf find, bit for
+    /// bit, what each finds by itself: on one sphere, in an empty room (a
+    /// block of six rectangles), on smallpt's nine spheres (a block of
+    /// eight and one of one), and in a room with two boxes (blocks of
+    /// eight, eight and two rectangles) and a triangle;
+    /// with lanes left out, a zero direction, bounded intervals, and rays
+    /// aimed at the room's corners and edges, where walls are equally
+    /// near and the one-ray tests' order decides.
+    #[test]
+    fn rays_tested_together_find_what_each_finds() {
+        let sphere = |c: Vec3, r: f32| ShapeInstance {
+            shape: Shape::Sphere(Sphere::new(c, r)),
+            transform: None,
+            motion: None,
+            material: 0,
+            light: None,
+            flip_normals: false,
+        };
+        let rectangle = |corner: Vec3, u: Vec3, v: Vec3| ShapeInstance {
+            shape: Shape::Rectangle(Rectangle::new(corner, u, v)),
+            ..sphere(Vec3::ZERO, 1.0)
+        };
+        // A box's six faces as rectangles.
+        let faces = |min: Vec3, size: Vec3| {
+            let (x, y, z) = (Vec3::X * size.x, Vec3::Y * size.y, Vec3::Z * size.z);
+            [
+                rectangle(min, x, z),
+                rectangle(min + y, z, x),
+                rectangle(min, y, x),
+                rectangle(min + z, x, y),
+                rectangle(min, z, y),
+                rectangle(min + x, y, z),
+            ]
+        };
+        let mut room: Vec<ShapeInstance> = faces(Vec3::splat(-2.0), Vec3::splat(4.0)).into();
+        room.extend(faces(Vec3::new(-1.5, -2.0, -1.0), Vec3::new(1.0, 1.5, 1.0)));
+        room.extend(faces(Vec3::new(0.5, -2.0, 0.0), Vec3::new(1.0, 2.5, 1.0)));
+        let mut mesh = TriangleMesh::default();
+        mesh.positions.extend([
+            Vec3::new(-1.0, 1.5, -1.0),
+            Vec3::new(1.0, 1.5, -1.0),
+            Vec3::new(0.0, 1.5, 1.0),
+        ]);
+        mesh.indices.push([0, 1, 2]);
+        let scenes = [
+            (vec![sphere(Vec3::ZERO, 1.0)], vec![], vec![]),
+            (faces(Vec3::splat(-2.0), Vec3::splat(4.0)).into(), vec![], vec![]),
+            (
+                // smallpt's: walls of radius 10⁴ and three balls.
+                [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z]
+                    .map(|n| sphere(n * (1e4 + 2.0), 1e4))
+                    .into_iter()
+                    .chain([-1.0, 0.0, 1.0].map(|x| sphere(Vec3::new(x, -1.4, x * 0.5), 0.5)))
+                    .collect(),
+                vec![],
+                vec![],
+            ),
+            (
+                room,
+                vec![mesh],
+                vec![MeshObject {
+                    mesh: 0,
+                    material: 1,
+                    light: None,
+                }],
+            ),
+        ];
+        let mut rng = crate::sampling::rng::Pcg32::new(7, 3);
+        let mut masks = crate::sampling::rng::Pcg32::new(8, 5);
+        let mut unit = || crate::sampling::warp::sample_sphere_uniform(Vec2::new(rng.next_f32(), rng.next_f32()));
+        let corners: Vec<Vec3> = (0..8)
+            .map(|k: u32| glam::UVec3::new(k & 1, (k >> 1) & 1, (k >> 2) & 1).as_vec3() * 4.0 - 2.0)
+            .collect();
+        for (scene, (shapes, meshes, objects)) in scenes.into_iter().enumerate() {
+            let g = Aggregate::build(meshes, shapes, objects, vec![]);
+            #[cfg(target_arch = "x86_64")]
+            if crate::geometry::lanes::avx_available() {
+                assert!(g.bvh.root_leaf().is_some(), "scene {scene} is one leaf");
+                assert!(g.packet_items.is_some(), "scene {scene}");
+            }
+            let mut together = 0;
+            for round in 0..4000 {
+                let rays: [Ray; 8] = std::array::from_fn(|i| {
+                    let origin = unit() * if scene == 0 { 3.0 } else { 1.9 };
+                    let mut ray = match (round + i) % 5 {
+                        // Toward a corner or the middle of an edge.
+                        0 => Ray::new(origin, corners[(round + i) % 8] - origin),
+                        1 => Ray::new(origin, (corners[i] + corners[(i + 1) % 8]) * 0.5 - origin),
+                        _ => Ray::new(origin, unit()),
+                    };
+                    if round % 7 == i {
+                        ray.t_max = 0.5 + i as f32 * 0.3;
+                    }
+                    if round % 11 == i {
+                        ray.dir = Vec3::ZERO;
+                    }
+                    ray
+                });
+                let live = if round % 3 == 0 {
+                    0xff
+                } else {
+                    (masks.next_u32() & 0xff) | 1
+                };
+                let mut found = [None; 8];
+                if !g.intersect_together(&rays, live, &mut found) {
+                    continue;
+                }
+                together += 1;
+                for (i, ray) in rays.iter().enumerate() {
+                    if live & (1 << i) != 0 {
+                        assert_eq!(
+                            found[i],
+                            g.intersect(ray),
+                            "scene {scene}, round {round}, lane {i}: {ray:?}"
+                        );
+                    }
+                }
+            }
+            #[cfg(target_arch = "x86_64")]
+            if crate::geometry::lanes::avx_available() {
+                assert!(together > 1000, "scene {scene}: {together} packets");
+            }
         }
     }
 

@@ -18,6 +18,7 @@ pub(crate) use avx::*;
 mod avx {
     use crate::geometry::bounds::gamma;
     use crate::geometry::lanes::{F8, LANES, Lanes, M8, avx_available};
+    use crate::geometry::real::Real;
     use crate::geometry::shape::{SphereRay, sphere_distance};
     use crate::geometry::triangle::TriangleRay;
     use crate::geometry::{Ray, Rectangle, Sphere};
@@ -273,6 +274,12 @@ mod avx {
         }
     }
 
+    /// The lanes a block uses: its numbers up to the first unused one.
+    #[inline]
+    fn lanes_used(ids: &[u32; LANES]) -> u32 {
+        ids.iter().take_while(|&&id| id != u32::MAX).count() as u32
+    }
+
     /// The lane with the smallest distance among the set bits of `mask`
     /// that is at most `*t_max`, which it then becomes.
     #[inline]
@@ -327,6 +334,158 @@ mod avx {
             let [cx, cy, cz] = load3(&self.c);
             let (t, hit) = sphere_distance(&lanes, cx, cy, cz, F8::load(&self.r));
             (t.to_array(), hit.bits())
+        }
+    }
+
+    /// Up to eight rays in lanes, tested together against one primitive
+    /// at a time (a packet: the lanes of the path tracer, whose rays a tree
+    /// of one leaf sends through the same primitives). Each lane's
+    /// nearest distance so far is kept by the caller (`t_max`), so that
+    /// the lane's ray can also be tested by itself. A lane computes the
+    /// bits the one-ray test of the same primitive computes, so a packet
+    /// finds what the rays find one by one. A lane without a ray has a
+    /// NaN interval, which no test accepts.
+    pub(crate) struct RayPacket {
+        /// The rays as the sphere test takes them; its `t_max` is set
+        /// before each test, and its `t_min` is NaN also where |d|² is 0
+        /// (such a ray meets no sphere).
+        sphere: SphereRay<F8>,
+        /// The intervals' starts, NaN in lanes without a ray.
+        t_min: F8,
+    }
+
+    /// Rays in a [`RayPacket`].
+    pub(crate) const PACKET: usize = LANES;
+
+    /// Lanes of a packet that a primitive becomes the nearest hit of, and
+    /// their distances.
+    pub(crate) type PacketHit = (u32, [f32; LANES]);
+
+    impl RayPacket {
+        /// The rays of `rays` whose bits are set in `live`.
+        #[inline]
+        #[target_feature(enable = "avx")]
+        pub(crate) fn new(rays: &[Ray; LANES], live: u32) -> RayPacket {
+            let mut o = [[0.0f32; LANES]; 3];
+            let mut d = [[0.0f32; LANES]; 3];
+            let (mut a, mut inv_a) = ([1.0f32; LANES], [1.0f32; LANES]);
+            let (mut t_min, mut sphere_t_min) = ([f32::NAN; LANES], [f32::NAN; LANES]);
+            for (i, ray) in rays.iter().enumerate() {
+                if live & (1 << i) == 0 {
+                    continue;
+                }
+                for axis in 0..3 {
+                    o[axis][i] = ray.origin[axis];
+                    d[axis][i] = ray.dir[axis];
+                }
+                t_min[i] = ray.t_min;
+                // As `SphereRay::new` makes them.
+                if let Some(s) = SphereRay::new(ray) {
+                    a[i] = s.a;
+                    inv_a[i] = s.inv_a;
+                    sphere_t_min[i] = s.t_min;
+                }
+            }
+            let load = |x: &[f32; LANES]| F8::from_array(*x);
+            RayPacket {
+                sphere: SphereRay {
+                    o: [load(&o[0]), load(&o[1]), load(&o[2])],
+                    d: [load(&d[0]), load(&d[1]), load(&d[2])],
+                    a: load(&a),
+                    inv_a: load(&inv_a),
+                    t_min: load(&sphere_t_min),
+                    t_max: F8::splat(f32::NAN),
+                },
+                t_min: load(&t_min),
+            }
+        }
+
+        /// The sphere of centre `c` and radius `r` against every lane, as
+        /// `Sphere::intersect` against each ray with its interval so far
+        /// (`t_max`, which the lanes it becomes the nearest hit of take).
+        #[inline]
+        #[target_feature(enable = "avx")]
+        pub(crate) fn sphere(&mut self, c: [f32; 3], r: f32, t_max: &mut [f32; LANES]) -> PacketHit {
+            let before = F8::from_array(*t_max);
+            self.sphere.t_max = before;
+            let (t, hit) = sphere_distance(
+                &self.sphere,
+                F8::splat(c[0]),
+                F8::splat(c[1]),
+                F8::splat(c[2]),
+                F8::splat(r),
+            );
+            F8::select(hit, t, before).store_unaligned(t_max);
+            (hit.bits(), t.to_array())
+        }
+
+        /// The spheres of `block` against every lane, `found(lanes, t, id)`
+        /// told of each sphere that becomes the nearest hit of some lanes:
+        /// what [`Blocks::spheres`] finds for each ray (within a block
+        /// the first of equally near spheres, as there).
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn sphere_block(
+            &mut self,
+            block: &Sphere8,
+            t_max: &mut [f32; LANES],
+            found: &mut impl FnMut(u32, &[f32; LANES], u32),
+        ) {
+            // Every lane of the block is tested against the interval the
+            // block began with.
+            let mut nearest = F8::from_array(*t_max);
+            self.sphere.t_max = nearest;
+            // Lanes no sphere of the block has been taken by yet.
+            let mut fresh = F8::splat(0.0).eq(F8::splat(0.0));
+            for (k, &id) in block.ids.iter().enumerate() {
+                if id == u32::MAX {
+                    break;
+                }
+                let [cx, cy, cz] = std::array::from_fn(|axis| F8::splat(block.c[axis].0[k]));
+                let (t, hit) = sphere_distance(&self.sphere, cx, cy, cz, F8::splat(block.r.0[k]));
+                let take = hit.and(t.lt(nearest).or(fresh));
+                let bits = take.bits();
+                if bits != 0 {
+                    nearest = F8::select(take, t, nearest);
+                    fresh = fresh.and_not(take);
+                    found(bits, &t.to_array(), id);
+                }
+            }
+            nearest.store_unaligned(t_max);
+        }
+
+        /// The rectangles of `block` against every lane, `found` told as in
+        /// [`RayPacket::sphere_block`]: what [`Blocks::rectangles`] finds
+        /// for each ray (the last of equally near rectangles, as there).
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn rectangle_block(
+            &mut self,
+            block: &Rectangle8,
+            t_max: &mut [f32; LANES],
+            found: &mut impl FnMut(u32, &[f32; LANES], u32),
+        ) {
+            let mut nearest = F8::from_array(*t_max);
+            for (k, &id) in block.ids.iter().enumerate() {
+                if id == u32::MAX {
+                    break;
+                }
+                let splat = |j: usize| -> [F8; 3] { std::array::from_fn(|axis| F8::splat(block.v[j][axis].0[k])) };
+                let frame = [splat(0), splat(1), splat(2), splat(3)];
+                let (valid, t) = rectangle_lanes(
+                    frame,
+                    self.sphere.o,
+                    self.sphere.d,
+                    self.t_min,
+                    nearest.min(F8::splat(f32::MAX)),
+                );
+                let bits = valid.bits();
+                if bits != 0 {
+                    nearest = F8::select(valid, t, nearest);
+                    found(bits, &t.to_array(), id);
+                }
+            }
+            nearest.store_unaligned(t_max);
         }
     }
 
@@ -429,6 +588,49 @@ mod avx {
                 }
             }
             found
+        }
+
+        /// Primitives in sphere block `b` (the lanes it uses).
+        #[inline]
+        pub(crate) fn sphere_count(&self, b: u32) -> u32 {
+            lanes_used(&self.spheres[b as usize].ids)
+        }
+
+        /// Primitives in rectangle block `b`.
+        #[inline]
+        pub(crate) fn rectangle_count(&self, b: u32) -> u32 {
+            lanes_used(&self.rectangles[b as usize].ids)
+        }
+
+        /// Sphere block `b` against the rays of `packet`, `found(lanes, t,
+        /// id)` told of each sphere that becomes the nearest hit of some
+        /// lanes.
+        #[inline]
+        #[allow(unsafe_code)]
+        pub(crate) fn spheres_packet(
+            &self,
+            b: u32,
+            packet: &mut RayPacket,
+            t_max: &mut [f32; LANES],
+            mut found: impl FnMut(u32, &[f32; LANES], u32),
+        ) {
+            // SAFETY: blocks exist only where the processor has AVX.
+            unsafe { packet.sphere_block(&self.spheres[b as usize], t_max, &mut found) };
+        }
+
+        /// Rectangle block `b` against the rays of `packet`, `found` told
+        /// as in [`Blocks::spheres_packet`].
+        #[inline]
+        #[allow(unsafe_code)]
+        pub(crate) fn rectangles_packet(
+            &self,
+            b: u32,
+            packet: &mut RayPacket,
+            t_max: &mut [f32; LANES],
+            mut found: impl FnMut(u32, &[f32; LANES], u32),
+        ) {
+            // SAFETY: blocks exist only where the processor has AVX.
+            unsafe { packet.rectangle_block(&self.rectangles[b as usize], t_max, &mut found) };
         }
 
         /// The `count` rectangle blocks from `first` against `ray`: with

@@ -252,9 +252,13 @@ impl PathTracer {
         while depth <= self.max_depth && live != 0 {
             // Where the rays end, and the light they find there.
             let mut lit = 0u32;
+            let together = scene.intersect_together(rays.as_ref(), live, hits.as_mut());
             for i in lanes(live) {
                 stats.rays += 1;
-                let hit = &mut hits.as_mut()[i];
+                if !together {
+                    scene.intersect_into(&rays.as_ref()[i], &mut hits.as_mut()[i]);
+                }
+                let hit = &hits.as_ref()[i];
                 let light = self.arrive(scene, &rays.as_ref()[i], &previous.as_ref()[i], depth, nee, hit);
                 if hit.is_none() {
                     live &= !(1 << i);
@@ -337,12 +341,9 @@ impl PathTracer {
         l
     }
 
-    /// Traces one path's `ray`: the surface it hits, put in `slot` (`None`:
-    /// it leaves the scene), and the light it finds there, weighed against
-    /// next-event estimation from `previous`, the bounce that sent it.
-    /// The record is written where the loop keeps it, not returned: a
-    /// copy of it read back right after its fields were written waits on
-    /// the stores.
+    /// The light one path's `ray` finds where it ends, at `hit` (`None`:
+    /// it leaves the scene), weighed against next-event estimation from
+    /// `previous`, the bounce that sent it.
     #[inline(always)]
     fn arrive(
         &self,
@@ -351,11 +352,10 @@ impl PathTracer {
         previous: &Previous,
         depth: u32,
         nee: Gathering,
-        slot: &mut Option<SurfaceHit>,
+        hit: &Option<SurfaceHit>,
     ) -> Option<Found> {
         let shows_emission = scene.settings.shows_emission(depth);
-        scene.intersect_into(ray, slot);
-        let Some(hit) = slot else {
+        let Some(hit) = hit else {
             let (Some(env), true) = (scene.environment_light, shows_emission) else {
                 return None;
             };
@@ -376,7 +376,6 @@ impl PathTracer {
             };
             return Some(found);
         };
-        let hit = &*hit;
         let m = &scene.materials[hit.material as usize];
         let wo_world = -ray.dir.normalize();
         let mut found = None;

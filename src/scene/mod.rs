@@ -98,12 +98,47 @@ impl Scene {
     /// [`Scene::intersect`] written into `slot`. The record is built where
     /// the caller keeps it: a returned one is copied with wider loads than
     /// the stores that wrote its fields, and the copy waits on them.
-    #[inline]
+    /// Kept out of line: inlined into the path tracer's loop, it made
+    /// that loop twice as large and slower.
+    #[inline(never)]
     pub fn intersect_into(&self, ray: &Ray, slot: &mut Option<SurfaceHit>) {
         // The hit is read where the traversal wrote it, for the same reason.
         let mut found = None;
         self.geometry.intersect_into(ray, &mut found);
-        let Some(hit) = &found else {
+        self.surface_into(ray, &found, slot);
+    }
+
+    /// [`Scene::intersect_into`] for the rays of `rays` whose bits are set
+    /// in `live` (a path tracer's lanes, at most eight), into the same
+    /// places of `slots`, where the rays are better tested together
+    /// ([`Aggregate::intersect_together`]): whether it did. Each ray finds
+    /// what it finds by itself.
+    #[inline]
+    pub fn intersect_together(&self, rays: &[Ray], live: u32, slots: &mut [Option<SurfaceHit>]) -> bool {
+        self.geometry.tests_together(rays.len(), live) && self.intersect_packet(rays, live, slots)
+    }
+
+    /// [`Scene::intersect_together`] where the rays are tested together.
+    #[inline(never)]
+    fn intersect_packet(&self, rays: &[Ray], live: u32, slots: &mut [Option<SurfaceHit>]) -> bool {
+        let mut found = [None; 8];
+        let found = &mut found[..rays.len()];
+        if !self.geometry.intersect_together(rays, live, found) {
+            return false;
+        }
+        for (i, (ray, slot)) in rays.iter().zip(slots.iter_mut()).enumerate() {
+            if live & (1 << i) != 0 {
+                self.surface_into(ray, &found[i], slot);
+            }
+        }
+        true
+    }
+
+    /// The surface record of `found` on `ray` (its material chosen), or
+    /// `None`, in `slot`.
+    #[inline(always)]
+    fn surface_into(&self, ray: &Ray, found: &Option<crate::accel::aggregate::Hit>, slot: &mut Option<SurfaceHit>) {
+        let Some(hit) = found else {
             *slot = None;
             return;
         };
