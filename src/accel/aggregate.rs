@@ -997,6 +997,13 @@ impl Aggregate {
             *best = Some(hit);
             true
         };
+        // A leaf of one item (a room's rectangles, a sphere) is tested
+        // without the loop, ahead of which the compiler loads every
+        // array an item may read.
+        if count == 1 {
+            self.test_item(first, &mut r, &mut pre, any_hit, &mut on_hit);
+            return;
+        }
         for k in first..first + count {
             if self.test_item(k, &mut r, &mut pre, any_hit, &mut on_hit) && any_hit {
                 break;
