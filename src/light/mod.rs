@@ -528,16 +528,19 @@ fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
 fn sample_sphere_cone(center: Vec3, radius: f32, p: Vec3, u: Vec2) -> Option<(Vec3, Vec3, f32)> {
     let to_center = center - p;
     let dc2 = to_center.length_squared();
-    if dc2 <= radius * radius {
+    let r2 = radius * radius;
+    if dc2 <= r2 {
         return None;
     }
+    // This runs at every vertex of every path in a scene lit by a sphere,
+    // so its square roots and divisions run side by side where they can
+    // rather than one after another.
     let dc = dc2.sqrt();
-    // Two independent divisions instead of four in a chain: this runs
-    // at every vertex of every path in a scene lit by a sphere.
     let (inv_dc, inv_sin_max) = (1.0 / dc, dc / radius);
     let sin_max = radius * inv_dc;
     let sin2_max = sin_max * sin_max;
-    let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
+    // cos θmax = √(dc² − r²)/dc: its root beside dc's.
+    let cos_max = (dc2 - r2).sqrt() * inv_dc;
     let mut one_minus_cos_max = 1.0 - cos_max;
     let mut cos_t = (cos_max - 1.0) * u.x + 1.0;
     let mut sin2_t = 1.0 - cos_t * cos_t;
@@ -547,9 +550,16 @@ fn sample_sphere_cone(center: Vec3, radius: f32, p: Vec3, u: Vec2) -> Option<(Ve
         cos_t = (1.0 - sin2_t).sqrt();
         one_minus_cos_max = sin2_max / 2.0;
     }
-    // Angle α from the sphere's centre to the sampled point.
-    let cos_a = sin2_t * inv_sin_max + cos_t * (1.0 - sin2_t * inv_sin_max * inv_sin_max).max(0.0).sqrt();
-    let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
+    // The angle α at the centre between p and the sampled point, from the
+    // triangle of the two and the centre (law of sines): with
+    // k = dc/r and s = √(1 − k² sin² θ), cos α = k sin² θ + s cos θ (as
+    // pbrt-v4) and sin α = sin θ (k cos θ − s), whose roots are
+    // independent (sin α as √(1 − cos² α) would wait for cos α, and loses
+    // the small angles).
+    let s = (1.0 - sin2_t * inv_sin_max * inv_sin_max).max(0.0).sqrt();
+    let sin_t = sin2_t.max(0.0).sqrt();
+    let cos_a = sin2_t * inv_sin_max + cos_t * s;
+    let sin_a = (sin_t * (cos_t * inv_sin_max - s)).max(0.0);
     let phi = 2.0 * PI * u.y;
     let frame = Frame::from_normal(to_center * inv_dc);
     let n = frame.to_world(-Vec3::new(sin_a * phi.cos(), sin_a * phi.sin(), cos_a));
