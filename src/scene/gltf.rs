@@ -379,12 +379,6 @@ impl<'t> Locator<'t> {
         }
     }
 
-    /// Whether the element at `path` is written (an object member, or an
-    /// array element that is an object or an array).
-    fn contains(&self, path: &str) -> bool {
-        self.offsets.contains_key(&path_segments(path).join("\0"))
-    }
-
     /// Where `path` is written; for an element that is not written (a
     /// missing key, say), where its nearest written ancestor is.
     fn loc(&self, path: &str) -> SourceLoc {
@@ -1835,18 +1829,28 @@ impl<'a> Reader<'a> {
             if !n.scale.is_finite() {
                 return Err(self.err(&format!("{n_at}.scale"), format!("must be a number, got {}", n.scale)));
             }
-            // The gltf crate reads no extensions of a normal texture.
+            // The gltf crate keeps a normal texture's extensions unparsed:
+            // its KHR_texture_transform is read here, and then applies as
+            // on every other texture.
             let tt_at = format!("{n_at}.extensions.KHR_texture_transform");
-            if self.locator.contains(&tt_at) {
-                self.warn(
-                    &tt_at,
-                    "KHR_texture_transform on a normal texture is unsupported: ignored (the image is read untransformed)",
-                );
-            }
+            let texture_transform = match n
+                .extensions
+                .as_ref()
+                .and_then(|e| e.others.get("KHR_texture_transform"))
+            {
+                Some(value) => Some(
+                    json::deserialize::from_value::<json::extensions::texture::TextureTransform>(value.clone())
+                        .map_err(|e| self.err(&tt_at, format!("is malformed: {e}")))?,
+                ),
+                None => None,
+            };
             let info = json::texture::Info {
                 index: n.index,
                 tex_coord: n.tex_coord,
-                extensions: None,
+                extensions: texture_transform.map(|tt| json::extensions::texture::Info {
+                    texture_transform: Some(tt),
+                    others: Default::default(),
+                }),
                 extras: Default::default(),
             };
             let image = self.texture_encoded(root, &info, &n_at, Rgb::ONE, ImageRead::Linear)?;

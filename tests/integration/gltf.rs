@@ -780,17 +780,46 @@ fn normal_textures_tilt_the_normal_in_gltf_tangent_space() {
             );
         }
     }
-    // A texture transform on it is named, not applied.
-    let body = format!(
-        r#""scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
-        "images":[{{"uri":"n.png"}}],"textures":[{{"source":0}}],
-        "materials":[{{"normalTexture":{{"index":0,"extensions":{{"KHR_texture_transform":{{"scale":[2,2]}}}}}}}}],
-        "meshes":[{{"primitives":[{{{upright},"material":0}}]}}]"#
-    );
+    // A texture transform on it applies: two texels, the left tilted up
+    // the image and the right down it; shifted by half the image in u,
+    // the square's left half reads the right texel.
+    let mut img = image::RgbImage::new(2, 1);
+    img.put_pixel(0, 0, image::Rgb([128, 192, 255]));
+    img.put_pixel(1, 0, image::Rgb([128, 64, 255]));
+    img.save(dir.path().join("n2.png")).unwrap();
+    let turned = |transform: &str| {
+        format!(
+            r#""scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+            "images":[{{"uri":"n2.png"}}],"textures":[{{"source":0}}],
+            "materials":[{{"normalTexture":{{"index":0,"extensions":{{"KHR_texture_transform":{transform}}}}},"doubleSided":true}}],
+            "meshes":[{{"primitives":[{{{upright},"material":0}}]}}]"#
+        )
+    };
     let path = dir.path().join("turned.gltf");
-    a.write_embedded(&path, &body);
-    let d = load(&path, &[]).unwrap();
-    has_warning(&d, "KHR_texture_transform on a normal texture is unsupported");
+    for (offset, left_up) in [(0.0, true), (0.5, false)] {
+        a.write_embedded(&path, &turned(&format!(r#"{{"offset":[{offset},0]}}"#)));
+        let d = load(&path, &[]).unwrap();
+        assert!(
+            !d.warnings.iter().any(|w| w.contains("normalTexture")),
+            "{:?}",
+            d.warnings
+        );
+        let scene = build(&d).unwrap();
+        for (x, up) in [(-0.25f32, left_up), (0.25, !left_up)] {
+            let ray = trazo::geometry::Ray::new(Vec3::new(x, 0.1, 3.0), Vec3::NEG_Z);
+            let hit = scene.intersect(&ray).expect("the square");
+            let m = &scene.materials[hit.material as usize];
+            let n = m.shading_frame(&scene.textures, &hit, Vec3::Z).n;
+            assert!(n.y.abs() > 0.4 && (n.y > 0.0) == up, "offset {offset}, x = {x}: {n}");
+        }
+    }
+    // A malformed one is an error naming it.
+    a.write_embedded(&path, &turned(r#"{"offset":"left"}"#));
+    let e = load(&path, &[]).unwrap_err().to_string();
+    assert!(
+        e.contains("normalTexture.extensions.KHR_texture_transform") && e.contains("turned.gltf"),
+        "{e}"
+    );
 }
 
 #[test]
