@@ -1221,7 +1221,7 @@ mod tests {
                 scale: Vec2::ONE,
                 offset: Vec2::ZERO,
                 tint: Rgb::ONE,
-                wrap: crate::texture::WrapMode::Clamp,
+                wrap: [crate::texture::WrapMode::Clamp; 2],
                 filter: crate::texture::ImageFilter::Bilinear,
             },
             scale: 0.05,

@@ -200,8 +200,8 @@ pub enum TextureKind {
         encoding: Option<Encoding>,
         /// Colour multiplier.
         tint: Rgb,
-        /// How the image continues beyond [0, 1]².
-        wrap: WrapMode,
+        /// How the image continues beyond [0, 1]², along u and along v.
+        wrap: [WrapMode; 2],
         /// How it is read between texel centres.
         filter: ImageFilter,
     },

@@ -1500,27 +1500,18 @@ impl<'a> Reader<'a> {
                 format!("texture coordinate set {tex_coord} is approximated: TEXCOORD_0 is used"),
             );
         }
-        let mut wrap = crate::texture::WrapMode::Repeat;
+        let mut wrap = [crate::texture::WrapMode::Repeat; 2];
         let mut filter = crate::texture::ImageFilter::Bilinear;
         if let Some(s) = texture.sampler {
             use crate::texture::WrapMode;
             use json::texture::{MagFilter, WrappingMode};
             let sampler = &root.samplers[s.value()];
-            let s_at = format!("samplers[{}]", s.value());
             let mode = |w: Checked<WrappingMode>| match w {
                 Checked::Valid(WrappingMode::ClampToEdge) => WrapMode::Clamp,
                 Checked::Valid(WrappingMode::MirroredRepeat) => WrapMode::Mirror,
                 _ => WrapMode::Repeat,
             };
-            let (s_mode, t_mode) = (mode(sampler.wrap_s), mode(sampler.wrap_t));
-            wrap = s_mode;
-            // trazo's images wrap alike along both axes.
-            if t_mode != s_mode {
-                self.warn(
-                    &format!("{s_at}.wrapT"),
-                    format!("a wrap mode along t unlike the one along s is approximated: {s_mode:?} along both"),
-                );
-            }
+            wrap = [mode(sampler.wrap_s), mode(sampler.wrap_t)];
             // Images are not minified through mipmaps, so the
             // magnification filter is the one that applies.
             if let Some(Checked::Valid(MagFilter::Nearest)) = sampler.mag_filter {

@@ -1721,7 +1721,7 @@ impl Loader {
                     offset: Vec2::new(offset.x, 1.0 - offset.y),
                     encoding: raw.then_some(Encoding::Linear),
                     tint: Rgb::ONE,
-                    wrap,
+                    wrap: [wrap; 2],
                     filter,
                 };
                 if turned {
@@ -4612,7 +4612,7 @@ mod tests {
         assert!((image.to_world * Vec3::X - Vec3::Y).length() < 1e-6);
         let texture = |name: &str| d.textures.iter().find(|t| t.name == name).unwrap();
         assert!(matches!(texture(&image.texture).kind, TextureKind::Image { .. }));
-        let wraps: Vec<(WrapMode, ImageFilter)> = d
+        let wraps: Vec<([WrapMode; 2], ImageFilter)> = d
             .textures
             .iter()
             .filter_map(|t| match t.kind {
@@ -4620,8 +4620,14 @@ mod tests {
                 _ => None,
             })
             .collect();
-        assert!(wraps.contains(&(WrapMode::Mirror, ImageFilter::Nearest)), "{wraps:?}");
-        assert!(wraps.contains(&(WrapMode::Repeat, ImageFilter::Bilinear)), "{wraps:?}");
+        assert!(
+            wraps.contains(&([WrapMode::Mirror; 2], ImageFilter::Nearest)),
+            "{wraps:?}"
+        );
+        assert!(
+            wraps.contains(&([WrapMode::Repeat; 2], ImageFilter::Bilinear)),
+            "{wraps:?}"
+        );
         let e = parse(&scene("", "sideways"), &path, &[]).unwrap_err().to_string();
         assert!(
             e.contains("scene.xml:8:") && e.contains("unknown wrap_mode \"sideways\""),

@@ -835,7 +835,7 @@ fn read_texture(t: &Table) -> Result<Vec<TextureDesc>> {
                     .boolean("srgb")?
                     .map(|srgb| if srgb { Encoding::Srgb } else { Encoding::Linear }),
                 tint: t.color("tint")?.unwrap_or(Rgb::ONE),
-                wrap,
+                wrap: [wrap; 2],
                 filter,
             };
             if !matches!(mapping, Mapping2D::Uv { .. }) {

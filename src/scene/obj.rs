@@ -204,7 +204,7 @@ fn mtl_material(
                     offset: Vec2::ZERO,
                     encoding: None,
                     tint: if m.diffuse.is_some() { kd } else { Rgb::ONE },
-                    wrap: crate::texture::WrapMode::Repeat,
+                    wrap: [crate::texture::WrapMode::Repeat; 2],
                     filter: crate::texture::ImageFilter::Bilinear,
                 },
                 locs: Default::default(),

@@ -195,11 +195,12 @@ impl ImageTexture {
         replaced
     }
 
-    /// The texel at integer coordinates, brought into the image by `wrap`.
+    /// The texel at integer coordinates, brought into the image by `wrap`
+    /// (along x, along y).
     #[inline]
-    fn texel(&self, x: i64, y: i64, wrap: WrapMode) -> Rgb {
-        let x = wrap.apply(x, self.width as i64) as usize;
-        let y = wrap.apply(y, self.height as i64) as usize;
+    fn texel(&self, x: i64, y: i64, wrap: [WrapMode; 2]) -> Rgb {
+        let x = wrap[0].apply(x, self.width as i64) as usize;
+        let y = wrap[1].apply(y, self.height as i64) as usize;
         self.pixels[y * self.width as usize + x]
     }
 
@@ -207,15 +208,16 @@ impl ImageTexture {
     /// v = 0 is the bottom row of the image.
     #[inline]
     pub fn lookup_bilinear(&self, uv: Vec2) -> Rgb {
-        self.lookup(uv, WrapMode::Repeat, ImageFilter::Bilinear)
+        self.lookup(uv, [WrapMode::Repeat; 2], ImageFilter::Bilinear)
     }
 
     /// The colour at `uv` (v = 0 is the bottom row of the image), filtered
-    /// by `filter`, the image extended beyond [0, 1]² by `wrap`. Texel
+    /// by `filter`, the image extended beyond [0, 1]² by `wrap` (along u,
+    /// along v: glTF's wrapS and wrapT, pbrt-v4's `WrapMode2D`). Texel
     /// centres lie at half-integer pixel coordinates, as in Mitsuba's
     /// `bitmap` and pbrt-v4's `Image`.
     #[inline]
-    pub fn lookup(&self, uv: Vec2, wrap: WrapMode, filter: ImageFilter) -> Rgb {
+    pub fn lookup(&self, uv: Vec2, wrap: [WrapMode; 2], filter: ImageFilter) -> Rgb {
         let x = uv.x * self.width as f32;
         let y = (1.0 - uv.y) * self.height as f32;
         if !x.is_finite() || !y.is_finite() {
@@ -239,7 +241,7 @@ impl ImageTexture {
     /// [`ImageTexture::lookup`] at `uv` times `tint`: those of the bilinear interpolant
     /// (zero for nearest-texel reads, constant between texels), as
     /// Mitsuba's `bitmap` gives them to bump maps (`eval_1_grad`).
-    pub fn luminance_gradient(&self, uv: Vec2, wrap: WrapMode, filter: ImageFilter, tint: Rgb) -> Vec2 {
+    pub fn luminance_gradient(&self, uv: Vec2, wrap: [WrapMode; 2], filter: ImageFilter, tint: Rgb) -> Vec2 {
         let (w, h) = (self.width as f32, self.height as f32);
         let (x, y) = (uv.x * w - 0.5, (1.0 - uv.y) * h - 0.5);
         if filter == ImageFilter::Nearest || !x.is_finite() || !y.is_finite() {
@@ -453,9 +455,11 @@ mod tests {
             pixels,
         };
         let tint = Rgb::new(0.5, 2.0, 1.0);
-        let lum = |uv: Vec2, wrap| crate::color::luminance(t.lookup(uv, wrap, ImageFilter::Bilinear) * tint);
+        let lum =
+            |uv: Vec2, wrap: [WrapMode; 2]| crate::color::luminance(t.lookup(uv, wrap, ImageFilter::Bilinear) * tint);
         let h = 1e-3;
-        for wrap in [WrapMode::Repeat, WrapMode::Clamp, WrapMode::Mirror] {
+        use WrapMode::{Clamp, Mirror, Repeat};
+        for wrap in [[Repeat; 2], [Clamp; 2], [Mirror; 2], [Repeat, Clamp], [Mirror, Repeat]] {
             for _ in 0..200 {
                 let uv = Vec2::new(rng.next_f32() * 3.0 - 1.0, rng.next_f32() * 3.0 - 1.0);
                 // Central differences straddle no texel centre.
@@ -480,7 +484,7 @@ mod tests {
         }
         // Nearest-texel reads are flat.
         assert_eq!(
-            t.luminance_gradient(Vec2::splat(0.3), WrapMode::Repeat, ImageFilter::Nearest, tint),
+            t.luminance_gradient(Vec2::splat(0.3), [WrapMode::Repeat; 2], ImageFilter::Nearest, tint),
             Vec2::ZERO
         );
     }
@@ -512,7 +516,7 @@ mod tests {
             height: 1,
             pixels: vec![Rgb::splat(0.0), Rgb::splat(1.0), Rgb::splat(2.0)],
         };
-        let at = |u: f32, wrap: WrapMode, filter: ImageFilter| t.lookup(Vec2::new(u, 0.5), wrap, filter).x;
+        let at = |u: f32, wrap: WrapMode, filter: ImageFilter| t.lookup(Vec2::new(u, 0.5), [wrap; 2], filter).x;
         let near = ImageFilter::Nearest;
         // Texel k covers u in [k/3, (k+1)/3).
         for (u, repeat, mirror, clamp) in [
@@ -536,7 +540,7 @@ mod tests {
         assert!((at(1.0, WrapMode::Clamp, bi) - 2.0).abs() < 1e-6);
         assert_eq!(
             t.lookup_bilinear(Vec2::new(0.3, 0.5)),
-            t.lookup(Vec2::new(0.3, 0.5), WrapMode::Repeat, bi)
+            t.lookup(Vec2::new(0.3, 0.5), [WrapMode::Repeat; 2], bi)
         );
     }
 

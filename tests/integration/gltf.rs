@@ -577,7 +577,7 @@ fn emission_is_factor_times_texture_times_strength_and_texture_transforms_apply(
 
 /// A sampler's wrap modes and nearest-texel filter reach the image: the
 /// 2 × 2 texture shifted by half its width repeats, or clamps to its right
-/// column; halved, a bilinear look-up between texels blends them, a
+/// column, and shifted by half its height follows the mode along t; halved, a bilinear look-up between texels blends them, a
 /// nearest one does not.
 #[test]
 fn sampler_wrap_modes_and_nearest_filtering_apply() {
@@ -607,6 +607,15 @@ fn sampler_wrap_modes_and_nearest_filtering_apply() {
     assert!(close(img.get(1, 0), red), "repeat: {}", img.get(1, 0));
     let img = render(r#"{"wrapS":33071,"wrapT":33071}"#, shifted);
     assert!(close(img.get(1, 0), green), "clamp: {}", img.get(1, 0));
+    // Each axis has its own mode: shifted by half its height, the bottom
+    // left texel repeats to the top row's red along t, or clamps to the
+    // bottom row's blue, whatever the mode along s.
+    let lowered = r#"{"offset":[0,0.5]}"#;
+    let blue = Rgb::new(0.0, 0.0, 1.0);
+    let img = render(r#"{"wrapS":33071,"wrapT":10497}"#, lowered);
+    assert!(close(img.get(0, 1), red), "repeat along t: {}", img.get(0, 1));
+    let img = render(r#"{"wrapS":10497,"wrapT":33071}"#, lowered);
+    assert!(close(img.get(0, 1), blue), "clamp along t: {}", img.get(0, 1));
     let halved = r#"{"scale":[0.5,0.5]}"#;
     let img = render(r#"{"magFilter":9728}"#, halved);
     assert!(close(img.get(1, 0), red), "nearest: {}", img.get(1, 0));

@@ -179,7 +179,7 @@ impl Parser {
             offset,
             encoding: None,
             tint: Rgb::ONE,
-            wrap: crate::texture::WrapMode::Clamp,
+            wrap: [crate::texture::WrapMode::Clamp; 2],
             filter: crate::texture::ImageFilter::Nearest,
         };
         let locs = Locs {
@@ -424,7 +424,7 @@ impl Parser {
                     offset: Vec2::ZERO,
                     encoding: None,
                     tint: Rgb::splat(scale),
-                    wrap: crate::texture::WrapMode::Clamp,
+                    wrap: [crate::texture::WrapMode::Clamp; 2],
                     filter: crate::texture::ImageFilter::Bilinear,
                 };
                 self.push_texture(&name, loc, locs, (kind, Rgb::splat(0.5 * scale)))?;

@@ -564,7 +564,7 @@ impl Parser {
                     offset: Vec2::ZERO,
                     encoding: Some(Encoding::Linear),
                     tint: Rgb::ONE,
-                    wrap: crate::texture::WrapMode::Repeat,
+                    wrap: [crate::texture::WrapMode::Repeat; 2],
                     filter: crate::texture::ImageFilter::Bilinear,
                 },
                 locs: Locs::at(Some(prm.loc.clone())),
@@ -1137,7 +1137,7 @@ impl Parser {
             offset,
             encoding,
             tint: Rgb::splat(tint),
-            wrap,
+            wrap: [wrap; 2],
             filter,
         };
         if !matches!(mapping, Mapping2D::Uv { .. }) {

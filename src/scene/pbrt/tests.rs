@@ -1226,7 +1226,7 @@ Shape "sphere""#,
             offset: Vec2::new(0.5, 0.0),
             encoding: Some(Encoding::Linear),
             tint: Rgb::splat(0.8),
-            wrap: crate::texture::WrapMode::Repeat,
+            wrap: [crate::texture::WrapMode::Repeat; 2],
             filter: crate::texture::ImageFilter::Bilinear,
         }
     );
@@ -2309,7 +2309,7 @@ Shape "sphere""#,
             offset: Vec2::ZERO,
             encoding: Some(Encoding::Linear),
             tint: Rgb::ONE,
-            wrap: crate::texture::WrapMode::Repeat,
+            wrap: [crate::texture::WrapMode::Repeat; 2],
             filter: crate::texture::ImageFilter::Bilinear,
         }
     );
