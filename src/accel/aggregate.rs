@@ -864,8 +864,9 @@ impl Aggregate {
         found: &mut [Option<Hit>; PACKET],
     ) {
         use super::blocks::{BlockHit, RayPacket};
+        use crate::geometry::simd::lanes;
         let mut t_max = [f32::NAN; PACKET];
-        for i in bits(live) {
+        for i in lanes(live) {
             found[i] = None;
             t_max[i] = rays[i].t_max;
             // A zero direction meets nothing bounded.
@@ -1392,19 +1393,6 @@ fn transform_surface(t: &Transform, ls: LocalSurface) -> LocalSurface {
     }
 }
 
-/// The lanes whose bits are set in `live`, in order.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn bits(mut live: u32) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        (live != 0).then(|| {
-            let i = live.trailing_zeros() as usize;
-            live &= live - 1;
-            i
-        })
-    })
-}
-
 /// How a block of a packet's leaf is tested.
 #[cfg(target_arch = "x86_64")]
 enum BlockStep {
@@ -1449,7 +1437,7 @@ fn one_by_one(
     found: &mut [Option<Hit>; PACKET],
     mut test: impl FnMut(usize, &mut Ray) -> Option<Hit>,
 ) {
-    for i in bits(live) {
+    for i in crate::geometry::simd::lanes(live) {
         let mut r = Ray {
             t_max: t_max[i],
             ..rays[i]

@@ -101,6 +101,18 @@ impl Floats for f32 {
     }
 }
 
+/// The lanes whose bits are set in `bits`, in order.
+#[inline(always)]
+pub fn lanes(mut bits: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (bits != 0).then(|| {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            i
+        })
+    })
+}
+
 /// Three-vectors (directions, points, RGB colours) in lanes.
 #[derive(Clone, Copy, Debug)]
 pub struct Vec3s<F> {

@@ -33,7 +33,7 @@
 
 use super::{Integrator, LANES, RayStats, choose_light, light_choice_pmf, path_bsdf};
 use crate::color::Rgb;
-use crate::geometry::simd::{Floats, Vec3s};
+use crate::geometry::simd::{Floats, Vec3s, lanes};
 use crate::geometry::{Ray, SurfaceHit};
 use crate::light::ShadowTarget;
 use crate::material::{DirectionSampling, TransportMode};
@@ -164,18 +164,6 @@ enum Scatter {
         previous: Previous,
         ray: Ray,
     },
-}
-
-/// The lanes whose bits are set in `bits`, in order.
-#[inline(always)]
-fn lanes(mut bits: u32) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        (bits != 0).then(|| {
-            let i = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            i
-        })
-    })
 }
 
 impl PathTracer {

@@ -747,6 +747,25 @@ fn metallic_roughness_image_case(dir: &tempfile::TempDir, uri: &str) {
     );
 }
 
+/// The scene of `path`, read without a warning about a normal texture.
+fn normal_mapped_scene(path: &Path) -> trazo::scene::Scene {
+    let d = load(path, &[]).unwrap();
+    assert!(
+        !d.warnings.iter().any(|w| w.contains("normalTexture")),
+        "{:?}",
+        d.warnings
+    );
+    build(&d).unwrap()
+}
+
+/// The shading normal a ray down −z through (x, 0.1) finds.
+fn shading_normal_at(scene: &trazo::scene::Scene, x: f32) -> Vec3 {
+    let ray = trazo::geometry::Ray::new(Vec3::new(x, 0.1, 3.0), Vec3::NEG_Z);
+    let hit = scene.intersect(&ray).expect("the square");
+    let m = &scene.materials[hit.material as usize];
+    m.shading_frame(&scene.textures, &hit, Vec3::Z).n
+}
+
 #[test]
 fn normal_textures_tilt_the_normal_in_gltf_tangent_space() {
     // One texel: the tangent-space normal (0.004, 0.506, 1) (green up the
@@ -770,18 +789,9 @@ fn normal_textures_tilt_the_normal_in_gltf_tangent_space() {
         );
         let path = dir.path().join("normals.gltf");
         a.write_embedded(&path, &body);
-        let d = load(&path, &[]).unwrap();
-        assert!(
-            !d.warnings.iter().any(|w| w.contains("normalTexture")),
-            "{:?}",
-            d.warnings
-        );
-        let scene = build(&d).unwrap();
+        let scene = normal_mapped_scene(&path);
         for (x, up) in [(-1.0f32, 1.0f32), (1.0, -1.0)] {
-            let ray = trazo::geometry::Ray::new(Vec3::new(x, 0.1, 3.0), Vec3::NEG_Z);
-            let hit = scene.intersect(&ray).expect("the square");
-            let m = &scene.materials[hit.material as usize];
-            let n = m.shading_frame(&scene.textures, &hit, Vec3::Z).n;
+            let n = shading_normal_at(&scene, x);
             let expected = Vec3::new(0.0, up * tilt.sin(), tilt.cos());
             assert!(
                 (n - expected).length() < 0.01,
@@ -807,18 +817,9 @@ fn normal_textures_tilt_the_normal_in_gltf_tangent_space() {
     let path = dir.path().join("turned.gltf");
     for (offset, left_up) in [(0.0, true), (0.5, false)] {
         a.write_embedded(&path, &turned(&format!(r#"{{"offset":[{offset},0]}}"#)));
-        let d = load(&path, &[]).unwrap();
-        assert!(
-            !d.warnings.iter().any(|w| w.contains("normalTexture")),
-            "{:?}",
-            d.warnings
-        );
-        let scene = build(&d).unwrap();
+        let scene = normal_mapped_scene(&path);
         for (x, up) in [(-0.25f32, left_up), (0.25, !left_up)] {
-            let ray = trazo::geometry::Ray::new(Vec3::new(x, 0.1, 3.0), Vec3::NEG_Z);
-            let hit = scene.intersect(&ray).expect("the square");
-            let m = &scene.materials[hit.material as usize];
-            let n = m.shading_frame(&scene.textures, &hit, Vec3::Z).n;
+            let n = shading_normal_at(&scene, x);
             assert!(n.y.abs() > 0.4 && (n.y > 0.0) == up, "offset {offset}, x = {x}: {n}");
         }
     }
