@@ -6,6 +6,9 @@
 //! the same bits), rectangles (the operations of
 //! [`Rectangle::intersect`] in the same order) and triangles (the
 //! watertight test of [`Triangle4`](crate::geometry::triangle::Triangle4)).
+//! The other way round, a [`RayPacket`] tests one sphere or rectangle of
+//! a block against up to eight rays in lanes, with the same arithmetic
+//! per lane: how the path tracer's lanes go through a tree of one leaf.
 //!
 //! The lane code is built for AVX. Blocks exist only where the processor
 //! has it ([`Blocks::new`] says so once); elsewhere the tree holds the
