@@ -371,35 +371,33 @@ mod avx {
         pub(crate) fn new(rays: &[Ray; LANES], live: u32) -> RayPacket {
             let mut o = [[0.0f32; LANES]; 3];
             let mut d = [[0.0f32; LANES]; 3];
-            let (mut a, mut inv_a) = ([1.0f32; LANES], [1.0f32; LANES]);
-            let (mut t_min, mut sphere_t_min) = ([f32::NAN; LANES], [f32::NAN; LANES]);
-            for (i, ray) in rays.iter().enumerate() {
-                if live & (1 << i) == 0 {
-                    continue;
-                }
+            let mut t_min = [f32::NAN; LANES];
+            for i in crate::geometry::simd::lanes(live) {
+                let (origin, dir, start) = rays[i].read_by_field();
                 for axis in 0..3 {
-                    o[axis][i] = ray.origin[axis];
-                    d[axis][i] = ray.dir[axis];
+                    o[axis][i] = origin[axis];
+                    d[axis][i] = dir[axis];
                 }
-                t_min[i] = ray.t_min;
-                // As `SphereRay::new` makes them.
-                if let Some(s) = SphereRay::new(ray) {
-                    a[i] = s.a;
-                    inv_a[i] = s.inv_a;
-                    sphere_t_min[i] = s.t_min;
-                }
+                t_min[i] = start;
             }
-            let load = |x: &[f32; LANES]| F8::from_array(*x);
+            let [dx, dy, dz] = [F8::from_array(d[0]), F8::from_array(d[1]), F8::from_array(d[2])];
+            // What `SphereRay::new` makes of each lane's ray, in the same
+            // order of operations: |d|² and its reciprocal, and no
+            // interval where |d|² is 0 (also in lanes without a ray).
+            let a = dx * dx + dy * dy + dz * dz;
+            let zero = a.eq(F8::splat(0.0));
+            let one = F8::splat(1.0);
+            let t_min = F8::from_array(t_min);
             RayPacket {
                 sphere: SphereRay {
-                    o: [load(&o[0]), load(&o[1]), load(&o[2])],
-                    d: [load(&d[0]), load(&d[1]), load(&d[2])],
-                    a: load(&a),
-                    inv_a: load(&inv_a),
-                    t_min: load(&sphere_t_min),
+                    o: [F8::from_array(o[0]), F8::from_array(o[1]), F8::from_array(o[2])],
+                    d: [dx, dy, dz],
+                    a: F8::select(zero, one, a),
+                    inv_a: F8::select(zero, one, one / a),
+                    t_min: F8::select(zero, F8::splat(f32::NAN), t_min),
                     t_max: F8::splat(f32::NAN),
                 },
-                t_min: load(&t_min),
+                t_min,
             }
         }
 
