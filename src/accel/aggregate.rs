@@ -239,6 +239,9 @@ pub struct Aggregate {
     /// against together (blocks of spheres or rectangles, lone
     /// untransformed spheres), the fewest primitives such an item holds.
     packet_items: Option<u32>,
+    /// Whether some shape is an untransformed sphere, whose hits in a
+    /// packet [`Aggregate::sphere_surfaces`] makes records of.
+    lone_spheres: bool,
     bounds: Aabb,
     stats: BuildStats,
 }
@@ -488,10 +491,13 @@ impl Aggregate {
             unbounded,
             bvh,
             packet_items: None,
+            lone_spheres: false,
             bounds: scene_bounds,
             stats,
         };
         aggregate.packet_items = aggregate.smallest_packet_item();
+        aggregate.lone_spheres =
+            (aggregate.shapes.iter()).any(|s| matches!((&s.shape, &s.transform), (Shape::Sphere(_), None)));
         aggregate
     }
 
@@ -1173,6 +1179,110 @@ impl Aggregate {
         surface
     }
 
+    /// [`Aggregate::surface_with`] for the hits `found` of the rays of
+    /// `rays` whose bits are set in `live` (a packet, see
+    /// [`Aggregate::intersect_together`]) that lie on untransformed
+    /// spheres whose materials read no (u, v): their records computed
+    /// together, in vector lanes, by the functions that make one sphere's
+    /// record (`shape::sphere_normal`, `sphere_at_normal`,
+    /// `sphere_tangent`), so that they hold the same bits; written to the
+    /// same places of `slots`. The bits of the lanes it wrote; the others
+    /// are left to [`Aggregate::surface_with`] (among them a point at a
+    /// sphere's centre or pole, which takes its fallbacks).
+    ///
+    /// # Safety
+    /// The processor must have AVX (as it has where rays were tested
+    /// together).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    pub(crate) fn sphere_surfaces(
+        &self,
+        rays: &[Ray; PACKET],
+        found: &[Option<Hit>; PACKET],
+        live: u32,
+        reads_uv: impl Fn(u32) -> bool,
+        slots: &mut [Option<SurfaceHit>],
+    ) -> u32 {
+        use crate::geometry::lanes::F8;
+        use crate::geometry::shape::{sphere_at_normal, sphere_normal, sphere_tangent};
+        use crate::geometry::simd::{Floats, Vec3s, lanes};
+        if !self.lone_spheres {
+            return 0;
+        }
+        let mut spheres = 0u32;
+        let zero = [Vec3::ZERO; PACKET];
+        let (mut o, mut d, mut c, mut columns) = (zero, zero, zero, [zero; 3]);
+        let (mut t, mut r) = ([0.0f32; PACKET], [1.0f32; PACKET]);
+        for i in lanes(live) {
+            let Some(Hit {
+                t: t_hit,
+                prim: HitPrim::Shape(id),
+            }) = found[i]
+            else {
+                continue;
+            };
+            let ShapeInstance {
+                shape: Shape::Sphere(sphere),
+                transform: None,
+                material,
+                ..
+            } = &self.shapes[id as usize]
+            else {
+                continue;
+            };
+            if reads_uv(*material) {
+                continue;
+            }
+            spheres |= 1 << i;
+            (o[i], d[i], t[i]) = (rays[i].origin, rays[i].dir, t_hit);
+            (c[i], r[i]) = (sphere.center, sphere.radius);
+            let frame = &sphere.uv_frame;
+            (columns[0][i], columns[1][i], columns[2][i]) = (frame.x_axis, frame.y_axis, frame.z_axis);
+        }
+        if spheres == 0 {
+            return 0;
+        }
+        // `Ray::at`, `Sphere::tangent_at` and `Sphere::surface` in lanes.
+        let p = Vec3s::<F8>::gather(&o) + Vec3s::gather(&d).scale(F8::gather(&t));
+        let center = Vec3s::gather(&c);
+        let frame = columns.map(|column| Vec3s::gather(&column));
+        let (n, normal) = sphere_normal(center, p);
+        let at = sphere_at_normal(center, F8::gather(&r), frame, n);
+        let (tangent, defined) = sphere_tangent(center, frame, p);
+        let done = spheres & normal & defined;
+        let (n, tangent) = (n.each_lane(), tangent.each_lane());
+        let (p, p_error, dpdu) = (at.p.each_lane(), at.p_error.each_lane(), at.dpdu.each_lane());
+        for i in lanes(done) {
+            let Some(Hit {
+                prim: HitPrim::Shape(id),
+                ..
+            }) = found[i]
+            else {
+                continue;
+            };
+            let s = &self.shapes[id as usize];
+            // As `surface_with` and `finish_surface` complete it: no
+            // shading normal, the shape's tangent, no (u, v).
+            let ng = if s.flip_normals { -n[i] } else { n[i] };
+            slots[i] = Some(SurfaceHit {
+                t: t[i],
+                p: p[i],
+                p_error: p_error[i],
+                ng,
+                ns: ng,
+                uv: Vec2::ZERO,
+                tangent: tangent[i],
+                dpdu: dpdu[i],
+                dpdv: Vec3::ZERO,
+                material: s.material,
+                light: s.light,
+                attribute: Vec3::ZERO,
+                time: rays[i].time,
+            });
+        }
+        done
+    }
+
     /// The density, per unit world area, with which [`Aggregate::sample_emitter`]
     /// picks the point `p` of the emitter, whose world normal there is `n`.
     pub fn emitter_pdf_area(&self, emitter: EmitterRef, area: &EmitterArea, p: Vec3, n: Vec3) -> f32 {
@@ -1790,6 +1900,81 @@ mod tests {
                 assert!(together > 1000, "scene {scene}: {together} packets");
             }
         }
+    }
+
+    /// The surface records of a packet's hits on spheres, made together in
+    /// vector lanes, hold the bits of those made one by one: on spheres
+    /// with other frames of surface coordinates, normals flipped, a
+    /// material that reads (u, v) (left to the one-by-one records), huge
+    /// walls, and hits at the poles.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    #[allow(unsafe_code)]
+    fn sphere_records_made_together_are_those_made_one_by_one() {
+        if !crate::geometry::lanes::avx_available() {
+            return;
+        }
+        let turned = glam::Mat3::from_axis_angle(Vec3::new(1.0, 2.0, 0.5).normalize(), 0.7);
+        let sphere = |c: Vec3, r: f32, k: u32| ShapeInstance {
+            shape: Shape::Sphere(Sphere {
+                uv_frame: if k % 3 == 1 { turned } else { glam::Mat3::IDENTITY },
+                ..Sphere::new(c, r)
+            }),
+            transform: None,
+            motion: None,
+            material: k % 4,
+            light: (k % 5 == 0).then_some(k),
+            flip_normals: k % 2 == 1,
+        };
+        let shapes: Vec<ShapeInstance> = [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z]
+            .into_iter()
+            .map(|n| n * (1e4 + 2.0))
+            .chain([-1.0, 0.0, 1.0].map(|x| Vec3::new(x, -1.4, x * 0.5)))
+            .enumerate()
+            .map(|(k, c)| sphere(c, if k < 6 { 1e4 } else { 0.5 }, k as u32))
+            .collect();
+        let g = Aggregate::build(vec![], shapes, vec![], vec![]);
+        let reads_uv = |m: u32| m == 3;
+        let mut rng = crate::sampling::rng::Pcg32::new(9, 1);
+        let mut unit = || crate::sampling::warp::sample_sphere_uniform(Vec2::new(rng.next_f32(), rng.next_f32()));
+        let (mut together, mut alone) = (0, 0);
+        for round in 0..3000 {
+            let rays: [Ray; 8] = std::array::from_fn(|i| {
+                let origin = unit() * 1.9;
+                match (round + i) % 4 {
+                    // Toward a ball's pole.
+                    0 => Ray::new(origin, Vec3::new(0.0, -0.9, 0.0) - origin),
+                    _ => Ray::new(origin, unit()),
+                }
+            });
+            let live = if round % 2 == 0 { 0xff } else { 0b0111_1011 };
+            let mut found = [None; 8];
+            if !g.intersect_together(&rays, live, &mut found) {
+                continue;
+            }
+            let mut slots = [None; 8];
+            // SAFETY: the processor has AVX (checked above).
+            let done = unsafe { g.sphere_surfaces(&rays, &found, live, reads_uv, &mut slots) };
+            assert_eq!(done & !live, 0);
+            for i in 0..8 {
+                let Some(hit) = &found[i] else {
+                    assert_eq!(done & (1 << i), 0);
+                    continue;
+                };
+                if done & (1 << i) == 0 {
+                    alone += 1;
+                    continue;
+                }
+                together += 1;
+                let expect = g.surface_with(&rays[i], hit, reads_uv);
+                assert_eq!(
+                    format!("{:?}", slots[i].expect("a record")),
+                    format!("{expect:?}"),
+                    "round {round}, lane {i}"
+                );
+            }
+        }
+        assert!(together > 10_000 && alone > 1000, "{together} together, {alone} alone");
     }
 
     /// Rays parallel to a rectangle of a block (a zero denominator: t is

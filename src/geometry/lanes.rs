@@ -360,6 +360,20 @@ impl super::simd::Floats for F8 {
         M8(unsafe { _mm256_cmp_ps::<_CMP_GE_OQ>(self.0, other.0) })
     }
     #[inline(always)]
+    fn gt(self, other: F8) -> M8 {
+        M8(unsafe { _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, other.0) })
+    }
+    #[inline(always)]
+    fn abs(self) -> F8 {
+        F8(unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0) })
+    }
+    #[inline(always)]
+    fn each_lane(self) -> [f32; LANES] {
+        let mut out = [0.0f32; LANES];
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) };
+        out
+    }
+    #[inline(always)]
     fn select(mask: M8, a: F8, b: F8) -> F8 {
         F8(unsafe { _mm256_blendv_ps(b.0, a.0, mask.0) })
     }

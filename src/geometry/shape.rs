@@ -10,6 +10,7 @@
 use super::bounds::{Aabb, gamma};
 use super::ray::Ray;
 use super::real::Real;
+use super::simd::{Floats, Vec3s};
 use crate::sampling::warp::{orthonormal_basis, sample_disk_concentric, sample_sphere_uniform};
 use glam::{DVec3, Mat3, Vec2, Vec3};
 use std::f32::consts::PI;
@@ -492,49 +493,43 @@ impl Sphere {
     }
 
     /// The unit tangent along u at the sphere's point nearest `p`: dp/du
-    /// normalised, the direction of (p − centre) × a for the axis a of the
-    /// coordinates. Made from p − centre, not from the unit normal, so that
-    /// its square root and division run alongside the normal's instead of
-    /// after them (which finishing the record from dp/du would wait for).
-    /// At the poles, where dp/du vanishes, a tangent of the normal's frame.
+    /// normalised ([`sphere_tangent`]); at the poles, where dp/du
+    /// vanishes, a tangent of the normal's frame.
     #[inline]
     pub fn tangent_at(&self, p: Vec3) -> Vec3 {
-        let q = p - self.center;
-        let local = self.uv_frame.transpose() * q;
-        let along = self.uv_frame * Vec3::new(-local.z, 0.0, local.x);
-        let len2 = along.length_squared();
-        if len2 > 1e-6 * q.length_squared() {
-            along * (1.0 / len2.sqrt())
+        let (tangent, found) = sphere_tangent::<f32>(Vec3s::splat(self.center), self.frame_lanes(), Vec3s::splat(p));
+        if found != 0 {
+            tangent.lane(0)
         } else {
-            orthonormal_basis(q.normalize_or(Vec3::Z)).0
+            orthonormal_basis((p - self.center).normalize_or(Vec3::Z)).0
         }
     }
 
+    /// [`Sphere::uv_frame`]'s columns, as the lane functions take them.
+    #[inline(always)]
+    fn frame_lanes(&self) -> [Vec3s<f32>; 3] {
+        [self.uv_frame.x_axis, self.uv_frame.y_axis, self.uv_frame.z_axis].map(Vec3s::splat)
+    }
+
     fn surface(&self, p: Vec3, with_uv: bool) -> LocalSurface {
-        // Reproject onto the sphere: the hit point then carries only the
-        // error of this computation (pbrt-v4, section 6.8.5), in single
-        // precision as there: a few ulps of the centre's and the radius's
-        // magnitudes, which `p_error` bounds.
-        let q = p - self.center;
-        let length_squared = q.length_squared();
-        let n = if length_squared.is_normal() {
-            q * length_squared.sqrt().recip()
+        let center = Vec3s::splat(self.center);
+        let (n, normal) = sphere_normal::<f32>(center, Vec3s::splat(p));
+        let n = if normal != 0 {
+            n
         } else {
             // Zero, or beyond single precision's range once squared.
-            q.as_dvec3().normalize_or(DVec3::Z).as_vec3()
+            Vec3s::splat((p - self.center).as_dvec3().normalize_or(DVec3::Z).as_vec3())
         };
-        let p = self.center + n * self.radius;
-        let p_error = gamma(5) * ((p - self.center).abs() + self.center.abs());
+        let at = sphere_at_normal::<f32>(center, self.radius, self.frame_lanes(), n);
+        let (n, local) = (n.lane(0), at.local.lane(0));
         // Longitude around +y, latitude from the south pole: v = 1 at the
         // top, in the frame of the surface coordinates.
-        let local = self.uv_frame.transpose() * n;
         let uv = if with_uv {
             let phi = local.z.atan2(local.x).rem_euclid(2.0 * PI);
             Vec2::new(phi / (2.0 * PI), 0.5 + local.y.clamp(-1.0, 1.0).asin() / PI)
         } else {
             Vec2::ZERO
         };
-        let dpdu = self.uv_frame * Vec3::new(-local.z, 0.0, local.x) * (2.0 * PI * self.radius);
         // v = 1/2 + θ/π for latitude θ: dp/dv = π·r·dn/dθ, which turns
         // along the meridian (undefined at the poles: a zero vector there).
         // Only bump maps read it, and only through textures that read
@@ -547,14 +542,100 @@ impl Sphere {
             Vec3::ZERO
         };
         LocalSurface {
-            p,
-            p_error,
+            p: at.p.lane(0),
+            p_error: at.p_error.lane(0),
             n,
             uv,
-            dpdu,
+            dpdu: at.dpdu.lane(0),
             dpdv,
         }
     }
+}
+
+/// The unit normal of a sphere of centre `c` at its point nearest `p`,
+/// in every lane (one sphere's record, `F = f32`, or eight in vector lanes,
+/// which then compute the same bits), and the bits of the lanes where it
+/// is exact: those where |p − c|² is a normal number (neither zero nor
+/// beyond single precision's range), which the caller treats apart.
+#[inline(always)]
+pub(crate) fn sphere_normal<F: Floats>(c: Vec3s<F>, p: Vec3s<F>) -> (Vec3s<F>, u32) {
+    let q = p - c;
+    let length_squared = q.dot(q);
+    let normal = F::mask_bits(length_squared.ge(F::splat(f32::MIN_POSITIVE)))
+        & !F::mask_bits(length_squared.ge(F::splat(f32::INFINITY)));
+    (q.scale(F::splat(1.0) / length_squared.sqrt()), normal)
+}
+
+/// What a sphere's surface record holds at the point of unit normal `n`
+/// (in lanes, as [`sphere_normal`]).
+pub(crate) struct SphereAt<F> {
+    /// The point, reprojected onto the sphere: it then carries only the
+    /// error of this computation (pbrt-v4, section 6.8.5), in single
+    /// precision as there: a few ulps of the centre's and the radius's
+    /// magnitudes, which `p_error` bounds.
+    pub p: Vec3s<F>,
+    pub p_error: Vec3s<F>,
+    /// The normal in the frame of the surface coordinates.
+    pub local: Vec3s<F>,
+    /// dp/du: u runs once around +y of that frame.
+    pub dpdu: Vec3s<F>,
+}
+
+/// [`SphereAt`] for the sphere of centre `c`, radius `r` and frame of
+/// surface coordinates `frame` (columns), at unit normal `n`.
+#[inline(always)]
+pub(crate) fn sphere_at_normal<F: Floats>(c: Vec3s<F>, r: F, frame: [Vec3s<F>; 3], n: Vec3s<F>) -> SphereAt<F> {
+    let p = c + n.scale(r);
+    let p_error = ((p - c).abs() + c.abs()).scale(F::splat(gamma(5)));
+    let local = transposed_times(frame, n);
+    let dpdu = frame_times(frame, around(local)).scale(F::splat(2.0 * PI) * r);
+    SphereAt {
+        p,
+        p_error,
+        local,
+        dpdu,
+    }
+}
+
+/// The unit tangent along u of the sphere of centre `c` and frame `frame`
+/// at its point nearest `p` (in lanes, as [`sphere_normal`]): dp/du
+/// normalised, the direction of (p − c) × a for the axis a of the frame.
+/// Made from p − c, not from the unit normal, so that its square root and
+/// division run alongside the normal's instead of after them. The bits of
+/// the lanes where it is defined: not at the poles, where dp/du vanishes.
+#[inline(always)]
+pub(crate) fn sphere_tangent<F: Floats>(c: Vec3s<F>, frame: [Vec3s<F>; 3], p: Vec3s<F>) -> (Vec3s<F>, u32) {
+    let q = p - c;
+    let along = frame_times(frame, around(transposed_times(frame, q)));
+    let length_squared = along.dot(along);
+    let defined = F::mask_bits(length_squared.gt(F::splat(1e-6) * q.dot(q)));
+    (along.scale(F::splat(1.0) / length_squared.sqrt()), defined)
+}
+
+/// (−z, 0, x): the direction around +y at (x, y, z).
+#[inline(always)]
+fn around<F: Floats>(v: Vec3s<F>) -> Vec3s<F> {
+    Vec3s {
+        x: F::splat(0.0) - v.z,
+        y: F::splat(0.0),
+        z: v.x,
+    }
+}
+
+/// `v` in the frame whose columns are `frame` (its transpose times `v`).
+#[inline(always)]
+fn transposed_times<F: Floats>(frame: [Vec3s<F>; 3], v: Vec3s<F>) -> Vec3s<F> {
+    Vec3s {
+        x: frame[0].dot(v),
+        y: frame[1].dot(v),
+        z: frame[2].dot(v),
+    }
+}
+
+/// The frame whose columns are `frame` times `v`.
+#[inline(always)]
+fn frame_times<F: Floats>(frame: [Vec3s<F>; 3], v: Vec3s<F>) -> Vec3s<F> {
+    frame[0].scale(v.x) + frame[1].scale(v.y) + frame[2].scale(v.z)
 }
 
 /// What the sphere test needs of a ray (in every lane for `R` of

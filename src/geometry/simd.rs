@@ -42,6 +42,12 @@ pub trait Floats:
     fn max(self, other: Self) -> Self;
     /// `self >= other` (false for NaN).
     fn ge(self, other: Self) -> Self::Mask;
+    /// `self > other` (false for NaN).
+    fn gt(self, other: Self) -> Self::Mask;
+    /// The magnitude.
+    fn abs(self) -> Self;
+    /// Every lane, as plain values.
+    fn each_lane(self) -> Self::Each<f32>;
     /// `if mask { a } else { b }`.
     fn select(mask: Self::Mask, a: Self, b: Self) -> Self;
     /// A mask from bits (lane `i` true where bit `i` is set).
@@ -86,6 +92,18 @@ impl Floats for f32 {
     #[inline(always)]
     fn ge(self, other: f32) -> bool {
         self >= other
+    }
+    #[inline(always)]
+    fn gt(self, other: f32) -> bool {
+        self > other
+    }
+    #[inline(always)]
+    fn abs(self) -> f32 {
+        f32::abs(self)
+    }
+    #[inline(always)]
+    fn each_lane(self) -> [f32; 1] {
+        [self]
     }
     #[inline(always)]
     fn select(mask: bool, a: f32, b: f32) -> f32 {
@@ -149,6 +167,29 @@ impl<F: Floats> Vec3s<F> {
         Vec3::new(self.x.lane(i), self.y.lane(i), self.z.lane(i))
     }
 
+    /// Every lane, as plain vectors.
+    #[inline(always)]
+    pub fn each_lane(self) -> F::Each<Vec3> {
+        let (x, y, z) = (self.x.each_lane(), self.y.each_lane(), self.z.each_lane());
+        F::each(|i| Vec3::new(x.as_ref()[i], y.as_ref()[i], z.as_ref()[i]))
+    }
+
+    /// The dot product, summed as glam sums it: (x + y) + z.
+    #[inline(always)]
+    pub fn dot(self, o: Self) -> F {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+
+    /// Each component's magnitude.
+    #[inline(always)]
+    pub fn abs(self) -> Self {
+        Vec3s {
+            x: self.x.abs(),
+            y: self.y.abs(),
+            z: self.z.abs(),
+        }
+    }
+
     /// The largest component (glam's `max_element`: `max(max(x, y), z)`).
     #[inline(always)]
     pub fn max_element(self) -> F {
@@ -203,6 +244,18 @@ impl<F: Floats> std::ops::Add for Vec3s<F> {
             x: self.x + o.x,
             y: self.y + o.y,
             z: self.z + o.z,
+        }
+    }
+}
+
+impl<F: Floats> std::ops::Sub for Vec3s<F> {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        Vec3s {
+            x: self.x - o.x,
+            y: self.y - o.y,
+            z: self.z - o.z,
         }
     }
 }

@@ -120,18 +120,44 @@ impl Scene {
 
     /// [`Scene::intersect_together`] where the rays are tested together.
     #[inline(never)]
+    #[allow(unsafe_code)]
     fn intersect_packet(&self, rays: &[Ray], live: u32, slots: &mut [Option<SurfaceHit>]) -> bool {
         let mut found = [None; 8];
         let found = &mut found[..rays.len()];
         if !self.geometry.intersect_together(rays, live, found) {
             return false;
         }
+        // The records of hits on spheres are made together.
+        let mut together = 0;
+        #[cfg(target_arch = "x86_64")]
+        if let (Ok(rays), Ok(found)) = (
+            <&[Ray; 8]>::try_from(rays),
+            <&[Option<crate::accel::aggregate::Hit>; 8]>::try_from(&*found),
+        ) {
+            // SAFETY: the rays were tested together, which only a processor
+            // with AVX does.
+            together = unsafe {
+                self.geometry
+                    .sphere_surfaces(rays, found, live, |m| self.reads_uv(m), slots)
+            };
+            for i in crate::geometry::simd::lanes(together) {
+                if let Some(surface) = &mut slots[i] {
+                    self.choose_material(surface, rays[i].dir);
+                }
+            }
+        }
         for (i, (ray, slot)) in rays.iter().zip(slots.iter_mut()).enumerate() {
-            if live & (1 << i) != 0 {
+            if live & !together & (1 << i) != 0 {
                 self.surface_into(ray, &found[i], slot);
             }
         }
         true
+    }
+
+    /// Whether material `m` reads surface coordinates.
+    #[inline(always)]
+    fn reads_uv(&self, m: u32) -> bool {
+        self.materials_reading_uv.get(m as usize).copied().unwrap_or(true)
     }
 
     /// The surface record of `found` on `ray` (its material chosen), or
@@ -142,9 +168,7 @@ impl Scene {
             *slot = None;
             return;
         };
-        let surface = slot.insert(self.geometry.surface_with(ray, hit, |m| {
-            self.materials_reading_uv.get(m as usize).copied().unwrap_or(true)
-        }));
+        let surface = slot.insert(self.geometry.surface_with(ray, hit, |m| self.reads_uv(m)));
         self.choose_material(surface, ray.dir);
     }
 
