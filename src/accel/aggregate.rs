@@ -1209,13 +1209,19 @@ impl Aggregate {
         if !self.lone_spheres {
             return 0;
         }
+        // The lanes' rays, distances and spheres, a plain array a number.
+        const O: usize = 0; // origin: 0..3
+        const D: usize = 3; // direction: 3..6
+        const T: usize = 6;
+        const C: usize = 7; // centre: 7..10
+        const R: usize = 10;
+        const FRAME: usize = 11; // the frame's columns: 11..20
+        let mut at = [[0.0f32; PACKET]; 20];
+        at[R] = [1.0; PACKET];
         let mut spheres = 0u32;
-        let zero = [Vec3::ZERO; PACKET];
-        let (mut o, mut d, mut c, mut columns) = (zero, zero, zero, [zero; 3]);
-        let (mut t, mut r) = ([0.0f32; PACKET], [1.0f32; PACKET]);
         for i in lanes(live) {
             let Some(Hit {
-                t: t_hit,
+                t,
                 prim: HitPrim::Shape(id),
             }) = found[i]
             else {
@@ -1234,24 +1240,35 @@ impl Aggregate {
                 continue;
             }
             spheres |= 1 << i;
-            (o[i], d[i], t[i]) = (rays[i].origin, rays[i].dir, t_hit);
-            (c[i], r[i]) = (sphere.center, sphere.radius);
             let frame = &sphere.uv_frame;
-            (columns[0][i], columns[1][i], columns[2][i]) = (frame.x_axis, frame.y_axis, frame.z_axis);
+            let mut put = |k: usize, v: Vec3| (at[k][i], at[k + 1][i], at[k + 2][i]) = (v.x, v.y, v.z);
+            put(O, rays[i].origin);
+            put(D, rays[i].dir);
+            put(C, sphere.center);
+            put(FRAME, frame.x_axis);
+            put(FRAME + 3, frame.y_axis);
+            put(FRAME + 6, frame.z_axis);
+            (at[T][i], at[R][i]) = (t, sphere.radius);
         }
         if spheres == 0 {
             return 0;
         }
         // `Ray::at`, `Sphere::tangent_at` and `Sphere::surface` in lanes.
-        let p = Vec3s::<F8>::gather(&o) + Vec3s::gather(&d).scale(F8::gather(&t));
-        let center = Vec3s::gather(&c);
-        let frame = columns.map(|column| Vec3s::gather(&column));
+        let lanes3 = |k: usize| Vec3s {
+            x: F8::gather(&at[k]),
+            y: F8::gather(&at[k + 1]),
+            z: F8::gather(&at[k + 2]),
+        };
+        let p = lanes3(O) + lanes3(D).scale(F8::gather(&at[T]));
+        let center = lanes3(C);
+        let frame = [lanes3(FRAME), lanes3(FRAME + 3), lanes3(FRAME + 6)];
         let (n, normal) = sphere_normal(center, p);
-        let at = sphere_at_normal(center, F8::gather(&r), frame, n);
+        let record = sphere_at_normal(center, F8::gather(&at[R]), frame, n);
         let (tangent, defined) = sphere_tangent(center, frame, p);
         let done = spheres & normal & defined;
-        let (n, tangent) = (n.each_lane(), tangent.each_lane());
-        let (p, p_error, dpdu) = (at.p.each_lane(), at.p_error.each_lane(), at.dpdu.each_lane());
+        let plain = |v: Vec3s<F8>| [v.x.each_lane(), v.y.each_lane(), v.z.each_lane()];
+        let [n, tangent, p, p_error, dpdu] = [n, tangent, record.p, record.p_error, record.dpdu].map(plain);
+        let lane = |v: &[[f32; PACKET]; 3], i: usize| Vec3::new(v[0][i], v[1][i], v[2][i]);
         for i in lanes(done) {
             let Some(Hit {
                 prim: HitPrim::Shape(id),
@@ -1263,16 +1280,16 @@ impl Aggregate {
             let s = &self.shapes[id as usize];
             // As `surface_with` and `finish_surface` complete it: no
             // shading normal, the shape's tangent, no (u, v).
-            let ng = if s.flip_normals { -n[i] } else { n[i] };
+            let ng = if s.flip_normals { -lane(&n, i) } else { lane(&n, i) };
             slots[i] = Some(SurfaceHit {
-                t: t[i],
-                p: p[i],
-                p_error: p_error[i],
+                t: at[T][i],
+                p: lane(&p, i),
+                p_error: lane(&p_error, i),
                 ng,
                 ns: ng,
                 uv: Vec2::ZERO,
-                tangent: tangent[i],
-                dpdu: dpdu[i],
+                tangent: lane(&tangent, i),
+                dpdu: lane(&dpdu, i),
                 dpdv: Vec3::ZERO,
                 material: s.material,
                 light: s.light,

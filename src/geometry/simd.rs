@@ -167,13 +167,6 @@ impl<F: Floats> Vec3s<F> {
         Vec3::new(self.x.lane(i), self.y.lane(i), self.z.lane(i))
     }
 
-    /// Every lane, as plain vectors.
-    #[inline(always)]
-    pub fn each_lane(self) -> F::Each<Vec3> {
-        let (x, y, z) = (self.x.each_lane(), self.y.each_lane(), self.z.each_lane());
-        F::each(|i| Vec3::new(x.as_ref()[i], y.as_ref()[i], z.as_ref()[i]))
-    }
-
     /// The dot product, summed as glam sums it: (x + y) + z.
     #[inline(always)]
     pub fn dot(self, o: Self) -> F {
