@@ -1219,6 +1219,7 @@ impl Aggregate {
         let mut at = [[0.0f32; PACKET]; 20];
         at[R] = [1.0; PACKET];
         let mut spheres = 0u32;
+        let mut shapes: [Option<&ShapeInstance>; PACKET] = [None; PACKET];
         for i in lanes(live) {
             let Some(Hit {
                 t,
@@ -1227,12 +1228,13 @@ impl Aggregate {
             else {
                 continue;
             };
+            let shape = &self.shapes[id as usize];
             let ShapeInstance {
                 shape: Shape::Sphere(sphere),
                 transform: None,
                 material,
                 ..
-            } = &self.shapes[id as usize]
+            } = shape
             else {
                 continue;
             };
@@ -1240,6 +1242,7 @@ impl Aggregate {
                 continue;
             }
             spheres |= 1 << i;
+            shapes[i] = Some(shape);
             let frame = &sphere.uv_frame;
             let mut put = |k: usize, v: Vec3| (at[k][i], at[k + 1][i], at[k + 2][i]) = (v.x, v.y, v.z);
             put(O, rays[i].origin);
@@ -1270,14 +1273,7 @@ impl Aggregate {
         let [n, tangent, p, p_error, dpdu] = [n, tangent, record.p, record.p_error, record.dpdu].map(plain);
         let lane = |v: &[[f32; PACKET]; 3], i: usize| Vec3::new(v[0][i], v[1][i], v[2][i]);
         for i in lanes(done) {
-            let Some(Hit {
-                prim: HitPrim::Shape(id),
-                ..
-            }) = found[i]
-            else {
-                continue;
-            };
-            let s = &self.shapes[id as usize];
+            let Some(s) = shapes[i] else { continue };
             // As `surface_with` and `finish_surface` complete it: no
             // shading normal, the shape's tangent, no (u, v).
             let ng = if s.flip_normals { -lane(&n, i) } else { lane(&n, i) };
