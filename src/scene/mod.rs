@@ -120,7 +120,6 @@ impl Scene {
 
     /// [`Scene::intersect_together`] where the rays are tested together.
     #[inline(never)]
-    #[allow(unsafe_code)]
     fn intersect_packet(&self, rays: &[Ray], live: u32, slots: &mut [Option<SurfaceHit>]) -> bool {
         let mut found = [None; 8];
         let found = &mut found[..rays.len()];
@@ -128,30 +127,47 @@ impl Scene {
             return false;
         }
         // The records of hits on spheres are made together.
-        let mut together = 0;
         #[cfg(target_arch = "x86_64")]
-        if let (Ok(rays), Ok(found)) = (
-            <&[Ray; 8]>::try_from(rays),
-            <&[Option<crate::accel::aggregate::Hit>; 8]>::try_from(&*found),
-        ) {
-            // SAFETY: the rays were tested together, which only a processor
-            // with AVX does.
-            together = unsafe {
-                self.geometry
-                    .sphere_surfaces(rays, found, live, |m| self.reads_uv(m), slots)
-            };
-            for i in crate::geometry::simd::lanes(together) {
-                if let Some(surface) = &mut slots[i] {
-                    self.choose_material(surface, rays[i].dir);
-                }
-            }
-        }
+        let together = self.sphere_records_together(rays, found, live, slots);
+        #[cfg(not(target_arch = "x86_64"))]
+        let together = 0;
         for (i, (ray, slot)) in rays.iter().zip(slots.iter_mut()).enumerate() {
             if live & !together & (1 << i) != 0 {
                 self.surface_into(ray, &found[i], slot);
             }
         }
         true
+    }
+
+    /// The records of a packet's hits on spheres, made together
+    /// ([`Aggregate::sphere_surfaces`]), their materials chosen: the bits
+    /// of the lanes whose slots it filled.
+    ///
+    /// [`Aggregate::sphere_surfaces`]: crate::accel::aggregate::Aggregate::sphere_surfaces
+    #[cfg(target_arch = "x86_64")]
+    #[allow(unsafe_code)]
+    fn sphere_records_together(
+        &self,
+        rays: &[Ray],
+        found: &[Option<crate::accel::aggregate::Hit>],
+        live: u32,
+        slots: &mut [Option<SurfaceHit>],
+    ) -> u32 {
+        let (Ok(rays), Ok(found)) = (<&[Ray; 8]>::try_from(rays), <&[_; 8]>::try_from(found)) else {
+            return 0;
+        };
+        // SAFETY: the rays were tested together, which only a processor
+        // with AVX does.
+        let together = unsafe {
+            self.geometry
+                .sphere_surfaces(rays, found, live, |m| self.reads_uv(m), slots)
+        };
+        for i in crate::geometry::simd::lanes(together) {
+            if let Some(surface) = &mut slots[i] {
+                self.choose_material(surface, rays[i].dir);
+            }
+        }
+        together
     }
 
     /// Whether material `m` reads surface coordinates.
