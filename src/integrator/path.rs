@@ -189,7 +189,8 @@ impl PathTracer {
     /// traced alone. The paths move in lockstep, one segment each per
     /// step; what depends on one path's surface (its intersection, BSDF
     /// and light sample) is computed lane by lane, and the throughput and
-    /// estimate in lanes.
+    /// estimate in lanes, except the bounces off plain smooth glass, which
+    /// are made together ([`smooth_glass_bounces`]).
     #[inline(always)]
     fn trace<F: Floats>(
         &self,
@@ -234,6 +235,9 @@ impl PathTracer {
         });
         let mut factor = F::each(|_| Rgb::ONE);
         let mut eta2 = F::each(|_| 1.0f32);
+        // The index and tints of the plain smooth glass a lane's hit is on
+        // (valid where `on_glass` says so).
+        let mut glass = F::each(|_| None::<(f32, Rgb, Rgb)>);
         // Each path's wavelength, once it has met a dispersive glass.
         let mut wavelengths = F::each(|_| None::<f32>);
 
@@ -265,10 +269,31 @@ impl PathTracer {
                 break;
             }
 
-            // How the paths go on.
+            // How the paths go on: those on smooth glass together, the
+            // others one by one.
+            let mut on_glass = 0u32;
+            if !scene.plain_glass.is_empty() {
+                for i in lanes(live) {
+                    if let Some(hit) = &hits.as_ref()[i] {
+                        let g = scene.plain_glass[hit.material as usize];
+                        on_glass |= (g.is_some() as u32) << i;
+                        glass.as_mut()[i] = g;
+                    }
+                }
+            }
+            let mut glass_bounced = 0;
+            if on_glass != 0 {
+                let (factor, eta2, bounced) =
+                    smooth_glass_bounces::<F>(&hits, &glass, on_glass, &mut rays, samplers, &mut previous);
+                live &= !(on_glass & !bounced);
+                let mask = F::mask_from_bits(bounced);
+                beta = Vec3s::select(mask, beta * factor, beta);
+                eta_scale = F::select(mask, eta_scale * eta2, eta_scale);
+                glass_bounced = bounced;
+            }
             let mut lit = 0u32;
             let mut bounced = 0u32;
-            for i in lanes(live) {
+            for i in lanes(live & !on_glass) {
                 let Some(hit) = &hits.as_ref()[i] else { continue };
                 let ray = &mut rays.as_mut()[i];
                 let wavelength = &mut wavelengths.as_mut()[i];
@@ -309,6 +334,7 @@ impl PathTracer {
                 beta = Vec3s::select(mask, beta * Vec3s::gather(&factor), beta);
                 eta_scale = F::select(mask, eta_scale * F::gather(&eta2), eta_scale);
             }
+            bounced |= glass_bounced;
             depth += 1;
 
             // Russian roulette, for the paths that bounced.
@@ -507,6 +533,75 @@ impl PathTracer {
         };
         (direct, scatter)
     }
+}
+
+/// The bounces of the paths in lanes `on_glass`, whose `hits` are on
+/// plain smooth dielectrics of relative index and tints `glass`
+/// ([`Scene::plain_glass`]), made in lanes: what
+/// [`PathTracer::scatter`] does there (with the same numbers drawn: the
+/// lobe choice, then a pair that a delta lobe passes over), in world
+/// space. Sets the rays and bounces of the lanes that go on and returns
+/// their throughput factors, their radiance scales (η² through
+/// refraction, else 1) and the bits of the lanes that go on; the other
+/// lanes of `on_glass` end, for what `scatter` ends a path for: a grazing
+/// direction, a black tint, or a shading normal that sent the path
+/// through the surface.
+#[inline(always)]
+fn smooth_glass_bounces<F: Floats>(
+    hits: &F::Each<Option<SurfaceHit>>,
+    glass: &F::Each<Option<(f32, Rgb, Rgb)>>,
+    on_glass: u32,
+    rays: &mut F::Each<Ray>,
+    samplers: &mut [Sampler],
+    previous: &mut F::Each<Previous>,
+) -> (Vec3s<F>, F, u32) {
+    use crate::material::dielectric::smooth_bounce;
+    let hit = |i: usize| hits.as_ref()[i].as_ref().filter(|_| on_glass & (1 << i) != 0);
+    let part = |i: usize| glass.as_ref()[i].unwrap_or((1.0, Rgb::ZERO, Rgb::ZERO));
+    let u = F::gather(&F::each(|i| match hit(i) {
+        Some(_) => {
+            let u = samplers[i].next_1d();
+            samplers[i].skip_2d();
+            u
+        }
+        None => 0.0,
+    }));
+    // Lanes outside `on_glass` get a harmless direction and normal.
+    let d = Vec3s::<F>::gather(&F::each(|i| hit(i).map_or(glam::Vec3::Z, |_| rays.as_ref()[i].dir)));
+    let ns = Vec3s::<F>::gather(&F::each(|i| hit(i).map_or(glam::Vec3::Z, |h| h.ns)));
+    let ng = Vec3s::<F>::gather(&F::each(|i| hit(i).map_or(glam::Vec3::Z, |h| h.ng)));
+    let eta = F::gather(&F::each(|i| part(i).0));
+    let reflect_tint = Vec3s::<F>::gather(&F::each(|i| part(i).1));
+    let transmit_tint = Vec3s::<F>::gather(&F::each(|i| part(i).2));
+
+    let zero = F::splat(0.0);
+    // wo = −d/|d|, as `glam::Vec3::normalize` rounds it.
+    let wo = d.scale(zero - F::splat(1.0) / d.dot(d).sqrt());
+    let cos_o = wo.dot(ns);
+    let (c, wi, factor) = smooth_bounce(wo, ns, eta, u, reflect_tint, transmit_tint);
+    let cos_i = wi.dot(ns);
+    // The geometric normal decides reflection or transmission.
+    let reflection = F::mask_bits((cos_i * cos_o).gt(zero));
+    let front_o = F::mask_bits(ng.dot(wo).gt(zero));
+    let front_i = F::mask_bits(ng.dot(wi).gt(zero));
+    let grazing = !F::mask_bits(cos_o.abs().gt(zero)) | !F::mask_bits(cos_i.abs().gt(zero));
+    let through = front_i ^ !(front_o ^ reflection);
+    let black = !F::mask_bits(factor.abs().max_element().gt(zero)) | !F::mask_bits(c.pdf.gt(zero));
+    let eta2 = F::select(F::mask_from_bits(reflection), F::splat(1.0), c.etap * c.etap);
+    let goes_on = on_glass & !grazing & !through & !black;
+    let (wx, wy, wz, pdf) = (wi.x.each_lane(), wi.y.each_lane(), wi.z.each_lane(), c.pdf.each_lane());
+    for i in lanes(goes_on) {
+        let Some(hit) = hit(i) else { continue };
+        previous.as_mut()[i] = Previous {
+            delta: true,
+            pdf: pdf.as_ref()[i],
+            p: hit.p,
+            n: hit.ns,
+        };
+        let wi = glam::Vec3::new(wx.as_ref()[i], wy.as_ref()[i], wz.as_ref()[i]);
+        rays.as_mut()[i] = hit.spawn_ray(wi);
+    }
+    (factor, eta2, goes_on)
 }
 
 #[cfg(test)]

@@ -647,6 +647,32 @@ impl Material {
             .map_or(1.0, |o| o.eval(textures, tc).x.clamp(0.0, 1.0))
     }
 
+    /// Its relative index and reflection and transmission tints where it
+    /// is a smooth dielectric that nothing varies over the surface: no
+    /// mask, mapped normal, roughness map or dispersion. Such a surface
+    /// turns light about its shading normal alone, with no frame, no
+    /// texture and no light sample, which lets the path tracer bounce
+    /// several paths off it in lanes.
+    #[inline]
+    pub(crate) fn plain_smooth_dielectric(&self) -> Option<(f32, Rgb, Rgb)> {
+        let MaterialKind::Dielectric {
+            eta,
+            microfacet,
+            reflect_tint,
+            transmit_tint,
+            dispersion: None,
+        } = &self.kind
+        else {
+            return None;
+        };
+        let plain = self.opacity.is_none()
+            && self.normal_map.is_none()
+            && self.bump_map.is_none()
+            && self.roughness_map.is_none()
+            && (*eta == 1.0 || microfacet.is_smooth());
+        plain.then_some((*eta, *reflect_tint, *transmit_tint))
+    }
+
     /// The frame in which the BSDF sees directions at `hit`, seen from
     /// `wo` (world, away from the surface): the shading normal and the
     /// tangent along u, turned to the normal map's or the bump map's normal
@@ -708,7 +734,9 @@ impl Material {
     /// Whether the surface emits.
     #[inline]
     pub fn is_emissive(&self) -> bool {
-        self.emission != Texture::Constant(Rgb::ZERO)
+        // A match, not `!=`: the derived comparison of textures is a call,
+        // made at every hit of every path.
+        !matches!(self.emission, Texture::Constant(c) if c == Rgb::ZERO)
     }
 
     /// Whether the surface's emission (if any) leaves `hit` toward `wo`

@@ -4,12 +4,19 @@
 //! Directions point away from the surface (both the incident and the
 //! outgoing one), as in pbrt-v4.
 
+use crate::geometry::simd::{Floats, Vec3s};
 use glam::Vec3;
 
 /// Mirror reflection of `w` about the normal `n`: `2(w·n)n − w`.
 #[inline]
 pub fn reflect(w: Vec3, n: Vec3) -> Vec3 {
-    2.0 * w.dot(n) * n - w
+    reflect_lanes(Vec3s::<f32>::splat(w), Vec3s::splat(n)).lane(0)
+}
+
+/// [`reflect`] over lanes.
+#[inline(always)]
+pub fn reflect_lanes<F: Floats>(w: Vec3s<F>, n: Vec3s<F>) -> Vec3s<F> {
+    n.scale(F::splat(2.0) * w.dot(n)) - w
 }
 
 /// Refraction of `wi` through an interface with normal `n` and relative
@@ -35,25 +42,43 @@ pub fn refract(wi: Vec3, n: Vec3, eta: f32) -> Option<(Vec3, f32)> {
 /// dielectric that needs both computes it once.
 #[inline]
 pub fn snell(cos_i: f32, eta: f32) -> (f32, f32, Option<f32>) {
+    let (cos_i, eta, cos_t, crosses) = snell_lanes(cos_i, eta);
+    (cos_i, eta, crosses.then_some(cos_t))
+}
+
+/// [`snell`] over lanes: |cos θ_i|, the relative index of the crossing,
+/// |cos θ_t| and the lanes where light crosses (elsewhere it is totally
+/// reflected, and |cos θ_t| is 0).
+#[inline(always)]
+pub fn snell_lanes<F: Floats>(cos_i: F, eta: F) -> (F, F, F, F::Mask) {
+    let (zero, one) = (F::splat(0.0), F::splat(1.0));
     // Divisions by the index only, which is known before the cosine, so
     // that they run ahead of the cosine's arithmetic instead of after it.
-    let inv_eta = 1.0 / eta;
-    let (cos_i, eta, inv_eta) = if cos_i < 0.0 {
-        (-cos_i, inv_eta, eta)
-    } else {
-        (cos_i, eta, inv_eta)
-    };
-    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) * (inv_eta * inv_eta);
-    (cos_i, eta, (sin2_t < 1.0).then(|| (1.0 - sin2_t).sqrt()))
+    let inv_eta = one / eta;
+    let inside = zero.gt(cos_i);
+    let (cos_i, eta, inv_eta) = (
+        F::select(inside, zero - cos_i, cos_i),
+        F::select(inside, inv_eta, eta),
+        F::select(inside, eta, inv_eta),
+    );
+    let sin2_t = (one - cos_i * cos_i).max(zero) * (inv_eta * inv_eta);
+    let crosses = one.gt(sin2_t);
+    (cos_i, eta, (one - sin2_t).max(zero).sqrt(), crosses)
 }
 
 /// The direction `wi` refracts into, from [`snell`]'s cosines and index,
 /// `n` the normal on `wi`'s side (pbrt-v4, eq. 9.4).
 #[inline]
 pub fn refracted(wi: Vec3, n: Vec3, cos_i: f32, eta: f32, cos_t: f32) -> Vec3 {
+    refracted_lanes(Vec3s::<f32>::splat(wi), Vec3s::splat(n), cos_i, eta, cos_t).lane(0)
+}
+
+/// [`refracted`] over lanes.
+#[inline(always)]
+pub fn refracted_lanes<F: Floats>(wi: Vec3s<F>, n: Vec3s<F>, cos_i: F, eta: F, cos_t: F) -> Vec3s<F> {
     // (The reciprocal, as in `snell`, ahead of the cosines.)
-    let inv_eta = 1.0 / eta;
-    -wi * inv_eta + (cos_i * inv_eta - cos_t) * n
+    let inv_eta = F::splat(1.0) / eta;
+    n.scale(cos_i * inv_eta - cos_t) - wi.scale(inv_eta)
 }
 
 /// Unpolarised Fresnel reflectance of a dielectric interface for light
@@ -69,11 +94,11 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
 
 /// The Fresnel reflectance from [`snell`]'s cosines and index: the mean
 /// of the parallel and perpendicular polarisations' (pbrt-v4, eq. 9.6).
-#[inline]
-pub fn fresnel_of_cosines(cos_i: f32, eta: f32, cos_t: f32) -> f32 {
+#[inline(always)]
+pub fn fresnel_of_cosines<F: Floats>(cos_i: F, eta: F, cos_t: F) -> F {
     let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    0.5 * (r_parl * r_parl + r_perp * r_perp)
+    F::splat(0.5) * (r_parl * r_parl + r_perp * r_perp)
 }
 
 /// A complex number, for the Fresnel equations of conductors.

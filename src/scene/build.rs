@@ -779,7 +779,17 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     } else {
         material_mixes.resize(materials.len(), None);
     }
+    let mut plain_glass: Vec<_> = (0..materials.len())
+        .map(|m| {
+            let mixed = material_mixes.get(m).is_some_and(Option::is_some);
+            materials[m].plain_smooth_dielectric().filter(|_| !mixed)
+        })
+        .collect();
+    if plain_glass.iter().all(Option::is_none) {
+        plain_glass.clear();
+    }
     let mut scene = Scene {
+        plain_glass,
         any_blend: material_mixes.iter().flatten().any(|m| m.exact),
         any_dispersive: materials.iter().any(|m| m.dispersion().is_some()),
         material_mixes,
