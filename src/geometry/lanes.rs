@@ -330,6 +330,10 @@ impl super::simd::Floats for F8 {
         std::array::from_fn(f)
     }
     #[inline(always)]
+    fn repeat<T: Copy>(value: T) -> [T; LANES] {
+        [value; LANES]
+    }
+    #[inline(always)]
     fn splat(x: f32) -> F8 {
         F8(unsafe { _mm256_set1_ps(x) })
     }

@@ -28,6 +28,9 @@ pub trait Floats:
 
     /// Plain values made lane by lane.
     fn each<T: Copy>(f: impl FnMut(usize) -> T) -> Self::Each<T>;
+    /// `value` in every lane, as plain values (an array's repeat, which
+    /// compiles to a few wide stores where `each` may loop).
+    fn repeat<T: Copy>(value: T) -> Self::Each<T>;
     /// `x` in every lane.
     fn splat(x: f32) -> Self;
     /// Lanes from plain values.
@@ -64,6 +67,10 @@ impl Floats for f32 {
     #[inline(always)]
     fn each<T: Copy>(mut f: impl FnMut(usize) -> T) -> [T; 1] {
         [f(0)]
+    }
+    #[inline(always)]
+    fn repeat<T: Copy>(value: T) -> [T; 1] {
+        [value]
     }
     #[inline(always)]
     fn splat(x: f32) -> f32 {

@@ -36,7 +36,7 @@ use crate::color::Rgb;
 use crate::geometry::simd::{Floats, Vec3s, lanes};
 use crate::geometry::{Ray, SurfaceHit};
 use crate::light::ShadowTarget;
-use crate::material::{DirectionSampling, TransportMode};
+use crate::material::{DirectionSampling, LaneBounce, TransportMode};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
 use crate::texture::TexCoord;
@@ -74,11 +74,7 @@ impl Gathering {
 /// The power heuristic with β = 2 (Veach 1997, eq. 9.13).
 #[inline]
 pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
-    let (a, b) = (pdf_a * pdf_a, pdf_b * pdf_b);
-    if a.is_infinite() {
-        return 1.0;
-    }
-    if a + b == 0.0 { 0.0 } else { a / (a + b) }
+    power_heuristic_lanes(pdf_a, pdf_b)
 }
 
 /// The path tracer.
@@ -189,8 +185,9 @@ impl PathTracer {
     /// traced alone. The paths move in lockstep, one segment each per
     /// step; what depends on one path's surface (its intersection, BSDF
     /// and light sample) is computed lane by lane, and the throughput and
-    /// estimate in lanes, except the bounces off plain smooth glass, which
-    /// are made together ([`smooth_glass_bounces`]).
+    /// estimate in lanes, except the bounces off plain smooth glass and
+    /// Lambertian surfaces, which are made together
+    /// ([`smooth_glass_bounces`], [`diffuse_bounces`]).
     #[inline(always)]
     fn trace<F: Floats>(
         &self,
@@ -235,9 +232,9 @@ impl PathTracer {
         });
         let mut factor = F::each(|_| Rgb::ONE);
         let mut eta2 = F::each(|_| 1.0f32);
-        // The index and tints of the plain smooth glass a lane's hit is on
-        // (valid where `on_glass` says so).
-        let mut glass = F::each(|_| None::<(f32, Rgb, Rgb)>);
+        // Diffuse bounces are made in lanes where directions are drawn by
+        // the BSDF (the other strategies are the textbook ones).
+        let diffuse_in_lanes = strategy == DirectionSampling::Bsdf;
         // Each path's wavelength, once it has met a dispersive glass.
         let mut wavelengths = F::each(|_| None::<f32>);
 
@@ -269,31 +266,41 @@ impl PathTracer {
                 break;
             }
 
-            // How the paths go on: those on smooth glass together, the
-            // others one by one.
-            let mut on_glass = 0u32;
-            if !scene.plain_glass.is_empty() {
+            // How the paths go on: those on smooth glass or diffuse
+            // surfaces together, the others one by one.
+            let (mut on_glass, mut on_diffuse) = (0u32, 0u32);
+            if !scene.lane_bounces.is_empty() {
                 for i in lanes(live) {
-                    if let Some(hit) = &hits.as_ref()[i] {
-                        let g = scene.plain_glass[hit.material as usize];
-                        on_glass |= (g.is_some() as u32) << i;
-                        glass.as_mut()[i] = g;
+                    let Some(hit) = &hits.as_ref()[i] else { continue };
+                    match scene.lane_bounces[hit.material as usize] {
+                        Some(LaneBounce::SmoothGlass { .. }) => on_glass |= 1 << i,
+                        Some(LaneBounce::Diffuse) if diffuse_in_lanes => on_diffuse |= 1 << i,
+                        _ => {}
                     }
                 }
             }
-            let mut glass_bounced = 0;
+            let mut lanes_bounced = 0;
             if on_glass != 0 {
                 let (factor, eta2, bounced) =
-                    smooth_glass_bounces::<F>(&hits, &glass, on_glass, &mut rays, samplers, &mut previous);
+                    smooth_glass_bounces::<F>(scene, &hits, on_glass, &mut rays, samplers, &mut previous);
                 live &= !(on_glass & !bounced);
                 let mask = F::mask_from_bits(bounced);
                 beta = Vec3s::select(mask, beta * factor, beta);
                 eta_scale = F::select(mask, eta_scale * eta2, eta_scale);
-                glass_bounced = bounced;
+                lanes_bounced |= bounced;
+            }
+            if on_diffuse != 0 {
+                let d = diffuse_bounces::<F>(scene, &hits, on_diffuse, &mut rays, samplers, &mut previous, nee, stats);
+                if d.lit != 0 {
+                    l = Vec3s::select(F::mask_from_bits(d.lit), l + (beta * d.f * d.li).scale(d.s), l);
+                }
+                live &= !(on_diffuse & !d.bounced);
+                beta = Vec3s::select(F::mask_from_bits(d.bounced), beta * d.factor, beta);
+                lanes_bounced |= d.bounced;
             }
             let mut lit = 0u32;
             let mut bounced = 0u32;
-            for i in lanes(live & !on_glass) {
+            for i in lanes(live & !on_glass & !on_diffuse) {
                 let Some(hit) = &hits.as_ref()[i] else { continue };
                 let ray = &mut rays.as_mut()[i];
                 let wavelength = &mut wavelengths.as_mut()[i];
@@ -334,7 +341,7 @@ impl PathTracer {
                 beta = Vec3s::select(mask, beta * Vec3s::gather(&factor), beta);
                 eta_scale = F::select(mask, eta_scale * F::gather(&eta2), eta_scale);
             }
-            bounced |= glass_bounced;
+            bounced |= lanes_bounced;
             depth += 1;
 
             // Russian roulette, for the paths that bounced.
@@ -536,8 +543,7 @@ impl PathTracer {
 }
 
 /// The bounces of the paths in lanes `on_glass`, whose `hits` are on
-/// plain smooth dielectrics of relative index and tints `glass`
-/// ([`Scene::plain_glass`]), made in lanes: what
+/// plain smooth dielectrics ([`LaneBounce::SmoothGlass`]), made in lanes: what
 /// [`PathTracer::scatter`] does there (with the same numbers drawn: the
 /// lobe choice, then a pair that a delta lobe passes over), in world
 /// space. Sets the rays and bounces of the lanes that go on and returns
@@ -548,8 +554,8 @@ impl PathTracer {
 /// through the surface.
 #[inline(always)]
 fn smooth_glass_bounces<F: Floats>(
+    scene: &Scene,
     hits: &F::Each<Option<SurfaceHit>>,
-    glass: &F::Each<Option<(f32, Rgb, Rgb)>>,
     on_glass: u32,
     rays: &mut F::Each<Ray>,
     samplers: &mut [Sampler],
@@ -557,7 +563,6 @@ fn smooth_glass_bounces<F: Floats>(
 ) -> (Vec3s<F>, F, u32) {
     use crate::material::dielectric::smooth_bounce;
     let hit = |i: usize| hits.as_ref()[i].as_ref().filter(|_| on_glass & (1 << i) != 0);
-    let part = |i: usize| glass.as_ref()[i].unwrap_or((1.0, Rgb::ZERO, Rgb::ZERO));
     let u = F::gather(&F::each(|i| match hit(i) {
         Some(_) => {
             let u = samplers[i].next_1d();
@@ -566,13 +571,30 @@ fn smooth_glass_bounces<F: Floats>(
         }
         None => 0.0,
     }));
-    // Lanes outside `on_glass` get a harmless direction and normal.
-    let d = Vec3s::<F>::gather(&F::each(|i| hit(i).map_or(glam::Vec3::Z, |_| rays.as_ref()[i].dir)));
-    let ns = Vec3s::<F>::gather(&F::each(|i| hit(i).map_or(glam::Vec3::Z, |h| h.ns)));
-    let ng = Vec3s::<F>::gather(&F::each(|i| hit(i).map_or(glam::Vec3::Z, |h| h.ng)));
-    let eta = F::gather(&F::each(|i| part(i).0));
-    let reflect_tint = Vec3s::<F>::gather(&F::each(|i| part(i).1));
-    let transmit_tint = Vec3s::<F>::gather(&F::each(|i| part(i).2));
+    // Lanes outside `on_glass` keep a harmless direction, normal and index.
+    let (mut d, mut ns, mut ng) = (
+        F::repeat(glam::Vec3::Z),
+        F::repeat(glam::Vec3::Z),
+        F::repeat(glam::Vec3::Z),
+    );
+    let (mut eta, mut reflect_tint, mut transmit_tint) =
+        (F::repeat(1.0f32), F::repeat(Rgb::ZERO), F::repeat(Rgb::ZERO));
+    for i in lanes(on_glass) {
+        let Some(h) = &hits.as_ref()[i] else { continue };
+        d.as_mut()[i] = rays.as_ref()[i].dir;
+        (ns.as_mut()[i], ng.as_mut()[i]) = (h.ns, h.ng);
+        if let Some(LaneBounce::SmoothGlass {
+            eta: e,
+            reflect_tint: r,
+            transmit_tint: t,
+        }) = scene.lane_bounces[h.material as usize]
+        {
+            (eta.as_mut()[i], reflect_tint.as_mut()[i], transmit_tint.as_mut()[i]) = (e, r, t);
+        }
+    }
+    let (d, ns, ng) = (Vec3s::<F>::gather(&d), Vec3s::<F>::gather(&ns), Vec3s::<F>::gather(&ng));
+    let eta = F::gather(&eta);
+    let (reflect_tint, transmit_tint) = (Vec3s::<F>::gather(&reflect_tint), Vec3s::<F>::gather(&transmit_tint));
 
     let zero = F::splat(0.0);
     // wo = −d/|d|, as `glam::Vec3::normalize` rounds it.
@@ -604,6 +626,210 @@ fn smooth_glass_bounces<F: Floats>(
     (factor, eta2, goes_on)
 }
 
+/// What [`diffuse_bounces`] found: the light of next-event estimation in
+/// lanes `lit` (BSDF value, radiance and the factor `|cos θ| · w / pdf`,
+/// as [`Direct`]), and in lanes `bounced` the throughput factors of the
+/// paths that go on.
+struct DiffuseBounces<F: Floats> {
+    lit: u32,
+    f: Vec3s<F>,
+    li: Vec3s<F>,
+    s: F,
+    factor: Vec3s<F>,
+    bounced: u32,
+}
+
+/// The bounces of the paths in lanes `on_diffuse`, whose `hits` are on
+/// plain Lambertian surfaces ([`LaneBounce::Diffuse`]), made in lanes:
+/// what [`PathTracer::scatter`] does there with the BSDF's own sampling,
+/// drawing the same numbers (the light's choice and sample, then the lobe
+/// choice that one lobe passes over, then the direction's pair). The
+/// reflectance, the light sample and the shadow ray are made lane by lane
+/// through the one-path functions; the shading frame, the BSDF's value,
+/// density and sample, the MIS weight and the checks in lanes. Sets the
+/// rays and bounces of the lanes that go on; the other lanes of
+/// `on_diffuse` end, for what `scatter` ends a path for (the back of a
+/// one-sided surface, a black reflectance, a grazing direction, a shading
+/// normal that sent the path through the surface).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn diffuse_bounces<F: Floats>(
+    scene: &Scene,
+    hits: &F::Each<Option<SurfaceHit>>,
+    on_diffuse: u32,
+    rays: &mut F::Each<Ray>,
+    samplers: &mut [Sampler],
+    previous: &mut F::Each<Previous>,
+    nee: Gathering,
+    stats: &mut RayStats,
+) -> DiffuseBounces<F> {
+    use crate::material::lambert::{lambert_eval, lambert_pdf, lambert_sample};
+    let hit = |i: usize| hits.as_ref()[i].as_ref().filter(|_| on_diffuse & (1 << i) != 0);
+    let zero = F::splat(0.0);
+    let bits = |m: F::Mask| F::mask_bits(m);
+    // Lanes outside `on_diffuse` keep a harmless direction and frame.
+    let (mut d, mut ns, mut ng, mut tangent) = (
+        F::repeat(glam::Vec3::Z),
+        F::repeat(glam::Vec3::Z),
+        F::repeat(glam::Vec3::Z),
+        F::repeat(glam::Vec3::X),
+    );
+    let mut one_sided = 0u32;
+    for i in lanes(on_diffuse) {
+        let Some(h) = &hits.as_ref()[i] else { continue };
+        d.as_mut()[i] = rays.as_ref()[i].dir;
+        (ns.as_mut()[i], ng.as_mut()[i], tangent.as_mut()[i]) = (h.ns, h.ng, h.tangent);
+        one_sided |= (!scene.materials[h.material as usize].two_sided as u32) << i;
+    }
+    let (d, ns, ng, tangent) = (
+        Vec3s::<F>::gather(&d),
+        Vec3s::<F>::gather(&ns),
+        Vec3s::<F>::gather(&ng),
+        Vec3s::<F>::gather(&tangent),
+    );
+    // wo = −d/|d|, as `glam::Vec3::normalize` rounds it; its cosine is
+    // its z in the shading frame.
+    let wo = d.scale(zero - F::splat(1.0) / d.dot(d).sqrt());
+    let cos_o = wo.dot(ns);
+    let front_o = bits(ng.dot(wo).gt(zero));
+    // The back of a one-sided surface is black, and draws nothing.
+    let active = on_diffuse & !(one_sided & !front_o);
+
+    // Lane by lane: the reflectance, the light sample, the direction's numbers.
+    let sampling_lights = nee != Gathering::Hits && !scene.lights.is_empty();
+    let mut samples = F::repeat(None::<crate::light::LightSample>);
+    let mut pdf_light = F::repeat(0.0f32);
+    let mut u = F::repeat(glam::Vec2::ZERO);
+    let mut albedo = F::repeat(Rgb::ZERO);
+    for i in lanes(active) {
+        let Some(h) = hit(i) else { continue };
+        let sampler = &mut samplers[i];
+        if let crate::material::MaterialKind::Diffuse { reflectance } = &scene.materials[h.material as usize].kind {
+            albedo.as_mut()[i] = reflectance.eval(&scene.textures, &TexCoord::at(h));
+        }
+        if sampling_lights {
+            let chosen = choose_light(scene, h.p, h.ns, sampler, true);
+            let sample = match chosen {
+                Some((light, _)) => scene.lights[light].sample_li_drawing(scene, h.p, sampler, true),
+                None => {
+                    // No light reaches the point: its numbers are passed over.
+                    sampler.skip_1d();
+                    sampler.skip_2d();
+                    None
+                }
+            };
+            pdf_light.as_mut()[i] = sample.map_or(0.0, |ls| ls.pdf) * chosen.map_or(0.0, |(_, pmf)| pmf);
+            samples.as_mut()[i] = sample;
+        }
+        // The lobe choice, which one lobe passes over.
+        sampler.skip_1d();
+        u.as_mut()[i] = sampler.next_2d();
+    }
+    let albedo = Vec3s::<F>::gather(&albedo);
+    let black = !bits(albedo.abs().max_element().gt(zero));
+
+    // Next-event estimation: the BSDF's value and the checks in lanes, the
+    // shadow rays lane by lane.
+    let mut lit = 0u32;
+    let (mut f, mut li, mut s) = (Vec3s::splat(Rgb::ZERO), Vec3s::splat(Rgb::ZERO), zero);
+    if sampling_lights {
+        let has = lanes(active).fold(0u32, |b, i| b | ((samples.as_ref()[i].is_some() as u32) << i));
+        let sample = |i: usize| samples.as_ref()[i].filter(|_| has & (1 << i) != 0);
+        let wi = Vec3s::<F>::gather(&F::each(|i| sample(i).map_or(glam::Vec3::Z, |ls| ls.wi)));
+        li = Vec3s::<F>::gather(&F::each(|i| sample(i).map_or(Rgb::ZERO, |ls| ls.li)));
+        let cos_i = wi.dot(ns);
+        f = lambert_eval(albedo, cos_o, cos_i);
+        let same = bits((cos_i * cos_o).gt(zero));
+        // The geometric normal decides reflection or transmission.
+        let front_i = bits(ng.dot(wi).gt(zero));
+        let consistent = !((front_i ^ front_o) ^ !same);
+        let dark = !bits(li.abs().max_element().gt(zero));
+        let tested = has & same & !black & !dark & consistent;
+        for i in lanes(tested) {
+            let (Some(h), Some(ls)) = (hit(i), sample(i)) else {
+                continue;
+            };
+            stats.rays += 1;
+            let shadow = match ls.target {
+                ShadowTarget::Point(p) => h.spawn_ray_to(p),
+                ShadowTarget::Infinity => h.spawn_ray(ls.wi),
+            };
+            if !scene.occluded(&shadow) {
+                lit |= 1 << i;
+            }
+        }
+        if lit != 0 {
+            let pdf_light = F::gather(&pdf_light);
+            let w = if nee == Gathering::Mis {
+                let delta = lanes(lit).fold(0u32, |b, i| {
+                    b | ((samples.as_ref()[i].is_some_and(|ls| ls.is_delta) as u32) << i)
+                });
+                let pdf_bsdf = lambert_pdf(cos_o, cos_i);
+                F::select(
+                    F::mask_from_bits(delta),
+                    F::splat(1.0),
+                    power_heuristic_lanes(pdf_light, pdf_bsdf),
+                )
+            } else {
+                F::splat(1.0)
+            };
+            s = cos_i.abs() * w / pdf_light;
+        }
+    }
+
+    // The BSDF's sample (cosine-weighted, on wo's side), in lanes.
+    let u = (
+        F::gather(&F::each(|i| u.as_ref()[i].x)),
+        F::gather(&F::each(|i| u.as_ref()[i].y)),
+    );
+    let local = lambert_sample(cos_o, u.0, u.1);
+    let same = bits((local.z * cos_o).gt(zero));
+    let pdf = lambert_pdf(cos_o, local.z);
+    let f_bounce = lambert_eval(albedo, cos_o, local.z);
+    // The frame (n, tangent, n × tangent) to world space.
+    let bitangent = Vec3s {
+        x: ns.y * tangent.z - tangent.y * ns.z,
+        y: ns.z * tangent.x - tangent.z * ns.x,
+        z: ns.x * tangent.y - tangent.x * ns.y,
+    };
+    let wi = tangent.scale(local.x) + bitangent.scale(local.y) + ns.scale(local.z);
+    let front_i = bits(ng.dot(wi).gt(zero));
+    let through = front_i ^ !(front_o ^ same);
+    let ends = !same | black | !bits(pdf.gt(zero)) | !bits(local.z.abs().gt(zero)) | through;
+    let bounced = active & !ends;
+    let factor = f_bounce.scale(local.z.abs() / pdf);
+    let (wx, wy, wz, pdfs) = (wi.x.each_lane(), wi.y.each_lane(), wi.z.each_lane(), pdf.each_lane());
+    for i in lanes(bounced) {
+        let Some(h) = hit(i) else { continue };
+        previous.as_mut()[i] = Previous {
+            delta: false,
+            pdf: pdfs.as_ref()[i],
+            p: h.p,
+            n: h.ns,
+        };
+        rays.as_mut()[i] = h.spawn_ray(glam::Vec3::new(wx.as_ref()[i], wy.as_ref()[i], wz.as_ref()[i]));
+    }
+    DiffuseBounces {
+        lit,
+        f,
+        li,
+        s,
+        factor,
+        bounced,
+    }
+}
+
+/// [`power_heuristic`] over lanes: 1 where `pdf_a` is infinite, 0 where
+/// both densities are 0.
+#[inline(always)]
+fn power_heuristic_lanes<F: Floats>(pdf_a: F, pdf_b: F) -> F {
+    let (a, b) = (pdf_a * pdf_a, pdf_b * pdf_b);
+    let zero = F::splat(0.0);
+    let sum = a + b;
+    let w = F::select(sum.gt(zero), a / sum, zero);
+    F::select(a.ge(F::splat(f32::INFINITY)), F::splat(1.0), w)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -615,6 +841,135 @@ mod tests {
         }
         assert_eq!(power_heuristic(0.0, 0.0), 0.0);
         assert_eq!(power_heuristic(f32::INFINITY, 1.0), 1.0);
+    }
+
+    /// On the suite's scenes with diffuse surfaces, the bounces made in
+    /// lanes (`diffuse_bounces`, one lane) are those `PathTracer::scatter`
+    /// makes, bit for bit: the next ray, the bounce, the throughput factor,
+    /// the light found by next-event estimation, and the numbers drawn,
+    /// for every way of gathering light; the hits include the backs of
+    /// one-sided surfaces.
+    #[test]
+    fn diffuse_bounces_in_lanes_are_those_made_one_by_one() {
+        use crate::sampling::rng::Pcg32;
+        let suite = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("bench/suite");
+        let defines = [
+            ("res".to_string(), "8".to_string()),
+            ("spp".to_string(), "4".to_string()),
+        ];
+        let mut rng = Pcg32::new(5, 0);
+        let mut ends = 0;
+        for name in ["cornell-box", "caustic", "smallpt-explicit", "many-lights"] {
+            let d = crate::scene::load(&suite.join(format!("{name}.xml")), &defines).unwrap();
+            let scene = crate::scene::build(&d).unwrap();
+            let s = &scene.settings;
+            let tracer = PathTracer {
+                max_depth: s.max_depth,
+                rr_depth: s.rr_depth,
+                sampling: s.sampling,
+            };
+            let (mut bounced, mut lit, mut ended) = (0, 0, 0);
+            let mut stats = RayStats::default();
+            for k in 0..1500u32 {
+                let film = glam::Vec2::new(rng.next_f32() * s.width as f32, rng.next_f32() * s.height as f32);
+                let camera_ray = scene.camera.generate_ray(film, glam::Vec2::splat(0.5));
+                let Some(first) = scene.intersect(&camera_ray) else {
+                    continue;
+                };
+                // Every other ray leaves the first hit in a random direction,
+                // which finds backs too.
+                let ray = if k % 2 == 0 {
+                    camera_ray
+                } else {
+                    let u = glam::Vec2::new(rng.next_f32(), rng.next_f32());
+                    first.spawn_ray(crate::sampling::warp::sample_sphere_uniform(u))
+                };
+                let Some(hit) = scene.intersect(&ray) else { continue };
+                if scene.lane_bounces.get(hit.material as usize) != Some(&Some(LaneBounce::Diffuse)) {
+                    continue;
+                }
+                for nee in [Gathering::Hits, Gathering::Nee, Gathering::Mis] {
+                    let mut alone = Sampler::new(s.sampler, s.spp, s.seed);
+                    alone.start_pixel_sample(k % s.width, k / s.width % s.height, k % s.spp);
+                    let mut lane = alone.clone();
+                    let (direct, scatter) = tracer.scatter(
+                        &scene,
+                        &hit,
+                        ray.dir,
+                        &mut alone,
+                        &mut None,
+                        &mut stats,
+                        DirectionSampling::Bsdf,
+                        nee,
+                    );
+                    let mut rays = [ray];
+                    let mut previous = [Previous {
+                        delta: true,
+                        pdf: 0.0,
+                        p: glam::Vec3::ZERO,
+                        n: glam::Vec3::ZERO,
+                    }];
+                    let made = diffuse_bounces::<f32>(
+                        &scene,
+                        &[Some(hit)],
+                        1,
+                        &mut rays,
+                        std::slice::from_mut(&mut lane),
+                        &mut previous,
+                        nee,
+                        &mut stats,
+                    );
+                    let bits = |v: glam::Vec3| v.to_array().map(f32::to_bits);
+                    match direct {
+                        Some(l) => {
+                            assert_eq!(made.lit, 1, "{name}: light found one by one only");
+                            assert_eq!(bits(l.f), bits(made.f.lane(0)), "{name}");
+                            assert_eq!(bits(l.li), bits(made.li.lane(0)), "{name}");
+                            assert_eq!(l.factor.to_bits(), made.s.lane(0).to_bits(), "{name}");
+                            lit += 1;
+                        }
+                        None => assert_eq!(made.lit, 0, "{name}: light found in lanes only"),
+                    }
+                    match scatter {
+                        Scatter::Bounce {
+                            factor,
+                            eta2,
+                            previous: p,
+                            ray: next,
+                        } => {
+                            assert_eq!(made.bounced, 1, "{name}: a bounce one by one only");
+                            assert_eq!(bits(factor), bits(made.factor.lane(0)), "{name}");
+                            assert_eq!(eta2, 1.0);
+                            assert_eq!(next, rays[0], "{name}");
+                            assert_eq!(
+                                (p.delta, p.pdf.to_bits(), bits(p.p), bits(p.n)),
+                                (
+                                    previous[0].delta,
+                                    previous[0].pdf.to_bits(),
+                                    bits(previous[0].p),
+                                    bits(previous[0].n)
+                                ),
+                                "{name}"
+                            );
+                            bounced += 1;
+                        }
+                        Scatter::End => {
+                            assert_eq!(made.bounced, 0, "{name}: a bounce in lanes only");
+                            ended += 1;
+                        }
+                        Scatter::Pass(_) => panic!("{name}: a diffuse surface has no cut-out"),
+                    }
+                    assert_eq!(
+                        alone.next_1d().to_bits(),
+                        lane.next_1d().to_bits(),
+                        "{name}: the same numbers drawn"
+                    );
+                }
+            }
+            assert!(bounced > 500 && lit > 100, "{name}: {bounced} bounces, {lit} lit");
+            ends += ended;
+        }
+        assert!(ends > 0, "some paths end");
     }
 
     #[test]

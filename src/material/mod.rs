@@ -467,6 +467,25 @@ fn diffuse_bsdf<'a>(reflectance: &Texture, textures: &TextureStore, tc: &TexCoor
     })
 }
 
+/// The materials whose bounces the path tracer makes in lanes, several
+/// paths at once ([`Material::lane_bounce`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LaneBounce {
+    /// A smooth dielectric: it turns light about its shading normal alone,
+    /// with no frame, texture or light sample.
+    SmoothGlass {
+        /// Relative index of refraction.
+        eta: f32,
+        /// Reflection multiplier.
+        reflect_tint: Rgb,
+        /// Transmission multiplier.
+        transmit_tint: Rgb,
+    },
+    /// A Lambertian surface: its reflectance, read lane by lane, is all
+    /// that varies.
+    Diffuse,
+}
+
 impl Material {
     /// A material of this kind that emits nothing, is two-sided, opaque and
     /// without normal, bump or roughness maps (a scene's reader adds those).
@@ -647,30 +666,33 @@ impl Material {
             .map_or(1.0, |o| o.eval(textures, tc).x.clamp(0.0, 1.0))
     }
 
-    /// Its relative index and reflection and transmission tints where it
-    /// is a smooth dielectric that nothing varies over the surface: no
-    /// mask, mapped normal, roughness map or dispersion. Such a surface
-    /// turns light about its shading normal alone, with no frame, no
-    /// texture and no light sample, which lets the path tracer bounce
-    /// several paths off it in lanes.
-    #[inline]
-    pub(crate) fn plain_smooth_dielectric(&self) -> Option<(f32, Rgb, Rgb)> {
-        let MaterialKind::Dielectric {
-            eta,
-            microfacet,
-            reflect_tint,
-            transmit_tint,
-            dispersion: None,
-        } = &self.kind
-        else {
+    /// How the path tracer may bounce paths off it in lanes, where it is
+    /// a material that nothing varies over but its texture: no mask,
+    /// mapped normal, roughness map or dispersion (see
+    /// [`LaneBounce`]).
+    pub(crate) fn lane_bounce(&self) -> Option<LaneBounce> {
+        if self.opacity.is_some()
+            || self.normal_map.is_some()
+            || self.bump_map.is_some()
+            || self.roughness_map.is_some()
+        {
             return None;
-        };
-        let plain = self.opacity.is_none()
-            && self.normal_map.is_none()
-            && self.bump_map.is_none()
-            && self.roughness_map.is_none()
-            && (*eta == 1.0 || microfacet.is_smooth());
-        plain.then_some((*eta, *reflect_tint, *transmit_tint))
+        }
+        match &self.kind {
+            MaterialKind::Dielectric {
+                eta,
+                microfacet,
+                reflect_tint,
+                transmit_tint,
+                dispersion: None,
+            } if *eta == 1.0 || microfacet.is_smooth() => Some(LaneBounce::SmoothGlass {
+                eta: *eta,
+                reflect_tint: *reflect_tint,
+                transmit_tint: *transmit_tint,
+            }),
+            MaterialKind::Diffuse { .. } => Some(LaneBounce::Diffuse),
+            _ => None,
+        }
     }
 
     /// The frame in which the BSDF sees directions at `hit`, seen from

@@ -5,6 +5,7 @@
 //! normal); solid-angle densities are per steradian, area densities per unit
 //! area. Derivations follow pbrt-v4, chapter A.5.
 
+use crate::geometry::simd::{Floats, Vec3s};
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_4, PI};
 
@@ -17,29 +18,38 @@ pub const INV_4PI: f32 = 0.25 * FRAC_1_PI;
 /// which keeps strata compact (pdf 1/π).
 #[inline]
 pub fn sample_disk_concentric(u: Vec2) -> Vec2 {
-    let o = 2.0 * u - Vec2::ONE;
-    if o.x == 0.0 && o.y == 0.0 {
-        return Vec2::ZERO;
-    }
+    let (x, y) = sample_disk_concentric_lanes(u.x, u.y);
+    Vec2::new(x, y)
+}
+
+/// [`sample_disk_concentric`] over lanes.
+#[inline(always)]
+pub fn sample_disk_concentric_lanes<F: Floats>(ux: F, uy: F) -> (F, F) {
+    let (zero, one, two) = (F::splat(0.0), F::splat(1.0), F::splat(2.0));
+    let (ox, oy) = (two * ux - one, two * uy - one);
     // θ = φ or π/2 − φ with |φ| ≤ π/4, so cos θ and sin θ are cos φ and
     // sin φ, possibly swapped: short polynomials instead of a libm call.
     // Which of the two is a coin toss per sample, so it is chosen by
     // selects, not a branch the processor would mispredict half the time.
-    let x_wider = o.x.abs() > o.y.abs();
-    let (r, other) = if x_wider { (o.x, o.y) } else { (o.y, o.x) };
-    let (sin, cos) = sin_cos_quarter_pi(FRAC_PI_4 * (other / r));
-    let (a, b) = if x_wider { (cos, sin) } else { (sin, cos) };
-    r * Vec2::new(a, b)
+    let x_wider = ox.abs().gt(oy.abs());
+    let (r, other) = (F::select(x_wider, ox, oy), F::select(x_wider, oy, ox));
+    let (sin, cos) = sin_cos_quarter_pi(F::splat(FRAC_PI_4) * (other / r));
+    let (a, b) = (F::select(x_wider, cos, sin), F::select(x_wider, sin, cos));
+    // The centre (where r is 0 and the angle 0/0) maps to itself.
+    let centre = F::mask_from_bits(!F::mask_bits(ox.abs().gt(zero)) & !F::mask_bits(oy.abs().gt(zero)));
+    (F::select(centre, zero, r * a), F::select(centre, zero, r * b))
 }
 
 /// (sin x, cos x) for |x| ≤ π/4 by their Taylor series to x⁹ and x⁸,
 /// whose remainders there are below 2·10⁻⁹ and 3·10⁻⁸: within an f32
 /// rounding or two of the library functions, and much cheaper.
-#[inline]
-pub(crate) fn sin_cos_quarter_pi(x: f32) -> (f32, f32) {
+#[inline(always)]
+pub(crate) fn sin_cos_quarter_pi<F: Floats>(x: F) -> (F, F) {
+    let c = F::splat;
     let x2 = x * x;
-    let sin = x * (1.0 + x2 * (-1.0 / 6.0 + x2 * (1.0 / 120.0 + x2 * (-1.0 / 5040.0 + x2 * (1.0 / 362_880.0)))));
-    let cos = 1.0 + x2 * (-0.5 + x2 * (1.0 / 24.0 + x2 * (-1.0 / 720.0 + x2 * (1.0 / 40320.0))));
+    let sin =
+        x * (c(1.0) + x2 * (c(-1.0 / 6.0) + x2 * (c(1.0 / 120.0) + x2 * (c(-1.0 / 5040.0) + x2 * c(1.0 / 362_880.0)))));
+    let cos = c(1.0) + x2 * (c(-0.5) + x2 * (c(1.0 / 24.0) + x2 * (c(-1.0 / 720.0) + x2 * c(1.0 / 40320.0))));
     (sin, cos)
 }
 
@@ -62,15 +72,21 @@ pub fn pdf_hemisphere_uniform() -> f32 {
 /// (pdf cosθ/π).
 #[inline]
 pub fn sample_hemisphere_cosine(u: Vec2) -> Vec3 {
-    let d = sample_disk_concentric(u);
-    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
-    Vec3::new(d.x, d.y, z)
+    sample_hemisphere_cosine_lanes(u.x, u.y).lane(0)
+}
+
+/// [`sample_hemisphere_cosine`] over lanes.
+#[inline(always)]
+pub fn sample_hemisphere_cosine_lanes<F: Floats>(ux: F, uy: F) -> Vec3s<F> {
+    let (x, y) = sample_disk_concentric_lanes(ux, uy);
+    let z = (F::splat(1.0) - (x * x + y * y)).max(F::splat(0.0)).sqrt();
+    Vec3s { x, y, z }
 }
 
 /// Density of [`sample_hemisphere_cosine`] for a direction with cosθ = `cos_theta`.
 #[inline]
-pub fn pdf_hemisphere_cosine(cos_theta: f32) -> f32 {
-    cos_theta.max(0.0) * FRAC_1_PI
+pub fn pdf_hemisphere_cosine<F: Floats>(cos_theta: F) -> F {
+    cos_theta.max(F::splat(0.0)) * F::splat(FRAC_1_PI)
 }
 
 /// Uniform direction on the unit sphere (pdf 1/(4π)).

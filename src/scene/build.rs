@@ -779,17 +779,17 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     } else {
         material_mixes.resize(materials.len(), None);
     }
-    let mut plain_glass: Vec<_> = (0..materials.len())
+    let mut lane_bounces: Vec<_> = (0..materials.len())
         .map(|m| {
             let mixed = material_mixes.get(m).is_some_and(Option::is_some);
-            materials[m].plain_smooth_dielectric().filter(|_| !mixed)
+            materials[m].lane_bounce().filter(|_| !mixed)
         })
         .collect();
-    if plain_glass.iter().all(Option::is_none) {
-        plain_glass.clear();
+    if lane_bounces.iter().all(Option::is_none) {
+        lane_bounces.clear();
     }
     let mut scene = Scene {
-        plain_glass,
+        lane_bounces,
         any_blend: material_mixes.iter().flatten().any(|m| m.exact),
         any_dispersive: materials.iter().any(|m| m.dispersion().is_some()),
         material_mixes,

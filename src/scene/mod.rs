@@ -84,10 +84,10 @@ pub struct Scene {
     pub any_blend: bool,
     /// Whether any material disperses light ([`Scene::disperses`]).
     pub any_dispersive: bool,
-    /// Per material, [`crate::material::Material::plain_smooth_dielectric`]
-    /// where it is no mix; empty where no material is one, so that the
-    /// path tracer's bounces in lanes are not looked for.
-    pub plain_glass: Vec<Option<(f32, crate::color::Rgb, crate::color::Rgb)>>,
+    /// Per material, [`crate::material::Material::lane_bounce`] where it
+    /// is no mix; empty where no material has one, so that the path
+    /// tracer does not look for bounces to make in lanes.
+    pub lane_bounces: Vec<Option<crate::material::LaneBounce>>,
 }
 
 impl Scene {
