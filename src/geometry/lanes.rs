@@ -372,6 +372,10 @@ impl super::simd::Floats for F8 {
         F8(unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0) })
     }
     #[inline(always)]
+    fn sign_one(self) -> F8 {
+        F8(unsafe { _mm256_or_ps(_mm256_and_ps(self.0, _mm256_set1_ps(-0.0)), _mm256_set1_ps(1.0)) })
+    }
+    #[inline(always)]
     fn each_lane(self) -> [f32; LANES] {
         let mut out = [0.0f32; LANES];
         unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) };

@@ -49,6 +49,8 @@ pub trait Floats:
     fn gt(self, other: Self) -> Self::Mask;
     /// The magnitude.
     fn abs(self) -> Self;
+    /// 1 with this value's sign bit (`1.0f32.copysign(self)`).
+    fn sign_one(self) -> Self;
     /// Every lane, as plain values.
     fn each_lane(self) -> Self::Each<f32>;
     /// `if mask { a } else { b }`.
@@ -107,6 +109,10 @@ impl Floats for f32 {
     #[inline(always)]
     fn abs(self) -> f32 {
         f32::abs(self)
+    }
+    #[inline(always)]
+    fn sign_one(self) -> f32 {
+        1.0f32.copysign(self)
     }
     #[inline(always)]
     fn each_lane(self) -> [f32; 1] {

@@ -663,6 +663,7 @@ fn diffuse_bounces<F: Floats>(
     nee: Gathering,
     stats: &mut RayStats,
 ) -> DiffuseBounces<F> {
+    use crate::light::sample_sphere_light_lanes;
     use crate::material::lambert::{lambert_eval, lambert_pdf, lambert_sample};
     let hit = |i: usize| hits.as_ref()[i].as_ref().filter(|_| on_diffuse & (1 << i) != 0);
     let zero = F::splat(0.0);
@@ -701,6 +702,12 @@ fn diffuse_bounces<F: Floats>(
     let mut pdf_light = F::repeat(0.0f32);
     let mut u = F::repeat(glam::Vec2::ZERO);
     let mut albedo = F::repeat(Rgb::ZERO);
+    // The lanes whose chosen light is a sphere sampled in lanes: the
+    // light, its probability and its centre, radius, sidedness and
+    // radiance, and the numbers drawn for it.
+    let mut on_sphere = 0u32;
+    let mut spheres = F::repeat((0usize, 0.0f32, (glam::Vec3::ZERO, 1.0f32, false, Rgb::ZERO)));
+    let mut sphere_u = F::repeat((0.0f32, glam::Vec2::ZERO));
     for i in lanes(active) {
         let Some(h) = hit(i) else { continue };
         let sampler = &mut samplers[i];
@@ -709,9 +716,18 @@ fn diffuse_bounces<F: Floats>(
         }
         if sampling_lights {
             let chosen = choose_light(scene, h.p, h.ns, sampler, true);
-            let sample = match chosen {
-                Some((light, _)) => scene.lights[light].sample_li_drawing(scene, h.p, sampler, true),
-                None => {
+            let sphere = chosen.and_then(|(light, _)| scene.lights[light].constant_sphere());
+            let sample = match (chosen, sphere) {
+                (Some((light, pmf)), Some(sphere)) => {
+                    // Sampled below, in lanes, from the numbers that
+                    // `Light::sample_li_drawing` draws: a pick, a pair.
+                    on_sphere |= 1 << i;
+                    spheres.as_mut()[i] = (light, pmf, sphere);
+                    sphere_u.as_mut()[i] = (sampler.next_1d(), sampler.next_2d());
+                    None
+                }
+                (Some((light, _)), None) => scene.lights[light].sample_li_drawing(scene, h.p, sampler, true),
+                (None, _) => {
                     // No light reaches the point: its numbers are passed over.
                     sampler.skip_1d();
                     sampler.skip_2d();
@@ -724,6 +740,42 @@ fn diffuse_bounces<F: Floats>(
         // The lobe choice, which one lobe passes over.
         sampler.skip_1d();
         u.as_mut()[i] = sampler.next_2d();
+    }
+    if on_sphere != 0 {
+        // Sphere lights of constant radiance, sampled by their cones in lanes.
+        let sphere = |i: usize| spheres.as_ref()[i].2;
+        let center = Vec3s::<F>::gather(&F::each(|i| sphere(i).0));
+        let radius = F::gather(&F::each(|i| sphere(i).1));
+        let two_sided = lanes(on_sphere).fold(0u32, |b, i| b | ((sphere(i).2 as u32) << i));
+        let p = Vec3s::<F>::gather(&F::each(|i| hit(i).map_or(glam::Vec3::ZERO, |h| h.p)));
+        let ux = F::gather(&F::each(|i| sphere_u.as_ref()[i].1.x));
+        let uy = F::gather(&F::each(|i| sphere_u.as_ref()[i].1.y));
+        let (wi, lp, pdf, valid, outside) =
+            sample_sphere_light_lanes(center, radius, F::mask_from_bits(two_sided), p, ux, uy);
+        let (wx, wy, wz, pdf) = (wi.x.each_lane(), wi.y.each_lane(), wi.z.each_lane(), pdf.each_lane());
+        let (lx, ly, lz) = (lp.x.each_lane(), lp.y.each_lane(), lp.z.each_lane());
+        for i in lanes(on_sphere) {
+            let (light, pmf, (_, _, _, radiance)) = spheres.as_ref()[i];
+            let sample = if valid & (1 << i) != 0 {
+                Some(crate::light::LightSample {
+                    wi: glam::Vec3::new(wx.as_ref()[i], wy.as_ref()[i], wz.as_ref()[i]),
+                    li: radiance,
+                    pdf: pdf.as_ref()[i],
+                    is_delta: false,
+                    target: ShadowTarget::Point(glam::Vec3::new(lx.as_ref()[i], ly.as_ref()[i], lz.as_ref()[i])),
+                })
+            } else if outside & (1 << i) == 0 {
+                // From inside the sphere, by area, lane by lane.
+                let (Some(h), (u_pick, u)) = (hit(i), sphere_u.as_ref()[i]) else {
+                    continue;
+                };
+                scene.lights[light].sample_li(scene, h.p, u_pick, u, true)
+            } else {
+                None
+            };
+            pdf_light.as_mut()[i] = sample.map_or(0.0, |ls| ls.pdf) * pmf;
+            samples.as_mut()[i] = sample;
+        }
     }
     let albedo = Vec3s::<F>::gather(&albedo);
     let black = !bits(albedo.abs().max_element().gt(zero));

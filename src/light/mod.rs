@@ -29,8 +29,9 @@ use crate::accel::aggregate::{EmitterArea, EmitterRef};
 use crate::color::{Rgb, luminance};
 use crate::geometry::SurfaceHit;
 use crate::geometry::shape::Shape;
+use crate::geometry::simd::{Floats, Vec3s};
 use crate::material::Frame;
-use crate::sampling::warp::{pdf_sphere_uniform, sample_sphere_uniform};
+use crate::sampling::warp::{orthonormal_basis_lanes, pdf_sphere_uniform, sample_sphere_uniform, sin_cos_turn};
 use crate::sampling::{Distribution2D, Sampler};
 use crate::scene::Scene;
 use crate::texture::{TexCoord, Texture};
@@ -526,44 +527,59 @@ fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
 /// sphere, its normal and the density per steradian; `None` if `p` is inside.
 #[inline]
 fn sample_sphere_cone(center: Vec3, radius: f32, p: Vec3, u: Vec2) -> Option<(Vec3, Vec3, f32)> {
+    let (lp, n, pdf, outside) =
+        sample_sphere_cone_lanes(Vec3s::<f32>::splat(center), radius, Vec3s::splat(p), u.x, u.y);
+    outside.then(|| (lp.lane(0), n.lane(0), pdf))
+}
+
+/// [`sample_sphere_cone`] over lanes: the point, its normal, the density
+/// and the lanes where `p` is outside the sphere (elsewhere the rest is
+/// meaningless).
+#[inline(always)]
+pub(crate) fn sample_sphere_cone_lanes<F: Floats>(
+    center: Vec3s<F>,
+    radius: F,
+    p: Vec3s<F>,
+    ux: F,
+    uy: F,
+) -> (Vec3s<F>, Vec3s<F>, F, F::Mask) {
+    let (zero, one) = (F::splat(0.0), F::splat(1.0));
     let to_center = center - p;
-    let dc2 = to_center.length_squared();
+    let dc2 = to_center.dot(to_center);
     let r2 = radius * radius;
-    if dc2 <= r2 {
-        return None;
-    }
+    let outside = dc2.gt(r2);
     // This runs at every vertex of every path in a scene lit by a sphere,
     // so its square roots and divisions run side by side where they can
     // rather than one after another.
     let dc = dc2.sqrt();
-    let (inv_dc, inv_sin_max) = (1.0 / dc, dc / radius);
+    let (inv_dc, inv_sin_max) = (one / dc, dc / radius);
     let sin_max = radius * inv_dc;
     let sin2_max = sin_max * sin_max;
     // cos θmax = √(dc² − r²)/dc: its root beside dc's.
-    let cos_max = (dc2 - r2).sqrt() * inv_dc;
-    let mut one_minus_cos_max = 1.0 - cos_max;
-    let mut cos_t = (cos_max - 1.0) * u.x + 1.0;
-    let mut sin2_t = 1.0 - cos_t * cos_t;
-    if sin2_max < 0.000_685_23 {
-        // Tiny cone: compute through sin² to keep precision.
-        sin2_t = sin2_max * u.x;
-        cos_t = (1.0 - sin2_t).sqrt();
-        one_minus_cos_max = sin2_max / 2.0;
-    }
+    let cos_max = (dc2 - r2).max(zero).sqrt() * inv_dc;
+    // A tiny cone is computed through sin², which keeps the precision.
+    let tiny = F::splat(0.000_685_23).gt(sin2_max);
+    let one_minus_cos_max = F::select(tiny, sin2_max / F::splat(2.0), one - cos_max);
+    let cos_t_wide = (cos_max - one) * ux + one;
+    let sin2_t = F::select(tiny, sin2_max * ux, one - cos_t_wide * cos_t_wide);
+    let cos_t = F::select(tiny, (one - sin2_t).max(zero).sqrt(), cos_t_wide);
     // The angle α at the centre between p and the sampled point, from the
     // triangle of the two and the centre (law of sines): with
     // k = dc/r and s = √(1 − k² sin² θ), cos α = k sin² θ + s cos θ (as
     // pbrt-v4) and sin α = sin θ (k cos θ − s), whose roots are
     // independent (sin α as √(1 − cos² α) would wait for cos α, and loses
     // the small angles).
-    let s = (1.0 - sin2_t * inv_sin_max * inv_sin_max).max(0.0).sqrt();
-    let sin_t = sin2_t.max(0.0).sqrt();
+    let s = (one - sin2_t * inv_sin_max * inv_sin_max).max(zero).sqrt();
+    let sin_t = sin2_t.max(zero).sqrt();
     let cos_a = sin2_t * inv_sin_max + cos_t * s;
-    let sin_a = (sin_t * (cos_t * inv_sin_max - s)).max(0.0);
-    let phi = 2.0 * PI * u.y;
-    let frame = Frame::from_normal(to_center * inv_dc);
-    let n = frame.to_world(-Vec3::new(sin_a * phi.cos(), sin_a * phi.sin(), cos_a));
-    Some((center + radius * n, n, 1.0 / (2.0 * PI * one_minus_cos_max)))
+    let sin_a = (sin_t * (cos_t * inv_sin_max - s)).max(zero);
+    let (sin_phi, cos_phi) = sin_cos_turn(uy);
+    let axis = to_center.scale(inv_dc);
+    let (bs, bt) = orthonormal_basis_lanes(axis);
+    // The normal points back toward p's side: −(sin α cos φ, sin α sin φ, cos α).
+    let n = (bs.scale(sin_a * cos_phi) + bt.scale(sin_a * sin_phi) + axis.scale(cos_a)).scale(F::splat(-1.0));
+    let pdf = one / (F::splat(2.0 * PI) * one_minus_cos_max);
+    (center + n.scale(radius), n, pdf, outside)
 }
 
 /// The (u, v) of a point on an untransformed sphere with outward normal
@@ -590,16 +606,11 @@ fn area_light_sample(
     pdf_area: f32,
     radiance: &Texture,
 ) -> Option<LightSample> {
-    let d = lp - p;
-    let dist2 = d.length_squared();
-    if dist2 == 0.0 {
+    let (wi, dist2, cos_light) = toward_light(Vec3s::<f32>::splat(p), Vec3s::splat(lp), Vec3s::splat(ln), two_sided);
+    if dist2 == 0.0 || cos_light <= 0.0 {
         return None;
     }
-    let wi = d / dist2.sqrt();
-    let cos_light = emitting_cosine(ln, -wi, two_sided);
-    if cos_light <= 0.0 {
-        return None;
-    }
+    let wi = wi.lane(0);
     // Area density to solid-angle density: p_ω = p_A · d² / cos θ_l.
     let pdf = match pdf_solid_angle {
         Some(pdf) => pdf,
@@ -615,6 +626,47 @@ fn area_light_sample(
         is_delta: false,
         target: ShadowTarget::Point(lp),
     })
+}
+
+/// From `p` toward the point `lp` of an emitter whose unit normal there is
+/// `ln`, over lanes: the unit direction, the squared distance and the
+/// cosine at the emitter ([`emitting_cosine`]; `two_sided`: the lanes whose
+/// emitter's back emits too).
+#[inline(always)]
+fn toward_light<F: Floats>(p: Vec3s<F>, lp: Vec3s<F>, ln: Vec3s<F>, two_sided: F::Mask) -> (Vec3s<F>, F, F) {
+    let d = lp - p;
+    let dist2 = d.dot(d);
+    let wi = d.over(dist2.sqrt());
+    let cos = F::splat(0.0) - ln.dot(wi);
+    (wi, dist2, F::select(two_sided, cos.abs(), cos))
+}
+
+/// A sphere light of constant radiance sampled by the cone it subtends
+/// ([`sample_sphere_cone`] and [`area_light_sample`] over lanes), for the
+/// path tracer's diffuse bounces in lanes: from `p`, the lanes of the
+/// spheres (`center`, `radius`, `two_sided`: the lanes whose back emits)
+/// drawing `ux`, `uy`, the direction, the point, the density per
+/// steradian, the lanes where the sample is valid and those where `p` is
+/// outside the sphere (inside, the light is sampled by area instead).
+#[inline(always)]
+pub(crate) fn sample_sphere_light_lanes<F: Floats>(
+    center: Vec3s<F>,
+    radius: F,
+    two_sided: F::Mask,
+    p: Vec3s<F>,
+    ux: F,
+    uy: F,
+) -> (Vec3s<F>, Vec3s<F>, F, u32, u32) {
+    let zero = F::splat(0.0);
+    let (lp, ln, pdf, outside) = sample_sphere_cone_lanes(center, radius, p, ux, uy);
+    let (wi, dist2, cos_light) = toward_light(p, lp, ln, two_sided);
+    let bits = |m: F::Mask| F::mask_bits(m);
+    let valid = bits(outside)
+        & bits(dist2.gt(zero))
+        & bits(cos_light.gt(zero))
+        & bits(pdf.gt(zero))
+        & bits(F::splat(f32::INFINITY).gt(pdf));
+    (wi, lp, pdf, valid, bits(outside))
 }
 
 /// 1 − cos θ_max of the cone whose half-angle has sin²θ_max = `sin2_max`,
@@ -924,6 +976,23 @@ impl Light {
                     target: ShadowTarget::Infinity,
                 })
             }
+        }
+    }
+
+    /// The centre, radius, sidedness and radiance of a sphere light of
+    /// constant radiance, which [`Light::sample_li`] samples by the cone it
+    /// subtends: what [`sample_sphere_light_lanes`] needs.
+    pub(crate) fn constant_sphere(&self) -> Option<(Vec3, f32, bool, Rgb)> {
+        match self {
+            Light::Area {
+                radiance: Texture::Constant(radiance),
+                two_sided,
+                sphere: Some((center, radius)),
+                parallelogram: None,
+                cone: None,
+                ..
+            } => Some((*center, *radius, *two_sided, *radiance)),
+            _ => None,
         }
     }
 
