@@ -177,14 +177,7 @@ pub fn drive<D: Driver>(scene: &Scene, aovs: bool, cancel: Option<&AtomicBool>, 
     let s = &scene.settings;
     Some(match s.integrator {
         IntegratorKind::Whitted => driver.camera_passes(&Whitted { max_depth: s.max_depth }, Work::default()),
-        IntegratorKind::Path => driver.camera_passes(
-            &PathTracer {
-                max_depth: s.max_depth,
-                rr_depth: s.rr_depth,
-                sampling: s.sampling,
-            },
-            Work::default(),
-        ),
+        IntegratorKind::Path => driver.camera_passes(&PathTracer::with_settings(s), Work::default()),
         IntegratorKind::Photon => {
             let mapper = PhotonMapper::build_until(scene, cancel)?;
             let prepared = Work {

@@ -163,6 +163,15 @@ enum Scatter {
 }
 
 impl PathTracer {
+    /// The path tracer that render settings `s` describe.
+    pub fn with_settings(s: &crate::settings::RenderSettings) -> PathTracer {
+        PathTracer {
+            max_depth: s.max_depth,
+            rr_depth: s.rr_depth,
+            sampling: s.sampling,
+        }
+    }
+
     /// [`PathTracer::trace`] over eight lanes.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
@@ -915,11 +924,7 @@ mod tests {
             let d = crate::scene::load(&suite.join(format!("{name}.xml")), &defines).unwrap();
             let scene = crate::scene::build(&d).unwrap();
             let s = &scene.settings;
-            let tracer = PathTracer {
-                max_depth: s.max_depth,
-                rr_depth: s.rr_depth,
-                sampling: s.sampling,
-            };
+            let tracer = PathTracer::with_settings(s);
             let (mut bounced, mut lit, mut ended) = (0, 0, 0);
             let mut stats = RayStats::default();
             for k in 0..1500u32 {

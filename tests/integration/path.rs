@@ -707,11 +707,7 @@ fn paths_traced_in_lanes_give_the_bits_of_paths_traced_alone() {
         let d = trazo::scene::load(path, &defines).unwrap();
         let scene = trazo::scene::build(&d).unwrap();
         let s = &scene.settings;
-        let tracer = PathTracer {
-            max_depth: s.max_depth,
-            rr_depth: s.rr_depth,
-            sampling: s.sampling,
-        };
+        let tracer = PathTracer::with_settings(s);
         let fresh = || Sampler::new(s.sampler, s.spp, s.seed);
         let mut stats = RayStats::default();
         let (mut lanes_rays, mut alone_rays) = (0, 0);
