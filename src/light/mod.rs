@@ -508,8 +508,15 @@ impl Projector {
 /// cosine); zero or less where it does not.
 #[inline(always)]
 pub fn emitting_cosine(n: Vec3, w: Vec3, two_sided: bool) -> f32 {
+    emitting_cosine_lanes(Vec3s::<f32>::splat(n), Vec3s::splat(w), two_sided)
+}
+
+/// [`emitting_cosine`] over lanes (`two_sided`: the lanes whose emitter's
+/// back emits too).
+#[inline(always)]
+fn emitting_cosine_lanes<F: Floats>(n: Vec3s<F>, w: Vec3s<F>, two_sided: F::Mask) -> F {
     let cos = n.dot(w);
-    if two_sided { cos.abs() } else { cos }
+    F::select(two_sided, cos.abs(), cos)
 }
 
 /// GLSL's smoothstep: 0 below `a`, 1 above `b`, a cubic ramp between.
@@ -637,8 +644,11 @@ fn toward_light<F: Floats>(p: Vec3s<F>, lp: Vec3s<F>, ln: Vec3s<F>, two_sided: F
     let d = lp - p;
     let dist2 = d.dot(d);
     let wi = d.over(dist2.sqrt());
-    let cos = F::splat(0.0) - ln.dot(wi);
-    (wi, dist2, F::select(two_sided, cos.abs(), cos))
+    (
+        wi,
+        dist2,
+        emitting_cosine_lanes(ln, wi.scale(F::splat(-1.0)), two_sided),
+    )
 }
 
 /// A sphere light of constant radiance sampled by the cone it subtends
