@@ -653,9 +653,12 @@ struct DiffuseBounces<F: Floats> {
 /// what [`PathTracer::scatter`] does there with the BSDF's own sampling,
 /// drawing the same numbers (the light's choice and sample, then the lobe
 /// choice that one lobe passes over, then the direction's pair). The
-/// reflectance, the light sample and the shadow ray are made lane by lane
-/// through the one-path functions; the shading frame, the BSDF's value,
-/// density and sample, the MIS weight and the checks in lanes. Sets the
+/// reflectance, the light's choice and the shadow ray are made lane by
+/// lane through the one-path functions, and so is the light sample except
+/// from spheres and parallelograms of constant radiance, which are sampled
+/// in lanes (in every lane at once where the lanes chose one light); the
+/// shading frame, the BSDF's value, density and sample, the MIS weight and
+/// the checks in lanes. Sets the
 /// rays and bounces of the lanes that go on; the other lanes of
 /// `on_diffuse` end, for what `scatter` ends a path for (the back of a
 /// one-sided surface, a black reflectance, a grazing direction, a shading
@@ -672,7 +675,7 @@ fn diffuse_bounces<F: Floats>(
     nee: Gathering,
     stats: &mut RayStats,
 ) -> DiffuseBounces<F> {
-    use crate::light::sample_sphere_light_lanes;
+    use crate::light::{ParallelogramLanes, sample_parallelogram_light_lanes, sample_sphere_light_lanes};
     use crate::material::lambert::{lambert_eval, lambert_pdf, lambert_sample};
     let hit = |i: usize| hits.as_ref()[i].as_ref().filter(|_| on_diffuse & (1 << i) != 0);
     let zero = F::splat(0.0);
@@ -711,12 +714,16 @@ fn diffuse_bounces<F: Floats>(
     let mut pdf_light = F::repeat(0.0f32);
     let mut u = F::repeat(glam::Vec2::ZERO);
     let mut albedo = F::repeat(Rgb::ZERO);
-    // The lanes whose chosen light is a sphere sampled in lanes: the
-    // light, its probability and its centre, radius, sidedness and
-    // radiance, and the numbers drawn for it.
-    let mut on_sphere = 0u32;
-    let mut spheres = F::repeat((0usize, 0.0f32, (glam::Vec3::ZERO, 1.0f32, false, Rgb::ZERO)));
-    let mut sphere_u = F::repeat((0.0f32, glam::Vec2::ZERO));
+    // The lanes whose chosen light is sampled below, in lanes: a sphere
+    // (by its cone) or a parallelogram (by area) of constant radiance; the
+    // light, its probability and radiance, and the numbers drawn for it
+    // (those `Light::sample_li_drawing` draws: a pick, read by a sphere
+    // alone, then a pair).
+    let (mut on_sphere, mut on_quad) = (0u32, 0u32);
+    let mut chosen_light = F::repeat(0u32);
+    let mut pmf = F::repeat(0.0f32);
+    let mut radiance = F::repeat(Rgb::ZERO);
+    let mut light_u = F::repeat((0.0f32, glam::Vec2::ZERO));
     for i in lanes(active) {
         let Some(h) = hit(i) else { continue };
         let sampler = &mut samplers[i];
@@ -725,18 +732,30 @@ fn diffuse_bounces<F: Floats>(
         }
         if sampling_lights {
             let chosen = choose_light(scene, h.p, h.ns, sampler, true);
-            let sphere = chosen.and_then(|(light, _)| scene.lights[light].constant_sphere());
-            let sample = match (chosen, sphere) {
-                (Some((light, pmf)), Some(sphere)) => {
-                    // Sampled below, in lanes, from the numbers that
-                    // `Light::sample_li_drawing` draws: a pick, a pair.
-                    on_sphere |= 1 << i;
-                    spheres.as_mut()[i] = (light, pmf, sphere);
-                    sphere_u.as_mut()[i] = (sampler.next_1d(), sampler.next_2d());
-                    None
+            let sample = match chosen {
+                Some((light, p)) => {
+                    let l = &scene.lights[light];
+                    let lane_light = l
+                        .constant_sphere()
+                        .map(|s| (true, s.3))
+                        .or_else(|| l.constant_parallelogram().map(|q| (false, q.2)));
+                    match lane_light {
+                        Some((sphere, rgb)) => {
+                            if sphere {
+                                on_sphere |= 1 << i;
+                                light_u.as_mut()[i] = (sampler.next_1d(), sampler.next_2d());
+                            } else {
+                                on_quad |= 1 << i;
+                                sampler.skip_1d();
+                                light_u.as_mut()[i] = (0.0, sampler.next_2d());
+                            }
+                            (chosen_light.as_mut()[i], pmf.as_mut()[i], radiance.as_mut()[i]) = (light as u32, p, rgb);
+                            None
+                        }
+                        None => l.sample_li_drawing(scene, h.p, sampler, true),
+                    }
                 }
-                (Some((light, _)), None) => scene.lights[light].sample_li_drawing(scene, h.p, sampler, true),
-                (None, _) => {
+                None => {
                     // No light reaches the point: its numbers are passed over.
                     sampler.skip_1d();
                     sampler.skip_2d();
@@ -750,40 +769,104 @@ fn diffuse_bounces<F: Floats>(
         sampler.skip_1d();
         u.as_mut()[i] = sampler.next_2d();
     }
-    if on_sphere != 0 {
-        // Sphere lights of constant radiance, sampled by their cones in lanes.
-        let sphere = |i: usize| spheres.as_ref()[i].2;
-        let center = Vec3s::<F>::gather(&F::each(|i| sphere(i).0));
-        let radius = F::gather(&F::each(|i| sphere(i).1));
-        let two_sided = lanes(on_sphere).fold(0u32, |b, i| b | ((sphere(i).2 as u32) << i));
+    // The samples made in lanes, in the lanes `in_lanes` (the others' are
+    // in `samples`): direction, radiance, point and density.
+    let mut in_lanes = 0u32;
+    let (mut lane_wi, mut lane_li, mut lane_lp) = (
+        Vec3s::<F>::splat(glam::Vec3::Z),
+        Vec3s::<F>::splat(glam::Vec3::ZERO),
+        Vec3s::<F>::splat(glam::Vec3::ZERO),
+    );
+    let mut lane_pdf = zero;
+    if on_sphere | on_quad != 0 {
         let p = Vec3s::<F>::gather(&F::each(|i| hit(i).map_or(glam::Vec3::ZERO, |h| h.p)));
-        let ux = F::gather(&F::each(|i| sphere_u.as_ref()[i].1.x));
-        let uy = F::gather(&F::each(|i| sphere_u.as_ref()[i].1.y));
-        let (wi, lp, pdf, valid, outside) =
-            sample_sphere_light_lanes(center, radius, F::mask_from_bits(two_sided), p, ux, uy);
-        let (wx, wy, wz, pdf) = (wi.x.each_lane(), wi.y.each_lane(), wi.z.each_lane(), pdf.each_lane());
-        let (lx, ly, lz) = (lp.x.each_lane(), lp.y.each_lane(), lp.z.each_lane());
-        for i in lanes(on_sphere) {
-            let (light, pmf, (_, _, _, radiance)) = spheres.as_ref()[i];
-            let sample = if valid & (1 << i) != 0 {
-                Some(crate::light::LightSample {
-                    wi: glam::Vec3::new(wx.as_ref()[i], wy.as_ref()[i], wz.as_ref()[i]),
-                    li: radiance,
-                    pdf: pdf.as_ref()[i],
-                    is_delta: false,
-                    target: ShadowTarget::Point(glam::Vec3::new(lx.as_ref()[i], ly.as_ref()[i], lz.as_ref()[i])),
-                })
-            } else if outside & (1 << i) == 0 {
+        let ux = F::gather(&F::each(|i| light_u.as_ref()[i].1.x));
+        let uy = F::gather(&F::each(|i| light_u.as_ref()[i].1.y));
+        let first = |group: u32| chosen_light.as_ref()[group.trailing_zeros() as usize];
+        // The light of lane `i`, one of `group`'s, or the group's first.
+        let light_of = |group: u32, i: usize| {
+            let l = if group & (1 << i) != 0 {
+                chosen_light.as_ref()[i]
+            } else {
+                first(group)
+            };
+            &scene.lights[l as usize]
+        };
+        // Lanes that all chose one light take it in every lane.
+        let one_light = |group: u32| lanes(group).all(|i| chosen_light.as_ref()[i] == first(group));
+        // The group's valid samples, taken into the lanes' (a function, not
+        // a closure: a closure is not built for the vector extensions that
+        // its enclosing function is, and its lane operations became calls).
+        #[inline(always)]
+        fn take<F: Floats>(
+            group: u32,
+            (wi, lp, pdf, valid): (Vec3s<F>, Vec3s<F>, F, u32),
+            (lane_wi, lane_lp, lane_pdf, in_lanes): (&mut Vec3s<F>, &mut Vec3s<F>, &mut F, &mut u32),
+        ) {
+            let took = group & valid;
+            let mask = F::mask_from_bits(took);
+            *lane_wi = Vec3s::select(mask, wi, *lane_wi);
+            *lane_lp = Vec3s::select(mask, lp, *lane_lp);
+            *lane_pdf = F::select(mask, pdf, *lane_pdf);
+            *in_lanes |= took;
+        }
+        if on_sphere != 0 {
+            // Sphere lights of constant radiance, sampled by their cones.
+            let sphere = |i: usize| light_of(on_sphere, i).constant_sphere().expect("a sphere light");
+            let (center, radius) = if one_light(on_sphere) {
+                let (c, r, _, _) = sphere(on_sphere.trailing_zeros() as usize);
+                (Vec3s::splat(c), F::splat(r))
+            } else {
+                (
+                    Vec3s::<F>::gather(&F::each(|i| sphere(i).0)),
+                    F::gather(&F::each(|i| sphere(i).1)),
+                )
+            };
+            let two_sided = lanes(on_sphere).fold(0u32, |b, i| b | ((sphere(i).2 as u32) << i));
+            let (wi, lp, pdf, valid, outside) =
+                sample_sphere_light_lanes(center, radius, F::mask_from_bits(two_sided), p, ux, uy);
+            take(
+                on_sphere,
+                (wi, lp, pdf, valid),
+                (&mut lane_wi, &mut lane_lp, &mut lane_pdf, &mut in_lanes),
+            );
+            for i in lanes(on_sphere & !valid & !outside) {
                 // From inside the sphere, by area, lane by lane.
-                let (Some(h), (u_pick, u)) = (hit(i), sphere_u.as_ref()[i]) else {
+                let (Some(h), (u_pick, u)) = (hit(i), light_u.as_ref()[i]) else {
                     continue;
                 };
-                scene.lights[light].sample_li(scene, h.p, u_pick, u, true)
-            } else {
-                None
+                let sample = light_of(on_sphere, i).sample_li(scene, h.p, u_pick, u, true);
+                pdf_light.as_mut()[i] = sample.map_or(0.0, |ls| ls.pdf) * pmf.as_ref()[i];
+                samples.as_mut()[i] = sample;
+            }
+        }
+        if on_quad != 0 {
+            // Parallelogram lights of constant radiance, sampled by area.
+            let quad = |i: usize| {
+                light_of(on_quad, i)
+                    .constant_parallelogram()
+                    .expect("a parallelogram light")
             };
-            pdf_light.as_mut()[i] = sample.map_or(0.0, |ls| ls.pdf) * pmf;
-            samples.as_mut()[i] = sample;
+            let r = if one_light(on_quad) {
+                ParallelogramLanes::<F>::of(&quad(on_quad.trailing_zeros() as usize).0)
+            } else {
+                ParallelogramLanes::<F>::gather(&F::each(|i| quad(i).0))
+            };
+            let two_sided = lanes(on_quad).fold(0u32, |b, i| b | ((quad(i).1 as u32) << i));
+            take(
+                on_quad,
+                sample_parallelogram_light_lanes(r, F::mask_from_bits(two_sided), p, ux, uy),
+                (&mut lane_wi, &mut lane_lp, &mut lane_pdf, &mut in_lanes),
+            );
+        }
+        if in_lanes != 0 {
+            lane_li = if one_light(on_sphere | on_quad) {
+                Vec3s::splat(radiance.as_ref()[in_lanes.trailing_zeros() as usize])
+            } else {
+                Vec3s::<F>::gather(&radiance)
+            };
+            // As `ls.pdf * pmf` lane by lane.
+            lane_pdf = lane_pdf * F::gather(&pmf);
         }
     }
     let albedo = Vec3s::<F>::gather(&albedo);
@@ -794,10 +877,22 @@ fn diffuse_bounces<F: Floats>(
     let mut lit = 0u32;
     let (mut f, mut li, mut s) = (Vec3s::splat(Rgb::ZERO), Vec3s::splat(Rgb::ZERO), zero);
     if sampling_lights {
-        let has = lanes(active).fold(0u32, |b, i| b | ((samples.as_ref()[i].is_some() as u32) << i));
-        let sample = |i: usize| samples.as_ref()[i].filter(|_| has & (1 << i) != 0);
-        let wi = Vec3s::<F>::gather(&F::each(|i| sample(i).map_or(glam::Vec3::Z, |ls| ls.wi)));
-        li = Vec3s::<F>::gather(&F::each(|i| sample(i).map_or(Rgb::ZERO, |ls| ls.li)));
+        // The lanes whose samples were made one by one.
+        let one_by_one = lanes(active & !in_lanes).fold(0u32, |b, i| b | ((samples.as_ref()[i].is_some() as u32) << i));
+        let has = in_lanes | one_by_one;
+        let sample = |i: usize| samples.as_ref()[i].filter(|_| one_by_one & (1 << i) != 0);
+        let (wi, pdf_light) = if one_by_one == 0 {
+            (lane_wi, lane_pdf)
+        } else {
+            let mask = F::mask_from_bits(in_lanes);
+            let wi = Vec3s::<F>::gather(&F::each(|i| sample(i).map_or(glam::Vec3::Z, |ls| ls.wi)));
+            li = Vec3s::<F>::gather(&F::each(|i| sample(i).map_or(Rgb::ZERO, |ls| ls.li)));
+            (
+                Vec3s::select(mask, lane_wi, wi),
+                F::select(mask, lane_pdf, F::gather(&pdf_light)),
+            )
+        };
+        li = Vec3s::select(F::mask_from_bits(in_lanes), lane_li, li);
         let cos_i = wi.dot(ns);
         f = lambert_eval(albedo, cos_o, cos_i);
         let same = bits((cos_i * cos_o).gt(zero));
@@ -806,25 +901,25 @@ fn diffuse_bounces<F: Floats>(
         let consistent = !((front_i ^ front_o) ^ !same);
         let dark = !bits(li.abs().max_element().gt(zero));
         let tested = has & same & !black & !dark & consistent;
+        let (lx, ly, lz) = (lane_lp.x.each_lane(), lane_lp.y.each_lane(), lane_lp.z.each_lane());
         for i in lanes(tested) {
-            let (Some(h), Some(ls)) = (hit(i), sample(i)) else {
-                continue;
+            let Some(h) = hit(i) else { continue };
+            let target = match sample(i) {
+                Some(ls) => ls.target,
+                None => ShadowTarget::Point(glam::Vec3::new(lx.as_ref()[i], ly.as_ref()[i], lz.as_ref()[i])),
             };
             stats.rays += 1;
-            let shadow = match ls.target {
+            let shadow = match target {
                 ShadowTarget::Point(p) => h.spawn_ray_to(p),
-                ShadowTarget::Infinity => h.spawn_ray(ls.wi),
+                ShadowTarget::Infinity => h.spawn_ray(wi.lane(i)),
             };
             if !scene.occluded(&shadow) {
                 lit |= 1 << i;
             }
         }
         if lit != 0 {
-            let pdf_light = F::gather(&pdf_light);
             let w = if nee == Gathering::Mis {
-                let delta = lanes(lit).fold(0u32, |b, i| {
-                    b | ((samples.as_ref()[i].is_some_and(|ls| ls.is_delta) as u32) << i)
-                });
+                let delta = lanes(lit).fold(0u32, |b, i| b | ((sample(i).is_some_and(|ls| ls.is_delta) as u32) << i));
                 let pdf_bsdf = lambert_pdf(cos_o, cos_i);
                 F::select(
                     F::mask_from_bits(delta),

@@ -124,7 +124,7 @@ pub enum Light {
 /// the emitter, then on its shape, then a division by its area) cost about
 /// as many instructions again (BENCHMARKS.md). Points, normal, coordinates
 /// and density are those [`crate::accel::Aggregate::sample_emitter`] gives.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Parallelogram {
     pub(crate) corner: Vec3,
     pub(crate) edge_u: Vec3,
@@ -679,6 +679,69 @@ pub(crate) fn sample_sphere_light_lanes<F: Floats>(
     (wi, lp, pdf, valid, bits(outside))
 }
 
+/// Parallelograms in lanes (see [`Parallelogram`]).
+#[derive(Clone, Copy)]
+pub(crate) struct ParallelogramLanes<F> {
+    pub(crate) corner: Vec3s<F>,
+    pub(crate) edge_u: Vec3s<F>,
+    pub(crate) edge_v: Vec3s<F>,
+    pub(crate) normal: Vec3s<F>,
+    pub(crate) pdf_area: F,
+}
+
+impl<F: Floats> ParallelogramLanes<F> {
+    /// `r` in every lane.
+    #[inline(always)]
+    pub(crate) fn of(r: &Parallelogram) -> Self {
+        ParallelogramLanes {
+            corner: Vec3s::splat(r.corner),
+            edge_u: Vec3s::splat(r.edge_u),
+            edge_v: Vec3s::splat(r.edge_v),
+            normal: Vec3s::splat(r.normal),
+            pdf_area: F::splat(r.pdf_area),
+        }
+    }
+
+    /// Lanes from plain parallelograms.
+    #[inline(always)]
+    pub(crate) fn gather(r: &F::Each<Parallelogram>) -> Self {
+        let r = r.as_ref();
+        let v = |f: fn(&Parallelogram) -> Vec3| Vec3s::<F>::gather(&F::each(|i| f(&r[i])));
+        ParallelogramLanes {
+            corner: v(|r| r.corner),
+            edge_u: v(|r| r.edge_u),
+            edge_v: v(|r| r.edge_v),
+            normal: v(|r| r.normal),
+            pdf_area: F::gather(&F::each(|i| r[i].pdf_area)),
+        }
+    }
+}
+
+/// A parallelogram light sampled by area, uniformly (the sample of
+/// [`Light::sample_li`], over lanes): from `p`, the parallelograms `r`
+/// (`two_sided`: the lanes whose back emits) drawing `ux`, `uy`, the
+/// direction, the point, the density per steradian and the lanes where the
+/// sample is valid (the point is not `p` itself, `p` is on the emitting
+/// side, the density is positive and finite).
+#[inline(always)]
+pub(crate) fn sample_parallelogram_light_lanes<F: Floats>(
+    r: ParallelogramLanes<F>,
+    two_sided: F::Mask,
+    p: Vec3s<F>,
+    ux: F,
+    uy: F,
+) -> (Vec3s<F>, Vec3s<F>, F, u32) {
+    let zero = F::splat(0.0);
+    let lp = r.corner + r.edge_u.scale(ux) + r.edge_v.scale(uy);
+    let (wi, dist2, cos_light) = toward_light(p, lp, r.normal, two_sided);
+    // Area density to solid-angle density: p_ω = p_A · d² / cos θ_l.
+    let pdf = r.pdf_area * dist2 / cos_light;
+    let bits = |m: F::Mask| F::mask_bits(m);
+    let valid =
+        bits(dist2.gt(zero)) & bits(cos_light.gt(zero)) & bits(pdf.gt(zero)) & bits(F::splat(f32::INFINITY).gt(pdf));
+    (wi, lp, pdf, valid)
+}
+
 /// 1 − cos θ_max of the cone whose half-angle has sin²θ_max = `sin2_max`,
 /// through sin² for a tiny cone, where 1 − cos would round away.
 fn one_minus_cos_max(sin2_max: f32) -> f32 {
@@ -754,18 +817,21 @@ impl Light {
             ..
         } = self
         {
-            let lp = r.corner + u.x * r.edge_u + u.y * r.edge_v;
-            return area_light_sample(
-                scene,
-                p,
-                lp,
-                r.normal,
+            let (wi, lp, pdf, valid) = sample_parallelogram_light_lanes(
+                ParallelogramLanes::<f32>::of(r),
                 *two_sided,
-                (u, Vec3::ZERO),
-                None,
-                r.pdf_area,
-                radiance,
+                Vec3s::splat(p),
+                u.x,
+                u.y,
             );
+            let lp = lp.lane(0);
+            return (valid != 0).then(|| LightSample {
+                wi: wi.lane(0),
+                li: radiance.eval(&scene.textures, &TexCoord::new(u, lp)),
+                pdf,
+                is_delta: false,
+                target: ShadowTarget::Point(lp),
+            });
         }
         self.sample_li_other(scene, p, u_pick, u, incomplete)
     }
@@ -1002,6 +1068,21 @@ impl Light {
                 cone: None,
                 ..
             } => Some((*center, *radius, *two_sided, *radiance)),
+            _ => None,
+        }
+    }
+
+    /// The parallelogram, sidedness and radiance of a parallelogram light
+    /// of constant radiance, which [`Light::sample_li`] samples by area:
+    /// what [`sample_parallelogram_light_lanes`] needs.
+    pub(crate) fn constant_parallelogram(&self) -> Option<(Parallelogram, bool, Rgb)> {
+        match self {
+            Light::Area {
+                radiance: Texture::Constant(radiance),
+                two_sided,
+                parallelogram: Some(r),
+                ..
+            } => Some((*r, *two_sided, *radiance)),
             _ => None,
         }
     }
