@@ -675,8 +675,6 @@ fn uv_sphere_ply(rings: u32, segments: u32) -> String {
 /// included.
 #[test]
 fn paths_traced_in_lanes_give_the_bits_of_paths_traced_alone() {
-    use trazo::integrator::{Integrator, LANES, PathTracer, RayStats};
-    use trazo::sampling::Sampler;
     let suite = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("bench/suite");
     let mut scenes: Vec<_> = std::fs::read_dir(&suite)
         .unwrap()
@@ -704,47 +702,105 @@ fn paths_traced_in_lanes_give_the_bits_of_paths_traced_alone() {
         } else {
             path.clone()
         };
-        let d = trazo::scene::load(path, &defines).unwrap();
-        let scene = trazo::scene::build(&d).unwrap();
-        let s = &scene.settings;
-        let tracer = PathTracer::with_settings(s);
-        let fresh = || Sampler::new(s.sampler, s.spp, s.seed);
-        let mut stats = RayStats::default();
-        let (mut lanes_rays, mut alone_rays) = (0, 0);
-        for y in 0..s.height {
-            for x in 0..s.width {
-                // Every lane, then some left out (a lens that blocks a ray).
-                for live in [0xff_u32, 0b1011_0110] {
-                    let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| fresh());
-                    let rays: [trazo::geometry::Ray; LANES] = std::array::from_fn(|k| {
-                        samplers[k].start_pixel_sample(x, y, k as u32);
-                        let u = samplers[k].next_2d();
-                        let film = Vec2::new(x as f32 + u.x, y as f32 + u.y);
-                        scene.camera.generate_ray(film, Vec2::splat(0.5))
-                    });
-                    let mut alone = samplers.clone();
-                    let together = tracer.radiance_lanes(&scene, &rays, &mut samplers, live, &mut stats);
-                    lanes_rays += std::mem::take(&mut stats.rays);
-                    for k in 0..LANES {
-                        let expect = if live & (1 << k) != 0 {
-                            tracer.radiance(&scene, &rays[k], &mut alone[k], &mut stats)
-                        } else {
-                            Rgb::ZERO
-                        };
-                        assert_eq!(
-                            together[k].to_array().map(f32::to_bits),
-                            expect.to_array().map(f32::to_bits),
-                            "{}: pixel ({x}, {y}), lane {k} of {live:#b}",
-                            path.display()
-                        );
-                    }
-                    alone_rays += std::mem::take(&mut stats.rays);
+        lanes_match_alone(path, &defines);
+    }
+}
+
+/// What [`paths_traced_in_lanes_give_the_bits_of_paths_traced_alone`]
+/// checks, on the scene at `path`.
+fn lanes_match_alone(path: &std::path::Path, defines: &[(String, String)]) {
+    use trazo::integrator::{Integrator, LANES, PathTracer, RayStats};
+    use trazo::sampling::Sampler;
+    let d = trazo::scene::load(path, defines).unwrap();
+    let scene = trazo::scene::build(&d).unwrap();
+    let s = &scene.settings;
+    let tracer = PathTracer::with_settings(s);
+    let fresh = || Sampler::new(s.sampler, s.spp, s.seed);
+    let mut stats = RayStats::default();
+    let (mut lanes_rays, mut alone_rays) = (0, 0);
+    for y in 0..s.height {
+        for x in 0..s.width {
+            // Every lane, then some left out (a lens that blocks a ray).
+            for live in [0xff_u32, 0b1011_0110] {
+                let mut samplers: [Sampler; LANES] = std::array::from_fn(|_| fresh());
+                let rays: [trazo::geometry::Ray; LANES] = std::array::from_fn(|k| {
+                    samplers[k].start_pixel_sample(x, y, k as u32);
+                    let u = samplers[k].next_2d();
+                    let film = Vec2::new(x as f32 + u.x, y as f32 + u.y);
+                    scene.camera.generate_ray(film, Vec2::splat(0.5))
+                });
+                let mut alone = samplers.clone();
+                let together = tracer.radiance_lanes(&scene, &rays, &mut samplers, live, &mut stats);
+                lanes_rays += std::mem::take(&mut stats.rays);
+                for k in 0..LANES {
+                    let expect = if live & (1 << k) != 0 {
+                        tracer.radiance(&scene, &rays[k], &mut alone[k], &mut stats)
+                    } else {
+                        Rgb::ZERO
+                    };
+                    assert_eq!(
+                        together[k].to_array().map(f32::to_bits),
+                        expect.to_array().map(f32::to_bits),
+                        "{}: pixel ({x}, {y}), lane {k} of {live:#b}",
+                        path.display()
+                    );
                 }
+                alone_rays += std::mem::take(&mut stats.rays);
             }
         }
-        assert_eq!(lanes_rays, alone_rays, "{}: rays counted", path.display());
-        assert!(alone_rays > 0);
     }
+    assert_eq!(lanes_rays, alone_rays, "{}: rays counted", path.display());
+    assert!(alone_rays > 0);
+}
+
+/// The lanes' light samples where the lanes chose different lights of
+/// the kinds sampled in lanes (two parallelograms, one facing each way,
+/// and a sphere) and of a kind sampled one by one (a disk): each lane
+/// still has the bits of its path traced alone.
+#[test]
+fn paths_in_lanes_that_chose_different_lights_give_the_bits_of_paths_traced_alone() {
+    let scene = r#"<scene version="3.0.0">
+    <integrator type="path"><integer name="max_depth" value="6"/></integrator>
+    <sensor type="perspective">
+        <float name="fov" value="50"/>
+        <transform name="to_world"><lookat origin="0, 1, 3.5" target="0, 1, 0" up="0, 1, 0"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="8"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="12"/><integer name="height" value="12"/></film>
+    </sensor>
+    <bsdf type="diffuse" id="white"><rgb name="reflectance" value="0.7, 0.7, 0.7"/></bsdf>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="2, 2, 1"/><rotate x="1" angle="-90"/></transform>
+        <ref id="white"/>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="2, 2, 1"/><translate value="0, 1, -1.5"/></transform>
+        <ref id="white"/>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="0.3, 0.2, 1"/><rotate x="1" angle="90"/><translate value="-0.6, 2, 0"/></transform>
+        <emitter type="area"><rgb name="radiance" value="6, 5, 4"/></emitter>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="0.2, 0.3, 1"/><rotate y="1" angle="-90"/><translate value="1.4, 0.8, -0.5"/></transform>
+        <emitter type="area"><rgb name="radiance" value="2, 3, 5"/></emitter>
+    </shape>
+    <shape type="sphere">
+        <point name="center" value="0.5, 1.6, -0.8"/><float name="radius" value="0.15"/>
+        <emitter type="area"><rgb name="radiance" value="8, 8, 8"/></emitter>
+    </shape>
+    <shape type="disk">
+        <transform name="to_world"><scale value="0.2"/><rotate x="1" angle="90"/><translate value="-1, 2.2, -1"/></transform>
+        <emitter type="area"><rgb name="radiance" value="5, 5, 5"/></emitter>
+    </shape>
+    <shape type="sphere">
+        <point name="center" value="0, 0.4, -0.4"/><float name="radius" value="0.4"/>
+        <ref id="white"/>
+    </shape>
+</scene>"#;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("lights.xml");
+    std::fs::write(&path, scene).unwrap();
+    lanes_match_alone(&path, &[]);
 }
 
 /// Light that enters a smooth glass sphere meets its inside always at the
