@@ -672,80 +672,95 @@ fn render_passes<I: Integrator>(
                     weights_y: [0.0; MAX_TAPS],
                 };
                 let mut aovs = Vec::with_capacity(if options.aovs { n } else { 0 });
-                for y in tile.y0..tile.y1 {
+                // The tile's samples in order, pixel by pixel (a pixel's
+                // samples in order), LANES at a time, so that the
+                // integrator's lanes stay full when a pass has fewer
+                // samples a pixel than lanes (a time limit's passes of
+                // one); each lane's estimate is the one its sample gives
+                // alone, and they are recorded in order.
+                let per_pixel = end - first;
+                let width = tile.x1 - tile.x0;
+                let sample_at = |k: u64| {
+                    let pixel = (k / per_pixel as u64) as u32;
+                    let index = first + (k % per_pixel as u64) as u32;
+                    (tile.x0 + pixel % width, tile.y0 + pixel / width, index)
+                };
+                let total = n as u64 * per_pixel as u64;
+                let (mut sum, mut aov) = (PixelSum::default(), AovSum::default());
+                let mut row_checked = None;
+                for group in (0..total).step_by(LANES) {
+                    let count = (total - group).min(LANES as u64) as usize;
                     // Checked once a row, so that an interrupt is obeyed
                     // within a row of a tile.
-                    if stop_now().is_some() {
-                        return None;
+                    let (_, first_row, _) = sample_at(group);
+                    if row_checked != Some(first_row) {
+                        if stop_now().is_some() {
+                            return None;
+                        }
+                        row_checked = Some(first_row);
                     }
-                    for x in tile.x0..tile.x1 {
-                        let i = (y * w + x) as usize;
-                        let mut sum = PixelSum::default();
-                        let mut aov = AovSum::default();
-                        // The pixel's samples, LANES at a time (the
-                        // integrator may trace them together), then
-                        // recorded one by one in order.
-                        for group in (first..end).step_by(LANES) {
-                            let count = (end - group).min(LANES as u32) as usize;
-                            let mut live = 0u32;
-                            for k in 0..count {
-                                let sample = (x, y, group + k as u32);
-                                let (position, lens, time, filter_weight) =
-                                    camera_draws(scene, &pixel_filter, splat.is_some(), &mut samplers[k], sample);
-                                (positions[k], lenses[k], times[k]) = (position, lens, time);
-                                filter_weights[k] = filter_weight;
+                    let mut live = 0u32;
+                    for k in 0..count {
+                        let sample = sample_at(group + k as u64);
+                        let (position, lens, time, filter_weight) =
+                            camera_draws(scene, &pixel_filter, splat.is_some(), &mut samplers[k], sample);
+                        (positions[k], lenses[k], times[k]) = (position, lens, time);
+                        filter_weights[k] = filter_weight;
+                    }
+                    // The rays are written where the loop keeps them (see
+                    // `Camera::generate_weighted_ray_into`).
+                    scene.camera.generate_weighted_rays_into(
+                        &positions,
+                        &lenses,
+                        count,
+                        &mut camera_rays,
+                        &mut weights,
+                    );
+                    for k in 0..count {
+                        timed(scene, &mut camera_rays[k], times[k]);
+                        if weights[k] > 0.0 {
+                            live |= 1 << k;
+                        }
+                    }
+                    let ls = integrator.radiance_lanes(scene, &camera_rays, &mut samplers, live, &mut rays);
+                    for k in 0..count {
+                        let (x, y, index) = sample_at(group + k as u64);
+                        let (position, ray) = (positions[k], camera_rays[k]);
+                        let l = if live & (1 << k) != 0 {
+                            ls[k] * weights[k]
+                        } else {
+                            Rgb::ZERO
+                        };
+                        if l.is_finite() {
+                            let l = limit_component(l, max_component);
+                            match &splat {
+                                // Weighted as pbrt-v4's film weighs
+                                // samples: Σ w·L / Σ w.
+                                None => sum.add(l, filter_weights[k]),
+                                Some(sp) => splat_sample(sp, &mut splat_buffer, position, l),
                             }
-                            // The rays are written where the loop keeps
-                            // them (see `Camera::generate_weighted_ray_into`).
-                            scene.camera.generate_weighted_rays_into(
-                                &positions,
-                                &lenses,
-                                count,
-                                &mut camera_rays,
-                                &mut weights,
-                            );
-                            for k in 0..count {
-                                timed(scene, &mut camera_rays[k], times[k]);
-                                if weights[k] > 0.0 {
-                                    live |= 1 << k;
-                                }
-                            }
-                            let ls = integrator.radiance_lanes(scene, &camera_rays, &mut samplers, live, &mut rays);
-                            for k in 0..count {
-                                let (index, position, ray) = (group + k as u32, positions[k], camera_rays[k]);
-                                let l = if live & (1 << k) != 0 {
-                                    ls[k] * weights[k]
-                                } else {
-                                    Rgb::ZERO
-                                };
-                                if l.is_finite() {
-                                    let l = limit_component(l, max_component);
-                                    match &splat {
-                                        // Weighted as pbrt-v4's film weighs
-                                        // samples: Σ w·L / Σ w.
-                                        None => sum.add(l, filter_weights[k]),
-                                        Some(sp) => splat_sample(sp, &mut splat_buffer, position, l),
-                                    }
-                                } else {
-                                    invalid.record(InvalidSample { x, y, index, value: l });
-                                }
-                                if options.aovs {
-                                    let a = camera_aov(scene, &ray);
-                                    if a.albedo.is_finite()
-                                        && a.normal.is_finite()
-                                        && a.depth.is_finite()
-                                        && a.steps.is_finite()
-                                    {
-                                        aov.add(&a);
-                                    }
-                                }
+                        } else {
+                            invalid.record(InvalidSample { x, y, index, value: l });
+                        }
+                        if options.aovs {
+                            let a = camera_aov(scene, &ray);
+                            if a.albedo.is_finite()
+                                && a.normal.is_finite()
+                                && a.depth.is_finite()
+                                && a.steps.is_finite()
+                            {
+                                aov.add(&a);
                             }
                         }
-                        if splat.is_none() {
-                            sums.push(film_ref.pixels[i].plus(&sum));
-                        }
-                        if let Some(a) = &film_ref.aovs {
-                            aovs.push(a[i].plus(&aov));
+                        // The pixel's last sample.
+                        if index + 1 == end {
+                            let i = (y * w + x) as usize;
+                            if splat.is_none() {
+                                sums.push(film_ref.pixels[i].plus(&std::mem::take(&mut sum)));
+                            }
+                            if let Some(a) = &film_ref.aovs {
+                                aovs.push(a[i].plus(&std::mem::take(&mut aov)));
+                            }
                         }
                     }
                 }

@@ -1215,6 +1215,72 @@ fn an_interrupt_mid_pass_keeps_whole_passes() {
     assert!(out.film.pixels.iter().all(|p| p.sum().weight == spp as f64), "{spp}");
 }
 
+/// The render loop hands an integrator's lanes a tile's samples in order
+/// across pixels, so that passes of fewer samples a pixel than lanes (the
+/// schedule's first, of 1, 1, 2 and 4) keep them full; each estimate lands
+/// in its own pixel, and every sample is traced once.
+#[test]
+fn lanes_take_samples_across_pixels_and_each_lands_in_its_own() {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    use trazo::integrator::{Integrator, LANES, RayStats};
+    use trazo::sampling::Sampler;
+    #[derive(Default)]
+    struct Directions {
+        groups: AtomicU64,
+        partial: AtomicU64,
+        traced: AtomicU64,
+    }
+    impl Integrator for Directions {
+        // The ray's direction: the image is the camera's field of
+        // directions, which grows along x and falls along y.
+        fn radiance(&self, _: &trazo::scene::Scene, ray: &Ray, _: &mut Sampler, _: &mut RayStats) -> Rgb {
+            Rgb::new(ray.dir.x, ray.dir.y, 1.0)
+        }
+        fn radiance_lanes(
+            &self,
+            scene: &trazo::scene::Scene,
+            rays: &[Ray; LANES],
+            samplers: &mut [Sampler; LANES],
+            live: u32,
+            stats: &mut RayStats,
+        ) -> [Rgb; LANES] {
+            self.groups.fetch_add(1, Ordering::Relaxed);
+            self.partial.fetch_add(u64::from(live != 0xff), Ordering::Relaxed);
+            self.traced.fetch_add(live.count_ones().into(), Ordering::Relaxed);
+            std::array::from_fn(|i| {
+                if live & (1 << i) != 0 {
+                    self.radiance(scene, &rays[i], &mut samplers[i], stats)
+                } else {
+                    Rgb::ZERO
+                }
+            })
+        }
+    }
+    // 24 × 20 pixels in tiles of 16 × 16, 16 × 4, 8 × 16 and 8 × 4: every
+    // tile's samples of a pass fill whole groups of eight.
+    let spp = 11;
+    let scene = small_box_filtered(spp, trazo::settings::Filter::Box { radius: 0.5 });
+    let lanes = Directions::default();
+    let out = trazo::render::render_with(&scene, &lanes, &RenderOptions::default()).unwrap();
+    let samples = 24 * 20 * spp as u64;
+    assert_eq!(lanes.traced.load(Ordering::Relaxed), samples);
+    assert_eq!(lanes.groups.load(Ordering::Relaxed), samples / 8);
+    assert_eq!(lanes.partial.load(Ordering::Relaxed), 0);
+    let image = out.film.to_image();
+    for y in 0..20 {
+        for x in 0..24 {
+            let p = image.get(x, y);
+            assert!(out.film.pixels[(y * 24 + x) as usize].sum().weight == spp as f64);
+            if x > 0 {
+                assert!(p.x > image.get(x - 1, y).x, "pixel ({x}, {y})");
+            }
+            if y > 0 {
+                assert!(p.y < image.get(x, y - 1).y, "pixel ({x}, {y})");
+            }
+        }
+    }
+}
+
 /// An integrator that returns NaN or infinity for some samples: they are
 /// counted, dropped before the film, and the first few are reported with
 /// their pixel and sample index.
