@@ -675,35 +675,38 @@ fn render_passes<I: Integrator>(
                 // The tile's samples in order, pixel by pixel (a pixel's
                 // samples in order), LANES at a time, so that the
                 // integrator's lanes stay full when a pass has fewer
-                // samples a pixel than lanes (a time limit's passes of
-                // one); each lane's estimate is the one its sample gives
-                // alone, and they are recorded in order.
-                let per_pixel = end - first;
-                let width = tile.x1 - tile.x0;
-                let sample_at = |k: u64| {
-                    let pixel = (k / per_pixel as u64) as u32;
-                    let index = first + (k % per_pixel as u64) as u32;
-                    (tile.x0 + pixel % width, tile.y0 + pixel / width, index)
-                };
-                let total = n as u64 * per_pixel as u64;
+                // samples a pixel than lanes (the schedule's first); each
+                // lane's estimate is the one its sample gives alone, and
+                // they are recorded in order.
+                let total = n as u64 * (end - first) as u64;
+                // The next sample: its pixel and index.
+                let mut next = (tile.x0, tile.y0, first);
+                let mut samples = [next; LANES];
                 let (mut sum, mut aov) = (PixelSum::default(), AovSum::default());
                 let mut row_checked = None;
                 for group in (0..total).step_by(LANES) {
                     let count = (total - group).min(LANES as u64) as usize;
                     // Checked once a row, so that an interrupt is obeyed
                     // within a row of a tile.
-                    let (_, first_row, _) = sample_at(group);
-                    if row_checked != Some(first_row) {
+                    if row_checked != Some(next.1) {
                         if stop_now().is_some() {
                             return None;
                         }
-                        row_checked = Some(first_row);
+                        row_checked = Some(next.1);
                     }
                     let mut live = 0u32;
                     for k in 0..count {
-                        let sample = sample_at(group + k as u64);
+                        samples[k] = next;
+                        let (x, y, index) = next;
+                        next = if index + 1 < end {
+                            (x, y, index + 1)
+                        } else if x + 1 < tile.x1 {
+                            (x + 1, y, first)
+                        } else {
+                            (tile.x0, y + 1, first)
+                        };
                         let (position, lens, time, filter_weight) =
-                            camera_draws(scene, &pixel_filter, splat.is_some(), &mut samplers[k], sample);
+                            camera_draws(scene, &pixel_filter, splat.is_some(), &mut samplers[k], samples[k]);
                         (positions[k], lenses[k], times[k]) = (position, lens, time);
                         filter_weights[k] = filter_weight;
                     }
@@ -724,7 +727,7 @@ fn render_passes<I: Integrator>(
                     }
                     let ls = integrator.radiance_lanes(scene, &camera_rays, &mut samplers, live, &mut rays);
                     for k in 0..count {
-                        let (x, y, index) = sample_at(group + k as u64);
+                        let (x, y, index) = samples[k];
                         let (position, ray) = (positions[k], camera_rays[k]);
                         let l = if live & (1 << k) != 0 {
                             ls[k] * weights[k]
