@@ -1577,13 +1577,13 @@ fn one_by_one(
 #[cfg(target_arch = "x86_64")]
 #[inline]
 fn record_hits(found: &mut [Option<Hit>; PACKET], bits: u32, t: &[f32; PACKET], id: u32) {
-    for (i, slot) in found.iter_mut().enumerate() {
-        if bits & (1 << i) != 0 {
-            *slot = Some(Hit {
-                t: t[i],
-                prim: HitPrim::Shape(id),
-            });
-        }
+    // The lanes' bits, not a test of each lane: which rays hit is as good
+    // as random from block to block.
+    for i in crate::geometry::simd::lanes(bits) {
+        found[i] = Some(Hit {
+            t: t[i],
+            prim: HitPrim::Shape(id),
+        });
     }
 }
 

@@ -355,13 +355,10 @@ impl PathTracer {
 
             // Russian roulette, for the paths that bounced.
             if depth > self.rr_depth && bounced != 0 {
-                let u = F::each(|i| {
-                    if bounced & (1 << i) != 0 {
-                        samplers[i].next_1d()
-                    } else {
-                        0.0
-                    }
-                });
+                let mut u = F::repeat(0.0f32);
+                for i in lanes(bounced) {
+                    u.as_mut()[i] = samplers[i].next_1d();
+                }
                 let q = (beta.max_magnitude() * eta_scale).min(F::splat(0.95));
                 let ended = F::mask_bits(F::gather(&u).ge(q)) & bounced;
                 live &= !ended;
@@ -572,14 +569,17 @@ fn smooth_glass_bounces<F: Floats>(
 ) -> (Vec3s<F>, F, u32) {
     use crate::material::dielectric::smooth_bounce;
     let hit = |i: usize| hits.as_ref()[i].as_ref().filter(|_| on_glass & (1 << i) != 0);
-    let u = F::gather(&F::each(|i| match hit(i) {
-        Some(_) => {
-            let u = samplers[i].next_1d();
+    // The lanes' bits, not a test of each lane (as for every per-lane
+    // loop here): which lanes bounce is as good as random from step to
+    // step.
+    let mut u = F::repeat(0.0f32);
+    for i in lanes(on_glass) {
+        if hit(i).is_some() {
+            u.as_mut()[i] = samplers[i].next_1d();
             samplers[i].skip_2d();
-            u
         }
-        None => 0.0,
-    }));
+    }
+    let u = F::gather(&u);
     // Lanes outside `on_glass` keep a harmless direction, normal and index.
     let (mut d, mut ns, mut ng) = (
         F::repeat(glam::Vec3::Z),

@@ -135,10 +135,10 @@ impl Scene {
         let together = self.sphere_records_together(rays, found, live, slots);
         #[cfg(not(target_arch = "x86_64"))]
         let together = 0;
-        for (i, (ray, slot)) in rays.iter().zip(slots.iter_mut()).enumerate() {
-            if live & !together & (1 << i) != 0 {
-                self.surface_into(ray, &found[i], slot);
-            }
+        // The lanes' bits, not a test of each lane: which lanes missed or
+        // were left is as good as random from packet to packet.
+        for i in crate::geometry::simd::lanes(live & !together) {
+            self.surface_into(&rays[i], &found[i], &mut slots[i]);
         }
         true
     }
