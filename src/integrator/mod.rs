@@ -79,6 +79,27 @@ pub trait Integrator: Sync {
     }
 }
 
+/// The largest probability with which Russian roulette keeps a path of
+/// the path tracers, whose paths are at most `max_depth` segments long.
+/// A path goes on with probability min(cap, max(β)·η²), η² undoing the
+/// radiance scaling of refraction. Where the depth bounds the paths, the
+/// cap is 1, as in pbrt-v4's path tracers: a path whose weight is still
+/// at least one is not put at risk, which would add the noise of its
+/// weight 1/q and save few segments (glass keeps β·η² at one: inside a
+/// glass ball the risk was most of the noise). Where the depth is
+/// unbounded (Mitsuba's −1, kept as [`MAX_DEPTH`]) nothing else ends a
+/// path that keeps its weight (light trapped by total internal
+/// reflection, a white furnace), so the cap is Mitsuba's 0.95.
+///
+/// [`MAX_DEPTH`]: crate::settings::MAX_DEPTH
+pub(crate) fn survival_cap(max_depth: u32) -> f32 {
+    if max_depth >= crate::settings::MAX_DEPTH {
+        0.95
+    } else {
+        1.0
+    }
+}
+
 /// [`Integrator::radiance_lanes`] by [`Integrator::radiance`], one ray
 /// after the other.
 pub(crate) fn one_by_one<I: Integrator + ?Sized>(

@@ -25,13 +25,15 @@
 //!
 //! `max_depth` is the longest path in segments from the camera (1: emitters
 //! seen directly, 2: direct lighting, …), as in Mitsuba. After `rr_depth`
-//! segments, Russian roulette ends a path with probability
-//! 1 − min(0.95, max(β)·η²) and divides the survivors' throughput β by the
-//! survival probability, which keeps the estimate unbiased (η² undoes the
-//! radiance scaling of refraction so that paths inside glass are not
-//! killed for it).
+//! segments, Russian roulette keeps a path with probability
+//! q = min(1, max(β)·η²) and divides the survivors' throughput β by q,
+//! which keeps the estimate unbiased (η² undoes the radiance scaling of
+//! refraction so that paths inside glass are not killed for it): as in
+//! pbrt-v4, a path whose weight is still at least one goes on. Where the
+//! depth is unbounded the cap is Mitsuba's 0.95 instead of 1, so that
+//! every path ends ([`super::survival_cap`]).
 
-use super::{Integrator, LANES, RayStats, choose_light, light_choice_pmf, path_bsdf};
+use super::{Integrator, LANES, RayStats, choose_light, light_choice_pmf, path_bsdf, survival_cap};
 use crate::color::Rgb;
 use crate::geometry::simd::{Floats, Vec3s, lanes};
 use crate::geometry::{Ray, SurfaceHit};
@@ -359,7 +361,7 @@ impl PathTracer {
                 for i in lanes(bounced) {
                     u.as_mut()[i] = samplers[i].next_1d();
                 }
-                let q = (beta.max_magnitude() * eta_scale).min(F::splat(0.95));
+                let q = (beta.max_magnitude() * eta_scale).min(F::splat(survival_cap(self.max_depth)));
                 let ended = F::mask_bits(F::gather(&u).ge(q)) & bounced;
                 live &= !ended;
                 beta = Vec3s::select(F::mask_from_bits(bounced & !ended), beta.over(q), beta);

@@ -26,7 +26,7 @@
 //! bounce (Mitsuba's `volpath` does the same): `max_depth` counts the
 //! segments between scattering events, as in [`super::path`].
 
-use super::{Integrator, RayStats, choose_light, light_choice_pmf, path_bsdf};
+use super::{Integrator, RayStats, choose_light, light_choice_pmf, path_bsdf, survival_cap};
 use crate::color::Rgb;
 use crate::geometry::interaction::SHADOW_EPSILON;
 use crate::geometry::{Ray, SurfaceHit};
@@ -777,15 +777,19 @@ impl VolPathTracer {
         }
     }
 
-    /// Russian roulette after `rr_depth` segments: whether the path goes on
-    /// (its throughput then divided by the survival probability).
+    /// Russian roulette after `rr_depth` segments, as the path tracer's
+    /// ([`survival_cap`]): whether the path goes on (its throughput then
+    /// divided by the survival probability).
     #[inline]
     fn roulette(&self, s: &mut PathState, eta_scale: f32, sampler: &mut Sampler) -> bool {
         let u = sampler.next_1d();
         if s.depth < self.rr_depth {
             return true;
         }
-        let q = (s.beta * eta_scale / mean(s.r_u)).abs().max_element().min(0.95);
+        let q = (s.beta * eta_scale / mean(s.r_u))
+            .abs()
+            .max_element()
+            .min(survival_cap(self.max_depth));
         if u >= q {
             return false;
         }

@@ -190,6 +190,49 @@ fn white_furnace_smooth_glass_renders_one() {
     assert_uniform(&f, 1.0, "smooth dielectric");
 }
 
+/// Where the depth bounds the paths, Russian roulette puts no path at risk
+/// whose weight (refraction's radiance scaling undone) is still one, as in
+/// pbrt-v4: in a white furnace every path through smooth glass then
+/// brings back exactly the furnace's radiance, so that every sample of
+/// every pixel is one, up to rounding. (Mitsuba's survival probability,
+/// capped at 0.95, ends some of those paths and weighs the others above
+/// one: a pixel of 64 samples that loses one is off by 1/64.)
+#[test]
+fn russian_roulette_spares_paths_of_weight_one_where_the_depth_is_bounded() {
+    let mut d = furnace(smooth_glass(), PathSampling::Mis);
+    d.settings.rr_depth = 1;
+    let f = render_film(&d);
+    for (i, p) in f.pixels.iter().enumerate() {
+        let v = p.value();
+        assert!((v - Rgb::ONE).abs().max_element() < 1e-5, "pixel {i} = {v}");
+    }
+}
+
+/// Where the depth is unbounded (Mitsuba's `max_depth` −1), nothing else
+/// ends a path that keeps its weight: Russian roulette's survival
+/// probability is then capped at Mitsuba's 0.95, so that paths in a closed
+/// room of albedo one (the camera inside the furnace's sphere, grown) end
+/// after about 1/0.05 = 20 segments past `rr_depth`, not at the bound of
+/// 1024 segments.
+#[test]
+fn russian_roulette_ends_paths_of_weight_one_where_the_depth_is_unbounded() {
+    let mut d = furnace(diffuse(1.0), PathSampling::Mis);
+    d.settings.max_depth = trazo::settings::MAX_DEPTH;
+    d.settings.spp = 16;
+    d.shapes[0].kind = ShapeKind::Sphere {
+        center: Vec3::ZERO,
+        radius: 10.0,
+    };
+    let scene = trazo::scene::build(&d).unwrap();
+    let out = render(&scene, &RenderOptions::default()).unwrap();
+    // No light gets in.
+    assert!(out.film.pixels.iter().all(|p| p.value() == Rgb::ZERO));
+    // A ray a segment for about rr_depth + 20 segments (a shadow ray
+    // only where the light's sample is not black); 1024 without the cap.
+    let rays_per_sample = out.stats.rays as f64 / out.stats.samples as f64;
+    assert!(rays_per_sample < 100.0, "{rays_per_sample} rays a sample");
+}
+
 #[test]
 fn white_furnace_rough_glass_and_mirror_conserve_energy() {
     // A perfect mirror reflects all light.
