@@ -224,8 +224,9 @@ struct RenderArgs {
     scene: SceneArgs,
 
     /// Output image; the format follows the extension: .png (8-bit sRGB,
-    /// tone-mapped), .exr, .hdr or .pfm (linear float). Default: the
-    /// scene's name with .png, in the current folder. With --shard, the
+    /// tone-mapped), .exr, .hdr or .pfm (linear float). Default: the file
+    /// a pbrt-v4 scene's Film names ("filename"), else the scene's name
+    /// with .png, in the current folder. With --shard, the
     /// part file (NAME.trazo-part; default: the scene's name with
     /// .shard-K-of-N.trazo-part).
     #[arg(short, long, value_name = "FILE")]
@@ -667,23 +668,11 @@ fn print_scene_stats(scene: &scene::Scene, load_seconds: f64) {
     eprintln!("load and build: {load_seconds:.3} s");
 }
 
-fn run_render(args: RenderArgs) -> Result<ExitCode> {
-    let started = Instant::now();
-    // Ctrl-C and SIGTERM set this flag (the render then stops after the
-    // work in flight); a second one ends the process at once.
-    let interrupt = job::install_interrupt_handler()?;
-    let (args, resume) = match &args.resume {
-        Some(path) => {
-            let (stored, checkpoint) = job::resume_args(path, &args)?;
-            (stored, Some((path.clone(), checkpoint)))
-        }
-        None => (args, None),
-    };
-    let output = match (&args.output, args.shard) {
-        (Some(o), _) => o.clone(),
-        (None, None) => default_output(args.scene.scene.as_deref()),
-        (None, Some(shard)) => farm::default_part(args.scene.scene.as_deref(), shard),
-    };
+/// The output `output` and its checkpoint file, checked before anything is
+/// written: the output can be written, and no unfinished render of it is
+/// there unless this render resumes or restarts it (`--restart` replaces
+/// it). Temporary files that an earlier render to them left are removed.
+fn prepare_output(args: &RenderArgs, output: PathBuf, resuming: bool) -> Result<(PathBuf, PathBuf)> {
     // A shard's part file is its checkpoint too: unfinished, it is resumed.
     let checkpoint_file = match args.shard {
         None => {
@@ -696,10 +685,10 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             output.clone()
         }
     };
-    if resume.is_none() && checkpoint_file.is_file() {
+    if !resuming && checkpoint_file.is_file() {
         if !args.restart {
-            // Refused before anything is loaded or written: the checkpoint
-            // may hold hours of work.
+            // Refused before anything is written: the checkpoint may hold
+            // hours of work.
             let what = match args.shard {
                 None => format!("an unfinished render of {}", output.display()),
                 Some(_) => "a shard's part of a render".to_string(),
@@ -720,6 +709,40 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     // Temporary files of an earlier render to this output killed outright.
     crate::film::io::remove_stale_temp_files(&output);
     crate::film::io::remove_stale_temp_files(&checkpoint_file);
+    Ok((output, checkpoint_file))
+}
+
+fn run_render(args: RenderArgs) -> Result<ExitCode> {
+    let started = Instant::now();
+    // Ctrl-C and SIGTERM set this flag (the render then stops after the
+    // work in flight); a second one ends the process at once.
+    let interrupt = job::install_interrupt_handler()?;
+    let (args, resume) = match &args.resume {
+        Some(path) => {
+            let (stored, checkpoint) = job::resume_args(path, &args)?;
+            (stored, Some((path.clone(), checkpoint)))
+        }
+        None => (args, None),
+    };
+    // A pbrt-v4 scene names its image (`Film` "filename"): without -o its
+    // output is known, and checked, once the scene is read.
+    let scene_names_output = args.output.is_none()
+        && args.shard.is_none()
+        && args.scene.scene.as_deref().is_some_and(scene::may_name_its_output);
+    let prepared = match (&args.output, args.shard) {
+        _ if scene_names_output => None,
+        (Some(o), _) => Some(prepare_output(&args, o.clone(), resume.is_some())?),
+        (None, None) => Some(prepare_output(
+            &args,
+            default_output(args.scene.scene.as_deref()),
+            resume.is_some(),
+        )?),
+        (None, Some(shard)) => Some(prepare_output(
+            &args,
+            farm::default_part(args.scene.scene.as_deref(), shard),
+            resume.is_some(),
+        )?),
+    };
     let aovs: Vec<Aov> = args
         .aov
         .iter()
@@ -731,6 +754,40 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     // resume notices an edited mesh or texture, not only the scene file.
     let (desc, mut files) = crate::files::record_file_reads(|| args.scene.load());
     let mut desc = desc?;
+    let (output, checkpoint_file) = match prepared {
+        Some(p) => p,
+        None => {
+            let output = match &desc.output {
+                Some(named) => {
+                    // A file the scene names that trazo cannot write is
+                    // the scene's error, at its parameter.
+                    check_output(named).map_err(|e| {
+                        let e = Error::scene(
+                            desc.settings_locs.key("output"),
+                            "filename",
+                            format!("{e} (the Film's file; name another with -o)"),
+                        );
+                        after_loading(e, &desc)
+                    })?;
+                    named.clone()
+                }
+                None => default_output(args.scene.scene.as_deref()),
+            };
+            prepare_output(&args, output, resume.is_some()).map_err(|e| after_loading(e, &desc))?
+        }
+    };
+    if let (Some(named), Some(o)) = (&desc.output, &args.output) {
+        // As pbrt-v4 warns when --outfile overrides the scene's.
+        let at = desc
+            .settings_locs
+            .key("output")
+            .map_or(String::new(), |l| format!("{l}: "));
+        desc.warnings.push(format!(
+            "{at}the Film's \"string filename\" \"{}\" is overridden by -o {}",
+            named.display(),
+            o.display()
+        ));
+    }
     match (args.spp, args.time_limit) {
         (Some(v), _) => desc.settings.spp = v,
         // A time limit alone: as many samples as the time allows, or as the

@@ -1191,6 +1191,11 @@ pub struct SceneDesc {
     /// Problems the reader found that did not stop it (unsupported or
     /// approximated elements), each naming its place in the file.
     pub warnings: Vec<String>,
+    /// The image file the scene names for its render (pbrt-v4's `Film`
+    /// `filename`), relative to the current folder as pbrt-v4 writes it;
+    /// where it was written is `settings_locs`' key "output". `None`: the
+    /// scene names none.
+    pub output: Option<std::path::PathBuf>,
 }
 
 impl Default for SceneDesc {
@@ -1212,6 +1217,7 @@ impl Default for SceneDesc {
             media: Vec::new(),
             camera_medium: None,
             warnings: Vec::new(),
+            output: None,
         }
     }
 }

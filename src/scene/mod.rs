@@ -344,6 +344,17 @@ impl Scene {
     }
 }
 
+/// Whether a scene file of this name may name its own output image: a
+/// pbrt-v4 scene does (`Film` "filename").
+pub fn may_name_its_output(path: &Path) -> bool {
+    let name = if crate::files::is_gzip_name(path) {
+        path.with_extension("")
+    } else {
+        path.to_path_buf()
+    };
+    name.extension().is_some_and(|e| e.eq_ignore_ascii_case("pbrt"))
+}
+
 /// Reads a scene file, choosing the reader by its extension. `defines`
 /// are `name=value` pairs from the command line (`-D`): Mitsuba's `$name`
 /// parameters; formats without parameters warn that they are unused.

@@ -147,6 +147,69 @@ fn default_output_name_follows_the_scene() {
     assert!(dir.path().join("ball.png").is_file());
 }
 
+/// A pbrt-v4 scene's Film names the image written without -o (in the
+/// current folder, as pbrt-v4 writes it); -o overrides it with a warning,
+/// as pbrt-v4's --outfile; a name of an unknown format is an error at the
+/// parameter.
+#[test]
+fn a_pbrt_film_filename_names_the_output() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("scenes")).unwrap();
+    let scene = |film: &str| {
+        format!(
+            "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\"\nSampler \"independent\" \"integer pixelsamples\" 1\n\
+             Film \"rgb\" \"integer xresolution\" 8 \"integer yresolution\" 6 {film}\n\
+             WorldBegin\nLightSource \"infinite\"\nShape \"sphere\"\n"
+        )
+    };
+    let named = write_scene(
+        &dir.path().join("scenes"),
+        "ball.pbrt",
+        &scene("\"string filename\" \"named.exr\""),
+    );
+    let o = trazo()
+        .current_dir(dir.path())
+        .arg("render")
+        .arg(&named)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.path().join("named.exr").is_file());
+    assert!(!dir.path().join("ball.png").exists());
+
+    let o = trazo()
+        .current_dir(dir.path())
+        .args(["render", "-o", "other.png"])
+        .arg(&named)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.path().join("other.png").is_file());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("ball.pbrt:4:") && err.contains("\"named.exr\" is overridden by -o other.png"),
+        "{err}"
+    );
+
+    let bad = write_scene(dir.path(), "bad.pbrt", &scene("\"string filename\" \"named.tga\""));
+    let line = fails(&["render", bad.to_str().unwrap()]);
+    assert!(
+        line.contains("bad.pbrt:4:") && line.contains("named.tga") && line.contains("-o"),
+        "{line}"
+    );
+
+    // Without a filename: the scene's name.
+    let plain = write_scene(dir.path(), "plain.pbrt", &scene(""));
+    let o = trazo()
+        .current_dir(dir.path())
+        .arg("render")
+        .arg(&plain)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.path().join("plain.png").is_file());
+}
+
 #[test]
 fn every_example_scene_renders() {
     let dir = tempfile::tempdir().unwrap();

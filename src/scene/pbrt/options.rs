@@ -37,13 +37,14 @@ impl Parser {
                 "rendered as an RGB film (auxiliary images come from `trazo render --aov`)",
             );
         }
+        // The image's file, which `trazo render` writes where no `-o` names
+        // another (pbrt-v4's `--outfile`); pbrt-v4's default, "pbrt.exr",
+        // is left to trazo's (the scene's name).
         if let Some((f, prm)) = p.string("filename")? {
-            let l = prm.loc.clone();
-            self.unsupported(
-                &l,
-                format!("\"string filename\" \"{f}\""),
-                "ignored; the output file is chosen with `-o`",
-            );
+            if !f.is_empty() {
+                self.desc.settings_locs.keys.push(("output".into(), prm.loc.clone()));
+                self.desc.output = Some(std::path::PathBuf::from(f));
+            }
         }
         if let Some((m, prm)) = p.float_opt("maxcomponentvalue")? {
             self.desc

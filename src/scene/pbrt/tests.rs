@@ -1726,7 +1726,6 @@ WorldEnd"#,
     .unwrap();
     let w = d.warnings.join("\n");
     for expected in [
-        "test.pbrt:1:12: \"string filename\" \"out.exr\" is unsupported",
         "test.pbrt:1:40: parameter \"bool savefp16\" of Film \"rgb\" is unsupported: ignored",
         "test.pbrt:2:1: Accelerator \"kdtree\" is unsupported",
         "test.pbrt:3:1: Option \"disablepixeljitter\" is unsupported",
@@ -1735,6 +1734,10 @@ WorldEnd"#,
     ] {
         assert!(w.contains(expected), "missing {expected:?} in\n{w}");
     }
+    // The Film's file is the render's output, where it was written.
+    assert_eq!(d.output.as_deref(), Some(std::path::Path::new("out.exr")));
+    assert_eq!(d.settings_locs.key("output").unwrap().to_string(), "test.pbrt:1:12");
+    assert!(!w.contains("out.exr"), "{w}");
 }
 
 #[test]
