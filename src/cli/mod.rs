@@ -729,19 +729,15 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     let scene_names_output = args.output.is_none()
         && args.shard.is_none()
         && args.scene.scene.as_deref().is_some_and(scene::may_name_its_output);
-    let prepared = match (&args.output, args.shard) {
-        _ if scene_names_output => None,
-        (Some(o), _) => Some(prepare_output(&args, o.clone(), resume.is_some())?),
-        (None, None) => Some(prepare_output(
-            &args,
-            default_output(args.scene.scene.as_deref()),
-            resume.is_some(),
-        )?),
-        (None, Some(shard)) => Some(prepare_output(
-            &args,
-            farm::default_part(args.scene.scene.as_deref(), shard),
-            resume.is_some(),
-        )?),
+    let prepared = if scene_names_output {
+        None
+    } else {
+        let output = match (&args.output, args.shard) {
+            (Some(o), _) => o.clone(),
+            (None, None) => default_output(args.scene.scene.as_deref()),
+            (None, Some(shard)) => farm::default_part(args.scene.scene.as_deref(), shard),
+        };
+        Some(prepare_output(&args, output, resume.is_some())?)
     };
     let aovs: Vec<Aov> = args
         .aov
