@@ -182,6 +182,69 @@ impl Default for RenderSettings {
     }
 }
 
+/// A sampler study instead of a render (pbrt-v4's `Integrator "function"`):
+/// each pixel estimates the integral over [0, 1]² of a test function whose
+/// integral is 1 from the positions in the pixel that the sampler gives its
+/// samples, and the mean over pixels of the squared error is written, one
+/// line per sample count (`integrator::function`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SamplerStudy {
+    /// The function integrated.
+    pub function: TestFunction,
+    /// Whether only the sample counts a sampler is designed for are
+    /// reported (pbrt-v4's `skipbad`): square counts for stratified
+    /// sampling, powers of two for Sobol points, 2ᵃ·3ᵃ for Halton points.
+    pub skip_bad: bool,
+    /// The text file of the errors (pbrt-v4's `filename`); `None`: `-o`, or
+    /// `<function>-mse.txt`.
+    pub output: Option<std::path::PathBuf>,
+    /// An image of the function to write too (pbrt-v4's `imagefilename`).
+    pub image: Option<std::path::PathBuf>,
+}
+
+/// The test functions of a [`SamplerStudy`], pbrt-v4's: each integrates to
+/// 1 over [0, 1]².
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TestFunction {
+    /// 2 where x < ½: an edge along a stratum boundary.
+    Step,
+    /// 2 below the diagonal x + y = 1: an edge across strata.
+    Diagonal,
+    /// 4/π inside the disk of radius ½ about the centre.
+    Disk,
+    /// A 10 × 10 checkerboard of 2 and 0.
+    Checkerboard,
+    /// The checkerboard turned by 45°.
+    RotatedCheckerboard,
+    /// A Gaussian of σ = ¼ about the centre, normalised over the square.
+    Gaussian,
+}
+
+impl TestFunction {
+    /// The names, as pbrt-v4 writes them.
+    pub const NAMES: [&'static str; 6] = [
+        "step",
+        "diagonal",
+        "disk",
+        "checkerboard",
+        "rotatedcheckerboard",
+        "gaussian",
+    ];
+
+    /// Parses one of [`TestFunction::NAMES`].
+    pub fn from_name(s: &str) -> Option<TestFunction> {
+        use TestFunction::*;
+        [Step, Diagonal, Disk, Checkerboard, RotatedCheckerboard, Gaussian]
+            .into_iter()
+            .find(|f| f.name() == s)
+    }
+
+    /// This function's name.
+    pub fn name(&self) -> &'static str {
+        Self::NAMES[*self as usize]
+    }
+}
+
 /// Largest accepted image side, in pixels.
 pub const MAX_IMAGE_SIDE: u32 = 65_536;
 /// Largest accepted image, in pixels (about 268 megapixels).

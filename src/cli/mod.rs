@@ -16,7 +16,7 @@ use crate::sampling::SamplerKind;
 use crate::scene::{self, SceneDesc, builtin};
 use crate::settings::{
     IntegratorKind, MAX_DEPTH, MAX_GATHER, MAX_IMAGE_SIDE, MAX_MLT_BOOTSTRAP, MAX_MLT_CHAINS, MAX_PHOTONS, MAX_SPP,
-    PathSampling, PhotonKernel, Tonemap,
+    PathSampling, PhotonKernel, SamplerStudy, Tonemap,
 };
 use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
@@ -712,6 +712,79 @@ fn prepare_output(args: &RenderArgs, output: PathBuf, resuming: bool) -> Result<
     Ok((output, checkpoint_file))
 }
 
+/// Runs the sampler study a scene asks for instead of a render (pbrt-v4's
+/// `Integrator "function"`) and writes its text file: the study's
+/// `filename`, else -o, else `<function>-mse.txt`, as pbrt-v4 names it.
+fn run_sampler_study(args: &RenderArgs, desc: SceneDesc, study: SamplerStudy, resuming: bool) -> Result<ExitCode> {
+    use std::io::Write;
+    let at = desc.settings_locs.key("integrator");
+    let refuse = |what: &str| {
+        let e = Error::scene(
+            at.clone(),
+            "Integrator \"function\"",
+            format!("is a sampler study: {what}"),
+        );
+        after_loading(e, &desc)
+    };
+    if resuming {
+        return Err(refuse("it writes no checkpoint to resume"));
+    }
+    if !args.aov.is_empty() || args.denoise.is_some() || args.bdpt_strategies {
+        return Err(refuse(
+            "it renders no image for auxiliary images or a denoiser (--integrator path renders the scene)",
+        ));
+    }
+    for w in &desc.warnings {
+        eprintln!("warning: {w}");
+    }
+    let output = match (&study.output, &args.output) {
+        (Some(named), Some(o)) => {
+            eprintln!(
+                "warning: {}the study's \"string filename\" \"{}\" is overridden by -o {}",
+                at.as_ref().map_or(String::new(), |l| format!("{l}: ")),
+                named.display(),
+                o.display()
+            );
+            o.clone()
+        }
+        (_, Some(o)) => o.clone(),
+        (Some(named), None) => named.clone(),
+        (None, None) => PathBuf::from(format!("{}-mse.txt", study.function.name())),
+    };
+    check_writable(&output)?;
+    if let Some(image) = &study.image {
+        check_output(image).map_err(|e| refuse(&format!("its \"imagefilename\": {e}")))?;
+    }
+    let mut settings = desc.settings.clone();
+    if let Some(v) = args.spp {
+        settings.spp = v;
+    }
+    let report = crate::integrator::function::run(&study, &settings);
+    let text = report.to_text();
+    write_atomic(&output, |f| f.write_all(text.as_bytes()).map_err(|e| e.to_string()))?;
+    if let Some(image) = &study.image {
+        let img =
+            crate::integrator::function::function_image(study.function, settings.width, settings.height, settings.seed);
+        write_image(image, &img, Tonemap::Clamp, 0.0)?;
+    }
+    if let Some(w) = report.bias_warning() {
+        eprintln!("warning: {w}");
+    }
+    if !args.scene.quiet {
+        eprintln!(
+            "sampler study of \"{}\" with the {} sampler, {}×{} pixels, up to {} spp: {} sample counts written to {}",
+            study.function.name(),
+            settings.sampler.name(),
+            settings.width,
+            settings.height,
+            settings.spp,
+            report.errors.len(),
+            output.display()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 fn run_render(args: RenderArgs) -> Result<ExitCode> {
     let started = Instant::now();
     // Ctrl-C and SIGTERM set this flag (the render then stops after the
@@ -724,11 +797,11 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         }
         None => (args, None),
     };
-    // A pbrt-v4 scene names its image (`Film` "filename"): without -o its
-    // output is known, and checked, once the scene is read.
-    let scene_names_output = args.output.is_none()
-        && args.shard.is_none()
-        && args.scene.scene.as_deref().is_some_and(scene::may_name_its_output);
+    // A pbrt-v4 scene names its image (`Film` "filename"), or asks for a
+    // sampler study that writes text instead: its output is known, and
+    // checked, once the scene is read.
+    let scene_names_output =
+        args.shard.is_none() && args.scene.scene.as_deref().is_some_and(scene::may_name_its_output);
     let prepared = if scene_names_output {
         None
     } else {
@@ -750,11 +823,18 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     // resume notices an edited mesh or texture, not only the scene file.
     let (desc, mut files) = crate::files::record_file_reads(|| args.scene.load());
     let mut desc = desc?;
+    if let Some(study) = desc.sampler_study.take() {
+        // The command line's integrator renders the scene instead.
+        if args.integrator.is_none() {
+            return run_sampler_study(&args, desc, study, resume.is_some());
+        }
+    }
     let (output, checkpoint_file) = match prepared {
         Some(p) => p,
         None => {
-            let output = match &desc.output {
-                Some(named) => {
+            let output = match (&args.output, &desc.output) {
+                (Some(o), _) => o.clone(),
+                (None, Some(named)) => {
                     // A file the scene names that trazo cannot write is
                     // the scene's error, at its parameter.
                     check_output(named).map_err(|e| {
@@ -767,7 +847,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
                     })?;
                     named.clone()
                 }
-                None => default_output(args.scene.scene.as_deref()),
+                (None, None) => default_output(args.scene.scene.as_deref()),
             };
             prepare_output(&args, output, resume.is_some()).map_err(|e| after_loading(e, &desc))?
         }

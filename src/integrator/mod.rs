@@ -15,6 +15,7 @@
 pub mod ao;
 pub mod aov;
 pub mod bdpt;
+pub mod function;
 pub mod light;
 pub mod mlt;
 pub mod path;

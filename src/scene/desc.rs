@@ -1196,6 +1196,10 @@ pub struct SceneDesc {
     /// where it was written is `settings_locs`' key "output". `None`: the
     /// scene names none.
     pub output: Option<std::path::PathBuf>,
+    /// A sampler study to run instead of rendering (pbrt-v4's `Integrator
+    /// "function"`); where it was written is `settings_locs`' key
+    /// "integrator".
+    pub sampler_study: Option<crate::settings::SamplerStudy>,
 }
 
 impl Default for SceneDesc {
@@ -1218,6 +1222,7 @@ impl Default for SceneDesc {
             camera_medium: None,
             warnings: Vec::new(),
             output: None,
+            sampler_study: None,
         }
     }
 }

@@ -400,6 +400,9 @@ struct Parser {
     /// `Integrator "mlt"`'s mutations per pixel, which stand for the
     /// sampler's samples per pixel wherever the sampler is declared.
     mlt_mutations: Option<u32>,
+    /// Whether the sampler is pbrt-v4's `sobol`, which its `function`
+    /// integrator refuses.
+    sobol_sampler: bool,
 }
 
 fn det3(m: &Mat4) -> f32 {
@@ -465,6 +468,7 @@ impl Parser {
             unsupported_media: HashSet::new(),
             volpath: true,
             mlt_mutations: None,
+            sobol_sampler: false,
         }
     }
 
@@ -1540,6 +1544,15 @@ impl Parser {
         }
         if let Some(m) = self.mlt_mutations {
             self.desc.settings.spp = m;
+        }
+        if self.desc.sampler_study.is_some() && self.sobol_sampler {
+            // As pbrt-v4: the global Sobol sequence spreads a pixel's
+            // samples over the image, which the study does not measure.
+            return Err(Error::scene(
+                self.desc.settings_locs.key("integrator"),
+                "Integrator \"function\"",
+                "the \"sobol\" sampler should be replaced with \"paddedsobol\" for the \"function\" integrator",
+            ));
         }
         self.summarise_repeats();
         self.desc.validate()

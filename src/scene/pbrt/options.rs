@@ -9,7 +9,10 @@ use crate::camera::SphericalMapping;
 use crate::error::{Error, Result, SourceLoc};
 use crate::sampling::SamplerKind;
 use crate::scene::desc::*;
-use crate::settings::{Crop, Filter, IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, PathSampling};
+use crate::settings::{
+    Crop, Filter, IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, PathSampling, SamplerStudy,
+    TestFunction,
+};
 
 impl Parser {
     pub(super) fn film(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {
@@ -162,6 +165,7 @@ impl Parser {
     }
 
     pub(super) fn sampler(&mut self, kind: &str, p: &ParamList, loc: &SourceLoc) -> Result<()> {
+        self.sobol_sampler = kind == "sobol";
         let s = &mut self.desc.settings;
         (s.strata, s.jitter) = (None, true);
         match kind {
@@ -382,6 +386,28 @@ impl Parser {
             // the first BSDF sample). trazo's volumetric path tracer
             // estimates the same image with next-event estimation: less
             // noise, and it renders scattering surfaces too.
+        } else if kind == "function" {
+            // pbrt-v4's FunctionIntegrator: a sampler study, not a render.
+            let function = match p.string("function")? {
+                Some((name, prm)) => TestFunction::from_name(&name).ok_or_else(|| {
+                    prm.err(format!(
+                        "unknown function \"{name}\": expected one of {}",
+                        TestFunction::NAMES.map(|n| format!("\"{n}\"")).join(", ")
+                    ))
+                })?,
+                None => TestFunction::Step,
+            };
+            let path = |v: Option<(String, _)>| v.map(|(f, _)| std::path::PathBuf::from(f));
+            let output = path(p.string("filename")?);
+            let image = path(p.string("imagefilename")?);
+            let skip_bad = p.bool("skipbad", true)?;
+            self.desc.settings_locs.keys.push(("integrator".into(), loc.clone()));
+            self.desc.sampler_study = Some(SamplerStudy {
+                function,
+                skip_bad,
+                output,
+                image,
+            });
         } else if !matches!(kind, "path" | "volpath" | "bdpt" | "mlt") {
             self.approximated(
                 loc,
