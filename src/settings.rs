@@ -87,6 +87,10 @@ pub struct RenderSettings {
     pub bdpt_strategies: bool,
     /// Metropolis light transport's parameters.
     pub mlt: MltSettings,
+    /// Whether the film also records a G-buffer of what the camera sees
+    /// first (pbrt-v4's `Film "gbuffer"`), in these coordinates: written as
+    /// pbrt-v4's channels of one OpenEXR file.
+    pub gbuffer: Option<GBufferSpace>,
 }
 
 /// Metropolis light transport's parameters (`--integrator mlt` and
@@ -178,8 +182,19 @@ impl Default for RenderSettings {
             crop: None,
             bdpt_strategies: false,
             mlt: MltSettings::default(),
+            gbuffer: None,
         }
     }
+}
+
+/// The coordinates of a G-buffer's positions, normals and depth slopes
+/// (pbrt-v4's `GBufferFilm` `coordinatesystem`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GBufferSpace {
+    /// The camera's: x to the image's right, y up, z along the view.
+    Camera,
+    /// The scene's world space.
+    World,
 }
 
 /// A sampler study instead of a render (pbrt-v4's `Integrator "function"`):

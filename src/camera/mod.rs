@@ -538,6 +538,12 @@ impl Camera {
         1.0
     }
 
+    /// Camera space (x to the image's right, y up, z along the view, as
+    /// pbrt-v4's) to world space, at time 0.
+    pub fn camera_to_world(&self) -> &Transform {
+        &self.camera_to_world
+    }
+
     /// The ray through raster position `film` (pixels, continuous), using
     /// `lens` ∈ [0,1)² to pick a point on the lens. Directions are unit
     /// length. A realistic camera gives the ray through the centre of its

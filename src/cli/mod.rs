@@ -847,8 +847,22 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
                     })?;
                     named.clone()
                 }
+                // A G-buffer is written to OpenEXR (pbrt-v4's default name
+                // is "pbrt.exr").
+                (None, None) if desc.settings.gbuffer.is_some() => {
+                    default_output(args.scene.scene.as_deref()).with_extension("exr")
+                }
                 (None, None) => default_output(args.scene.scene.as_deref()),
             };
+            if desc.settings.gbuffer.is_some() && ImageFormat::from_path(&output).ok() != Some(ImageFormat::Exr) {
+                // As pbrt-v4 refuses it.
+                let e = Error::scene(
+                    desc.settings_locs.key("gbuffer"),
+                    "Film \"gbuffer\"",
+                    format!("writes OpenEXR files only, not {}: name an .exr file", output.display()),
+                );
+                return Err(after_loading(e, &desc));
+            }
             prepare_output(&args, output, resume.is_some()).map_err(|e| after_loading(e, &desc))?
         }
     };
@@ -893,6 +907,19 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     // per-pixel statistics, the splat sums, MLT's chains), but each of
     // their iterations renders the whole image: none is sharded.
     let progressive = desc.settings.integrator == IntegratorKind::Sppm || desc.settings.integrator.splats_light_paths();
+    if progressive && desc.settings.gbuffer.is_some() {
+        // pbrt-v4's integrators of this kind give its G-buffer no surfaces
+        // either, and it writes those channels as zeros.
+        let at = desc
+            .settings_locs
+            .key("gbuffer")
+            .map_or(String::new(), |l| format!("{l}: "));
+        desc.warnings.push(format!(
+            "{at}Film \"gbuffer\" is unsupported with the {} integrator, which records no G-buffer: the image alone is written",
+            desc.settings.integrator.name()
+        ));
+        desc.settings.gbuffer = None;
+    }
     if progressive && args.shard.is_some() {
         return Err(after_loading(
             Error::Invalid(crate::integrator::NOT_SHARDABLE.into()),
@@ -1191,14 +1218,19 @@ impl ImageOutputs<'_> {
         let mut note = None;
         let mut image = film.to_image();
         let space = self.color_space;
+        // A G-buffer film writes its channels beside the image's.
+        let write_main = |path: &Path, image: &crate::film::Image| match film.gbuffer {
+            Some(_) => crate::film::io::write_gbuffer_exr(path, image, film, exposure, space),
+            None => write_image_in(path, image, tonemap, exposure, space),
+        };
         match self.denoiser {
-            None => write_image_in(output, &image, tonemap, exposure, space)?,
+            None => write_main(output, &image)?,
             Some(kind) => {
                 let noisy = sibling_path(output, "noisy");
-                write_image_in(&noisy, &film.to_image(), tonemap, exposure, space)?;
+                write_main(&noisy, &film.to_image())?;
                 let start = Instant::now();
                 let d = denoise_film(film, kind)?;
-                write_image_in(output, &d.image, tonemap, exposure, space)?;
+                write_main(output, &d.image)?;
                 image = d.image;
                 note = Some(format!(
                     "denoised with {} in {:.2} s (the noisy image: {})",

@@ -150,6 +150,66 @@ pub fn write_image_in(path: &Path, image: &Image, tonemap: Tonemap, exposure: f3
     }
 }
 
+/// Writes a G-buffer film as pbrt-v4's `GBufferFilm` does: one OpenEXR
+/// file of 32-bit float channels named as pbrt-v4 names them
+/// ([`super::GBUFFER_CHANNELS`]), R, G, B from `image` (the film's image, in
+/// `space`) times the exposure, the albedo converted to `space` (its XYZ
+/// kept, as pbrt-v4 converts it), and the film's other G-buffer channels as
+/// they are.
+pub fn write_gbuffer_exr(
+    path: &Path,
+    image: &Image,
+    film: &super::Film,
+    exposure: f32,
+    space: ColorSpace,
+) -> Result<()> {
+    let Some(mut channels) = film.gbuffer_channels() else {
+        return Err(Error::file(path, "the film recorded no G-buffer"));
+    };
+    if ImageFormat::from_path(path)? != ImageFormat::Exr {
+        return Err(Error::file(path, "a G-buffer is written to OpenEXR files only (.exr)"));
+    }
+    let scale = exposure_scale(exposure);
+    let rgb = |c: usize| image.pixels.iter().map(|p| p[c] * scale).collect::<Vec<f32>>();
+    let mut all = vec![rgb(0), rgb(1), rgb(2)];
+    if let Some(m) = space.from_srgb()
+        && let [r, g, b, ..] = &mut channels[..]
+    {
+        for ((r, g), b) in r.iter_mut().zip(g.iter_mut()).zip(b.iter_mut()) {
+            let a = m * Rgb::new(*r, *g, *b);
+            (*r, *g, *b) = (a.x, a.y, a.z);
+        }
+    }
+    all.append(&mut channels);
+    let (w, h) = (image.width as usize, image.height as usize);
+    write_atomic_path(path, |tmp| {
+        use exr::prelude::{
+            AnyChannel, AnyChannels, Encoding, FlatSamples, Image as ExrImage, LineOrder, WritableImage,
+        };
+        let list = super::GBUFFER_CHANNELS
+            .iter()
+            .zip(all)
+            .map(|(name, values)| AnyChannel::new(*name, FlatSamples::F32(values)))
+            .collect();
+        let encoding = Encoding {
+            line_order: LineOrder::Increasing,
+            ..Encoding::FAST_LOSSLESS
+        };
+        let mut exr = ExrImage::from_encoded_channels((w, h), encoding, AnyChannels::sort(list));
+        if space != ColorSpace::Srgb {
+            let v = |(x, y): (f32, f32)| exr::math::Vec2(x, y);
+            let [red, green, blue, white] = space.primaries_and_white().map(v);
+            exr.attributes.chromaticities = Some(exr::meta::attribute::Chromaticities {
+                red,
+                green,
+                blue,
+                white,
+            });
+        }
+        exr.write().to_file(tmp).map_err(|e| e.to_string())
+    })
+}
+
 /// PNG bytes of the tone-mapped image.
 pub fn encode_png(image: &Image, tonemap: Tonemap, scale: f32) -> Result<Vec<u8>> {
     let mut rgb8 = Vec::with_capacity(image.pixels.len() * 3);

@@ -265,6 +265,175 @@ impl FilmAov {
     }
 }
 
+/// What pbrt-v4's `GBufferFilm` records of one camera sample: the first
+/// surface with a BSDF that the camera ray meets, its positions and
+/// normals already in the G-buffer's coordinates.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GBufferSample {
+    /// The point.
+    pub p: Vec3,
+    /// The geometric normal, facing the ray's origin.
+    pub n: Vec3,
+    /// The shading normal, facing the ray's origin.
+    pub ns: Vec3,
+    /// The surface's (u, v).
+    pub uv: glam::Vec2,
+    /// How far the point moves along z for a step of one pixel along x,
+    /// and along y, scaled as pbrt-v4 scales its ray differentials.
+    pub dzdx: f32,
+    /// See `dzdx`.
+    pub dzdy: f32,
+    /// The BSDF's directional albedo toward the camera.
+    pub albedo: Rgb,
+}
+
+/// A pixel's G-buffer sums in fixed point, pbrt-v4's `GBufferFilm::Pixel`:
+/// Σw over the samples that saw a surface; Σw·p, Σw·n, Σw·ns, Σw·uv,
+/// Σw·dz/dx, Σw·dz/dy, Σw·albedo over them; for the variance of the
+/// radiance, their count, Σ L and Σ L² per channel (unweighted, as pbrt-v4
+/// estimates it, and of the values its default sensor records, CIE XYZ);
+/// and Σw over all the pixel's samples.
+pub type FilmGBuffer = ExactSums<GBUFFER_SUMS>;
+
+/// The number of sums of a [`FilmGBuffer`].
+pub const GBUFFER_SUMS: usize = 25;
+
+/// The channels of a G-buffer image, in pbrt-v4's order.
+pub const GBUFFER_CHANNELS: [&str; 25] = [
+    "R",
+    "G",
+    "B",
+    "Albedo.R",
+    "Albedo.G",
+    "Albedo.B",
+    "P.X",
+    "P.Y",
+    "P.Z",
+    "dzdx",
+    "dzdy",
+    "N.X",
+    "N.Y",
+    "N.Z",
+    "Ns.X",
+    "Ns.Y",
+    "Ns.Z",
+    "u",
+    "v",
+    "Variance.R",
+    "Variance.G",
+    "Variance.B",
+    "RelativeVariance.R",
+    "RelativeVariance.G",
+    "RelativeVariance.B",
+];
+
+impl FilmGBuffer {
+    /// Adds a camera sample of filter weight `w` and sensor value `l` (the
+    /// radiance's CIE XYZ, as pbrt-v4's default `cie1931` sensor records
+    /// it) that saw the surface `s`, or none.
+    #[inline]
+    pub fn add_sample(&mut self, s: Option<&GBufferSample>, w: f32, l: Rgb) {
+        let w = w as f64;
+        let Some(s) = s else {
+            self.0[24] = self.0[24].saturating_add(to_fixed(w));
+            return;
+        };
+        let wv = |v: f32| w * v as f64;
+        let l = l.as_dvec3();
+        self.add([
+            w,
+            wv(s.p.x),
+            wv(s.p.y),
+            wv(s.p.z),
+            wv(s.n.x),
+            wv(s.n.y),
+            wv(s.n.z),
+            wv(s.ns.x),
+            wv(s.ns.y),
+            wv(s.ns.z),
+            wv(s.uv.x),
+            wv(s.uv.y),
+            wv(s.dzdx),
+            wv(s.dzdy),
+            wv(s.albedo.x),
+            wv(s.albedo.y),
+            wv(s.albedo.z),
+            1.0,
+            l.x,
+            l.y,
+            l.z,
+            l.x * l.x,
+            l.y * l.y,
+            l.z * l.z,
+            w,
+        ]);
+    }
+
+    /// This pixel's G-buffer channels after R, G, B (pbrt-v4's
+    /// `GBufferFilm::GetImage`): albedo over the pixel's whole filter
+    /// weight, positions, uv and depth slopes (as magnitudes) over the
+    /// weight of the samples that saw a surface, normals normalised, and
+    /// the radiance's variance per channel with its relative variance
+    /// (over the mean, 0 where the mean is).
+    pub fn channels(&self) -> [f32; 22] {
+        let v = self.to_f64();
+        let (w, pixel_weight) = (v[0], v[24]);
+        let over = |x: f64, by: f64| if by != 0.0 { x / by } else { x };
+        let unit = |x: f64, y: f64, z: f64| {
+            let len = (x * x + y * y + z * z).sqrt();
+            if len > 0.0 {
+                [x / len, y / len, z / len]
+            } else {
+                [0.0; 3]
+            }
+        };
+        let n = unit(v[4], v[5], v[6]);
+        let ns = unit(v[7], v[8], v[9]);
+        let count = v[17];
+        let mut variance = [0.0; 3];
+        let mut relative = [0.0; 3];
+        for c in 0..3 {
+            let (sum, sum_sq) = (v[18 + c], v[21 + c]);
+            let mean = if count > 0.0 { sum / count } else { 0.0 };
+            variance[c] = if count > 1.0 {
+                ((sum_sq - sum * mean) / (count - 1.0)).max(0.0)
+            } else {
+                0.0
+            };
+            relative[c] = if count >= 1.0 && mean != 0.0 {
+                variance[c] / mean
+            } else {
+                0.0
+            };
+        }
+        [
+            over(v[14], pixel_weight),
+            over(v[15], pixel_weight),
+            over(v[16], pixel_weight),
+            over(v[1], w),
+            over(v[2], w),
+            over(v[3], w),
+            over(v[12], w).abs(),
+            over(v[13], w).abs(),
+            n[0],
+            n[1],
+            n[2],
+            ns[0],
+            ns[1],
+            ns[2],
+            over(v[10], w),
+            over(v[11], w),
+            variance[0],
+            variance[1],
+            variance[2],
+            relative[0],
+            relative[1],
+            relative[2],
+        ]
+        .map(|x| x as f32)
+    }
+}
+
 /// The auxiliary channels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Aov {
@@ -358,6 +527,8 @@ pub struct Film {
     pub pixels: Vec<FilmPixel>,
     /// Auxiliary sums, when requested.
     pub aovs: Option<Vec<FilmAov>>,
+    /// G-buffer sums, when the scene asks for a G-buffer film.
+    pub gbuffer: Option<Vec<FilmGBuffer>>,
     /// The colour matrix applied to the pixels' estimates when they are
     /// read ([`Film::to_image`]), after all sums (white balance); the sums
     /// themselves, which checkpoints and shards hold and merge, stay as
@@ -373,8 +544,22 @@ impl Film {
             height,
             pixels: vec![FilmPixel::default(); width as usize * height as usize],
             aovs: None,
+            gbuffer: None,
             output_transform: None,
         }
+    }
+
+    /// The G-buffer's channels after R, G, B, channel by channel, each
+    /// row by row from the top, if it was recorded.
+    pub fn gbuffer_channels(&self) -> Option<Vec<Vec<f32>>> {
+        let sums = self.gbuffer.as_ref()?;
+        let mut out = vec![Vec::with_capacity(sums.len()); GBUFFER_CHANNELS.len() - 3];
+        for g in sums {
+            for (channel, v) in out.iter_mut().zip(g.channels()) {
+                channel.push(v);
+            }
+        }
+        Some(out)
     }
 
     /// The image of one auxiliary channel, if they were recorded. Normals
@@ -428,6 +613,11 @@ impl Film {
             (None, None) => {}
             _ => return Err("one film has auxiliary images and the other not".into()),
         }
+        match (&mut self.gbuffer, &other.gbuffer) {
+            (Some(a), Some(b)) => a.iter_mut().zip(b).for_each(|(a, b)| a.merge(b)),
+            (None, None) => {}
+            _ => return Err("one film has a G-buffer and the other not".into()),
+        }
         for (a, b) in self.pixels.iter_mut().zip(&other.pixels) {
             a.merge(b);
         }
@@ -444,6 +634,49 @@ impl Film {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// pbrt-v4's G-buffer pixel: geometry over the weight of the samples
+    /// that saw a surface, albedo over every sample's, normals normalised,
+    /// depth slopes as magnitudes, the radiance's sample variance per
+    /// channel and its ratio to the mean.
+    #[test]
+    fn gbuffer_channels_are_pbrt_v4s() {
+        let surface = |p: Vec3, l| {
+            let s = GBufferSample {
+                p,
+                n: Vec3::new(0.0, 0.0, -2.0),
+                ns: Vec3::new(0.0, 1.0, -1.0),
+                uv: glam::Vec2::new(0.5, 0.25),
+                dzdx: -0.25,
+                dzdy: 0.5,
+                albedo: Rgb::splat(0.8),
+            };
+            (s, l)
+        };
+        let mut g = FilmGBuffer::default();
+        let (a, la) = surface(Vec3::new(1.0, 0.0, 4.0), Rgb::new(1.0, 2.0, 0.0));
+        let (b, lb) = surface(Vec3::new(3.0, 0.0, 6.0), Rgb::new(3.0, 2.0, 0.0));
+        g.add_sample(Some(&a), 1.0, la);
+        g.add_sample(Some(&b), 1.0, lb);
+        g.add_sample(None, 2.0, Rgb::splat(100.0));
+        let c = g.channels();
+        let close = |x: f32, y: f32| (x - y).abs() < 1e-6;
+        // Albedo: Σw·albedo / Σw over all four weights.
+        assert!(c[..3].iter().all(|&v| close(v, 0.4)), "{c:?}");
+        assert!(close(c[3], 2.0) && close(c[4], 0.0) && close(c[5], 5.0), "{c:?}");
+        assert!(close(c[6], 0.25) && close(c[7], 0.5), "{c:?}");
+        assert_eq!(c[8..11], [0.0, 0.0, -1.0]);
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        assert!(close(c[11], 0.0) && close(c[12], h) && close(c[13], -h), "{c:?}");
+        assert!(close(c[14], 0.5) && close(c[15], 0.25), "{c:?}");
+        // Radiance 1 and 3 in red: mean 2, sample variance 2; green is
+        // constant; blue's mean is 0, so its relative variance is 0.
+        assert_eq!(c[16..22], [2.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
+        // A pixel no sample saw a surface in: zeros.
+        let mut empty = FilmGBuffer::default();
+        empty.add_sample(None, 1.0, Rgb::ONE);
+        assert_eq!(empty.channels(), [0.0; 22]);
+    }
 
     #[test]
     fn pixel_mean_and_variance() {

@@ -35,7 +35,7 @@
 
 use super::RenderStats;
 use crate::error::{Error, Result};
-use crate::film::{AovSum, ExactSums, Film, FilmAov, FilmPixel, PixelSum};
+use crate::film::{AovSum, ExactSums, Film, FilmAov, FilmGBuffer, FilmPixel, GBUFFER_SUMS, PixelSum};
 use crate::settings::{MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_SPP};
 use glam::DVec3;
 use std::io::Write;
@@ -51,6 +51,8 @@ const MAX_JOB_BYTES: usize = 32 << 20;
 /// Bytes per pixel record and per AOV record.
 const PIXEL_BYTES: usize = 5 * 16;
 const AOV_BYTES: usize = 9 * 16;
+/// Bytes of a pixel's G-buffer sums.
+const GBUFFER_BYTES: usize = GBUFFER_SUMS * 16;
 
 /// The state of a render between two passes.
 #[derive(Clone, Debug, PartialEq)]
@@ -93,7 +95,12 @@ impl Checkpoint {
     pub fn to_bytes(&self) -> Vec<u8> {
         let f = &self.film;
         let n = f.pixels.len();
-        let mut b = Vec::with_capacity(64 + n * (PIXEL_BYTES + if f.aovs.is_some() { AOV_BYTES } else { 0 }));
+        let mut b = Vec::with_capacity(
+            64 + n
+                * (PIXEL_BYTES
+                    + if f.aovs.is_some() { AOV_BYTES } else { 0 }
+                    + if f.gbuffer.is_some() { GBUFFER_BYTES } else { 0 }),
+        );
         b.extend_from_slice(MAGIC);
         put_u32(&mut b, VERSION);
         put_u32(&mut b, self.job.len() as u32);
@@ -108,7 +115,7 @@ impl Checkpoint {
             f.height,
             self.target_spp,
             self.stats.spp,
-            u32::from(f.aovs.is_some()),
+            u32::from(f.aovs.is_some()) | u32::from(f.gbuffer.is_some()) << 1,
         ] {
             put_u32(&mut b, v);
         }
@@ -124,6 +131,13 @@ impl Checkpoint {
         if let Some(aovs) = &f.aovs {
             for a in aovs {
                 for v in a.0 {
+                    b.extend_from_slice(&v.to_le_bytes());
+                }
+            }
+        }
+        if let Some(gbuffer) = &f.gbuffer {
+            for g in gbuffer {
+                for v in g.0 {
                     b.extend_from_slice(&v.to_le_bytes());
                 }
             }
@@ -189,10 +203,11 @@ impl Checkpoint {
         if target_spp == 0 || target_spp > MAX_SPP || spp > target_spp {
             return Err(format!("bad sample counts: {spp} of {target_spp} samples per pixel"));
         }
-        if flags > 1 {
+        // The G-buffer (flag 2) came with version 4's state.
+        if flags > 3 || (flags & 2 != 0 && version < 4) {
             return Err(format!("unknown flags {flags:#x}"));
         }
-        let aovs = flags & 1 == 1;
+        let (aovs, gbuffer) = (flags & 1 == 1, flags & 2 == 2);
         let mut stats = RenderStats {
             samples: r.u64()?,
             rays: r.u64()?,
@@ -209,7 +224,9 @@ impl Checkpoint {
         let word = if version == 1 { 8 } else { 16 };
         // Before version 3 the auxiliary sums had no steps.
         let (pixel_bytes, aov_bytes) = (5 * word, if version < 3 { 8 } else { 9 } * word);
-        let need = n as u128 * (pixel_bytes + if aovs { aov_bytes } else { 0 }) as u128;
+        let gbuffer_bytes = GBUFFER_SUMS * word;
+        let need = n as u128
+            * (pixel_bytes + if aovs { aov_bytes } else { 0 } + if gbuffer { gbuffer_bytes } else { 0 }) as u128;
         let has_state = version >= 4;
         let sums_fit = if has_state {
             need + 8 <= r.remaining() as u128
@@ -275,6 +292,16 @@ impl Checkpoint {
         } else {
             None
         };
+        let gbuffer = if gbuffer {
+            let mut v = Vec::with_capacity(n);
+            for _ in 0..n {
+                let g: FilmGBuffer = r.exact()?;
+                v.push(g);
+            }
+            Some(v)
+        } else {
+            None
+        };
         let state = if has_state {
             let len = r.u64()?;
             if len != r.remaining() as u64 {
@@ -296,6 +323,7 @@ impl Checkpoint {
                 height,
                 pixels,
                 aovs,
+                gbuffer,
                 // The sums as rendered: the colour matrix is the scene's.
                 output_transform: None,
             },
@@ -442,6 +470,28 @@ mod tests {
         plain.film.aovs = None;
         plain.state.clear();
         assert_eq!(Checkpoint::from_bytes(&plain.to_bytes()).unwrap(), plain);
+        // A G-buffer film's sums, with and without auxiliary images.
+        let surface = crate::film::GBufferSample {
+            p: glam::Vec3::new(1.0, -2.0, 5.0),
+            n: -glam::Vec3::Z,
+            ns: -glam::Vec3::Z,
+            uv: glam::Vec2::new(0.25, 0.75),
+            dzdx: 0.125,
+            dzdy: -0.5,
+            albedo: crate::Rgb::splat(0.5),
+        };
+        let mut sums = FilmGBuffer::default();
+        sums.add_sample(Some(&surface), 1.0, crate::Rgb::new(0.5, 2.0, 0.0));
+        sums.add_sample(None, 0.5, crate::Rgb::ZERO);
+        for aovs in [true, false] {
+            let mut g = sample();
+            g.film.gbuffer = Some(vec![sums; 6]);
+            if !aovs {
+                g.film.aovs = None;
+            }
+            let back = Checkpoint::from_bytes(&g.to_bytes()).unwrap();
+            assert_eq!(back, g);
+        }
     }
 
     /// The state's length must match what the file holds.

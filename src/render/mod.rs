@@ -29,9 +29,9 @@ pub mod compare;
 use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::film::splat::{MAX_TAPS, Splat, SplatSum};
-use crate::film::{AovSum, Film, FilmAov, FilmPixel, Image, PixelSum};
+use crate::film::{AovSum, Film, FilmAov, FilmGBuffer, FilmPixel, Image, PixelSum};
 use crate::geometry::Ray;
-use crate::integrator::aov::camera_aov;
+use crate::integrator::aov::{camera_aov, camera_gbuffer};
 use crate::integrator::{Integrator, LANES, Progressive, RayStats, Work};
 use crate::sampling::Sampler;
 use crate::scene::Scene;
@@ -274,6 +274,11 @@ fn check_resume(scene: &Scene, options: &RenderOptions, control: &Control) -> Re
         if film.aovs.is_some() != options.aovs {
             return Err(Error::Invalid(
                 "cannot resume: the saved film and the render disagree on auxiliary images".into(),
+            ));
+        }
+        if film.gbuffer.is_some() != s.gbuffer.is_some() {
+            return Err(Error::Invalid(
+                "cannot resume: the saved film and the render disagree on a G-buffer".into(),
             ));
         }
         if options.time_limit.is_some() || !done_passes(&render_schedule(s.spp, options)?, stats.spp).0 {
@@ -570,6 +575,7 @@ struct TileResult {
     splats: Vec<SplatSum>,
     splat_rect: Tile,
     aovs: Vec<FilmAov>,
+    gbuffer: Vec<FilmGBuffer>,
     rays: RayStats,
     invalid: u64,
     invalid_examples: Vec<InvalidSample>,
@@ -593,6 +599,9 @@ fn render_passes<I: Integrator>(
             if options.aovs {
                 film.aovs = Some(vec![FilmAov::default(); (w * h) as usize]);
             }
+            if s.gbuffer.is_some() {
+                film.gbuffer = Some(vec![FilmGBuffer::default(); (w * h) as usize]);
+            }
             (film, RenderStats::default())
         }
     };
@@ -600,6 +609,11 @@ fn render_passes<I: Integrator>(
     let earlier_seconds = stats.seconds;
     let tiles = tiles(w, h, options.tile_size);
     let pixel_filter = s.pixel_filter();
+    // pbrt-v4 scales camera ray differentials by this before a G-buffer
+    // records the surfaces' depth slopes.
+    let differential_scale = (1.0 / (s.spp as f32).sqrt()).max(0.125);
+    // A G-buffer's variances are of what pbrt-v4's default sensor records.
+    let xyz_from_srgb = crate::color::space::ColorSpace::Srgb.xyz_from_rgb().as_mat3();
     let splat = Splat::new(&pixel_filter);
     let time_budget = options
         .time_limit
@@ -672,6 +686,8 @@ fn render_passes<I: Integrator>(
                     weights_y: [0.0; MAX_TAPS],
                 };
                 let mut aovs = Vec::with_capacity(if options.aovs { n } else { 0 });
+                let mut gbuffer = Vec::with_capacity(if s.gbuffer.is_some() { n } else { 0 });
+                let mut gbuffer_sum = FilmGBuffer::default();
                 // The tile's samples in order, pixel by pixel (a pixel's
                 // samples in order), LANES at a time, so that the
                 // integrator's lanes stay full when a pass has fewer
@@ -734,6 +750,13 @@ fn render_passes<I: Integrator>(
                         } else {
                             Rgb::ZERO
                         };
+                        if let Some(space) = s.gbuffer
+                            && l.is_finite()
+                        {
+                            let surface = camera_gbuffer(scene, &ray, position, lenses[k], space, differential_scale);
+                            let l = limit_component(l, max_component);
+                            gbuffer_sum.add_sample(surface.as_ref(), filter_weights[k], xyz_from_srgb * l);
+                        }
                         if l.is_finite() {
                             let l = limit_component(l, max_component);
                             match &splat {
@@ -764,6 +787,11 @@ fn render_passes<I: Integrator>(
                             if let Some(a) = &film_ref.aovs {
                                 aovs.push(a[i].plus(&std::mem::take(&mut aov)));
                             }
+                            if let Some(g) = &film_ref.gbuffer {
+                                let mut sums = g[i];
+                                sums.merge(&std::mem::take(&mut gbuffer_sum));
+                                gbuffer.push(sums);
+                            }
                         }
                     }
                 }
@@ -774,6 +802,7 @@ fn render_passes<I: Integrator>(
                     splats: splat_buffer.sums,
                     splat_rect,
                     aovs,
+                    gbuffer,
                     rays,
                     invalid: invalid.count,
                     invalid_examples: invalid.examples,
@@ -795,6 +824,9 @@ fn render_passes<I: Integrator>(
                     }
                     if let Some(a) = film.aovs.as_mut() {
                         a[i] = r.aovs[k];
+                    }
+                    if let Some(g) = film.gbuffer.as_mut() {
+                        g[i] = r.gbuffer[k];
                     }
                     k += 1;
                 }

@@ -56,6 +56,10 @@ pub fn build_limited(desc: &SceneDesc, limits: &BuildLimits) -> Result<Scene> {
     desc.validate()?;
     let margin = desc.settings.pixel_filter().splat_margin().unwrap_or(0);
     let mut memory = MemoryEstimate::for_filtered_film(desc.settings.width, desc.settings.height, limits.aovs, margin);
+    if desc.settings.gbuffer.is_some() {
+        let pixels = desc.settings.width as u64 * desc.settings.height as u64;
+        memory.aovs += pixels * crate::scene::memory::GBUFFER_BYTES_PER_PIXEL;
+    }
     memory.geometry = described_mesh_bytes(desc);
     let (st, ph) = (&desc.settings, &desc.settings.photon);
     memory.photons = match st.integrator {

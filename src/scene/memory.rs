@@ -18,6 +18,11 @@ pub const FILM_BYTES_PER_PIXEL: u64 = 264;
 /// Bytes per pixel of the auxiliary images: the exact sums (128), a pass's
 /// copy (128), the checkpoint buffer (128) and three output images (36).
 pub const AOV_BYTES_PER_PIXEL: u64 = 420;
+/// Bytes per pixel of a G-buffer film's own sums (pbrt-v4's `Film
+/// "gbuffer"`): the exact sums (400), a pass's copy (400), the checkpoint
+/// buffer (400) and its 22 output channels (88), counted with the auxiliary
+/// images.
+pub const GBUFFER_BYTES_PER_PIXEL: u64 = 1288;
 /// Meshes with at least this many triangles get their own tree over blocks
 /// of four triangles; smaller ones are single triangles in the top-level
 /// tree (see [`crate::accel::BLOCK_TREE_MIN_TRIANGLES`]), and cost more per

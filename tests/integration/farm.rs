@@ -36,6 +36,9 @@ fn check_shards_merge_exactly(desc: &trazo::scene::SceneDesc, count: u32, aovs: 
     if aovs {
         merged.aovs = Some(vec![Default::default(); whole.pixels.len()]);
     }
+    if desc.settings.gbuffer.is_some() {
+        merged.gbuffer = Some(vec![Default::default(); whole.pixels.len()]);
+    }
     for (film, _) in &parts {
         // A shard alone is a whole image: every pixel has samples.
         assert!(film.pixels.iter().all(|p| p.weight() > 0.0));
@@ -57,6 +60,28 @@ fn shards_of_a_path_traced_render_merge_into_it() {
     desc.settings.height = 20;
     desc.settings.spp = 40;
     check_shards_merge_exactly(&desc, 4, true);
+}
+
+/// A G-buffer film's sums merge as exactly as the pixels'.
+#[test]
+fn shards_of_a_gbuffer_film_merge_into_it() {
+    let mut desc = cornell_box();
+    desc.settings.width = 20;
+    desc.settings.height = 16;
+    desc.settings.spp = 12;
+    desc.settings.gbuffer = Some(trazo::settings::GBufferSpace::Camera);
+    check_shards_merge_exactly(&desc, 3, false);
+    let (film, _) = film_of(&desc, 2, None, false);
+    let channels = film.gbuffer_channels().expect("a G-buffer");
+    // The box lies ahead of the camera (the columns beside its walls see
+    // nothing: 0).
+    let z = &channels[5];
+    let seen = z.iter().filter(|&&z| z > 0.0).count();
+    assert!(
+        z.iter().all(|&z| z >= 0.0) && seen > z.len() / 2,
+        "P.Z {seen} of {}: {z:?}",
+        z.len()
+    );
 }
 
 #[test]

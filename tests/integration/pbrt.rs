@@ -1469,3 +1469,129 @@ fn pixel_filters_have_a_radius_per_axis() {
     let blurred = columns_between(3.0, 0.5);
     assert!((4..=6).contains(&blurred), "{blurred} columns between");
 }
+
+/// The channels of an OpenEXR file by name, each row by row from the top.
+fn exr_channels(path: &Path) -> std::collections::HashMap<String, Vec<f32>> {
+    let image = exr::prelude::read_all_flat_layers_from_file(path).unwrap_or_else(|e| panic!("{e}"));
+    let layer = &image.layer_data[0];
+    layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .collect()
+}
+
+/// pbrt-v4's `Film "gbuffer"`: one OpenEXR file with its 25 channels. A
+/// square lying in the plane z = x, seen from z = −5 along +z: in camera
+/// coordinates the depth is 5 + x, the normals face the camera along
+/// (1, 0, −1)/√2, the depth changes by as much as x does along a row
+/// (dz/dx is |dp/dx|'s x for a step of one pixel scaled by pbrt-v4's
+/// differential scale 1/√spp) and not at all along a column; in world
+/// coordinates the depth is x itself. The albedo of a Lambertian surface is
+/// its reflectance; the variance channels are the radiance's per sample
+/// (in CIE XYZ, as pbrt-v4's default sensor records it).
+#[test]
+fn a_gbuffer_film_writes_pbrt_v4s_channels() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |space: &str, name: &str| {
+        format!(
+            "LookAt 0 0 -5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 30\n\
+             Sampler \"stratified\" \"integer xsamples\" 8 \"integer ysamples\" 8\nPixelFilter \"box\"\n\
+             Film \"gbuffer\" \"integer xresolution\" 12 \"integer yresolution\" 10 \"string filename\" \"{name}\" {space}\n\
+             WorldBegin\nLightSource \"point\" \"point3 from\" [0 3 -4] \"rgb I\" [20 20 20]\n\
+             Material \"diffuse\" \"rgb reflectance\" [0.5 0.25 0.125]\n\
+             Shape \"trianglemesh\" \"point3 P\" [-4 -4 -4  4 -4 4  4 4 4  -4 4 -4] \"integer indices\" [0 1 2 0 2 3]\n\
+             \"point2 uv\" [0 0 1 0 1 1 0 1]\n"
+        )
+    };
+    let run = |space: &str, name: &str| {
+        let path = dir.path().join(format!("{name}.pbrt"));
+        fs::write(&path, scene(space, name)).unwrap();
+        let o = trazo()
+            .current_dir(dir.path())
+            .args(["render", "-q"])
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        exr_channels(&dir.path().join(name))
+    };
+    let c = run("", "camera.exr");
+    let mut names: Vec<&str> = c.keys().map(String::as_str).collect();
+    names.sort();
+    let mut expected = trazo::film::GBUFFER_CHANNELS.to_vec();
+    expected.sort();
+    assert_eq!(names, expected);
+    let (w, h) = (12usize, 10usize);
+    let at = |name: &str, x: usize, y: usize| c[name][y * w + x];
+    let close = |a: f32, b: f32, tol: f32| (a - b).abs() <= tol;
+    let h2 = std::f32::consts::FRAC_1_SQRT_2;
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let (px, pz) = (at("P.X", x, y), at("P.Z", x, y));
+            assert!(close(pz, 5.0 + px, 1e-4), "({x}, {y}): P {px} {pz}");
+            for n in ["N", "Ns"] {
+                let v = [
+                    at(&format!("{n}.X"), x, y),
+                    at(&format!("{n}.Y"), x, y),
+                    at(&format!("{n}.Z"), x, y),
+                ];
+                assert!(
+                    close(v[0], h2, 1e-4) && close(v[1], 0.0, 1e-4) && close(v[2], -h2, 1e-4),
+                    "{n}: {v:?}"
+                );
+            }
+            // The slope at the pixel's centre: the ray one pixel over,
+            // its direction's step scaled by 1/√64 as pbrt-v4 scales it, met
+            // on the plane (x = 5·dx/(dz − dx) along direction d). The
+            // stratified samples' mean slope is within 0.2 % of it.
+            let step = 2.0 * 15f32.to_radians().tan() / 10.0;
+            let (a, b) = ((x as f32 - 5.5) * step, (4.5 - y as f32) * step);
+            let d = Vec3::new(a, b, 1.0).normalize();
+            let over = d + (Vec3::new(a + step, b, 1.0).normalize() - d) / 8.0;
+            let plane_x = |d: Vec3| 5.0 * d.x / (d.z - d.x);
+            let expected = (plane_x(over) - plane_x(d)).abs();
+            let dzdx = at("dzdx", x, y);
+            assert!(
+                close(dzdx, expected, 0.01 * expected),
+                "({x}, {y}): dzdx {dzdx}, expected {expected}"
+            );
+            assert!(at("dzdy", x, y).abs() < 1e-4 * dzdx, "dzdy {}", at("dzdy", x, y));
+            for (channel, value) in [("Albedo.R", 0.5), ("Albedo.G", 0.25), ("Albedo.B", 0.125)] {
+                assert!(
+                    close(at(channel, x, y), value, 1e-5),
+                    "{channel}: {}",
+                    at(channel, x, y)
+                );
+            }
+            let (u, v) = (at("u", x, y), at("v", x, y));
+            assert!((0.0..=1.0).contains(&u) && (0.0..=1.0).contains(&v), "uv {u} {v}");
+            // The radiance varies with the sample's place in the pixel
+            // and the Lambertian bounce's direction: its variance is
+            // positive. The variances are of what pbrt-v4's default sensor
+            // records, CIE XYZ, and the relative variance is over the mean,
+            // which the box filter makes the pixel's X.
+            let (var, rel) = (at("Variance.R", x, y), at("RelativeVariance.R", x, y));
+            let mean_x = 0.412_456 * at("R", x, y) + 0.357_576 * at("G", x, y) + 0.180_438 * at("B", x, y);
+            assert!(
+                var > 0.0 && close(rel * mean_x, var, 1e-3 * var),
+                "variance {var}, relative {rel}, X {mean_x}"
+            );
+        }
+    }
+    let world = run("\"string coordinatesystem\" \"world\"", "world.exr");
+    for (pz, px) in world["P.Z"].iter().zip(&world["P.X"]) {
+        assert!(close(*pz, *px, 1e-4), "world P {px} {pz}");
+    }
+    assert!(close(world["N.X"][w * 5 + 6], h2, 1e-4), "{}", world["N.X"][w * 5 + 6]);
+
+    // Only OpenEXR, as pbrt-v4; an unknown coordinate system is an error.
+    let path = dir.path().join("png.pbrt");
+    fs::write(&path, scene("", "g.png")).unwrap();
+    let line = render_fails(&path, &dir.path().join("o.png"));
+    assert!(line.contains("png.pbrt:5:") && line.contains("OpenEXR"), "{line}");
+    fs::write(&path, scene("\"string coordinatesystem\" \"screen\"", "g.exr")).unwrap();
+    let line = render_fails(&path, &dir.path().join("o.exr"));
+    assert!(line.contains("png.pbrt:5:") && line.contains("\"screen\""), "{line}");
+}

@@ -10,8 +10,8 @@ use crate::error::{Error, Result, SourceLoc};
 use crate::sampling::SamplerKind;
 use crate::scene::desc::*;
 use crate::settings::{
-    Crop, Filter, IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, PathSampling, SamplerStudy,
-    TestFunction,
+    Crop, Filter, GBufferSpace, IntegratorKind, MAX_DEPTH, MAX_IMAGE_SIDE, MAX_PHOTONS, MAX_SPP, PathSampling,
+    SamplerStudy, TestFunction,
 };
 
 impl Parser {
@@ -33,12 +33,32 @@ impl Parser {
                 self.desc.settings.height = v;
             }
         }
-        if kind != "rgb" {
+        if kind == "spectral" {
             self.approximated(
                 loc,
                 format!("Film \"{kind}\""),
-                "rendered as an RGB film (auxiliary images come from `trazo render --aov`)",
+                "rendered as an RGB film, without its spectral channels",
             );
+        }
+        if kind == "gbuffer" {
+            // pbrt-v4's GBufferFilm: the image with what the camera sees
+            // first, in camera coordinates unless asked otherwise.
+            let space = match p.string("coordinatesystem")? {
+                None => GBufferSpace::Camera,
+                Some((name, prm)) => match name.as_str() {
+                    "camera" => GBufferSpace::Camera,
+                    "world" => GBufferSpace::World,
+                    _ => {
+                        return Err(prm.err(format!(
+                            "unknown coordinate system \"{name}\" for a G-buffer: expected \"camera\" or \"world\""
+                        )));
+                    }
+                },
+            };
+            self.desc.settings.gbuffer = Some(space);
+            self.desc.settings_locs.keys.push(("gbuffer".into(), loc.clone()));
+        } else {
+            self.desc.settings.gbuffer = None;
         }
         // The image's file, which `trazo render` writes where no `-o` names
         // another (pbrt-v4's `--outfile`); pbrt-v4's default, "pbrt.exr",
