@@ -712,6 +712,12 @@ fn prepare_output(args: &RenderArgs, output: PathBuf, resuming: bool) -> Result<
     Ok((output, checkpoint_file))
 }
 
+/// "file:line:col: " where the scene set the setting `key`, or nothing: the
+/// start of a warning about it.
+fn place_of(desc: &SceneDesc, key: &str) -> String {
+    desc.settings_locs.key(key).map_or(String::new(), |l| format!("{l}: "))
+}
+
 /// Runs the sampler study a scene asks for instead of a render (pbrt-v4's
 /// `Integrator "function"`) and writes its text file: the study's
 /// `filename`, else -o, else `<function>-mse.txt`, as pbrt-v4 names it.
@@ -729,6 +735,11 @@ fn run_sampler_study(args: &RenderArgs, desc: SceneDesc, study: SamplerStudy, re
     if resuming {
         return Err(refuse("it writes no checkpoint to resume"));
     }
+    if args.shard.is_some() {
+        return Err(refuse(
+            "it is one quick computation, not split among machines (leave out --shard)",
+        ));
+    }
     if !args.aov.is_empty() || args.denoise.is_some() || args.bdpt_strategies {
         return Err(refuse(
             "it renders no image for auxiliary images or a denoiser (--integrator path renders the scene)",
@@ -741,7 +752,7 @@ fn run_sampler_study(args: &RenderArgs, desc: SceneDesc, study: SamplerStudy, re
         (Some(named), Some(o)) => {
             eprintln!(
                 "warning: {}the study's \"string filename\" \"{}\" is overridden by -o {}",
-                at.as_ref().map_or(String::new(), |l| format!("{l}: ")),
+                place_of(&desc, "integrator"),
                 named.display(),
                 o.display()
             );
@@ -868,10 +879,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     };
     if let (Some(named), Some(o)) = (&desc.output, &args.output) {
         // As pbrt-v4 warns when --outfile overrides the scene's.
-        let at = desc
-            .settings_locs
-            .key("output")
-            .map_or(String::new(), |l| format!("{l}: "));
+        let at = place_of(&desc, "output");
         desc.warnings.push(format!(
             "{at}the Film's \"string filename\" \"{}\" is overridden by -o {}",
             named.display(),
@@ -910,10 +918,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
     if progressive && desc.settings.gbuffer.is_some() {
         // pbrt-v4's integrators of this kind give its G-buffer no surfaces
         // either, and it writes those channels as zeros.
-        let at = desc
-            .settings_locs
-            .key("gbuffer")
-            .map_or(String::new(), |l| format!("{l}: "));
+        let at = place_of(&desc, "gbuffer");
         desc.warnings.push(format!(
             "{at}Film \"gbuffer\" is unsupported with the {} integrator, which records no G-buffer: the image alone is written",
             desc.settings.integrator.name()

@@ -122,31 +122,41 @@ pub fn write_image_in(path: &Path, image: &Image, tonemap: Tonemap, exposure: f3
             })
         }
         ImageFormat::Exr => write_atomic_path(path, |tmp| {
-            use exr::prelude::{Encoding, Image as ExrImage, LineOrder, SpecificChannels, WritableImage};
+            use exr::prelude::{Image as ExrImage, SpecificChannels, WritableImage};
             let w = image.width as usize;
             let channels = SpecificChannels::rgb(|exr::math::Vec2(x, y): exr::math::Vec2<usize>| {
                 let c = image.pixels[y * w + x] * scale;
                 (c.x, c.y, c.z)
             });
-            // Blocks in increasing order, not in the order the threads that
-            // compress them finish: the same image gives the same file.
-            let encoding = Encoding {
-                line_order: LineOrder::Increasing,
-                ..Encoding::FAST_LOSSLESS
-            };
-            let mut exr = ExrImage::from_encoded_channels((w, image.height as usize), encoding, channels);
-            if space != ColorSpace::Srgb {
-                let v = |(x, y): (f32, f32)| exr::math::Vec2(x, y);
-                let [red, green, blue, white] = space.primaries_and_white().map(v);
-                exr.attributes.chromaticities = Some(exr::meta::attribute::Chromaticities {
-                    red,
-                    green,
-                    blue,
-                    white,
-                });
-            }
+            let mut exr = ExrImage::from_encoded_channels((w, image.height as usize), exr_encoding(), channels);
+            record_space(&mut exr, space);
             exr.write().to_file(tmp).map_err(|e| e.to_string())
         }),
+    }
+}
+
+/// The encoding trazo writes OpenEXR files with: blocks in increasing
+/// order, not in the order the threads that compress them finish, so that
+/// the same image gives the same file.
+fn exr_encoding() -> exr::prelude::Encoding {
+    exr::prelude::Encoding {
+        line_order: exr::prelude::LineOrder::Increasing,
+        ..exr::prelude::Encoding::FAST_LOSSLESS
+    }
+}
+
+/// Records `space`, where it is not sRGB, in an OpenEXR image's
+/// `chromaticities`.
+fn record_space<L>(exr: &mut exr::prelude::Image<L>, space: ColorSpace) {
+    if space != ColorSpace::Srgb {
+        let v = |(x, y): (f32, f32)| exr::math::Vec2(x, y);
+        let [red, green, blue, white] = space.primaries_and_white().map(v);
+        exr.attributes.chromaticities = Some(exr::meta::attribute::Chromaticities {
+            red,
+            green,
+            blue,
+            white,
+        });
     }
 }
 
@@ -183,29 +193,14 @@ pub fn write_gbuffer_exr(
     all.append(&mut channels);
     let (w, h) = (image.width as usize, image.height as usize);
     write_atomic_path(path, |tmp| {
-        use exr::prelude::{
-            AnyChannel, AnyChannels, Encoding, FlatSamples, Image as ExrImage, LineOrder, WritableImage,
-        };
+        use exr::prelude::{AnyChannel, AnyChannels, FlatSamples, Image as ExrImage, WritableImage};
         let list = super::GBUFFER_CHANNELS
             .iter()
             .zip(all)
             .map(|(name, values)| AnyChannel::new(*name, FlatSamples::F32(values)))
             .collect();
-        let encoding = Encoding {
-            line_order: LineOrder::Increasing,
-            ..Encoding::FAST_LOSSLESS
-        };
-        let mut exr = ExrImage::from_encoded_channels((w, h), encoding, AnyChannels::sort(list));
-        if space != ColorSpace::Srgb {
-            let v = |(x, y): (f32, f32)| exr::math::Vec2(x, y);
-            let [red, green, blue, white] = space.primaries_and_white().map(v);
-            exr.attributes.chromaticities = Some(exr::meta::attribute::Chromaticities {
-                red,
-                green,
-                blue,
-                white,
-            });
-        }
+        let mut exr = ExrImage::from_encoded_channels((w, h), exr_encoding(), AnyChannels::sort(list));
+        record_space(&mut exr, space);
         exr.write().to_file(tmp).map_err(|e| e.to_string())
     })
 }

@@ -80,6 +80,7 @@ pub fn camera_gbuffer(
     use glam::{Vec2, Vec3};
     let mut ray = *camera_ray;
     let mut first = None;
+    // At most as many boundaries passed as specular bounces followed above.
     for _ in 0..=MAX_SPECULAR_CHAIN {
         let hit = scene.intersect(&ray)?;
         let wo_world = -ray.dir.normalize();

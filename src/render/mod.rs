@@ -753,7 +753,11 @@ fn render_passes<I: Integrator>(
                         if let Some(space) = s.gbuffer
                             && l.is_finite()
                         {
-                            let surface = camera_gbuffer(scene, &ray, position, lenses[k], space, differential_scale);
+                            // A ray the lens blocks sees nothing (pbrt-v4
+                            // adds its weight alone).
+                            let surface = (live & (1 << k) != 0)
+                                .then(|| camera_gbuffer(scene, &ray, position, lenses[k], space, differential_scale))
+                                .flatten();
                             let l = limit_component(l, max_component);
                             gbuffer_sum.add_sample(surface.as_ref(), filter_weights[k], xyz_from_srgb * l);
                         }
