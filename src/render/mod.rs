@@ -750,19 +750,18 @@ fn render_passes<I: Integrator>(
                         } else {
                             Rgb::ZERO
                         };
-                        if let Some(space) = s.gbuffer
-                            && l.is_finite()
-                        {
-                            // A ray the lens blocks sees nothing (pbrt-v4
-                            // adds its weight alone).
-                            let surface = (live & (1 << k) != 0)
-                                .then(|| camera_gbuffer(scene, &ray, position, lenses[k], space, differential_scale))
-                                .flatten();
-                            let l = limit_component(l, max_component);
-                            gbuffer_sum.add_sample(surface.as_ref(), filter_weights[k], xyz_from_srgb * l);
-                        }
                         if l.is_finite() {
                             let l = limit_component(l, max_component);
+                            if let Some(space) = s.gbuffer {
+                                // A ray the lens blocks sees nothing (pbrt-v4
+                                // adds its weight alone).
+                                let surface = (live & (1 << k) != 0)
+                                    .then(|| {
+                                        camera_gbuffer(scene, &ray, position, lenses[k], space, differential_scale)
+                                    })
+                                    .flatten();
+                                gbuffer_sum.add_sample(surface.as_ref(), filter_weights[k], xyz_from_srgb * l);
+                            }
                             match &splat {
                                 // Weighted as pbrt-v4's film weighs
                                 // samples: Σ w·L / Σ w.
